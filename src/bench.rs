@@ -1,0 +1,120 @@
+//! `graybox bench …`: the figures the issues ask for, printed as JSON lines on stdout.
+
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use clap::{Args, Subcommand};
+use serde_json::json;
+
+use crate::backend::{self, Backend, Precision};
+use crate::error::Result;
+use crate::model::spec::ModelSpec;
+use crate::model::templates::Template;
+use crate::sim::{SimConfig, simulate};
+use crate::train::{TrainConfig, Trainer};
+
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Training throughput (samples/s) for MVF and naive at batch 256 and 4096, and the wall
+    /// time for MVF to reach the paper's validation loss, on the paper's double pendulum.
+    Train(BenchTrainArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchTrainArgs {
+    #[arg(long, default_value_t = 4096)]
+    pub train: usize,
+    #[arg(long, default_value_t = 1024)]
+    pub val: usize,
+    /// Timed epochs per throughput figure (after one warm-up epoch).
+    #[arg(long, default_value_t = 3)]
+    pub epochs: usize,
+    /// Models to measure, comma-separated.
+    #[arg(long, default_value = "MVF,naive")]
+    pub models: String,
+    #[arg(long, default_value = "256,4096")]
+    pub batch_sizes: String,
+    /// log10 of the validation loss MVF must reach.
+    #[arg(long, default_value_t = -2.5)]
+    pub target_log10: f64,
+    /// Give up on the time-to-target run after this many seconds (0 skips it).
+    #[arg(long, default_value_t = 300.0)]
+    pub time_limit: f64,
+    /// Training settings of the time-to-target run.
+    #[arg(long, default_value_t = 256)]
+    pub target_batch_size: usize,
+    #[arg(long, default_value_t = 1e-3)]
+    pub target_lr: f64,
+    #[arg(long, value_enum, default_value_t = Backend::Flex)]
+    pub backend: Backend,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+pub fn run(cmd: BenchCommand) -> Result<()> {
+    match cmd {
+        BenchCommand::Train(a) => bench_train(a),
+    }
+}
+
+fn bench_train(a: BenchTrainArgs) -> Result<()> {
+    let t = Template::DoublePendulum;
+    let cfg = |count, seed| SimConfig { count, seed, ..SimConfig::default() };
+    let train = simulate(t, t.defaults(), &cfg(a.train, a.seed))?;
+    let val = simulate(t, t.defaults(), &cfg(a.val, a.seed + 1))?;
+    let device = backend::device(a.backend, Precision::F32)?.autodiff();
+    let never = AtomicBool::new(false);
+    for model in a.models.split(',').map(str::trim) {
+        for bs in a.batch_sizes.split(',').filter_map(|s| s.trim().parse::<usize>().ok()) {
+            let spec = ModelSpec::named(model, Some(t))?;
+            let tc = TrainConfig { epochs: a.epochs + 1, batch_size: bs, seed: a.seed, ..TrainConfig::default() };
+            let mut trainer = Trainer::new(model, spec, &[], &train, Some(&val), tc, &device)?;
+            trainer.run_epoch(&never)?; // warm-up: allocations, first-touch
+            let start = Instant::now();
+            for _ in 0..a.epochs {
+                trainer.run_epoch(&never)?;
+            }
+            let secs = start.elapsed().as_secs_f64();
+            let sps = (a.epochs * a.train) as f64 / secs;
+            println!(
+                "{}",
+                json!({"bench": "train_throughput", "model": model, "batch_size": bs, "backend": a.backend,
+                       "samples_per_second": sps, "epoch_seconds": secs / a.epochs as f64,
+                       "note": "epoch time includes validation on the held-out set"})
+            );
+        }
+    }
+    if a.time_limit > 0.0 {
+        let spec = ModelSpec::named("MVF", Some(t))?;
+        let tc = TrainConfig {
+            epochs: 1_000_000,
+            batch_size: a.target_batch_size,
+            lr: a.target_lr,
+            seed: a.seed,
+            ..TrainConfig::default()
+        };
+        let target = 10f64.powf(a.target_log10);
+        let mut trainer = Trainer::new("MVF", spec, &[], &train, Some(&val), tc, &device)?;
+        let start = Instant::now();
+        let mut reached = None;
+        let mut best = f64::INFINITY;
+        while start.elapsed().as_secs_f64() < a.time_limit {
+            let m = trainer.run_epoch(&never)?;
+            let v = m.val_loss.unwrap_or(f64::INFINITY);
+            best = best.min(v);
+            if v <= target {
+                reached = Some((m.epoch, start.elapsed().as_secs_f64()));
+                break;
+            }
+        }
+        println!(
+            "{}",
+            json!({"bench": "time_to_target", "model": "MVF", "target_val_loss": target,
+                   "batch_size": a.target_batch_size, "lr": a.target_lr,
+                   "reached": reached.is_some(), "seconds": reached.map(|r| r.1),
+                   "epochs": reached.map_or(trainer.epoch(), |r| r.0), "best_val_loss": best,
+                   "time_limit": a.time_limit})
+        );
+    }
+    Ok(())
+}

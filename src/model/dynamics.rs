@@ -1,0 +1,217 @@
+//! The manipulator equation, generic over the scalar type (design.md §2):
+//!
+//!     M(q) q̈ = F(q, q̇, u) − c(q, q̇) − ∂V/∂q,   M = L Lᵀ
+//!
+//! Everything here takes the Cholesky factor L with its q-derivatives (as dual numbers), so a
+//! learned L, a constant L and the factor of an analytic M all share one Coriolis term and one
+//! solve. Nothing forms M⁻¹.
+
+use super::dual::Dual;
+use super::scalar::Scalar;
+use super::templates::Template;
+
+/// A lower-triangular n×n matrix stored row by row: (0,0), (1,0), (1,1), (2,0), …
+/// This is also the order of a mass network's off-diagonal outputs (see `mass_matrix`).
+#[derive(Debug, Clone)]
+pub struct Tri<T> {
+    pub n: usize,
+    pub entries: Vec<T>,
+}
+
+impl<T> Tri<T> {
+    pub fn index(i: usize, j: usize) -> usize {
+        debug_assert!(j <= i);
+        i * (i + 1) / 2 + j
+    }
+
+    pub fn len(n: usize) -> usize {
+        n * (n + 1) / 2
+    }
+
+    pub fn get(&self, i: usize, j: usize) -> &T {
+        &self.entries[Self::index(i, j)]
+    }
+
+    pub fn map<U>(&self, f: impl Fn(&T) -> U) -> Tri<U> {
+        Tri {
+            n: self.n,
+            entries: self.entries.iter().map(f).collect(),
+        }
+    }
+}
+
+fn sum<S: Scalar>(terms: impl IntoIterator<Item = S>) -> Option<S> {
+    terms.into_iter().reduce(|a, b| a + b)
+}
+
+/// Cholesky factor of a symmetric positive-definite matrix (only the lower triangle of `m` is
+/// read). With dual entries this also differentiates the factorization.
+pub fn cholesky<S: Scalar>(m: &[Vec<S>]) -> Tri<S> {
+    let n = m.len();
+    let mut l: Vec<Option<S>> = vec![None; Tri::<S>::len(n)];
+    let at = |l: &Vec<Option<S>>, i: usize, j: usize| -> S {
+        l[Tri::<S>::index(i, j)].clone().expect("computed earlier")
+    };
+    for j in 0..n {
+        let mut d = m[j][j].clone();
+        if let Some(s) = sum((0..j).map(|k| at(&l, j, k).square())) {
+            d = d - s;
+        }
+        let ljj = d.sqrt();
+        l[Tri::<S>::index(j, j)] = Some(ljj.clone());
+        for i in j + 1..n {
+            let mut v = m[i][j].clone();
+            if let Some(s) = sum((0..j).map(|k| at(&l, i, k) * at(&l, j, k))) {
+                v = v - s;
+            }
+            l[Tri::<S>::index(i, j)] = Some(v / ljj.clone());
+        }
+    }
+    Tri {
+        n,
+        entries: l.into_iter().map(|e| e.expect("filled")).collect(),
+    }
+}
+
+/// Solves L Lᵀ x = r by forward then back substitution.
+pub fn solve_llt<S: Scalar>(l: &Tri<S>, r: Vec<S>) -> Vec<S> {
+    let n = l.n;
+    let mut y: Vec<S> = Vec::with_capacity(n);
+    for (i, ri) in r.into_iter().enumerate() {
+        let mut v = ri;
+        if let Some(s) = sum((0..i).map(|j| l.get(i, j).clone() * y[j].clone())) {
+            v = v - s;
+        }
+        y.push(v / l.get(i, i).clone());
+    }
+    let mut x: Vec<Option<S>> = vec![None; n];
+    for i in (0..n).rev() {
+        let mut v = y[i].clone();
+        let back = (i + 1..n).map(|j| l.get(j, i).clone() * x[j].clone().expect("solved"));
+        if let Some(s) = sum(back) {
+            v = v - s;
+        }
+        x[i] = Some(v / l.get(i, i).clone());
+    }
+    x.into_iter().map(|e| e.expect("solved")).collect()
+}
+
+/// (Lᵀ v)_a = Σ_{b ≥ a} L_ba v_b.
+fn tri_t_mul<S: Scalar>(l: &Tri<S>, v: &[S]) -> Vec<S> {
+    (0..l.n)
+        .map(|a| sum((a..l.n).map(|b| l.get(b, a).clone() * v[b].clone())).expect("n ≥ 1"))
+        .collect()
+}
+
+/// The Coriolis/centrifugal term c(q, q̇) = Ṁ q̇ − ∂/∂q (½ q̇ᵀ M q̇) (paper appendix A) from L and
+/// ∂L/∂q_k. With w = Lᵀq̇ and L̇ = Σ_k ∂_kL q̇_k:
+///   Ṁ q̇ = L̇ w + L (L̇ᵀ q̇),   ∂_i (½ q̇ᵀMq̇) = w · (∂_iL)ᵀ q̇.
+pub fn coriolis<S: Scalar>(l: &Tri<Dual<S>>, qd: &[S]) -> Vec<S> {
+    let n = l.n;
+    let values = l.map(|e| e.v.clone());
+    let w = tri_t_mul(&values, qd);
+    // ∂_k L as a Tri per direction k (None where that entry has no k-tangent).
+    let dl = |k: usize| -> Tri<Option<S>> { l.map(|e| e.tangent(k).cloned()) };
+    let dls: Vec<Tri<Option<S>>> = (0..n).map(dl).collect();
+    // L̇ = Σ_k ∂_kL q̇_k, entry-wise; an entry with no tangent at all is zero.
+    let ldot: Tri<Option<S>> = Tri {
+        n,
+        entries: (0..Tri::<S>::len(n))
+            .map(|e| sum((0..n).filter_map(|k| dls[k].entries[e].clone().map(|t| t * qd[k].clone()))))
+            .collect(),
+    };
+    let opt_tri_mul = |m: &Tri<Option<S>>, v: &[S], transpose: bool| -> Vec<Option<S>> {
+        (0..n)
+            .map(|i| {
+                sum((0..n).filter_map(|j| {
+                    let (r, c) = if transpose { (j, i) } else { (i, j) };
+                    if c > r {
+                        return None;
+                    }
+                    m.get(r, c).clone().map(|x| x * v[j].clone())
+                }))
+            })
+            .collect()
+    };
+    let ldot_w = opt_tri_mul(&ldot, &w, false);
+    let ldot_t_qd: Vec<Option<S>> = opt_tri_mul(&ldot, qd, true);
+    // L (L̇ᵀ q̇): treat missing entries of L̇ᵀq̇ as zero.
+    let l_ldot_t_qd: Vec<Option<S>> = (0..n)
+        .map(|i| sum((0..=i).filter_map(|j| ldot_t_qd[j].clone().map(|x| values.get(i, j).clone() * x))))
+        .collect();
+    (0..n)
+        .map(|i| {
+            let mdot_qd = [ldot_w[i].clone(), l_ldot_t_qd[i].clone()];
+            let dli_t_qd = opt_tri_mul(&dls[i], qd, true);
+            let grad_ke = sum((0..n).filter_map(|a| dli_t_qd[a].clone().map(|x| w[a].clone() * x)));
+            let plus = sum(mdot_qd.into_iter().flatten());
+            match (plus, grad_ke) {
+                (Some(p), Some(g)) => p - g,
+                (Some(p), None) => p,
+                (None, Some(g)) => -g,
+                // M constant in q: no Coriolis forces; 0 built from q̇ to stay in S.
+                (None, None) => qd[i].clone() - qd[i].clone(),
+            }
+        })
+        .collect()
+}
+
+/// q̈ from the manipulator equation given L(q) with q-tangents, ∂V/∂q and F.
+/// `grad_v` is `None` for a zero potential.
+pub fn acceleration<S: Scalar>(l: &Tri<Dual<S>>, grad_v: Option<Vec<S>>, forces: Vec<S>, qd: &[S]) -> Vec<S> {
+    let c = coriolis(l, qd);
+    let mut rhs: Vec<S> = forces.into_iter().zip(c).map(|(f, c)| f - c).collect();
+    if let Some(g) = grad_v {
+        rhs = rhs.into_iter().zip(g).map(|(r, g)| r - g).collect();
+    }
+    solve_llt(&l.map(|e| e.v.clone()), rhs)
+}
+
+/// q as dual variables: q_k carries tangent `one` in direction k.
+pub fn dual_vars<S: Scalar>(q: &[S], one: &S) -> Vec<Dual<S>> {
+    let n = q.len();
+    q.iter()
+        .enumerate()
+        .map(|(k, qk)| Dual::variable(qk.clone(), k, n, one.clone()))
+        .collect()
+}
+
+/// The analytic system of a template at physical parameter values `p`, in f64: the "true"
+/// system for simulation and the reference for tests.
+pub struct TemplateSystem {
+    pub template: Template,
+    pub params: Vec<f64>,
+}
+
+impl TemplateSystem {
+    pub fn new(template: Template, params: Vec<f64>) -> Self {
+        Self { template, params }
+    }
+
+    pub fn mass_factor(&self, q: &[f64]) -> Tri<Dual<f64>> {
+        let pd: Vec<Dual<f64>> = self.params.iter().map(|&v| Dual::constant(v)).collect();
+        cholesky(&self.template.mass(&pd, &dual_vars(q, &1.0)))
+    }
+
+    pub fn grad_potential(&self, q: &[f64]) -> Vec<f64> {
+        let pd: Vec<Dual<f64>> = self.params.iter().map(|&v| Dual::constant(v)).collect();
+        let v = self.template.potential(&pd, &dual_vars(q, &1.0));
+        (0..q.len()).map(|k| v.tangent(k).copied().unwrap_or(0.0)).collect()
+    }
+
+    pub fn acceleration(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
+        let f = self.template.forces(&self.params, q, qd, u);
+        acceleration(&self.mass_factor(q), Some(self.grad_potential(q)), f, qd)
+    }
+
+    /// Kinetic and potential energy (T, V).
+    pub fn energy(&self, q: &[f64], qd: &[f64]) -> (f64, f64) {
+        let m = self.template.mass(&self.params, q);
+        let t = 0.5
+            * (0..q.len())
+                .flat_map(|i| (0..q.len()).map(move |j| (i, j)))
+                .map(|(i, j)| qd[i] * m[i][j] * qd[j])
+                .sum::<f64>();
+        (t, self.template.potential(&self.params, q))
+    }
+}

@@ -1,0 +1,69 @@
+//! One-step integrators for ẋ = g(x, u) with u held constant over Δt (paper appendix B).
+
+use burn::tensor::Tensor;
+use serde::{Deserialize, Serialize};
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Integrator {
+    /// Classic fourth-order Runge–Kutta (the paper's appendix B).
+    #[default]
+    Rk4,
+    /// Explicit (forward) Euler, first order.
+    Euler,
+    /// Explicit midpoint, second order.
+    Midpoint,
+}
+
+impl Integrator {
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Rk4 => "rk4",
+            Integrator::Euler => "euler",
+            Integrator::Midpoint => "midpoint",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<Self> {
+        [Integrator::Rk4, Integrator::Euler, Integrator::Midpoint]
+            .into_iter()
+            .find(|i| i.name() == s)
+    }
+
+    /// x_{t+Δt} from x_t, given the vector field `g` (the input is captured by `g`).
+    pub fn step<V: StateVec>(self, x: &V, dt: f64, g: impl Fn(&V) -> V) -> V {
+        match self {
+            Integrator::Euler => x.axpy(dt, &g(x)),
+            Integrator::Midpoint => {
+                let k1 = g(x);
+                x.axpy(dt, &g(&x.axpy(0.5 * dt, &k1)))
+            }
+            Integrator::Rk4 => {
+                let k1 = g(x);
+                let k2 = g(&x.axpy(0.5 * dt, &k1));
+                let k3 = g(&x.axpy(0.5 * dt, &k2));
+                let k4 = g(&x.axpy(dt, &k3));
+                // x + Δt/6 (k1 + 2k2 + 2k3 + k4)
+                let sum = k1.axpy(2.0, &k2).axpy(2.0, &k3).axpy(1.0, &k4);
+                x.axpy(dt / 6.0, &sum)
+            }
+        }
+    }
+}
+
+/// What an integrator needs of a state: self + a·x.
+pub trait StateVec: Sized {
+    fn axpy(&self, a: f64, x: &Self) -> Self;
+}
+
+impl StateVec for Vec<f64> {
+    fn axpy(&self, a: f64, x: &Self) -> Self {
+        self.iter().zip(x).map(|(s, x)| s + a * x).collect()
+    }
+}
+
+impl StateVec for Tensor<2> {
+    fn axpy(&self, a: f64, x: &Self) -> Self {
+        self.clone() + x.clone().mul_scalar(a)
+    }
+}

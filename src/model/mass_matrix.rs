@@ -1,0 +1,58 @@
+//! M(q) = L(q) L(q)ᵀ in its three forms: a Cholesky MLP, a learned constant, the template's
+//! analytic M factored per sample. Each yields L with its q-derivatives as dual numbers.
+
+use burn::tensor::Tensor;
+
+use super::dual::Dual;
+use super::dynamics::{Tri, cholesky};
+use super::scalar::Scalar;
+
+/// softplus(c) = 1, so a zero network output puts 1 on L's diagonal: M starts near I.
+pub const DIAG_SHIFT: f64 = 0.541_324_854_612_918_1; // ln(e − 1)
+/// Floor on L's diagonal: M stays positive definite whatever the weights do (a bare constant
+/// offset can cross zero during training).
+pub const DIAG_EPS: f64 = 1e-3;
+
+/// Number of network outputs for L: n diagonal entries, then the strictly lower triangle.
+pub fn outputs(n: usize) -> usize {
+    n * (n + 1) / 2
+}
+
+/// Maps raw outputs (paper order: the n diagonal entries first, then (1,0), (2,0), (2,1), …)
+/// to L, with the diagonal made positive: L_ii = softplus(y_i + c) + ε.
+pub fn factor_from_outputs<S: Scalar>(raw: Vec<Dual<S>>, n: usize) -> Tri<Dual<S>> {
+    let mut raw = raw.into_iter();
+    let diag: Vec<Dual<S>> = raw
+        .by_ref()
+        .take(n)
+        .map(|y| y.shift(DIAG_SHIFT).softplus().shift(DIAG_EPS))
+        .collect();
+    let mut off = raw;
+    let mut entries = Vec::with_capacity(outputs(n));
+    for i in 0..n {
+        for j in 0..i {
+            let _ = j;
+            entries.push(off.next().expect("n(n−1)/2 off-diagonal outputs"));
+        }
+        entries.push(diag[i].clone());
+    }
+    Tri { n, entries }
+}
+
+/// The Cholesky factor of an analytic M(q) given with dual entries.
+pub fn factor_of<S: Scalar>(m: &[Vec<Dual<S>>]) -> Tri<Dual<S>> {
+    cholesky(m)
+}
+
+/// Splits a network's output y `[batch, k]` and Jacobian J `[batch, n, k]` into k dual
+/// columns `[batch, 1]` with tangents ∂y_j/∂q_i.
+pub fn dual_columns(y: Tensor<2>, jac: Tensor<3>) -> Vec<Dual<Tensor<2>>> {
+    let [batch, n, k] = jac.dims();
+    let jflat = jac.reshape([batch, n * k]);
+    (0..k)
+        .map(|j| {
+            let d = (0..n).map(|i| Some(jflat.clone().narrow(1, i * k + j, 1))).collect();
+            Dual::new(y.clone().narrow(1, j, 1), d)
+        })
+        .collect()
+}

@@ -1,0 +1,113 @@
+//! Multi-layer perceptron with tanh hidden layers and a linear output, plus its input
+//! Jacobian in forward mode (design.md §2).
+//!
+//! Weights are stored `[in, out]` (Burn's `Linear` layout) and biases `[1, out]`, so every
+//! parameter is rank 2 and the optimizer and checkpoint code handle one tensor kind.
+
+use burn::module::{Module, Param};
+use burn::tensor::{Device, Tensor, TensorData};
+
+use crate::rng::Rng;
+
+#[derive(Module, Debug)]
+pub struct Dense {
+    pub weight: Param<Tensor<2>>, // [in, out]
+    pub bias: Param<Tensor<2>>,   // [1, out]
+}
+
+impl Dense {
+    /// PyTorch's default initialization, U(−1/√fan_in, 1/√fan_in) for weights and biases, drawn
+    /// from our own RNG so that a seed means the same network on every backend.
+    pub fn init(d_in: usize, d_out: usize, rng: &mut Rng, device: &Device) -> Self {
+        let bound = 1.0 / (d_in as f64).sqrt();
+        let mut draw = |count: usize| -> Vec<f64> {
+            (0..count).map(|_| rng.uniform_in(-bound, bound)).collect()
+        };
+        let w = draw(d_in * d_out);
+        let b = draw(d_out);
+        Self {
+            weight: param(w, [d_in, d_out], device),
+            bias: param(b, [1, d_out], device),
+        }
+    }
+
+    pub fn forward(&self, x: Tensor<2>) -> Tensor<2> {
+        x.matmul(self.weight.val()) + self.bias.val()
+    }
+}
+
+/// A trainable rank-2 parameter from f64 values (converted to the device's float dtype).
+pub fn param(values: Vec<f64>, shape: [usize; 2], device: &Device) -> Param<Tensor<2>> {
+    Param::from_tensor(Tensor::from_data(TensorData::new(values, shape), device))
+}
+
+#[derive(Module, Debug)]
+pub struct Mlp {
+    pub layers: Vec<Dense>,
+}
+
+impl Mlp {
+    pub fn init(d_in: usize, hidden: &[usize], d_out: usize, rng: &mut Rng, device: &Device) -> Self {
+        let mut sizes = vec![d_in];
+        sizes.extend_from_slice(hidden);
+        sizes.push(d_out);
+        let layers = sizes
+            .windows(2)
+            .map(|w| Dense::init(w[0], w[1], rng, device))
+            .collect();
+        Self { layers }
+    }
+
+    pub fn d_out(&self) -> usize {
+        self.layers.last().map_or(0, |l| l.weight.val().dims()[1])
+    }
+
+    /// y = W_L tanh(… tanh(W_1 x + b_1) …) + b_L.  x: [batch, in] → [batch, out].
+    pub fn forward(&self, x: Tensor<2>) -> Tensor<2> {
+        let (last, hidden) = self.layers.split_last().expect("an MLP has an output layer");
+        let h = hidden.iter().fold(x, |h, layer| layer.forward(h).tanh());
+        last.forward(h)
+    }
+
+    /// The output and its Jacobian with respect to the variables q that the input depends on
+    /// linearly through `dx_dq` (`[n, in]`, constant across the batch, e.g. diag(1/σ_q)).
+    ///
+    /// Forward mode: J₁ = (∂x/∂q · W₁) ⊙ (1 − h₁²),  J_l = (J_{l−1} W_l) ⊙ (1 − h_l²),
+    /// ∂y/∂q = J_L W_out.  Returns y `[batch, out]` and J `[batch, n, out]`.
+    pub fn forward_jacobian(&self, x: Tensor<2>, dx_dq: Tensor<2>) -> (Tensor<2>, Tensor<3>) {
+        let (last, hidden) = self.layers.split_last().expect("an MLP has an output layer");
+        let [batch, _] = x.dims();
+        let [n, _] = dx_dq.dims();
+        let mut h = x;
+        let mut jac: Option<Tensor<3>> = None; // [batch, n, width]
+        let mut dz_dq_const = Some(dx_dq); // the first layer's Jacobian is batch-independent
+        for layer in hidden {
+            h = layer.forward(h).tanh();
+            let dh = h.clone().square().neg().add_scalar(1.0).unsqueeze_dim::<3>(1); // [batch, 1, w]
+            jac = Some(match (jac, dz_dq_const.take()) {
+                (None, Some(dx)) => dx.matmul(layer.weight.val()).unsqueeze_dim::<3>(0) * dh,
+                (Some(j), _) => mat3(j, layer.weight.val()) * dh,
+                (None, None) => unreachable!("the Jacobian starts at the first layer"),
+            });
+        }
+        let y = last.forward(h);
+        let j = match (jac, dz_dq_const) {
+            (Some(j), _) => mat3(j, last.weight.val()),
+            // No hidden layers: the net is affine in x.
+            (None, Some(dx)) => dx
+                .matmul(last.weight.val())
+                .unsqueeze_dim::<3>(0)
+                .repeat_dim(0, batch),
+            (None, None) => unreachable!(),
+        };
+        debug_assert_eq!(j.dims()[1], n);
+        (y, j)
+    }
+}
+
+/// [batch, n, a] · [a, b] → [batch, n, b]
+fn mat3(j: Tensor<3>, w: Tensor<2>) -> Tensor<3> {
+    let [batch, n, a] = j.dims();
+    let b = w.dims()[1];
+    j.reshape([batch * n, a]).matmul(w).reshape([batch, n, b])
+}

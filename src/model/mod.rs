@@ -1,0 +1,437 @@
+//! The structured Lagrangian model (design.md §2) on Burn: parameters, the dynamics
+//! q̈ = M⁻¹(F − c − ∂V/∂q), one-step prediction by an integrator, and the loss.
+
+pub mod dual;
+pub mod dynamics;
+pub mod forces;
+pub mod integrator;
+pub mod mass_matrix;
+pub mod mlp;
+pub mod params_io;
+pub mod scalar;
+pub mod scaling;
+pub mod spec;
+pub mod templates;
+
+use burn::module::{Module, Param};
+use burn::tensor::{Device, Tensor, TensorData};
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::rng::Rng;
+use dual::Dual;
+use dynamics::{Tri, acceleration, dual_vars};
+use integrator::Integrator;
+use mlp::{Mlp, param};
+use scaling::Scaling;
+use spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
+use templates::{Part, Template};
+
+/// Everything that defines a model apart from its trainable values.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ModelConfig {
+    pub spec: ModelSpec,
+    pub n: usize,
+    pub m: usize,
+    pub dt: f64,
+    pub integrator: Integrator,
+    /// Weight of the velocity error in the loss.
+    pub lambda: f64,
+    pub scaling: Scaling,
+}
+
+/// The trainable parameters. Components the spec does not use are `None`. Every tensor is
+/// rank 2 (see `mlp`).
+#[derive(Module, Debug)]
+pub struct Params {
+    pub mass_net: Option<Mlp>,
+    /// Raw entries of a constant L, `[1, n(n+1)/2]`.
+    pub mass_const: Option<Param<Tensor<2>>>,
+    pub potential_net: Option<Mlp>,
+    /// Entries of the symmetric K of ½qᵀKq, `[1, n(n+1)/2]` (row-major lower triangle).
+    pub potential_quad: Option<Param<Tensor<2>>>,
+    pub force_net: Option<Mlp>,
+    pub b_net: Option<Mlp>,
+    /// Constant B, `[1, n·m]` row-major.
+    pub b_const: Option<Param<Tensor<2>>>,
+    /// Damping η, `[1, n]`.
+    pub eta: Option<Param<Tensor<2>>>,
+    /// The template's physical parameters, positive ones as logarithms, `[1, k]`.
+    pub physical: Option<Param<Tensor<2>>>,
+    pub naive: Option<Mlp>,
+}
+
+/// Constant tensors derived from the config, built once per device.
+#[derive(Debug, Clone)]
+struct Consts {
+    one: Tensor<2>,         // [1, 1]
+    q_mean: Tensor<2>,      // [1, n]
+    q_inv_std: Tensor<2>,   // [1, n]
+    dq_in: Tensor<2>,       // [n, n] = diag(1/σ_q): ∂(standardized q)/∂q
+    in_mean: Tensor<2>,     // [1, 2n+m] for [q, q̇, u]
+    in_inv_std: Tensor<2>,  // [1, 2n+m]
+    force_scale: Tensor<2>, // [1, n]
+    acc_mean: Tensor<2>,    // [1, n]
+    acc_std: Tensor<2>,     // [1, n]
+    b_scale: Tensor<2>,     // [1, n·m] = force_scale_i / σ_u_j
+    eta_scale: Tensor<2>,   // [1, n] = force_scale_i / σ_q̇_i
+    loss_w: Tensor<2>,      // [1, 2n] = [1…1, λ…λ]
+}
+
+fn row(values: Vec<f64>, device: &Device) -> Tensor<2> {
+    let k = values.len();
+    Tensor::from_data(TensorData::new(values, [1, k]), device)
+}
+
+impl Consts {
+    fn new(c: &ModelConfig, device: &Device) -> Self {
+        let s = &c.scaling;
+        let (n, m) = (c.n, c.m);
+        let inv = |v: &[f64]| v.iter().map(|x| 1.0 / x).collect::<Vec<_>>();
+        let mut diag = vec![0.0; n * n];
+        for i in 0..n {
+            diag[i * n + i] = 1.0 / s.q_std[i];
+        }
+        let cat = |a: &[f64], b: &[f64], c: &[f64]| [a, b, c].concat();
+        let b_scale = (0..n)
+            .flat_map(|i| (0..m).map(move |j| s.force_scale[i] / s.u_std[j]))
+            .collect();
+        let eta_scale = (0..n).map(|i| s.force_scale[i] / s.qdot_std[i]).collect();
+        let loss_w = [vec![1.0; n], vec![c.lambda; n]].concat();
+        Self {
+            one: row(vec![1.0], device),
+            q_mean: row(s.q_mean.clone(), device),
+            q_inv_std: row(inv(&s.q_std), device),
+            dq_in: Tensor::from_data(TensorData::new(diag, [n, n]), device),
+            in_mean: row(cat(&s.q_mean, &s.qdot_mean, &s.u_mean), device),
+            in_inv_std: row(inv(&cat(&s.q_std, &s.qdot_std, &s.u_std)), device),
+            force_scale: row(s.force_scale.clone(), device),
+            acc_mean: row(s.acc_mean.clone(), device),
+            acc_std: row(s.acc_std.clone(), device),
+            b_scale: row(b_scale, device),
+            eta_scale: row(eta_scale, device),
+            loss_w: row(loss_w, device),
+        }
+    }
+}
+
+/// A model bound to a device: config, parameters and the derived constants.
+#[derive(Debug, Clone)]
+pub struct Model {
+    pub config: ModelConfig,
+    pub params: Params,
+    consts: Consts,
+}
+
+/// The terms of M q̈ = F − c − ∂V/∂q for a batch, as `[batch, 1]` columns.
+pub struct Parts {
+    /// L(q) with ∂L/∂q_k.
+    pub l: Tri<Dual<Tensor<2>>>,
+    /// ∂V/∂q (`None` for a zero potential).
+    pub grad_v: Option<Vec<Tensor<2>>>,
+    pub forces: Vec<Tensor<2>>,
+}
+
+/// Splits `[batch, k]` into k columns `[batch, 1]`.
+pub fn columns(x: &Tensor<2>) -> Vec<Tensor<2>> {
+    let k = x.dims()[1];
+    (0..k).map(|j| x.clone().narrow(1, j, 1)).collect()
+}
+
+impl ModelConfig {
+    pub fn template(&self) -> Option<Template> {
+        self.spec.template()
+    }
+}
+
+impl Model {
+    /// A freshly initialized model. `physical` gives the template's initial parameter values
+    /// (defaults when `None`); networks are drawn from `seed`.
+    pub fn init(config: ModelConfig, physical: Option<Vec<f64>>, seed: u64, device: &Device) -> Result<Self> {
+        let (n, m) = (config.n, config.m);
+        let mut rng = Rng::derive(seed, 0x1_417);
+        let mut p = Params {
+            mass_net: None,
+            mass_const: None,
+            potential_net: None,
+            potential_quad: None,
+            force_net: None,
+            b_net: None,
+            b_const: None,
+            eta: None,
+            physical: None,
+            naive: None,
+        };
+        let tri = n * (n + 1) / 2;
+        match &config.spec {
+            ModelSpec::Naive { hidden } => {
+                p.naive = Some(Mlp::init(2 * n + m, hidden, n, &mut rng, device));
+            }
+            ModelSpec::Structured { mass, potential, forces, template } => {
+                match mass {
+                    MassSpec::Mlp { hidden } => {
+                        p.mass_net = Some(Mlp::init(n, hidden, mass_matrix::outputs(n), &mut rng, device))
+                    }
+                    MassSpec::Constant => p.mass_const = Some(param(vec![0.0; tri], [1, tri], device)),
+                    MassSpec::Template => {}
+                }
+                match potential {
+                    PotentialSpec::Mlp { hidden } => {
+                        p.potential_net = Some(Mlp::init(n, hidden, 1, &mut rng, device))
+                    }
+                    PotentialSpec::Quadratic => p.potential_quad = Some(param(vec![0.0; tri], [1, tri], device)),
+                    PotentialSpec::Template | PotentialSpec::Zero => {}
+                }
+                match forces {
+                    ForceSpec::Mlp { hidden } => {
+                        p.force_net = Some(Mlp::init(2 * n + m, hidden, n, &mut rng, device))
+                    }
+                    ForceSpec::ControlAffine { hidden } => {
+                        p.b_net = Some(Mlp::init(n, hidden, n * m, &mut rng, device));
+                        p.eta = Some(param(vec![0.0; n], [1, n], device));
+                    }
+                    ForceSpec::ConstantAffine => {
+                        // B starts as the (rectangular) identity in scaled units.
+                        let b = (0..n * m).map(|k| if k / m == k % m { 1.0 } else { 0.0 }).collect();
+                        p.b_const = Some(param(b, [1, n * m], device));
+                        p.eta = Some(param(vec![0.0; n], [1, n], device));
+                    }
+                    ForceSpec::Template => {}
+                }
+                if let Some(t) = template {
+                    let values = physical.unwrap_or_else(|| t.defaults());
+                    p.physical = Some(param(raw_physical(*t, &values)?, [1, values.len()], device));
+                }
+            }
+        }
+        Ok(Self::from_parts(config, p, device))
+    }
+
+    pub fn from_parts(config: ModelConfig, params: Params, device: &Device) -> Self {
+        let consts = Consts::new(&config, device);
+        Self { config, params, consts }
+    }
+
+    pub fn device(&self) -> Device {
+        self.consts.one.device()
+    }
+
+    /// The same model without autodiff tracking, for evaluation.
+    pub fn valid(&self) -> Self {
+        let params = self.params.valid();
+        let device = self.device().without_autodiff();
+        Self::from_parts(self.config.clone(), params, &device)
+    }
+
+    /// Physical parameter values as tensors `[1, 1]` (positive ones exponentiated).
+    fn physical(&self, t: Template) -> Vec<Tensor<2>> {
+        let raw = self.params.physical.as_ref().expect("a template model has physical parameters").val();
+        t.params()
+            .iter()
+            .enumerate()
+            .map(|(i, info)| {
+                let v = raw.clone().narrow(1, i, 1);
+                if info.positive { v.exp() } else { v }
+            })
+            .collect()
+    }
+
+    /// Learned physical values by name (host f64), for reports.
+    pub fn physical_values(&self) -> Option<Vec<(String, f64)>> {
+        let t = self.config.template()?;
+        let raw: Vec<f64> = self.params.physical.as_ref()?.val().into_data().iter::<f64>().collect();
+        Some(
+            t.params()
+                .iter()
+                .zip(raw)
+                .map(|(info, r)| (info.name.to_string(), if info.positive { r.exp() } else { r }))
+                .collect(),
+        )
+    }
+
+    /// q̈ for a batch: q, q̇ `[batch, n]`, u `[batch, m]` → `[batch, n]`.
+    pub fn accel(&self, q: Tensor<2>, qd: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
+        if let ModelSpec::Naive { .. } = &self.config.spec {
+            let c = &self.consts;
+            let net = self.params.naive.as_ref().expect("naive net");
+            let input = (Tensor::cat(vec![q, qd, u], 1) - c.in_mean.clone()) * c.in_inv_std.clone();
+            return net.forward(input) * c.acc_std.clone() + c.acc_mean.clone();
+        }
+        let qd_cols = columns(&qd);
+        let p = self.parts(q, qd, u);
+        Tensor::cat(acceleration(&p.l, p.grad_v, p.forces, &qd_cols), 1)
+    }
+
+    /// The terms of the manipulator equation of a structured model, as `[batch, 1]` columns.
+    pub fn parts(&self, q: Tensor<2>, qd: Tensor<2>, u: Tensor<2>) -> Parts {
+        let c = &self.consts;
+        let ModelSpec::Structured { mass, potential, forces, template } = &self.config.spec else {
+            panic!("parts() is for structured models");
+        };
+        let n = self.config.n;
+        let phys: Option<Vec<Tensor<2>>> = template.map(|t| self.physical(t));
+        let phys_dual = || -> Vec<Dual<Tensor<2>>> {
+            phys.as_ref().expect("template params").iter().cloned().map(Dual::constant).collect()
+        };
+        let q_cols = columns(&q);
+        let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
+
+        let l: Tri<Dual<Tensor<2>>> = match mass {
+            MassSpec::Mlp { .. } => {
+                let net = self.params.mass_net.as_ref().expect("mass net");
+                let (y, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
+                mass_matrix::factor_from_outputs(mass_matrix::dual_columns(y, jac), n)
+            }
+            MassSpec::Constant => {
+                let raw = self.params.mass_const.as_ref().expect("constant mass").val();
+                mass_matrix::factor_from_outputs(columns(&raw).into_iter().map(Dual::constant).collect(), n)
+            }
+            MassSpec::Template => {
+                let t = template.expect("validated: template present");
+                let qv = dual_vars(&q_cols, &c.one);
+                mass_matrix::factor_of(&t.mass(&phys_dual(), &qv))
+            }
+        };
+
+        let grad_v: Option<Vec<Tensor<2>>> = match potential {
+            PotentialSpec::Zero => None,
+            PotentialSpec::Mlp { .. } => {
+                let net = self.params.potential_net.as_ref().expect("potential net");
+                let (_, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
+                let g = jac.reshape([q.dims()[0], n]).mul_scalar(self.config.scaling.potential_scale());
+                Some(columns(&g))
+            }
+            PotentialSpec::Quadratic => {
+                let k = self.params.potential_quad.as_ref().expect("quadratic potential").val();
+                let scale = self.config.scaling.mean_force_scale() / self.config.scaling.mean_q_std();
+                let kij = |i: usize, j: usize| {
+                    let (a, b) = if j <= i { (i, j) } else { (j, i) };
+                    k.clone().narrow(1, Tri::<()>::index(a, b), 1)
+                };
+                Some(
+                    (0..n)
+                        .map(|i| {
+                            (0..n)
+                                .map(|j| q_cols[j].clone() * kij(i, j))
+                                .reduce(|a, b| a + b)
+                                .expect("n ≥ 1")
+                                .mul_scalar(scale)
+                        })
+                        .collect(),
+                )
+            }
+            PotentialSpec::Template => {
+                let t = template.expect("validated: template present");
+                let v = t.potential(&phys_dual(), &dual_vars(&q_cols, &c.one));
+                Some(
+                    (0..n)
+                        .map(|k| v.tangent(k).cloned().unwrap_or_else(|| q_cols[k].clone().mul_scalar(0.0)))
+                        .collect(),
+                )
+            }
+        };
+
+        let f: Vec<Tensor<2>> = match forces {
+            ForceSpec::Mlp { .. } => {
+                let net = self.params.force_net.as_ref().expect("force net");
+                let input = (Tensor::cat(vec![q.clone(), qd, u], 1) - c.in_mean.clone()) * c.in_inv_std.clone();
+                columns(&(net.forward(input) * c.force_scale.clone()))
+            }
+            ForceSpec::ControlAffine { .. } => {
+                let net = self.params.b_net.as_ref().expect("B net");
+                let b = net.forward(q_norm()) * c.b_scale.clone();
+                let eta = self.params.eta.as_ref().expect("eta").val() * c.eta_scale.clone();
+                columns(&forces::affine(b, u, eta, qd))
+            }
+            ForceSpec::ConstantAffine => {
+                let b = self.params.b_const.as_ref().expect("constant B").val() * c.b_scale.clone();
+                let eta = self.params.eta.as_ref().expect("eta").val() * c.eta_scale.clone();
+                columns(&forces::affine(b, u, eta, qd))
+            }
+            ForceSpec::Template => {
+                let t = template.expect("validated: template present");
+                t.forces(phys.as_ref().expect("template params"), &q_cols, &columns(&qd), &columns(&u))
+            }
+        };
+        Parts { l, grad_v, forces: f }
+    }
+
+    /// V(q) `[batch, 1]` for a structured model (`None` for a zero potential or the naive
+    /// model). Training only needs ∂V/∂q; this is for energy diagnostics and checks.
+    pub fn potential(&self, q: Tensor<2>) -> Option<Tensor<2>> {
+        let c = &self.consts;
+        let ModelSpec::Structured { potential, template, .. } = &self.config.spec else {
+            return None;
+        };
+        let s = &self.config.scaling;
+        match potential {
+            PotentialSpec::Zero => None,
+            PotentialSpec::Mlp { .. } => {
+                let net = self.params.potential_net.as_ref().expect("potential net");
+                let q_norm = (q - c.q_mean.clone()) * c.q_inv_std.clone();
+                Some(net.forward(q_norm).mul_scalar(s.potential_scale()))
+            }
+            PotentialSpec::Quadratic => {
+                // ½ qᵀKq = Σ_i ½ K_ii q_i² + Σ_{i>j} K_ij q_i q_j
+                let k = self.params.potential_quad.as_ref().expect("quadratic potential").val();
+                let cols = columns(&q);
+                let n = cols.len();
+                let terms = (0..n).flat_map(|i| (0..=i).map(move |j| (i, j))).map(|(i, j)| {
+                    let kij = k.clone().narrow(1, Tri::<()>::index(i, j), 1);
+                    let w = if i == j { 0.5 } else { 1.0 };
+                    (cols[i].clone() * cols[j].clone() * kij).mul_scalar(w)
+                });
+                let v = terms.reduce(|a, b| a + b).expect("n ≥ 1");
+                Some(v.mul_scalar(s.mean_force_scale() / s.mean_q_std()))
+            }
+            PotentialSpec::Template => {
+                let t = template.expect("validated: template present");
+                Some(t.potential(&self.physical(t), &columns(&q)))
+            }
+        }
+    }
+
+    /// One step of the model's integrator: x = [q, q̇] `[batch, 2n]`, u `[batch, m]`.
+    pub fn step(&self, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
+        let n = self.config.n;
+        self.config.integrator.step(&x, self.config.dt, |x: &Tensor<2>| {
+            let q = x.clone().narrow(1, 0, n);
+            let qd = x.clone().narrow(1, n, n);
+            let qdd = self.accel(q, qd.clone(), u.clone());
+            Tensor::cat(vec![qd, qdd], 1)
+        })
+    }
+
+    /// Sum over the batch of Σ(q' − q̂')² + λ Σ(q̇' − q̂̇')² (divide by the batch size for the
+    /// mean).
+    pub fn loss_sum(&self, x: Tensor<2>, u: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
+        let err = self.step(x, u) - target;
+        (err.square() * self.consts.loss_w.clone()).sum()
+    }
+
+    /// The white-box parts, for reports.
+    pub fn white_box_parts(&self) -> Vec<Part> {
+        self.config.spec.white_box_parts()
+    }
+}
+
+/// Physical values → raw trainable values (logarithms for positive parameters).
+pub fn raw_physical(t: Template, values: &[f64]) -> Result<Vec<f64>> {
+    t.params()
+        .iter()
+        .zip(values)
+        .map(|(info, &v)| {
+            if !v.is_finite() {
+                return Err(Error::invalid(format!("init.{}", info.name), "must be finite"));
+            }
+            if info.positive {
+                if v <= 0.0 {
+                    return Err(Error::invalid(format!("init.{}", info.name), format!("must be > 0, got {v}")));
+                }
+                Ok(v.ln())
+            } else {
+                Ok(v)
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,98 @@
+//! The number type the model's equations are written over.
+//!
+//! Templates, the Cholesky factorization, the Coriolis term and the triangular solves are
+//! written once, generically over [`Scalar`], and run on
+//! - `f64` (simulation, reference checks, the f64 inference path),
+//! - Burn column tensors `[batch, 1]` (training, where autodiff differentiates w.r.t. θ),
+//! - [`Dual`](super::dual::Dual) numbers over either, which give the input derivatives
+//!   ∂/∂q in forward mode (Burn has no double-backward, design.md §2).
+
+use burn::tensor::Tensor;
+use std::ops::{Add, Div, Mul, Neg, Sub};
+
+pub trait Scalar:
+    Clone
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+{
+    fn cos(&self) -> Self;
+    fn sin(&self) -> Self;
+    fn sqrt(&self) -> Self;
+    fn exp(&self) -> Self;
+    /// Logistic sigmoid, the derivative of softplus.
+    fn sigmoid(&self) -> Self;
+    /// ln(1 + eˣ), computed without overflow.
+    fn softplus(&self) -> Self;
+    /// c · self.
+    fn scale(&self, c: f64) -> Self;
+    /// self + c.
+    fn shift(&self, c: f64) -> Self;
+    fn square(&self) -> Self {
+        self.clone() * self.clone()
+    }
+}
+
+impl Scalar for f64 {
+    fn cos(&self) -> Self {
+        f64::cos(*self)
+    }
+    fn sin(&self) -> Self {
+        f64::sin(*self)
+    }
+    fn sqrt(&self) -> Self {
+        f64::sqrt(*self)
+    }
+    fn exp(&self) -> Self {
+        f64::exp(*self)
+    }
+    fn sigmoid(&self) -> Self {
+        1.0 / (1.0 + (-self).exp())
+    }
+    fn softplus(&self) -> Self {
+        // max(x, 0) + ln(1 + e^-|x|) never overflows.
+        self.max(0.0) + (-self.abs()).exp().ln_1p()
+    }
+    fn scale(&self, c: f64) -> Self {
+        c * self
+    }
+    fn shift(&self, c: f64) -> Self {
+        self + c
+    }
+}
+
+/// A Burn float tensor used as a scalar column: `[batch, 1]` for per-sample values, `[1, 1]`
+/// for parameters (broadcast against the batch).
+impl Scalar for Tensor<2> {
+    fn cos(&self) -> Self {
+        self.clone().cos()
+    }
+    fn sin(&self) -> Self {
+        self.clone().sin()
+    }
+    fn sqrt(&self) -> Self {
+        self.clone().sqrt()
+    }
+    fn exp(&self) -> Self {
+        self.clone().exp()
+    }
+    fn sigmoid(&self) -> Self {
+        burn::tensor::activation::sigmoid(self.clone())
+    }
+    fn softplus(&self) -> Self {
+        // The same overflow-free form as the f64 impl, so both paths agree to rounding
+        // (Burn's own softplus switches to the identity above a threshold).
+        self.clone().clamp_min(0.0) + self.clone().abs().neg().exp().log1p()
+    }
+    fn scale(&self, c: f64) -> Self {
+        self.clone().mul_scalar(c)
+    }
+    fn shift(&self, c: f64) -> Self {
+        self.clone().add_scalar(c)
+    }
+    fn square(&self) -> Self {
+        self.clone().square()
+    }
+}

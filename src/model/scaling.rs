@@ -1,0 +1,105 @@
+//! Input and output scalings from dataset statistics, stored with the model.
+//!
+//! With u ~ N(0, 120²) the generalized forces are O(100): unscaled networks barely train
+//! (design.md §7). Network inputs are standardized, and network outputs are multiplied by the
+//! scale their physical quantity has in the data. M's scale is free (identifiability), so a
+//! learned M starts near the identity and forces are scaled like accelerations; with an analytic
+//! M the force scale is the spread of M(q)q̈ over the data at the initial parameters.
+
+use serde::{Deserialize, Serialize};
+
+use super::templates::Template;
+use crate::train::data::Dataset;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scaling {
+    pub q_mean: Vec<f64>,
+    pub q_std: Vec<f64>,
+    pub qdot_mean: Vec<f64>,
+    pub qdot_std: Vec<f64>,
+    pub u_mean: Vec<f64>,
+    pub u_std: Vec<f64>,
+    /// Statistics of the finite-difference accelerations (q̇' − q̇)/Δt.
+    pub acc_mean: Vec<f64>,
+    pub acc_std: Vec<f64>,
+    /// Typical size of each generalized force.
+    pub force_scale: Vec<f64>,
+}
+
+/// Mean and standard deviation of each column; a (near-)constant column gets std 1 so that
+/// standardizing it cannot divide by ~0.
+fn column_stats(a: &[f64], width: usize) -> (Vec<f64>, Vec<f64>) {
+    let rows = (a.len() / width).max(1) as f64;
+    let mean: Vec<f64> = (0..width)
+        .map(|j| a.iter().skip(j).step_by(width).sum::<f64>() / rows)
+        .collect();
+    let std = (0..width)
+        .map(|j| {
+            let var = a.iter().skip(j).step_by(width).map(|x| (x - mean[j]).powi(2)).sum::<f64>() / rows;
+            let s = var.sqrt();
+            if s.is_finite() && s > 1e-8 * (1.0 + mean[j].abs()) { s } else { 1.0 }
+        })
+        .collect();
+    (mean, std)
+}
+
+impl Scaling {
+    /// Identity scalings (used where no data is at hand, e.g. in unit tests).
+    pub fn identity(n: usize, m: usize) -> Self {
+        Self {
+            q_mean: vec![0.0; n],
+            q_std: vec![1.0; n],
+            qdot_mean: vec![0.0; n],
+            qdot_std: vec![1.0; n],
+            u_mean: vec![0.0; m],
+            u_std: vec![1.0; m],
+            acc_mean: vec![0.0; n],
+            acc_std: vec![1.0; n],
+            force_scale: vec![1.0; n],
+        }
+    }
+
+    /// `mass` gives the analytic M at the initial physical parameters when M is white-box.
+    pub fn from_data(ds: &Dataset, mass: Option<(Template, &[f64])>) -> Self {
+        let (n, m) = (ds.n, ds.m);
+        let (q_mean, q_std) = column_stats(&ds.q, n);
+        let (qdot_mean, qdot_std) = column_stats(&ds.qdot, n);
+        let (u_mean, u_std) = column_stats(&ds.u, m);
+        let acc: Vec<f64> = ds
+            .qdot_next
+            .iter()
+            .zip(&ds.qdot)
+            .map(|(b, a)| (b - a) / ds.dt)
+            .collect();
+        let (acc_mean, acc_std) = column_stats(&acc, n);
+        let force_scale = match mass {
+            None => acc_std.clone(),
+            Some((t, p)) => {
+                let tau: Vec<f64> = ds
+                    .q
+                    .chunks(n)
+                    .zip(acc.chunks(n))
+                    .flat_map(|(q, a)| {
+                        let mm = t.mass(p, q);
+                        (0..n).map(move |i| (0..n).map(|j| mm[i][j] * a[j]).sum::<f64>()).collect::<Vec<_>>()
+                    })
+                    .collect();
+                column_stats(&tau, n).1
+            }
+        };
+        Self { q_mean, q_std, qdot_mean, qdot_std, u_mean, u_std, acc_mean, acc_std, force_scale }
+    }
+
+    pub fn mean_force_scale(&self) -> f64 {
+        self.force_scale.iter().sum::<f64>() / self.force_scale.len() as f64
+    }
+
+    pub fn mean_q_std(&self) -> f64 {
+        self.q_std.iter().sum::<f64>() / self.q_std.len() as f64
+    }
+
+    /// Output scale of a potential network: ∂V/∂q should be O(force) when q moves by O(σ_q).
+    pub fn potential_scale(&self) -> f64 {
+        self.mean_force_scale() * self.mean_q_std()
+    }
+}

@@ -1,0 +1,251 @@
+//! Model specifications: which form each component takes (design.md §2 and the paper's
+//! table of parameterizations), as JSON through serde or by the paper's names.
+
+use serde::{Deserialize, Serialize};
+
+use super::templates::{Part, Template};
+use crate::error::{Error, Result};
+
+pub const STRUCTURED_HIDDEN: [usize; 3] = [32, 32, 32];
+pub const NAIVE_HIDDEN: [usize; 3] = [64, 64, 64];
+
+fn structured_hidden() -> Vec<usize> {
+    STRUCTURED_HIDDEN.to_vec()
+}
+
+fn naive_hidden() -> Vec<usize> {
+    NAIVE_HIDDEN.to_vec()
+}
+
+/// M(q).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MassSpec {
+    /// Cholesky MLP: q → the n(n+1)/2 entries of L, diagonal through softplus + ε.
+    Mlp {
+        #[serde(default = "structured_hidden")]
+        hidden: Vec<usize>,
+    },
+    /// The template's analytic M(q) with trainable physical parameters.
+    Template,
+    /// A learned constant SPD matrix.
+    Constant,
+}
+
+/// V(q).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PotentialSpec {
+    Mlp {
+        #[serde(default = "structured_hidden")]
+        hidden: Vec<usize>,
+    },
+    Template,
+    Zero,
+    /// ½ qᵀKq with K symmetric and learned.
+    Quadratic,
+}
+
+/// F(q, q̇, u).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ForceSpec {
+    /// General MLP [q, q̇, u] → Rⁿ.
+    Mlp {
+        #[serde(default = "structured_hidden")]
+        hidden: Vec<usize>,
+    },
+    /// B_θ(q) u + η ∘ q̇ with B_θ an MLP q → n×m and η learned.
+    ControlAffine {
+        #[serde(default = "structured_hidden")]
+        hidden: Vec<usize>,
+    },
+    /// Constant learned B and diagonal damping: B u + η ∘ q̇.
+    ConstantAffine,
+    Template,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ModelSpec {
+    /// The structured Lagrangian model.
+    Structured {
+        mass: MassSpec,
+        potential: PotentialSpec,
+        forces: ForceSpec,
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        template: Option<Template>,
+    },
+    /// The naive baseline: an MLP [q, q̇, u] → q̈, integrated the same way.
+    Naive {
+        #[serde(default = "naive_hidden")]
+        hidden: Vec<usize>,
+    },
+}
+
+/// The paper's parameterizations (its table of models) plus the naive baseline.
+pub const NAMED: [&str; 11] = ["MVF", "MVB", "MV", "VB", "MB", "M", "V", "B", "F", "W-B", "naive"];
+
+impl ModelSpec {
+    /// A model by the paper's name ("MVF", …, "W-B", "naive"); a letter means that component
+    /// is a network, the others are the template's white-box forms.
+    pub fn named(name: &str, template: Option<Template>) -> Result<Self> {
+        if name.eq_ignore_ascii_case("naive") {
+            return Ok(ModelSpec::Naive { hidden: naive_hidden() });
+        }
+        let letters = match name {
+            "W-B" | "WB" | "white-box" => "",
+            n if NAMED.contains(&n) => n,
+            _ => {
+                return Err(Error::invalid(
+                    "model",
+                    format!("unknown model '{name}'; expected one of {}", NAMED.join(", ")),
+                ));
+            }
+        };
+        let nn = |c: char| letters.contains(c);
+        let spec = ModelSpec::Structured {
+            mass: if nn('M') { MassSpec::Mlp { hidden: structured_hidden() } } else { MassSpec::Template },
+            potential: if nn('V') {
+                PotentialSpec::Mlp { hidden: structured_hidden() }
+            } else {
+                PotentialSpec::Template
+            },
+            forces: if nn('F') {
+                ForceSpec::Mlp { hidden: structured_hidden() }
+            } else if nn('B') {
+                ForceSpec::ControlAffine { hidden: structured_hidden() }
+            } else {
+                ForceSpec::Template
+            },
+            template,
+        };
+        spec.validate()?;
+        Ok(spec)
+    }
+
+    /// Parses either a paper name or a JSON spec.
+    pub fn parse(text: &str, template: Option<Template>) -> Result<Self> {
+        let trimmed = text.trim();
+        if trimmed.starts_with('{') {
+            let mut spec: ModelSpec = serde_json::from_str(trimmed)
+                .map_err(|e| Error::invalid("model", format!("invalid model spec: {e}")))?;
+            spec.set_template(template)?;
+            spec.validate()?;
+            Ok(spec)
+        } else {
+            Self::named(trimmed, template)
+        }
+    }
+
+    /// Fills in the template given separately (a flag or a request field); a conflicting one
+    /// is an error rather than a silent override.
+    pub fn set_template(&mut self, t: Option<Template>) -> Result<()> {
+        if let (ModelSpec::Structured { template, .. }, Some(t)) = (self, t) {
+            match template {
+                Some(existing) if *existing != t => {
+                    return Err(Error::invalid(
+                        "template",
+                        format!("the spec names template '{}' but '{}' was given", existing.name(), t.name()),
+                    ));
+                }
+                _ => *template = Some(t),
+            }
+        }
+        Ok(())
+    }
+
+    /// The white-box parts of this spec.
+    pub fn white_box_parts(&self) -> Vec<Part> {
+        match self {
+            ModelSpec::Naive { .. } => vec![],
+            ModelSpec::Structured { mass, potential, forces, .. } => {
+                let mut parts = vec![];
+                if *mass == MassSpec::Template {
+                    parts.push(Part::Mass);
+                }
+                if *potential == PotentialSpec::Template {
+                    parts.push(Part::Potential);
+                }
+                if *forces == ForceSpec::Template {
+                    parts.push(Part::Forces);
+                }
+                parts
+            }
+        }
+    }
+
+    pub fn template(&self) -> Option<Template> {
+        match self {
+            ModelSpec::Structured { template, .. } => *template,
+            ModelSpec::Naive { .. } => None,
+        }
+    }
+
+    /// Structural checks that need no data: a white-box part needs a template, hidden sizes
+    /// are positive.
+    pub fn validate(&self) -> Result<()> {
+        let hidden_ok = |h: &Vec<usize>, field: &str| -> Result<()> {
+            if h.iter().any(|&w| w == 0) || h.len() > 16 || h.iter().any(|&w| w > 4096) {
+                return Err(Error::invalid(
+                    field,
+                    "hidden sizes must be 1..=4096 wide and at most 16 layers",
+                ));
+            }
+            Ok(())
+        };
+        match self {
+            ModelSpec::Naive { hidden } => hidden_ok(hidden, "model.hidden"),
+            ModelSpec::Structured { mass, potential, forces, template } => {
+                if let MassSpec::Mlp { hidden } = mass {
+                    hidden_ok(hidden, "model.mass.hidden")?;
+                }
+                if let PotentialSpec::Mlp { hidden } = potential {
+                    hidden_ok(hidden, "model.potential.hidden")?;
+                }
+                if let ForceSpec::Mlp { hidden } | ForceSpec::ControlAffine { hidden } = forces {
+                    hidden_ok(hidden, "model.forces.hidden")?;
+                }
+                let parts = self.white_box_parts();
+                if template.is_none() && !parts.is_empty() {
+                    let names: Vec<&str> = parts.iter().map(|p| part_name(*p)).collect();
+                    return Err(Error::invalid(
+                        "template",
+                        format!(
+                            "white-box component(s) {} need a template (one of {})",
+                            names.join(", "),
+                            Template::ALL.map(|t| t.name()).join(", ")
+                        ),
+                    ));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// Checks the spec against a dataset's dimensions.
+    pub fn check_dims(&self, n: usize, m: usize) -> Result<()> {
+        if let Some(t) = self.template() {
+            if t.n() != n || t.m() != m {
+                return Err(Error::invalid(
+                    "template",
+                    format!(
+                        "template '{}' has n = {}, m = {} but the dataset has n = {n}, m = {m}",
+                        t.name(),
+                        t.n(),
+                        t.m()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+pub fn part_name(p: Part) -> &'static str {
+    match p {
+        Part::Mass => "mass",
+        Part::Potential => "potential",
+        Part::Forces => "forces",
+    }
+}

@@ -1,0 +1,241 @@
+//! White-box system templates: analytic M(q), V(q) and F(q, q̇, u) with named physical
+//! parameters, written once over [`Scalar`] so that the same equations serve training (Burn
+//! tensors), simulation and inference (f64), and their q-derivatives (dual numbers).
+
+use serde::{Deserialize, Serialize};
+
+use super::scalar::Scalar;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Template {
+    DoublePendulum,
+    Pendulum,
+    Cartpole,
+}
+
+/// Which white-box component a parameter or an identifiable combination belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    Mass,
+    Potential,
+    Forces,
+}
+
+pub struct ParamInfo {
+    pub name: &'static str,
+    pub default: f64,
+    /// Trained in log space so that the optimizer cannot make it negative.
+    pub positive: bool,
+    pub used_by: &'static [Part],
+}
+
+/// A combination of parameters that the data can pin down (design.md §2, Identifiability),
+/// meaningful when every part in `needs` is white-box.
+pub struct Combination {
+    pub name: &'static str,
+    pub needs: &'static [Part],
+    pub eval: fn(&dyn Fn(&str) -> f64) -> f64,
+}
+
+use Part::{Forces as F, Mass as M, Potential as V};
+
+const fn p(name: &'static str, default: f64, positive: bool, used_by: &'static [Part]) -> ParamInfo {
+    ParamInfo { name, default, positive, used_by }
+}
+
+const DOUBLE_PENDULUM: &[ParamInfo] = &[
+    p("m1", 10.0, true, &[M, V]),
+    p("m2", 10.0, true, &[M, V]),
+    p("l1", 1.0, true, &[M, V]),
+    p("l2", 1.0, true, &[M, V]),
+    p("g", 10.0, true, &[V]),
+    p("b1", 1.0, false, &[F]),
+    p("b2", 1.0, false, &[F]),
+    p("eta1", -0.5, false, &[F]),
+    p("eta2", -0.5, false, &[F]),
+];
+
+const PENDULUM: &[ParamInfo] = &[
+    p("m", 1.0, true, &[M, V]),
+    p("l", 1.0, true, &[M, V]),
+    p("g", 10.0, true, &[V]),
+    p("b", 1.0, false, &[F]),
+    p("eta", -0.1, false, &[F]),
+];
+
+const CARTPOLE: &[ParamInfo] = &[
+    p("mc", 1.0, true, &[M]),
+    p("mp", 0.5, true, &[M, V]),
+    p("l", 1.0, true, &[M, V]),
+    p("g", 10.0, true, &[V]),
+    p("b", 1.0, false, &[F]),
+    p("eta_x", -0.1, false, &[F]),
+    p("eta_th", -0.1, false, &[F]),
+];
+
+macro_rules! combo {
+    ($name:literal, [$($part:ident),*], |$v:ident| $e:expr) => {
+        Combination { name: $name, needs: &[$($part),*], eval: |$v| $e }
+    };
+}
+
+const DOUBLE_PENDULUM_COMBOS: &[Combination] = &[
+    combo!("m1/m2", [M], |v| v("m1") / v("m2")),
+    combo!("l1/l2", [M], |v| v("l1") / v("l2")),
+    combo!("g/l1", [M, V], |v| v("g") / v("l1")),
+    combo!("b1/(m1*l1^2)", [M, F], |v| v("b1") / (v("m1") * v("l1").powi(2))),
+    combo!("b2/(m1*l1^2)", [M, F], |v| v("b2") / (v("m1") * v("l1").powi(2))),
+    combo!("eta1/(m1*l1^2)", [M, F], |v| v("eta1") / (v("m1") * v("l1").powi(2))),
+    combo!("eta2/(m1*l1^2)", [M, F], |v| v("eta2") / (v("m1") * v("l1").powi(2))),
+    combo!("b1/b2", [F], |v| v("b1") / v("b2")),
+    combo!("eta1/b1", [F], |v| v("eta1") / v("b1")),
+    combo!("eta2/b2", [F], |v| v("eta2") / v("b2")),
+];
+
+const PENDULUM_COMBOS: &[Combination] = &[
+    combo!("g/l", [M, V], |v| v("g") / v("l")),
+    combo!("b/(m*l^2)", [M, F], |v| v("b") / (v("m") * v("l").powi(2))),
+    combo!("eta/(m*l^2)", [M, F], |v| v("eta") / (v("m") * v("l").powi(2))),
+    combo!("eta/b", [F], |v| v("eta") / v("b")),
+];
+
+const CARTPOLE_COMBOS: &[Combination] = &[
+    combo!("mc/mp", [M], |v| v("mc") / v("mp")),
+    combo!("l", [M], |v| v("l")),
+    combo!("g", [M, V], |v| v("g")),
+    combo!("b/mp", [M, F], |v| v("b") / v("mp")),
+    combo!("eta_x/mp", [M, F], |v| v("eta_x") / v("mp")),
+    combo!("eta_th/mp", [M, F], |v| v("eta_th") / v("mp")),
+    combo!("eta_x/b", [F], |v| v("eta_x") / v("b")),
+];
+
+impl Template {
+    pub const ALL: [Template; 3] = [Template::DoublePendulum, Template::Pendulum, Template::Cartpole];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Template::DoublePendulum => "double_pendulum",
+            Template::Pendulum => "pendulum",
+            Template::Cartpole => "cartpole",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|t| t.name() == name)
+    }
+
+    /// Number of generalized coordinates.
+    pub fn n(self) -> usize {
+        match self {
+            Template::DoublePendulum | Template::Cartpole => 2,
+            Template::Pendulum => 1,
+        }
+    }
+
+    /// Number of inputs.
+    pub fn m(self) -> usize {
+        match self {
+            Template::DoublePendulum => 2,
+            Template::Pendulum | Template::Cartpole => 1,
+        }
+    }
+
+    pub fn params(self) -> &'static [ParamInfo] {
+        match self {
+            Template::DoublePendulum => DOUBLE_PENDULUM,
+            Template::Pendulum => PENDULUM,
+            Template::Cartpole => CARTPOLE,
+        }
+    }
+
+    pub fn combinations(self) -> &'static [Combination] {
+        match self {
+            Template::DoublePendulum => DOUBLE_PENDULUM_COMBOS,
+            Template::Pendulum => PENDULUM_COMBOS,
+            Template::Cartpole => CARTPOLE_COMBOS,
+        }
+    }
+
+    pub fn defaults(self) -> Vec<f64> {
+        self.params().iter().map(|p| p.default).collect()
+    }
+
+    pub fn index_of(self, name: &str) -> Option<usize> {
+        self.params().iter().position(|p| p.name == name)
+    }
+
+    /// The symmetric mass matrix M(q), n×n.
+    pub fn mass<S: Scalar>(self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
+        match self {
+            Template::DoublePendulum => {
+                let (m1, m2, l1, l2) = (&p[0], &p[1], &p[2], &p[3]);
+                let i1 = (m1.clone() * l1.square()).scale(1.0 / 3.0);
+                let i2 = (m2.clone() * l2.square()).scale(1.0 / 3.0);
+                let c2 = q[1].cos();
+                let m2l1l2c2 = m2.clone() * l1.clone() * l2.clone() * c2;
+                let i11 = i1 + i2.clone() + m2.clone() * l1.square() + m2l1l2c2.clone();
+                let i12 = i2.clone() + m2l1l2c2.scale(0.5);
+                vec![vec![i11, i12.clone()], vec![i12, i2]]
+            }
+            Template::Pendulum => {
+                let (m, l) = (&p[0], &p[1]);
+                vec![vec![(m.clone() * l.square()).scale(1.0 / 3.0)]]
+            }
+            Template::Cartpole => {
+                let (mc, mp, l) = (&p[0], &p[1], &p[2]);
+                let off = mp.clone() * l.clone() * q[1].cos();
+                vec![
+                    vec![mc.clone() + mp.clone(), off.clone()],
+                    vec![off, mp.clone() * l.square()],
+                ]
+            }
+        }
+    }
+
+    /// The potential energy V(q).
+    pub fn potential<S: Scalar>(self, p: &[S], q: &[S]) -> S {
+        match self {
+            Template::DoublePendulum => {
+                let (m1, m2, l1, l2, g) = (&p[0], &p[1], &p[2], &p[3], &p[4]);
+                let c1 = q[0].cos();
+                let c12 = (q[0].clone() + q[1].clone()).cos();
+                let v1 = (m1.clone() * g.clone() * l1.clone() * c1.clone()).scale(-0.5);
+                let v2 = -(m2.clone() * g.clone() * (l1.clone() * c1 + (l2.clone() * c12).scale(0.5)));
+                v1 + v2
+            }
+            Template::Pendulum => {
+                let (m, l, g) = (&p[0], &p[1], &p[2]);
+                (m.clone() * g.clone() * l.clone() * q[0].cos()).scale(-0.5)
+            }
+            Template::Cartpole => {
+                let (mp, l, g) = (&p[1], &p[2], &p[3]);
+                -(mp.clone() * g.clone() * l.clone() * q[1].cos())
+            }
+        }
+    }
+
+    /// The generalized forces F(q, q̇, u).
+    pub fn forces<S: Scalar>(self, p: &[S], _q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        match self {
+            Template::DoublePendulum => {
+                let (b1, b2, e1, e2) = (&p[5], &p[6], &p[7], &p[8]);
+                vec![
+                    b1.clone() * u[0].clone() + e1.clone() * qd[0].clone(),
+                    b2.clone() * u[1].clone() + e2.clone() * qd[1].clone(),
+                ]
+            }
+            Template::Pendulum => {
+                let (b, e) = (&p[3], &p[4]);
+                vec![b.clone() * u[0].clone() + e.clone() * qd[0].clone()]
+            }
+            Template::Cartpole => {
+                let (b, ex, eth) = (&p[4], &p[5], &p[6]);
+                vec![
+                    b.clone() * u[0].clone() + ex.clone() * qd[0].clone(),
+                    eth.clone() * qd[1].clone(),
+                ]
+            }
+        }
+    }
+}

@@ -1,0 +1,110 @@
+//! Simulated datasets from a template, with the paper's sampling: q ~ U(−r_q, r_q),
+//! q̇ ~ U(−r_q̇, r_q̇), u ~ N(0, σ_u²), next state by RK4 of the true system.
+
+use crate::error::{Error, Result};
+use crate::model::dynamics::TemplateSystem;
+use crate::model::integrator::Integrator;
+use crate::model::templates::Template;
+use crate::rng::Rng;
+use crate::train::data::Dataset;
+
+#[derive(Debug, Clone)]
+pub struct SimConfig {
+    pub count: usize,
+    pub seed: u64,
+    pub dt: f64,
+    pub q_range: f64,
+    pub qdot_range: f64,
+    pub u_std: f64,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            count: 1024,
+            seed: 0,
+            dt: 0.01,
+            q_range: std::f64::consts::PI,
+            qdot_range: 10.0,
+            u_std: 120.0,
+        }
+    }
+}
+
+/// One step of the true system: x' = RK4(x, u).
+pub fn true_step(sys: &TemplateSystem, x: &[f64], u: &[f64], dt: f64, integrator: Integrator) -> Vec<f64> {
+    let n = sys.template.n();
+    integrator.step(&x.to_vec(), dt, |x: &Vec<f64>| {
+        let (q, qd) = x.split_at(n);
+        let qdd = sys.acceleration(q, qd, u);
+        qd.iter().chain(&qdd).copied().collect()
+    })
+}
+
+pub fn simulate(template: Template, params: Vec<f64>, cfg: &SimConfig) -> Result<Dataset> {
+    if cfg.count == 0 {
+        return Err(Error::invalid("count", "must be at least 1"));
+    }
+    for (name, v) in [("dt", cfg.dt), ("q_range", cfg.q_range), ("qdot_range", cfg.qdot_range), ("u_std", cfg.u_std)] {
+        if !v.is_finite() || v < 0.0 || (name == "dt" && v == 0.0) {
+            return Err(Error::invalid(name, format!("must be a finite number ≥ 0 (dt > 0), got {v}")));
+        }
+    }
+    let (n, m) = (template.n(), template.m());
+    let sys = TemplateSystem::new(template, params);
+    let mut rng = Rng::new(cfg.seed);
+    let mut arrays: [Vec<f64>; 5] = Default::default();
+    for _ in 0..cfg.count {
+        let q: Vec<f64> = (0..n).map(|_| rng.uniform_in(-cfg.q_range, cfg.q_range)).collect();
+        let qd: Vec<f64> = (0..n).map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range)).collect();
+        let u: Vec<f64> = (0..m).map(|_| cfg.u_std * rng.normal()).collect();
+        let x: Vec<f64> = q.iter().chain(&qd).copied().collect();
+        let next = true_step(&sys, &x, &u, cfg.dt, Integrator::Rk4);
+        arrays[0].extend(&q);
+        arrays[1].extend(&qd);
+        arrays[2].extend(&u);
+        arrays[3].extend(&next[..n]);
+        arrays[4].extend(&next[n..]);
+    }
+    Dataset::new(cfg.dt, n, m, arrays)
+}
+
+/// Parses "k=v,k=v" into template parameter values, starting from the defaults; unknown
+/// names are an error that lists the known ones.
+pub fn parse_assignments(template: Template, text: Option<&str>, field: &str) -> Result<Vec<f64>> {
+    let mut values = template.defaults();
+    for (name, v) in parse_pairs(text.unwrap_or(""), field)? {
+        let i = template.index_of(&name).ok_or_else(|| unknown_param(template, &name, field))?;
+        values[i] = v;
+    }
+    Ok(values)
+}
+
+pub fn unknown_param(template: Template, name: &str, field: &str) -> Error {
+    let known: Vec<&str> = template.params().iter().map(|p| p.name).collect();
+    Error::invalid(
+        field,
+        format!("unknown parameter '{name}' for template '{}'; known: {}", template.name(), known.join(", ")),
+    )
+}
+
+/// "a=1,b=2" → [("a", 1.0), ("b", 2.0)].
+pub fn parse_pairs(text: &str, field: &str) -> Result<Vec<(String, f64)>> {
+    text.split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|kv| {
+            let (k, v) = kv
+                .split_once('=')
+                .ok_or_else(|| Error::invalid(field, format!("expected name=value, got '{kv}'")))?;
+            let v: f64 = v
+                .trim()
+                .parse()
+                .map_err(|_| Error::invalid(field, format!("'{}' is not a number", v.trim())))?;
+            if !v.is_finite() {
+                return Err(Error::invalid(field, format!("{k} must be finite")));
+            }
+            Ok((k.trim().to_string(), v))
+        })
+        .collect()
+}

@@ -1,0 +1,9 @@
+//! Training: datasets, the training loop with Adam, checkpoints, reports.
+
+pub mod adam;
+pub mod artifact;
+pub mod data;
+pub mod report;
+pub mod trainer;
+
+pub use trainer::{TrainConfig, TrainState, Trainer};

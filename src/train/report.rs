@@ -1,0 +1,69 @@
+//! What a training run reports: losses, timing, and the learned physical parameters with the
+//! combinations of them that the data can identify.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+use crate::model::spec::ModelSpec;
+use crate::model::templates::{Part, Template};
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EpochMetrics {
+    /// Counting from 1.
+    pub epoch: usize,
+    pub train_loss: f64,
+    pub val_loss: Option<f64>,
+    /// Wall time of this epoch (training and validation).
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Identified {
+    pub name: String,
+    pub value: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TrainReport {
+    /// The name the model was asked for ("MVF", …) or "custom" for a JSON spec.
+    pub model: String,
+    pub spec: ModelSpec,
+    /// Epochs completed.
+    pub epochs: usize,
+    /// Final epoch's losses.
+    pub train_loss: f64,
+    pub val_loss: Option<f64>,
+    /// The epoch whose parameters were kept (best validation loss; best training loss when
+    /// there is no validation set).
+    pub best_epoch: usize,
+    pub best_val_loss: Option<f64>,
+    pub stopped_early: bool,
+    pub seconds: f64,
+    pub samples_per_second: f64,
+    /// Learned white-box values by name (only parameters some white-box part uses).
+    pub physical_parameters: BTreeMap<String, f64>,
+    pub identifiable: Vec<Identified>,
+    pub history: Vec<EpochMetrics>,
+}
+
+/// The parameters that the white-box parts use, by name.
+pub fn used_physical(t: Template, parts: &[Part], values: &[(String, f64)]) -> BTreeMap<String, f64> {
+    t.params()
+        .iter()
+        .zip(values)
+        .filter(|(info, _)| info.used_by.iter().any(|p| parts.contains(p)))
+        .map(|(_, (name, v))| (name.clone(), *v))
+        .collect()
+}
+
+/// The identifiable combinations whose parts are all white-box, evaluated at `values`.
+pub fn identifiable(t: Template, parts: &[Part], values: &[(String, f64)]) -> Vec<Identified> {
+    let lookup = |name: &str| -> f64 {
+        values.iter().find(|(n, _)| n == name).map_or(f64::NAN, |(_, v)| *v)
+    };
+    t.combinations()
+        .iter()
+        .filter(|c| c.needs.iter().all(|p| parts.contains(p)))
+        .map(|c| Identified { name: c.name.to_string(), value: (c.eval)(&lookup) })
+        .collect()
+}

@@ -1,0 +1,429 @@
+//! The training loop (design.md §2): mean one-step prediction loss, Adam, per-epoch
+//! validation, early stopping that keeps the best-validation parameters, and checkpoints at
+//! epoch boundaries from which a resumed run equals an uninterrupted one.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use burn::tensor::{Device, Tensor, TensorData};
+use serde::{Deserialize, Serialize};
+
+use super::adam::{Adam, AdamState};
+use super::artifact::ModelFile;
+use super::data::Dataset;
+use super::report::{EpochMetrics, TrainReport, identifiable, used_physical};
+use crate::error::{Error, Result};
+use crate::model::integrator::Integrator;
+use crate::model::params_io::{NamedArray, export, import};
+use crate::model::scaling::Scaling;
+use crate::model::spec::ModelSpec;
+use crate::model::templates::Part;
+use crate::model::{Model, ModelConfig};
+use crate::rng::Rng;
+use crate::sim::unknown_param;
+
+/// Training hyper-parameters; every field has the CLI's default.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct TrainConfig {
+    pub epochs: usize,
+    pub batch_size: usize,
+    pub lr: f64,
+    /// Weight of the velocity error in the loss.
+    pub lambda: f64,
+    /// Share of the data held out for validation when no validation set is given.
+    pub val_fraction: f64,
+    pub seed: u64,
+    pub integrator: Integrator,
+    /// Stop after this many epochs without a better validation loss (off when `None`).
+    pub patience: Option<usize>,
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        Self {
+            epochs: 500,
+            batch_size: 256,
+            lr: 1e-3,
+            lambda: 1.0,
+            val_fraction: 0.2,
+            seed: 0,
+            integrator: Integrator::Rk4,
+            patience: None,
+        }
+    }
+}
+
+impl TrainConfig {
+    pub fn validate(&self) -> Result<()> {
+        let bad = |f: &str, m: &str| Err(Error::invalid(format!("training.{f}"), m));
+        if self.epochs == 0 || self.epochs > 1_000_000 {
+            return bad("epochs", "must be between 1 and 1000000");
+        }
+        if self.batch_size == 0 || self.batch_size > 1 << 22 {
+            return bad("batch_size", "must be between 1 and 4194304");
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0 && self.lr <= 10.0) {
+            return bad("lr", "must be a finite number in (0, 10]");
+        }
+        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
+            return bad("lambda", "must be a finite number ≥ 0");
+        }
+        if !(self.val_fraction.is_finite() && (0.0..1.0).contains(&self.val_fraction)) {
+            return bad("val_fraction", "must be in [0, 1)");
+        }
+        if self.patience == Some(0) {
+            return bad("patience", "must be at least 1 (omit it to train every epoch)");
+        }
+        Ok(())
+    }
+}
+
+/// Everything needed to continue a run from an epoch boundary.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct TrainState {
+    pub model_name: String,
+    pub config: ModelConfig,
+    pub train: TrainConfig,
+    /// Epochs completed.
+    pub epoch: usize,
+    pub params: Vec<NamedArray>,
+    pub adam: AdamState,
+    pub rng: Rng,
+    pub best_epoch: usize,
+    pub best_loss: f64,
+    pub best_params: Vec<NamedArray>,
+    pub history: Vec<EpochMetrics>,
+    pub stale_epochs: usize,
+    pub train_seconds: f64,
+    pub samples_seen: u64,
+}
+
+impl TrainState {
+    pub fn to_bytes(&self) -> Vec<u8> {
+        serde_json::to_vec(self).expect("train state serializes")
+    }
+
+    pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        serde_json::from_slice(bytes).map_err(|e| Error::corrupt("checkpoint", e))
+    }
+}
+
+/// One set of transitions as host arrays: x = [q, q̇], u, target x'.
+struct HostData {
+    x: Vec<f64>,
+    u: Vec<f64>,
+    y: Vec<f64>,
+    count: usize,
+    n2: usize,
+    m: usize,
+}
+
+impl HostData {
+    fn new(ds: &Dataset) -> Self {
+        let (x, y) = ds.states();
+        Self { x, u: ds.u.clone(), y, count: ds.count(), n2: 2 * ds.n, m: ds.m }
+    }
+
+    fn gather(&self, idx: &[usize], device: &Device) -> (Tensor<2>, Tensor<2>, Tensor<2>) {
+        let take = |a: &[f64], w: usize| -> Tensor<2> {
+            let v: Vec<f64> = idx.iter().flat_map(|&i| a[i * w..(i + 1) * w].iter().copied()).collect();
+            Tensor::from_data(TensorData::new(v, [idx.len(), w]), device)
+        };
+        (take(&self.x, self.n2), take(&self.u, self.m), take(&self.y, self.n2))
+    }
+}
+
+/// Mean loss of `model` over `data`, in chunks, without autodiff.
+fn mean_loss(model: &Model, data: &HostData) -> f64 {
+    let device = model.device();
+    let idx: Vec<usize> = (0..data.count).collect();
+    let total: f64 = idx
+        .chunks(4096)
+        .map(|c| {
+            let (x, u, y) = data.gather(c, &device);
+            scalar(model.loss_sum(x, u, y))
+        })
+        .sum();
+    total / data.count as f64
+}
+
+fn scalar(t: Tensor<1>) -> f64 {
+    t.into_data().iter::<f64>().next().unwrap_or(f64::NAN)
+}
+
+/// The mean loss of a trained model on a dataset (the `eval` command).
+pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
+    if ds.n != model.config.n || ds.m != model.config.m {
+        return Err(Error::invalid(
+            "data",
+            format!("dataset has n = {}, m = {} but the model has n = {}, m = {}", ds.n, ds.m, model.config.n, model.config.m),
+        ));
+    }
+    Ok(mean_loss(&model.valid(), &HostData::new(ds)))
+}
+
+pub struct Trainer {
+    model_name: String,
+    model: Model,
+    adam: Adam,
+    cfg: TrainConfig,
+    rng: Rng,
+    epoch: usize,
+    train: HostData,
+    val: Option<HostData>,
+    best_epoch: usize,
+    best_loss: f64,
+    best_params: Vec<NamedArray>,
+    history: Vec<EpochMetrics>,
+    stale_epochs: usize,
+    train_seconds: f64,
+    samples_seen: u64,
+}
+
+/// Template parameter values from name=value pairs over the defaults.
+pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<Vec<f64>>> {
+    let Some(t) = spec.template() else {
+        if let Some((name, _)) = init.first() {
+            return Err(Error::invalid(
+                format!("init.{name}"),
+                "initial values need a model with a template",
+            ));
+        }
+        return Ok(None);
+    };
+    let mut values = t.defaults();
+    for (name, v) in init {
+        let i = t.index_of(name).ok_or_else(|| unknown_param(t, name, &format!("init.{name}")))?;
+        values[i] = *v;
+    }
+    Ok(Some(values))
+}
+
+impl Trainer {
+    /// A new run. Without `val`, `cfg.val_fraction` of `data` is held out (seeded).
+    /// `device` must be an autodiff device.
+    pub fn new(
+        model_name: &str,
+        spec: ModelSpec,
+        init: &[(String, f64)],
+        data: &Dataset,
+        val: Option<&Dataset>,
+        cfg: TrainConfig,
+        device: &Device,
+    ) -> Result<Self> {
+        cfg.validate()?;
+        spec.validate()?;
+        spec.check_dims(data.n, data.m)?;
+        if let Some(v) = val {
+            if (v.n, v.m) != (data.n, data.m) {
+                return Err(Error::invalid("validation_data", "must have the same n and m as the training data"));
+            }
+            if (v.dt - data.dt).abs() > 1e-12 * data.dt {
+                return Err(Error::invalid("validation_data", format!("dt {} differs from the training data's {}", v.dt, data.dt)));
+            }
+        }
+        let physical = physical_init(&spec, init)?;
+        let (train_ds, val_ds) = match val {
+            Some(v) => (data.clone(), Some(v.clone())),
+            None if cfg.val_fraction > 0.0 && data.count() > 1 => {
+                let (t, v) = data.split(cfg.val_fraction, cfg.seed);
+                (t, Some(v))
+            }
+            None => (data.clone(), None),
+        };
+        let white_box_mass = spec.white_box_parts().contains(&Part::Mass);
+        let mass = match (white_box_mass, spec.template(), &physical) {
+            (true, Some(t), Some(p)) => Some((t, p.as_slice())),
+            _ => None,
+        };
+        let config = ModelConfig {
+            spec,
+            n: data.n,
+            m: data.m,
+            dt: data.dt,
+            integrator: cfg.integrator,
+            lambda: cfg.lambda,
+            scaling: Scaling::from_data(&train_ds, mass),
+        };
+        let model = Model::init(config, physical, cfg.seed, device)?;
+        let best_params = export(&model.params);
+        Ok(Self {
+            model_name: model_name.to_string(),
+            model,
+            adam: Adam::default(),
+            rng: Rng::derive(cfg.seed, 0x0_5_4_0_F),
+            cfg,
+            epoch: 0,
+            train: HostData::new(&train_ds),
+            val: val_ds.as_ref().map(HostData::new),
+            best_epoch: 0,
+            best_loss: f64::INFINITY,
+            best_params,
+            history: vec![],
+            stale_epochs: 0,
+            train_seconds: 0.0,
+            samples_seen: 0,
+        })
+    }
+
+    /// Continues a run from a checkpoint, with the same data as the original run.
+    pub fn resume(state: TrainState, data: &Dataset, val: Option<&Dataset>, device: &Device) -> Result<Self> {
+        let mut t = Self::new(&state.model_name, state.config.spec.clone(), &[], data, val, state.train.clone(), device)?;
+        if t.model.config != state.config {
+            return Err(Error::invalid("checkpoint", "was taken on other data or another model configuration"));
+        }
+        let params = import(t.model.params, &state.params, device)?;
+        t.model = Model::from_parts(state.config, params, device);
+        t.adam = Adam::from_state(&state.adam, &device.clone().without_autodiff());
+        t.rng = state.rng;
+        t.epoch = state.epoch;
+        t.best_epoch = state.best_epoch;
+        t.best_loss = state.best_loss;
+        t.best_params = state.best_params;
+        t.history = state.history;
+        t.stale_epochs = state.stale_epochs;
+        t.train_seconds = state.train_seconds;
+        t.samples_seen = state.samples_seen;
+        Ok(t)
+    }
+
+    pub fn checkpoint(&self) -> TrainState {
+        TrainState {
+            model_name: self.model_name.clone(),
+            config: self.model.config.clone(),
+            train: self.cfg.clone(),
+            epoch: self.epoch,
+            params: export(&self.model.params),
+            adam: self.adam.state(),
+            rng: self.rng,
+            best_epoch: self.best_epoch,
+            best_loss: self.best_loss,
+            best_params: self.best_params.clone(),
+            history: self.history.clone(),
+            stale_epochs: self.stale_epochs,
+            train_seconds: self.train_seconds,
+            samples_seen: self.samples_seen,
+        }
+    }
+
+    pub fn epoch(&self) -> usize {
+        self.epoch
+    }
+
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    pub fn history(&self) -> &[EpochMetrics] {
+        &self.history
+    }
+
+    pub fn config(&self) -> &TrainConfig {
+        &self.cfg
+    }
+
+    pub fn train_count(&self) -> usize {
+        self.train.count
+    }
+
+    pub fn stopped_early(&self) -> bool {
+        self.cfg.patience.is_some_and(|p| self.stale_epochs >= p)
+    }
+
+    pub fn finished(&self) -> bool {
+        self.epoch >= self.cfg.epochs || self.stopped_early()
+    }
+
+    /// One pass over the shuffled training data, then validation. `cancel` is checked between
+    /// batches.
+    pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
+        let start = Instant::now();
+        let device = self.model.device();
+        let mut order: Vec<usize> = (0..self.train.count).collect();
+        self.rng.shuffle(&mut order);
+        let epoch = self.epoch + 1;
+        let mut total = 0.0;
+        for (b, batch) in order.chunks(self.cfg.batch_size).enumerate() {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Cancelled);
+            }
+            let (x, u, y) = self.train.gather(batch, &device);
+            let loss = self.model.loss_sum(x, u, y).div_scalar(batch.len() as f64);
+            let value = scalar(loss.clone());
+            if !value.is_finite() {
+                return Err(Error::Training(format!(
+                    "the loss became non-finite ({value}) at epoch {epoch}, batch {b}; try a smaller learning rate"
+                )));
+            }
+            total += value * batch.len() as f64;
+            let grads = loss.backward();
+            self.model.params = self.adam.step(self.model.params.clone(), &grads, self.cfg.lr);
+        }
+        self.train_seconds += start.elapsed().as_secs_f64();
+        self.samples_seen += self.train.count as u64;
+        let train_loss = total / self.train.count as f64;
+        let val_loss = self.val.as_ref().map(|v| mean_loss(&self.model.valid(), v));
+        if let Some(v) = val_loss.filter(|v| !v.is_finite()) {
+            return Err(Error::Training(format!("the validation loss became non-finite ({v}) at epoch {epoch}")));
+        }
+        self.epoch = epoch;
+        let criterion = val_loss.unwrap_or(train_loss);
+        if criterion < self.best_loss {
+            self.best_loss = criterion;
+            self.best_epoch = epoch;
+            self.best_params = export(&self.model.params);
+            self.stale_epochs = 0;
+        } else {
+            self.stale_epochs += 1;
+        }
+        let metrics = EpochMetrics { epoch, train_loss, val_loss, seconds: start.elapsed().as_secs_f64() };
+        self.history.push(metrics);
+        Ok(metrics)
+    }
+
+    /// The report for the run so far.
+    pub fn report(&self) -> TrainReport {
+        let last = self.history.last();
+        let seconds: f64 = self.history.iter().map(|h| h.seconds).sum();
+        let parts = self.model.white_box_parts();
+        let best = Model::from_parts(
+            self.model.config.clone(),
+            import(self.model.params.clone(), &self.best_params, &self.model.device()).expect("same structure"),
+            &self.model.device(),
+        );
+        let (physical_parameters, ident) = match (self.model.config.template(), best.physical_values()) {
+            (Some(t), Some(values)) => (used_physical(t, &parts, &values), identifiable(t, &parts, &values)),
+            _ => Default::default(),
+        };
+        TrainReport {
+            model: self.model_name.clone(),
+            spec: self.model.config.spec.clone(),
+            epochs: self.epoch,
+            train_loss: last.map_or(f64::NAN, |h| h.train_loss),
+            val_loss: last.and_then(|h| h.val_loss),
+            best_epoch: self.best_epoch,
+            best_val_loss: self.val.as_ref().map(|_| self.best_loss),
+            stopped_early: self.stopped_early(),
+            seconds,
+            samples_per_second: if self.train_seconds > 0.0 { self.samples_seen as f64 / self.train_seconds } else { 0.0 },
+            physical_parameters,
+            identifiable: ident,
+            history: self.history.clone(),
+        }
+    }
+
+    /// The best parameters as a model file, with the report.
+    pub fn model_file(&self) -> ModelFile {
+        ModelFile::new(self.model.config.clone(), self.best_params.clone(), Some(self.report()))
+    }
+
+    /// Runs to the end, calling `on_epoch` after each epoch.
+    pub fn run(&mut self, cancel: &AtomicBool, mut on_epoch: impl FnMut(&EpochMetrics, &Trainer)) -> Result<()> {
+        while !self.finished() {
+            let m = self.run_epoch(cancel)?;
+            on_epoch(&m, self);
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,350 @@
+//! Numerical checks in f64 against independent references (design.md §2). Burn fixes the float
+//! type per process, so every test in this binary runs in f64.
+
+mod common;
+
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Gradients, Tensor};
+use common::*;
+use graybox::backend::{Backend, Precision, device};
+use graybox::model::dynamics::TemplateSystem;
+use graybox::model::integrator::Integrator;
+use graybox::model::mlp::Mlp;
+use graybox::model::params_io::{export, import};
+use graybox::model::spec::ModelSpec;
+use graybox::model::templates::Template;
+use graybox::model::{Model, columns, mass_matrix};
+use graybox::rng::Rng;
+use graybox::sim::{SimConfig, simulate, true_step};
+use graybox::train::{TrainConfig, Trainer};
+
+fn f64_device() -> Device {
+    device(Backend::Flex, Precision::F64).expect("f64 device")
+}
+
+/// Central difference step for O(1)–O(100) smooth functions in f64: truncation ~h²·f‴ ≈ 1e-10,
+/// rounding ~ε·|f|/h ≈ 1e-9 at |f| = 100; both far below the 1e-7 bound.
+const H: f64 = 1e-5;
+
+fn shifted(q: &[Vec<f64>], k: usize, h: f64) -> Vec<Vec<f64>> {
+    q.iter()
+        .map(|r| {
+            let mut r = r.clone();
+            r[k] += h;
+            r
+        })
+        .collect()
+}
+
+/// Tangents of L(q) from the forward-mode Jacobian of a Cholesky MLP vs central differences of
+/// its values, through the input standardization and the softplus diagonal.
+#[test]
+fn mass_network_jacobian_matches_finite_differences() {
+    let dev = f64_device();
+    for n in [2, 3] {
+        let net = Mlp::init(n, &[32, 32, 32], mass_matrix::outputs(n), &mut Rng::new(n as u64), &dev);
+        let sigma = 1.7;
+        let (q, _, _) = paper_samples(n, 1, 6, 11);
+        let dx_dq = Tensor::<2>::eye(n, &dev).mul_scalar(1.0 / sigma);
+        let l_at = |q: &[Vec<f64>]| {
+            let x = tensor(q, &dev).mul_scalar(1.0 / sigma);
+            let (y, j) = net.forward_jacobian(x, dx_dq.clone());
+            mass_matrix::factor_from_outputs(mass_matrix::dual_columns(y, j), n)
+        };
+        let l = l_at(&q);
+        for k in 0..n {
+            let lp = l_at(&shifted(&q, k, H));
+            let lm = l_at(&shifted(&q, k, -H));
+            for e in 0..l.entries.len() {
+                let fd: Vec<f64> = host1(lp.entries[e].v.clone())
+                    .iter()
+                    .zip(host1(lm.entries[e].v.clone()))
+                    .map(|(a, b)| (a - b) / (2.0 * H))
+                    .collect();
+                let ad = host1(l.entries[e].tangent(k).expect("every entry depends on q").clone());
+                assert!(rel_err(&ad, &fd) < 1e-7, "n={n} entry {e} dq{k}: {ad:?} vs {fd:?}");
+            }
+        }
+    }
+}
+
+/// ∂V/∂q of every potential form, and ∂L/∂q of every mass form, through the model's own
+/// `parts`, vs central differences of V and L.
+#[test]
+fn model_input_jacobians_match_finite_differences() {
+    let dev = f64_device();
+    let cases: Vec<(ModelSpec, usize, usize)> = vec![
+        (ModelSpec::named("MVF", None).unwrap(), 2, 2),
+        (ModelSpec::named("MVF", None).unwrap(), 3, 1),
+        (ModelSpec::named("W-B", Some(Template::DoublePendulum)).unwrap(), 2, 2),
+        (ModelSpec::named("W-B", Some(Template::Cartpole)).unwrap(), 2, 1),
+        (
+            serde_json::from_str(r#"{"kind":"structured","mass":{"type":"constant"},"potential":{"type":"quadratic"},"forces":{"type":"constant_affine"}}"#).unwrap(),
+            3,
+            2,
+        ),
+    ];
+    for (spec, n, m) in cases {
+        let model = Model::init(config(spec.clone(), n, m), None, 5, &dev).unwrap();
+        perturb(&model, &dev);
+        let model = perturb(&model, &dev);
+        let (q, qd, u) = paper_samples(n, m, 5, 3);
+        let (qt, qdt, ut) = (tensor(&q, &dev), tensor(&qd, &dev), tensor(&u, &dev));
+        let parts = model.parts(qt.clone(), qdt.clone(), ut.clone());
+        let v_at = |q: &[Vec<f64>]| host1(model.potential(tensor(q, &dev)).unwrap());
+        let l_at = |q: &[Vec<f64>]| model.parts(tensor(q, &dev), qdt.clone(), ut.clone()).l;
+        for k in 0..n {
+            let fd: Vec<f64> = v_at(&shifted(&q, k, H))
+                .iter()
+                .zip(v_at(&shifted(&q, k, -H)))
+                .map(|(a, b)| (a - b) / (2.0 * H))
+                .collect();
+            let ad = host1(parts.grad_v.as_ref().unwrap()[k].clone());
+            assert!(rel_err(&ad, &fd) < 1e-7, "{spec:?} ∂V/∂q{k}: {ad:?} vs {fd:?}");
+            let (lp, lm) = (l_at(&shifted(&q, k, H)), l_at(&shifted(&q, k, -H)));
+            for e in 0..parts.l.entries.len() {
+                let fd: Vec<f64> = host1(lp.entries[e].v.clone())
+                    .iter()
+                    .zip(host1(lm.entries[e].v.clone()))
+                    .map(|(a, b)| (a - b) / (2.0 * H))
+                    .collect();
+                let ad = match parts.l.entries[e].tangent(k) {
+                    Some(t) => host1(t.clone()),
+                    None => vec![0.0; q.len()],
+                };
+                let ad: Vec<f64> = if ad.len() == 1 { vec![ad[0]; q.len()] } else { ad };
+                assert!(rel_err(&ad, &fd) < 1e-7, "{spec:?} ∂L{e}/∂q{k}: {ad:?} vs {fd:?}");
+            }
+        }
+    }
+}
+
+/// Moves every parameter off its initial value so that zero-initialized parts (η, K, constant
+/// L) are exercised too.
+fn perturb(model: &Model, dev: &Device) -> Model {
+    let mut r = Rng::new(99);
+    let arrays: Vec<_> = export(&model.params)
+        .into_iter()
+        .map(|mut a| {
+            for v in &mut a.values {
+                *v += 0.3 * r.normal();
+            }
+            a
+        })
+        .collect();
+    let params = import(model.params.clone(), &arrays, dev).unwrap();
+    Model::from_parts(model.config.clone(), params, dev)
+}
+
+/// The W-B double pendulum's q̈ (Burn path and f64 path) equals the paper's equations written
+/// out independently. 1e-9: both are a handful of f64 operations on O(100) quantities.
+#[test]
+fn double_pendulum_matches_closed_form() {
+    let dev = f64_device();
+    let spec = ModelSpec::named("W-B", Some(Template::DoublePendulum)).unwrap();
+    let model = Model::init(config(spec, 2, 2), Some(PAPER.to_vec()), 0, &dev).unwrap();
+    let (q, qd, u) = paper_samples(2, 2, 64, 42);
+    let burn = host(model.accel(tensor(&q, &dev), tensor(&qd, &dev), tensor(&u, &dev)));
+    let sys = TemplateSystem::new(Template::DoublePendulum, PAPER.to_vec());
+    for i in 0..q.len() {
+        let want = double_pendulum_accel(&PAPER, &q[i], &qd[i], &u[i]);
+        assert!(rel_err(&burn[i], &want) < 1e-9, "burn {:?} vs {want:?}", burn[i]);
+        let f64_path = sys.acceleration(&q[i], &qd[i], &u[i]);
+        assert!(rel_err(&f64_path, &want) < 1e-9, "f64 {f64_path:?} vs {want:?}");
+    }
+}
+
+/// The Coriolis term assembled from L and ∂L/∂q (learned M) equals the Christoffel-symbol
+/// definition with ∂M/∂q from central differences of M = LLᵀ; the whole q̈ is checked.
+/// FD error ~1e-9 on O(100) terms, so 1e-6.
+#[test]
+fn learned_mass_coriolis_matches_christoffel_definition() {
+    let dev = f64_device();
+    for n in [2, 3] {
+        let model = perturb(&model("MVF", None, n, 2, 4, &dev), &dev);
+        let (q, qd, u) = paper_samples(n, 2, 4, 8);
+        let (qdt, ut) = (tensor(&qd, &dev), tensor(&u, &dev));
+        let mass_at = |q: &[Vec<f64>]| -> Vec<Vec<Vec<f64>>> {
+            let l = model.parts(tensor(q, &dev), qdt.clone(), ut.clone()).l;
+            let lv: Vec<Vec<f64>> = l.entries.iter().map(|e| host1(e.v.clone())).collect();
+            (0..q.len())
+                .map(|b| {
+                    let lij = |i: usize, j: usize| if j <= i { lv[i * (i + 1) / 2 + j][b] } else { 0.0 };
+                    (0..n).map(|i| (0..n).map(|j| (0..n).map(|k| lij(i, k) * lij(j, k)).sum()).collect()).collect()
+                })
+                .collect()
+        };
+        let m0 = mass_at(&q);
+        let dm: Vec<Vec<Vec<Vec<f64>>>> = (0..n)
+            .map(|k| {
+                let (p, mm) = (mass_at(&shifted(&q, k, H)), mass_at(&shifted(&q, k, -H)));
+                (0..q.len())
+                    .map(|b| (0..n).map(|i| (0..n).map(|j| (p[b][i][j] - mm[b][i][j]) / (2.0 * H)).collect()).collect())
+                    .collect()
+            })
+            .collect();
+        let parts = model.parts(tensor(&q, &dev), qdt.clone(), ut.clone());
+        let gv: Vec<Vec<f64>> = parts.grad_v.unwrap().into_iter().map(host1).collect();
+        let f: Vec<Vec<f64>> = parts.forces.into_iter().map(host1).collect();
+        let got = host(model.accel(tensor(&q, &dev), qdt.clone(), ut.clone()));
+        for b in 0..q.len() {
+            let w = &qd[b];
+            let c: Vec<f64> = (0..n)
+                .map(|i| {
+                    let mut s = 0.0;
+                    for j in 0..n {
+                        for k in 0..n {
+                            s += dm[k][b][i][j] * w[j] * w[k] - 0.5 * dm[i][b][j][k] * w[j] * w[k];
+                        }
+                    }
+                    s
+                })
+                .collect();
+            let rhs: Vec<f64> = (0..n).map(|i| f[i][b] - c[i] - gv[i][b]).collect();
+            let want = gauss_solve(m0[b].clone(), rhs);
+            assert!(rel_err(&got[b], &want) < 1e-6, "n={n}: {:?} vs {want:?}", got[b]);
+        }
+    }
+}
+
+/// Unforced, undamped systems conserve T + V; RK4's error at Δt = 1e-3 over 1 s is far below
+/// the 1e-6 relative bound.
+#[test]
+fn energy_is_conserved_without_forces() {
+    for t in [Template::DoublePendulum, Template::Cartpole] {
+        let mut p = t.defaults();
+        for (i, info) in t.params().iter().enumerate() {
+            if info.name.starts_with('b') || info.name.starts_with("eta") {
+                p[i] = 0.0;
+            }
+        }
+        let sys = TemplateSystem::new(t, p);
+        let (q, qd, _) = paper_samples(2, 1, 5, 21);
+        for (q0, qd0) in q.iter().zip(&qd) {
+            let (t0, v0) = sys.energy(q0, qd0);
+            let scale = t0.abs() + v0.abs();
+            let mut x: Vec<f64> = q0.iter().chain(qd0).copied().collect();
+            let mut drift: f64 = 0.0;
+            for _ in 0..1000 {
+                x = true_step(&sys, &x, &vec![0.0; t.m()], 1e-3, Integrator::Rk4);
+                let (tk, vk) = sys.energy(&x[..2], &x[2..]);
+                drift = drift.max((tk + vk - t0 - v0).abs());
+            }
+            assert!(drift < 1e-6 * scale, "{}: drift {drift} vs scale {scale}", t.name());
+        }
+    }
+}
+
+/// Global error at a fixed horizon shrinks by 2^p when Δt halves: ~16 (RK4), ~4 (midpoint),
+/// ~2 (Euler). (One step's local error shrinks by 2^(p+1).)
+#[test]
+fn integrators_have_their_order() {
+    let sys = TemplateSystem::new(Template::DoublePendulum, PAPER.to_vec());
+    let x0 = vec![0.5, -0.3, 1.0, -2.0];
+    let u = vec![5.0, -3.0];
+    let horizon = 0.2;
+    let run = |integ: Integrator, dt: f64| {
+        let steps = (horizon / dt).round() as usize;
+        (0..steps).fold(x0.clone(), |x, _| true_step(&sys, &x, &u, dt, integ))
+    };
+    let reference = run(Integrator::Rk4, 1e-4);
+    for (integ, want, lo, hi) in [(Integrator::Rk4, 16.0, 13.0, 19.0), (Integrator::Midpoint, 4.0, 3.4, 4.6), (Integrator::Euler, 2.0, 1.7, 2.3)] {
+        let err = |dt: f64| rel_err(&run(integ, dt), &reference);
+        let ratio = err(0.01) / err(0.005);
+        assert!((lo..hi).contains(&ratio), "{}: ratio {ratio}, expected ~{want}", integ.name());
+    }
+}
+
+struct GradCollector<'a> {
+    grads: &'a Gradients,
+    out: Vec<Vec<f64>>,
+}
+
+impl ModuleVisitor for GradCollector<'_> {
+    fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+        let t = p.val();
+        let numel = t.dims().iter().product();
+        self.out.push(match t.grad(self.grads) {
+            Some(g) => g.into_data().iter::<f64>().collect(),
+            None => vec![0.0; numel],
+        });
+    }
+}
+
+/// ∂loss/∂θ from Burn's autodiff (through the forward-mode Jacobians, Coriolis term, solve and
+/// RK4) vs central differences of the loss. Relative to the largest sampled gradient.
+#[test]
+fn loss_gradients_match_finite_differences() {
+    let dev = f64_device().autodiff();
+    for (name, template) in [("MVF", None), ("W-B", Some(Template::DoublePendulum))] {
+        let ds = simulate(Template::DoublePendulum, PAPER.to_vec(), &SimConfig { count: 8, seed: 1, ..SimConfig::default() }).unwrap();
+        let (x, y) = ds.states();
+        let rows = |a: &[f64], w: usize| a.chunks(w).map(<[f64]>::to_vec).collect::<Vec<_>>();
+        let (xt, ut, yt) = (tensor(&rows(&x, 4), &dev), tensor(&rows(&ds.u, 2), &dev), tensor(&rows(&y, 4), &dev));
+        let m0 = model(name, template, 2, 2, 7, &dev);
+        let m0 = if template.is_some() {
+            let p = [12.0, 8.0, 1.2, 0.9, 9.0, 1.1, 0.8, -0.4, -0.6];
+            Model::init(m0.config.clone(), Some(p.to_vec()), 7, &dev).unwrap()
+        } else {
+            m0
+        };
+        let loss_of = |m: &Model| m.loss_sum(xt.clone(), ut.clone(), yt.clone()).div_scalar(8.0);
+        let grads = loss_of(&m0).backward();
+        let mut gc = GradCollector { grads: &grads, out: vec![] };
+        m0.params.visit(&mut gc);
+        let arrays = export(&m0.params);
+        let mut r = Rng::new(3);
+        let mut worst: f64 = 0.0;
+        let mut gmax: f64 = 0.0;
+        for _ in 0..24 {
+            let a = r.below(arrays.len());
+            let e = r.below(arrays[a].values.len());
+            let h = 1e-6 * (1.0 + arrays[a].values[e].abs());
+            let eval = |delta: f64| {
+                let mut arr = arrays.clone();
+                arr[a].values[e] += delta;
+                let p = import(m0.params.clone(), &arr, &dev).unwrap();
+                let m = Model::from_parts(m0.config.clone(), p, &dev);
+                loss_of(&m).into_data().iter::<f64>().next().unwrap()
+            };
+            let fd = (eval(h) - eval(-h)) / (2.0 * h);
+            let ad = gc.out[a][e];
+            worst = worst.max((fd - ad).abs());
+            gmax = gmax.max(fd.abs());
+        }
+        assert!(gmax > 0.0);
+        assert!(worst / gmax < 1e-6, "{name}: max |Δ| {worst} vs max |g| {gmax}");
+    }
+}
+
+/// The white-box model recovers the dynamics from 16 samples (the paper's W-B data budget) from
+/// ±30% perturbed starts; raw parameters are not identifiable, their ratios are.
+#[test]
+fn white_box_recovers_dynamics_and_identifiable_ratios() {
+    let dev = f64_device().autodiff();
+    let t = Template::DoublePendulum;
+    let truth = graybox::train::report::identifiable(
+        t,
+        &ModelSpec::named("W-B", Some(t)).unwrap().white_box_parts(),
+        &t.params().iter().map(|p| p.name.to_string()).zip(PAPER).collect::<Vec<_>>(),
+    );
+    for seed in 0..3u64 {
+        let data = simulate(t, PAPER.to_vec(), &SimConfig { count: 16, seed: 100 + seed, ..SimConfig::default() }).unwrap();
+        let val = simulate(t, PAPER.to_vec(), &SimConfig { count: 1024, seed: 200 + seed, ..SimConfig::default() }).unwrap();
+        let mut r = Rng::new(300 + seed);
+        let init: Vec<(String, f64)> =
+            t.params().iter().zip(PAPER).map(|(p, v)| (p.name.to_string(), v * r.uniform_in(0.7, 1.3))).collect();
+        let cfg = TrainConfig { epochs: 3000, batch_size: 16, lr: 1e-2, seed, ..TrainConfig::default() };
+        let spec = ModelSpec::named("W-B", Some(t)).unwrap();
+        let mut trainer = Trainer::new("W-B", spec, &init, &data, Some(&val), cfg, &dev).unwrap();
+        trainer.run(&Default::default(), |_, _| {}).unwrap();
+        let report = trainer.report();
+        let best = report.best_val_loss.unwrap();
+        assert!(best < 1e-5, "seed {seed}: best validation loss {best}");
+        for (got, want) in report.identifiable.iter().zip(&truth) {
+            assert_eq!(got.name, want.name);
+            let rel = (got.value - want.value).abs() / want.value.abs();
+            assert!(rel < 0.01, "seed {seed}: {} = {} vs {}", got.name, got.value, want.value);
+        }
+    }
+}
