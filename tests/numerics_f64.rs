@@ -13,7 +13,7 @@ use graybox::model::mlp::Mlp;
 use graybox::model::params_io::{export, import};
 use graybox::model::spec::ModelSpec;
 use graybox::model::templates::Template;
-use graybox::model::{Model, columns, mass_matrix};
+use graybox::model::{Model, mass_matrix};
 use graybox::rng::Rng;
 use graybox::sim::{SimConfig, simulate, true_step};
 use graybox::train::{TrainConfig, Trainer};

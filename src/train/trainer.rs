@@ -97,6 +97,8 @@ pub struct TrainState {
     pub stale_epochs: usize,
     pub train_seconds: f64,
     pub samples_seen: u64,
+    /// Identifies the training and validation data, so that a resume on other data fails.
+    pub data_fingerprint: u64,
 }
 
 impl TrainState {
@@ -179,6 +181,42 @@ pub struct Trainer {
     stale_epochs: usize,
     train_seconds: f64,
     samples_seen: u64,
+    fingerprint: u64,
+}
+
+/// The (train, validation) sets: `val` when given, else a seeded split of `data`.
+fn split_data(data: &Dataset, val: Option<&Dataset>, cfg: &TrainConfig) -> Result<(Dataset, Option<Dataset>)> {
+    if let Some(v) = val {
+        if (v.n, v.m) != (data.n, data.m) {
+            return Err(Error::invalid("validation_data", "must have the same n and m as the training data"));
+        }
+        if (v.dt - data.dt).abs() > 1e-12 * data.dt {
+            return Err(Error::invalid(
+                "validation_data",
+                format!("dt {} differs from the training data's {}", v.dt, data.dt),
+            ));
+        }
+        return Ok((data.clone(), Some(v.clone())));
+    }
+    if cfg.val_fraction > 0.0 && data.count() > 1 {
+        let (t, v) = data.split(cfg.val_fraction, cfg.seed);
+        return Ok((t, Some(v)));
+    }
+    Ok((data.clone(), None))
+}
+
+/// FNV-1a over the bits of every value, train then validation.
+fn fingerprint(train: &Dataset, val: Option<&Dataset>) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for ds in std::iter::once(train).chain(val) {
+        let arrays = [&ds.q, &ds.qdot, &ds.u, &ds.q_next, &ds.qdot_next];
+        for v in arrays.into_iter().flatten().chain([&ds.dt]) {
+            for b in v.to_bits().to_le_bytes() {
+                h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01B3);
+            }
+        }
+    }
+    h
 }
 
 /// Template parameter values from name=value pairs over the defaults.
@@ -215,23 +253,8 @@ impl Trainer {
         cfg.validate()?;
         spec.validate()?;
         spec.check_dims(data.n, data.m)?;
-        if let Some(v) = val {
-            if (v.n, v.m) != (data.n, data.m) {
-                return Err(Error::invalid("validation_data", "must have the same n and m as the training data"));
-            }
-            if (v.dt - data.dt).abs() > 1e-12 * data.dt {
-                return Err(Error::invalid("validation_data", format!("dt {} differs from the training data's {}", v.dt, data.dt)));
-            }
-        }
         let physical = physical_init(&spec, init)?;
-        let (train_ds, val_ds) = match val {
-            Some(v) => (data.clone(), Some(v.clone())),
-            None if cfg.val_fraction > 0.0 && data.count() > 1 => {
-                let (t, v) = data.split(cfg.val_fraction, cfg.seed);
-                (t, Some(v))
-            }
-            None => (data.clone(), None),
-        };
+        let (train_ds, val_ds) = split_data(data, val, &cfg)?;
         let white_box_mass = spec.white_box_parts().contains(&Part::Mass);
         let mass = match (white_box_mass, spec.template(), &physical) {
             (true, Some(t), Some(p)) => Some((t, p.as_slice())),
@@ -247,16 +270,21 @@ impl Trainer {
             scaling: Scaling::from_data(&train_ds, mass),
         };
         let model = Model::init(config, physical, cfg.seed, device)?;
+        Ok(Self::start(model_name, model, cfg, &train_ds, val_ds.as_ref()))
+    }
+
+    fn start(model_name: &str, model: Model, cfg: TrainConfig, train: &Dataset, val: Option<&Dataset>) -> Self {
         let best_params = export(&model.params);
-        Ok(Self {
+        Self {
             model_name: model_name.to_string(),
             model,
             adam: Adam::default(),
-            rng: Rng::derive(cfg.seed, 0x0_5_4_0_F),
+            rng: Rng::derive(cfg.seed, 0x05_40F),
             cfg,
             epoch: 0,
-            train: HostData::new(&train_ds),
-            val: val_ds.as_ref().map(HostData::new),
+            fingerprint: fingerprint(train, val),
+            train: HostData::new(train),
+            val: val.map(HostData::new),
             best_epoch: 0,
             best_loss: f64::INFINITY,
             best_params,
@@ -264,17 +292,19 @@ impl Trainer {
             stale_epochs: 0,
             train_seconds: 0.0,
             samples_seen: 0,
-        })
+        }
     }
 
     /// Continues a run from a checkpoint, with the same data as the original run.
     pub fn resume(state: TrainState, data: &Dataset, val: Option<&Dataset>, device: &Device) -> Result<Self> {
-        let mut t = Self::new(&state.model_name, state.config.spec.clone(), &[], data, val, state.train.clone(), device)?;
-        if t.model.config != state.config {
-            return Err(Error::invalid("checkpoint", "was taken on other data or another model configuration"));
+        let (train_ds, val_ds) = split_data(data, val, &state.train)?;
+        if fingerprint(&train_ds, val_ds.as_ref()) != state.data_fingerprint {
+            return Err(Error::invalid("checkpoint", "was taken on other data than the data given"));
         }
-        let params = import(t.model.params, &state.params, device)?;
-        t.model = Model::from_parts(state.config, params, device);
+        let skeleton = Model::init(state.config.clone(), None, state.train.seed, device)?;
+        let params = import(skeleton.params, &state.params, device)?;
+        let model = Model::from_parts(state.config, params, device);
+        let mut t = Self::start(&state.model_name, model, state.train, &train_ds, val_ds.as_ref());
         t.adam = Adam::from_state(&state.adam, &device.clone().without_autodiff());
         t.rng = state.rng;
         t.epoch = state.epoch;
@@ -304,6 +334,7 @@ impl Trainer {
             stale_epochs: self.stale_epochs,
             train_seconds: self.train_seconds,
             samples_seen: self.samples_seen,
+            data_fingerprint: self.fingerprint,
         }
     }
 

@@ -1,0 +1,60 @@
+//! The `graybox` binary end to end: simulate → train → eval → inspect, and its errors.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn graybox(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_graybox")).args(args).output().expect("binary runs")
+}
+
+fn json(out: &Output) -> serde_json::Value {
+    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("stdout is JSON")
+}
+
+fn tmp(name: &str) -> String {
+    let dir = std::env::temp_dir().join(format!("graybox-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir.join(name).to_string_lossy().into_owned()
+}
+
+#[test]
+fn simulate_train_eval_inspect() {
+    let (d, v, m, r) = (tmp("d.json"), tmp("v.json"), tmp("m.gbx"), tmp("r.json"));
+    json(&graybox(&["simulate", "--system", "double_pendulum", "--count", "64", "--seed", "0", "--out", &d]));
+    json(&graybox(&["simulate", "--system", "double_pendulum", "--count", "32", "--seed", "1", "--out", &v]));
+    let report = json(&graybox(&[
+        "train", "--data", &d, "--val-data", &v, "--model", "W-B", "--template", "double_pendulum",
+        "--init", "m1=12,l2=0.9", "--epochs", "3", "--batch-size", "32", "--out", &m, "--report", &r,
+    ]));
+    for key in ["model", "epochs", "train_loss", "val_loss", "best_epoch", "seconds", "samples_per_second", "physical_parameters", "identifiable"] {
+        assert!(report.get(key).is_some(), "report lacks {key}");
+    }
+    assert_eq!(report["epochs"], 3);
+    assert!(report["physical_parameters"]["m1"].as_f64().unwrap() > 0.0);
+    assert!(Path::new(&r).exists());
+    let eval = json(&graybox(&["eval", "--model", &m, "--data", &v]));
+    assert_eq!(eval["count"], 32);
+    let best = report["best_val_loss"].as_f64().unwrap();
+    let loss = eval["loss"].as_f64().unwrap();
+    assert!((loss - best).abs() <= 1e-6 * best, "eval {loss} vs best {best}");
+    let info = json(&graybox(&["inspect", "--model", &m]));
+    assert_eq!((info["n"].as_u64(), info["m"].as_u64()), (Some(2), Some(2)));
+    assert_eq!(info["template"], "double_pendulum");
+    assert!(info["identifiable"].as_array().unwrap().iter().any(|c| c["name"] == "m1/m2"));
+}
+
+#[test]
+fn bad_input_exits_2_naming_the_field() {
+    let bad = tmp("bad.json");
+    std::fs::write(&bad, r#"{"dt":0.01,"q":[[0,1],[2]],"qdot":[[0,0],[1,1]],"u":[[1],[2]],"q_next":[[0,1],[2,3]],"qdot_next":[[0,0],[1,1]]}"#).unwrap();
+    let out = graybox(&["train", "--data", &bad, "--out", &tmp("x.gbx")]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("q[1]"));
+    let out = graybox(&["simulate", "--system", "triple_pendulum", "--out", &tmp("y.json")]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("double_pendulum"));
+    let out = graybox(&["simulate", "--system", "pendulum", "--set", "mass=3", "--out", &tmp("y.json")]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown parameter 'mass'"));
+}
