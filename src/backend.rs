@@ -41,7 +41,9 @@ pub fn device(backend: Backend, precision: Precision) -> Result<Device> {
         #[allow(deprecated)] // selectable on purpose (design.md §7); flex is the default
         Backend::Ndarray => Device::ndarray(),
     };
-    if device.configure(precision.dtype()).is_err() && device.settings().float_dtype != precision.dtype() {
+    if device.configure(precision.dtype()).is_err()
+        && device.settings().float_dtype != precision.dtype()
+    {
         return Err(Error::invalid(
             "precision",
             format!(

@@ -18,6 +18,20 @@ pub enum BenchCommand {
     /// Training throughput (samples/s) for MVF and naive at batch 256 and 4096, and the wall
     /// time for MVF to reach the paper's validation loss, on the paper's double pendulum.
     Train(BenchTrainArgs),
+    /// Where one training step's time goes: forward, backward, optimizer (milliseconds).
+    Step(BenchStepArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BenchStepArgs {
+    #[arg(long, default_value = "MVF")]
+    pub model: String,
+    #[arg(long, default_value_t = 256)]
+    pub batch_size: usize,
+    #[arg(long, default_value_t = 50)]
+    pub steps: usize,
+    #[arg(long, value_enum, default_value_t = Backend::Flex)]
+    pub backend: Backend,
 }
 
 #[derive(Args, Debug)]
@@ -54,20 +68,34 @@ pub struct BenchTrainArgs {
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Train(a) => bench_train(a),
+        BenchCommand::Step(a) => bench_step(a),
     }
 }
 
 fn bench_train(a: BenchTrainArgs) -> Result<()> {
     let t = Template::DoublePendulum;
-    let cfg = |count, seed| SimConfig { count, seed, ..SimConfig::default() };
+    let cfg = |count, seed| SimConfig {
+        count,
+        seed,
+        ..SimConfig::default()
+    };
     let train = simulate(t, t.defaults(), &cfg(a.train, a.seed))?;
     let val = simulate(t, t.defaults(), &cfg(a.val, a.seed + 1))?;
     let device = backend::device(a.backend, Precision::F32)?.autodiff();
     let never = AtomicBool::new(false);
     for model in a.models.split(',').map(str::trim) {
-        for bs in a.batch_sizes.split(',').filter_map(|s| s.trim().parse::<usize>().ok()) {
+        for bs in a
+            .batch_sizes
+            .split(',')
+            .filter_map(|s| s.trim().parse::<usize>().ok())
+        {
             let spec = ModelSpec::named(model, Some(t))?;
-            let tc = TrainConfig { epochs: a.epochs + 1, batch_size: bs, seed: a.seed, ..TrainConfig::default() };
+            let tc = TrainConfig {
+                epochs: a.epochs + 1,
+                batch_size: bs,
+                seed: a.seed,
+                ..TrainConfig::default()
+            };
             let mut trainer = Trainer::new(model, spec, &[], &train, Some(&val), tc, &device)?;
             trainer.run_epoch(&never)?; // warm-up: allocations, first-touch
             let start = Instant::now();
@@ -116,5 +144,67 @@ fn bench_train(a: BenchTrainArgs) -> Result<()> {
                    "time_limit": a.time_limit})
         );
     }
+    Ok(())
+}
+
+fn bench_step(a: BenchStepArgs) -> Result<()> {
+    use crate::train::adam::Adam;
+    use burn::tensor::{Tensor, TensorData};
+    let t = Template::DoublePendulum;
+    let data = simulate(
+        t,
+        t.defaults(),
+        &SimConfig {
+            count: a.batch_size,
+            ..SimConfig::default()
+        },
+    )?;
+    let device = backend::device(a.backend, Precision::F32)?.autodiff();
+    let spec = ModelSpec::named(&a.model, Some(t))?;
+    let trainer = Trainer::new(
+        &a.model,
+        spec,
+        &[],
+        &data,
+        None,
+        TrainConfig {
+            val_fraction: 0.0,
+            ..TrainConfig::default()
+        },
+        &device,
+    )?;
+    let mut model = trainer.model().clone();
+    let (x, y) = data.states();
+    let b = a.batch_size;
+    let tensor =
+        |v: Vec<f64>, w: usize| Tensor::<2>::from_data(TensorData::new(v, [b, w]), &device);
+    let (xt, ut, yt) = (tensor(x, 4), tensor(data.u.clone(), 2), tensor(y, 4));
+    let mut adam = Adam::default();
+    let (mut fwd, mut bwd, mut opt) = (0.0, 0.0, 0.0);
+    for i in 0..a.steps + 5 {
+        let t0 = Instant::now();
+        let loss = model
+            .loss_sum(xt.clone(), ut.clone(), yt.clone())
+            .div_scalar(b as f64);
+        let _ = loss.clone().into_data();
+        let t1 = Instant::now();
+        let grads = loss.backward();
+        let t2 = Instant::now();
+        model.params = adam.step(model.params.clone(), &grads, 1e-3);
+        let _ = crate::model::params_io::export(&model.params);
+        let t3 = Instant::now();
+        if i >= 5 {
+            fwd += (t1 - t0).as_secs_f64();
+            bwd += (t2 - t1).as_secs_f64();
+            opt += (t3 - t2).as_secs_f64();
+        }
+    }
+    let k = 1e3 / a.steps as f64;
+    println!(
+        "{}",
+        json!({"bench": "train_step", "model": a.model, "batch_size": b, "forward_ms": fwd * k,
+               "backward_ms": bwd * k, "optimizer_ms": opt * k,
+               "samples_per_second": (a.steps * b) as f64 / (fwd + bwd + opt)})
+    );
     Ok(())
 }

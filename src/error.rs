@@ -8,9 +8,23 @@ pub enum Error {
     /// The caller gave a bad value; `field` names it (e.g. "q[3]", "training.lr").
     #[error("{field}: {message}")]
     Invalid { field: String, message: String },
+    /// Well-formed but semantically unacceptable (a job spec that cannot train, an
+    /// idempotency key reused with another body); `field` names the part at fault.
+    #[error("{field}: {message}")]
+    Unprocessable { field: String, message: String },
     /// Something named does not exist.
     #[error("{0} not found")]
     NotFound(String),
+    /// The request conflicts with the current state (deleting a dataset a job uses,
+    /// cancelling a finished job).
+    #[error("{0}")]
+    Conflict(String),
+    /// The target exists but is not ready for this (a job that has not produced a model).
+    #[error("{0}")]
+    FailedPrecondition(String),
+    /// The database failed; callers may retry.
+    #[error("storage error: {0}")]
+    Storage(String),
     /// Training diverged or produced non-finite values.
     #[error("training failed: {0}")]
     Training(String),
@@ -31,6 +45,14 @@ impl Error {
         Error::Invalid {
             field: field.into(),
             message: message.to_string(),
+        }
+    }
+
+    /// The same error, reported as unprocessable (422) rather than malformed (400).
+    pub fn unprocessable(self) -> Self {
+        match self {
+            Error::Invalid { field, message } => Error::Unprocessable { field, message },
+            other => other,
         }
     }
 

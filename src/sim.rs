@@ -32,7 +32,13 @@ impl Default for SimConfig {
 }
 
 /// One step of the true system: x' = RK4(x, u).
-pub fn true_step(sys: &TemplateSystem, x: &[f64], u: &[f64], dt: f64, integrator: Integrator) -> Vec<f64> {
+pub fn true_step(
+    sys: &TemplateSystem,
+    x: &[f64],
+    u: &[f64],
+    dt: f64,
+    integrator: Integrator,
+) -> Vec<f64> {
     let n = sys.template.n();
     integrator.step(&x.to_vec(), dt, |x: &Vec<f64>| {
         let (q, qd) = x.split_at(n);
@@ -45,9 +51,17 @@ pub fn simulate(template: Template, params: Vec<f64>, cfg: &SimConfig) -> Result
     if cfg.count == 0 {
         return Err(Error::invalid("count", "must be at least 1"));
     }
-    for (name, v) in [("dt", cfg.dt), ("q_range", cfg.q_range), ("qdot_range", cfg.qdot_range), ("u_std", cfg.u_std)] {
+    for (name, v) in [
+        ("dt", cfg.dt),
+        ("q_range", cfg.q_range),
+        ("qdot_range", cfg.qdot_range),
+        ("u_std", cfg.u_std),
+    ] {
         if !v.is_finite() || v < 0.0 || (name == "dt" && v == 0.0) {
-            return Err(Error::invalid(name, format!("must be a finite number ≥ 0 (dt > 0), got {v}")));
+            return Err(Error::invalid(
+                name,
+                format!("must be a finite number ≥ 0 (dt > 0), got {v}"),
+            ));
         }
     }
     let (n, m) = (template.n(), template.m());
@@ -55,8 +69,12 @@ pub fn simulate(template: Template, params: Vec<f64>, cfg: &SimConfig) -> Result
     let mut rng = Rng::new(cfg.seed);
     let mut arrays: [Vec<f64>; 5] = Default::default();
     for _ in 0..cfg.count {
-        let q: Vec<f64> = (0..n).map(|_| rng.uniform_in(-cfg.q_range, cfg.q_range)).collect();
-        let qd: Vec<f64> = (0..n).map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range)).collect();
+        let q: Vec<f64> = (0..n)
+            .map(|_| rng.uniform_in(-cfg.q_range, cfg.q_range))
+            .collect();
+        let qd: Vec<f64> = (0..n)
+            .map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range))
+            .collect();
         let u: Vec<f64> = (0..m).map(|_| cfg.u_std * rng.normal()).collect();
         let x: Vec<f64> = q.iter().chain(&qd).copied().collect();
         let next = true_step(&sys, &x, &u, cfg.dt, Integrator::Rk4);
@@ -74,7 +92,9 @@ pub fn simulate(template: Template, params: Vec<f64>, cfg: &SimConfig) -> Result
 pub fn parse_assignments(template: Template, text: Option<&str>, field: &str) -> Result<Vec<f64>> {
     let mut values = template.defaults();
     for (name, v) in parse_pairs(text.unwrap_or(""), field)? {
-        let i = template.index_of(&name).ok_or_else(|| unknown_param(template, &name, field))?;
+        let i = template
+            .index_of(&name)
+            .ok_or_else(|| unknown_param(template, &name, field))?;
         values[i] = v;
     }
     Ok(values)
@@ -84,7 +104,11 @@ pub fn unknown_param(template: Template, name: &str, field: &str) -> Error {
     let known: Vec<&str> = template.params().iter().map(|p| p.name).collect();
     Error::invalid(
         field,
-        format!("unknown parameter '{name}' for template '{}'; known: {}", template.name(), known.join(", ")),
+        format!(
+            "unknown parameter '{name}' for template '{}'; known: {}",
+            template.name(),
+            known.join(", ")
+        ),
     )
 }
 

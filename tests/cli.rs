@@ -4,11 +4,18 @@ use std::path::Path;
 use std::process::{Command, Output};
 
 fn graybox(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_graybox")).args(args).output().expect("binary runs")
+    Command::new(env!("CARGO_BIN_EXE_graybox"))
+        .args(args)
+        .output()
+        .expect("binary runs")
 }
 
 fn json(out: &Output) -> serde_json::Value {
-    assert!(out.status.success(), "stderr: {}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     serde_json::from_slice(&out.stdout).expect("stdout is JSON")
 }
 
@@ -21,13 +28,60 @@ fn tmp(name: &str) -> String {
 #[test]
 fn simulate_train_eval_inspect() {
     let (d, v, m, r) = (tmp("d.json"), tmp("v.json"), tmp("m.gbx"), tmp("r.json"));
-    json(&graybox(&["simulate", "--system", "double_pendulum", "--count", "64", "--seed", "0", "--out", &d]));
-    json(&graybox(&["simulate", "--system", "double_pendulum", "--count", "32", "--seed", "1", "--out", &v]));
-    let report = json(&graybox(&[
-        "train", "--data", &d, "--val-data", &v, "--model", "W-B", "--template", "double_pendulum",
-        "--init", "m1=12,l2=0.9", "--epochs", "3", "--batch-size", "32", "--out", &m, "--report", &r,
+    json(&graybox(&[
+        "simulate",
+        "--system",
+        "double_pendulum",
+        "--count",
+        "64",
+        "--seed",
+        "0",
+        "--out",
+        &d,
     ]));
-    for key in ["model", "epochs", "train_loss", "val_loss", "best_epoch", "seconds", "samples_per_second", "physical_parameters", "identifiable"] {
+    json(&graybox(&[
+        "simulate",
+        "--system",
+        "double_pendulum",
+        "--count",
+        "32",
+        "--seed",
+        "1",
+        "--out",
+        &v,
+    ]));
+    let report = json(&graybox(&[
+        "train",
+        "--data",
+        &d,
+        "--val-data",
+        &v,
+        "--model",
+        "W-B",
+        "--template",
+        "double_pendulum",
+        "--init",
+        "m1=12,l2=0.9",
+        "--epochs",
+        "3",
+        "--batch-size",
+        "32",
+        "--out",
+        &m,
+        "--report",
+        &r,
+    ]));
+    for key in [
+        "model",
+        "epochs",
+        "train_loss",
+        "val_loss",
+        "best_epoch",
+        "seconds",
+        "samples_per_second",
+        "physical_parameters",
+        "identifiable",
+    ] {
         assert!(report.get(key).is_some(), "report lacks {key}");
     }
     assert_eq!(report["epochs"], 3);
@@ -37,11 +91,20 @@ fn simulate_train_eval_inspect() {
     assert_eq!(eval["count"], 32);
     let best = report["best_val_loss"].as_f64().unwrap();
     let loss = eval["loss"].as_f64().unwrap();
-    assert!((loss - best).abs() <= 1e-6 * best, "eval {loss} vs best {best}");
+    assert!(
+        (loss - best).abs() <= 1e-6 * best,
+        "eval {loss} vs best {best}"
+    );
     let info = json(&graybox(&["inspect", "--model", &m]));
     assert_eq!((info["n"].as_u64(), info["m"].as_u64()), (Some(2), Some(2)));
     assert_eq!(info["template"], "double_pendulum");
-    assert!(info["identifiable"].as_array().unwrap().iter().any(|c| c["name"] == "m1/m2"));
+    assert!(
+        info["identifiable"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c["name"] == "m1/m2")
+    );
 }
 
 #[test]
@@ -51,10 +114,24 @@ fn bad_input_exits_2_naming_the_field() {
     let out = graybox(&["train", "--data", &bad, "--out", &tmp("x.gbx")]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("q[1]"));
-    let out = graybox(&["simulate", "--system", "triple_pendulum", "--out", &tmp("y.json")]);
+    let out = graybox(&[
+        "simulate",
+        "--system",
+        "triple_pendulum",
+        "--out",
+        &tmp("y.json"),
+    ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("double_pendulum"));
-    let out = graybox(&["simulate", "--system", "pendulum", "--set", "mass=3", "--out", &tmp("y.json")]);
+    let out = graybox(&[
+        "simulate",
+        "--system",
+        "pendulum",
+        "--set",
+        "mass=3",
+        "--out",
+        &tmp("y.json"),
+    ]);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown parameter 'mass'"));
 }

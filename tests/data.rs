@@ -16,7 +16,15 @@ const GOOD: &str = r#"{"dt":0.01,"q":[[0,1],[2,3]],"qdot":[[0,0],[1,1]],"u":[[1]
 
 #[test]
 fn json_round_trip() {
-    let ds = simulate(Template::Cartpole, Template::Cartpole.defaults(), &SimConfig { count: 20, ..SimConfig::default() }).unwrap();
+    let ds = simulate(
+        Template::Cartpole,
+        Template::Cartpole.defaults(),
+        &SimConfig {
+            count: 20,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
     let back = Dataset::from_json(&ds.to_json()).unwrap();
     assert_eq!(ds, back);
     let g = Dataset::from_json(GOOD).unwrap();
@@ -26,7 +34,10 @@ fn json_round_trip() {
 #[test]
 fn csv_matches_json() {
     let csv = "q0,q1,qdot0,qdot1,u0,q_next0,q_next1,qdot_next0,qdot_next1\n0,1,0,0,1,0,1,0,0\n2,3,1,1,2,2,3,1,1\n";
-    assert_eq!(Dataset::from_csv(csv, 0.01).unwrap(), Dataset::from_json(GOOD).unwrap());
+    assert_eq!(
+        Dataset::from_csv(csv, 0.01).unwrap(),
+        Dataset::from_json(GOOD).unwrap()
+    );
 }
 
 /// Each bad file is refused with an error that names the offending field (and row).
@@ -39,15 +50,51 @@ fn bad_files_name_the_field() {
         ("negative dt", GOOD.replace("0.01", "-0.01"), "dt"),
         ("dt not a number", GOOD.replace("0.01", r#""fast""#), "dt"),
         ("missing field", GOOD.replace(r#","u":[[1],[2]]"#, ""), "u"),
-        ("ragged rows", GOOD.replace("[[0,1],[2,3]],\"qdot\"", "[[0,1],[2]],\"qdot\""), "q[1]"),
-        ("string value", GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[1],["x"]]"#), "u[1]"),
-        ("row count mismatch", GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[1]]"#), "u"),
-        ("n mismatch between fields", GOOD.replace(r#""qdot":[[0,0],[1,1]]"#, r#""qdot":[[0],[1]]"#), "qdot"),
-        ("field not an array", GOOD.replace(r#""u":[[1],[2]]"#, r#""u":3"#), "u"),
-        ("row not an array", GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[1,2]"#), "u[0]"),
-        ("empty dataset", r#"{"dt":0.01,"q":[],"qdot":[],"u":[],"q_next":[],"qdot_next":[]}"#.into(), "q"),
-        ("no inputs", GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[],[]]"#), "u"),
-        ("overflowing number", GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[1],[1e999]]"#), "body"),
+        (
+            "ragged rows",
+            GOOD.replace("[[0,1],[2,3]],\"qdot\"", "[[0,1],[2]],\"qdot\""),
+            "q[1]",
+        ),
+        (
+            "string value",
+            GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[1],["x"]]"#),
+            "u[1]",
+        ),
+        (
+            "row count mismatch",
+            GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[1]]"#),
+            "u",
+        ),
+        (
+            "n mismatch between fields",
+            GOOD.replace(r#""qdot":[[0,0],[1,1]]"#, r#""qdot":[[0],[1]]"#),
+            "qdot",
+        ),
+        (
+            "field not an array",
+            GOOD.replace(r#""u":[[1],[2]]"#, r#""u":3"#),
+            "u",
+        ),
+        (
+            "row not an array",
+            GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[1,2]"#),
+            "u[0]",
+        ),
+        (
+            "empty dataset",
+            r#"{"dt":0.01,"q":[],"qdot":[],"u":[],"q_next":[],"qdot_next":[]}"#.into(),
+            "q",
+        ),
+        (
+            "no inputs",
+            GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[],[]]"#),
+            "u",
+        ),
+        (
+            "overflowing number",
+            GOOD.replace(r#""u":[[1],[2]]"#, r#""u":[[1],[1e999]]"#),
+            "body",
+        ),
     ];
     assert!(cases.len() >= 8);
     for (what, text, field) in cases {
@@ -62,10 +109,22 @@ fn bad_csv_names_the_field() {
     let header = "q0,q1,qdot0,qdot1,u0,q_next0,q_next1,qdot_next0,qdot_next1\n";
     let cases = [
         ("bad header", "q0,qdot0,u0\n1,2\n".to_string(), "csv.header"),
-        ("short row", format!("{header}0,1,0,0,1,0,1,0\n"), "csv.row[0]"),
-        ("not a number", format!("{header}0,1,0,0,x,0,1,0,0\n"), "u[0]"),
+        (
+            "short row",
+            format!("{header}0,1,0,0,1,0,1,0\n"),
+            "csv.row[0]",
+        ),
+        (
+            "not a number",
+            format!("{header}0,1,0,0,x,0,1,0,0\n"),
+            "u[0]",
+        ),
         ("NaN", format!("{header}0,1,0,0,1,0,NaN,0,0\n"), "q_next[0]"),
-        ("infinite", format!("{header}0,1,0,inf,1,0,1,0,0\n"), "qdot[0]"),
+        (
+            "infinite",
+            format!("{header}0,1,0,inf,1,0,1,0,0\n"),
+            "qdot[0]",
+        ),
         ("empty", String::new(), "csv"),
     ];
     for (what, text, field) in cases {
@@ -73,12 +132,23 @@ fn bad_csv_names_the_field() {
         let msg = err.to_string();
         assert_eq!(field_of(err), field, "{what}: {msg}");
     }
-    assert_eq!(field_of(Dataset::from_csv(&format!("{header}0,1,0,0,1,0,1,0,0\n"), 0.0).unwrap_err()), "dt");
+    assert_eq!(
+        field_of(Dataset::from_csv(&format!("{header}0,1,0,0,1,0,1,0,0\n"), 0.0).unwrap_err()),
+        "dt"
+    );
 }
 
 #[test]
 fn split_is_seeded_and_disjoint() {
-    let ds = simulate(Template::Pendulum, Template::Pendulum.defaults(), &SimConfig { count: 50, ..SimConfig::default() }).unwrap();
+    let ds = simulate(
+        Template::Pendulum,
+        Template::Pendulum.defaults(),
+        &SimConfig {
+            count: 50,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
     let (t1, v1) = ds.split(0.2, 3);
     let (t2, v2) = ds.split(0.2, 3);
     assert_eq!((t1.count(), v1.count()), (40, 10));

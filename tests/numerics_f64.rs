@@ -42,7 +42,13 @@ fn shifted(q: &[Vec<f64>], k: usize, h: f64) -> Vec<Vec<f64>> {
 fn mass_network_jacobian_matches_finite_differences() {
     let dev = f64_device();
     for n in [2, 3] {
-        let net = Mlp::init(n, &[32, 32, 32], mass_matrix::outputs(n), &mut Rng::new(n as u64), &dev);
+        let net = Mlp::init(
+            n,
+            &[32, 32, 32],
+            mass_matrix::outputs(n),
+            &mut Rng::new(n as u64),
+            &dev,
+        );
         let sigma = 1.7;
         let (q, _, _) = paper_samples(n, 1, 6, 11);
         let dx_dq = Tensor::<2>::eye(n, &dev).mul_scalar(1.0 / sigma);
@@ -61,8 +67,16 @@ fn mass_network_jacobian_matches_finite_differences() {
                     .zip(host1(lm.entries[e].v.clone()))
                     .map(|(a, b)| (a - b) / (2.0 * H))
                     .collect();
-                let ad = host1(l.entries[e].tangent(k).expect("every entry depends on q").clone());
-                assert!(rel_err(&ad, &fd) < 1e-7, "n={n} entry {e} dq{k}: {ad:?} vs {fd:?}");
+                let ad = host1(
+                    l.entries[e]
+                        .tangent(k)
+                        .expect("every entry depends on q")
+                        .clone(),
+                );
+                assert!(
+                    rel_err(&ad, &fd) < 1e-7,
+                    "n={n} entry {e} dq{k}: {ad:?} vs {fd:?}"
+                );
             }
         }
     }
@@ -100,7 +114,10 @@ fn model_input_jacobians_match_finite_differences() {
                 .map(|(a, b)| (a - b) / (2.0 * H))
                 .collect();
             let ad = host1(parts.grad_v.as_ref().unwrap()[k].clone());
-            assert!(rel_err(&ad, &fd) < 1e-7, "{spec:?} ∂V/∂q{k}: {ad:?} vs {fd:?}");
+            assert!(
+                rel_err(&ad, &fd) < 1e-7,
+                "{spec:?} ∂V/∂q{k}: {ad:?} vs {fd:?}"
+            );
             let (lp, lm) = (l_at(&shifted(&q, k, H)), l_at(&shifted(&q, k, -H)));
             for e in 0..parts.l.entries.len() {
                 let fd: Vec<f64> = host1(lp.entries[e].v.clone())
@@ -112,8 +129,15 @@ fn model_input_jacobians_match_finite_differences() {
                     Some(t) => host1(t.clone()),
                     None => vec![0.0; q.len()],
                 };
-                let ad: Vec<f64> = if ad.len() == 1 { vec![ad[0]; q.len()] } else { ad };
-                assert!(rel_err(&ad, &fd) < 1e-7, "{spec:?} ∂L{e}/∂q{k}: {ad:?} vs {fd:?}");
+                let ad: Vec<f64> = if ad.len() == 1 {
+                    vec![ad[0]; q.len()]
+                } else {
+                    ad
+                };
+                assert!(
+                    rel_err(&ad, &fd) < 1e-7,
+                    "{spec:?} ∂L{e}/∂q{k}: {ad:?} vs {fd:?}"
+                );
             }
         }
     }
@@ -148,9 +172,16 @@ fn double_pendulum_matches_closed_form() {
     let sys = TemplateSystem::new(Template::DoublePendulum, PAPER.to_vec());
     for i in 0..q.len() {
         let want = double_pendulum_accel(&PAPER, &q[i], &qd[i], &u[i]);
-        assert!(rel_err(&burn[i], &want) < 1e-9, "burn {:?} vs {want:?}", burn[i]);
+        assert!(
+            rel_err(&burn[i], &want) < 1e-9,
+            "burn {:?} vs {want:?}",
+            burn[i]
+        );
         let f64_path = sys.acceleration(&q[i], &qd[i], &u[i]);
-        assert!(rel_err(&f64_path, &want) < 1e-9, "f64 {f64_path:?} vs {want:?}");
+        assert!(
+            rel_err(&f64_path, &want) < 1e-9,
+            "f64 {f64_path:?} vs {want:?}"
+        );
     }
 }
 
@@ -169,8 +200,20 @@ fn learned_mass_coriolis_matches_christoffel_definition() {
             let lv: Vec<Vec<f64>> = l.entries.iter().map(|e| host1(e.v.clone())).collect();
             (0..q.len())
                 .map(|b| {
-                    let lij = |i: usize, j: usize| if j <= i { lv[i * (i + 1) / 2 + j][b] } else { 0.0 };
-                    (0..n).map(|i| (0..n).map(|j| (0..n).map(|k| lij(i, k) * lij(j, k)).sum()).collect()).collect()
+                    let lij = |i: usize, j: usize| {
+                        if j <= i {
+                            lv[i * (i + 1) / 2 + j][b]
+                        } else {
+                            0.0
+                        }
+                    };
+                    (0..n)
+                        .map(|i| {
+                            (0..n)
+                                .map(|j| (0..n).map(|k| lij(i, k) * lij(j, k)).sum())
+                                .collect()
+                        })
+                        .collect()
                 })
                 .collect()
         };
@@ -179,7 +222,15 @@ fn learned_mass_coriolis_matches_christoffel_definition() {
             .map(|k| {
                 let (p, mm) = (mass_at(&shifted(&q, k, H)), mass_at(&shifted(&q, k, -H)));
                 (0..q.len())
-                    .map(|b| (0..n).map(|i| (0..n).map(|j| (p[b][i][j] - mm[b][i][j]) / (2.0 * H)).collect()).collect())
+                    .map(|b| {
+                        (0..n)
+                            .map(|i| {
+                                (0..n)
+                                    .map(|j| (p[b][i][j] - mm[b][i][j]) / (2.0 * H))
+                                    .collect()
+                            })
+                            .collect()
+                    })
                     .collect()
             })
             .collect();
@@ -202,7 +253,11 @@ fn learned_mass_coriolis_matches_christoffel_definition() {
                 .collect();
             let rhs: Vec<f64> = (0..n).map(|i| f[i][b] - c[i] - gv[i][b]).collect();
             let want = gauss_solve(m0[b].clone(), rhs);
-            assert!(rel_err(&got[b], &want) < 1e-6, "n={n}: {:?} vs {want:?}", got[b]);
+            assert!(
+                rel_err(&got[b], &want) < 1e-6,
+                "n={n}: {:?} vs {want:?}",
+                got[b]
+            );
         }
     }
 }
@@ -230,7 +285,11 @@ fn energy_is_conserved_without_forces() {
                 let (tk, vk) = sys.energy(&x[..2], &x[2..]);
                 drift = drift.max((tk + vk - t0 - v0).abs());
             }
-            assert!(drift < 1e-6 * scale, "{}: drift {drift} vs scale {scale}", t.name());
+            assert!(
+                drift < 1e-6 * scale,
+                "{}: drift {drift} vs scale {scale}",
+                t.name()
+            );
         }
     }
 }
@@ -248,10 +307,18 @@ fn integrators_have_their_order() {
         (0..steps).fold(x0.clone(), |x, _| true_step(&sys, &x, &u, dt, integ))
     };
     let reference = run(Integrator::Rk4, 1e-4);
-    for (integ, want, lo, hi) in [(Integrator::Rk4, 16.0, 13.0, 19.0), (Integrator::Midpoint, 4.0, 3.4, 4.6), (Integrator::Euler, 2.0, 1.7, 2.3)] {
+    for (integ, want, lo, hi) in [
+        (Integrator::Rk4, 16.0, 13.0, 19.0),
+        (Integrator::Midpoint, 4.0, 3.4, 4.6),
+        (Integrator::Euler, 2.0, 1.7, 2.3),
+    ] {
         let err = |dt: f64| rel_err(&run(integ, dt), &reference);
         let ratio = err(0.01) / err(0.005);
-        assert!((lo..hi).contains(&ratio), "{}: ratio {ratio}, expected ~{want}", integ.name());
+        assert!(
+            (lo..hi).contains(&ratio),
+            "{}: ratio {ratio}, expected ~{want}",
+            integ.name()
+        );
     }
 }
 
@@ -277,10 +344,23 @@ impl ModuleVisitor for GradCollector<'_> {
 fn loss_gradients_match_finite_differences() {
     let dev = f64_device().autodiff();
     for (name, template) in [("MVF", None), ("W-B", Some(Template::DoublePendulum))] {
-        let ds = simulate(Template::DoublePendulum, PAPER.to_vec(), &SimConfig { count: 8, seed: 1, ..SimConfig::default() }).unwrap();
+        let ds = simulate(
+            Template::DoublePendulum,
+            PAPER.to_vec(),
+            &SimConfig {
+                count: 8,
+                seed: 1,
+                ..SimConfig::default()
+            },
+        )
+        .unwrap();
         let (x, y) = ds.states();
         let rows = |a: &[f64], w: usize| a.chunks(w).map(<[f64]>::to_vec).collect::<Vec<_>>();
-        let (xt, ut, yt) = (tensor(&rows(&x, 4), &dev), tensor(&rows(&ds.u, 2), &dev), tensor(&rows(&y, 4), &dev));
+        let (xt, ut, yt) = (
+            tensor(&rows(&x, 4), &dev),
+            tensor(&rows(&ds.u, 2), &dev),
+            tensor(&rows(&y, 4), &dev),
+        );
         let m0 = model(name, template, 2, 2, 7, &dev);
         let m0 = if template.is_some() {
             let p = [12.0, 8.0, 1.2, 0.9, 9.0, 1.1, 0.8, -0.4, -0.6];
@@ -288,9 +368,15 @@ fn loss_gradients_match_finite_differences() {
         } else {
             m0
         };
-        let loss_of = |m: &Model| m.loss_sum(xt.clone(), ut.clone(), yt.clone()).div_scalar(8.0);
+        let loss_of = |m: &Model| {
+            m.loss_sum(xt.clone(), ut.clone(), yt.clone())
+                .div_scalar(8.0)
+        };
         let grads = loss_of(&m0).backward();
-        let mut gc = GradCollector { grads: &grads, out: vec![] };
+        let mut gc = GradCollector {
+            grads: &grads,
+            out: vec![],
+        };
         m0.params.visit(&mut gc);
         let arrays = export(&m0.params);
         let mut r = Rng::new(3);
@@ -313,7 +399,10 @@ fn loss_gradients_match_finite_differences() {
             gmax = gmax.max(fd.abs());
         }
         assert!(gmax > 0.0);
-        assert!(worst / gmax < 1e-6, "{name}: max |Δ| {worst} vs max |g| {gmax}");
+        assert!(
+            worst / gmax < 1e-6,
+            "{name}: max |Δ| {worst} vs max |g| {gmax}"
+        );
     }
 }
 
@@ -326,15 +415,47 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
     let truth = graybox::train::report::identifiable(
         t,
         &ModelSpec::named("W-B", Some(t)).unwrap().white_box_parts(),
-        &t.params().iter().map(|p| p.name.to_string()).zip(PAPER).collect::<Vec<_>>(),
+        &t.params()
+            .iter()
+            .map(|p| p.name.to_string())
+            .zip(PAPER)
+            .collect::<Vec<_>>(),
     );
     for seed in 0..3u64 {
-        let data = simulate(t, PAPER.to_vec(), &SimConfig { count: 16, seed: 100 + seed, ..SimConfig::default() }).unwrap();
-        let val = simulate(t, PAPER.to_vec(), &SimConfig { count: 1024, seed: 200 + seed, ..SimConfig::default() }).unwrap();
+        let data = simulate(
+            t,
+            PAPER.to_vec(),
+            &SimConfig {
+                count: 16,
+                seed: 100 + seed,
+                ..SimConfig::default()
+            },
+        )
+        .unwrap();
+        let val = simulate(
+            t,
+            PAPER.to_vec(),
+            &SimConfig {
+                count: 1024,
+                seed: 200 + seed,
+                ..SimConfig::default()
+            },
+        )
+        .unwrap();
         let mut r = Rng::new(300 + seed);
-        let init: Vec<(String, f64)> =
-            t.params().iter().zip(PAPER).map(|(p, v)| (p.name.to_string(), v * r.uniform_in(0.7, 1.3))).collect();
-        let cfg = TrainConfig { epochs: 3000, batch_size: 16, lr: 1e-2, seed, ..TrainConfig::default() };
+        let init: Vec<(String, f64)> = t
+            .params()
+            .iter()
+            .zip(PAPER)
+            .map(|(p, v)| (p.name.to_string(), v * r.uniform_in(0.7, 1.3)))
+            .collect();
+        let cfg = TrainConfig {
+            epochs: 3000,
+            batch_size: 16,
+            lr: 1e-2,
+            seed,
+            ..TrainConfig::default()
+        };
         let spec = ModelSpec::named("W-B", Some(t)).unwrap();
         let mut trainer = Trainer::new("W-B", spec, &init, &data, Some(&val), cfg, &dev).unwrap();
         trainer.run(&Default::default(), |_, _| {}).unwrap();
@@ -344,7 +465,13 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
         for (got, want) in report.identifiable.iter().zip(&truth) {
             assert_eq!(got.name, want.name);
             let rel = (got.value - want.value).abs() / want.value.abs();
-            assert!(rel < 0.01, "seed {seed}: {} = {} vs {}", got.name, got.value, want.value);
+            assert!(
+                rel < 0.01,
+                "seed {seed}: {} = {} vs {}",
+                got.name,
+                got.value,
+                want.value
+            );
         }
     }
 }

@@ -22,11 +22,24 @@ fn flex() -> Device {
 }
 
 fn data(t: Template, count: usize, seed: u64) -> Dataset {
-    simulate(t, t.defaults(), &SimConfig { count, seed, ..SimConfig::default() }).unwrap()
+    simulate(
+        t,
+        t.defaults(),
+        &SimConfig {
+            count,
+            seed,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap()
 }
 
 fn quick(epochs: usize) -> TrainConfig {
-    TrainConfig { epochs, batch_size: 32, ..TrainConfig::default() }
+    TrainConfig {
+        epochs,
+        batch_size: 32,
+        ..TrainConfig::default()
+    }
 }
 
 #[test]
@@ -36,11 +49,19 @@ fn every_named_model_trains_and_evaluates() {
         let val = data(t, 32, 2);
         for name in NAMED {
             let spec = ModelSpec::named(name, Some(t)).unwrap();
-            let mut trainer = Trainer::new(name, spec, &[], &train, Some(&val), quick(1), &flex()).unwrap();
+            let mut trainer =
+                Trainer::new(name, spec, &[], &train, Some(&val), quick(1), &flex()).unwrap();
             let m = trainer.run_epoch(&AtomicBool::new(false)).unwrap();
-            assert!(m.train_loss.is_finite() && m.val_loss.unwrap().is_finite(), "{name} on {}", t.name());
+            assert!(
+                m.train_loss.is_finite() && m.val_loss.unwrap().is_finite(),
+                "{name} on {}",
+                t.name()
+            );
             let file = trainer.model_file();
-            let model = ModelFile::from_bytes(&file.to_bytes()).unwrap().model(&device(Backend::Flex, Precision::F32).unwrap()).unwrap();
+            let model = ModelFile::from_bytes(&file.to_bytes())
+                .unwrap()
+                .model(&device(Backend::Flex, Precision::F32).unwrap())
+                .unwrap();
             let loss = evaluate(&model, &val).unwrap();
             assert!(loss.is_finite(), "{name}");
         }
@@ -49,9 +70,15 @@ fn every_named_model_trains_and_evaluates() {
 
 #[test]
 fn white_box_parts_need_a_template() {
-    for name in NAMED.iter().filter(|n| **n != "MVF" && **n != "naive" && **n != "MVB") {
+    for name in NAMED
+        .iter()
+        .filter(|n| **n != "MVF" && **n != "naive" && **n != "MVB")
+    {
         let err = ModelSpec::named(name, None).unwrap_err();
-        assert!(matches!(&err, Error::Invalid { field, .. } if field == "template"), "{name}: {err}");
+        assert!(
+            matches!(&err, Error::Invalid { field, .. } if field == "template"),
+            "{name}: {err}"
+        );
     }
     let json = r#"{"kind":"structured","mass":{"type":"template"},"potential":{"type":"mlp"},"forces":{"type":"mlp"}}"#;
     let err = ModelSpec::parse(json, None).unwrap_err();
@@ -59,7 +86,17 @@ fn white_box_parts_need_a_template() {
     assert!(ModelSpec::parse(json, Some(Template::Pendulum)).is_ok());
     // A template whose dimensions do not fit the data is refused before training.
     let spec = ModelSpec::named("W-B", Some(Template::Pendulum)).unwrap();
-    let err = Trainer::new("W-B", spec, &[], &data(Template::DoublePendulum, 8, 0), None, quick(1), &flex()).err().unwrap();
+    let err = Trainer::new(
+        "W-B",
+        spec,
+        &[],
+        &data(Template::DoublePendulum, 8, 0),
+        None,
+        quick(1),
+        &flex(),
+    )
+    .err()
+    .unwrap();
     assert!(err.to_string().contains("n = 1"), "{err}");
 }
 
@@ -68,23 +105,39 @@ fn white_box_parts_need_a_template() {
 #[test]
 fn flex_and_ndarray_agree_on_a_training_step() {
     let train = data(Template::DoublePendulum, 64, 3);
-    let cfg = TrainConfig { epochs: 1, batch_size: 64, val_fraction: 0.0, ..TrainConfig::default() };
+    let cfg = TrainConfig {
+        epochs: 1,
+        batch_size: 64,
+        val_fraction: 0.0,
+        ..TrainConfig::default()
+    };
     let mut out = vec![];
     for b in [Backend::Flex, Backend::Ndarray] {
         let dev = device(b, Precision::F32).unwrap().autodiff();
         let spec = ModelSpec::named("MVF", None).unwrap();
         let mut trainer = Trainer::new("MVF", spec, &[], &train, None, cfg.clone(), &dev).unwrap();
         let m = trainer.run_epoch(&AtomicBool::new(false)).unwrap();
-        let params: Vec<f64> = export(&trainer.model().params).into_iter().flat_map(|a| a.values).collect();
+        let params: Vec<f64> = export(&trainer.model().params)
+            .into_iter()
+            .flat_map(|a| a.values)
+            .collect();
         out.push((m.train_loss, params));
     }
     let (a, b) = (&out[0], &out[1]);
-    assert!((a.0 - b.0).abs() <= 1e-4 * a.0.abs(), "loss {} vs {}", a.0, b.0);
+    assert!(
+        (a.0 - b.0).abs() <= 1e-4 * a.0.abs(),
+        "loss {} vs {}",
+        a.0,
+        b.0
+    );
     assert!(common::rel_err(&a.1, &b.1) < 1e-4);
     // The step moved the parameters: the comparison is not of two initializations.
     let spec = ModelSpec::named("MVF", None).unwrap();
     let fresh = Trainer::new("MVF", spec, &[], &train, None, cfg, &flex()).unwrap();
-    let init: Vec<f64> = export(&fresh.model().params).into_iter().flat_map(|a| a.values).collect();
+    let init: Vec<f64> = export(&fresh.model().params)
+        .into_iter()
+        .flat_map(|a| a.values)
+        .collect();
     assert!(common::rel_err(&a.1, &init) > 1e-5);
 }
 
@@ -99,7 +152,8 @@ fn resumed_run_equals_uninterrupted_run() {
         let spec = ModelSpec::named(name, Some(Template::DoublePendulum)).unwrap();
         let init = [("m1".to_string(), 12.0)];
         let init: &[(String, f64)] = if name == "W-B" { &init } else { &[] };
-        let mut full = Trainer::new(name, spec.clone(), init, &train, None, cfg.clone(), &flex()).unwrap();
+        let mut full =
+            Trainer::new(name, spec.clone(), init, &train, None, cfg.clone(), &flex()).unwrap();
         full.run(&never, |_, _| {}).unwrap();
 
         let mut first = Trainer::new(name, spec, init, &train, None, cfg.clone(), &flex()).unwrap();
@@ -113,11 +167,20 @@ fn resumed_run_equals_uninterrupted_run() {
         assert_eq!(resumed.epoch(), 2);
         resumed.run(&never, |_, _| {}).unwrap();
 
-        assert_eq!(export(&full.model().params), export(&resumed.model().params), "{name}");
+        assert_eq!(
+            export(&full.model().params),
+            export(&resumed.model().params),
+            "{name}"
+        );
         let (a, b) = (full.model_file(), resumed.model_file());
         assert_eq!(a.params, b.params);
         let (ra, rb) = (a.report.unwrap(), b.report.unwrap());
-        let losses = |r: &graybox::train::report::TrainReport| r.history.iter().map(|h| (h.train_loss, h.val_loss)).collect::<Vec<_>>();
+        let losses = |r: &graybox::train::report::TrainReport| {
+            r.history
+                .iter()
+                .map(|h| (h.train_loss, h.val_loss))
+                .collect::<Vec<_>>()
+        };
         assert_eq!(losses(&ra), losses(&rb));
         assert_eq!(ra.best_epoch, rb.best_epoch);
     }
@@ -142,7 +205,10 @@ fn non_finite_loss_is_an_error_naming_the_epoch() {
     let spec = ModelSpec::named("MVF", None).unwrap();
     let mut t = Trainer::new("MVF", spec, &[], &bad, None, quick(2), &flex()).unwrap();
     let err = t.run(&AtomicBool::new(false), |_, _| {}).unwrap_err();
-    assert!(matches!(&err, Error::Training(msg) if msg.contains("epoch 1")), "{err}");
+    assert!(
+        matches!(&err, Error::Training(msg) if msg.contains("epoch 1")),
+        "{err}"
+    );
 }
 
 /// The saved model is the best-validation one: evaluating the file on the validation set
@@ -152,16 +218,30 @@ fn saved_model_is_the_best_validation_model() {
     let train = data(Template::DoublePendulum, 128, 7);
     let val = data(Template::DoublePendulum, 64, 8);
     let spec = ModelSpec::named("MVB", None).unwrap();
-    let cfg = TrainConfig { epochs: 6, batch_size: 32, lr: 3e-2, ..TrainConfig::default() };
+    let cfg = TrainConfig {
+        epochs: 6,
+        batch_size: 32,
+        lr: 3e-2,
+        ..TrainConfig::default()
+    };
     let mut t = Trainer::new("MVB", spec, &[], &train, Some(&val), cfg, &flex()).unwrap();
     t.run(&AtomicBool::new(false), |_, _| {}).unwrap();
     let file = t.model_file();
     let report = file.report.clone().unwrap();
-    let model = file.model(&device(Backend::Flex, Precision::F32).unwrap()).unwrap();
+    let model = file
+        .model(&device(Backend::Flex, Precision::F32).unwrap())
+        .unwrap();
     let loss = evaluate(&model, &val).unwrap();
     let best = report.best_val_loss.unwrap();
-    assert!((loss - best).abs() <= 1e-6 * best, "eval {loss} vs best {best}");
-    let min = report.history.iter().filter_map(|h| h.val_loss).fold(f64::INFINITY, f64::min);
+    assert!(
+        (loss - best).abs() <= 1e-6 * best,
+        "eval {loss} vs best {best}"
+    );
+    let min = report
+        .history
+        .iter()
+        .filter_map(|h| h.val_loss)
+        .fold(f64::INFINITY, f64::min);
     assert_eq!(best, min);
 }
 
@@ -172,7 +252,13 @@ fn early_stopping_keeps_the_best_epoch() {
     let spec = ModelSpec::named("naive", None).unwrap();
     // 64 samples and a large learning rate: the naive net overfits and oscillates, so the
     // validation loss stops improving long before 500 epochs.
-    let cfg = TrainConfig { epochs: 500, batch_size: 16, lr: 0.05, patience: Some(3), ..TrainConfig::default() };
+    let cfg = TrainConfig {
+        epochs: 500,
+        batch_size: 16,
+        lr: 0.05,
+        patience: Some(3),
+        ..TrainConfig::default()
+    };
     let mut t = Trainer::new("naive", spec, &[], &train, Some(&val), cfg, &flex()).unwrap();
     t.run(&AtomicBool::new(false), |_, _| {}).unwrap();
     let r = t.report();
@@ -180,5 +266,9 @@ fn early_stopping_keeps_the_best_epoch() {
     assert_eq!(r.epochs, r.best_epoch + 3);
     let best = r.history[r.best_epoch - 1].val_loss.unwrap();
     assert_eq!(r.best_val_loss, Some(best));
-    assert!(r.history[r.best_epoch..].iter().all(|h| h.val_loss.unwrap() >= best));
+    assert!(
+        r.history[r.best_epoch..]
+            .iter()
+            .all(|h| h.val_loss.unwrap() >= best)
+    );
 }

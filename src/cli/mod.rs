@@ -23,7 +23,11 @@ use crate::train::trainer::evaluate;
 use crate::train::{TrainConfig, Trainer};
 
 #[derive(Parser, Debug)]
-#[command(name = "graybox", version, about = "Structured Lagrangian dynamics models: learn, evaluate, serve")]
+#[command(
+    name = "graybox",
+    version,
+    about = "Structured Lagrangian dynamics models: learn, evaluate, serve"
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,
@@ -39,6 +43,8 @@ pub enum Command {
     Eval(EvalArgs),
     /// Print a model file's spec, dimensions, scalings and physical parameters.
     Inspect(InspectArgs),
+    /// Run the service: REST, gRPC and training workers over one SQLite file.
+    Serve(ServeArgs),
     /// Benchmarks (figures for the issues' targets).
     #[command(subcommand)]
     Bench(crate::bench::BenchCommand),
@@ -138,6 +144,37 @@ pub struct EvalArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct ServeArgs {
+    /// REST listen address.
+    #[arg(long, env = "GRAYBOX_HTTP", default_value = "127.0.0.1:8080")]
+    pub http: String,
+    /// gRPC listen address.
+    #[arg(long, env = "GRAYBOX_GRPC", default_value = "127.0.0.1:50051")]
+    pub grpc: String,
+    /// SQLite database file (created if missing).
+    #[arg(long, env = "GRAYBOX_DB", default_value = "./graybox.db")]
+    pub db: String,
+    /// Training workers (jobs trained at once).
+    #[arg(long, env = "GRAYBOX_WORKERS", default_value_t = 1)]
+    pub workers: usize,
+    /// Checkpoint a running job every this many epochs.
+    #[arg(long, env = "GRAYBOX_CHECKPOINT_EVERY", default_value_t = 10)]
+    pub checkpoint_every: usize,
+    /// A job whose worker has not heartbeated for this long is reclaimed.
+    #[arg(long, env = "GRAYBOX_LEASE_SECS", default_value_t = 30)]
+    pub lease_secs: u64,
+    /// Largest accepted request body, in MiB.
+    #[arg(long, env = "GRAYBOX_MAX_BODY_MB", default_value_t = 256)]
+    pub max_body_mb: usize,
+    /// With a token, writes need `Authorization: Bearer <token>`.
+    #[arg(long, env = "GRAYBOX_API_TOKEN", hide_env_values = true)]
+    pub api_token: Option<String>,
+    /// Require the token for reads too.
+    #[arg(long, env = "GRAYBOX_AUTH_READS")]
+    pub auth_reads: bool,
+}
+
+#[derive(Args, Debug)]
 pub struct InspectArgs {
     #[arg(long)]
     pub model: PathBuf,
@@ -148,7 +185,8 @@ pub fn main() -> ExitCode {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
         .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "warn".into()),
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| "warn,graybox=info".into()),
         )
         .init();
     match run(cli.command) {
@@ -156,8 +194,13 @@ pub fn main() -> ExitCode {
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::from(match e {
-                Error::Invalid { .. } | Error::NotFound(_) | Error::Corrupt { .. } => 2,
-                Error::Training(_) | Error::Cancelled | Error::Io(_) => 1,
+                Error::Invalid { .. }
+                | Error::Unprocessable { .. }
+                | Error::NotFound(_)
+                | Error::Conflict(_)
+                | Error::FailedPrecondition(_)
+                | Error::Corrupt { .. } => 2,
+                Error::Training(_) | Error::Cancelled | Error::Io(_) | Error::Storage(_) => 1,
             })
         }
     }
@@ -169,6 +212,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Train(a) => train(a),
         Command::Eval(a) => eval(a),
         Command::Inspect(a) => inspect(a),
+        Command::Serve(a) => serve(a),
         Command::Bench(b) => crate::bench::run(b),
     }
 }
@@ -177,8 +221,49 @@ pub fn parse_template(name: &str) -> Result<Template> {
     Template::from_name(name).ok_or_else(|| {
         Error::invalid(
             "template",
-            format!("unknown template '{name}'; expected one of {}", Template::ALL.map(|t| t.name()).join(", ")),
+            format!(
+                "unknown template '{name}'; expected one of {}",
+                Template::ALL.map(|t| t.name()).join(", ")
+            ),
         )
+    })
+}
+
+fn serve(a: ServeArgs) -> Result<()> {
+    if a.lease_secs == 0 || a.max_body_mb == 0 {
+        return Err(Error::invalid(
+            "serve",
+            "--lease-secs and --max-body-mb must be at least 1",
+        ));
+    }
+    let cfg = crate::service::ServiceConfig {
+        http: a.http,
+        grpc: a.grpc,
+        db: a.db,
+        settings: crate::app::Settings {
+            workers: a.workers,
+            checkpoint_every: a.checkpoint_every.max(1),
+            lease_secs: a.lease_secs,
+            max_body_bytes: a.max_body_mb << 20,
+        },
+        rest: crate::api::rest::RestSettings {
+            api_token: a.api_token.filter(|t| !t.is_empty()),
+            auth_reads: a.auth_reads,
+        },
+    };
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    rt.block_on(async {
+        let running = crate::service::start(cfg).await?;
+        eprintln!(
+            "graybox: REST on http://{}, gRPC on {}",
+            running.http_addr, running.grpc_addr
+        );
+        crate::service::signal().await;
+        eprintln!("graybox: shutting down (running jobs are checkpointed at their next epoch end)");
+        running.shutdown().await;
+        Ok(())
     })
 }
 
@@ -195,7 +280,10 @@ fn simulate(a: SimulateArgs) -> Result<()> {
     };
     let ds = sim::simulate(t, params, &cfg)?;
     write_atomic(&a.out, ds.to_json().as_bytes())?;
-    println!("{}", json!({"out": a.out, "system": t.name(), "count": ds.count(), "n": ds.n, "m": ds.m, "dt": ds.dt}));
+    println!(
+        "{}",
+        json!({"out": a.out, "system": t.name(), "count": ds.count(), "n": ds.n, "m": ds.m, "dt": ds.dt})
+    );
     Ok(())
 }
 
@@ -203,8 +291,9 @@ fn train(a: TrainArgs) -> Result<()> {
     let template = a.template.as_deref().map(parse_template).transpose()?;
     let (name, spec) = match &a.spec {
         Some(path) => {
-            let text = std::fs::read_to_string(path)
-                .map_err(|e| Error::invalid("spec", format!("cannot read {}: {e}", path.display())))?;
+            let text = std::fs::read_to_string(path).map_err(|e| {
+                Error::invalid("spec", format!("cannot read {}: {e}", path.display()))
+            })?;
             ("custom".to_string(), ModelSpec::parse(&text, template)?)
         }
         None => {
@@ -214,8 +303,15 @@ fn train(a: TrainArgs) -> Result<()> {
         }
     };
     let init = parse_pairs(a.init.as_deref().unwrap_or(""), "init")?;
-    let integrator = Integrator::from_name(&a.integrator)
-        .ok_or_else(|| Error::invalid("integrator", format!("unknown integrator '{}'; expected rk4, euler or midpoint", a.integrator)))?;
+    let integrator = Integrator::from_name(&a.integrator).ok_or_else(|| {
+        Error::invalid(
+            "integrator",
+            format!(
+                "unknown integrator '{}'; expected rk4, euler or midpoint",
+                a.integrator
+            ),
+        )
+    })?;
     let cfg = TrainConfig {
         epochs: a.epochs,
         batch_size: a.batch_size,
@@ -227,7 +323,11 @@ fn train(a: TrainArgs) -> Result<()> {
         patience: a.patience,
     };
     let data = Dataset::load(&a.data, a.dt)?;
-    let val = a.val_data.as_deref().map(|p| Dataset::load(p, a.dt)).transpose()?;
+    let val = a
+        .val_data
+        .as_deref()
+        .map(|p| Dataset::load(p, a.dt))
+        .transpose()?;
     let device = backend::device(a.backend, a.precision)?.autodiff();
     let mut trainer = Trainer::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?;
     let progress = Progress::new(a.epochs as u64);
@@ -235,8 +335,9 @@ fn train(a: TrainArgs) -> Result<()> {
     progress.finish();
     let file = trainer.model_file();
     file.save(&a.out)?;
-    let report = serde_json::to_string_pretty(file.report.as_ref().expect("trained files carry a report"))
-        .expect("reports serialize");
+    let report =
+        serde_json::to_string_pretty(file.report.as_ref().expect("trained files carry a report"))
+            .expect("reports serialize");
     if let Some(path) = &a.report {
         write_atomic(path, report.as_bytes())?;
     }
@@ -298,13 +399,19 @@ impl Progress {
         let bar = std::io::stderr().is_terminal().then(|| {
             let b = indicatif::ProgressBar::new(total);
             b.set_style(
-                indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}")
-                    .expect("valid template")
-                    .progress_chars("=> "),
+                indicatif::ProgressStyle::with_template(
+                    "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
             );
             b
         });
-        Self { bar, last_line: std::cell::Cell::new(None), total }
+        Self {
+            bar,
+            last_line: std::cell::Cell::new(None),
+            total,
+        }
     }
 
     pub fn epoch(&self, m: &crate::train::report::EpochMetrics) {
@@ -318,7 +425,10 @@ impl Progress {
                 b.set_message(msg);
             }
             None => {
-                let due = self.last_line.get().is_none_or(|t| t.elapsed().as_secs_f64() >= 1.0);
+                let due = self
+                    .last_line
+                    .get()
+                    .is_none_or(|t| t.elapsed().as_secs_f64() >= 1.0);
                 if due || m.epoch as u64 == self.total {
                     eprintln!("epoch {}/{} {msg} ({:.2}s)", m.epoch, self.total, m.seconds);
                     self.last_line.set(Some(Instant::now()));

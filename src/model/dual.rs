@@ -156,7 +156,11 @@ impl<S: Scalar> Scalar for Dual<S> {
     fn scale(&self, c: f64) -> Self {
         Self {
             v: self.v.scale(c),
-            d: self.d.iter().map(|t| t.as_ref().map(|t| t.scale(c))).collect(),
+            d: self
+                .d
+                .iter()
+                .map(|t| t.as_ref().map(|t| t.scale(c)))
+                .collect(),
         }
     }
     fn shift(&self, c: f64) -> Self {

@@ -1,6 +1,8 @@
 //! The manipulator equation, generic over the scalar type (design.md §2):
 //!
-//!     M(q) q̈ = F(q, q̇, u) − c(q, q̇) − ∂V/∂q,   M = L Lᵀ
+//! ```text
+//! M(q) q̈ = F(q, q̇, u) − c(q, q̇) − ∂V/∂q,   M = L Lᵀ
+//! ```
 //!
 //! Everything here takes the Cholesky factor L with its q-derivatives (as dual numbers), so a
 //! learned L, a constant L and the factor of an analytic M all share one Coriolis term and one
@@ -117,7 +119,9 @@ pub fn coriolis<S: Scalar>(l: &Tri<Dual<S>>, qd: &[S]) -> Vec<S> {
     let ldot: Tri<Option<S>> = Tri {
         n,
         entries: (0..Tri::<S>::len(n))
-            .map(|e| sum((0..n).filter_map(|k| dls[k].entries[e].clone().map(|t| t * qd[k].clone()))))
+            .map(|e| {
+                sum((0..n).filter_map(|k| dls[k].entries[e].clone().map(|t| t * qd[k].clone())))
+            })
             .collect(),
     };
     let opt_tri_mul = |m: &Tri<Option<S>>, v: &[S], transpose: bool| -> Vec<Option<S>> {
@@ -137,7 +141,9 @@ pub fn coriolis<S: Scalar>(l: &Tri<Dual<S>>, qd: &[S]) -> Vec<S> {
     let ldot_t_qd: Vec<Option<S>> = opt_tri_mul(&ldot, qd, true);
     // L (L̇ᵀ q̇): treat missing entries of L̇ᵀq̇ as zero.
     let l_ldot_t_qd: Vec<Option<S>> = (0..n)
-        .map(|i| sum((0..=i).filter_map(|j| ldot_t_qd[j].clone().map(|x| values.get(i, j).clone() * x))))
+        .map(|i| {
+            sum((0..=i).filter_map(|j| ldot_t_qd[j].clone().map(|x| values.get(i, j).clone() * x)))
+        })
         .collect();
     (0..n)
         .map(|i| {
@@ -158,7 +164,12 @@ pub fn coriolis<S: Scalar>(l: &Tri<Dual<S>>, qd: &[S]) -> Vec<S> {
 
 /// q̈ from the manipulator equation given L(q) with q-tangents, ∂V/∂q and F.
 /// `grad_v` is `None` for a zero potential.
-pub fn acceleration<S: Scalar>(l: &Tri<Dual<S>>, grad_v: Option<Vec<S>>, forces: Vec<S>, qd: &[S]) -> Vec<S> {
+pub fn acceleration<S: Scalar>(
+    l: &Tri<Dual<S>>,
+    grad_v: Option<Vec<S>>,
+    forces: Vec<S>,
+    qd: &[S],
+) -> Vec<S> {
     let c = coriolis(l, qd);
     let mut rhs: Vec<S> = forces.into_iter().zip(c).map(|(f, c)| f - c).collect();
     if let Some(g) = grad_v {
@@ -196,7 +207,9 @@ impl TemplateSystem {
     pub fn grad_potential(&self, q: &[f64]) -> Vec<f64> {
         let pd: Vec<Dual<f64>> = self.params.iter().map(|&v| Dual::constant(v)).collect();
         let v = self.template.potential(&pd, &dual_vars(q, &1.0));
-        (0..q.len()).map(|k| v.tangent(k).copied().unwrap_or(0.0)).collect()
+        (0..q.len())
+            .map(|k| v.tangent(k).copied().unwrap_or(0.0))
+            .collect()
     }
 
     pub fn acceleration(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {

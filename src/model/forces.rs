@@ -14,7 +14,9 @@ pub fn affine(b_flat: Tensor<2>, u: Tensor<2>, eta: Tensor<2>, qd: Tensor<2>) ->
         u.matmul(b_flat.reshape([n, m]).transpose())
     } else {
         // Σ_j B_ij u_j per sample
-        (b_flat.reshape([batch, n, m]) * u.unsqueeze_dim::<3>(1)).sum_dim(2).reshape([batch, n])
+        (b_flat.reshape([batch, n, m]) * u.unsqueeze_dim::<3>(1))
+            .sum_dim(2)
+            .reshape([batch, n])
     };
     bu + qd * eta
 }

@@ -47,7 +47,13 @@ pub struct Mlp {
 }
 
 impl Mlp {
-    pub fn init(d_in: usize, hidden: &[usize], d_out: usize, rng: &mut Rng, device: &Device) -> Self {
+    pub fn init(
+        d_in: usize,
+        hidden: &[usize],
+        d_out: usize,
+        rng: &mut Rng,
+        device: &Device,
+    ) -> Self {
         let mut sizes = vec![d_in];
         sizes.extend_from_slice(hidden);
         sizes.push(d_out);
@@ -64,7 +70,10 @@ impl Mlp {
 
     /// y = W_L tanh(… tanh(W_1 x + b_1) …) + b_L.  x: [batch, in] → [batch, out].
     pub fn forward(&self, x: Tensor<2>) -> Tensor<2> {
-        let (last, hidden) = self.layers.split_last().expect("an MLP has an output layer");
+        let (last, hidden) = self
+            .layers
+            .split_last()
+            .expect("an MLP has an output layer");
         let h = hidden.iter().fold(x, |h, layer| layer.forward(h).tanh());
         last.forward(h)
     }
@@ -75,7 +84,10 @@ impl Mlp {
     /// Forward mode: J₁ = (∂x/∂q · W₁) ⊙ (1 − h₁²),  J_l = (J_{l−1} W_l) ⊙ (1 − h_l²),
     /// ∂y/∂q = J_L W_out.  Returns y `[batch, out]` and J `[batch, n, out]`.
     pub fn forward_jacobian(&self, x: Tensor<2>, dx_dq: Tensor<2>) -> (Tensor<2>, Tensor<3>) {
-        let (last, hidden) = self.layers.split_last().expect("an MLP has an output layer");
+        let (last, hidden) = self
+            .layers
+            .split_last()
+            .expect("an MLP has an output layer");
         let [batch, _] = x.dims();
         let [n, _] = dx_dq.dims();
         let mut h = x;
@@ -83,7 +95,12 @@ impl Mlp {
         let mut dz_dq_const = Some(dx_dq); // the first layer's Jacobian is batch-independent
         for layer in hidden {
             h = layer.forward(h).tanh();
-            let dh = h.clone().square().neg().add_scalar(1.0).unsqueeze_dim::<3>(1); // [batch, 1, w]
+            let dh = h
+                .clone()
+                .square()
+                .neg()
+                .add_scalar(1.0)
+                .unsqueeze_dim::<3>(1); // [batch, 1, w]
             jac = Some(match (jac, dz_dq_const.take()) {
                 (None, Some(dx)) => dx.matmul(layer.weight.val()).unsqueeze_dim::<3>(0) * dh,
                 (Some(j), _) => mat3(j, layer.weight.val()) * dh,

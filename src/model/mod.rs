@@ -147,7 +147,12 @@ impl ModelConfig {
 impl Model {
     /// A freshly initialized model. `physical` gives the template's initial parameter values
     /// (defaults when `None`); networks are drawn from `seed`.
-    pub fn init(config: ModelConfig, physical: Option<Vec<f64>>, seed: u64, device: &Device) -> Result<Self> {
+    pub fn init(
+        config: ModelConfig,
+        physical: Option<Vec<f64>>,
+        seed: u64,
+        device: &Device,
+    ) -> Result<Self> {
         let (n, m) = (config.n, config.m);
         let mut rng = Rng::derive(seed, 0x1_417);
         let mut p = Params {
@@ -167,19 +172,34 @@ impl Model {
             ModelSpec::Naive { hidden } => {
                 p.naive = Some(Mlp::init(2 * n + m, hidden, n, &mut rng, device));
             }
-            ModelSpec::Structured { mass, potential, forces, template } => {
+            ModelSpec::Structured {
+                mass,
+                potential,
+                forces,
+                template,
+            } => {
                 match mass {
                     MassSpec::Mlp { hidden } => {
-                        p.mass_net = Some(Mlp::init(n, hidden, mass_matrix::outputs(n), &mut rng, device))
+                        p.mass_net = Some(Mlp::init(
+                            n,
+                            hidden,
+                            mass_matrix::outputs(n),
+                            &mut rng,
+                            device,
+                        ))
                     }
-                    MassSpec::Constant => p.mass_const = Some(param(vec![0.0; tri], [1, tri], device)),
+                    MassSpec::Constant => {
+                        p.mass_const = Some(param(vec![0.0; tri], [1, tri], device))
+                    }
                     MassSpec::Template => {}
                 }
                 match potential {
                     PotentialSpec::Mlp { hidden } => {
                         p.potential_net = Some(Mlp::init(n, hidden, 1, &mut rng, device))
                     }
-                    PotentialSpec::Quadratic => p.potential_quad = Some(param(vec![0.0; tri], [1, tri], device)),
+                    PotentialSpec::Quadratic => {
+                        p.potential_quad = Some(param(vec![0.0; tri], [1, tri], device))
+                    }
                     PotentialSpec::Template | PotentialSpec::Zero => {}
                 }
                 match forces {
@@ -192,7 +212,9 @@ impl Model {
                     }
                     ForceSpec::ConstantAffine => {
                         // B starts as the (rectangular) identity in scaled units.
-                        let b = (0..n * m).map(|k| if k / m == k % m { 1.0 } else { 0.0 }).collect();
+                        let b = (0..n * m)
+                            .map(|k| if k / m == k % m { 1.0 } else { 0.0 })
+                            .collect();
                         p.b_const = Some(param(b, [1, n * m], device));
                         p.eta = Some(param(vec![0.0; n], [1, n], device));
                     }
@@ -209,7 +231,11 @@ impl Model {
 
     pub fn from_parts(config: ModelConfig, params: Params, device: &Device) -> Self {
         let consts = Consts::new(&config, device);
-        Self { config, params, consts }
+        Self {
+            config,
+            params,
+            consts,
+        }
     }
 
     pub fn device(&self) -> Device {
@@ -225,7 +251,12 @@ impl Model {
 
     /// Physical parameter values as tensors `[1, 1]` (positive ones exponentiated).
     fn physical(&self, t: Template) -> Vec<Tensor<2>> {
-        let raw = self.params.physical.as_ref().expect("a template model has physical parameters").val();
+        let raw = self
+            .params
+            .physical
+            .as_ref()
+            .expect("a template model has physical parameters")
+            .val();
         t.params()
             .iter()
             .enumerate()
@@ -239,12 +270,24 @@ impl Model {
     /// Learned physical values by name (host f64), for reports.
     pub fn physical_values(&self) -> Option<Vec<(String, f64)>> {
         let t = self.config.template()?;
-        let raw: Vec<f64> = self.params.physical.as_ref()?.val().into_data().iter::<f64>().collect();
+        let raw: Vec<f64> = self
+            .params
+            .physical
+            .as_ref()?
+            .val()
+            .into_data()
+            .iter::<f64>()
+            .collect();
         Some(
             t.params()
                 .iter()
                 .zip(raw)
-                .map(|(info, r)| (info.name.to_string(), if info.positive { r.exp() } else { r }))
+                .map(|(info, r)| {
+                    (
+                        info.name.to_string(),
+                        if info.positive { r.exp() } else { r },
+                    )
+                })
                 .collect(),
         )
     }
@@ -265,13 +308,24 @@ impl Model {
     /// The terms of the manipulator equation of a structured model, as `[batch, 1]` columns.
     pub fn parts(&self, q: Tensor<2>, qd: Tensor<2>, u: Tensor<2>) -> Parts {
         let c = &self.consts;
-        let ModelSpec::Structured { mass, potential, forces, template } = &self.config.spec else {
+        let ModelSpec::Structured {
+            mass,
+            potential,
+            forces,
+            template,
+        } = &self.config.spec
+        else {
             panic!("parts() is for structured models");
         };
         let n = self.config.n;
         let phys: Option<Vec<Tensor<2>>> = template.map(|t| self.physical(t));
         let phys_dual = || -> Vec<Dual<Tensor<2>>> {
-            phys.as_ref().expect("template params").iter().cloned().map(Dual::constant).collect()
+            phys.as_ref()
+                .expect("template params")
+                .iter()
+                .cloned()
+                .map(Dual::constant)
+                .collect()
         };
         let q_cols = columns(&q);
         let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
@@ -283,8 +337,16 @@ impl Model {
                 mass_matrix::factor_from_outputs(mass_matrix::dual_columns(y, jac), n)
             }
             MassSpec::Constant => {
-                let raw = self.params.mass_const.as_ref().expect("constant mass").val();
-                mass_matrix::factor_from_outputs(columns(&raw).into_iter().map(Dual::constant).collect(), n)
+                let raw = self
+                    .params
+                    .mass_const
+                    .as_ref()
+                    .expect("constant mass")
+                    .val();
+                mass_matrix::factor_from_outputs(
+                    columns(&raw).into_iter().map(Dual::constant).collect(),
+                    n,
+                )
             }
             MassSpec::Template => {
                 let t = template.expect("validated: template present");
@@ -298,12 +360,20 @@ impl Model {
             PotentialSpec::Mlp { .. } => {
                 let net = self.params.potential_net.as_ref().expect("potential net");
                 let (_, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
-                let g = jac.reshape([q.dims()[0], n]).mul_scalar(self.config.scaling.potential_scale());
+                let g = jac
+                    .reshape([q.dims()[0], n])
+                    .mul_scalar(self.config.scaling.potential_scale());
                 Some(columns(&g))
             }
             PotentialSpec::Quadratic => {
-                let k = self.params.potential_quad.as_ref().expect("quadratic potential").val();
-                let scale = self.config.scaling.mean_force_scale() / self.config.scaling.mean_q_std();
+                let k = self
+                    .params
+                    .potential_quad
+                    .as_ref()
+                    .expect("quadratic potential")
+                    .val();
+                let scale =
+                    self.config.scaling.mean_force_scale() / self.config.scaling.mean_q_std();
                 let kij = |i: usize, j: usize| {
                     let (a, b) = if j <= i { (i, j) } else { (j, i) };
                     k.clone().narrow(1, Tri::<()>::index(a, b), 1)
@@ -325,7 +395,11 @@ impl Model {
                 let v = t.potential(&phys_dual(), &dual_vars(&q_cols, &c.one));
                 Some(
                     (0..n)
-                        .map(|k| v.tangent(k).cloned().unwrap_or_else(|| q_cols[k].clone().mul_scalar(0.0)))
+                        .map(|k| {
+                            v.tangent(k)
+                                .cloned()
+                                .unwrap_or_else(|| q_cols[k].clone().mul_scalar(0.0))
+                        })
                         .collect(),
                 )
             }
@@ -334,7 +408,8 @@ impl Model {
         let f: Vec<Tensor<2>> = match forces {
             ForceSpec::Mlp { .. } => {
                 let net = self.params.force_net.as_ref().expect("force net");
-                let input = (Tensor::cat(vec![q.clone(), qd, u], 1) - c.in_mean.clone()) * c.in_inv_std.clone();
+                let input = (Tensor::cat(vec![q.clone(), qd, u], 1) - c.in_mean.clone())
+                    * c.in_inv_std.clone();
                 columns(&(net.forward(input) * c.force_scale.clone()))
             }
             ForceSpec::ControlAffine { .. } => {
@@ -350,17 +425,31 @@ impl Model {
             }
             ForceSpec::Template => {
                 let t = template.expect("validated: template present");
-                t.forces(phys.as_ref().expect("template params"), &q_cols, &columns(&qd), &columns(&u))
+                t.forces(
+                    phys.as_ref().expect("template params"),
+                    &q_cols,
+                    &columns(&qd),
+                    &columns(&u),
+                )
             }
         };
-        Parts { l, grad_v, forces: f }
+        Parts {
+            l,
+            grad_v,
+            forces: f,
+        }
     }
 
     /// V(q) `[batch, 1]` for a structured model (`None` for a zero potential or the naive
     /// model). Training only needs ∂V/∂q; this is for energy diagnostics and checks.
     pub fn potential(&self, q: Tensor<2>) -> Option<Tensor<2>> {
         let c = &self.consts;
-        let ModelSpec::Structured { potential, template, .. } = &self.config.spec else {
+        let ModelSpec::Structured {
+            potential,
+            template,
+            ..
+        } = &self.config.spec
+        else {
             return None;
         };
         let s = &self.config.scaling;
@@ -373,14 +462,21 @@ impl Model {
             }
             PotentialSpec::Quadratic => {
                 // ½ qᵀKq = Σ_i ½ K_ii q_i² + Σ_{i>j} K_ij q_i q_j
-                let k = self.params.potential_quad.as_ref().expect("quadratic potential").val();
+                let k = self
+                    .params
+                    .potential_quad
+                    .as_ref()
+                    .expect("quadratic potential")
+                    .val();
                 let cols = columns(&q);
                 let n = cols.len();
-                let terms = (0..n).flat_map(|i| (0..=i).map(move |j| (i, j))).map(|(i, j)| {
-                    let kij = k.clone().narrow(1, Tri::<()>::index(i, j), 1);
-                    let w = if i == j { 0.5 } else { 1.0 };
-                    (cols[i].clone() * cols[j].clone() * kij).mul_scalar(w)
-                });
+                let terms = (0..n)
+                    .flat_map(|i| (0..=i).map(move |j| (i, j)))
+                    .map(|(i, j)| {
+                        let kij = k.clone().narrow(1, Tri::<()>::index(i, j), 1);
+                        let w = if i == j { 0.5 } else { 1.0 };
+                        (cols[i].clone() * cols[j].clone() * kij).mul_scalar(w)
+                    });
                 let v = terms.reduce(|a, b| a + b).expect("n ≥ 1");
                 Some(v.mul_scalar(s.mean_force_scale() / s.mean_q_std()))
             }
@@ -394,12 +490,14 @@ impl Model {
     /// One step of the model's integrator: x = [q, q̇] `[batch, 2n]`, u `[batch, m]`.
     pub fn step(&self, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
         let n = self.config.n;
-        self.config.integrator.step(&x, self.config.dt, |x: &Tensor<2>| {
-            let q = x.clone().narrow(1, 0, n);
-            let qd = x.clone().narrow(1, n, n);
-            let qdd = self.accel(q, qd.clone(), u.clone());
-            Tensor::cat(vec![qd, qdd], 1)
-        })
+        self.config
+            .integrator
+            .step(&x, self.config.dt, |x: &Tensor<2>| {
+                let q = x.clone().narrow(1, 0, n);
+                let qd = x.clone().narrow(1, n, n);
+                let qdd = self.accel(q, qd.clone(), u.clone());
+                Tensor::cat(vec![qd, qdd], 1)
+            })
     }
 
     /// Sum over the batch of Σ(q' − q̂')² + λ Σ(q̇' − q̂̇')² (divide by the batch size for the
@@ -422,11 +520,17 @@ pub fn raw_physical(t: Template, values: &[f64]) -> Result<Vec<f64>> {
         .zip(values)
         .map(|(info, &v)| {
             if !v.is_finite() {
-                return Err(Error::invalid(format!("init.{}", info.name), "must be finite"));
+                return Err(Error::invalid(
+                    format!("init.{}", info.name),
+                    "must be finite",
+                ));
             }
             if info.positive {
                 if v <= 0.0 {
-                    return Err(Error::invalid(format!("init.{}", info.name), format!("must be > 0, got {v}")));
+                    return Err(Error::invalid(
+                        format!("init.{}", info.name),
+                        format!("must be > 0, got {v}"),
+                    ));
                 }
                 Ok(v.ln())
             } else {

@@ -40,7 +40,10 @@ impl ModuleVisitor for Exporter {
 
 /// Every float parameter in visiting order (declaration order, deterministic).
 pub fn export<M: Module>(module: &M) -> Vec<NamedArray> {
-    let mut v = Exporter { path: vec![], out: vec![] };
+    let mut v = Exporter {
+        path: vec![],
+        out: vec![],
+    };
     module.visit(&mut v);
     v.out
 }
@@ -57,31 +60,51 @@ impl ModuleMapper for Importer<'_> {
         let dims = old.dims();
         let require_grad = old.is_require_grad();
         let value = match self.arrays.next() {
-            Some(a) if a.shape == dims.to_vec() && a.values.len() == dims.iter().product::<usize>() => {
+            Some(a)
+                if a.shape == dims.to_vec() && a.values.len() == dims.iter().product::<usize>() =>
+            {
                 Tensor::from_data(TensorData::new(a.values.clone(), dims), &self.device)
             }
             other => {
                 self.error.get_or_insert_with(|| {
-                    let got = other.map_or("nothing".to_string(), |a| format!("{} {:?}", a.name, a.shape));
-                    Error::corrupt("parameters", format!("expected a tensor of shape {dims:?}, found {got}"))
+                    let got = other.map_or("nothing".to_string(), |a| {
+                        format!("{} {:?}", a.name, a.shape)
+                    });
+                    Error::corrupt(
+                        "parameters",
+                        format!("expected a tensor of shape {dims:?}, found {got}"),
+                    )
                 });
                 old
             }
         };
-        Param::initialized(id, if require_grad { value.require_grad() } else { value })
+        Param::initialized(
+            id,
+            if require_grad {
+                value.require_grad()
+            } else {
+                value
+            },
+        )
     }
 }
 
 /// Loads values into a module built with the same structure; shapes must match one to one.
 pub fn import<M: Module>(module: M, arrays: &[NamedArray], device: &Device) -> Result<M> {
-    let mut im = Importer { arrays: arrays.iter(), device: device.clone(), error: None };
+    let mut im = Importer {
+        arrays: arrays.iter(),
+        device: device.clone(),
+        error: None,
+    };
     let module = module.map(&mut im);
     if let Some(e) = im.error {
         return Err(e);
     }
     if im.arrays.next().is_some() {
-        return Err(Error::corrupt("parameters", "more arrays than the model has parameters"));
+        return Err(Error::corrupt(
+            "parameters",
+            "more arrays than the model has parameters",
+        ));
     }
     Ok(module)
 }
-

@@ -35,9 +35,19 @@ fn column_stats(a: &[f64], width: usize) -> (Vec<f64>, Vec<f64>) {
         .collect();
     let std = (0..width)
         .map(|j| {
-            let var = a.iter().skip(j).step_by(width).map(|x| (x - mean[j]).powi(2)).sum::<f64>() / rows;
+            let var = a
+                .iter()
+                .skip(j)
+                .step_by(width)
+                .map(|x| (x - mean[j]).powi(2))
+                .sum::<f64>()
+                / rows;
             let s = var.sqrt();
-            if s.is_finite() && s > 1e-8 * (1.0 + mean[j].abs()) { s } else { 1.0 }
+            if s.is_finite() && s > 1e-8 * (1.0 + mean[j].abs()) {
+                s
+            } else {
+                1.0
+            }
         })
         .collect();
     (mean, std)
@@ -75,19 +85,30 @@ impl Scaling {
         let force_scale = match mass {
             None => acc_std.clone(),
             Some((t, p)) => {
-                let tau: Vec<f64> = ds
-                    .q
-                    .chunks(n)
-                    .zip(acc.chunks(n))
-                    .flat_map(|(q, a)| {
-                        let mm = t.mass(p, q);
-                        (0..n).map(move |i| (0..n).map(|j| mm[i][j] * a[j]).sum::<f64>()).collect::<Vec<_>>()
-                    })
-                    .collect();
+                let tau: Vec<f64> =
+                    ds.q.chunks(n)
+                        .zip(acc.chunks(n))
+                        .flat_map(|(q, a)| {
+                            let mm = t.mass(p, q);
+                            (0..n)
+                                .map(move |i| (0..n).map(|j| mm[i][j] * a[j]).sum::<f64>())
+                                .collect::<Vec<_>>()
+                        })
+                        .collect();
                 column_stats(&tau, n).1
             }
         };
-        Self { q_mean, q_std, qdot_mean, qdot_std, u_mean, u_std, acc_mean, acc_std, force_scale }
+        Self {
+            q_mean,
+            q_std,
+            qdot_mean,
+            qdot_std,
+            u_mean,
+            u_std,
+            acc_mean,
+            acc_std,
+            force_scale,
+        }
     }
 
     pub fn mean_force_scale(&self) -> f64 {

@@ -84,14 +84,18 @@ pub enum ModelSpec {
 }
 
 /// The paper's parameterizations (its table of models) plus the naive baseline.
-pub const NAMED: [&str; 11] = ["MVF", "MVB", "MV", "VB", "MB", "M", "V", "B", "F", "W-B", "naive"];
+pub const NAMED: [&str; 11] = [
+    "MVF", "MVB", "MV", "VB", "MB", "M", "V", "B", "F", "W-B", "naive",
+];
 
 impl ModelSpec {
     /// A model by the paper's name ("MVF", …, "W-B", "naive"); a letter means that component
     /// is a network, the others are the template's white-box forms.
     pub fn named(name: &str, template: Option<Template>) -> Result<Self> {
         if name.eq_ignore_ascii_case("naive") {
-            return Ok(ModelSpec::Naive { hidden: naive_hidden() });
+            return Ok(ModelSpec::Naive {
+                hidden: naive_hidden(),
+            });
         }
         let letters = match name {
             "W-B" | "WB" | "white-box" => "",
@@ -99,22 +103,37 @@ impl ModelSpec {
             _ => {
                 return Err(Error::invalid(
                     "model",
-                    format!("unknown model '{name}'; expected one of {}", NAMED.join(", ")),
+                    format!(
+                        "unknown model '{name}'; expected one of {}",
+                        NAMED.join(", ")
+                    ),
                 ));
             }
         };
         let nn = |c: char| letters.contains(c);
         let spec = ModelSpec::Structured {
-            mass: if nn('M') { MassSpec::Mlp { hidden: structured_hidden() } } else { MassSpec::Template },
+            mass: if nn('M') {
+                MassSpec::Mlp {
+                    hidden: structured_hidden(),
+                }
+            } else {
+                MassSpec::Template
+            },
             potential: if nn('V') {
-                PotentialSpec::Mlp { hidden: structured_hidden() }
+                PotentialSpec::Mlp {
+                    hidden: structured_hidden(),
+                }
             } else {
                 PotentialSpec::Template
             },
             forces: if nn('F') {
-                ForceSpec::Mlp { hidden: structured_hidden() }
+                ForceSpec::Mlp {
+                    hidden: structured_hidden(),
+                }
             } else if nn('B') {
-                ForceSpec::ControlAffine { hidden: structured_hidden() }
+                ForceSpec::ControlAffine {
+                    hidden: structured_hidden(),
+                }
             } else {
                 ForceSpec::Template
             },
@@ -146,7 +165,11 @@ impl ModelSpec {
                 Some(existing) if *existing != t => {
                     return Err(Error::invalid(
                         "template",
-                        format!("the spec names template '{}' but '{}' was given", existing.name(), t.name()),
+                        format!(
+                            "the spec names template '{}' but '{}' was given",
+                            existing.name(),
+                            t.name()
+                        ),
                     ));
                 }
                 _ => *template = Some(t),
@@ -159,7 +182,12 @@ impl ModelSpec {
     pub fn white_box_parts(&self) -> Vec<Part> {
         match self {
             ModelSpec::Naive { .. } => vec![],
-            ModelSpec::Structured { mass, potential, forces, .. } => {
+            ModelSpec::Structured {
+                mass,
+                potential,
+                forces,
+                ..
+            } => {
                 let mut parts = vec![];
                 if *mass == MassSpec::Template {
                     parts.push(Part::Mass);
@@ -196,7 +224,12 @@ impl ModelSpec {
         };
         match self {
             ModelSpec::Naive { hidden } => hidden_ok(hidden, "model.hidden"),
-            ModelSpec::Structured { mass, potential, forces, template } => {
+            ModelSpec::Structured {
+                mass,
+                potential,
+                forces,
+                template,
+            } => {
                 if let MassSpec::Mlp { hidden } = mass {
                     hidden_ok(hidden, "model.mass.hidden")?;
                 }

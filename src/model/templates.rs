@@ -40,8 +40,18 @@ pub struct Combination {
 
 use Part::{Forces as F, Mass as M, Potential as V};
 
-const fn p(name: &'static str, default: f64, positive: bool, used_by: &'static [Part]) -> ParamInfo {
-    ParamInfo { name, default, positive, used_by }
+const fn p(
+    name: &'static str,
+    default: f64,
+    positive: bool,
+    used_by: &'static [Part],
+) -> ParamInfo {
+    ParamInfo {
+        name,
+        default,
+        positive,
+        used_by,
+    }
 }
 
 const DOUBLE_PENDULUM: &[ParamInfo] = &[
@@ -84,10 +94,14 @@ const DOUBLE_PENDULUM_COMBOS: &[Combination] = &[
     combo!("m1/m2", [M], |v| v("m1") / v("m2")),
     combo!("l1/l2", [M], |v| v("l1") / v("l2")),
     combo!("g/l1", [M, V], |v| v("g") / v("l1")),
-    combo!("b1/(m1*l1^2)", [M, F], |v| v("b1") / (v("m1") * v("l1").powi(2))),
-    combo!("b2/(m1*l1^2)", [M, F], |v| v("b2") / (v("m1") * v("l1").powi(2))),
-    combo!("eta1/(m1*l1^2)", [M, F], |v| v("eta1") / (v("m1") * v("l1").powi(2))),
-    combo!("eta2/(m1*l1^2)", [M, F], |v| v("eta2") / (v("m1") * v("l1").powi(2))),
+    combo!("b1/(m1*l1^2)", [M, F], |v| v("b1")
+        / (v("m1") * v("l1").powi(2))),
+    combo!("b2/(m1*l1^2)", [M, F], |v| v("b2")
+        / (v("m1") * v("l1").powi(2))),
+    combo!("eta1/(m1*l1^2)", [M, F], |v| v("eta1")
+        / (v("m1") * v("l1").powi(2))),
+    combo!("eta2/(m1*l1^2)", [M, F], |v| v("eta2")
+        / (v("m1") * v("l1").powi(2))),
     combo!("b1/b2", [F], |v| v("b1") / v("b2")),
     combo!("eta1/b1", [F], |v| v("eta1") / v("b1")),
     combo!("eta2/b2", [F], |v| v("eta2") / v("b2")),
@@ -96,7 +110,8 @@ const DOUBLE_PENDULUM_COMBOS: &[Combination] = &[
 const PENDULUM_COMBOS: &[Combination] = &[
     combo!("g/l", [M, V], |v| v("g") / v("l")),
     combo!("b/(m*l^2)", [M, F], |v| v("b") / (v("m") * v("l").powi(2))),
-    combo!("eta/(m*l^2)", [M, F], |v| v("eta") / (v("m") * v("l").powi(2))),
+    combo!("eta/(m*l^2)", [M, F], |v| v("eta")
+        / (v("m") * v("l").powi(2))),
     combo!("eta/b", [F], |v| v("eta") / v("b")),
 ];
 
@@ -111,7 +126,11 @@ const CARTPOLE_COMBOS: &[Combination] = &[
 ];
 
 impl Template {
-    pub const ALL: [Template; 3] = [Template::DoublePendulum, Template::Pendulum, Template::Cartpole];
+    pub const ALL: [Template; 3] = [
+        Template::DoublePendulum,
+        Template::Pendulum,
+        Template::Cartpole,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -201,7 +220,8 @@ impl Template {
                 let c1 = q[0].cos();
                 let c12 = (q[0].clone() + q[1].clone()).cos();
                 let v1 = (m1.clone() * g.clone() * l1.clone() * c1.clone()).scale(-0.5);
-                let v2 = -(m2.clone() * g.clone() * (l1.clone() * c1 + (l2.clone() * c12).scale(0.5)));
+                let v2 =
+                    -(m2.clone() * g.clone() * (l1.clone() * c1 + (l2.clone() * c12).scale(0.5)));
                 v1 + v2
             }
             Template::Pendulum => {

@@ -51,10 +51,14 @@ impl ModuleMapper for StepMapper<'_> {
                 m.mul_scalar(BETA1) + g.clone().mul_scalar(1.0 - BETA1),
                 v.mul_scalar(BETA2) + g.square().mul_scalar(1.0 - BETA2),
             ),
-            None => (g.clone().mul_scalar(1.0 - BETA1), g.square().mul_scalar(1.0 - BETA2)),
+            None => (
+                g.clone().mul_scalar(1.0 - BETA1),
+                g.square().mul_scalar(1.0 - BETA2),
+            ),
         };
         // p ← p − lr · m̂ / (√v̂ + ε),  m̂ = m/(1−β₁ᵗ), v̂ = v/(1−β₂ᵗ)
-        let update = m.clone().div_scalar(self.bias1) / v.clone().div_scalar(self.bias2).sqrt().add_scalar(EPS);
+        let update = m.clone().div_scalar(self.bias1)
+            / v.clone().div_scalar(self.bias2).sqrt().add_scalar(EPS);
         let new = tensor.inner().reshape([numel]) - update.mul_scalar(self.lr);
         self.moments[i] = Some((m, v));
         Param::initialized(id, Tensor::from_inner(new.reshape(dims)).require_grad())

@@ -23,7 +23,12 @@ pub struct ModelFile {
 
 impl ModelFile {
     pub fn new(config: ModelConfig, params: Vec<NamedArray>, report: Option<TrainReport>) -> Self {
-        Self { format: FORMAT.to_string(), config, params, report }
+        Self {
+            format: FORMAT.to_string(),
+            config,
+            params,
+            report,
+        }
     }
 
     pub fn to_bytes(&self) -> Vec<u8> {
@@ -31,9 +36,13 @@ impl ModelFile {
     }
 
     pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
-        let f: ModelFile = serde_json::from_slice(bytes).map_err(|e| Error::corrupt("model file", e))?;
+        let f: ModelFile =
+            serde_json::from_slice(bytes).map_err(|e| Error::corrupt("model file", e))?;
         if f.format != FORMAT {
-            return Err(Error::corrupt("model file", format!("format '{}' is not {FORMAT}", f.format)));
+            return Err(Error::corrupt(
+                "model file",
+                format!("format '{}' is not {FORMAT}", f.format),
+            ));
         }
         Ok(f)
     }
@@ -60,7 +69,10 @@ impl ModelFile {
 /// new one, never half of one.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let tmp = dir.join(format!(
         ".{}.tmp{}",
         path.file_name().and_then(|s| s.to_str()).unwrap_or("out"),

@@ -39,23 +39,42 @@ struct DatasetJson<'a> {
 
 impl Dataset {
     pub fn count(&self) -> usize {
-        if self.n == 0 { 0 } else { self.q.len() / self.n }
+        if self.n == 0 {
+            0
+        } else {
+            self.q.len() / self.n
+        }
     }
 
     /// Builds a dataset from row-major arrays, checking every invariant.
     pub fn new(dt: f64, n: usize, m: usize, arrays: [Vec<f64>; 5]) -> Result<Self> {
         let [q, qdot, u, q_next, qdot_next] = arrays;
-        let d = Dataset { dt, n, m, q, qdot, u, q_next, qdot_next };
+        let d = Dataset {
+            dt,
+            n,
+            m,
+            q,
+            qdot,
+            u,
+            q_next,
+            qdot_next,
+        };
         d.validate()?;
         Ok(d)
     }
 
     fn validate(&self) -> Result<()> {
         if !(self.dt.is_finite() && self.dt > 0.0) {
-            return Err(Error::invalid("dt", format!("must be a finite number > 0, got {}", self.dt)));
+            return Err(Error::invalid(
+                "dt",
+                format!("must be a finite number > 0, got {}", self.dt),
+            ));
         }
         if self.n == 0 {
-            return Err(Error::invalid("q", "rows must have at least one coordinate"));
+            return Err(Error::invalid(
+                "q",
+                "rows must have at least one coordinate",
+            ));
         }
         if self.m == 0 {
             return Err(Error::invalid(
@@ -69,7 +88,10 @@ impl Dataset {
         }
         for (name, arr, width) in self.fields() {
             if arr.len() != count * width {
-                return Err(Error::invalid(name, format!("expected {count} rows of {width}")));
+                return Err(Error::invalid(
+                    name,
+                    format!("expected {count} rows of {width}"),
+                ));
             }
             if let Some(i) = arr.iter().position(|v| !v.is_finite()) {
                 return Err(Error::invalid(
@@ -118,7 +140,9 @@ impl Dataset {
                 Some(c) if c != rows => {
                     return Err(Error::invalid(
                         *name,
-                        format!("has {rows} rows but q has {c}; every field needs one row per transition"),
+                        format!(
+                            "has {rows} rows but q has {c}; every field needs one row per transition"
+                        ),
                     ));
                 }
                 _ => {}
@@ -131,7 +155,10 @@ impl Dataset {
             if widths[k] != n {
                 return Err(Error::invalid(
                     FIELDS[k],
-                    format!("rows have {} values but q rows have {n}; q, qdot, q_next and qdot_next share n", widths[k]),
+                    format!(
+                        "rows have {} values but q rows have {n}; q, qdot, q_next and qdot_next share n",
+                        widths[k]
+                    ),
                 ));
             }
         }
@@ -140,7 +167,10 @@ impl Dataset {
 
     /// Parses the CSV form (header `q0..,qdot0..,u0..,q_next0..,qdot_next0..`).
     pub fn from_csv(text: &str, dt: f64) -> Result<Self> {
-        let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty());
         let (_, header) = lines
             .next()
             .ok_or_else(|| Error::invalid("csv", "empty file: expected a header row"))?;
@@ -158,7 +188,11 @@ impl Dataset {
         if cols != expected {
             return Err(Error::invalid(
                 "csv.header",
-                format!("expected columns {} (n = {n}, m = {m} from the header), got {}", expected.join(","), cols.join(",")),
+                format!(
+                    "expected columns {} (n = {n}, m = {m} from the header), got {}",
+                    expected.join(","),
+                    cols.join(",")
+                ),
             ));
         }
         let mut arrays: [Vec<f64>; 5] = Default::default();
@@ -167,14 +201,25 @@ impl Dataset {
             if vals.len() != cols.len() {
                 return Err(Error::invalid(
                     format!("csv.row[{row}]"),
-                    format!("line {} has {} values, the header has {}", lineno + 1, vals.len(), cols.len()),
+                    format!(
+                        "line {} has {} values, the header has {}",
+                        lineno + 1,
+                        vals.len(),
+                        cols.len()
+                    ),
                 ));
             }
             for (c, v) in vals.iter().enumerate() {
                 let x: f64 = v.parse().map_err(|_| {
-                    Error::invalid(format!("{}[{row}]", field_of(cols[c])), format!("'{v}' is not a number (line {})", lineno + 1))
+                    Error::invalid(
+                        format!("{}[{row}]", field_of(cols[c])),
+                        format!("'{v}' is not a number (line {})", lineno + 1),
+                    )
                 })?;
-                let field = FIELDS.iter().position(|f| *f == field_of(cols[c])).expect("header checked");
+                let field = FIELDS
+                    .iter()
+                    .position(|f| *f == field_of(cols[c]))
+                    .expect("header checked");
                 arrays[field].push(x);
             }
         }
@@ -200,7 +245,10 @@ impl Dataset {
     pub fn load(path: &std::path::Path, dt: Option<f64>) -> Result<Self> {
         let text = std::fs::read_to_string(path)
             .map_err(|e| Error::invalid("data", format!("cannot read {}: {e}", path.display())))?;
-        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")) {
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"))
+        {
             let dt = dt.ok_or_else(|| Error::invalid("dt", "a CSV dataset needs --dt"))?;
             Self::from_csv(&text, dt)
         } else {
@@ -211,7 +259,9 @@ impl Dataset {
     /// The transitions at `idx`, in that order.
     pub fn subset(&self, idx: &[usize]) -> Dataset {
         let take = |a: &[f64], w: usize| -> Vec<f64> {
-            idx.iter().flat_map(|&i| a[i * w..(i + 1) * w].iter().copied()).collect()
+            idx.iter()
+                .flat_map(|&i| a[i * w..(i + 1) * w].iter().copied())
+                .collect()
         };
         Dataset {
             dt: self.dt,
@@ -247,7 +297,10 @@ impl Dataset {
                 .flat_map(|(x, y)| x.iter().chain(y).copied())
                 .collect()
         };
-        (join(&self.q, &self.qdot), join(&self.q_next, &self.qdot_next))
+        (
+            join(&self.q, &self.qdot),
+            join(&self.q_next, &self.qdot_next),
+        )
     }
 }
 
@@ -279,15 +332,18 @@ fn parse_rows(v: Option<&Value>, name: &str) -> Result<(usize, usize, Vec<f64>)>
             Some(w) if w != row.len() => {
                 return Err(Error::invalid(
                     field(),
-                    format!("has {} values but row 0 has {w}; every row of a field has the same width", row.len()),
+                    format!(
+                        "has {} values but row 0 has {w}; every row of a field has the same width",
+                        row.len()
+                    ),
                 ));
             }
             _ => {}
         }
         for (j, x) in row.iter().enumerate() {
-            let x = x
-                .as_f64()
-                .ok_or_else(|| Error::invalid(field(), format!("value {j} is not a number: {x}")))?;
+            let x = x.as_f64().ok_or_else(|| {
+                Error::invalid(field(), format!("value {j} is not a number: {x}"))
+            })?;
             flat.push(x);
         }
     }

@@ -47,7 +47,11 @@ pub struct TrainReport {
 }
 
 /// The parameters that the white-box parts use, by name.
-pub fn used_physical(t: Template, parts: &[Part], values: &[(String, f64)]) -> BTreeMap<String, f64> {
+pub fn used_physical(
+    t: Template,
+    parts: &[Part],
+    values: &[(String, f64)],
+) -> BTreeMap<String, f64> {
     t.params()
         .iter()
         .zip(values)
@@ -59,11 +63,17 @@ pub fn used_physical(t: Template, parts: &[Part], values: &[(String, f64)]) -> B
 /// The identifiable combinations whose parts are all white-box, evaluated at `values`.
 pub fn identifiable(t: Template, parts: &[Part], values: &[(String, f64)]) -> Vec<Identified> {
     let lookup = |name: &str| -> f64 {
-        values.iter().find(|(n, _)| n == name).map_or(f64::NAN, |(_, v)| *v)
+        values
+            .iter()
+            .find(|(n, _)| n == name)
+            .map_or(f64::NAN, |(_, v)| *v)
     };
     t.combinations()
         .iter()
         .filter(|c| c.needs.iter().all(|p| parts.contains(p)))
-        .map(|c| Identified { name: c.name.to_string(), value: (c.eval)(&lookup) })
+        .map(|c| Identified {
+            name: c.name.to_string(),
+            value: (c.eval)(&lookup),
+        })
         .collect()
 }

@@ -73,7 +73,10 @@ impl TrainConfig {
             return bad("val_fraction", "must be in [0, 1)");
         }
         if self.patience == Some(0) {
-            return bad("patience", "must be at least 1 (omit it to train every epoch)");
+            return bad(
+                "patience",
+                "must be at least 1 (omit it to train every epoch)",
+            );
         }
         Ok(())
     }
@@ -124,15 +127,29 @@ struct HostData {
 impl HostData {
     fn new(ds: &Dataset) -> Self {
         let (x, y) = ds.states();
-        Self { x, u: ds.u.clone(), y, count: ds.count(), n2: 2 * ds.n, m: ds.m }
+        Self {
+            x,
+            u: ds.u.clone(),
+            y,
+            count: ds.count(),
+            n2: 2 * ds.n,
+            m: ds.m,
+        }
     }
 
     fn gather(&self, idx: &[usize], device: &Device) -> (Tensor<2>, Tensor<2>, Tensor<2>) {
         let take = |a: &[f64], w: usize| -> Tensor<2> {
-            let v: Vec<f64> = idx.iter().flat_map(|&i| a[i * w..(i + 1) * w].iter().copied()).collect();
+            let v: Vec<f64> = idx
+                .iter()
+                .flat_map(|&i| a[i * w..(i + 1) * w].iter().copied())
+                .collect();
             Tensor::from_data(TensorData::new(v, [idx.len(), w]), device)
         };
-        (take(&self.x, self.n2), take(&self.u, self.m), take(&self.y, self.n2))
+        (
+            take(&self.x, self.n2),
+            take(&self.u, self.m),
+            take(&self.y, self.n2),
+        )
     }
 }
 
@@ -159,7 +176,10 @@ pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
     if ds.n != model.config.n || ds.m != model.config.m {
         return Err(Error::invalid(
             "data",
-            format!("dataset has n = {}, m = {} but the model has n = {}, m = {}", ds.n, ds.m, model.config.n, model.config.m),
+            format!(
+                "dataset has n = {}, m = {} but the model has n = {}, m = {}",
+                ds.n, ds.m, model.config.n, model.config.m
+            ),
         ));
     }
     Ok(mean_loss(&model.valid(), &HostData::new(ds)))
@@ -185,10 +205,17 @@ pub struct Trainer {
 }
 
 /// The (train, validation) sets: `val` when given, else a seeded split of `data`.
-fn split_data(data: &Dataset, val: Option<&Dataset>, cfg: &TrainConfig) -> Result<(Dataset, Option<Dataset>)> {
+fn split_data(
+    data: &Dataset,
+    val: Option<&Dataset>,
+    cfg: &TrainConfig,
+) -> Result<(Dataset, Option<Dataset>)> {
     if let Some(v) = val {
         if (v.n, v.m) != (data.n, data.m) {
-            return Err(Error::invalid("validation_data", "must have the same n and m as the training data"));
+            return Err(Error::invalid(
+                "validation_data",
+                "must have the same n and m as the training data",
+            ));
         }
         if (v.dt - data.dt).abs() > 1e-12 * data.dt {
             return Err(Error::invalid(
@@ -232,7 +259,9 @@ pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<
     };
     let mut values = t.defaults();
     for (name, v) in init {
-        let i = t.index_of(name).ok_or_else(|| unknown_param(t, name, &format!("init.{name}")))?;
+        let i = t
+            .index_of(name)
+            .ok_or_else(|| unknown_param(t, name, &format!("init.{name}")))?;
         values[i] = *v;
     }
     Ok(Some(values))
@@ -270,10 +299,22 @@ impl Trainer {
             scaling: Scaling::from_data(&train_ds, mass),
         };
         let model = Model::init(config, physical, cfg.seed, device)?;
-        Ok(Self::start(model_name, model, cfg, &train_ds, val_ds.as_ref()))
+        Ok(Self::start(
+            model_name,
+            model,
+            cfg,
+            &train_ds,
+            val_ds.as_ref(),
+        ))
     }
 
-    fn start(model_name: &str, model: Model, cfg: TrainConfig, train: &Dataset, val: Option<&Dataset>) -> Self {
+    fn start(
+        model_name: &str,
+        model: Model,
+        cfg: TrainConfig,
+        train: &Dataset,
+        val: Option<&Dataset>,
+    ) -> Self {
         let best_params = export(&model.params);
         Self {
             model_name: model_name.to_string(),
@@ -296,15 +337,29 @@ impl Trainer {
     }
 
     /// Continues a run from a checkpoint, with the same data as the original run.
-    pub fn resume(state: TrainState, data: &Dataset, val: Option<&Dataset>, device: &Device) -> Result<Self> {
+    pub fn resume(
+        state: TrainState,
+        data: &Dataset,
+        val: Option<&Dataset>,
+        device: &Device,
+    ) -> Result<Self> {
         let (train_ds, val_ds) = split_data(data, val, &state.train)?;
         if fingerprint(&train_ds, val_ds.as_ref()) != state.data_fingerprint {
-            return Err(Error::invalid("checkpoint", "was taken on other data than the data given"));
+            return Err(Error::invalid(
+                "checkpoint",
+                "was taken on other data than the data given",
+            ));
         }
         let skeleton = Model::init(state.config.clone(), None, state.train.seed, device)?;
         let params = import(skeleton.params, &state.params, device)?;
         let model = Model::from_parts(state.config, params, device);
-        let mut t = Self::start(&state.model_name, model, state.train, &train_ds, val_ds.as_ref());
+        let mut t = Self::start(
+            &state.model_name,
+            model,
+            state.train,
+            &train_ds,
+            val_ds.as_ref(),
+        );
         t.adam = Adam::from_state(&state.adam, &device.clone().without_autodiff());
         t.rng = state.rng;
         t.epoch = state.epoch;
@@ -389,14 +444,18 @@ impl Trainer {
             }
             total += value * batch.len() as f64;
             let grads = loss.backward();
-            self.model.params = self.adam.step(self.model.params.clone(), &grads, self.cfg.lr);
+            self.model.params = self
+                .adam
+                .step(self.model.params.clone(), &grads, self.cfg.lr);
         }
         self.train_seconds += start.elapsed().as_secs_f64();
         self.samples_seen += self.train.count as u64;
         let train_loss = total / self.train.count as f64;
         let val_loss = self.val.as_ref().map(|v| mean_loss(&self.model.valid(), v));
         if let Some(v) = val_loss.filter(|v| !v.is_finite()) {
-            return Err(Error::Training(format!("the validation loss became non-finite ({v}) at epoch {epoch}")));
+            return Err(Error::Training(format!(
+                "the validation loss became non-finite ({v}) at epoch {epoch}"
+            )));
         }
         self.epoch = epoch;
         let criterion = val_loss.unwrap_or(train_loss);
@@ -408,7 +467,12 @@ impl Trainer {
         } else {
             self.stale_epochs += 1;
         }
-        let metrics = EpochMetrics { epoch, train_loss, val_loss, seconds: start.elapsed().as_secs_f64() };
+        let metrics = EpochMetrics {
+            epoch,
+            train_loss,
+            val_loss,
+            seconds: start.elapsed().as_secs_f64(),
+        };
         self.history.push(metrics);
         Ok(metrics)
     }
@@ -420,13 +484,22 @@ impl Trainer {
         let parts = self.model.white_box_parts();
         let best = Model::from_parts(
             self.model.config.clone(),
-            import(self.model.params.clone(), &self.best_params, &self.model.device()).expect("same structure"),
+            import(
+                self.model.params.clone(),
+                &self.best_params,
+                &self.model.device(),
+            )
+            .expect("same structure"),
             &self.model.device(),
         );
-        let (physical_parameters, ident) = match (self.model.config.template(), best.physical_values()) {
-            (Some(t), Some(values)) => (used_physical(t, &parts, &values), identifiable(t, &parts, &values)),
-            _ => Default::default(),
-        };
+        let (physical_parameters, ident) =
+            match (self.model.config.template(), best.physical_values()) {
+                (Some(t), Some(values)) => (
+                    used_physical(t, &parts, &values),
+                    identifiable(t, &parts, &values),
+                ),
+                _ => Default::default(),
+            };
         TrainReport {
             model: self.model_name.clone(),
             spec: self.model.config.spec.clone(),
@@ -437,7 +510,11 @@ impl Trainer {
             best_val_loss: self.val.as_ref().map(|_| self.best_loss),
             stopped_early: self.stopped_early(),
             seconds,
-            samples_per_second: if self.train_seconds > 0.0 { self.samples_seen as f64 / self.train_seconds } else { 0.0 },
+            samples_per_second: if self.train_seconds > 0.0 {
+                self.samples_seen as f64 / self.train_seconds
+            } else {
+                0.0
+            },
             physical_parameters,
             identifiable: ident,
             history: self.history.clone(),
@@ -446,11 +523,19 @@ impl Trainer {
 
     /// The best parameters as a model file, with the report.
     pub fn model_file(&self) -> ModelFile {
-        ModelFile::new(self.model.config.clone(), self.best_params.clone(), Some(self.report()))
+        ModelFile::new(
+            self.model.config.clone(),
+            self.best_params.clone(),
+            Some(self.report()),
+        )
     }
 
     /// Runs to the end, calling `on_epoch` after each epoch.
-    pub fn run(&mut self, cancel: &AtomicBool, mut on_epoch: impl FnMut(&EpochMetrics, &Trainer)) -> Result<()> {
+    pub fn run(
+        &mut self,
+        cancel: &AtomicBool,
+        mut on_epoch: impl FnMut(&EpochMetrics, &Trainer),
+    ) -> Result<()> {
         while !self.finished() {
             let m = self.run_epoch(cancel)?;
             on_epoch(&m, self);

@@ -26,13 +26,22 @@ pub fn host1(t: Tensor<2>) -> Vec<f64> {
 }
 
 /// Random paper-range states and inputs: q ~ U(−π, π), q̇ ~ U(−10, 10), u ~ N(0, 120²).
-pub fn paper_samples(n: usize, m: usize, count: usize, seed: u64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+pub fn paper_samples(
+    n: usize,
+    m: usize,
+    count: usize,
+    seed: u64,
+) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let mut r = Rng::new(seed);
     let mut q = vec![];
     let mut qd = vec![];
     let mut u = vec![];
     for _ in 0..count {
-        q.push((0..n).map(|_| r.uniform_in(-std::f64::consts::PI, std::f64::consts::PI)).collect());
+        q.push(
+            (0..n)
+                .map(|_| r.uniform_in(-std::f64::consts::PI, std::f64::consts::PI))
+                .collect(),
+        );
         qd.push((0..n).map(|_| r.uniform_in(-10.0, 10.0)).collect());
         u.push((0..m).map(|_| 120.0 * r.normal()).collect());
     }
@@ -47,10 +56,25 @@ pub fn config(spec: ModelSpec, n: usize, m: usize) -> ModelConfig {
     s.u_std = vec![120.0; m];
     s.acc_std = vec![20.0; n];
     s.force_scale = vec![30.0; n];
-    ModelConfig { spec, n, m, dt: 0.01, integrator: Integrator::Rk4, lambda: 1.0, scaling: s }
+    ModelConfig {
+        spec,
+        n,
+        m,
+        dt: 0.01,
+        integrator: Integrator::Rk4,
+        lambda: 1.0,
+        scaling: s,
+    }
 }
 
-pub fn model(name: &str, template: Option<Template>, n: usize, m: usize, seed: u64, device: &Device) -> Model {
+pub fn model(
+    name: &str,
+    template: Option<Template>,
+    n: usize,
+    m: usize,
+    seed: u64,
+    device: &Device,
+) -> Model {
     let spec = ModelSpec::named(name, template).expect("valid model name");
     Model::init(config(spec, n, m), None, seed, device).expect("model builds")
 }
@@ -69,7 +93,8 @@ pub fn double_pendulum_accel(p: &[f64; 9], q: &[f64], qd: &[f64], u: &[f64]) -> 
     // c_i = Σ_jk ∂M_ij/∂q_k q̇_j q̇_k − ½ Σ_jk ∂M_jk/∂q_i q̇_j q̇_k with ∂M11/∂q2 = −h, ∂M12/∂q2 = −h/2
     let c1 = -h * qd[0] * qd[1] - 0.5 * h * qd[1] * qd[1];
     let c2_ = 0.5 * h * qd[0] * qd[0];
-    let dv1 = 0.5 * m1 * g * l1 * q[0].sin() + m2 * g * (l1 * q[0].sin() + 0.5 * l2 * (q[0] + q[1]).sin());
+    let dv1 = 0.5 * m1 * g * l1 * q[0].sin()
+        + m2 * g * (l1 * q[0].sin() + 0.5 * l2 * (q[0] + q[1]).sin());
     let dv2 = 0.5 * m2 * g * l2 * (q[0] + q[1]).sin();
     let r1 = b1 * u[0] + e1 * qd[0] - c1 - dv1;
     let r2 = b2 * u[1] + e2 * qd[1] - c2_ - dv2;
@@ -81,7 +106,11 @@ pub const PAPER: [f64; 9] = [10.0, 10.0, 1.0, 1.0, 10.0, 1.0, 1.0, -0.5, -0.5];
 
 /// max|a − b| / max(1, max|b|): the issues' tolerance measure.
 pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
-    let num = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max);
+    let num = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max);
     let den = b.iter().map(|y| y.abs()).fold(1.0, f64::max);
     num / den
 }
@@ -90,7 +119,9 @@ pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
 pub fn gauss_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
     let n = b.len();
     for c in 0..n {
-        let p = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs())).unwrap();
+        let p = (c..n)
+            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
+            .unwrap();
         a.swap(c, p);
         b.swap(c, p);
         for r in c + 1..n {

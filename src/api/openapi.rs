@@ -1,0 +1,174 @@
+//! The OpenAPI 3.1 document, generated with utoipa from the API's types and route table.
+
+use utoipa::openapi::path::{
+    HttpMethod, OperationBuilder, ParameterBuilder, ParameterIn, PathItem,
+};
+use utoipa::openapi::request_body::RequestBodyBuilder;
+use utoipa::openapi::{
+    ContentBuilder, InfoBuilder, OpenApi, OpenApiBuilder, PathsBuilder, Required, ResponseBuilder,
+};
+use utoipa::{OpenApi as _, ToSchema};
+
+use crate::app::jobs::JobRequest;
+use crate::store::{DatasetRow, JobRow, JobState, MetricRow};
+
+#[derive(utoipa::OpenApi)]
+#[openapi(components(schemas(DatasetRow, JobRow, JobState, MetricRow, JobRequest)))]
+struct Components;
+
+/// (method, path, summary, request schema, path/query parameters)
+const ROUTES: &[(&str, &str, &str, Option<&str>, &[&str])] = &[
+    (
+        "post",
+        "/v1/datasets",
+        "Upload a dataset (JSON arrays, trajectories, or CSV with ?dt=)",
+        Some("object"),
+        &["?name", "?dt"],
+    ),
+    (
+        "get",
+        "/v1/datasets",
+        "List datasets, newest first",
+        None,
+        &["?page_size", "?page_token"],
+    ),
+    (
+        "get",
+        "/v1/datasets/{id}",
+        "Read a dataset's metadata",
+        None,
+        &["id"],
+    ),
+    (
+        "delete",
+        "/v1/datasets/{id}",
+        "Delete a dataset no queued or running job uses",
+        None,
+        &["id"],
+    ),
+    (
+        "post",
+        "/v1/jobs",
+        "Submit a training job (Idempotency-Key header supported)",
+        Some("JobRequest"),
+        &[],
+    ),
+    (
+        "get",
+        "/v1/jobs",
+        "List jobs, oldest first",
+        None,
+        &["?state", "?page_size", "?page_token"],
+    ),
+    ("get", "/v1/jobs/{id}", "Read a job", None, &["id"]),
+    (
+        "post",
+        "/v1/jobs/{id}/cancel",
+        "Cancel a queued or running job",
+        None,
+        &["id"],
+    ),
+    (
+        "get",
+        "/v1/jobs/{id}/metrics",
+        "Per-epoch losses",
+        None,
+        &["id"],
+    ),
+    (
+        "get",
+        "/v1/jobs/{id}/events",
+        "Server-sent events: progress and state",
+        None,
+        &["id"],
+    ),
+    (
+        "get",
+        "/v1/models",
+        "List models, newest first",
+        None,
+        &["?page_size", "?page_token"],
+    ),
+    (
+        "get",
+        "/v1/models/{id}",
+        "Read a model: spec, dimensions, losses, physical parameters",
+        None,
+        &["id"],
+    ),
+    (
+        "get",
+        "/v1/models/{id}/checkpoint",
+        "Download the model file (.gbx)",
+        None,
+        &["id"],
+    ),
+    ("delete", "/v1/models/{id}", "Delete a model", None, &["id"]),
+    ("get", "/healthz", "Liveness", None, &[]),
+    (
+        "get",
+        "/readyz",
+        "Readiness (the database answers)",
+        None,
+        &[],
+    ),
+    ("get", "/metrics", "Prometheus metrics", None, &[]),
+    ("get", "/openapi.json", "This document", None, &[]),
+];
+
+pub fn document() -> OpenApi {
+    let _ = JobRequest::name();
+    let mut paths = PathsBuilder::new();
+    for (method, path, summary, body, params) in ROUTES {
+        let method = match *method {
+            "post" => HttpMethod::Post,
+            "delete" => HttpMethod::Delete,
+            _ => HttpMethod::Get,
+        };
+        let mut op = OperationBuilder::new()
+            .summary(Some(*summary))
+            .response("200", ResponseBuilder::new().description("success"))
+            .response(
+                "4XX",
+                ResponseBuilder::new()
+                    .description("{\"error\": {\"code\", \"message\", \"field\"?}}"),
+            );
+        for p in *params {
+            let (name, location, required) = match p.strip_prefix('?') {
+                Some(q) => (q, ParameterIn::Query, Required::False),
+                None => (*p, ParameterIn::Path, Required::True),
+            };
+            op = op.parameter(
+                ParameterBuilder::new()
+                    .name(name)
+                    .parameter_in(location)
+                    .required(required),
+            );
+        }
+        if let Some(schema) = body {
+            let content = if *schema == "object" {
+                ContentBuilder::new().build()
+            } else {
+                ContentBuilder::new()
+                    .schema(Some(utoipa::openapi::Ref::from_schema_name(*schema)))
+                    .build()
+            };
+            op = op.request_body(Some(
+                RequestBodyBuilder::new()
+                    .content("application/json", content)
+                    .build(),
+            ));
+        }
+        paths = paths.path(*path, PathItem::new(method, op.build()));
+    }
+    OpenApiBuilder::new()
+        .info(
+            InfoBuilder::new()
+                .title("graybox")
+                .version(env!("CARGO_PKG_VERSION"))
+                .build(),
+        )
+        .paths(paths.build())
+        .components(Components::openapi().components)
+        .build()
+}

@@ -1,0 +1,152 @@
+//! The REST API (axum): routers per resource, one error shape, auth, request metrics.
+
+mod datasets;
+pub mod error;
+mod jobs;
+mod models;
+mod ops;
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
+use axum::http::{Method, StatusCode, header};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+
+use crate::app::App;
+use error::{ApiError, ApiResult};
+
+/// REST settings beyond the core's.
+#[derive(Debug, Clone, Default)]
+pub struct RestSettings {
+    /// With a token, writes need `Authorization: Bearer <token>`.
+    pub api_token: Option<String>,
+    /// Reads need the token too.
+    pub auth_reads: bool,
+}
+
+#[derive(Clone)]
+pub struct RestState {
+    pub app: App,
+    pub settings: std::sync::Arc<RestSettings>,
+}
+
+/// The whole REST router; tests call it with `oneshot` or over a socket.
+pub fn router(app: App, settings: RestSettings) -> Router {
+    let limit = app.settings.max_body_bytes;
+    let state = RestState {
+        app,
+        settings: std::sync::Arc::new(settings),
+    };
+    Router::new()
+        .merge(datasets::routes())
+        .merge(jobs::routes())
+        .merge(models::routes())
+        .merge(ops::routes())
+        .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "not_found", "no such route") })
+        .method_not_allowed_fallback(|| async {
+            ApiError::new(
+                StatusCode::METHOD_NOT_ALLOWED,
+                "invalid_argument",
+                "method not allowed on this route",
+            )
+        })
+        .layer(middleware::from_fn_with_state(state.clone(), authorize))
+        .layer(middleware::from_fn_with_state(state.clone(), record))
+        .layer(DefaultBodyLimit::max(limit))
+        .with_state(state)
+}
+
+async fn authorize(State(s): State<RestState>, req: Request, next: Next) -> Response {
+    let Some(token) = &s.settings.api_token else {
+        return next.run(req).await;
+    };
+    let read = matches!(*req.method(), Method::GET | Method::HEAD | Method::OPTIONS);
+    let open = matches!(req.uri().path(), "/healthz" | "/readyz");
+    if open || (read && !s.settings.auth_reads) {
+        return next.run(req).await;
+    }
+    let given = req
+        .headers()
+        .get(header::AUTHORIZATION)
+        .and_then(|v| v.to_str().ok());
+    let expected = format!("Bearer {token}");
+    // Constant-time comparison: a token must not leak through response timing.
+    let ok = given.is_some_and(|g| {
+        g.len() == expected.len()
+            && g.bytes()
+                .zip(expected.bytes())
+                .fold(0u8, |acc, (a, b)| acc | (a ^ b))
+                == 0
+    });
+    if ok {
+        next.run(req).await
+    } else {
+        ApiError::unauthorized().into_response()
+    }
+}
+
+async fn record(State(s): State<RestState>, req: Request, next: Next) -> Response {
+    let start = Instant::now();
+    let method = req.method().to_string();
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or("unmatched".to_string(), |p| p.as_str().to_string());
+    let resp = next.run(req).await;
+    s.app.telemetry.record_request(
+        &method,
+        &route,
+        resp.status().as_u16(),
+        start.elapsed().as_secs_f64(),
+    );
+    resp
+}
+
+/// Query parameters as strings, parsed by the handlers so that every bad value gets the
+/// error shape with its field named.
+pub type Params = axum::extract::Query<HashMap<String, String>>;
+
+pub fn int_param(p: &HashMap<String, String>, name: &str) -> ApiResult<Option<i64>> {
+    p.get(name)
+        .map(|v| {
+            v.parse::<i64>()
+                .map_err(|_| ApiError::bad_request(name, format!("'{v}' is not an integer")))
+        })
+        .transpose()
+}
+
+pub fn float_param(p: &HashMap<String, String>, name: &str) -> ApiResult<Option<f64>> {
+    p.get(name)
+        .map(|v| {
+            v.parse::<f64>()
+                .map_err(|_| ApiError::bad_request(name, format!("'{v}' is not a number")))
+        })
+        .transpose()
+}
+
+/// A JSON body: malformed JSON is a 400 naming "body"; an oversized body a 413.
+pub fn json_body(
+    body: Result<axum::body::Bytes, axum::extract::rejection::BytesRejection>,
+    limit: usize,
+) -> ApiResult<serde_json::Value> {
+    let bytes = body.map_err(|e| {
+        if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
+            ApiError::too_large(limit)
+        } else {
+            ApiError::bad_request("body", e.body_text())
+        }
+    })?;
+    serde_json::from_slice(&bytes)
+        .map_err(|e| ApiError::bad_request("body", format!("malformed JSON: {e}")))
+}
+
+/// A list page: `{"items": [...], "next_page_token": ...}`.
+pub fn page<T: serde::Serialize>(
+    items: Vec<T>,
+    next: Option<String>,
+) -> axum::Json<serde_json::Value> {
+    axum::Json(serde_json::json!({ "items": items, "next_page_token": next }))
+}

@@ -1,0 +1,43 @@
+use axum::Router;
+use axum::extract::State;
+use axum::http::{StatusCode, header};
+use axum::response::IntoResponse;
+use axum::routing::get;
+use serde_json::json;
+
+use super::RestState;
+use super::error::{ApiError, ApiResult};
+
+pub fn routes() -> Router<RestState> {
+    Router::new()
+        .route(
+            "/healthz",
+            get(|| async { axum::Json(json!({"status": "ok"})) }),
+        )
+        .route("/readyz", get(ready))
+        .route("/metrics", get(metrics))
+        .route(
+            "/openapi.json",
+            get(|| async { axum::Json(crate::api::openapi::document()) }),
+        )
+}
+
+/// Ready when the database answers.
+async fn ready(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
+    s.app.store.ping().await.map_err(|e| {
+        ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "internal",
+            format!("database unavailable: {e}"),
+        )
+    })?;
+    Ok(axum::Json(json!({"status": "ready"})))
+}
+
+async fn metrics(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
+    let jobs = s.app.store.job_counts().await?;
+    Ok((
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        s.app.telemetry.render(&jobs),
+    ))
+}

@@ -1,0 +1,97 @@
+//! The core the adapters call (REST, gRPC, workers, CLI): datasets, jobs, models.
+//! Handlers translate; every rule lives here or below.
+
+pub mod datasets;
+pub mod jobs;
+pub mod models;
+pub mod telemetry;
+
+use std::sync::Arc;
+
+use crate::store::Store;
+
+/// Service settings the core needs (flags and environment, see `cli::ServeArgs`).
+#[derive(Debug, Clone)]
+pub struct Settings {
+    pub workers: usize,
+    pub checkpoint_every: usize,
+    pub lease_secs: u64,
+    pub max_body_bytes: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self {
+            workers: 1,
+            checkpoint_every: 10,
+            lease_secs: 30,
+            max_body_bytes: 256 << 20,
+        }
+    }
+}
+
+/// The shared core. Cheap to clone.
+#[derive(Clone)]
+pub struct App {
+    pub store: Store,
+    pub settings: Arc<Settings>,
+    pub telemetry: Arc<telemetry::Telemetry>,
+}
+
+impl App {
+    pub fn new(store: Store, settings: Settings) -> Self {
+        Self {
+            store,
+            settings: Arc::new(settings),
+            telemetry: Arc::default(),
+        }
+    }
+}
+
+/// Keyset pagination: an opaque token carrying the last row's position.
+pub mod paging {
+    use base64::Engine;
+    use base64::engine::general_purpose::URL_SAFE_NO_PAD;
+
+    use crate::error::{Error, Result};
+
+    pub const DEFAULT_SIZE: i64 = 50;
+    pub const MAX_SIZE: i64 = 1000;
+
+    pub fn size(page_size: Option<i64>) -> Result<i64> {
+        match page_size {
+            None => Ok(DEFAULT_SIZE),
+            Some(s) if (1..=MAX_SIZE).contains(&s) => Ok(s),
+            Some(s) => Err(Error::invalid(
+                "page_size",
+                format!("must be between 1 and {MAX_SIZE}, got {s}"),
+            )),
+        }
+    }
+
+    pub fn encode(kind: &str, seq: i64) -> String {
+        URL_SAFE_NO_PAD.encode(format!("{kind}:{seq}"))
+    }
+
+    /// The position in a token made by `encode` for the same kind of listing.
+    pub fn decode(kind: &str, token: Option<&str>) -> Result<Option<i64>> {
+        let Some(token) = token.filter(|t| !t.is_empty()) else {
+            return Ok(None);
+        };
+        let bad = || Error::invalid("page_token", "is not a token from this listing");
+        let bytes = URL_SAFE_NO_PAD.decode(token).map_err(|_| bad())?;
+        let text = String::from_utf8(bytes).map_err(|_| bad())?;
+        let (k, seq) = text.split_once(':').ok_or_else(bad)?;
+        if k != kind {
+            return Err(bad());
+        }
+        seq.parse::<i64>().map(Some).map_err(|_| bad())
+    }
+
+    /// The token for the next page, when this page was full.
+    pub fn next<T>(kind: &str, items: &[T], size: i64, seq: impl Fn(&T) -> i64) -> Option<String> {
+        (items.len() as i64 == size)
+            .then(|| items.last().map(|x| encode(kind, seq(x))))
+            .flatten()
+    }
+}

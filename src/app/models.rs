@@ -1,0 +1,64 @@
+//! Trained models: listing, reading, the model file, deletion.
+
+use super::App;
+use crate::error::{Error, Result};
+use crate::store::{JobState, ModelRow};
+
+impl App {
+    pub async fn model(&self, id: &str) -> Result<ModelRow> {
+        self.store
+            .get_model(id)
+            .await?
+            .ok_or_else(|| Error::NotFound(format!("model {id}")))
+    }
+
+    /// A model by its id, or by the id of the job that trained it (gRPC callers may name
+    /// either); a job that has not succeeded is a failed precondition.
+    pub async fn resolve_model(&self, id: &str) -> Result<ModelRow> {
+        if let Some(m) = self.store.get_model(id).await? {
+            return Ok(m);
+        }
+        match self.store.get_job(id).await? {
+            Some(job) if job.state == JobState::Succeeded => match job.model_id {
+                Some(mid) => self.model(&mid).await,
+                None => Err(Error::NotFound(format!("model of job {id}"))),
+            },
+            Some(job) => Err(Error::FailedPrecondition(format!(
+                "job {id} is {}; it has no model until it succeeds",
+                job.state.as_str()
+            ))),
+            None => Err(Error::NotFound(format!("model {id}"))),
+        }
+    }
+
+    pub async fn model_file(&self, id: &str) -> Result<Vec<u8>> {
+        self.store
+            .model_file(id)
+            .await?
+            .ok_or_else(|| Error::NotFound(format!("model {id}")))
+    }
+
+    pub async fn list_models(
+        &self,
+        size: Option<i64>,
+        token: Option<&str>,
+    ) -> Result<(Vec<ModelRow>, Option<String>)> {
+        let size = super::paging::size(size)?;
+        let before = super::paging::decode("models", token)?;
+        let items = self.store.list_models(before, size).await?;
+        let next = super::paging::next("models", &items, size, |m| m.seq);
+        Ok((items, next))
+    }
+
+    pub async fn list_datasets(
+        &self,
+        size: Option<i64>,
+        token: Option<&str>,
+    ) -> Result<(Vec<crate::store::DatasetRow>, Option<String>)> {
+        let size = super::paging::size(size)?;
+        let before = super::paging::decode("datasets", token)?;
+        let items = self.store.list_datasets(before, size).await?;
+        let next = super::paging::next("datasets", &items, size, |d| d.seq);
+        Ok((items, next))
+    }
+}

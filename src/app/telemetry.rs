@@ -1,0 +1,119 @@
+//! In-process counters for `/metrics` (Prometheus text exposition format 0.0.4).
+
+use std::collections::BTreeMap;
+use std::fmt::Write;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use crate::store::JobState;
+
+/// Upper bounds (seconds) of the request-latency histogram.
+const BUCKETS: [f64; 12] = [
+    0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 5.0,
+];
+
+#[derive(Default)]
+struct Histogram {
+    counts: [u64; BUCKETS.len()],
+    count: u64,
+    sum: f64,
+}
+
+#[derive(Default)]
+pub struct Telemetry {
+    requests: Mutex<BTreeMap<(String, String, u16), u64>>,
+    latency: Mutex<BTreeMap<(String, String), Histogram>>,
+    pub epochs_trained: AtomicU64,
+    /// Long computations stopped because the caller's deadline passed or it went away.
+    pub computations_stopped: AtomicU64,
+}
+
+fn escape(s: &str) -> String {
+    s.replace('\\', "\\\\")
+        .replace('"', "\\\"")
+        .replace('\n', "\\n")
+}
+
+impl Telemetry {
+    pub fn record_request(&self, method: &str, route: &str, status: u16, seconds: f64) {
+        let mut r = self.requests.lock().expect("telemetry lock");
+        *r.entry((method.to_string(), route.to_string(), status))
+            .or_default() += 1;
+        drop(r);
+        let mut l = self.latency.lock().expect("telemetry lock");
+        let h = l
+            .entry((method.to_string(), route.to_string()))
+            .or_default();
+        for (i, b) in BUCKETS.iter().enumerate() {
+            if seconds <= *b {
+                h.counts[i] += 1;
+            }
+        }
+        h.count += 1;
+        h.sum += seconds;
+    }
+
+    /// The exposition text, with the job counts read from the store.
+    pub fn render(&self, jobs: &[(JobState, i64)]) -> String {
+        let mut out = String::new();
+        out.push_str("# HELP graybox_jobs Jobs by state.\n# TYPE graybox_jobs gauge\n");
+        for (state, count) in jobs {
+            let _ = writeln!(out, "graybox_jobs{{state=\"{}\"}} {count}", state.as_str());
+        }
+        out.push_str(
+            "# HELP graybox_epochs_trained_total Training epochs completed by this process.\n",
+        );
+        out.push_str("# TYPE graybox_epochs_trained_total counter\n");
+        let _ = writeln!(
+            out,
+            "graybox_epochs_trained_total {}",
+            self.epochs_trained.load(Ordering::Relaxed)
+        );
+        out.push_str("# HELP graybox_computations_stopped_total Computations stopped by a deadline or cancellation.\n");
+        out.push_str("# TYPE graybox_computations_stopped_total counter\n");
+        let _ = writeln!(
+            out,
+            "graybox_computations_stopped_total {}",
+            self.computations_stopped.load(Ordering::Relaxed)
+        );
+        out.push_str(
+            "# HELP graybox_http_requests_total HTTP requests by method, route and status.\n",
+        );
+        out.push_str("# TYPE graybox_http_requests_total counter\n");
+        for ((method, route, status), n) in self.requests.lock().expect("telemetry lock").iter() {
+            let _ = writeln!(
+                out,
+                "graybox_http_requests_total{{method=\"{}\",route=\"{}\",status=\"{status}\"}} {n}",
+                escape(method),
+                escape(route)
+            );
+        }
+        out.push_str("# HELP graybox_http_request_duration_seconds HTTP request latency.\n");
+        out.push_str("# TYPE graybox_http_request_duration_seconds histogram\n");
+        for ((method, route), h) in self.latency.lock().expect("telemetry lock").iter() {
+            let labels = format!("method=\"{}\",route=\"{}\"", escape(method), escape(route));
+            for (b, c) in BUCKETS.iter().zip(h.counts) {
+                let _ = writeln!(
+                    out,
+                    "graybox_http_request_duration_seconds_bucket{{{labels},le=\"{b}\"}} {c}"
+                );
+            }
+            let _ = writeln!(
+                out,
+                "graybox_http_request_duration_seconds_bucket{{{labels},le=\"+Inf\"}} {}",
+                h.count
+            );
+            let _ = writeln!(
+                out,
+                "graybox_http_request_duration_seconds_sum{{{labels}}} {}",
+                h.sum
+            );
+            let _ = writeln!(
+                out,
+                "graybox_http_request_duration_seconds_count{{{labels}}} {}",
+                h.count
+            );
+        }
+        out
+    }
+}

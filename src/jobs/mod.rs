@@ -1,0 +1,271 @@
+//! Training workers over the persistent queue (design.md §4): claim a job, hold its lease
+//! with heartbeats, train on a blocking thread, record each epoch, checkpoint at epoch ends,
+//! and end the job (or give it back on shutdown). Every write is fenced by (job, attempt).
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use tokio::runtime::Handle;
+use tokio::sync::watch;
+use tracing::{info, warn};
+
+use crate::app::App;
+use crate::app::jobs::JobSpec;
+use crate::backend::{self, Backend, Precision};
+use crate::error::{Error, Result};
+use crate::store::{Claimed, JobState, Lease, MetricRow, NewModel};
+use crate::train::{TrainState, Trainer};
+
+/// Infrastructure failures (storage errors) a job survives before it is failed.
+const MAX_INFRA_RETRIES: i64 = 3;
+
+/// How a claimed job ended, as far as this worker is concerned.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outcome {
+    Succeeded(String),
+    Failed(String),
+    Cancelled,
+    /// Checkpointed and given back to the queue (shutdown).
+    Released,
+    /// Another attempt owns the job now; this worker stopped without writing.
+    LeaseLost,
+    /// A storage failure; the job went back to the queue (or failed after repeated failures).
+    Retried,
+}
+
+/// Flags the blocking training thread reads.
+#[derive(Default)]
+struct Flags {
+    cancel: AtomicBool,
+    lost: AtomicBool,
+    shutdown: AtomicBool,
+}
+
+/// Runs workers until `shutdown` turns true; each returns after its current job reached an
+/// epoch end and was checkpointed and released.
+pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<bool>) {
+    let poll = Duration::from_millis(200);
+    loop {
+        if *shutdown.borrow() {
+            return;
+        }
+        match app.store.claim_job(&owner, lease_ms(&app)).await {
+            Ok(Some(claimed)) => {
+                let id = claimed.job.id.clone();
+                match run_claimed(&app, claimed, shutdown.clone()).await {
+                    Ok(outcome) => info!(job = %id, ?outcome, "job left the worker"),
+                    Err(e) => warn!(job = %id, error = %e, "worker failed to finish a job"),
+                }
+            }
+            Ok(None) => {
+                tokio::select! {
+                    _ = tokio::time::sleep(poll) => {}
+                    _ = shutdown.changed() => {}
+                }
+            }
+            Err(e) => {
+                warn!(error = %e, "claiming a job failed");
+                tokio::time::sleep(poll).await;
+            }
+        }
+    }
+}
+
+fn lease_ms(app: &App) -> i64 {
+    app.settings.lease_secs as i64 * 1000
+}
+
+/// Trains one claimed job to its end (or until shutdown, cancellation or a lost lease).
+pub async fn run_claimed(
+    app: &App,
+    claimed: Claimed,
+    mut shutdown: watch::Receiver<bool>,
+) -> Result<Outcome> {
+    let flags = Arc::new(Flags::default());
+    let heartbeat = {
+        let (app, claimed, flags) = (app.clone(), claimed.clone(), flags.clone());
+        let every = Duration::from_millis((lease_ms(&app) / 6).max(50) as u64);
+        tokio::spawn(async move {
+            loop {
+                tokio::time::sleep(every).await;
+                match app.store.heartbeat(&claimed, lease_ms(&app)).await {
+                    Ok(Lease::Held { cancel_requested }) => {
+                        if cancel_requested {
+                            flags.cancel.store(true, Ordering::Relaxed);
+                        }
+                    }
+                    Ok(Lease::Lost) => {
+                        flags.lost.store(true, Ordering::Relaxed);
+                        flags.cancel.store(true, Ordering::Relaxed);
+                        return;
+                    }
+                    Err(e) => warn!(job = %claimed.job.id, error = %e, "heartbeat failed"),
+                }
+            }
+        })
+    };
+    let shutdown_watch = {
+        let flags = flags.clone();
+        tokio::spawn(async move {
+            while !*shutdown.borrow() {
+                if shutdown.changed().await.is_err() {
+                    return;
+                }
+            }
+            flags.shutdown.store(true, Ordering::Relaxed);
+        })
+    };
+    let result = {
+        let (app, claimed, flags) = (app.clone(), claimed.clone(), flags.clone());
+        let handle = Handle::current();
+        tokio::task::spawn_blocking(move || train_job(&app, &claimed, &flags, &handle))
+            .await
+            .unwrap_or_else(|e| {
+                Err(Error::Training(format!(
+                    "the training thread panicked: {e}"
+                )))
+            })
+    };
+    heartbeat.abort();
+    shutdown_watch.abort();
+    if flags.lost.load(Ordering::Relaxed) {
+        return Ok(Outcome::LeaseLost);
+    }
+    let store = &app.store;
+    let outcome = match result {
+        Ok(outcome) => outcome,
+        Err(Error::Cancelled) => {
+            store.end_job(&claimed, JobState::Cancelled, None).await?;
+            Outcome::Cancelled
+        }
+        Err(Error::Storage(msg)) => {
+            let failures = store.infra_failures(&claimed.job.id).await.unwrap_or(0) + 1;
+            if failures > MAX_INFRA_RETRIES {
+                let msg = format!("storage failed {failures} times; last error: {msg}");
+                store
+                    .end_job(&claimed, JobState::Failed, Some(&msg))
+                    .await?;
+                Outcome::Failed(msg)
+            } else {
+                store.release_job(&claimed, true).await?;
+                Outcome::Retried
+            }
+        }
+        Err(e) => {
+            let msg = e.to_string();
+            store
+                .end_job(&claimed, JobState::Failed, Some(&msg))
+                .await?;
+            Outcome::Failed(msg)
+        }
+    };
+    Ok(outcome)
+}
+
+/// The blocking part: build or resume the trainer, run epochs, write progress through the
+/// runtime handle.
+fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outcome> {
+    let spec = JobSpec::from_json(&c.job.request)?;
+    let load = |id: &str| -> Result<crate::train::data::Dataset> {
+        rt.block_on(app.store.load_dataset(id))?
+            .ok_or_else(|| Error::invalid("dataset_id", format!("dataset {id} was deleted")))
+    };
+    let data = load(&spec.dataset_id)?;
+    let val = spec
+        .validation_dataset_id
+        .as_deref()
+        .map(load)
+        .transpose()?;
+    let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
+    let mut trainer = match rt.block_on(app.store.load_checkpoint(&c.job.id))? {
+        Some((epoch, bytes)) => {
+            info!(job = %c.job.id, epoch, "resuming from checkpoint");
+            Trainer::resume(
+                TrainState::from_bytes(&bytes)?,
+                &data,
+                val.as_ref(),
+                &device,
+            )?
+        }
+        None => Trainer::new(
+            &spec.model_name,
+            spec.spec.clone(),
+            &spec.init,
+            &data,
+            val.as_ref(),
+            spec.training.clone(),
+            &device,
+        )?,
+    };
+    let every = app.settings.checkpoint_every.max(1);
+    let mut checkpointed = trainer.epoch();
+    while !trainer.finished() {
+        if flags.shutdown.load(Ordering::Relaxed) {
+            return release(app, c, &trainer, checkpointed, rt);
+        }
+        let m = trainer.run_epoch(&flags.cancel)?;
+        app.telemetry.epochs_trained.fetch_add(1, Ordering::Relaxed);
+        let best = trainer.report().best_val_loss;
+        let row = MetricRow {
+            epoch: m.epoch as i64,
+            train_loss: m.train_loss,
+            val_loss: m.val_loss,
+            seconds: m.seconds,
+        };
+        if !rt.block_on(app.store.record_epoch(c, &row, best))? {
+            flags.lost.store(true, Ordering::Relaxed);
+            return Ok(Outcome::LeaseLost);
+        }
+        if trainer.epoch() % every == 0 && !trainer.finished() {
+            if !rt.block_on(app.store.save_checkpoint(
+                c,
+                trainer.epoch() as i64,
+                &trainer.checkpoint().to_bytes(),
+            ))? {
+                flags.lost.store(true, Ordering::Relaxed);
+                return Ok(Outcome::LeaseLost);
+            }
+            checkpointed = trainer.epoch();
+        }
+    }
+    let file = trainer.model_file();
+    let report = serde_json::to_string(file.report.as_ref().expect("trained files carry a report"))
+        .expect("json");
+    let spec_json = serde_json::to_string(&file.config.spec).expect("json");
+    let model = NewModel {
+        name: &spec.model_name,
+        n: file.config.n as i64,
+        m: file.config.m as i64,
+        dt: file.config.dt,
+        spec: &spec_json,
+        report: &report,
+        file: &file.to_bytes(),
+    };
+    match rt.block_on(app.store.finish_job(c, model))? {
+        Some(id) => Ok(Outcome::Succeeded(id)),
+        None => {
+            flags.lost.store(true, Ordering::Relaxed);
+            Ok(Outcome::LeaseLost)
+        }
+    }
+}
+
+/// Shutdown: checkpoint at this epoch end (unless just taken) and give the job back.
+fn release(
+    app: &App,
+    c: &Claimed,
+    trainer: &Trainer,
+    checkpointed: usize,
+    rt: &Handle,
+) -> Result<Outcome> {
+    if trainer.epoch() > checkpointed {
+        rt.block_on(app.store.save_checkpoint(
+            c,
+            trainer.epoch() as i64,
+            &trainer.checkpoint().to_bytes(),
+        ))?;
+    }
+    rt.block_on(app.store.release_job(c, false))?;
+    Ok(Outcome::Released)
+}

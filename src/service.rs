@@ -1,0 +1,117 @@
+//! `graybox serve`: REST, gRPC and training workers in one process over one SQLite file.
+//! Graceful shutdown: stop claiming, let running jobs reach an epoch end, checkpoint them and
+//! give them back to the queue, then stop the listeners.
+
+use std::net::SocketAddr;
+
+use tokio::net::TcpListener;
+use tokio::sync::watch;
+use tokio::task::JoinHandle;
+use tracing::info;
+
+use crate::api::rest::{RestSettings, router};
+use crate::app::{App, Settings};
+use crate::error::{Error, Result};
+use crate::store::Store;
+
+#[derive(Debug, Clone)]
+pub struct ServiceConfig {
+    pub http: String,
+    pub grpc: String,
+    pub db: String,
+    pub settings: Settings,
+    pub rest: RestSettings,
+}
+
+/// A started service. Dropping it does not stop it; call `shutdown`.
+pub struct Running {
+    pub http_addr: SocketAddr,
+    pub grpc_addr: SocketAddr,
+    pub app: App,
+    stop: watch::Sender<bool>,
+    workers: Vec<JoinHandle<()>>,
+    servers: Vec<JoinHandle<Result<()>>>,
+}
+
+async fn bind(addr: &str, what: &str) -> Result<TcpListener> {
+    TcpListener::bind(addr)
+        .await
+        .map_err(|e| Error::invalid(what, format!("cannot listen on {addr}: {e}")))
+}
+
+pub async fn start(cfg: ServiceConfig) -> Result<Running> {
+    let store = Store::open(&cfg.db).await?;
+    let app = App::new(store, cfg.settings.clone());
+    let http = bind(&cfg.http, "http").await?;
+    let grpc = bind(&cfg.grpc, "grpc").await?;
+    let (http_addr, grpc_addr) = (http.local_addr()?, grpc.local_addr()?);
+    let (stop, stopped) = watch::channel(false);
+    let until_stopped = |mut rx: watch::Receiver<bool>| async move {
+        while !*rx.borrow() {
+            if rx.changed().await.is_err() {
+                return;
+            }
+        }
+    };
+    let rest = router(app.clone(), cfg.rest.clone());
+    let http_stop = until_stopped(stopped.clone());
+    let servers = vec![
+        tokio::spawn(async move {
+            axum::serve(http, rest)
+                .with_graceful_shutdown(http_stop)
+                .await
+                .map_err(Error::Io)
+        }),
+        tokio::spawn(crate::api::grpc::serve(
+            grpc,
+            until_stopped(stopped.clone()),
+        )),
+    ];
+    let workers = (0..cfg.settings.workers)
+        .map(|i| {
+            let owner = format!("{}-w{i}", crate::store::new_id("proc"));
+            tokio::spawn(crate::jobs::run_worker(app.clone(), owner, stopped.clone()))
+        })
+        .collect();
+    info!(%http_addr, %grpc_addr, db = %cfg.db, workers = cfg.settings.workers, "graybox serving");
+    Ok(Running {
+        http_addr,
+        grpc_addr,
+        app,
+        stop,
+        workers,
+        servers,
+    })
+}
+
+impl Running {
+    /// Stops claiming, releases running jobs at their next epoch end (checkpointed), then
+    /// stops the listeners.
+    pub async fn shutdown(self) {
+        let _ = self.stop.send(true);
+        for w in self.workers {
+            let _ = w.await;
+        }
+        for s in self.servers {
+            let _ = s.await;
+        }
+    }
+}
+
+/// Resolves on SIGTERM or SIGINT.
+pub async fn signal() {
+    let ctrl_c = tokio::signal::ctrl_c();
+    #[cfg(unix)]
+    {
+        let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+            .expect("signal handler");
+        tokio::select! {
+            _ = ctrl_c => {}
+            _ = term.recv() => {}
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = ctrl_c.await;
+    }
+}

@@ -1,0 +1,193 @@
+//! Datasets: canonical arrays stored once, identified by their sha256.
+
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+use sqlx::Row;
+use sqlx::sqlite::SqliteRow;
+
+use super::{Store, new_id, now_rfc3339};
+use crate::error::{Error, Result};
+use crate::train::data::Dataset;
+
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct DatasetRow {
+    pub id: String,
+    pub name: Option<String>,
+    pub n: i64,
+    pub m: i64,
+    pub dt: f64,
+    pub count: i64,
+    pub sha256: String,
+    pub created_at: String,
+    #[serde(skip)]
+    pub seq: i64,
+}
+
+const COLUMNS: &str = "seq, id, name, n, m, dt, count, sha256, created_at";
+
+fn row(r: &SqliteRow) -> Result<DatasetRow> {
+    Ok(DatasetRow {
+        seq: r.try_get("seq")?,
+        id: r.try_get("id")?,
+        name: r.try_get("name")?,
+        n: r.try_get("n")?,
+        m: r.try_get("m")?,
+        dt: r.try_get("dt")?,
+        count: r.try_get("count")?,
+        sha256: r.try_get("sha256")?,
+        created_at: r.try_get("created_at")?,
+    })
+}
+
+/// Little-endian f64 of q | q̇ | u | q' | q̇', each row-major.
+pub fn encode(ds: &Dataset) -> Vec<u8> {
+    [&ds.q, &ds.qdot, &ds.u, &ds.q_next, &ds.qdot_next]
+        .into_iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect()
+}
+
+fn decode(blob: &[u8], n: usize, m: usize, dt: f64, count: usize) -> Result<Dataset> {
+    let values: Vec<f64> = blob
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+        .collect();
+    let widths = [n, n, m, n, n];
+    if values.len() != count * widths.iter().sum::<usize>() {
+        return Err(Error::corrupt(
+            "dataset",
+            "stored arrays do not match their dimensions",
+        ));
+    }
+    let mut rest = values.as_slice();
+    let mut arrays: [Vec<f64>; 5] = Default::default();
+    for (a, w) in arrays.iter_mut().zip(widths) {
+        let (head, tail) = rest.split_at(count * w);
+        *a = head.to_vec();
+        rest = tail;
+    }
+    Dataset::new(dt, n, m, arrays)
+}
+
+/// The identity of a dataset: its dimensions, Δt and every value.
+pub fn sha256(ds: &Dataset, blob: &[u8]) -> String {
+    let mut h = Sha256::new();
+    for v in [ds.n as u64, ds.m as u64, ds.count() as u64, ds.dt.to_bits()] {
+        h.update(v.to_le_bytes());
+    }
+    h.update(blob);
+    hex::encode(h.finalize())
+}
+
+impl Store {
+    /// Stores a dataset unless the same arrays are already stored; returns the row and whether
+    /// it was created.
+    pub async fn insert_dataset(
+        &self,
+        name: Option<&str>,
+        ds: &Dataset,
+    ) -> Result<(DatasetRow, bool)> {
+        let blob = encode(ds);
+        let sha = sha256(ds, &blob);
+        let mut tx = self.write().await?;
+        let existing = sqlx::query(const_format(
+            "SELECT {COLUMNS} FROM datasets WHERE sha256 = ?",
+        ))
+        .bind(&sha)
+        .fetch_optional(&mut *tx)
+        .await?;
+        if let Some(r) = existing {
+            tx.commit().await?;
+            return Ok((row(&r)?, false));
+        }
+        let r = sqlx::query(
+            "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at)
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)
+             RETURNING seq, id, name, n, m, dt, count, sha256, created_at",
+        )
+        .bind(new_id("ds"))
+        .bind(name)
+        .bind(&sha)
+        .bind(ds.n as i64)
+        .bind(ds.m as i64)
+        .bind(ds.dt)
+        .bind(ds.count() as i64)
+        .bind(blob)
+        .bind(now_rfc3339())
+        .fetch_one(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok((row(&r)?, true))
+    }
+
+    pub async fn get_dataset(&self, id: &str) -> Result<Option<DatasetRow>> {
+        let r = sqlx::query(const_format("SELECT {COLUMNS} FROM datasets WHERE id = ?"))
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        r.as_ref().map(row).transpose()
+    }
+
+    pub async fn load_dataset(&self, id: &str) -> Result<Option<Dataset>> {
+        let r = sqlx::query("SELECT n, m, dt, count, data FROM datasets WHERE id = ?")
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        let Some(r) = r else { return Ok(None) };
+        let (n, m, count): (i64, i64, i64) =
+            (r.try_get("n")?, r.try_get("m")?, r.try_get("count")?);
+        let blob: Vec<u8> = r.try_get("data")?;
+        decode(
+            &blob,
+            n as usize,
+            m as usize,
+            r.try_get("dt")?,
+            count as usize,
+        )
+        .map(Some)
+    }
+
+    /// Newest first; `before` is the `seq` of the last row of the previous page.
+    pub async fn list_datasets(&self, before: Option<i64>, limit: i64) -> Result<Vec<DatasetRow>> {
+        let rows = sqlx::query(const_format(
+            "SELECT {COLUMNS} FROM datasets WHERE seq < ? ORDER BY seq DESC LIMIT ?",
+        ))
+        .bind(before.unwrap_or(i64::MAX))
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter().map(row).collect()
+    }
+
+    /// Deletes a dataset unless a queued or running job uses it.
+    pub async fn delete_dataset(&self, id: &str) -> Result<()> {
+        let mut tx = self.write().await?;
+        let users: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')
+             AND (dataset_id = ?1 OR validation_dataset_id = ?1)",
+        )
+        .bind(id)
+        .fetch_one(&mut *tx)
+        .await?;
+        if users > 0 {
+            return Err(Error::Conflict(format!(
+                "dataset {id} is used by {users} queued or running job(s)"
+            )));
+        }
+        let deleted = sqlx::query("DELETE FROM datasets WHERE id = ?")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        if deleted.rows_affected() == 0 {
+            return Err(Error::NotFound(format!("dataset {id}")));
+        }
+        tx.commit().await?;
+        Ok(())
+    }
+}
+
+/// The `{COLUMNS}` placeholder filled in; the SQL stays static and parameterized.
+fn const_format(sql: &'static str) -> sqlx::AssertSqlSafe<String> {
+    sqlx::AssertSqlSafe(sql.replace("{COLUMNS}", COLUMNS))
+}

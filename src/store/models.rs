@@ -1,0 +1,153 @@
+//! Trained models: a finished job's best parameters as a model file, with its report.
+
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+use sqlx::Row;
+use sqlx::sqlite::SqliteRow;
+
+use super::jobs::Claimed;
+use super::{Store, new_id, now_rfc3339};
+use crate::error::{Error, Result};
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelRow {
+    pub id: String,
+    pub job_id: String,
+    pub name: String,
+    pub n: i64,
+    pub m: i64,
+    pub dt: f64,
+    /// JSON of the model spec.
+    pub spec: String,
+    /// JSON of the training report.
+    pub report: String,
+    pub sha256: String,
+    pub created_at: String,
+    pub seq: i64,
+}
+
+const COLUMNS: &str = "seq, id, job_id, name, n, m, dt, spec, report, sha256, created_at";
+
+fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
+    sqlx::AssertSqlSafe(s.replace("{COLUMNS}", COLUMNS))
+}
+
+fn row(r: &SqliteRow) -> Result<ModelRow> {
+    Ok(ModelRow {
+        seq: r.try_get("seq")?,
+        id: r.try_get("id")?,
+        job_id: r.try_get("job_id")?,
+        name: r.try_get("name")?,
+        n: r.try_get("n")?,
+        m: r.try_get("m")?,
+        dt: r.try_get("dt")?,
+        spec: r.try_get("spec")?,
+        report: r.try_get("report")?,
+        sha256: r.try_get("sha256")?,
+        created_at: r.try_get("created_at")?,
+    })
+}
+
+pub struct NewModel<'a> {
+    pub name: &'a str,
+    pub n: i64,
+    pub m: i64,
+    pub dt: f64,
+    pub spec: &'a str,
+    pub report: &'a str,
+    pub file: &'a [u8],
+}
+
+impl Store {
+    /// Stores the model and marks the job succeeded in one transaction, fenced by the lease:
+    /// either both happen or neither. Returns the model id, or None when the lease was lost.
+    pub async fn finish_job(&self, c: &Claimed, m: NewModel<'_>) -> Result<Option<String>> {
+        let mut tx = self.write().await?;
+        let model_id = new_id("mdl");
+        let updated = sqlx::query(
+            "UPDATE jobs SET state = 'succeeded', model_id = ?, finished_at = ?, lease_owner = NULL,
+                lease_expires_ms = NULL
+             WHERE id = ? AND attempt = ? AND lease_owner = ? AND state = 'running'",
+        )
+        .bind(&model_id)
+        .bind(now_rfc3339())
+        .bind(&c.job.id)
+        .bind(c.attempt)
+        .bind(&c.owner)
+        .execute(&mut *tx)
+        .await?;
+        if updated.rows_affected() == 0 {
+            return Ok(None);
+        }
+        sqlx::query(
+            "INSERT INTO models (id, job_id, name, n, m, dt, spec, report, file, sha256, created_at)
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+        )
+        .bind(&model_id)
+        .bind(&c.job.id)
+        .bind(m.name)
+        .bind(m.n)
+        .bind(m.m)
+        .bind(m.dt)
+        .bind(m.spec)
+        .bind(m.report)
+        .bind(m.file)
+        .bind(hex::encode(Sha256::digest(m.file)))
+        .bind(now_rfc3339())
+        .execute(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok(Some(model_id))
+    }
+
+    pub async fn get_model(&self, id: &str) -> Result<Option<ModelRow>> {
+        let r = sqlx::query(sql("SELECT {COLUMNS} FROM models WHERE id = ?"))
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        r.as_ref().map(row).transpose()
+    }
+
+    /// The model file (`.gbx` bytes), verified against its checksum.
+    pub async fn model_file(&self, id: &str) -> Result<Option<Vec<u8>>> {
+        let r = sqlx::query("SELECT file, sha256 FROM models WHERE id = ?")
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        let Some(r) = r else { return Ok(None) };
+        let file: Vec<u8> = r.try_get("file")?;
+        let sha: String = r.try_get("sha256")?;
+        if hex::encode(Sha256::digest(&file)) != sha {
+            return Err(Error::corrupt(
+                "model file",
+                format!("checksum mismatch for model {id}"),
+            ));
+        }
+        Ok(Some(file))
+    }
+
+    /// Newest first.
+    pub async fn list_models(&self, before: Option<i64>, limit: i64) -> Result<Vec<ModelRow>> {
+        let rows = sqlx::query(sql(
+            "SELECT {COLUMNS} FROM models WHERE seq < ? ORDER BY seq DESC LIMIT ?",
+        ))
+        .bind(before.unwrap_or(i64::MAX))
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter().map(row).collect()
+    }
+
+    pub async fn delete_model(&self, id: &str) -> Result<()> {
+        let mut tx = self.write().await?;
+        let r = sqlx::query("DELETE FROM models WHERE id = ?")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        if r.rows_affected() == 0 {
+            return Err(Error::NotFound(format!("model {id}")));
+        }
+        tx.commit().await?;
+        Ok(())
+    }
+}
