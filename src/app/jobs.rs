@@ -53,15 +53,19 @@ impl JobSpec {
 pub fn parse_body<T: serde::de::DeserializeOwned>(value: Value) -> Result<T> {
     serde_path_to_error::deserialize(value).map_err(|e| {
         let path = e.path().to_string();
-        let field = if path == "." {
-            "body".to_string()
-        } else {
-            path
+        let message = e.into_inner().to_string();
+        // serde reports a missing field at its parent: name the field itself.
+        let missing = message
+            .strip_prefix("missing field `")
+            .and_then(|m| m.split('`').next());
+        let root = !path.chars().any(|c| c.is_alphanumeric());
+        let field = match (root, missing) {
+            (true, Some(m)) => m.to_string(),
+            (false, Some(m)) => format!("{path}.{m}"),
+            (true, None) => "body".to_string(),
+            (false, None) => path,
         };
-        Error::Unprocessable {
-            field,
-            message: e.into_inner().to_string(),
-        }
+        Error::Unprocessable { field, message }
     })
 }
 
@@ -190,5 +194,25 @@ impl App {
         let items = self.store.list_jobs(state, after, size).await?;
         let next = super::paging::next("jobs", &items, size, |j| j.seq);
         Ok((items, next))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn body_errors_name_the_field() {
+        let field = |v: Value| match parse_body::<JobRequest>(v) {
+            Err(Error::Unprocessable { field, .. }) => field,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(field(serde_json::json!({"model": "MVF"})), "dataset_id");
+        assert_eq!(
+            field(
+                serde_json::json!({"dataset_id": "d", "model": "MVF", "training": {"epochs": "x"}})
+            ),
+            "training.epochs"
+        );
     }
 }

@@ -264,6 +264,8 @@ pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<
             .ok_or_else(|| unknown_param(t, name, &format!("init.{name}")))?;
         values[i] = *v;
     }
+    // Positive parameters must start positive (they are trained in log space).
+    crate::model::raw_physical(t, &values)?;
     Ok(Some(values))
 }
 

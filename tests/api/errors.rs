@@ -1,0 +1,613 @@
+//! The bad-input table: every case is a 4xx with `{"error": {"code", "message", "field"?}}`,
+//! and the service keeps answering.
+
+use graybox::api::rest::RestSettings;
+use serde_json::{Value, json};
+
+use crate::helpers::*;
+
+struct Case {
+    what: &'static str,
+    method: &'static str,
+    path: String,
+    body: Option<Value>,
+    raw: Option<(&'static str, String)>,
+    headers: Vec<(&'static str, &'static str)>,
+    status: u16,
+    code: &'static str,
+    field: Option<&'static str>,
+}
+
+fn case(
+    what: &'static str,
+    method: &'static str,
+    path: impl Into<String>,
+    body: Option<Value>,
+    status: u16,
+    code: &'static str,
+    field: Option<&'static str>,
+) -> Case {
+    Case {
+        what,
+        method,
+        path: path.into(),
+        body,
+        raw: None,
+        headers: vec![],
+        status,
+        code,
+        field,
+    }
+}
+
+async fn run(app: &TestApp, c: &Case) {
+    let mut req = match c.method {
+        "POST" => app.client.post(app.url(&c.path)),
+        "DELETE" => app.client.delete(app.url(&c.path)),
+        _ => app.client.get(app.url(&c.path)),
+    };
+    for (k, v) in &c.headers {
+        req = req.header(*k, *v);
+    }
+    if let Some(b) = &c.body {
+        req = req.json(b);
+    }
+    if let Some((ct, text)) = &c.raw {
+        req = req.header("content-type", *ct).body(text.clone());
+    }
+    let r = req.send().await.unwrap();
+    let status = r.status().as_u16();
+    let body: Value = r.json().await.unwrap_or(Value::Null);
+    assert_eq!(status, c.status, "{}: {body}", c.what);
+    assert!((400..500).contains(&status), "{}", c.what);
+    assert_eq!(body["error"]["code"], c.code, "{}: {body}", c.what);
+    assert!(
+        body["error"]["message"]
+            .as_str()
+            .is_some_and(|m| !m.is_empty()),
+        "{}: {body}",
+        c.what
+    );
+    if let Some(f) = c.field {
+        assert_eq!(body["error"]["field"], f, "{}: {body}", c.what);
+    }
+}
+
+#[tokio::test]
+async fn bad_input_table() {
+    let app = spawn_app(0).await;
+    let good = dataset(8, 1);
+    let ds = app.upload(&good).await;
+    let cp = app.upload(&json!({"dt": 0.01, "q": [[0.0]], "qdot": [[0.0]], "u": [[1.0]], "q_next": [[0.0]], "qdot_next": [[0.1]]})).await;
+    let with = |f: &dyn Fn(&mut Value)| {
+        let mut v = good.clone();
+        f(&mut v);
+        Some(v)
+    };
+    let job = |f: &dyn Fn(&mut Value)| {
+        let mut v = job_body(&ds, "MVF", 2);
+        f(&mut v);
+        Some(v)
+    };
+    let mut cases = vec![
+        Case {
+            raw: Some(("application/json", "{\"dt\": 0.01, \"q\": [[".into())),
+            ..case(
+                "malformed JSON",
+                "POST",
+                "/v1/datasets",
+                None,
+                400,
+                "invalid_argument",
+                Some("body"),
+            )
+        },
+        case(
+            "dataset not an object",
+            "POST",
+            "/v1/datasets",
+            Some(json!([1, 2])),
+            400,
+            "invalid_argument",
+            Some("body"),
+        ),
+        case(
+            "missing dt",
+            "POST",
+            "/v1/datasets",
+            with(&|v| {
+                v.as_object_mut().unwrap().remove("dt");
+            }),
+            400,
+            "invalid_argument",
+            Some("dt"),
+        ),
+        case(
+            "negative dt",
+            "POST",
+            "/v1/datasets",
+            with(&|v| v["dt"] = json!(-0.01)),
+            400,
+            "invalid_argument",
+            Some("dt"),
+        ),
+        case(
+            "dt wrong type",
+            "POST",
+            "/v1/datasets",
+            with(&|v| v["dt"] = json!("fast")),
+            400,
+            "invalid_argument",
+            Some("dt"),
+        ),
+        case(
+            "ragged rows",
+            "POST",
+            "/v1/datasets",
+            with(&|v| v["q"][1] = json!([0.5])),
+            400,
+            "invalid_argument",
+            Some("q[1]"),
+        ),
+        case(
+            "string in array",
+            "POST",
+            "/v1/datasets",
+            with(&|v| v["u"][2] = json!(["x", 1])),
+            400,
+            "invalid_argument",
+            Some("u[2]"),
+        ),
+        case(
+            "n mismatch between fields",
+            "POST",
+            "/v1/datasets",
+            with(&|v| {
+                for r in v["qdot"].as_array_mut().unwrap() {
+                    r.as_array_mut().unwrap().pop();
+                }
+            }),
+            400,
+            "invalid_argument",
+            Some("qdot"),
+        ),
+        case(
+            "row count mismatch",
+            "POST",
+            "/v1/datasets",
+            with(&|v| {
+                v["u"].as_array_mut().unwrap().pop();
+            }),
+            400,
+            "invalid_argument",
+            Some("u"),
+        ),
+        case(
+            "empty dataset",
+            "POST",
+            "/v1/datasets",
+            Some(json!({"dt": 0.01, "q": [], "qdot": [], "u": [], "q_next": [], "qdot_next": []})),
+            400,
+            "invalid_argument",
+            Some("q"),
+        ),
+        Case {
+            raw: Some((
+                "text/csv",
+                "q0,qdot0,u0,q_next0,qdot_next0\n1,2,3,4,5\n".into(),
+            )),
+            ..case(
+                "CSV without dt",
+                "POST",
+                "/v1/datasets",
+                None,
+                400,
+                "invalid_argument",
+                Some("dt"),
+            )
+        },
+        Case {
+            raw: Some(("text/csv", "a,b\n1,2\n".into())),
+            ..case(
+                "CSV bad header",
+                "POST",
+                "/v1/datasets?dt=0.01",
+                None,
+                400,
+                "invalid_argument",
+                Some("csv.header"),
+            )
+        },
+        Case {
+            raw: Some((
+                "text/csv",
+                "q0,qdot0,u0,q_next0,qdot_next0\n1,2,3,NaN,5\n".into(),
+            )),
+            ..case(
+                "CSV NaN",
+                "POST",
+                "/v1/datasets?dt=0.01",
+                None,
+                400,
+                "invalid_argument",
+                Some("q_next[0]"),
+            )
+        },
+        case(
+            "trajectory lengths",
+            "POST",
+            "/v1/datasets",
+            Some(
+                json!({"dt": 0.01, "trajectories": [{"q": [[0.0]], "qdot": [[0.0]], "u": [[1.0]]}]}),
+            ),
+            400,
+            "invalid_argument",
+            Some("trajectories[0]"),
+        ),
+        Case {
+            raw: Some(("application/json", "{\"model\": ".into())),
+            ..case(
+                "job malformed JSON",
+                "POST",
+                "/v1/jobs",
+                None,
+                400,
+                "invalid_argument",
+                Some("body"),
+            )
+        },
+        case(
+            "job missing dataset_id",
+            "POST",
+            "/v1/jobs",
+            Some(json!({"model": "MVF"})),
+            422,
+            "unprocessable",
+            Some("dataset_id"),
+        ),
+        case(
+            "epochs wrong type",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["epochs"] = json!("ten")),
+            422,
+            "unprocessable",
+            Some("training.epochs"),
+        ),
+        case(
+            "negative epochs",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["epochs"] = json!(-5)),
+            422,
+            "unprocessable",
+            Some("training.epochs"),
+        ),
+        case(
+            "zero epochs",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["epochs"] = json!(0)),
+            422,
+            "unprocessable",
+            Some("training.epochs"),
+        ),
+        case(
+            "zero batch size",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["batch_size"] = json!(0)),
+            422,
+            "unprocessable",
+            Some("training.batch_size"),
+        ),
+        case(
+            "zero learning rate",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["lr"] = json!(0.0)),
+            422,
+            "unprocessable",
+            Some("training.lr"),
+        ),
+        case(
+            "val_fraction out of range",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["val_fraction"] = json!(1.5)),
+            422,
+            "unprocessable",
+            Some("training.val_fraction"),
+        ),
+        case(
+            "unknown training field",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["epochz"] = json!(3)),
+            422,
+            "unprocessable",
+            Some("training.epochz"),
+        ),
+        case(
+            "unknown model",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["model"] = json!("XYZ")),
+            422,
+            "unprocessable",
+            Some("model"),
+        ),
+        case(
+            "white-box without template",
+            "POST",
+            "/v1/jobs",
+            job(&|v| {
+                v["model"] = json!("W-B");
+                v.as_object_mut().unwrap().remove("template");
+            }),
+            422,
+            "unprocessable",
+            Some("template"),
+        ),
+        case(
+            "spec part without template",
+            "POST",
+            "/v1/jobs",
+            job(&|v| {
+                v["model"] = json!({"kind": "structured", "mass": {"type": "template"}, "potential": {"type": "zero"}, "forces": {"type": "mlp"}});
+                v.as_object_mut().unwrap().remove("template");
+            }),
+            422,
+            "unprocessable",
+            Some("template"),
+        ),
+        case(
+            "unknown template",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["template"] = json!("triple_pendulum")),
+            422,
+            "unprocessable",
+            Some("template"),
+        ),
+        case(
+            "template dims mismatch",
+            "POST",
+            "/v1/jobs",
+            job(&|v| {
+                v["model"] = json!("W-B");
+                v["template"] = json!("cartpole");
+            }),
+            422,
+            "unprocessable",
+            Some("template"),
+        ),
+        case(
+            "unknown init parameter",
+            "POST",
+            "/v1/jobs",
+            job(&|v| {
+                v["model"] = json!("W-B");
+                v["init"] = json!({"mass": 3.0});
+            }),
+            422,
+            "unprocessable",
+            Some("init.mass"),
+        ),
+        case(
+            "negative positive parameter",
+            "POST",
+            "/v1/jobs",
+            job(&|v| {
+                v["model"] = json!("W-B");
+                v["init"] = json!({"m1": -1.0});
+            }),
+            422,
+            "unprocessable",
+            Some("init.m1"),
+        ),
+        case(
+            "unknown dataset",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["dataset_id"] = json!("ds_nope")),
+            422,
+            "unprocessable",
+            Some("dataset_id"),
+        ),
+        case(
+            "validation dims mismatch",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["validation_dataset_id"] = json!(cp.clone())),
+            422,
+            "unprocessable",
+            Some("validation_dataset_id"),
+        ),
+        case(
+            "bad page token",
+            "GET",
+            "/v1/jobs?page_token=garbage",
+            None,
+            400,
+            "invalid_argument",
+            Some("page_token"),
+        ),
+        case(
+            "zero page size",
+            "GET",
+            "/v1/jobs?page_size=0",
+            None,
+            400,
+            "invalid_argument",
+            Some("page_size"),
+        ),
+        case(
+            "non-numeric page size",
+            "GET",
+            "/v1/datasets?page_size=ten",
+            None,
+            400,
+            "invalid_argument",
+            Some("page_size"),
+        ),
+        case(
+            "unknown state filter",
+            "GET",
+            "/v1/jobs?state=sleeping",
+            None,
+            400,
+            "invalid_argument",
+            Some("state"),
+        ),
+        case(
+            "unknown job",
+            "GET",
+            "/v1/jobs/job_nope",
+            None,
+            404,
+            "not_found",
+            None,
+        ),
+        case(
+            "unknown model",
+            "GET",
+            "/v1/models/mdl_nope",
+            None,
+            404,
+            "not_found",
+            None,
+        ),
+        case(
+            "cancel unknown job",
+            "POST",
+            "/v1/jobs/job_nope/cancel",
+            None,
+            404,
+            "not_found",
+            None,
+        ),
+        case(
+            "delete unknown dataset",
+            "DELETE",
+            "/v1/datasets/ds_nope",
+            None,
+            404,
+            "not_found",
+            None,
+        ),
+        case(
+            "unknown route",
+            "GET",
+            "/v2/everything",
+            None,
+            404,
+            "not_found",
+            None,
+        ),
+    ];
+    // Idempotency-Key reuse with another body.
+    app.client
+        .post(app.url("/v1/jobs"))
+        .header("Idempotency-Key", "reuse")
+        .json(&job_body(&ds, "MVF", 2))
+        .send()
+        .await
+        .unwrap();
+    cases.push(Case {
+        headers: vec![("Idempotency-Key", "reuse")],
+        ..case(
+            "idempotency key reused",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["epochs"] = json!(3)),
+            422,
+            "unprocessable",
+            Some("Idempotency-Key"),
+        )
+    });
+    assert!(cases.len() >= 25);
+    for c in &cases {
+        run(&app, c).await;
+    }
+    assert_eq!(
+        app.get("/healthz").await.0,
+        200,
+        "the service still answers"
+    );
+    app.stop().await;
+}
+
+#[tokio::test]
+async fn body_limit_and_auth() {
+    let app = spawn_with(
+        0,
+        RestSettings {
+            api_token: Some("s3cret".into()),
+            auth_reads: false,
+        },
+        4096,
+    )
+    .await;
+    let big = dataset(64, 2);
+    let authed = [("Authorization", "Bearer s3cret")];
+    let cases = vec![
+        Case {
+            headers: authed.to_vec(),
+            ..case(
+                "oversized body",
+                "POST",
+                "/v1/datasets",
+                Some(big),
+                413,
+                "payload_too_large",
+                None,
+            )
+        },
+        case(
+            "missing token",
+            "POST",
+            "/v1/datasets",
+            Some(dataset(2, 3)),
+            401,
+            "unauthorized",
+            None,
+        ),
+        Case {
+            headers: vec![("Authorization", "Bearer wrong")],
+            ..case(
+                "wrong token",
+                "POST",
+                "/v1/jobs",
+                Some(json!({})),
+                401,
+                "unauthorized",
+                None,
+            )
+        },
+        case(
+            "delete without token",
+            "DELETE",
+            "/v1/models/mdl_x",
+            None,
+            401,
+            "unauthorized",
+            None,
+        ),
+    ];
+    for c in &cases {
+        run(&app, c).await;
+    }
+    // Reads stay open; writes with the token work.
+    assert_eq!(app.get("/v1/jobs").await.0, 200);
+    let r = app
+        .client
+        .post(app.url("/v1/datasets"))
+        .header("Authorization", "Bearer s3cret")
+        .json(&dataset(2, 4))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    app.stop().await;
+}

@@ -1,0 +1,126 @@
+//! `spawn_app()`: the service on port 0 with a temporary database.
+#![allow(dead_code)]
+
+use std::time::Duration;
+
+use graybox::api::rest::RestSettings;
+use graybox::app::Settings;
+use graybox::model::templates::Template;
+use graybox::service::{Running, ServiceConfig, start};
+use graybox::sim::{SimConfig, simulate};
+use serde_json::{Value, json};
+
+pub struct TestApp {
+    pub running: Option<Running>,
+    pub base: String,
+    pub client: reqwest::Client,
+    pub _dir: tempfile::TempDir,
+}
+
+pub async fn spawn_app(workers: usize) -> TestApp {
+    spawn_with(workers, RestSettings::default(), 64 << 20).await
+}
+
+pub async fn spawn_with(workers: usize, rest: RestSettings, max_body_bytes: usize) -> TestApp {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = ServiceConfig {
+        http: "127.0.0.1:0".into(),
+        grpc: "127.0.0.1:0".into(),
+        db: dir.path().join("test.db").to_string_lossy().into_owned(),
+        settings: Settings {
+            workers,
+            checkpoint_every: 2,
+            lease_secs: 30,
+            max_body_bytes,
+        },
+        rest,
+    };
+    let running = start(cfg).await.expect("service starts");
+    let base = format!("http://{}", running.http_addr);
+    TestApp {
+        running: Some(running),
+        base,
+        client: reqwest::Client::new(),
+        _dir: dir,
+    }
+}
+
+impl TestApp {
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+
+    pub async fn get(&self, path: &str) -> (u16, Value) {
+        let r = self.client.get(self.url(path)).send().await.unwrap();
+        let status = r.status().as_u16();
+        (status, r.json().await.unwrap_or(Value::Null))
+    }
+
+    pub async fn post(&self, path: &str, body: &Value) -> (u16, Value) {
+        let r = self
+            .client
+            .post(self.url(path))
+            .json(body)
+            .send()
+            .await
+            .unwrap();
+        let status = r.status().as_u16();
+        (status, r.json().await.unwrap_or(Value::Null))
+    }
+
+    pub async fn upload(&self, body: &Value) -> String {
+        let (status, v) = self.post("/v1/datasets", body).await;
+        assert!(status == 201 || status == 200, "{status} {v}");
+        v["id"].as_str().unwrap().to_string()
+    }
+
+    /// Polls a job until `done` holds (or panics after `secs`).
+    pub async fn wait_job(&self, id: &str, secs: u64, done: impl Fn(&Value) -> bool) -> Value {
+        let deadline = tokio::time::Instant::now() + Duration::from_secs(secs);
+        loop {
+            let (_, job) = self.get(&format!("/v1/jobs/{id}")).await;
+            if done(&job) {
+                return job;
+            }
+            assert!(
+                tokio::time::Instant::now() < deadline,
+                "job {id} did not get there: {job}"
+            );
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+    }
+
+    pub async fn stop(mut self) {
+        if let Some(r) = self.running.take() {
+            r.shutdown().await;
+        }
+    }
+}
+
+pub fn final_state(job: &Value) -> bool {
+    matches!(
+        job["state"].as_str(),
+        Some("succeeded" | "failed" | "cancelled")
+    )
+}
+
+/// The CLI/REST dataset JSON of a simulated double pendulum.
+pub fn dataset(count: usize, seed: u64) -> Value {
+    let t = Template::DoublePendulum;
+    let ds = simulate(
+        t,
+        t.defaults(),
+        &SimConfig {
+            count,
+            seed,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
+    serde_json::from_str(&ds.to_json()).unwrap()
+}
+
+pub fn job_body(dataset_id: &str, model: &str, epochs: usize) -> Value {
+    json!({"dataset_id": dataset_id, "model": model, "template": "double_pendulum",
+           "training": {"epochs": epochs, "batch_size": 64}})
+}
