@@ -84,6 +84,18 @@ impl Mlp {
     /// Forward mode: J₁ = (∂x/∂q · W₁) ⊙ (1 − h₁²),  J_l = (J_{l−1} W_l) ⊙ (1 − h_l²),
     /// ∂y/∂q = J_L W_out.  Returns y `[batch, out]` and J `[batch, n, out]`.
     pub fn forward_jacobian(&self, x: Tensor<2>, dx_dq: Tensor<2>) -> (Tensor<2>, Tensor<3>) {
+        let (y, j) = self.propagate(x, dx_dq, true);
+        (y.expect("asked for the output"), j)
+    }
+
+    /// Only the Jacobian `[batch, n, out]` (a potential needs ∂V/∂q, not V). Not computing
+    /// the unused output matters: a tracked result that never reaches the loss stays in
+    /// Burn's autodiff graph registry and slows every later backward pass.
+    pub fn jacobian(&self, x: Tensor<2>, dx_dq: Tensor<2>) -> Tensor<3> {
+        self.propagate(x, dx_dq, false).1
+    }
+
+    fn propagate(&self, x: Tensor<2>, dx_dq: Tensor<2>, want_y: bool) -> (Option<Tensor<2>>, Tensor<3>) {
         let (last, hidden) = self
             .layers
             .split_last()
@@ -107,7 +119,7 @@ impl Mlp {
                 (None, None) => unreachable!("the Jacobian starts at the first layer"),
             });
         }
-        let y = last.forward(h);
+        let y = want_y.then(|| last.forward(h));
         let j = match (jac, dz_dq_const) {
             (Some(j), _) => mat3(j, last.weight.val()),
             // No hidden layers: the net is affine in x.

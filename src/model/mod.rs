@@ -220,9 +220,10 @@ impl Model {
                     }
                     ForceSpec::Template => {}
                 }
-                if let Some(t) = template {
+                // Physical parameters exist only when some part is white-box.
+                if let Some(t) = template.filter(|_| !config.spec.white_box_parts().is_empty()) {
                     let values = physical.unwrap_or_else(|| t.defaults());
-                    p.physical = Some(param(raw_physical(*t, &values)?, [1, values.len()], device));
+                    p.physical = Some(param(raw_physical(t, &values)?, [1, values.len()], device));
                 }
             }
         }
@@ -250,6 +251,9 @@ impl Model {
     }
 
     /// Physical parameter values as tensors `[1, 1]` (positive ones exponentiated).
+    /// Parameters no white-box part of this model reads are detached: a tracked value that
+    /// never reaches the loss keeps its autodiff graph alive in Burn's registry, and every
+    /// later backward pass slows down.
     fn physical(&self, t: Template) -> Vec<Tensor<2>> {
         let raw = self
             .params
@@ -257,11 +261,15 @@ impl Model {
             .as_ref()
             .expect("a template model has physical parameters")
             .val();
+        let parts = self.white_box_parts();
         t.params()
             .iter()
             .enumerate()
             .map(|(i, info)| {
-                let v = raw.clone().narrow(1, i, 1);
+                let mut v = raw.clone().narrow(1, i, 1);
+                if !info.used_by.iter().any(|p| parts.contains(p)) {
+                    v = v.detach();
+                }
                 if info.positive { v.exp() } else { v }
             })
             .collect()
@@ -318,7 +326,9 @@ impl Model {
             panic!("parts() is for structured models");
         };
         let n = self.config.n;
-        let phys: Option<Vec<Tensor<2>>> = template.map(|t| self.physical(t));
+        let phys: Option<Vec<Tensor<2>>> = template
+            .filter(|_| self.params.physical.is_some())
+            .map(|t| self.physical(t));
         let phys_dual = || -> Vec<Dual<Tensor<2>>> {
             phys.as_ref()
                 .expect("template params")
@@ -327,7 +337,11 @@ impl Model {
                 .map(Dual::constant)
                 .collect()
         };
-        let q_cols = columns(&q);
+        // Built on first use: a tracked result that never reaches the loss (here, columns
+        // of q that only analytic parts read) keeps its whole autodiff graph alive in Burn's
+        // registry, and every later backward pass slows down.
+        let q_cols_cell = std::cell::OnceCell::new();
+        let q_cols = || q_cols_cell.get_or_init(|| columns(&q));
         let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
 
         let l: Tri<Dual<Tensor<2>>> = match mass {
@@ -350,7 +364,7 @@ impl Model {
             }
             MassSpec::Template => {
                 let t = template.expect("validated: template present");
-                let qv = dual_vars(&q_cols, &c.one);
+                let qv = dual_vars(q_cols(), &c.one);
                 mass_matrix::factor_of(&t.mass(&phys_dual(), &qv))
             }
         };
@@ -359,7 +373,7 @@ impl Model {
             PotentialSpec::Zero => None,
             PotentialSpec::Mlp { .. } => {
                 let net = self.params.potential_net.as_ref().expect("potential net");
-                let (_, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
+                let jac = net.jacobian(q_norm(), c.dq_in.clone());
                 let g = jac
                     .reshape([q.dims()[0], n])
                     .mul_scalar(self.config.scaling.potential_scale());
@@ -382,7 +396,7 @@ impl Model {
                     (0..n)
                         .map(|i| {
                             (0..n)
-                                .map(|j| q_cols[j].clone() * kij(i, j))
+                                .map(|j| q_cols()[j].clone() * kij(i, j))
                                 .reduce(|a, b| a + b)
                                 .expect("n ≥ 1")
                                 .mul_scalar(scale)
@@ -392,13 +406,13 @@ impl Model {
             }
             PotentialSpec::Template => {
                 let t = template.expect("validated: template present");
-                let v = t.potential(&phys_dual(), &dual_vars(&q_cols, &c.one));
+                let v = t.potential(&phys_dual(), &dual_vars(q_cols(), &c.one));
                 Some(
                     (0..n)
                         .map(|k| {
                             v.tangent(k)
                                 .cloned()
-                                .unwrap_or_else(|| q_cols[k].clone().mul_scalar(0.0))
+                                .unwrap_or_else(|| q_cols()[k].clone().mul_scalar(0.0))
                         })
                         .collect(),
                 )
@@ -427,7 +441,7 @@ impl Model {
                 let t = template.expect("validated: template present");
                 t.forces(
                     phys.as_ref().expect("template params"),
-                    &q_cols,
+                    q_cols(),
                     &columns(&qd),
                     &columns(&u),
                 )
