@@ -16,110 +16,118 @@ use crate::store::{DatasetRow, JobRow, JobState, MetricRow};
 #[openapi(components(schemas(DatasetRow, JobRow, JobState, MetricRow, JobRequest)))]
 struct Components;
 
-/// (method, path, summary, request schema, path/query parameters)
-const ROUTES: &[(&str, &str, &str, Option<&str>, &[&str])] = &[
-    (
+/// One route: method, path, summary, request schema, parameters ("?name" for query ones).
+struct Route(
+    &'static str,
+    &'static str,
+    &'static str,
+    Option<&'static str>,
+    &'static [&'static str],
+);
+
+const ROUTES: &[Route] = &[
+    Route(
         "post",
         "/v1/datasets",
         "Upload a dataset (JSON arrays, trajectories, or CSV with ?dt=)",
         Some("object"),
         &["?name", "?dt"],
     ),
-    (
+    Route(
         "get",
         "/v1/datasets",
         "List datasets, newest first",
         None,
         &["?page_size", "?page_token"],
     ),
-    (
+    Route(
         "get",
         "/v1/datasets/{id}",
         "Read a dataset's metadata",
         None,
         &["id"],
     ),
-    (
+    Route(
         "delete",
         "/v1/datasets/{id}",
         "Delete a dataset no queued or running job uses",
         None,
         &["id"],
     ),
-    (
+    Route(
         "post",
         "/v1/jobs",
         "Submit a training job (Idempotency-Key header supported)",
         Some("JobRequest"),
         &[],
     ),
-    (
+    Route(
         "get",
         "/v1/jobs",
         "List jobs, oldest first",
         None,
         &["?state", "?page_size", "?page_token"],
     ),
-    ("get", "/v1/jobs/{id}", "Read a job", None, &["id"]),
-    (
+    Route("get", "/v1/jobs/{id}", "Read a job", None, &["id"]),
+    Route(
         "post",
         "/v1/jobs/{id}/cancel",
         "Cancel a queued or running job",
         None,
         &["id"],
     ),
-    (
+    Route(
         "get",
         "/v1/jobs/{id}/metrics",
         "Per-epoch losses",
         None,
         &["id"],
     ),
-    (
+    Route(
         "get",
         "/v1/jobs/{id}/events",
         "Server-sent events: progress and state",
         None,
         &["id"],
     ),
-    (
+    Route(
         "get",
         "/v1/models",
         "List models, newest first",
         None,
         &["?page_size", "?page_token"],
     ),
-    (
+    Route(
         "get",
         "/v1/models/{id}",
         "Read a model: spec, dimensions, losses, physical parameters",
         None,
         &["id"],
     ),
-    (
+    Route(
         "get",
         "/v1/models/{id}/checkpoint",
         "Download the model file (.gbx)",
         None,
         &["id"],
     ),
-    ("delete", "/v1/models/{id}", "Delete a model", None, &["id"]),
-    ("get", "/healthz", "Liveness", None, &[]),
-    (
+    Route("delete", "/v1/models/{id}", "Delete a model", None, &["id"]),
+    Route("get", "/healthz", "Liveness", None, &[]),
+    Route(
         "get",
         "/readyz",
         "Readiness (the database answers)",
         None,
         &[],
     ),
-    ("get", "/metrics", "Prometheus metrics", None, &[]),
-    ("get", "/openapi.json", "This document", None, &[]),
+    Route("get", "/metrics", "Prometheus metrics", None, &[]),
+    Route("get", "/openapi.json", "This document", None, &[]),
 ];
 
 pub fn document() -> OpenApi {
     let _ = JobRequest::name();
     let mut paths = PathsBuilder::new();
-    for (method, path, summary, body, params) in ROUTES {
+    for Route(method, path, summary, body, params) in ROUTES {
         let method = match *method {
             "post" => HttpMethod::Post,
             "delete" => HttpMethod::Delete,

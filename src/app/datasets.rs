@@ -98,10 +98,10 @@ impl App {
             }
         };
         let name = name.or(body_name);
-        if let Some(n) = &name {
-            if n.len() > 200 {
-                return Err(Error::invalid("name", "must be at most 200 characters"));
-            }
+        if let Some(n) = &name
+            && n.len() > 200
+        {
+            return Err(Error::invalid("name", "must be at most 200 characters"));
         }
         self.store.insert_dataset(name.as_deref(), &ds).await
     }

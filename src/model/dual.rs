@@ -92,6 +92,7 @@ impl<S: Scalar> Sub for Dual<S> {
     }
 }
 
+#[allow(clippy::suspicious_arithmetic_impl)] // the product rule
 impl<S: Scalar> Mul for Dual<S> {
     type Output = Self;
     fn mul(self, o: Self) -> Self {
@@ -105,6 +106,7 @@ impl<S: Scalar> Mul for Dual<S> {
     }
 }
 
+#[allow(clippy::suspicious_arithmetic_impl)] // the quotient rule
 impl<S: Scalar> Div for Dual<S> {
     type Output = Self;
     fn div(self, o: Self) -> Self {
@@ -192,7 +194,8 @@ mod tests {
     /// ~ε/h ≈ 1e-10, so 1e-8 is a safe bound for these O(1) functions).
     #[test]
     fn rules_match_central_differences() {
-        let fs: Vec<(&str, fn(Dual<f64>) -> Dual<f64>)> = vec![
+        type Rule = (&'static str, fn(Dual<f64>) -> Dual<f64>);
+        let fs: Vec<Rule> = vec![
             ("cos", |x| x.cos()),
             ("sin", |x| x.sin()),
             ("sqrt", |x| x.sqrt()),

@@ -29,13 +29,12 @@ pub fn factor_from_outputs<S: Scalar>(raw: Vec<Dual<S>>, n: usize) -> Tri<Dual<S
         .collect();
     let mut off = raw;
     let mut entries = Vec::with_capacity(outputs(n));
-    for i in 0..n {
-        for j in 0..i {
-            let _ = j;
-            entries.push(off.next().expect("n(n−1)/2 off-diagonal outputs"));
-        }
-        entries.push(diag[i].clone());
+    for (i, d) in diag.into_iter().enumerate() {
+        // Row i: L_i0 … L_i,i−1 from the off-diagonal outputs, then the diagonal.
+        entries.extend(off.by_ref().take(i));
+        entries.push(d);
     }
+    assert_eq!(entries.len(), outputs(n), "n(n+1)/2 outputs for L");
     Tri { n, entries }
 }
 

@@ -95,7 +95,12 @@ impl Mlp {
         self.propagate(x, dx_dq, false).1
     }
 
-    fn propagate(&self, x: Tensor<2>, dx_dq: Tensor<2>, want_y: bool) -> (Option<Tensor<2>>, Tensor<3>) {
+    fn propagate(
+        &self,
+        x: Tensor<2>,
+        dx_dq: Tensor<2>,
+        want_y: bool,
+    ) -> (Option<Tensor<2>>, Tensor<3>) {
         let (last, hidden) = self
             .layers
             .split_last()

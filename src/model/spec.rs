@@ -214,7 +214,7 @@ impl ModelSpec {
     /// are positive.
     pub fn validate(&self) -> Result<()> {
         let hidden_ok = |h: &Vec<usize>, field: &str| -> Result<()> {
-            if h.iter().any(|&w| w == 0) || h.len() > 16 || h.iter().any(|&w| w > 4096) {
+            if h.contains(&0) || h.len() > 16 || h.iter().any(|&w| w > 4096) {
                 return Err(Error::invalid(
                     field,
                     "hidden sizes must be 1..=4096 wide and at most 16 layers",
@@ -258,18 +258,18 @@ impl ModelSpec {
 
     /// Checks the spec against a dataset's dimensions.
     pub fn check_dims(&self, n: usize, m: usize) -> Result<()> {
-        if let Some(t) = self.template() {
-            if t.n() != n || t.m() != m {
-                return Err(Error::invalid(
-                    "template",
-                    format!(
-                        "template '{}' has n = {}, m = {} but the dataset has n = {n}, m = {m}",
-                        t.name(),
-                        t.n(),
-                        t.m()
-                    ),
-                ));
-            }
+        if let Some(t) = self.template()
+            && (t.n() != n || t.m() != m)
+        {
+            return Err(Error::invalid(
+                "template",
+                format!(
+                    "template '{}' has n = {}, m = {} but the dataset has n = {n}, m = {m}",
+                    t.name(),
+                    t.n(),
+                    t.m()
+                ),
+            ));
         }
         Ok(())
     }

@@ -30,12 +30,15 @@ pub struct ParamInfo {
     pub used_by: &'static [Part],
 }
 
+/// Evaluates a combination given a lookup of parameter values by name.
+pub type CombinationFn = fn(&dyn Fn(&str) -> f64) -> f64;
+
 /// A combination of parameters that the data can pin down (design.md §2, Identifiability),
 /// meaningful when every part in `needs` is white-box.
 pub struct Combination {
     pub name: &'static str,
     pub needs: &'static [Part],
-    pub eval: fn(&dyn Fn(&str) -> f64) -> f64,
+    pub eval: CombinationFn,
 }
 
 use Part::{Forces as F, Mass as M, Potential as V};

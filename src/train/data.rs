@@ -39,11 +39,7 @@ struct DatasetJson<'a> {
 
 impl Dataset {
     pub fn count(&self) -> usize {
-        if self.n == 0 {
-            0
-        } else {
-            self.q.len() / self.n
-        }
+        self.q.len().checked_div(self.n).unwrap_or(0)
     }
 
     /// Builds a dataset from row-major arrays, checking every invariant.

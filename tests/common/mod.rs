@@ -25,13 +25,10 @@ pub fn host1(t: Tensor<2>) -> Vec<f64> {
     t.into_data().iter::<f64>().collect()
 }
 
+pub type Rows = Vec<Vec<f64>>;
+
 /// Random paper-range states and inputs: q ~ U(−π, π), q̇ ~ U(−10, 10), u ~ N(0, 120²).
-pub fn paper_samples(
-    n: usize,
-    m: usize,
-    count: usize,
-    seed: u64,
-) -> (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<Vec<f64>>) {
+pub fn paper_samples(n: usize, m: usize, count: usize, seed: u64) -> (Rows, Rows, Rows) {
     let mut r = Rng::new(seed);
     let mut q = vec![];
     let mut qd = vec![];
@@ -126,8 +123,9 @@ pub fn gauss_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
         b.swap(c, p);
         for r in c + 1..n {
             let f = a[r][c] / a[c][c];
-            for k in c..n {
-                a[r][k] -= f * a[c][k];
+            let pivot_row = a[c].clone();
+            for (x, p) in a[r][c..].iter_mut().zip(&pivot_row[c..]) {
+                *x -= f * p;
             }
             b[r] -= f * b[c];
         }
