@@ -143,7 +143,9 @@ impl Mlp {
 /// ~20 ns an element), the largest single cost of training; the logistic function uses expf
 /// and a fused backward, and the identity is exact up to rounding.
 pub fn tanh<const D: usize>(z: Tensor<D>) -> Tensor<D> {
-    burn::tensor::activation::sigmoid(z.mul_scalar(2.0)).mul_scalar(2.0).add_scalar(-1.0)
+    burn::tensor::activation::sigmoid(z.mul_scalar(2.0))
+        .mul_scalar(2.0)
+        .add_scalar(-1.0)
 }
 
 /// [batch, n, a] · [a, b] → [batch, n, b]

@@ -386,8 +386,7 @@ impl Model {
                     .as_ref()
                     .expect("quadratic potential")
                     .val();
-                let scale =
-                    self.config.scaling.mean_force_scale() / self.config.scaling.mean_q_std();
+                let scale = self.config.scaling.quadratic_scale();
                 let kij = |i: usize, j: usize| {
                     let (a, b) = if j <= i { (i, j) } else { (j, i) };
                     k.clone().narrow(1, Tri::<()>::index(a, b), 1)
@@ -492,7 +491,7 @@ impl Model {
                         (cols[i].clone() * cols[j].clone() * kij).mul_scalar(w)
                     });
                 let v = terms.reduce(|a, b| a + b).expect("n ≥ 1");
-                Some(v.mul_scalar(s.mean_force_scale() / s.mean_q_std()))
+                Some(v.mul_scalar(s.quadratic_scale()))
             }
             PotentialSpec::Template => {
                 let t = template.expect("validated: template present");

@@ -119,6 +119,11 @@ impl Scaling {
         self.q_std.iter().sum::<f64>() / self.q_std.len() as f64
     }
 
+    /// Scale of a learned quadratic potential's K: K q is O(force) when q is O(σ_q).
+    pub fn quadratic_scale(&self) -> f64 {
+        self.mean_force_scale() / self.mean_q_std()
+    }
+
     /// Output scale of a potential network: ∂V/∂q should be O(force) when q moves by O(σ_q).
     pub fn potential_scale(&self) -> f64 {
         self.mean_force_scale() * self.mean_q_std()

@@ -2,11 +2,10 @@
 //! cancellation, per-epoch metrics (upserted) and checkpoints.
 
 use serde::Serialize;
-use sha2::{Digest, Sha256};
 use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
 
-use super::{Store, new_id, now_ms, now_rfc3339};
+use super::{Store, new_id, now_ms, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, utoipa::ToSchema)]
@@ -157,7 +156,7 @@ const FENCE: &str = "id = ? AND attempt = ? AND lease_owner = ? AND state = 'run
 
 impl Store {
     pub async fn submit_job(&self, new: NewJob) -> Result<Submitted> {
-        let request_sha = hex::encode(Sha256::digest(new.request.as_bytes()));
+        let request_sha = sha256_hex(new.request.as_bytes());
         let mut tx = self.write().await?;
         if let Some(key) = &new.idempotency_key {
             let existing = sqlx::query(sql(
@@ -370,7 +369,7 @@ impl Store {
         .bind(epoch)
         .bind(c.attempt)
         .bind(state)
-        .bind(hex::encode(Sha256::digest(state)))
+        .bind(sha256_hex(state))
         .bind(now_rfc3339())
         .execute(&mut *tx)
         .await?;
@@ -385,14 +384,8 @@ impl Store {
             .fetch_optional(&self.pool)
             .await?;
         let Some(r) = r else { return Ok(None) };
-        let state: Vec<u8> = r.try_get("state")?;
         let sha: String = r.try_get("sha256")?;
-        if hex::encode(Sha256::digest(&state)) != sha {
-            return Err(Error::corrupt(
-                "checkpoint",
-                format!("checksum mismatch for job {job_id}"),
-            ));
-        }
+        let state = verified(r.try_get("state")?, &sha, "checkpoint", job_id)?;
         Ok(Some((r.try_get("epoch")?, state)))
     }
 

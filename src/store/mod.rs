@@ -45,6 +45,19 @@ pub fn now_ms() -> i64 {
     chrono::Utc::now().timestamp_millis()
 }
 
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    hex::encode(sha2::Sha256::digest(bytes))
+}
+
+/// Stored bytes back, if they still match the checksum taken when they were written.
+pub fn verified(bytes: Vec<u8>, sha256: &str, what: &str, id: &str) -> Result<Vec<u8>> {
+    if sha256_hex(&bytes) != sha256 {
+        return Err(Error::corrupt(what, format!("checksum mismatch for {id}")));
+    }
+    Ok(bytes)
+}
+
 pub fn new_id(prefix: &str) -> String {
     format!("{prefix}_{}", uuid::Uuid::new_v4().simple())
 }

@@ -1,12 +1,11 @@
 //! Trained models: a finished job's best parameters as a model file, with its report.
 
 use serde::Serialize;
-use sha2::{Digest, Sha256};
 use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
 
 use super::jobs::Claimed;
-use super::{Store, new_id, now_rfc3339};
+use super::{Store, new_id, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -92,7 +91,7 @@ impl Store {
         .bind(m.spec)
         .bind(m.report)
         .bind(m.file)
-        .bind(hex::encode(Sha256::digest(m.file)))
+        .bind(sha256_hex(m.file))
         .bind(now_rfc3339())
         .execute(&mut *tx)
         .await?;
@@ -115,15 +114,8 @@ impl Store {
             .fetch_optional(&self.pool)
             .await?;
         let Some(r) = r else { return Ok(None) };
-        let file: Vec<u8> = r.try_get("file")?;
         let sha: String = r.try_get("sha256")?;
-        if hex::encode(Sha256::digest(&file)) != sha {
-            return Err(Error::corrupt(
-                "model file",
-                format!("checksum mismatch for model {id}"),
-            ));
-        }
-        Ok(Some(file))
+        Ok(Some(verified(r.try_get("file")?, &sha, "model file", id)?))
     }
 
     /// Newest first.
