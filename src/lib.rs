@@ -11,6 +11,7 @@ pub mod backend;
 pub mod bench;
 pub mod cli;
 pub mod error;
+pub mod infer;
 pub mod jobs;
 pub mod model;
 pub mod rng;

@@ -92,8 +92,15 @@ impl Running {
         for w in self.workers {
             let _ = w.await;
         }
+        // Open server-sent event streams would hold a graceful HTTP shutdown forever.
         for s in self.servers {
-            let _ = s.await;
+            let abort = s.abort_handle();
+            if tokio::time::timeout(std::time::Duration::from_secs(5), s)
+                .await
+                .is_err()
+            {
+                abort.abort();
+            }
         }
     }
 }

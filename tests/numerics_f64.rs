@@ -143,23 +143,6 @@ fn model_input_jacobians_match_finite_differences() {
     }
 }
 
-/// Moves every parameter off its initial value so that zero-initialized parts (η, K, constant
-/// L) are exercised too.
-fn perturb(model: &Model, dev: &Device) -> Model {
-    let mut r = Rng::new(99);
-    let arrays: Vec<_> = export(&model.params)
-        .into_iter()
-        .map(|mut a| {
-            for v in &mut a.values {
-                *v += 0.3 * r.normal();
-            }
-            a
-        })
-        .collect();
-    let params = import(model.params.clone(), &arrays, dev).unwrap();
-    Model::from_parts(model.config.clone(), params, dev)
-}
-
 /// The W-B double pendulum's q̈ (Burn path and f64 path) equals the paper's equations written
 /// out independently. 1e-9: both are a handful of f64 operations on O(100) quantities.
 #[test]

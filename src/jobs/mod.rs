@@ -206,7 +206,7 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
         }
         let m = trainer.run_epoch(&flags.cancel)?;
         app.telemetry.epochs_trained.fetch_add(1, Ordering::Relaxed);
-        let best = trainer.report().best_val_loss;
+        let best = trainer.best_val_loss();
         let row = MetricRow {
             epoch: m.epoch as i64,
             train_loss: m.train_loss,

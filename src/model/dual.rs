@@ -171,6 +171,14 @@ impl<S: Scalar> Scalar for Dual<S> {
             d: self.d.clone(),
         }
     }
+    fn tanh(&self) -> Self {
+        let h = self.v.tanh();
+        // tanh' = 1 − h²
+        self.chain(h.clone(), || (-h.square()).shift(1.0))
+    }
+    fn lift(&self, c: f64) -> Self {
+        Self::constant(self.v.lift(c))
+    }
 }
 
 /// 1/x through the scalar operations only (`Scalar` has no literal constructor).
@@ -206,6 +214,7 @@ mod tests {
             ("div", |x| x.cos() / x.exp()),
             ("sub", |x| x.scale(3.0) - x.square()),
             ("neg", |x| -x.shift(2.0)),
+            ("tanh", |x| x.scale(0.7).tanh()),
         ];
         for (name, f) in fs {
             for &x in &[0.3, 1.1, 2.5] {

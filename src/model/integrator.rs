@@ -56,9 +56,12 @@ pub trait StateVec: Sized {
     fn axpy(&self, a: f64, x: &Self) -> Self;
 }
 
-impl StateVec for Vec<f64> {
+impl<S: super::scalar::Scalar> StateVec for Vec<S> {
     fn axpy(&self, a: f64, x: &Self) -> Self {
-        self.iter().zip(x).map(|(s, x)| s + a * x).collect()
+        self.iter()
+            .zip(x)
+            .map(|(s, x)| s.clone() + x.scale(a))
+            .collect()
     }
 }
 

@@ -33,6 +33,9 @@ pub trait Scalar:
     fn square(&self) -> Self {
         self.clone() * self.clone()
     }
+    fn tanh(&self) -> Self;
+    /// The constant `c` as a value of the same kind (and shape) as `self`.
+    fn lift(&self, c: f64) -> Self;
 }
 
 impl Scalar for f64 {
@@ -60,6 +63,12 @@ impl Scalar for f64 {
     }
     fn shift(&self, c: f64) -> Self {
         self + c
+    }
+    fn tanh(&self) -> Self {
+        f64::tanh(*self)
+    }
+    fn lift(&self, c: f64) -> Self {
+        c
     }
 }
 
@@ -94,5 +103,11 @@ impl Scalar for Tensor<2> {
     }
     fn square(&self) -> Self {
         self.clone().square()
+    }
+    fn tanh(&self) -> Self {
+        super::mlp::tanh(self.clone())
+    }
+    fn lift(&self, c: f64) -> Self {
+        self.full_like(c)
     }
 }

@@ -415,6 +415,11 @@ impl Trainer {
         self.train.count
     }
 
+    /// The best validation loss so far (`None` without a validation set or before epoch 1).
+    pub fn best_val_loss(&self) -> Option<f64> {
+        (self.val.is_some() && self.epoch > 0).then_some(self.best_loss)
+    }
+
     pub fn stopped_early(&self) -> bool {
         self.cfg.patience.is_some_and(|p| self.stale_epochs >= p)
     }
@@ -509,7 +514,7 @@ impl Trainer {
             train_loss: last.map_or(f64::NAN, |h| h.train_loss),
             val_loss: last.and_then(|h| h.val_loss),
             best_epoch: self.best_epoch,
-            best_val_loss: self.val.as_ref().map(|_| self.best_loss),
+            best_val_loss: self.best_val_loss(),
             stopped_early: self.stopped_early(),
             seconds,
             samples_per_second: if self.train_seconds > 0.0 {

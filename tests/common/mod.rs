@@ -3,6 +3,7 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use graybox::model::integrator::Integrator;
+use graybox::model::params_io::{export, import};
 use graybox::model::scaling::Scaling;
 use graybox::model::spec::ModelSpec;
 use graybox::model::templates::Template;
@@ -136,4 +137,21 @@ pub fn gauss_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
         x[r] = (b[r] - s) / a[r][r];
     }
     x
+}
+
+/// Moves every parameter off its initial value so that zero-initialized parts (η, K, constant
+/// L) are exercised too.
+pub fn perturb(model: &Model, dev: &Device) -> Model {
+    let mut r = Rng::new(99);
+    let arrays: Vec<_> = export(&model.params)
+        .into_iter()
+        .map(|mut a| {
+            for v in &mut a.values {
+                *v += 0.3 * r.normal();
+            }
+            a
+        })
+        .collect();
+    let params = import(model.params.clone(), &arrays, dev).unwrap();
+    Model::from_parts(model.config.clone(), params, dev)
 }

@@ -1,0 +1,141 @@
+//! The f64 inference path against the Burn path (the trainer's own math) and against finite
+//! differences, in f64.
+
+mod common;
+
+use burn::tensor::Device;
+use common::*;
+use graybox::backend::{Backend, Precision, device};
+use graybox::infer::Evaluator;
+use graybox::model::params_io::export;
+use graybox::model::spec::{ModelSpec, NAMED};
+use graybox::model::templates::Template;
+use graybox::model::{Model, ModelConfig};
+use graybox::train::artifact::ModelFile;
+
+fn f64_device() -> Device {
+    device(Backend::Flex, Precision::F64).expect("f64 device")
+}
+
+fn cases() -> Vec<(String, ModelSpec, usize, usize)> {
+    let mut v = vec![];
+    for name in NAMED {
+        v.push((
+            format!("{name}/double_pendulum"),
+            ModelSpec::named(name, Some(Template::DoublePendulum)).unwrap(),
+            2,
+            2,
+        ));
+        v.push((
+            format!("{name}/cartpole"),
+            ModelSpec::named(name, Some(Template::Cartpole)).unwrap(),
+            2,
+            1,
+        ));
+    }
+    v.push((
+        "W-B/pendulum".into(),
+        ModelSpec::named("W-B", Some(Template::Pendulum)).unwrap(),
+        1,
+        1,
+    ));
+    let custom = r#"{"kind":"structured","mass":{"type":"constant"},"potential":{"type":"quadratic"},"forces":{"type":"constant_affine"}}"#;
+    v.push((
+        "constant/quadratic/constant_affine".into(),
+        ModelSpec::parse(custom, None).unwrap(),
+        3,
+        2,
+    ));
+    v
+}
+
+fn build(spec: ModelSpec, n: usize, m: usize, dev: &Device) -> (Model, Evaluator) {
+    let mut cfg: ModelConfig = config(spec, n, m);
+    cfg.scaling.q_mean = vec![0.1; n];
+    cfg.scaling.u_mean = vec![-2.0; m];
+    let model = perturb(&Model::init(cfg, None, 3, dev).unwrap(), dev);
+    let file = ModelFile::new(model.config.clone(), export(&model.params), None);
+    let file = ModelFile::from_bytes(&file.to_bytes()).unwrap();
+    (model, Evaluator::from_file(&file).unwrap())
+}
+
+/// One RK4 step of every parameterization: the evaluator equals the Burn path to 1e-9
+/// (both are f64; they differ only in operation order and tanh's formula).
+#[test]
+fn evaluator_matches_burn_for_every_parameterization() {
+    let dev = f64_device();
+    for (name, spec, n, m) in cases() {
+        let (model, eval) = build(spec, n, m, &dev);
+        let (q, qd, u) = paper_samples(n, m, 16, 5);
+        let x: Vec<Vec<f64>> = q
+            .iter()
+            .zip(&qd)
+            .map(|(a, b)| [a.clone(), b.clone()].concat())
+            .collect();
+        let burn = host(model.step(tensor(&x, &dev), tensor(&u, &dev)));
+        for i in 0..x.len() {
+            let ours = eval.step(&x[i], &u[i]);
+            let err = rel_err(&ours, &burn[i]);
+            assert!(
+                err < 1e-9,
+                "{name}: {err:e}\n ours {ours:?}\n burn {:?}",
+                burn[i]
+            );
+        }
+    }
+}
+
+/// A and B of the one-step map (dual numbers through the Jacobian recursion, second
+/// derivatives of M and V included) vs central differences of `step` with h = 1e-6:
+/// truncation ~h² and rounding ~ε/h ≈ 1e-10 on O(1) entries.
+#[test]
+fn linearize_matches_central_differences() {
+    let dev = f64_device();
+    for (name, spec, n, m) in cases().into_iter().filter(|c| {
+        c.0.starts_with("MVF/")
+            || c.0.starts_with("W-B/")
+            || c.0.starts_with("MVB/d")
+            || c.0.starts_with("naive/d")
+    }) {
+        let (_, eval) = build(spec, n, m, &dev);
+        let (q, qd, u) = paper_samples(n, m, 3, 9);
+        for i in 0..q.len() {
+            let x: Vec<f64> = [q[i].clone(), qd[i].clone()].concat();
+            let (a, b) = eval.linearize(&x, &u[i]);
+            let h = 1e-6;
+            let nx = x.len();
+            let mut fd_a = vec![0.0; nx * nx];
+            let mut fd_b = vec![0.0; nx * m];
+            for k in 0..nx + m {
+                let (mut xp, mut xm, mut up, mut um) =
+                    (x.clone(), x.clone(), u[i].clone(), u[i].clone());
+                if k < nx {
+                    xp[k] += h;
+                    xm[k] -= h;
+                } else {
+                    up[k - nx] += h;
+                    um[k - nx] -= h;
+                }
+                let (fp, fm) = (eval.step(&xp, &up), eval.step(&xm, &um));
+                for r in 0..nx {
+                    let d = (fp[r] - fm[r]) / (2.0 * h);
+                    if k < nx {
+                        fd_a[r * nx + k] = d
+                    } else {
+                        fd_b[r * m + k - nx] = d
+                    }
+                }
+            }
+            assert!(
+                rel_err(&a, &fd_a) < 1e-6,
+                "{name} A: {:e}",
+                rel_err(&a, &fd_a)
+            );
+            assert!(
+                rel_err(&b, &fd_b) < 1e-6,
+                "{name} B: {:e}",
+                rel_err(&b, &fd_b)
+            );
+        }
+    }
+}
