@@ -10,6 +10,7 @@ pub mod app;
 pub mod backend;
 pub mod bench;
 pub mod cli;
+pub mod control;
 pub mod error;
 pub mod infer;
 pub mod jobs;

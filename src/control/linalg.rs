@@ -1,0 +1,136 @@
+//! Small dense row-major f64 matrices for control (n ≤ a few dozen): products, transposes,
+//! Cholesky factorization and solves. Nothing forms an inverse.
+
+/// A row-major matrix.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Mat {
+    pub rows: usize,
+    pub cols: usize,
+    pub data: Vec<f64>,
+}
+
+impl Mat {
+    pub fn new(rows: usize, cols: usize, data: Vec<f64>) -> Self {
+        assert_eq!(
+            data.len(),
+            rows * cols,
+            "matrix data does not fit its shape"
+        );
+        Self { rows, cols, data }
+    }
+
+    pub fn zeros(rows: usize, cols: usize) -> Self {
+        Self::new(rows, cols, vec![0.0; rows * cols])
+    }
+
+    pub fn at(&self, i: usize, j: usize) -> f64 {
+        self.data[i * self.cols + j]
+    }
+
+    pub fn t(&self) -> Mat {
+        let mut out = Mat::zeros(self.cols, self.rows);
+        for i in 0..self.rows {
+            for j in 0..self.cols {
+                out.data[j * self.rows + i] = self.at(i, j);
+            }
+        }
+        out
+    }
+
+    pub fn mul(&self, o: &Mat) -> Mat {
+        assert_eq!(self.cols, o.rows, "inner dimensions differ");
+        let mut out = Mat::zeros(self.rows, o.cols);
+        for i in 0..self.rows {
+            for k in 0..self.cols {
+                let a = self.at(i, k);
+                if a == 0.0 {
+                    continue;
+                }
+                let row = &o.data[k * o.cols..(k + 1) * o.cols];
+                for (x, b) in out.data[i * o.cols..(i + 1) * o.cols].iter_mut().zip(row) {
+                    *x += a * b;
+                }
+            }
+        }
+        out
+    }
+
+    pub fn add(&self, o: &Mat) -> Mat {
+        Mat::new(
+            self.rows,
+            self.cols,
+            self.data.iter().zip(&o.data).map(|(a, b)| a + b).collect(),
+        )
+    }
+
+    pub fn sub(&self, o: &Mat) -> Mat {
+        Mat::new(
+            self.rows,
+            self.cols,
+            self.data.iter().zip(&o.data).map(|(a, b)| a - b).collect(),
+        )
+    }
+
+    /// (M + Mᵀ)/2: removes the asymmetry rounding leaves in a Riccati recursion.
+    pub fn symmetrized(&self) -> Mat {
+        let t = self.t();
+        Mat::new(
+            self.rows,
+            self.cols,
+            self.data
+                .iter()
+                .zip(&t.data)
+                .map(|(a, b)| 0.5 * (a + b))
+                .collect(),
+        )
+    }
+
+    /// max |M_ij − M_ji| relative to max(1, max |M_ij|).
+    pub fn asymmetry(&self) -> f64 {
+        let scale = self.data.iter().fold(1.0f64, |m, x| m.max(x.abs()));
+        let mut worst = 0.0f64;
+        for i in 0..self.rows {
+            for j in 0..i {
+                worst = worst.max((self.at(i, j) - self.at(j, i)).abs());
+            }
+        }
+        worst / scale
+    }
+
+    /// The lower Cholesky factor of a symmetric positive-definite matrix, or `None` when a
+    /// pivot is not positive (the matrix is not positive definite).
+    pub fn cholesky(&self) -> Option<Mat> {
+        let n = self.rows;
+        let mut l = Mat::zeros(n, n);
+        for j in 0..n {
+            let d = self.at(j, j) - (0..j).map(|k| l.at(j, k).powi(2)).sum::<f64>();
+            if d.is_nan() || d <= 0.0 || d.is_infinite() {
+                return None;
+            }
+            let ljj = d.sqrt();
+            l.data[j * n + j] = ljj;
+            for i in j + 1..n {
+                let v = self.at(i, j) - (0..j).map(|k| l.at(i, k) * l.at(j, k)).sum::<f64>();
+                l.data[i * n + j] = v / ljj;
+            }
+        }
+        Some(l)
+    }
+}
+
+/// Solves (L Lᵀ) X = B for X, column by column, given the lower Cholesky factor L.
+pub fn cholesky_solve(l: &Mat, b: &Mat) -> Mat {
+    let n = l.rows;
+    let mut x = b.clone();
+    for c in 0..b.cols {
+        for i in 0..n {
+            let s: f64 = (0..i).map(|k| l.at(i, k) * x.at(k, c)).sum();
+            x.data[i * b.cols + c] = (x.at(i, c) - s) / l.at(i, i);
+        }
+        for i in (0..n).rev() {
+            let s: f64 = (i + 1..n).map(|k| l.at(k, i) * x.at(k, c)).sum();
+            x.data[i * b.cols + c] = (x.at(i, c) - s) / l.at(i, i);
+        }
+    }
+    x
+}
