@@ -22,6 +22,9 @@ pub enum Error {
     /// The target exists but is not ready for this (a job that has not produced a model).
     #[error("{0}")]
     FailedPrecondition(String),
+    /// A request over a configured limit (rollout length, batch size).
+    #[error("{0}")]
+    ResourceExhausted(String),
     /// The database failed; callers may retry.
     #[error("storage error: {0}")]
     Storage(String),

@@ -63,6 +63,7 @@ pub async fn start(cfg: ServiceConfig) -> Result<Running> {
                 .map_err(Error::Io)
         }),
         tokio::spawn(crate::api::grpc::serve(
+            app.clone(),
             grpc,
             until_stopped(stopped.clone()),
         )),

@@ -2,6 +2,7 @@
 //! Handlers translate; every rule lives here or below.
 
 pub mod datasets;
+pub mod inference;
 pub mod jobs;
 pub mod models;
 pub mod telemetry;
@@ -17,6 +18,10 @@ pub struct Settings {
     pub checkpoint_every: usize,
     pub lease_secs: u64,
     pub max_body_bytes: usize,
+    /// Longest Rollout (steps) a gRPC caller may ask for.
+    pub max_rollout_steps: usize,
+    /// Largest gRPC message, in bytes (decode limit).
+    pub grpc_max_message_bytes: usize,
 }
 
 impl Default for Settings {
@@ -26,6 +31,8 @@ impl Default for Settings {
             checkpoint_every: 10,
             lease_secs: 30,
             max_body_bytes: 256 << 20,
+            max_rollout_steps: 100_000,
+            grpc_max_message_bytes: 64 << 20,
         }
     }
 }
@@ -36,6 +43,8 @@ pub struct App {
     pub store: Store,
     pub settings: Arc<Settings>,
     pub telemetry: Arc<telemetry::Telemetry>,
+    /// Trained models loaded for inference, by model id.
+    pub models: Arc<inference::ModelCache>,
 }
 
 impl App {
@@ -44,6 +53,7 @@ impl App {
             store,
             settings: Arc::new(settings),
             telemetry: Arc::default(),
+            models: Arc::default(),
         }
     }
 }

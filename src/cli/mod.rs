@@ -166,6 +166,12 @@ pub struct ServeArgs {
     /// Largest accepted request body, in MiB.
     #[arg(long, env = "GRAYBOX_MAX_BODY_MB", default_value_t = 256)]
     pub max_body_mb: usize,
+    /// Longest gRPC Rollout, in steps.
+    #[arg(long, env = "GRAYBOX_MAX_ROLLOUT_STEPS", default_value_t = 100_000)]
+    pub max_rollout_steps: usize,
+    /// Largest gRPC message, in MiB.
+    #[arg(long, env = "GRAYBOX_GRPC_MAX_MESSAGE_MB", default_value_t = 64)]
+    pub grpc_max_message_mb: usize,
     /// With a token, writes need `Authorization: Bearer <token>`.
     #[arg(long, env = "GRAYBOX_API_TOKEN", hide_env_values = true)]
     pub api_token: Option<String>,
@@ -199,6 +205,7 @@ pub fn main() -> ExitCode {
                 | Error::NotFound(_)
                 | Error::Conflict(_)
                 | Error::FailedPrecondition(_)
+                | Error::ResourceExhausted(_)
                 | Error::Corrupt { .. } => 2,
                 Error::Training(_) | Error::Cancelled | Error::Io(_) | Error::Storage(_) => 1,
             })
@@ -245,6 +252,8 @@ fn serve(a: ServeArgs) -> Result<()> {
             checkpoint_every: a.checkpoint_every.max(1),
             lease_secs: a.lease_secs,
             max_body_bytes: a.max_body_mb << 20,
+            max_rollout_steps: a.max_rollout_steps,
+            grpc_max_message_bytes: a.grpc_max_message_mb << 20,
         },
         rest: crate::api::rest::RestSettings {
             api_token: a.api_token.filter(|t| !t.is_empty()),

@@ -32,6 +32,7 @@ pub async fn spawn_with(workers: usize, rest: RestSettings, max_body_bytes: usiz
             checkpoint_every: 2,
             lease_secs: 30,
             max_body_bytes,
+            ..Settings::default()
         },
         rest,
     };

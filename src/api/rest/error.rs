@@ -67,6 +67,9 @@ impl From<Error> for ApiError {
                 };
             }
             Error::NotFound(_) => (StatusCode::NOT_FOUND, "not_found", None),
+            Error::ResourceExhausted(_) => {
+                (StatusCode::PAYLOAD_TOO_LARGE, "payload_too_large", None)
+            }
             Error::Conflict(_) | Error::FailedPrecondition(_) => {
                 (StatusCode::CONFLICT, "conflict", None)
             }

@@ -75,6 +75,6 @@ async fn checkpoint(
 }
 
 async fn remove(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<StatusCode> {
-    s.app.store.delete_model(&id).await?;
+    s.app.delete_model(&id).await?;
     Ok(StatusCode::NO_CONTENT)
 }

@@ -1,0 +1,224 @@
+//! Inference on trained models for controllers (the gRPC adapter calls these): one-step
+//! prediction, rollouts, linearizations and TVLQR, in f64 on the evaluator, off the async
+//! executor. Loaded models stay in a cache until deleted.
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use super::App;
+use crate::control::linalg::Mat;
+use crate::control::tvlqr::tvlqr;
+use crate::error::{Error, Result};
+use crate::infer::Evaluator;
+use crate::store::ModelRow;
+use crate::train::artifact::ModelFile;
+
+#[derive(Default)]
+pub struct ModelCache {
+    loaded: Mutex<HashMap<String, Arc<Evaluator>>>,
+}
+
+impl ModelCache {
+    pub fn evict(&self, model_id: &str) {
+        self.loaded
+            .lock()
+            .expect("model cache lock")
+            .remove(model_id);
+    }
+}
+
+/// A batch of rows: `rows` × `width`, row-major.
+pub struct Rows<'a> {
+    pub data: &'a [f64],
+    pub rows: usize,
+    pub width: usize,
+}
+
+/// Checks an array's shape and values; `field` names it in errors.
+pub fn rows<'a>(field: &str, shape: &[u64], data: &'a [f64], width: usize) -> Result<Rows<'a>> {
+    let [r, w] = shape else {
+        return Err(Error::invalid(
+            field,
+            format!("shape must be [rows, {width}], got {shape:?}"),
+        ));
+    };
+    let (r, w) = (*r as usize, *w as usize);
+    if w != width || r == 0 || data.len() != r * w {
+        return Err(Error::invalid(
+            field,
+            format!(
+                "expected [rows ≥ 1, {width}] with rows·{width} values, got shape {shape:?} and {} values",
+                data.len()
+            ),
+        ));
+    }
+    if let Some(i) = data.iter().position(|v| !v.is_finite()) {
+        return Err(Error::invalid(
+            field,
+            format!("row {} has a non-finite value", i / width),
+        ));
+    }
+    Ok(Rows {
+        data,
+        rows: r,
+        width,
+    })
+}
+
+fn square(field: &str, shape: &[u64], data: &[f64], dim: usize) -> Result<Mat> {
+    let r = rows(field, shape, data, dim)?;
+    if r.rows != dim {
+        return Err(Error::invalid(field, format!("must be {dim}×{dim}")));
+    }
+    Ok(Mat::new(dim, dim, data.to_vec()))
+}
+
+/// Runs CPU-bound work on the blocking pool so the async executor stays responsive.
+async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> Result<T> {
+    tokio::task::spawn_blocking(f)
+        .await
+        .map_err(|e| Error::Training(format!("inference task failed: {e}")))
+}
+
+impl App {
+    /// The evaluator of a model (or of the model a succeeded job produced), loaded once.
+    pub async fn evaluator(&self, id: &str) -> Result<(ModelRow, Arc<Evaluator>)> {
+        let row = self.resolve_model(id).await?;
+        if let Some(e) = self
+            .models
+            .loaded
+            .lock()
+            .expect("model cache lock")
+            .get(&row.id)
+        {
+            return Ok((row, e.clone()));
+        }
+        let bytes = self.model_file(&row.id).await?;
+        let eval = Arc::new(
+            blocking(move || Evaluator::from_file(&ModelFile::from_bytes(&bytes)?)).await??,
+        );
+        self.models
+            .loaded
+            .lock()
+            .expect("model cache lock")
+            .insert(row.id.clone(), eval.clone());
+        Ok((row, eval))
+    }
+
+    pub async fn delete_model(&self, id: &str) -> Result<()> {
+        self.store.delete_model(id).await?;
+        self.models.evict(id);
+        Ok(())
+    }
+
+    /// x' (and q̈ when asked) for a batch.
+    pub async fn predict(
+        &self,
+        id: &str,
+        x: Vec<f64>,
+        x_shape: Vec<u64>,
+        u: Vec<f64>,
+        u_shape: Vec<u64>,
+        want_accel: bool,
+    ) -> Result<(Vec<f64>, Option<Vec<f64>>)> {
+        let (_, eval) = self.evaluator(id).await?;
+        let (n, m) = (eval.config.n, eval.config.m);
+        let xr = rows("x", &x_shape, &x, 2 * n)?.rows;
+        let ur = rows("u", &u_shape, &u, m)?.rows;
+        if xr != ur {
+            return Err(Error::invalid("u", format!("has {ur} rows but x has {xr}")));
+        }
+        blocking(move || {
+            let mut next = Vec::with_capacity(x.len());
+            let mut acc = want_accel.then(Vec::new);
+            for (xi, ui) in x.chunks(2 * n).zip(u.chunks(m)) {
+                next.extend(eval.step(xi, ui));
+                if let Some(a) = acc.as_mut() {
+                    a.extend(eval.accel(&xi[..n], &xi[n..], ui));
+                }
+            }
+            (next, acc)
+        })
+        .await
+    }
+
+    /// A and B for a batch, row-major `[B, 2n, 2n]` and `[B, 2n, m]`.
+    pub async fn linearize(
+        &self,
+        id: &str,
+        x: Vec<f64>,
+        x_shape: Vec<u64>,
+        u: Vec<f64>,
+        u_shape: Vec<u64>,
+    ) -> Result<(Vec<f64>, Vec<f64>)> {
+        let (_, eval) = self.evaluator(id).await?;
+        let (n, m) = (eval.config.n, eval.config.m);
+        let xr = rows("x", &x_shape, &x, 2 * n)?.rows;
+        let ur = rows("u", &u_shape, &u, m)?.rows;
+        if xr != ur {
+            return Err(Error::invalid("u", format!("has {ur} rows but x has {xr}")));
+        }
+        blocking(move || {
+            let (mut a, mut b) = (Vec::new(), Vec::new());
+            for (xi, ui) in x.chunks(2 * n).zip(u.chunks(m)) {
+                let (ai, bi) = eval.linearize(xi, ui);
+                a.extend(ai);
+                b.extend(bi);
+            }
+            (a, b)
+        })
+        .await
+    }
+
+    /// TVLQR gains along a nominal (x̄, ū); defects are ignored.
+    #[allow(clippy::too_many_arguments)]
+    pub async fn tvlqr(
+        &self,
+        id: &str,
+        xbar: (Vec<f64>, Vec<u64>),
+        ubar: (Vec<f64>, Vec<u64>),
+        q: (Vec<f64>, Vec<u64>),
+        r: (Vec<f64>, Vec<u64>),
+        qf: (Vec<f64>, Vec<u64>),
+    ) -> Result<(Vec<f64>, Vec<f64>)> {
+        let (_, eval) = self.evaluator(id).await?;
+        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let t_x = rows("x_bar", &xbar.1, &xbar.0, nx)?.rows;
+        let t_u = rows("u_bar", &ubar.1, &ubar.0, m)?.rows;
+        if t_x != t_u + 1 {
+            return Err(Error::invalid(
+                "x_bar",
+                format!(
+                    "needs T+1 = {} states for T = {t_u} inputs, got {t_x}",
+                    t_u + 1
+                ),
+            ));
+        }
+        if t_u > self.settings.max_rollout_steps {
+            return Err(Error::ResourceExhausted(format!(
+                "horizon {t_u} is over the limit of {}",
+                self.settings.max_rollout_steps
+            )));
+        }
+        let (qm, rm, qfm) = (
+            square("Q", &q.1, &q.0, nx)?,
+            square("R", &r.1, &r.0, m)?,
+            square("Qf", &qf.1, &qf.0, nx)?,
+        );
+        blocking(move || {
+            let (mut a, mut b) = (Vec::with_capacity(t_u), Vec::with_capacity(t_u));
+            for t in 0..t_u {
+                let (at, bt) =
+                    eval.linearize(&xbar.0[t * nx..(t + 1) * nx], &ubar.0[t * m..(t + 1) * m]);
+                a.push(Mat::new(nx, nx, at));
+                b.push(Mat::new(nx, m, bt));
+            }
+            let g = tvlqr(&a, &b, &qm, &rm, &qfm)?;
+            Ok((
+                g.k.into_iter().flat_map(|k| k.data).collect(),
+                g.s.into_iter().flat_map(|s| s.data).collect(),
+            ))
+        })
+        .await?
+    }
+}
