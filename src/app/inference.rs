@@ -73,6 +73,16 @@ fn square(field: &str, shape: &[u64], data: &[f64], dim: usize) -> Result<Mat> {
     Ok(Mat::new(dim, dim, data.to_vec()))
 }
 
+/// A batch of states `[B, 2n]` and inputs `[B, m]` with the same B.
+fn check_batch(eval: &Evaluator, x: (&[f64], &[u64]), u: (&[f64], &[u64])) -> Result<()> {
+    let xr = rows("x", x.1, x.0, 2 * eval.config.n)?.rows;
+    let ur = rows("u", u.1, u.0, eval.config.m)?.rows;
+    if xr != ur {
+        return Err(Error::invalid("u", format!("has {ur} rows but x has {xr}")));
+    }
+    Ok(())
+}
+
 /// Runs CPU-bound work on the blocking pool so the async executor stays responsive.
 async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> Result<T> {
     tokio::task::spawn_blocking(f)
@@ -123,11 +133,7 @@ impl App {
     ) -> Result<(Vec<f64>, Option<Vec<f64>>)> {
         let (_, eval) = self.evaluator(id).await?;
         let (n, m) = (eval.config.n, eval.config.m);
-        let xr = rows("x", &x_shape, &x, 2 * n)?.rows;
-        let ur = rows("u", &u_shape, &u, m)?.rows;
-        if xr != ur {
-            return Err(Error::invalid("u", format!("has {ur} rows but x has {xr}")));
-        }
+        check_batch(&eval, (&x, &x_shape), (&u, &u_shape))?;
         blocking(move || {
             let mut next = Vec::with_capacity(x.len());
             let mut acc = want_accel.then(Vec::new);
@@ -153,11 +159,7 @@ impl App {
     ) -> Result<(Vec<f64>, Vec<f64>)> {
         let (_, eval) = self.evaluator(id).await?;
         let (n, m) = (eval.config.n, eval.config.m);
-        let xr = rows("x", &x_shape, &x, 2 * n)?.rows;
-        let ur = rows("u", &u_shape, &u, m)?.rows;
-        if xr != ur {
-            return Err(Error::invalid("u", format!("has {ur} rows but x has {xr}")));
-        }
+        check_batch(&eval, (&x, &x_shape), (&u, &u_shape))?;
         blocking(move || {
             let (mut a, mut b) = (Vec::new(), Vec::new());
             for (xi, ui) in x.chunks(2 * n).zip(u.chunks(m)) {
