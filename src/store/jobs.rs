@@ -152,7 +152,19 @@ pub enum Lease {
     Lost,
 }
 
-const FENCE: &str = "id = ? AND attempt = ? AND lease_owner = ? AND state = 'running'";
+/// Every worker write names the job, the attempt and the owner it claimed with: a worker whose
+/// lease expired (and whose job was reclaimed) can no longer write. Bind with [`fenced`].
+pub(super) const FENCE: &str = "id = ? AND attempt = ? AND lease_owner = ? AND state = 'running'";
+
+pub(super) type SqliteQuery<'q> =
+    sqlx::query::Query<'q, sqlx::Sqlite, <sqlx::Sqlite as sqlx::Database>::Arguments>;
+
+/// Binds the [`FENCE`] parameters after the statement's own.
+pub(super) fn fenced<'q>(q: SqliteQuery<'q>, c: &Claimed) -> SqliteQuery<'q> {
+    q.bind(c.job.id.clone())
+        .bind(c.attempt)
+        .bind(c.owner.clone())
+}
 
 impl Store {
     pub async fn submit_job(&self, new: NewJob) -> Result<Submitted> {
@@ -285,15 +297,15 @@ impl Store {
 
     pub async fn heartbeat(&self, c: &Claimed, lease_ms: i64) -> Result<Lease> {
         let now = now_ms();
-        let r = sqlx::query(sqlx::AssertSqlSafe(format!(
+        let r = fenced(
+        sqlx::query(sqlx::AssertSqlSafe(format!(
             "UPDATE jobs SET lease_expires_ms = ? + ?, heartbeat_ms = ? WHERE {FENCE} RETURNING cancel_requested"
         )))
         .bind(now)
         .bind(lease_ms)
-        .bind(now)
-        .bind(&c.job.id)
-        .bind(c.attempt)
-        .bind(&c.owner)
+        .bind(now),
+        c,
+    )
         .fetch_optional(&self.pool)
         .await?;
         Ok(match r {
@@ -313,16 +325,16 @@ impl Store {
         best_val_loss: Option<f64>,
     ) -> Result<bool> {
         let mut tx = self.write().await?;
-        let updated = sqlx::query(sqlx::AssertSqlSafe(format!(
+        let updated = fenced(
+        sqlx::query(sqlx::AssertSqlSafe(format!(
             "UPDATE jobs SET epoch = ?, train_loss = ?, val_loss = ?, best_val_loss = ? WHERE {FENCE}"
         )))
         .bind(m.epoch)
         .bind(m.train_loss)
         .bind(m.val_loss)
-        .bind(best_val_loss)
-        .bind(&c.job.id)
-        .bind(c.attempt)
-        .bind(&c.owner)
+        .bind(best_val_loss),
+        c,
+    )
         .execute(&mut *tx)
         .await?;
         if updated.rows_affected() == 0 {
@@ -348,13 +360,13 @@ impl Store {
     /// previous one); false when the lease was lost.
     pub async fn save_checkpoint(&self, c: &Claimed, epoch: i64, state: &[u8]) -> Result<bool> {
         let mut tx = self.write().await?;
-        let updated = sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE jobs SET checkpoint_epoch = ? WHERE {FENCE}"
-        )))
-        .bind(epoch)
-        .bind(&c.job.id)
-        .bind(c.attempt)
-        .bind(&c.owner)
+        let updated = fenced(
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "UPDATE jobs SET checkpoint_epoch = ? WHERE {FENCE}"
+            )))
+            .bind(epoch),
+            c,
+        )
         .execute(&mut *tx)
         .await?;
         if updated.rows_affected() == 0 {
@@ -392,16 +404,16 @@ impl Store {
     /// Ends a held job in a final state (with its error message, if any); false when the lease
     /// was lost.
     pub async fn end_job(&self, c: &Claimed, state: JobState, error: Option<&str>) -> Result<bool> {
-        let r = sqlx::query(sqlx::AssertSqlSafe(format!(
+        let r = fenced(
+        sqlx::query(sqlx::AssertSqlSafe(format!(
             "UPDATE jobs SET state = ?, error = ?, finished_at = ?, lease_owner = NULL, lease_expires_ms = NULL
              WHERE {FENCE}"
         )))
         .bind(state.as_str())
         .bind(error)
-        .bind(now_rfc3339())
-        .bind(&c.job.id)
-        .bind(c.attempt)
-        .bind(&c.owner)
+        .bind(now_rfc3339()),
+        c,
+    )
         .execute(&self.pool)
         .await?;
         Ok(r.rows_affected() == 1)
@@ -410,14 +422,14 @@ impl Store {
     /// Gives a held job back to the queue (graceful shutdown, or an infrastructure failure
     /// that may succeed on retry).
     pub async fn release_job(&self, c: &Claimed, infra_failure: bool) -> Result<bool> {
-        let r = sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL,
+        let r = fenced(
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL,
                 infra_failures = infra_failures + ? WHERE {FENCE}"
-        )))
-        .bind(infra_failure as i64)
-        .bind(&c.job.id)
-        .bind(c.attempt)
-        .bind(&c.owner)
+            )))
+            .bind(infra_failure as i64),
+            c,
+        )
         .execute(&self.pool)
         .await?;
         Ok(r.rows_affected() == 1)

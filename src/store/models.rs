@@ -4,7 +4,7 @@ use serde::Serialize;
 use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
 
-use super::jobs::Claimed;
+use super::jobs::{Claimed, FENCE, fenced};
 use super::{Store, new_id, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
 
@@ -63,16 +63,15 @@ impl Store {
     pub async fn finish_job(&self, c: &Claimed, m: NewModel<'_>) -> Result<Option<String>> {
         let mut tx = self.write().await?;
         let model_id = new_id("mdl");
-        let updated = sqlx::query(
-            "UPDATE jobs SET state = 'succeeded', model_id = ?, finished_at = ?, lease_owner = NULL,
-                lease_expires_ms = NULL
-             WHERE id = ? AND attempt = ? AND lease_owner = ? AND state = 'running'",
+        let updated = fenced(
+            sqlx::query(sqlx::AssertSqlSafe(format!(
+                "UPDATE jobs SET state = 'succeeded', model_id = ?, finished_at = ?, lease_owner = NULL,
+                    lease_expires_ms = NULL WHERE {FENCE}"
+            )))
+            .bind(&model_id)
+            .bind(now_rfc3339()),
+            c,
         )
-        .bind(&model_id)
-        .bind(now_rfc3339())
-        .bind(&c.job.id)
-        .bind(c.attempt)
-        .bind(&c.owner)
         .execute(&mut *tx)
         .await?;
         if updated.rows_affected() == 0 {
