@@ -60,19 +60,23 @@ fn build(spec: ModelSpec, n: usize, m: usize, dev: &Device) -> (Model, Evaluator
 }
 
 /// One RK4 step of every parameterization: the evaluator equals the Burn path to 1e-9
-/// (both are f64; they differ only in operation order and tanh's formula).
+/// (both are f64; they differ only in operation order and tanh's formula), one state at a
+/// time (the plain layer loop) and as one batch of 150 (packed GEMM, two threads).
 #[test]
 fn evaluator_matches_burn_for_every_parameterization() {
     let dev = f64_device();
     for (name, spec, n, m) in cases() {
         let (model, eval) = build(spec, n, m, &dev);
-        let (q, qd, u) = paper_samples(n, m, 16, 5);
+        let (q, qd, u) = paper_samples(n, m, 150, 5);
         let x: Vec<Vec<f64>> = q
             .iter()
             .zip(&qd)
             .map(|(a, b)| [a.clone(), b.clone()].concat())
             .collect();
         let burn = host(model.step(tensor(&x, &dev), tensor(&u, &dev)));
+        let (batched, _) = eval.predict(&x.concat(), &u.concat(), false);
+        let err = rel_err(&batched, &burn.concat());
+        assert!(err < 1e-9, "{name} batched: {err:e}");
         for i in 0..x.len() {
             let ours = eval.step(&x[i], &u[i]);
             let err = rel_err(&ours, &burn[i]);
@@ -135,6 +139,34 @@ fn linearize_matches_central_differences() {
                 rel_err(&b, &fd_b) < 1e-6,
                 "{name} B: {:e}",
                 rel_err(&b, &fd_b)
+            );
+        }
+    }
+}
+
+/// A batch of 100 linearizations (packed GEMM over 21 derivative blocks, two threads) equals
+/// the points one at a time (plain loops) to rounding: same math, different summation order.
+#[test]
+fn batched_linearize_equals_single_points() {
+    let dev = f64_device();
+    for (name, spec, n, m) in cases()
+        .into_iter()
+        .filter(|c| c.0.starts_with("MVF/") || c.0.starts_with("naive/d"))
+    {
+        let (_, eval) = build(spec, n, m, &dev);
+        let (q, qd, u) = paper_samples(n, m, 100, 4);
+        let x: Vec<f64> = (0..q.len())
+            .flat_map(|i| [q[i].clone(), qd[i].clone()].concat())
+            .collect();
+        let (a, b) = eval.linearize_batch(&x, &u.concat());
+        let (nx, mm) = (2 * n, m);
+        for i in 0..q.len() {
+            let (ai, bi) = eval.linearize(&x[i * nx..(i + 1) * nx], &u[i]);
+            let ea = rel_err(&a[i * nx * nx..(i + 1) * nx * nx], &ai);
+            let eb = rel_err(&b[i * nx * mm..(i + 1) * nx * mm], &bi);
+            assert!(
+                ea < 1e-12 && eb < 1e-12,
+                "{name} point {i}: A {ea:e}, B {eb:e}"
             );
         }
     }

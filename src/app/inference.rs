@@ -7,10 +7,8 @@ use std::sync::{Arc, Mutex};
 
 use super::App;
 use crate::control::linalg::Mat;
-use crate::control::tvlqr::tvlqr;
 use crate::error::{Error, Result};
-use crate::infer::Evaluator;
-use crate::store::ModelRow;
+use crate::infer::{Evaluator, finite_rows};
 use crate::train::artifact::ModelFile;
 
 #[derive(Default)]
@@ -19,6 +17,21 @@ pub struct ModelCache {
 }
 
 impl ModelCache {
+    fn get(&self, model_id: &str) -> Option<Arc<Evaluator>> {
+        self.loaded
+            .lock()
+            .expect("model cache lock")
+            .get(model_id)
+            .cloned()
+    }
+
+    fn insert(&self, model_id: &str, eval: Arc<Evaluator>) {
+        self.loaded
+            .lock()
+            .expect("model cache lock")
+            .insert(model_id.to_string(), eval);
+    }
+
     pub fn evict(&self, model_id: &str) {
         self.loaded
             .lock()
@@ -91,28 +104,23 @@ async fn blocking<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> 
 }
 
 impl App {
-    /// The evaluator of a model (or of the model a succeeded job produced), loaded once.
-    pub async fn evaluator(&self, id: &str) -> Result<(ModelRow, Arc<Evaluator>)> {
+    /// The evaluator of a model (or of the model a succeeded job produced), loaded once. A
+    /// cached model answers without touching the database: a control loop calls this at
+    /// hundreds of hertz, and a SQLite round trip was most of a one-state Predict.
+    pub async fn evaluator(&self, id: &str) -> Result<Arc<Evaluator>> {
+        if let Some(e) = self.models.get(id) {
+            return Ok(e);
+        }
         let row = self.resolve_model(id).await?;
-        if let Some(e) = self
-            .models
-            .loaded
-            .lock()
-            .expect("model cache lock")
-            .get(&row.id)
-        {
-            return Ok((row, e.clone()));
+        if let Some(e) = self.models.get(&row.id) {
+            return Ok(e);
         }
         let bytes = self.model_file(&row.id).await?;
         let eval = Arc::new(
             blocking(move || Evaluator::from_file(&ModelFile::from_bytes(&bytes)?)).await??,
         );
-        self.models
-            .loaded
-            .lock()
-            .expect("model cache lock")
-            .insert(row.id.clone(), eval.clone());
-        Ok((row, eval))
+        self.models.insert(&row.id, eval.clone());
+        Ok(eval)
     }
 
     pub async fn delete_model(&self, id: &str) -> Result<()> {
@@ -131,21 +139,11 @@ impl App {
         u_shape: Vec<u64>,
         want_accel: bool,
     ) -> Result<(Vec<f64>, Option<Vec<f64>>)> {
-        let (_, eval) = self.evaluator(id).await?;
-        let (n, m) = (eval.config.n, eval.config.m);
+        let eval = self.evaluator(id).await?;
         check_batch(&eval, (&x, &x_shape), (&u, &u_shape))?;
-        blocking(move || {
-            let mut next = Vec::with_capacity(x.len());
-            let mut acc = want_accel.then(Vec::new);
-            for (xi, ui) in x.chunks(2 * n).zip(u.chunks(m)) {
-                next.extend(eval.step(xi, ui));
-                if let Some(a) = acc.as_mut() {
-                    a.extend(eval.accel(&xi[..n], &xi[n..], ui));
-                }
-            }
-            (next, acc)
-        })
-        .await
+        let (next, acc) = blocking(move || eval.predict(&x, &u, want_accel)).await?;
+        finite_rows("x", "next state", &next, x_shape[1] as usize)?;
+        Ok((next, acc))
     }
 
     /// A and B for a batch, row-major `[B, 2n, 2n]` and `[B, 2n, m]`.
@@ -157,19 +155,13 @@ impl App {
         u: Vec<f64>,
         u_shape: Vec<u64>,
     ) -> Result<(Vec<f64>, Vec<f64>)> {
-        let (_, eval) = self.evaluator(id).await?;
-        let (n, m) = (eval.config.n, eval.config.m);
+        let eval = self.evaluator(id).await?;
         check_batch(&eval, (&x, &x_shape), (&u, &u_shape))?;
-        blocking(move || {
-            let (mut a, mut b) = (Vec::new(), Vec::new());
-            for (xi, ui) in x.chunks(2 * n).zip(u.chunks(m)) {
-                let (ai, bi) = eval.linearize(xi, ui);
-                a.extend(ai);
-                b.extend(bi);
-            }
-            (a, b)
-        })
-        .await
+        let nx = x_shape[1] as usize;
+        let (a, b) = blocking(move || eval.linearize_batch(&x, &u)).await?;
+        finite_rows("x", "linearization", &a, nx * nx)?;
+        finite_rows("x", "linearization", &b, nx * u_shape[1] as usize)?;
+        Ok((a, b))
     }
 
     /// TVLQR gains along a nominal (x̄, ū); defects are ignored.
@@ -183,7 +175,7 @@ impl App {
         r: (Vec<f64>, Vec<u64>),
         qf: (Vec<f64>, Vec<u64>),
     ) -> Result<(Vec<f64>, Vec<f64>)> {
-        let (_, eval) = self.evaluator(id).await?;
+        let eval = self.evaluator(id).await?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
         let t_x = rows("x_bar", &xbar.1, &xbar.0, nx)?.rows;
         let t_u = rows("u_bar", &ubar.1, &ubar.0, m)?.rows;
@@ -208,14 +200,7 @@ impl App {
             square("Qf", &qf.1, &qf.0, nx)?,
         );
         blocking(move || {
-            let (mut a, mut b) = (Vec::with_capacity(t_u), Vec::with_capacity(t_u));
-            for t in 0..t_u {
-                let (at, bt) =
-                    eval.linearize(&xbar.0[t * nx..(t + 1) * nx], &ubar.0[t * m..(t + 1) * m]);
-                a.push(Mat::new(nx, nx, at));
-                b.push(Mat::new(nx, m, bt));
-            }
-            let g = tvlqr(&a, &b, &qm, &rm, &qfm)?;
+            let g = eval.tvlqr(&xbar.0, &ubar.0, &qm, &rm, &qfm)?;
             Ok((
                 g.k.into_iter().flat_map(|k| k.data).collect(),
                 g.s.into_iter().flat_map(|s| s.data).collect(),

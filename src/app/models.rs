@@ -15,6 +15,9 @@ impl App {
     /// A model by its id, or by the id of the job that trained it (gRPC callers may name
     /// either); a job that has not succeeded is a failed precondition.
     pub async fn resolve_model(&self, id: &str) -> Result<ModelRow> {
+        if id.is_empty() {
+            return Err(Error::invalid("model_id", "is required"));
+        }
         if let Some(m) = self.store.get_model(id).await? {
             return Ok(m);
         }

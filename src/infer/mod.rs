@@ -5,8 +5,14 @@
 //!
 //! Weights come from the model file (Burn's layout: Linear weights `[in, out]`).
 
+pub mod jet;
+
 use std::collections::HashMap;
 
+use jet::Jet;
+
+use crate::control::linalg::Mat;
+use crate::control::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
 use crate::model::dual::Dual;
@@ -46,31 +52,105 @@ impl Mlp64 {
         Ok((!layers.is_empty()).then_some(Self { layers }))
     }
 
-    /// y = W_L tanh(… tanh(W_1 x + b_1) …) + b_L over any scalar (dual numbers carry input
-    /// derivatives through, as the Burn path's Jacobian recursion does).
-    pub fn forward<S: Scalar>(&self, x: &[S]) -> Vec<S> {
+    /// The network on a batch with derivatives (see [`jet`]): one matrix product per layer.
+    pub fn jet(&self, mut x: Jet) -> Jet {
         let last = self.layers.len() - 1;
-        let mut h: Vec<S> = x.to_vec();
-        for (l, (d_in, d_out, w, b)) in self.layers.iter().enumerate() {
-            debug_assert_eq!(h.len(), *d_in);
-            let z: Vec<S> = (0..*d_out)
-                .map(|j| {
-                    let s = (0..*d_in)
-                        .map(|i| h[i].scale(w[i * d_out + j]))
-                        .reduce(|a, b| a + b)
-                        .expect("a layer has inputs");
-                    s.shift(b[j])
-                })
-                .collect();
-            h = if l == last {
-                z
-            } else {
-                z.iter().map(Scalar::tanh).collect()
-            };
+        for (l, (_, d_out, w, b)) in self.layers.iter().enumerate() {
+            x = x.linear(w, b, *d_out);
+            if l != last {
+                x.tanh();
+            }
         }
-        h
+        x
     }
 }
+
+/// The scalars the evaluator runs on: f64 (Predict, Rollout) or f64 dual numbers whose
+/// tangents are the directions a linearization differentiates in.
+pub trait Lane: Scalar {
+    fn dirs(&self) -> usize;
+    fn value(&self) -> f64;
+    fn tangent_at(&self, j: usize) -> f64;
+    fn from_parts(v: f64, tangents: &[f64]) -> Self;
+}
+
+impl Lane for f64 {
+    fn dirs(&self) -> usize {
+        0
+    }
+    fn value(&self) -> f64 {
+        *self
+    }
+    fn tangent_at(&self, _: usize) -> f64 {
+        0.0
+    }
+    fn from_parts(v: f64, _: &[f64]) -> Self {
+        v
+    }
+}
+
+impl Lane for Dual<f64> {
+    fn dirs(&self) -> usize {
+        self.d.len()
+    }
+    fn value(&self) -> f64 {
+        self.v
+    }
+    fn tangent_at(&self, j: usize) -> f64 {
+        self.tangent(j).copied().unwrap_or(0.0)
+    }
+    fn from_parts(v: f64, tangents: &[f64]) -> Self {
+        Dual::new(v, tangents.iter().map(|&t| Some(t)))
+    }
+}
+
+/// A batch's network inputs as a jet: values and outer tangents from the lanes; with
+/// `inner_scale`, input k also gets the inner tangent ∂x_k/∂q_k = inner_scale[k].
+fn input_jet<S: Lane>(rows: &[Vec<S>], inner_scale: Option<&[f64]>, outer: usize) -> Jet {
+    let width = rows[0].len();
+    let inner = inner_scale.map_or(0, <[f64]>::len);
+    let mut jet = Jet::zeros(rows.len(), width, inner, outer);
+    for (b, row) in rows.iter().enumerate() {
+        for (j, x) in row.iter().enumerate() {
+            jet.set(0, 0, b, j, x.value());
+            for o in 1..=outer {
+                jet.set(o, 0, b, j, x.tangent_at(o - 1));
+            }
+        }
+        for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
+            jet.set(0, k + 1, b, k, s);
+        }
+    }
+    jet
+}
+
+/// Output j of sample b as a lane (values and outer tangents).
+fn lane_at<S: Lane>(jet: &Jet, i: usize, b: usize, j: usize) -> S {
+    let t: Vec<f64> = (1..=jet.outer).map(|o| jet.at(o, i, b, j)).collect();
+    S::from_parts(jet.at(0, i, b, j), &t)
+}
+
+/// Output j of sample b as a dual number over q (inner tangents), each part a lane.
+fn dual_at<S: Lane>(jet: &Jet, b: usize, j: usize) -> Dual<S> {
+    Dual::new(
+        lane_at(jet, 0, b, j),
+        (1..=jet.inner).map(|i| Some(lane_at(jet, i, b, j))),
+    )
+}
+
+/// A structured spec's three parts.
+type Parts<'a> = (&'a MassSpec, &'a PotentialSpec, &'a ForceSpec);
+
+/// Network outputs of one batch, computed before the per-sample structure.
+struct NetOutputs {
+    mass: Option<Jet>,
+    potential: Option<Jet>,
+    force: Option<Jet>,
+}
+
+/// Batches at least this large run on two threads (a thread costs ~20 µs; a 64-state step
+/// ~1 ms).
+const PARALLEL_ROWS: usize = 64;
 
 /// A trained model ready for f64 inference.
 #[derive(Debug, Clone)]
@@ -134,20 +214,38 @@ impl Evaluator {
             .collect()
     }
 
-    /// q̈ for one sample.
-    pub fn accel<S: Scalar>(&self, q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
-        let s = &self.config.scaling;
-        let standardize = |x: &[S], mean: &[f64], std: &[f64]| -> Vec<S> {
-            x.iter()
-                .zip(mean.iter().zip(std))
-                .map(|(x, (m, sd))| x.shift(-m).scale(1.0 / sd))
+    /// q̈ for a batch: q `[B, n]`, q̇ `[B, n]`, u `[B, m]`, flat. The networks run once over the
+    /// whole batch (matrix products); the structure (Cholesky factor, Coriolis term, solve)
+    /// then runs per sample on the networks' outputs.
+    pub fn accel_batch<S: Lane>(&self, q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        let (n, m) = (self.config.n, self.config.m);
+        let batch = q.len() / n;
+        let sc = &self.config.scaling;
+        let outer = q
+            .iter()
+            .chain(qd)
+            .chain(u)
+            .map(Lane::dirs)
+            .max()
+            .unwrap_or(0);
+        let q_rows = || -> Vec<Vec<S>> {
+            q.chunks(n)
+                .map(|q| standardize(q, &sc.q_mean, &sc.q_std))
                 .collect()
         };
-        let full_input = || -> Vec<S> {
-            let mut v = standardize(q, &s.q_mean, &s.q_std);
-            v.extend(standardize(qd, &s.qdot_mean, &s.qdot_std));
-            v.extend(standardize(u, &s.u_mean, &s.u_std));
-            v
+        let full_rows = || -> Vec<Vec<S>> {
+            (0..batch)
+                .map(|b| {
+                    let mut v = standardize(&q[b * n..(b + 1) * n], &sc.q_mean, &sc.q_std);
+                    v.extend(standardize(
+                        &qd[b * n..(b + 1) * n],
+                        &sc.qdot_mean,
+                        &sc.qdot_std,
+                    ));
+                    v.extend(standardize(&u[b * m..(b + 1) * m], &sc.u_mean, &sc.u_std));
+                    v
+                })
+                .collect()
         };
         let ModelSpec::Structured {
             mass,
@@ -156,19 +254,61 @@ impl Evaluator {
             ..
         } = &self.config.spec
         else {
-            let out = self
-                .naive
-                .as_ref()
-                .expect("naive net")
-                .forward(&full_input());
-            return out
-                .iter()
-                .zip(s.acc_std.iter().zip(&s.acc_mean))
-                .map(|(y, (sd, m))| y.scale(*sd).shift(*m))
+            let out = net(&self.naive).jet(input_jet(&full_rows(), None, outer));
+            return (0..batch)
+                .flat_map(|b| {
+                    let out = &out;
+                    (0..n).map(move |j| {
+                        lane_at::<S>(out, 0, b, j)
+                            .scale(sc.acc_std[j])
+                            .shift(sc.acc_mean[j])
+                    })
+                })
                 .collect();
         };
-        let n = q.len();
-        // q as dual variables for the parts that need ∂/∂q (M and V).
+        let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
+        let q_jet = |inner: bool| input_jet(&q_rows(), inner.then_some(&inv_std[..]), outer);
+        let nets = NetOutputs {
+            mass: matches!(mass, MassSpec::Mlp { .. })
+                .then(|| net(&self.mass_net).jet(q_jet(true))),
+            potential: matches!(potential, PotentialSpec::Mlp { .. })
+                .then(|| net(&self.potential_net).jet(q_jet(true))),
+            force: match forces {
+                ForceSpec::Mlp { .. } => {
+                    Some(net(&self.force_net).jet(input_jet(&full_rows(), None, outer)))
+                }
+                ForceSpec::ControlAffine { .. } => Some(net(&self.b_net).jet(q_jet(false))),
+                _ => None,
+            },
+        };
+        (0..batch)
+            .flat_map(|b| {
+                let (qb, qdb, ub) = (
+                    &q[b * n..(b + 1) * n],
+                    &qd[b * n..(b + 1) * n],
+                    &u[b * m..(b + 1) * m],
+                );
+                self.structure((mass, potential, forces), &nets, b, qb, qdb, ub)
+            })
+            .collect()
+    }
+
+    /// q̈ of sample b from the networks' outputs: M = LLᵀ, ∇V, F, then the manipulator
+    /// equation (the same generic code the Burn path trains with).
+    fn structure<S: Lane>(
+        &self,
+        parts: Parts,
+        nets: &NetOutputs,
+        b: usize,
+        q: &[S],
+        qd: &[S],
+        u: &[S],
+    ) -> Vec<S> {
+        let (mass, potential, forces) = parts;
+        let s = &self.config.scaling;
+        let (n, m) = (q.len(), u.len());
+        let zero = q[0].lift(0.0);
+        // q as dual variables for the template parts that need ∂/∂q.
         let qv: Vec<Dual<S>> = q
             .iter()
             .enumerate()
@@ -176,8 +316,8 @@ impl Evaluator {
             .collect();
         let l: Tri<Dual<S>> = match mass {
             MassSpec::Mlp { .. } => {
-                let x = standardize_dual(&qv, &s.q_mean, &s.q_std);
-                factor_from_outputs(self.mass_net.as_ref().expect("mass net").forward(&x), n)
+                let out = nets.mass.as_ref().expect("mass outputs");
+                factor_from_outputs((0..out.width).map(|j| dual_at(out, b, j)).collect(), n)
             }
             MassSpec::Constant => {
                 let raw = self.mass_const.as_ref().expect("constant mass");
@@ -191,32 +331,20 @@ impl Evaluator {
                 crate::model::dynamics::cholesky(&self.template().mass(&p, &qv))
             }
         };
-        let tangent =
-            |v: &Dual<S>, k: usize| v.tangent(k).cloned().unwrap_or_else(|| q[0].lift(0.0));
+        let tangent = |v: &Dual<S>, k: usize| v.tangent(k).cloned().unwrap_or_else(|| zero.clone());
         let grad_v: Option<Vec<S>> = match potential {
             PotentialSpec::Zero => None,
             PotentialSpec::Mlp { .. } => {
-                let x = standardize_dual(&qv, &s.q_mean, &s.q_std);
-                let v = &self
-                    .potential_net
-                    .as_ref()
-                    .expect("potential net")
-                    .forward(&x)[0];
+                let v = dual_at(nets.potential.as_ref().expect("potential outputs"), b, 0);
                 Some(
                     (0..n)
-                        .map(|k| tangent(v, k).scale(s.potential_scale()))
+                        .map(|k| tangent(&v, k).scale(s.potential_scale()))
                         .collect(),
                 )
             }
             PotentialSpec::Quadratic => {
                 let k = self.potential_quad.as_ref().expect("quadratic potential");
-                let kij = |i: usize, j: usize| {
-                    if j <= i {
-                        k[Tri::<()>::index(i, j)]
-                    } else {
-                        k[Tri::<()>::index(j, i)]
-                    }
-                };
+                let kij = |i: usize, j: usize| k[Tri::<()>::index(i.max(j), i.min(j))];
                 Some(
                     (0..n)
                         .map(|i| {
@@ -235,7 +363,6 @@ impl Evaluator {
                 Some((0..n).map(|k| tangent(&v, k)).collect())
             }
         };
-        let m = u.len();
         let affine = |b: Vec<S>, eta: &[f64]| -> Vec<S> {
             (0..n)
                 .map(|i| {
@@ -250,77 +377,195 @@ impl Evaluator {
         let b_scale = |i: usize, j: usize| s.force_scale[i] / s.u_std[j];
         let f: Vec<S> = match forces {
             ForceSpec::Mlp { .. } => {
-                let out = self
-                    .force_net
-                    .as_ref()
-                    .expect("force net")
-                    .forward(&full_input());
-                out.iter()
-                    .zip(&s.force_scale)
-                    .map(|(y, fs)| y.scale(*fs))
+                let out = nets.force.as_ref().expect("force outputs");
+                (0..n)
+                    .map(|j| lane_at::<S>(out, 0, b, j).scale(s.force_scale[j]))
                     .collect()
             }
             ForceSpec::ControlAffine { .. } => {
-                let x = standardize(q, &s.q_mean, &s.q_std);
-                let raw = self.b_net.as_ref().expect("B net").forward(&x);
-                let b = raw
-                    .iter()
-                    .enumerate()
-                    .map(|(k, v)| v.scale(b_scale(k / m, k % m)))
+                let out = nets.force.as_ref().expect("B outputs");
+                let bm = (0..n * m)
+                    .map(|k| lane_at::<S>(out, 0, b, k).scale(b_scale(k / m, k % m)))
                     .collect();
-                affine(b, self.eta.as_ref().expect("eta"))
+                affine(bm, self.eta.as_ref().expect("eta"))
             }
             ForceSpec::ConstantAffine => {
                 let raw = self.b_const.as_ref().expect("constant B");
-                let b = raw
+                let bm = raw
                     .iter()
                     .enumerate()
                     .map(|(k, &v)| q[0].lift(v * b_scale(k / m, k % m)))
                     .collect();
-                affine(b, self.eta.as_ref().expect("eta"))
+                affine(bm, self.eta.as_ref().expect("eta"))
             }
             ForceSpec::Template => self.template().forces(&self.phys(&q[0]), q, qd, u),
         };
         acceleration(&l, grad_v, f, qd)
     }
 
-    /// One step of the model's integrator: x = [q, q̇] → x'.
-    pub fn step<S: Scalar>(&self, x: &[S], u: &[S]) -> Vec<S> {
+    /// q̈ for one sample.
+    pub fn accel<S: Lane>(&self, q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        self.accel_batch(q, qd, u)
+    }
+
+    /// One step of the model's integrator for a batch: x `[B, 2n]`, u `[B, m]` → x'.
+    pub fn step_batch<S: Lane>(&self, x: &[S], u: &[S]) -> Vec<S> {
         let n = self.config.n;
         self.config
             .integrator
             .step(&x.to_vec(), self.config.dt, |x: &Vec<S>| {
-                let (q, qd) = x.split_at(n);
-                let qdd = self.accel(q, qd, u);
-                qd.iter().cloned().chain(qdd).collect()
+                let (q, qd): (Vec<S>, Vec<S>) = x
+                    .chunks(2 * n)
+                    .flat_map(|r| (0..n).map(move |i| (r[i].clone(), r[n + i].clone())))
+                    .unzip();
+                let qdd = self.accel_batch(&q, &qd, u);
+                qd.chunks(n)
+                    .zip(qdd.chunks(n))
+                    .flat_map(|(a, b)| a.iter().chain(b).cloned())
+                    .collect()
             })
+    }
+
+    /// One step for one sample: x = [q, q̇] → x'.
+    pub fn step<S: Lane>(&self, x: &[S], u: &[S]) -> Vec<S> {
+        self.step_batch(x, u)
     }
 
     /// The one-step map's Jacobians A = ∂x'/∂x (2n×2n) and B = ∂x'/∂u (2n×m), row-major,
     /// exact through dual numbers (second derivatives of M and V included).
     pub fn linearize(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let (nx, m) = (x.len(), u.len());
-        let dirs = nx + m;
-        let var = |v: f64, k: usize| Dual::variable(v, k, dirs, 1.0);
-        let xd: Vec<Dual<f64>> = x.iter().enumerate().map(|(k, &v)| var(v, k)).collect();
-        let ud: Vec<Dual<f64>> = u.iter().enumerate().map(|(k, &v)| var(v, nx + k)).collect();
-        let next = self.step(&xd, &ud);
-        let d = |y: &Dual<f64>, k: usize| y.tangent(k).copied().unwrap_or(0.0);
-        let a = next
-            .iter()
-            .flat_map(|y| (0..nx).map(move |k| d(y, k)))
-            .collect();
-        let b = next
-            .iter()
-            .flat_map(|y| (nx..dirs).map(move |k| d(y, k)))
-            .collect();
-        (a, b)
+        self.linearize_batch(x, u)
     }
 }
 
-fn standardize_dual<S: Scalar>(x: &[Dual<S>], mean: &[f64], std: &[f64]) -> Vec<Dual<S>> {
+/// A model can leave its range (states far outside the training data, huge inputs): its
+/// outputs are then not finite, which a controller must hear as an error, not as numbers.
+pub fn finite_rows(field: &str, what: &str, out: &[f64], width: usize) -> Result<()> {
+    match out.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(Error::invalid(
+            field,
+            format!(
+                "the model's {what} at row {} is not finite: the input is outside what the model can evaluate",
+                i / width.max(1)
+            ),
+        )),
+    }
+}
+
+fn net(n: &Option<Mlp64>) -> &Mlp64 {
+    n.as_ref().expect("the spec's network is in the model file")
+}
+
+fn standardize<S: Scalar>(x: &[S], mean: &[f64], std: &[f64]) -> Vec<S> {
     x.iter()
         .zip(mean.iter().zip(std))
         .map(|(x, (m, sd))| x.shift(-m).scale(1.0 / sd))
         .collect()
+}
+
+/// Batched entry points over row-major arrays: what the service and the benchmarks call.
+impl Evaluator {
+    /// x' (and q̈ when asked) for `[B, 2n]` states and `[B, m]` inputs.
+    pub fn predict(&self, x: &[f64], u: &[f64], want_accel: bool) -> (Vec<f64>, Option<Vec<f64>>) {
+        let n = self.config.n;
+        let next = self.split(x, u, |x, u| self.step_batch(x, u));
+        let acc = want_accel.then(|| {
+            self.split(x, u, |x, u| {
+                let (q, qd): (Vec<f64>, Vec<f64>) = x
+                    .chunks(2 * n)
+                    .flat_map(|r| (0..n).map(move |i| (r[i], r[n + i])))
+                    .unzip();
+                self.accel_batch(&q, &qd, u)
+            })
+        });
+        (next, acc)
+    }
+
+    /// A `[B, 2n, 2n]` and B `[B, 2n, m]` for a batch: every sample's state and input are
+    /// dual variables (its own 2n + m directions), pushed through one batched step.
+    pub fn linearize_batch(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let dirs = nx + m;
+        let both = self.split(x, u, |x, u| {
+            let var = |v: f64, k: usize| Dual::variable(v, k, dirs, 1.0);
+            let xd: Vec<Dual<f64>> = x.iter().enumerate().map(|(k, &v)| var(v, k % nx)).collect();
+            let ud: Vec<Dual<f64>> = u
+                .iter()
+                .enumerate()
+                .map(|(k, &v)| var(v, nx + k % m))
+                .collect();
+            self.step_batch(&xd, &ud)
+                .iter()
+                .flat_map(|y| (0..dirs).map(|k| y.tangent_at(k)))
+                .collect()
+        });
+        let (mut a, mut b) = (Vec::with_capacity(both.len()), Vec::new());
+        for row in both.chunks(dirs) {
+            a.extend(&row[..nx]);
+            b.extend(&row[nx..]);
+        }
+        (a, b)
+    }
+
+    /// Runs `f` over a batch, in two halves on two threads when the batch is large enough
+    /// for the thread to pay off; results are concatenated in order.
+    fn split(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        f: impl Fn(&[f64], &[f64]) -> Vec<f64> + Sync,
+    ) -> Vec<f64> {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let rows = x.len() / nx;
+        if rows < PARALLEL_ROWS {
+            return f(x, u);
+        }
+        let half = rows / 2;
+        let (x0, x1) = x.split_at(half * nx);
+        let (u0, u1) = u.split_at(half * m);
+        std::thread::scope(|s| {
+            let second = s.spawn(|| f(x1, u1));
+            let mut out = f(x0, u0);
+            out.extend(second.join().expect("inference thread"));
+            out
+        })
+    }
+
+    /// TVLQR gains along a nominal `x̄ [(T+1), 2n]`, `ū [T, m]` (defects ignored).
+    pub fn tvlqr(&self, xbar: &[f64], ubar: &[f64], q: &Mat, r: &Mat, qf: &Mat) -> Result<Gains> {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let t = ubar.len() / m;
+        let (a, b) = self.linearize_batch(&xbar[..t * nx], ubar);
+        finite_rows("x_bar", "linearization", &a, nx * nx)?;
+        finite_rows("x_bar", "linearization", &b, nx * m)?;
+        let a: Vec<Mat> = a
+            .chunks(nx * nx)
+            .map(|a| Mat::new(nx, nx, a.to_vec()))
+            .collect();
+        let b: Vec<Mat> = b
+            .chunks(nx * m)
+            .map(|b| Mat::new(nx, m, b.to_vec()))
+            .collect();
+        tvlqr(&a, &b, q, r, qf)
+    }
+
+    /// `steps` states after x0 under inputs `u_t = input(t, x_t)`, each handed to `emit`
+    /// (state, input) as computed; `emit` returning false stops the rollout early.
+    pub fn rollout(
+        &self,
+        x0: &[f64],
+        steps: usize,
+        input: impl Fn(usize, &[f64]) -> Vec<f64>,
+        mut emit: impl FnMut(&[f64], &[f64]) -> bool,
+    ) {
+        let mut x = x0.to_vec();
+        for t in 0..steps {
+            let u = input(t, &x);
+            x = self.step(&x, &u);
+            if !emit(&x, &u) {
+                return;
+            }
+        }
+    }
 }

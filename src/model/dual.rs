@@ -6,27 +6,39 @@
 //! `Dual<Dual<f64>>` gives second derivatives (hyper-dual numbers).
 
 use super::scalar::Scalar;
+use smallvec::SmallVec;
 use std::ops::{Add, Div, Mul, Neg, Sub};
+
+/// Tangents stored inline up to four directions (n ≤ 4 covers the templates' coordinates):
+/// the f64 evaluator creates millions of these, and a heap allocation each was most of its
+/// time after the networks.
+pub type Tangents<S> = SmallVec<[Option<S>; 8]>;
 
 #[derive(Debug, Clone)]
 pub struct Dual<S> {
     pub v: S,
     /// ∂v/∂x_k for each direction k; `None` (or beyond the end) means zero.
-    pub d: Vec<Option<S>>,
+    pub d: Tangents<S>,
 }
 
 impl<S: Scalar> Dual<S> {
     pub fn constant(v: S) -> Self {
-        Self { v, d: Vec::new() }
+        Self {
+            v,
+            d: Tangents::new(),
+        }
     }
 
-    pub fn new(v: S, d: Vec<Option<S>>) -> Self {
-        Self { v, d }
+    pub fn new(v: S, d: impl IntoIterator<Item = Option<S>>) -> Self {
+        Self {
+            v,
+            d: d.into_iter().collect(),
+        }
     }
 
     /// The input variable number `k` of `n`, with tangent `seed` (1 in direction k).
     pub fn variable(v: S, k: usize, n: usize, seed: S) -> Self {
-        let mut d = vec![None; n];
+        let mut d: Tangents<S> = std::iter::repeat_n(None, n).collect();
         d[k] = Some(seed);
         Self { v, d }
     }
@@ -54,7 +66,7 @@ fn zip_tangents<S: Clone>(
     a: &[Option<S>],
     b: &[Option<S>],
     f: impl Fn(Option<&S>, Option<&S>) -> Option<S>,
-) -> Vec<Option<S>> {
+) -> Tangents<S> {
     let n = a.len().max(b.len());
     (0..n)
         .map(|k| {

@@ -50,9 +50,7 @@ pub fn dual_columns(y: Tensor<2>, jac: Tensor<3>) -> Vec<Dual<Tensor<2>>> {
     let jflat = jac.reshape([batch, n * k]);
     (0..k)
         .map(|j| {
-            let d = (0..n)
-                .map(|i| Some(jflat.clone().narrow(1, i * k + j, 1)))
-                .collect();
+            let d = (0..n).map(|i| Some(jflat.clone().narrow(1, i * k + j, 1)));
             Dual::new(y.clone().narrow(1, j, 1), d)
         })
         .collect()

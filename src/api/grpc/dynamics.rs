@@ -66,7 +66,7 @@ impl Dynamics for DynamicsService {
     ) -> Result<Response<Self::RolloutStream>, Status> {
         let until = deadline(&req);
         let r = req.into_inner();
-        let (_, eval) = self.app.evaluator(&r.model_id).await?;
+        let eval = self.app.evaluator(&r.model_id).await?;
         let (n, m) = (eval.config.n, eval.config.m);
         let nx = 2 * n;
         if r.x0.len() != nx || r.x0.iter().any(|v| !v.is_finite()) {
@@ -120,22 +120,10 @@ impl Dynamics for DynamicsService {
         let (tx, rx) = tokio::sync::mpsc::channel(4);
         let telemetry = self.app.telemetry.clone();
         let id = r.id;
-        let mut x = r.x0;
+        let x0 = r.x0;
         tokio::task::spawn_blocking(move || {
-            let mut start = 0usize;
-            let mut states = x.clone();
-            let mut applied: Vec<f64> = Vec::new();
-            for t in 0..steps {
-                if until.is_some_and(|d| Instant::now() > d) || tx.is_closed() {
-                    telemetry
-                        .computations_stopped
-                        .fetch_add(1, Ordering::Relaxed);
-                    let _ = tx.blocking_send(Err(Status::deadline_exceeded(
-                        "the rollout passed its deadline",
-                    )));
-                    return;
-                }
-                let u: Vec<f64> = match &inputs {
+            let input = |t: usize, x: &[f64]| -> Vec<f64> {
+                match &inputs {
                     Inputs::Open(u) => u[t * m..(t + 1) * m].to_vec(),
                     Inputs::Policy { xbar, ubar, k } => (0..m)
                         .map(|i| {
@@ -145,12 +133,35 @@ impl Dynamics for DynamicsService {
                             ubar[t * m + i] - kx
                         })
                         .collect(),
-                };
-                x = eval.step(&x, &u);
-                applied.extend(&u);
-                states.extend(&x);
-                let full = states.len() / nx >= chunk;
-                if full || t + 1 == steps {
+                }
+            };
+            let stopped = || {
+                telemetry
+                    .computations_stopped
+                    .fetch_add(1, Ordering::Relaxed)
+            };
+            let (mut start, mut done) = (0usize, 0usize);
+            let mut states = x0.clone();
+            let mut applied: Vec<f64> = Vec::new();
+            eval.rollout(&x0, steps, input, |x, u| {
+                if until.is_some_and(|d| Instant::now() > d) || tx.is_closed() {
+                    stopped();
+                    let _ = tx.blocking_send(Err(Status::deadline_exceeded(
+                        "the rollout passed its deadline",
+                    )));
+                    return false;
+                }
+                if x.iter().any(|v| !v.is_finite()) {
+                    let _ = tx.blocking_send(Err(Status::invalid_argument(format!(
+                        "the state became non-finite at step {}: the trajectory left what the model can evaluate",
+                        done + 1
+                    ))));
+                    return false;
+                }
+                states.extend(x);
+                applied.extend(u);
+                done += 1;
+                if states.len() / nx >= chunk || done == steps {
                     let c = states.len() / nx;
                     let cu = applied.len() / m;
                     let msg = pb::RolloutChunk {
@@ -160,14 +171,13 @@ impl Dynamics for DynamicsService {
                         u: Some(array(&[cu, m], std::mem::take(&mut applied))),
                     };
                     if tx.blocking_send(Ok(msg)).is_err() {
-                        telemetry
-                            .computations_stopped
-                            .fetch_add(1, Ordering::Relaxed);
-                        return;
+                        stopped();
+                        return false;
                     }
                     start += c;
                 }
-            }
+                true
+            });
         });
         Ok(Response::new(ReceiverStream::new(rx)))
     }

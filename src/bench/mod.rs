@@ -1,5 +1,7 @@
 //! `graybox bench …`: the figures the issues ask for, printed as JSON lines on stdout.
 
+mod infer;
+
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
@@ -20,6 +22,9 @@ pub enum BenchCommand {
     Train(BenchTrainArgs),
     /// Where one training step's time goes: forward, backward, optimizer (milliseconds).
     Step(BenchStepArgs),
+    /// Inference latency for controllers (double pendulum MVF 3×32): in process and as gRPC
+    /// round trips on loopback, idle and with 64 concurrent clients while a job trains.
+    Infer(infer::BenchInferArgs),
 }
 
 #[derive(Args, Debug)]
@@ -69,6 +74,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Train(a) => bench_train(a),
         BenchCommand::Step(a) => bench_step(a),
+        BenchCommand::Infer(a) => infer::run(a),
     }
 }
 

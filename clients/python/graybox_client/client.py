@@ -1,0 +1,201 @@
+"""A thin numpy front end over the graybox.v1.Dynamics stubs.
+
+The client converts arrays and errors and nothing else: shapes, finiteness and the LQR
+weights are validated by the server, which names the offending field, so a bad request
+reaches it and comes back as a GrayboxError with the server's status code and message.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Any, Iterator, Optional, Sequence
+
+import grpc
+import numpy as np
+
+from ._pb import dynamics_pb2 as pb
+from ._pb import dynamics_pb2_grpc as pb_grpc
+
+
+class GrayboxError(Exception):
+    """A failed call: `code` is the gRPC status name (e.g. "INVALID_ARGUMENT"), `message`
+    the server's explanation."""
+
+    def __init__(self, code: str, message: str):
+        super().__init__(f"{code}: {message}")
+        self.code = code
+        self.message = message
+
+
+@dataclass
+class ModelInfo:
+    """A trained model as GetModel and ListModels describe it; `spec` and `metrics` are the
+    server's JSON, parsed."""
+
+    id: str
+    job_id: str
+    name: str
+    n: int
+    m: int
+    dt: float
+    spec: dict
+    metrics: dict
+    created_at: str
+
+
+def to_array(a: Any) -> pb.Array:
+    """A float64 array in C order as Array{shape, data}."""
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    return pb.Array(shape=a.shape, data=a.ravel().tolist())
+
+
+def from_array(a: pb.Array) -> np.ndarray:
+    return np.asarray(a.data, dtype=np.float64).reshape(tuple(a.shape))
+
+
+def _model_info(m: pb.ModelInfo) -> ModelInfo:
+    # The JSON fields are parsed here so that callers get plain dicts, not strings.
+    return ModelInfo(
+        id=m.id, job_id=m.job_id, name=m.name, n=m.n, m=m.m, dt=m.dt,
+        spec=json.loads(m.spec_json) if m.spec_json else {},
+        metrics=json.loads(m.metrics_json) if m.metrics_json else {},
+        created_at=m.created_at,
+    )
+
+
+def _batch(x: Any, u: Any) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(x, u) as [B, ·] arrays and whether the caller gave a single point ([2n] and [m])."""
+    x = np.asarray(x, dtype=np.float64)
+    u = np.asarray(u, dtype=np.float64)
+    single = x.ndim == 1
+    if single:
+        x = x[None, :]
+    if u.ndim == 1:
+        u = u[None, :]
+    return x, u, single
+
+
+class Client:
+    """A connection to a graybox gRPC endpoint ("host:port"), plaintext.
+
+    `timeout` (seconds) is the deadline of every call, None for none; a Rollout's deadline
+    covers the whole stream and the server stops computing when it passes.
+    `max_message_mb` raises grpc's 4 MiB default receive limit to the server's default
+    (64 MiB), so that large batches, TVLQR gains and rollout chunks fit.
+    """
+
+    def __init__(self, target: str, timeout: Optional[float] = None, max_message_mb: int = 64):
+        limit = max_message_mb * 1024 * 1024
+        self.timeout = timeout
+        self.channel = grpc.insecure_channel(target, options=[
+            ("grpc.max_receive_message_length", limit),
+            ("grpc.max_send_message_length", limit),
+        ])
+        self.stub = pb_grpc.DynamicsStub(self.channel)
+
+    def close(self) -> None:
+        self.channel.close()
+
+    def __enter__(self) -> "Client":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _call(self, method, request):
+        try:
+            return method(request, timeout=self.timeout)
+        except grpc.RpcError as e:
+            raise GrayboxError(e.code().name, e.details() or "") from None
+
+    def predict(self, model_id: str, x, u, want_accel: bool = False):
+        """x' = f(x, u) for x [2n] and u [m], or a batch x [B, 2n] and u [B, m]; with
+        `want_accel` also q̈ ([n] or [B, n]) as (x_next, accel)."""
+        xb, ub, single = _batch(x, u)
+        r = self._call(self.stub.Predict, pb.PredictRequest(
+            model_id=model_id, x=to_array(xb), u=to_array(ub), want_accel=want_accel))
+        x_next = from_array(r.x_next)
+        if single:
+            x_next = x_next[0]
+        if not want_accel:
+            return x_next
+        accel = from_array(r.accel)
+        return x_next, (accel[0] if single else accel)
+
+    def rollout_chunks(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
+                       chunk: Optional[int] = None) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+        """The streamed rollout as it arrives: (index of the chunk's first state, states
+        [c, 2n], inputs applied in the chunk [c', m]). Arguments as `rollout`."""
+        if u is not None and policy is not None:
+            raise ValueError("give u or policy, not both")
+        req = pb.RolloutRequest(model_id=model_id, chunk=chunk or 0,
+                                x0=np.asarray(x0, dtype=np.float64).ravel().tolist())
+        if u is not None:
+            req.u.CopyFrom(to_array(u))
+        elif policy is not None:
+            x_bar, u_bar, k = policy
+            req.policy.CopyFrom(pb.Policy(x_bar=to_array(x_bar), u_bar=to_array(u_bar), k=to_array(k)))
+        call = self.stub.Rollout(req, timeout=self.timeout)
+        try:
+            for c in call:
+                yield c.start, from_array(c.x), from_array(c.u)
+        except grpc.RpcError as e:
+            raise GrayboxError(e.code().name, e.details() or "") from None
+        finally:
+            call.cancel()  # a caller that stops reading early stops the server's computation
+
+    def rollout(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
+                chunk: Optional[int] = None, with_inputs: bool = False):
+        """The states x_0..x_T ([T+1, 2n]) from x0 under inputs u [T, m] or a TVLQR policy
+        (x_bar [T+1 or T, 2n], u_bar [T, m], K [T, m, 2n]) applying u_t = ū_t − K_t(x_t − x̄_t).
+        `chunk` is the states per streamed message (server default 1000); the chunks are
+        joined. `with_inputs` also returns the applied inputs [T, m] as (xs, us)."""
+        xs, us, rows = [], [], 0
+        for start, x, applied in self.rollout_chunks(model_id, x0, u, policy, chunk):
+            if start != rows:
+                raise GrayboxError("DATA_LOSS", f"a chunk starts at state {start}, expected {rows}")
+            xs.append(x)
+            us.append(applied)
+            rows += len(x)
+        if not xs:
+            raise GrayboxError("DATA_LOSS", "the rollout stream ended without states")
+        states = np.concatenate(xs)
+        return (states, np.concatenate(us)) if with_inputs else states
+
+    def linearize(self, model_id: str, x, u):
+        """A = ∂f/∂x and B = ∂f/∂u of the one-step map: [2n, 2n] and [2n, m] at one point,
+        [B, 2n, 2n] and [B, 2n, m] for a batch."""
+        xb, ub, single = _batch(x, u)
+        r = self._call(self.stub.Linearize, pb.LinearizeRequest(
+            model_id=model_id, x=to_array(xb), u=to_array(ub)))
+        a, b = from_array(r.a), from_array(r.b)
+        return (a[0], b[0]) if single else (a, b)
+
+    def tvlqr(self, model_id: str, xbar, ubar, Q, R, Qf):
+        """TVLQR gains K [T, m, 2n] and cost-to-go S [T+1, 2n, 2n] along x̄ [T+1, 2n],
+        ū [T, m], for the cost Σ δxᵀQδx + δuᵀRδu + δx_TᵀQf δx_T (no ½)."""
+        r = self._call(self.stub.Tvlqr, pb.TvlqrRequest(
+            model_id=model_id, x_bar=to_array(xbar), u_bar=to_array(ubar),
+            q=to_array(Q), r=to_array(R), qf=to_array(Qf)))
+        return from_array(r.k), from_array(r.s)
+
+    def get_model(self, model_id: str) -> ModelInfo:
+        """A model, by its id or by the id of the job that trained it."""
+        return _model_info(self._call(self.stub.GetModel, pb.GetModelRequest(model_id=model_id)))
+
+    def list_models(self, page_size: int = 0, page_token: str = "") -> tuple[list[ModelInfo], str]:
+        """One page of models, newest first, and the token of the next page ("" at the end);
+        page_size 0 means the server's default."""
+        r = self._call(self.stub.ListModels,
+                       pb.ListModelsRequest(page_size=page_size, page_token=page_token))
+        return [_model_info(m) for m in r.models], r.next_page_token
+
+    def iter_models(self, page_size: int = 0) -> Iterator[ModelInfo]:
+        """Every model, following the page tokens."""
+        token = ""
+        while True:
+            models, token = self.list_models(page_size, token)
+            yield from models
+            if not token:
+                return

@@ -1,0 +1,432 @@
+//! `graybox bench infer`: inference latency for controllers on the double pendulum MVF 3×32
+//! (issue 4's targets). In process (the evaluator alone) and as gRPC round trips on loopback
+//! against a real service: idle, then with concurrent clients while a training job runs.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use serde_json::{Value, json};
+
+use crate::api::grpc::pb::{self, dynamics_client::DynamicsClient};
+use crate::api::rest::RestSettings;
+use crate::app::Settings;
+use crate::app::datasets::Upload;
+use crate::app::jobs::JobRequest;
+use crate::control::linalg::Mat;
+use crate::error::{Error, Result};
+use crate::infer::Evaluator;
+use crate::model::templates::Template;
+use crate::service::{ServiceConfig, start};
+use crate::sim::{SimConfig, simulate};
+use crate::store::JobState;
+
+#[derive(Args, Debug)]
+pub struct BenchInferArgs {
+    /// Timed calls per sequential figure (after warm-up).
+    #[arg(long, default_value_t = 2000)]
+    pub calls: usize,
+    /// Concurrent gRPC clients calling Predict while a training job runs.
+    #[arg(long, default_value_t = 64)]
+    pub clients: usize,
+    /// How long the concurrent phase lasts.
+    #[arg(long, default_value_t = 10.0)]
+    pub seconds: f64,
+    /// Skip the gRPC figures (evaluator only).
+    #[arg(long)]
+    pub in_process_only: bool,
+}
+
+/// Latency percentiles of a set of samples, in microseconds.
+fn summary(name: &str, mut us: Vec<f64>, extra: Value) -> Value {
+    us.sort_by(f64::total_cmp);
+    let pct = |p: f64| us[((us.len() - 1) as f64 * p).round() as usize];
+    let mut v = json!({"bench": name, "calls": us.len(), "p50_us": pct(0.5), "p99_us": pct(0.99),
+                       "mean_us": us.iter().sum::<f64>() / us.len() as f64});
+    if let (Value::Object(o), Value::Object(e)) = (&mut v, extra) {
+        o.extend(e);
+    }
+    v
+}
+
+fn time_calls(calls: usize, mut f: impl FnMut()) -> Vec<f64> {
+    for _ in 0..calls.div_ceil(10) {
+        f(); // warm-up: caches, allocator
+    }
+    (0..calls)
+        .map(|_| {
+            let t = Instant::now();
+            f();
+            t.elapsed().as_secs_f64() * 1e6
+        })
+        .collect()
+}
+
+/// The problem every figure uses: states, inputs and a nominal trajectory of the double
+/// pendulum (n = 2, m = 2), and TVLQR weights.
+struct Problem {
+    x1: Vec<f64>,
+    u1: Vec<f64>,
+    xb: Vec<f64>,
+    ub: Vec<f64>,
+    u500: Vec<f64>,
+    xbar: Vec<f64>,
+    ubar: Vec<f64>,
+}
+
+const BATCH: usize = 1024;
+const ROLLOUT: usize = 500;
+const HORIZON: usize = 200;
+
+fn problem(data: &crate::train::data::Dataset) -> Problem {
+    let (x, _) = data.states();
+    let u500: Vec<f64> = (0..ROLLOUT)
+        .flat_map(|t| [5.0 * (t as f64 * 0.05).sin(), -3.0])
+        .collect();
+    Problem {
+        x1: x[..4].to_vec(),
+        u1: data.u[..2].to_vec(),
+        xb: x[..4 * BATCH].to_vec(),
+        ub: data.u[..2 * BATCH].to_vec(),
+        xbar: x[..4 * (HORIZON + 1)].to_vec(),
+        ubar: data.u[..2 * HORIZON].to_vec(),
+        u500,
+    }
+}
+
+fn weights() -> (Mat, Mat, Mat) {
+    let eye = |d: usize, s: f64| {
+        let mut m = Mat::zeros(d, d);
+        for i in 0..d {
+            m.data[i * d + i] = s;
+        }
+        m
+    };
+    (eye(4, 10.0), eye(2, 0.1), eye(4, 100.0))
+}
+
+pub fn run(a: BenchInferArgs) -> Result<()> {
+    let t = Template::DoublePendulum;
+    let data = simulate(
+        t,
+        t.defaults(),
+        &SimConfig {
+            count: 2048,
+            seed: 0,
+            ..SimConfig::default()
+        },
+    )?;
+    let p = problem(&data);
+    let eval = Arc::new(trained_mvf(&data)?);
+    in_process(&eval, &p, a.calls);
+    if !a.in_process_only {
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .enable_all()
+            .build()?;
+        rt.block_on(over_grpc(&a, &data, &p))?;
+    }
+    Ok(())
+}
+
+/// An MVF model after one epoch (the weights' values do not change the work done).
+fn trained_mvf(data: &crate::train::data::Dataset) -> Result<Evaluator> {
+    use crate::backend::{self, Backend, Precision};
+    use crate::model::spec::ModelSpec;
+    use crate::train::{TrainConfig, Trainer};
+    let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
+    let spec = ModelSpec::named("MVF", Some(Template::DoublePendulum))?;
+    let tc = TrainConfig {
+        epochs: 1,
+        ..TrainConfig::default()
+    };
+    let mut trainer = Trainer::new("MVF", spec, &[], data, None, tc, &device)?;
+    trainer.run_epoch(&std::sync::atomic::AtomicBool::new(false))?;
+    Evaluator::from_file(&trainer.model_file())
+}
+
+fn in_process(eval: &Evaluator, p: &Problem, calls: usize) {
+    let (q, r, qf) = weights();
+    let few = (calls / 10).max(20);
+    let figures = [
+        summary(
+            "evaluator_predict_1",
+            time_calls(calls, || {
+                std::hint::black_box(eval.predict(&p.x1, &p.u1, false));
+            }),
+            json!({"target_us": 200.0}),
+        ),
+        summary(
+            "evaluator_predict_1024",
+            time_calls(few, || {
+                std::hint::black_box(eval.predict(&p.xb, &p.ub, false));
+            }),
+            json!({"target_us": 3000.0}),
+        ),
+        summary(
+            "evaluator_rollout_500",
+            time_calls(few, || {
+                let mut last = 0.0;
+                eval.rollout(
+                    &p.x1,
+                    ROLLOUT,
+                    |t, _| p.u500[2 * t..2 * t + 2].to_vec(),
+                    |x, _| {
+                        last = x[0];
+                        true
+                    },
+                );
+                std::hint::black_box(last);
+            }),
+            json!({"target_us": 10000.0}),
+        ),
+        summary(
+            "evaluator_linearize_1",
+            time_calls(calls, || {
+                std::hint::black_box(eval.linearize(&p.x1, &p.u1));
+            }),
+            json!({"target_us": 100.0}),
+        ),
+        summary(
+            "evaluator_tvlqr_200",
+            time_calls(few, || {
+                std::hint::black_box(eval.tvlqr(&p.xbar, &p.ubar, &q, &r, &qf).unwrap());
+            }),
+            json!({"target_us": 5000.0}),
+        ),
+    ];
+    for f in figures {
+        println!("{f}");
+    }
+}
+
+fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
+    Some(pb::Array {
+        shape: shape.iter().map(|&d| d as u64).collect(),
+        data: data.to_vec(),
+    })
+}
+
+/// A temporary database file, removed on drop.
+struct TempDb(std::path::PathBuf);
+
+impl Drop for TempDb {
+    fn drop(&mut self) {
+        for ext in ["", "-wal", "-shm"] {
+            let mut p = self.0.clone().into_os_string();
+            p.push(ext);
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
+/// A closure making one unary call on a clone of the client (tonic clients are cheap handles).
+macro_rules! unary {
+    ($c:expr, $method:ident, $req:expr) => {
+        || {
+            let mut c = $c.clone();
+            let r = $req.clone();
+            async move { c.$method(r).await }
+        }
+    };
+}
+
+async fn over_grpc(
+    a: &BenchInferArgs,
+    data: &crate::train::data::Dataset,
+    p: &Problem,
+) -> Result<()> {
+    let db = TempDb(
+        std::env::temp_dir().join(format!("graybox-bench-{}.db", crate::store::new_id("b"))),
+    );
+    let running = start(ServiceConfig {
+        http: "127.0.0.1:0".into(),
+        grpc: "127.0.0.1:0".into(),
+        db: db.0.to_string_lossy().into_owned(),
+        settings: Settings {
+            workers: 1,
+            ..Settings::default()
+        },
+        rest: RestSettings::default(),
+    })
+    .await?;
+    let app = running.app.clone();
+    let body: Value = serde_json::from_str(&data.to_json()).expect("datasets serialize to JSON");
+    let (ds, _) = app.upload_dataset(None, Upload::Json(body)).await?;
+    let submit = |epochs: usize| {
+        let req: JobRequest = serde_json::from_value(json!({
+            "dataset_id": ds.id, "model": "MVF", "template": "double_pendulum",
+            "training": {"epochs": epochs, "batch_size": 256}
+        }))
+        .expect("a valid job request");
+        app.submit_job(req, None)
+    };
+    let (job, _) = submit(1).await?;
+    let model = wait_for(&app, &job.id, |s| s == JobState::Succeeded).await?;
+    let model = model.model_id.expect("a succeeded job has a model");
+    let url = format!("http://{}", running.grpc_addr);
+    let c = DynamicsClient::connect(url.clone())
+        .await
+        .map_err(|e| Error::invalid("grpc", e.to_string()))?;
+
+    let predict1 = pb::PredictRequest {
+        model_id: model.clone(),
+        x: arr(&[1, 4], &p.x1),
+        u: arr(&[1, 2], &p.u1),
+        ..Default::default()
+    };
+    let predict_b = pb::PredictRequest {
+        model_id: model.clone(),
+        x: arr(&[BATCH, 4], &p.xb),
+        u: arr(&[BATCH, 2], &p.ub),
+        ..Default::default()
+    };
+    let rollout = pb::RolloutRequest {
+        model_id: model.clone(),
+        x0: p.x1.clone(),
+        inputs: Some(pb::rollout_request::Inputs::U(pb::Array {
+            shape: vec![ROLLOUT as u64, 2],
+            data: p.u500.clone(),
+        })),
+        chunk: ROLLOUT as u64 + 1,
+        ..Default::default()
+    };
+    let linearize = pb::LinearizeRequest {
+        model_id: model.clone(),
+        x: arr(&[1, 4], &p.x1),
+        u: arr(&[1, 2], &p.u1),
+        ..Default::default()
+    };
+    let (q, r, qf) = weights();
+    let tv = pb::TvlqrRequest {
+        model_id: model.clone(),
+        x_bar: arr(&[HORIZON + 1, 4], &p.xbar),
+        u_bar: arr(&[HORIZON, 2], &p.ubar),
+        q: arr(&[4, 4], &q.data),
+        r: arr(&[2, 2], &r.data),
+        qf: arr(&[4, 4], &qf.data),
+        ..Default::default()
+    };
+    let few = (a.calls / 10).max(20);
+    let note = json!({"transport": "gRPC round trip on loopback, one client"});
+    let fig = |name: &str, v: Vec<f64>, target: f64| {
+        let mut extra = note.clone();
+        extra["target_us"] = json!(target);
+        println!("{}", summary(name, v, extra));
+    };
+    fig(
+        "grpc_predict_1",
+        time_async(a.calls, unary!(c, predict, predict1)).await?,
+        200.0,
+    );
+    fig(
+        "grpc_predict_1024",
+        time_async(few, unary!(c, predict, predict_b)).await?,
+        3000.0,
+    );
+    fig(
+        "grpc_rollout_500",
+        time_async(few, || {
+            let mut c = c.clone();
+            let req = rollout.clone();
+            async move {
+                let mut s = c.rollout(req).await?.into_inner();
+                while s.message().await?.is_some() {}
+                Ok::<_, tonic::Status>(())
+            }
+        })
+        .await?,
+        10000.0,
+    );
+    fig(
+        "grpc_linearize_1",
+        time_async(a.calls, unary!(c, linearize, linearize)).await?,
+        100.0,
+    );
+    fig(
+        "grpc_tvlqr_200",
+        time_async(few, unary!(c, tvlqr, tv)).await?,
+        5000.0,
+    );
+
+    // Concurrent clients, each on its own connection, while a long training job runs.
+    let (train_job, _) = submit(1_000_000).await?;
+    wait_for(&app, &train_job.id, |s| s == JobState::Running).await?;
+    let until = Instant::now() + Duration::from_secs_f64(a.seconds);
+    let mut tasks = vec![];
+    for _ in 0..a.clients {
+        let mut c = DynamicsClient::connect(url.clone())
+            .await
+            .map_err(|e| Error::invalid("grpc", e.to_string()))?;
+        let req = predict1.clone();
+        tasks.push(tokio::spawn(async move {
+            let mut lat = vec![];
+            while Instant::now() < until {
+                let t = Instant::now();
+                c.predict(req.clone()).await?;
+                lat.push(t.elapsed().as_secs_f64() * 1e6);
+            }
+            Ok::<_, tonic::Status>(lat)
+        }));
+    }
+    let started = Instant::now();
+    let mut all = vec![];
+    for t in tasks {
+        all.extend(t.await.expect("client task").map_err(status)?);
+    }
+    let secs = started.elapsed().as_secs_f64();
+    let still_training = app.job(&train_job.id).await?.state == JobState::Running;
+    let rps = all.len() as f64 / secs;
+    println!(
+        "{}",
+        summary(
+            "grpc_predict_1_concurrent",
+            all,
+            json!({"clients": a.clients, "requests_per_second": rps, "seconds": secs,
+                   "training_job_running": still_training}),
+        )
+    );
+    app.cancel_job(&train_job.id).await?;
+    running.shutdown().await;
+    Ok(())
+}
+
+fn status(s: tonic::Status) -> Error {
+    Error::Training(format!("benchmark call failed: {s}"))
+}
+
+async fn time_async<F, Fut, T>(calls: usize, mut f: F) -> Result<Vec<f64>>
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = std::result::Result<T, tonic::Status>>,
+{
+    for _ in 0..calls.div_ceil(10) {
+        f().await.map_err(status)?;
+    }
+    let mut out = Vec::with_capacity(calls);
+    for _ in 0..calls {
+        let t = Instant::now();
+        f().await.map_err(status)?;
+        out.push(t.elapsed().as_secs_f64() * 1e6);
+    }
+    Ok(out)
+}
+
+async fn wait_for(
+    app: &crate::app::App,
+    job: &str,
+    ok: impl Fn(JobState) -> bool,
+) -> Result<crate::store::JobRow> {
+    loop {
+        let j = app.job(job).await?;
+        if ok(j.state) {
+            return Ok(j);
+        }
+        if matches!(j.state, JobState::Failed | JobState::Cancelled) {
+            return Err(Error::Training(format!(
+                "benchmark job ended {:?}: {:?}",
+                j.state, j.error
+            )));
+        }
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+}

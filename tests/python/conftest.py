@@ -1,0 +1,192 @@
+"""One `graybox serve` for the whole session (the binary from $GRAYBOX_BIN) on free ports
+with a temporary database, and two small trained models on simulated double-pendulum data.
+
+The server's log is attached to every failing test's report.
+"""
+
+import json
+import os
+import socket
+import subprocess
+import time
+import urllib.error
+import urllib.request
+from dataclasses import dataclass
+from pathlib import Path
+
+import grpc
+import numpy as np
+import pytest
+
+from graybox_client import Client
+
+MAX_ROLLOUT_STEPS = 200_000
+_server_log: Path | None = None
+
+
+def rel(a, b) -> float:
+    """max|a − b| / max(1, max|b|): the Rust tests' error measure."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    assert a.shape == b.shape, (a.shape, b.shape)
+    return float(np.max(np.abs(a - b)) / max(1.0, float(np.max(np.abs(b)))))
+
+
+def free_ports(k: int) -> list[int]:
+    """k distinct ports the kernel had free (the sockets stay open until all are chosen)."""
+    socks = [socket.socket() for _ in range(k)]
+    try:
+        for s in socks:
+            s.bind(("127.0.0.1", 0))
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+class Rest:
+    """The REST API over urllib: (status, JSON body) for every answer, errors included."""
+
+    def __init__(self, base: str):
+        self.base = base
+
+    def request(self, method: str, path: str, body=None, raw: bytes | None = None):
+        data = raw if raw is not None else (None if body is None else json.dumps(body).encode())
+        req = urllib.request.Request(self.base + path, data=data, method=method,
+                                     headers={"content-type": "application/json"})
+        try:
+            with urllib.request.urlopen(req, timeout=60) as r:
+                return r.status, json.loads(r.read() or b"null")
+        except urllib.error.HTTPError as e:
+            return e.code, json.loads(e.read() or b"null")
+
+    def get(self, path: str):
+        return self.request("GET", path)
+
+    def post(self, path: str, body=None, raw: bytes | None = None):
+        return self.request("POST", path, body if body is not None else {}, raw)
+
+    def wait_job(self, job_id: str, until=("succeeded", "failed", "cancelled"), limit_s=300.0):
+        """Polls a job until its state is in `until` (the limit only guards against a hang)."""
+        end = time.monotonic() + limit_s
+        while True:
+            status, job = self.get(f"/v1/jobs/{job_id}")
+            assert status == 200, job
+            if job["state"] in until:
+                return job
+            if time.monotonic() > end:
+                pytest.fail(f"job {job_id} still {job['state']} after {limit_s} s: {job}")
+            time.sleep(0.05)
+
+
+@dataclass
+class Server:
+    binary: str
+    grpc_target: str
+    rest: Rest
+    tmp: Path
+
+
+@dataclass
+class Models:
+    dataset_id: str
+    wb: str
+    wb_job: str
+    mvf: str
+    mvf_job: str
+
+
+def _log_tail(lines: int = 80) -> str:
+    if _server_log is None or not _server_log.exists():
+        return ""
+    return "\n".join(_server_log.read_text(errors="replace").splitlines()[-lines:])
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    if report.failed and _server_log is not None:
+        report.sections.append(("graybox serve log (last 80 lines)", _log_tail()))
+
+
+def server_env() -> dict:
+    """The caller's environment without GRAYBOX_* settings (a token or address there would
+    change the server under test), and a plain-text log for the failure reports."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("GRAYBOX_")}
+    return {**env, "NO_COLOR": "1"}
+
+
+@pytest.fixture(scope="session")
+def server(tmp_path_factory):
+    global _server_log
+    binary = os.environ.get("GRAYBOX_BIN")
+    if not binary:
+        pytest.fail("GRAYBOX_BIN is not set: point it at a built graybox binary, e.g. "
+                    "GRAYBOX_BIN=$PWD/target/release/graybox", pytrace=False)
+    if not os.access(binary, os.X_OK):
+        pytest.fail(f"GRAYBOX_BIN={binary} is not an executable file", pytrace=False)
+    tmp = tmp_path_factory.mktemp("graybox")
+    http, grpc_port = free_ports(2)
+    _server_log = tmp / "serve.log"
+    log = open(_server_log, "wb")
+    proc = subprocess.Popen(
+        [binary, "serve", "--http", f"127.0.0.1:{http}", "--grpc", f"127.0.0.1:{grpc_port}",
+         "--db", str(tmp / "graybox.db"), "--workers", "1",
+         "--max-rollout-steps", str(MAX_ROLLOUT_STEPS)],
+        stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+        env=server_env())
+    rest = Rest(f"http://127.0.0.1:{http}")
+    try:
+        end = time.monotonic() + 60
+        while True:
+            if proc.poll() is not None:
+                pytest.fail(f"graybox serve exited with {proc.returncode}:\n{_log_tail()}",
+                            pytrace=False)
+            try:
+                if rest.get("/healthz")[0] == 200:
+                    break
+            except OSError:
+                pass
+            if time.monotonic() > end:
+                pytest.fail(f"graybox serve did not answer /healthz:\n{_log_tail()}", pytrace=False)
+            time.sleep(0.05)
+        with grpc.insecure_channel(f"127.0.0.1:{grpc_port}") as ch:
+            grpc.channel_ready_future(ch).result(timeout=30)
+        yield Server(binary, f"127.0.0.1:{grpc_port}", rest, tmp)
+    finally:
+        proc.terminate()
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+        log.close()
+
+
+@pytest.fixture(scope="session")
+def models(server) -> Models:
+    """A W-B (template double_pendulum) and an MVF model, 2 epochs each on 256 transitions."""
+    data = server.tmp / "train.json"
+    subprocess.run([server.binary, "simulate", "--system", "double_pendulum", "--count", "256",
+                    "--seed", "0", "--out", str(data)], check=True, capture_output=True)
+    status, ds = server.rest.post("/v1/datasets?name=dp-train", raw=data.read_bytes())
+    assert status == 201, ds
+    jobs = {}
+    for name in ("W-B", "MVF"):
+        status, job = server.rest.post("/v1/jobs", {
+            "dataset_id": ds["id"], "model": name, "template": "double_pendulum",
+            "training": {"epochs": 2, "batch_size": 64, "lr": 0.01}})
+        assert status == 201, job
+        jobs[name] = job["id"]
+    done = {name: server.rest.wait_job(j) for name, j in jobs.items()}
+    for job in done.values():
+        assert job["state"] == "succeeded", job
+    return Models(ds["id"], done["W-B"]["model_id"], jobs["W-B"],
+                  done["MVF"]["model_id"], jobs["MVF"])
+
+
+@pytest.fixture(scope="session")
+def client(server):
+    # A deadline so that a hung call fails the test instead of the whole run.
+    with Client(server.grpc_target, timeout=300) as c:
+        yield c
