@@ -156,6 +156,13 @@ fn in_process(eval: &Evaluator, p: &Problem, calls: usize) {
             json!({"target_us": 200.0}),
         ),
         summary(
+            "evaluator_predict_64",
+            time_calls(calls, || {
+                std::hint::black_box(eval.predict(&p.xb[..64 * 4], &p.ub[..64 * 2], false));
+            }),
+            json!({}),
+        ),
+        summary(
             "evaluator_predict_1024",
             time_calls(few, || {
                 std::hint::black_box(eval.predict(&p.xb, &p.ub, false));

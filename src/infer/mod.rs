@@ -5,10 +5,12 @@
 //!
 //! Weights come from the model file (Burn's layout: Linear weights `[in, out]`).
 
+pub mod col;
 pub mod jet;
 
 use std::collections::HashMap;
 
+use col::{Col, Column, Lanes};
 use jet::Jet;
 
 use crate::control::linalg::Mat;
@@ -65,76 +67,28 @@ impl Mlp64 {
     }
 }
 
-/// The scalars the evaluator runs on: f64 (Predict, Rollout) or f64 dual numbers whose
-/// tangents are the directions a linearization differentiates in.
-pub trait Lane: Scalar {
-    fn dirs(&self) -> usize;
-    fn value(&self) -> f64;
-    fn tangent_at(&self, j: usize) -> f64;
-    fn from_parts(v: f64, tangents: &[f64]) -> Self;
-}
-
-impl Lane for f64 {
-    fn dirs(&self) -> usize {
-        0
-    }
-    fn value(&self) -> f64 {
-        *self
-    }
-    fn tangent_at(&self, _: usize) -> f64 {
-        0.0
-    }
-    fn from_parts(v: f64, _: &[f64]) -> Self {
-        v
-    }
-}
-
-impl Lane for Dual<f64> {
-    fn dirs(&self) -> usize {
-        self.d.len()
-    }
-    fn value(&self) -> f64 {
-        self.v
-    }
-    fn tangent_at(&self, j: usize) -> f64 {
-        self.tangent(j).copied().unwrap_or(0.0)
-    }
-    fn from_parts(v: f64, tangents: &[f64]) -> Self {
-        Dual::new(v, tangents.iter().map(|&t| Some(t)))
-    }
-}
-
-/// A batch's network inputs as a jet: values and outer tangents from the lanes; with
+/// A batch's network inputs as a jet: values and outer tangents from the columns; with
 /// `inner_scale`, input k also gets the inner tangent ∂x_k/∂q_k = inner_scale[k].
-fn input_jet<S: Lane>(rows: &[Vec<S>], inner_scale: Option<&[f64]>, outer: usize) -> Jet {
-    let width = rows[0].len();
+fn input_jet<C: Lanes>(cols: &[C], inner_scale: Option<&[f64]>, outer: usize) -> Jet {
+    let batch = cols[0].rows();
     let inner = inner_scale.map_or(0, <[f64]>::len);
-    let mut jet = Jet::zeros(rows.len(), width, inner, outer);
-    for (b, row) in rows.iter().enumerate() {
-        for (j, x) in row.iter().enumerate() {
-            jet.set(0, 0, b, j, x.value());
-            for o in 1..=outer {
-                jet.set(o, 0, b, j, x.tangent_at(o - 1));
-            }
-        }
-        for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
+    let mut jet = Jet::zeros(batch, cols.len(), inner, outer);
+    for (j, x) in cols.iter().enumerate() {
+        x.write(&mut jet, j);
+    }
+    for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
+        for b in 0..batch {
             jet.set(0, k + 1, b, k, s);
         }
     }
     jet
 }
 
-/// Output j of sample b as a lane (values and outer tangents).
-fn lane_at<S: Lane>(jet: &Jet, i: usize, b: usize, j: usize) -> S {
-    let t: Vec<f64> = (1..=jet.outer).map(|o| jet.at(o, i, b, j)).collect();
-    S::from_parts(jet.at(0, i, b, j), &t)
-}
-
-/// Output j of sample b as a dual number over q (inner tangents), each part a lane.
-fn dual_at<S: Lane>(jet: &Jet, b: usize, j: usize) -> Dual<S> {
+/// Output j as a dual number over q (inner tangents), each part a batch coordinate.
+fn dual_at<C: Lanes>(jet: &Jet, j: usize) -> Dual<C> {
     Dual::new(
-        lane_at(jet, 0, b, j),
-        (1..=jet.inner).map(|i| Some(lane_at(jet, i, b, j))),
+        C::read(jet, 0, j),
+        (1..=jet.inner).map(|i| Some(C::read(jet, i, j))),
     )
 }
 
@@ -148,9 +102,9 @@ struct NetOutputs {
     force: Option<Jet>,
 }
 
-/// Batches at least this large run on two threads (a thread costs ~20 µs; a 64-state step
-/// ~1 ms).
-const PARALLEL_ROWS: usize = 64;
+/// Batches at least this large run on two threads: a thread costs ~20–40 µs, a step of 64
+/// states ~0.35 ms on one (measured: 64 states in 0.26 ms split vs 0.35–0.48 ms not).
+const PARALLEL_ROWS: usize = 32;
 
 /// A trained model ready for f64 inference.
 #[derive(Debug, Clone)]
@@ -214,38 +168,24 @@ impl Evaluator {
             .collect()
     }
 
-    /// q̈ for a batch: q `[B, n]`, q̇ `[B, n]`, u `[B, m]`, flat. The networks run once over the
-    /// whole batch (matrix products); the structure (Cholesky factor, Coriolis term, solve)
-    /// then runs per sample on the networks' outputs.
-    pub fn accel_batch<S: Lane>(&self, q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
-        let (n, m) = (self.config.n, self.config.m);
-        let batch = q.len() / n;
+    /// q̈ for a batch given as columns: q and q̇ n coordinates, u m coordinates, each a whole
+    /// batch. The networks run once over the batch (matrix products), then the structure
+    /// (Cholesky factor, Coriolis term, solve) once on their output columns.
+    pub fn accel<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C]) -> Vec<C> {
         let sc = &self.config.scaling;
         let outer = q
             .iter()
             .chain(qd)
             .chain(u)
-            .map(Lane::dirs)
+            .map(Lanes::dirs)
             .max()
             .unwrap_or(0);
-        let q_rows = || -> Vec<Vec<S>> {
-            q.chunks(n)
-                .map(|q| standardize(q, &sc.q_mean, &sc.q_std))
-                .collect()
-        };
-        let full_rows = || -> Vec<Vec<S>> {
-            (0..batch)
-                .map(|b| {
-                    let mut v = standardize(&q[b * n..(b + 1) * n], &sc.q_mean, &sc.q_std);
-                    v.extend(standardize(
-                        &qd[b * n..(b + 1) * n],
-                        &sc.qdot_mean,
-                        &sc.qdot_std,
-                    ));
-                    v.extend(standardize(&u[b * m..(b + 1) * m], &sc.u_mean, &sc.u_std));
-                    v
-                })
-                .collect()
+        let q_std = || standardize(q, &sc.q_mean, &sc.q_std);
+        let full = || {
+            let mut v = q_std();
+            v.extend(standardize(qd, &sc.qdot_mean, &sc.qdot_std));
+            v.extend(standardize(u, &sc.u_mean, &sc.u_std));
+            v
         };
         let ModelSpec::Structured {
             mass,
@@ -254,20 +194,17 @@ impl Evaluator {
             ..
         } = &self.config.spec
         else {
-            let out = net(&self.naive).jet(input_jet(&full_rows(), None, outer));
-            return (0..batch)
-                .flat_map(|b| {
-                    let out = &out;
-                    (0..n).map(move |j| {
-                        lane_at::<S>(out, 0, b, j)
-                            .scale(sc.acc_std[j])
-                            .shift(sc.acc_mean[j])
-                    })
+            let out = net(&self.naive).jet(input_jet(&full(), None, outer));
+            return (0..self.config.n)
+                .map(|j| {
+                    C::read(&out, 0, j)
+                        .scale(sc.acc_std[j])
+                        .shift(sc.acc_mean[j])
                 })
                 .collect();
         };
         let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
-        let q_jet = |inner: bool| input_jet(&q_rows(), inner.then_some(&inv_std[..]), outer);
+        let q_jet = |inner: bool| input_jet(&q_std(), inner.then_some(&inv_std[..]), outer);
         let nets = NetOutputs {
             mass: matches!(mass, MassSpec::Mlp { .. })
                 .then(|| net(&self.mass_net).jet(q_jet(true))),
@@ -275,31 +212,21 @@ impl Evaluator {
                 .then(|| net(&self.potential_net).jet(q_jet(true))),
             force: match forces {
                 ForceSpec::Mlp { .. } => {
-                    Some(net(&self.force_net).jet(input_jet(&full_rows(), None, outer)))
+                    Some(net(&self.force_net).jet(input_jet(&full(), None, outer)))
                 }
                 ForceSpec::ControlAffine { .. } => Some(net(&self.b_net).jet(q_jet(false))),
                 _ => None,
             },
         };
-        (0..batch)
-            .flat_map(|b| {
-                let (qb, qdb, ub) = (
-                    &q[b * n..(b + 1) * n],
-                    &qd[b * n..(b + 1) * n],
-                    &u[b * m..(b + 1) * m],
-                );
-                self.structure((mass, potential, forces), &nets, b, qb, qdb, ub)
-            })
-            .collect()
+        self.structure((mass, potential, forces), &nets, q, qd, u)
     }
 
-    /// q̈ of sample b from the networks' outputs: M = LLᵀ, ∇V, F, then the manipulator
-    /// equation (the same generic code the Burn path trains with).
-    fn structure<S: Lane>(
+    /// q̈ from the networks' outputs: M = LLᵀ, ∇V, F, then the manipulator equation (the
+    /// same generic code the Burn path trains with).
+    fn structure<S: Lanes>(
         &self,
         parts: Parts,
         nets: &NetOutputs,
-        b: usize,
         q: &[S],
         qd: &[S],
         u: &[S],
@@ -317,7 +244,7 @@ impl Evaluator {
         let l: Tri<Dual<S>> = match mass {
             MassSpec::Mlp { .. } => {
                 let out = nets.mass.as_ref().expect("mass outputs");
-                factor_from_outputs((0..out.width).map(|j| dual_at(out, b, j)).collect(), n)
+                factor_from_outputs((0..out.width).map(|j| dual_at(out, j)).collect(), n)
             }
             MassSpec::Constant => {
                 let raw = self.mass_const.as_ref().expect("constant mass");
@@ -335,7 +262,7 @@ impl Evaluator {
         let grad_v: Option<Vec<S>> = match potential {
             PotentialSpec::Zero => None,
             PotentialSpec::Mlp { .. } => {
-                let v = dual_at(nets.potential.as_ref().expect("potential outputs"), b, 0);
+                let v = dual_at::<S>(nets.potential.as_ref().expect("potential outputs"), 0);
                 Some(
                     (0..n)
                         .map(|k| tangent(&v, k).scale(s.potential_scale()))
@@ -379,13 +306,13 @@ impl Evaluator {
             ForceSpec::Mlp { .. } => {
                 let out = nets.force.as_ref().expect("force outputs");
                 (0..n)
-                    .map(|j| lane_at::<S>(out, 0, b, j).scale(s.force_scale[j]))
+                    .map(|j| S::read(out, 0, j).scale(s.force_scale[j]))
                     .collect()
             }
             ForceSpec::ControlAffine { .. } => {
                 let out = nets.force.as_ref().expect("B outputs");
                 let bm = (0..n * m)
-                    .map(|k| lane_at::<S>(out, 0, b, k).scale(b_scale(k / m, k % m)))
+                    .map(|k| S::read(out, 0, k).scale(b_scale(k / m, k % m)))
                     .collect();
                 affine(bm, self.eta.as_ref().expect("eta"))
             }
@@ -403,32 +330,17 @@ impl Evaluator {
         acceleration(&l, grad_v, f, qd)
     }
 
-    /// q̈ for one sample.
-    pub fn accel<S: Lane>(&self, q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
-        self.accel_batch(q, qd, u)
-    }
-
-    /// One step of the model's integrator for a batch: x `[B, 2n]`, u `[B, m]` → x'.
-    pub fn step_batch<S: Lane>(&self, x: &[S], u: &[S]) -> Vec<S> {
+    /// One step of the model's integrator: x = [q, q̇] (2n coordinates), u (m) → x'.
+    pub fn step<C: Lanes>(&self, x: &[C], u: &[C]) -> Vec<C> {
         let n = self.config.n;
         self.config
             .integrator
-            .step(&x.to_vec(), self.config.dt, |x: &Vec<S>| {
-                let (q, qd): (Vec<S>, Vec<S>) = x
-                    .chunks(2 * n)
-                    .flat_map(|r| (0..n).map(move |i| (r[i].clone(), r[n + i].clone())))
-                    .unzip();
-                let qdd = self.accel_batch(&q, &qd, u);
-                qd.chunks(n)
-                    .zip(qdd.chunks(n))
-                    .flat_map(|(a, b)| a.iter().chain(b).cloned())
-                    .collect()
+            .step(&x.to_vec(), self.config.dt, |x: &Vec<C>| {
+                let (q, qd) = x.split_at(n);
+                let mut dx = qd.to_vec();
+                dx.extend(self.accel(q, qd, u));
+                dx
             })
-    }
-
-    /// One step for one sample: x = [q, q̇] → x'.
-    pub fn step<S: Lane>(&self, x: &[S], u: &[S]) -> Vec<S> {
-        self.step_batch(x, u)
     }
 
     /// The one-step map's Jacobians A = ∂x'/∂x (2n×2n) and B = ∂x'/∂u (2n×m), row-major,
@@ -457,6 +369,18 @@ fn net(n: &Option<Mlp64>) -> &Mlp64 {
     n.as_ref().expect("the spec's network is in the model file")
 }
 
+/// Row-major `[B, width]` as `width` batch coordinates.
+fn columns<C: Column>(rows: &[f64], width: usize) -> Vec<C> {
+    (0..width).map(|j| C::gather(rows, width, j)).collect()
+}
+
+/// Batch coordinates back to row-major `[B, width]`.
+fn to_rows<C: Column>(cols: &[C]) -> Vec<f64> {
+    (0..cols[0].rows())
+        .flat_map(|b| cols.iter().map(move |c| c.get(b)))
+        .collect()
+}
+
 fn standardize<S: Scalar>(x: &[S], mean: &[f64], std: &[f64]) -> Vec<S> {
     x.iter()
         .zip(mean.iter().zip(std))
@@ -468,67 +392,97 @@ fn standardize<S: Scalar>(x: &[S], mean: &[f64], std: &[f64]) -> Vec<S> {
 impl Evaluator {
     /// x' (and q̈ when asked) for `[B, 2n]` states and `[B, m]` inputs.
     pub fn predict(&self, x: &[f64], u: &[f64], want_accel: bool) -> (Vec<f64>, Option<Vec<f64>>) {
-        let n = self.config.n;
-        let next = self.split(x, u, |x, u| self.step_batch(x, u));
-        let acc = want_accel.then(|| {
-            self.split(x, u, |x, u| {
-                let (q, qd): (Vec<f64>, Vec<f64>) = x
-                    .chunks(2 * n)
-                    .flat_map(|r| (0..n).map(move |i| (r[i], r[n + i])))
-                    .unzip();
-                self.accel_batch(&q, &qd, u)
-            })
+        let parts = self.split(x, u, |x, u| {
+            if x.len() == 2 * self.config.n {
+                self.predict_cols::<f64>(x, u, want_accel)
+            } else {
+                self.predict_cols::<Col>(x, u, want_accel)
+            }
         });
+        let mut next = vec![];
+        let mut acc = want_accel.then(Vec::new);
+        for (x, a) in parts {
+            next.extend(x);
+            acc.iter_mut().zip(a).for_each(|(acc, a)| acc.extend(a));
+        }
         (next, acc)
     }
 
-    /// A `[B, 2n, 2n]` and B `[B, 2n, m]` for a batch: every sample's state and input are
-    /// dual variables (its own 2n + m directions), pushed through one batched step.
+    fn predict_cols<C: Column>(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        want_accel: bool,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
+        let n = self.config.n;
+        let (x, u) = (columns::<C>(x, 2 * n), columns::<C>(u, self.config.m));
+        let next = to_rows(&self.step(&x, &u));
+        let acc = want_accel.then(|| to_rows(&self.accel(&x[..n], &x[n..], &u)));
+        (next, acc)
+    }
+
+    /// A `[B, 2n, 2n]` and B `[B, 2n, m]` for a batch: the state's and input's coordinates
+    /// are dual variables (2n + m directions, each sample its own), pushed through one step.
     pub fn linearize_batch(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let dirs = nx + m;
         let both = self.split(x, u, |x, u| {
-            let var = |v: f64, k: usize| Dual::variable(v, k, dirs, 1.0);
-            let xd: Vec<Dual<f64>> = x.iter().enumerate().map(|(k, &v)| var(v, k % nx)).collect();
-            let ud: Vec<Dual<f64>> = u
-                .iter()
-                .enumerate()
-                .map(|(k, &v)| var(v, nx + k % m))
-                .collect();
-            self.step_batch(&xd, &ud)
-                .iter()
-                .flat_map(|y| (0..dirs).map(|k| y.tangent_at(k)))
-                .collect()
+            if x.len() == nx {
+                self.jacobian_rows(columns::<f64>(x, nx), columns(u, m))
+            } else {
+                self.jacobian_rows(columns::<Col>(x, nx), columns(u, m))
+            }
         });
-        let (mut a, mut b) = (Vec::with_capacity(both.len()), Vec::new());
-        for row in both.chunks(dirs) {
+        let (mut a, mut b) = (Vec::with_capacity(x.len() * nx), Vec::new());
+        for row in both.concat().chunks(nx + m) {
             a.extend(&row[..nx]);
             b.extend(&row[nx..]);
         }
         (a, b)
     }
 
+    /// Per sample, per output coordinate, the row [∂x'_i/∂x, ∂x'_i/∂u].
+    fn jacobian_rows<C: Column>(&self, x: Vec<C>, u: Vec<C>) -> Vec<f64> {
+        let (nx, dirs) = (x.len(), x.len() + u.len());
+        let var = |k: usize, c: C| {
+            let one = c.lift(1.0);
+            Dual::variable(c, k, dirs, one)
+        };
+        let xd: Vec<Dual<C>> = x.into_iter().enumerate().map(|(k, c)| var(k, c)).collect();
+        let ud: Vec<Dual<C>> = u
+            .into_iter()
+            .enumerate()
+            .map(|(k, c)| var(nx + k, c))
+            .collect();
+        let y = self.step(&xd, &ud);
+        (0..y[0].v.rows())
+            .flat_map(|b| {
+                y.iter().flat_map(move |yi| {
+                    (0..dirs).map(move |k| yi.tangent(k).map_or(0.0, |t| t.get(b)))
+                })
+            })
+            .collect()
+    }
+
     /// Runs `f` over a batch, in two halves on two threads when the batch is large enough
-    /// for the thread to pay off; results are concatenated in order.
-    fn split(
+    /// for the thread to pay off; the parts in order.
+    fn split<T: Send>(
         &self,
         x: &[f64],
         u: &[f64],
-        f: impl Fn(&[f64], &[f64]) -> Vec<f64> + Sync,
-    ) -> Vec<f64> {
+        f: impl Fn(&[f64], &[f64]) -> T + Sync,
+    ) -> Vec<T> {
         let (nx, m) = (2 * self.config.n, self.config.m);
         let rows = x.len() / nx;
         if rows < PARALLEL_ROWS {
-            return f(x, u);
+            return vec![f(x, u)];
         }
         let half = rows / 2;
         let (x0, x1) = x.split_at(half * nx);
         let (u0, u1) = u.split_at(half * m);
         std::thread::scope(|s| {
             let second = s.spawn(|| f(x1, u1));
-            let mut out = f(x0, u0);
-            out.extend(second.join().expect("inference thread"));
-            out
+            let first = f(x0, u0);
+            vec![first, second.join().expect("inference thread")]
         })
     }
 
@@ -562,7 +516,7 @@ impl Evaluator {
         let mut x = x0.to_vec();
         for t in 0..steps {
             let u = input(t, &x);
-            x = self.step(&x, &u);
+            x = self.step(&x[..], &u);
             if !emit(&x, &u) {
                 return;
             }

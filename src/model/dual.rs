@@ -9,9 +9,9 @@ use super::scalar::Scalar;
 use smallvec::SmallVec;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-/// Tangents stored inline up to four directions (n ≤ 4 covers the templates' coordinates):
-/// the f64 evaluator creates millions of these, and a heap allocation each was most of its
-/// time after the networks.
+/// Tangents stored inline up to eight directions (a linearization's 2n + m for the templates'
+/// systems): the f64 evaluator creates many of these, and a heap allocation each was most of
+/// its time after the networks.
 pub type Tangents<S> = SmallVec<[Option<S>; 8]>;
 
 #[derive(Debug, Clone)]
