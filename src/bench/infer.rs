@@ -64,6 +64,7 @@ fn time_calls(calls: usize, mut f: impl FnMut()) -> Vec<f64> {
 
 /// The problem every figure uses: states, inputs and a nominal trajectory of the double
 /// pendulum (n = 2, m = 2), and TVLQR weights.
+#[derive(Clone)]
 struct Problem {
     x1: Vec<f64>,
     u1: Vec<f64>,
@@ -271,89 +272,24 @@ async fn over_grpc(
     let model = wait_for(&app, &job.id, |s| s == JobState::Succeeded).await?;
     let model = model.model_id.expect("a succeeded job has a model");
     let url = format!("http://{}", running.grpc_addr);
-    let c = DynamicsClient::connect(url.clone())
-        .await
-        .map_err(|e| Error::invalid("grpc", e.to_string()))?;
-
+    // The sequential calls come from their own thread and single-threaded runtime, as from a
+    // controller's process: on the server's two worker threads the client's own wake-ups
+    // would count as the service's latency.
+    let (u, m, p2, calls) = (url.clone(), model.clone(), p.clone(), a.calls);
+    tokio::task::spawn_blocking(move || {
+        tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()?
+            .block_on(sequential(&u, &m, calls, &p2))
+    })
+    .await
+    .expect("client thread")?;
     let predict1 = pb::PredictRequest {
         model_id: model.clone(),
         x: arr(&[1, 4], &p.x1),
         u: arr(&[1, 2], &p.u1),
         ..Default::default()
     };
-    let predict_b = pb::PredictRequest {
-        model_id: model.clone(),
-        x: arr(&[BATCH, 4], &p.xb),
-        u: arr(&[BATCH, 2], &p.ub),
-        ..Default::default()
-    };
-    let rollout = pb::RolloutRequest {
-        model_id: model.clone(),
-        x0: p.x1.clone(),
-        inputs: Some(pb::rollout_request::Inputs::U(pb::Array {
-            shape: vec![ROLLOUT as u64, 2],
-            data: p.u500.clone(),
-        })),
-        chunk: ROLLOUT as u64 + 1,
-        ..Default::default()
-    };
-    let linearize = pb::LinearizeRequest {
-        model_id: model.clone(),
-        x: arr(&[1, 4], &p.x1),
-        u: arr(&[1, 2], &p.u1),
-        ..Default::default()
-    };
-    let (q, r, qf) = weights();
-    let tv = pb::TvlqrRequest {
-        model_id: model.clone(),
-        x_bar: arr(&[HORIZON + 1, 4], &p.xbar),
-        u_bar: arr(&[HORIZON, 2], &p.ubar),
-        q: arr(&[4, 4], &q.data),
-        r: arr(&[2, 2], &r.data),
-        qf: arr(&[4, 4], &qf.data),
-        ..Default::default()
-    };
-    let few = (a.calls / 10).max(20);
-    let note = json!({"transport": "gRPC round trip on loopback, one client"});
-    let fig = |name: &str, v: Vec<f64>, target: f64| {
-        let mut extra = note.clone();
-        extra["target_us"] = json!(target);
-        println!("{}", summary(name, v, extra));
-    };
-    fig(
-        "grpc_predict_1",
-        time_async(a.calls, unary!(c, predict, predict1)).await?,
-        200.0,
-    );
-    fig(
-        "grpc_predict_1024",
-        time_async(few, unary!(c, predict, predict_b)).await?,
-        3000.0,
-    );
-    fig(
-        "grpc_rollout_500",
-        time_async(few, || {
-            let mut c = c.clone();
-            let req = rollout.clone();
-            async move {
-                let mut s = c.rollout(req).await?.into_inner();
-                while s.message().await?.is_some() {}
-                Ok::<_, tonic::Status>(())
-            }
-        })
-        .await?,
-        10000.0,
-    );
-    fig(
-        "grpc_linearize_1",
-        time_async(a.calls, unary!(c, linearize, linearize)).await?,
-        100.0,
-    );
-    fig(
-        "grpc_tvlqr_200",
-        time_async(few, unary!(c, tvlqr, tv)).await?,
-        5000.0,
-    );
 
     // Concurrent clients, each on its own connection, while a long training job runs.
     let (train_job, _) = submit(1_000_000).await?;
@@ -394,6 +330,95 @@ async fn over_grpc(
     );
     app.cancel_job(&train_job.id).await?;
     running.shutdown().await;
+    Ok(())
+}
+
+/// The one-client figures: each RPC timed call by call.
+async fn sequential(url: &str, model: &str, calls: usize, p: &Problem) -> Result<()> {
+    let c = DynamicsClient::connect(url.to_string())
+        .await
+        .map_err(|e| Error::invalid("grpc", e.to_string()))?;
+
+    let predict1 = pb::PredictRequest {
+        model_id: model.to_string(),
+        x: arr(&[1, 4], &p.x1),
+        u: arr(&[1, 2], &p.u1),
+        ..Default::default()
+    };
+    let predict_b = pb::PredictRequest {
+        model_id: model.to_string(),
+        x: arr(&[BATCH, 4], &p.xb),
+        u: arr(&[BATCH, 2], &p.ub),
+        ..Default::default()
+    };
+    let rollout = pb::RolloutRequest {
+        model_id: model.to_string(),
+        x0: p.x1.clone(),
+        inputs: Some(pb::rollout_request::Inputs::U(pb::Array {
+            shape: vec![ROLLOUT as u64, 2],
+            data: p.u500.clone(),
+        })),
+        chunk: ROLLOUT as u64 + 1,
+        ..Default::default()
+    };
+    let linearize = pb::LinearizeRequest {
+        model_id: model.to_string(),
+        x: arr(&[1, 4], &p.x1),
+        u: arr(&[1, 2], &p.u1),
+        ..Default::default()
+    };
+    let (q, r, qf) = weights();
+    let tv = pb::TvlqrRequest {
+        model_id: model.to_string(),
+        x_bar: arr(&[HORIZON + 1, 4], &p.xbar),
+        u_bar: arr(&[HORIZON, 2], &p.ubar),
+        q: arr(&[4, 4], &q.data),
+        r: arr(&[2, 2], &r.data),
+        qf: arr(&[4, 4], &qf.data),
+        ..Default::default()
+    };
+    let few = (calls / 10).max(20);
+    let note = json!({"transport": "gRPC round trip on loopback, one client"});
+    let fig = |name: &str, v: Vec<f64>, target: f64| {
+        let mut extra = note.clone();
+        extra["target_us"] = json!(target);
+        println!("{}", summary(name, v, extra));
+    };
+    fig(
+        "grpc_predict_1",
+        time_async(calls, unary!(c, predict, predict1)).await?,
+        200.0,
+    );
+    fig(
+        "grpc_predict_1024",
+        time_async(few, unary!(c, predict, predict_b)).await?,
+        3000.0,
+    );
+    fig(
+        "grpc_rollout_500",
+        time_async(few, || {
+            let mut c = c.clone();
+            let req = rollout.clone();
+            async move {
+                let mut s = c.rollout(req).await?.into_inner();
+                while s.message().await?.is_some() {}
+                Ok::<_, tonic::Status>(())
+            }
+        })
+        .await?,
+        10000.0,
+    );
+    fig(
+        "grpc_linearize_1",
+        time_async(calls, unary!(c, linearize, linearize)).await?,
+        100.0,
+    );
+    fig(
+        "grpc_tvlqr_200",
+        time_async(few, unary!(c, tvlqr, tv)).await?,
+        5000.0,
+    );
+
     Ok(())
 }
 

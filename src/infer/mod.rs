@@ -425,7 +425,7 @@ impl Evaluator {
     /// are dual variables (2n + m directions, each sample its own), pushed through one step.
     pub fn linearize_batch(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let both = self.split(x, u, |x, u| {
+        let parts = self.split(x, u, |x, u| {
             if x.len() == nx {
                 self.jacobian_rows(columns::<f64>(x, nx), columns(u, m))
             } else {
@@ -433,7 +433,7 @@ impl Evaluator {
             }
         });
         let (mut a, mut b) = (Vec::with_capacity(x.len() * nx), Vec::new());
-        for row in both.concat().chunks(nx + m) {
+        for row in parts.concat().chunks(nx + m) {
             a.extend(&row[..nx]);
             b.extend(&row[nx..]);
         }
