@@ -55,15 +55,17 @@ impl Mlp64 {
     }
 
     /// The network on a batch with derivatives (see [`jet`]): one matrix product per layer.
-    pub fn jet(&self, mut x: Jet) -> Jet {
+    pub fn jet(&self, input: &Jet) -> Jet {
         let last = self.layers.len() - 1;
+        let mut x: Option<Jet> = None;
         for (l, (_, d_out, w, b)) in self.layers.iter().enumerate() {
-            x = x.linear(w, b, *d_out);
+            let mut z = x.as_ref().unwrap_or(input).linear(w, b, *d_out);
             if l != last {
-                x.tanh();
+                z.tanh();
             }
+            x = Some(z);
         }
-        x
+        x.expect("an MLP has layers")
     }
 }
 
@@ -95,7 +97,7 @@ fn dual_at<C: Lanes>(jet: &Jet, j: usize) -> Dual<C> {
 /// A structured spec's three parts.
 type Parts<'a> = (&'a MassSpec, &'a PotentialSpec, &'a ForceSpec);
 
-/// Network outputs of one batch, computed before the per-sample structure.
+/// Network outputs of one batch, computed before the structure.
 struct NetOutputs {
     mass: Option<Jet>,
     potential: Option<Jet>,
@@ -194,7 +196,7 @@ impl Evaluator {
             ..
         } = &self.config.spec
         else {
-            let out = net(&self.naive).jet(input_jet(&full(), None, outer));
+            let out = net(&self.naive).jet(&input_jet(&full(), None, outer));
             return (0..self.config.n)
                 .map(|j| {
                     C::read(&out, 0, j)
@@ -205,16 +207,21 @@ impl Evaluator {
         };
         let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
         let q_jet = |inner: bool| input_jet(&q_std(), inner.then_some(&inv_std[..]), outer);
+        // M's and V's networks both read q with its ∂/∂q directions: one input jet for both.
+        let (mass_mlp, potential_mlp) = (
+            matches!(mass, MassSpec::Mlp { .. }),
+            matches!(potential, PotentialSpec::Mlp { .. }),
+        );
+        let q_in = (mass_mlp || potential_mlp).then(|| q_jet(true));
+        let q_in = || q_in.as_ref().expect("built when a network reads it");
         let nets = NetOutputs {
-            mass: matches!(mass, MassSpec::Mlp { .. })
-                .then(|| net(&self.mass_net).jet(q_jet(true))),
-            potential: matches!(potential, PotentialSpec::Mlp { .. })
-                .then(|| net(&self.potential_net).jet(q_jet(true))),
+            mass: mass_mlp.then(|| net(&self.mass_net).jet(q_in())),
+            potential: potential_mlp.then(|| net(&self.potential_net).jet(q_in())),
             force: match forces {
                 ForceSpec::Mlp { .. } => {
-                    Some(net(&self.force_net).jet(input_jet(&full(), None, outer)))
+                    Some(net(&self.force_net).jet(&input_jet(&full(), None, outer)))
                 }
-                ForceSpec::ControlAffine { .. } => Some(net(&self.b_net).jet(q_jet(false))),
+                ForceSpec::ControlAffine { .. } => Some(net(&self.b_net).jet(&q_jet(false))),
                 _ => None,
             },
         };
