@@ -284,12 +284,7 @@ async fn over_grpc(
     })
     .await
     .expect("client thread")?;
-    let predict1 = pb::PredictRequest {
-        model_id: model.clone(),
-        x: arr(&[1, 4], &p.x1),
-        u: arr(&[1, 2], &p.u1),
-        ..Default::default()
-    };
+    let predict1 = predict_one(&model, p);
 
     // Concurrent clients, each on its own connection, while a long training job runs.
     let (train_job, _) = submit(1_000_000).await?;
@@ -297,9 +292,7 @@ async fn over_grpc(
     let until = Instant::now() + Duration::from_secs_f64(a.seconds);
     let mut tasks = vec![];
     for _ in 0..a.clients {
-        let mut c = DynamicsClient::connect(url.clone())
-            .await
-            .map_err(|e| Error::invalid("grpc", e.to_string()))?;
+        let mut c = connect(&url).await?;
         let req = predict1.clone();
         tasks.push(tokio::spawn(async move {
             let mut lat = vec![];
@@ -333,18 +326,27 @@ async fn over_grpc(
     Ok(())
 }
 
-/// The one-client figures: each RPC timed call by call.
-async fn sequential(url: &str, model: &str, calls: usize, p: &Problem) -> Result<()> {
-    let c = DynamicsClient::connect(url.to_string())
+async fn connect(url: &str) -> Result<DynamicsClient<tonic::transport::Channel>> {
+    DynamicsClient::connect(url.to_string())
         .await
-        .map_err(|e| Error::invalid("grpc", e.to_string()))?;
+        .map_err(|e| Error::invalid("grpc", e.to_string()))
+}
 
-    let predict1 = pb::PredictRequest {
+/// Predict for one state: the figure a control loop cares about most.
+fn predict_one(model: &str, p: &Problem) -> pb::PredictRequest {
+    pb::PredictRequest {
         model_id: model.to_string(),
         x: arr(&[1, 4], &p.x1),
         u: arr(&[1, 2], &p.u1),
         ..Default::default()
-    };
+    }
+}
+
+/// The one-client figures: each RPC timed call by call.
+async fn sequential(url: &str, model: &str, calls: usize, p: &Problem) -> Result<()> {
+    let c = connect(url).await?;
+
+    let predict1 = predict_one(model, p);
     let predict_b = pb::PredictRequest {
         model_id: model.to_string(),
         x: arr(&[BATCH, 4], &p.xb),
