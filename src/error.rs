@@ -36,6 +36,12 @@ pub enum Error {
     Cancelled,
     #[error("i/o error: {0}")]
     Io(#[from] std::io::Error),
+    /// The caller's deadline passed before the work finished.
+    #[error("{0}")]
+    DeadlineExceeded(String),
+    /// A fault inside graybox itself (a task that died, a server that could not start).
+    #[error("internal error: {0}")]
+    Internal(String),
     /// A stored artifact (model file, checkpoint) could not be read.
     #[error("corrupt {what}: {message}")]
     Corrupt { what: String, message: String },

@@ -9,6 +9,7 @@ use tokio::sync::watch;
 use tokio::task::JoinHandle;
 use tracing::info;
 
+use crate::api::listen::{TlsFiles, TlsListener, acceptor};
 use crate::api::rest::{RestSettings, router};
 use crate::app::{App, Settings};
 use crate::error::{Error, Result};
@@ -21,6 +22,8 @@ pub struct ServiceConfig {
     pub db: String,
     pub settings: Settings,
     pub rest: RestSettings,
+    /// Serve REST and gRPC over TLS with this certificate and key.
+    pub tls: Option<TlsFiles>,
 }
 
 /// A started service. Dropping it does not stop it; call `shutdown`.
@@ -55,16 +58,34 @@ pub async fn start(cfg: ServiceConfig) -> Result<Running> {
     };
     let rest = router(app.clone(), cfg.rest.clone());
     let http_stop = until_stopped(stopped.clone());
+    let tls = |alpn: &[&[u8]]| cfg.tls.as_ref().map(|f| acceptor(f, alpn)).transpose();
+    let (rest_tls, grpc_tls) = (tls(&[b"http/1.1"])?, tls(&[b"h2"])?);
+    let rest_server = async move {
+        let served = match rest_tls {
+            None => {
+                axum::serve(http, rest)
+                    .with_graceful_shutdown(http_stop)
+                    .await
+            }
+            Some(a) => {
+                axum::serve(TlsListener::new(http, a)?, rest)
+                    .with_graceful_shutdown(http_stop)
+                    .await
+            }
+        };
+        served.map_err(Error::Io)
+    };
     let servers = vec![
-        tokio::spawn(async move {
-            axum::serve(http, rest)
-                .with_graceful_shutdown(http_stop)
-                .await
-                .map_err(Error::Io)
-        }),
+        tokio::spawn(rest_server),
         tokio::spawn(crate::api::grpc::serve(
             app.clone(),
             grpc,
+            cfg.rest.api_token.clone(),
+            grpc_tls,
+            until_stopped(stopped.clone()),
+        )),
+        tokio::spawn(sweep_model_cache(
+            app.clone(),
             until_stopped(stopped.clone()),
         )),
     ];
@@ -83,6 +104,21 @@ pub async fn start(cfg: ServiceConfig) -> Result<Running> {
         workers,
         servers,
     })
+}
+
+/// Evicts cached models that another process on the same database deleted, every
+/// `CACHE_SWEEP`, until `stop` resolves.
+async fn sweep_model_cache(app: App, stop: impl std::future::Future<Output = ()>) -> Result<()> {
+    tokio::pin!(stop);
+    loop {
+        tokio::select! {
+            () = tokio::time::sleep(crate::app::inference::CACHE_SWEEP) => {}
+            () = &mut stop => return Ok(()),
+        }
+        if let Err(e) = app.sweep_model_cache().await {
+            tracing::warn!(error = %e, "checking cached models failed");
+        }
+    }
 }
 
 impl Running {

@@ -55,7 +55,7 @@ fn build(spec: ModelSpec, n: usize, m: usize, dev: &Device) -> (Model, Evaluator
     cfg.scaling.u_mean = vec![-2.0; m];
     let model = perturb(&Model::init(cfg, None, 3, dev).unwrap(), dev);
     let file = ModelFile::new(model.config.clone(), export(&model.params), None);
-    let file = ModelFile::from_bytes(&file.to_bytes()).unwrap();
+    let file = ModelFile::from_bytes(&file.to_bytes().unwrap()).unwrap();
     (model, Evaluator::from_file(&file).unwrap())
 }
 

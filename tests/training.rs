@@ -58,7 +58,7 @@ fn every_named_model_trains_and_evaluates() {
                 t.name()
             );
             let file = trainer.model_file();
-            let model = ModelFile::from_bytes(&file.to_bytes())
+            let model = ModelFile::from_bytes(&file.to_bytes().unwrap())
                 .unwrap()
                 .model(&device(Backend::Flex, Precision::F32).unwrap())
                 .unwrap();

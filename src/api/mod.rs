@@ -1,5 +1,7 @@
-//! Adapters: REST (axum) and gRPC (tonic) over the one core, `App`.
+//! Adapters: REST (axum) and gRPC (tonic) over the one core, `App`, and how both accept
+//! connections (TCP or TLS) and check the bearer token.
 
 pub mod grpc;
+pub mod listen;
 pub mod openapi;
 pub mod rest;

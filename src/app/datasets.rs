@@ -70,6 +70,30 @@ fn from_trajectories(value: &Value) -> Result<Dataset> {
     Dataset::from_json_value(&Value::Object(obj))
 }
 
+/// Names are shown to people in listings and logs: at most 200 characters (not bytes), and
+/// no control characters (NUL, newlines) or bidirectional overrides, which can make a name
+/// display as something it is not.
+pub fn check_name(name: &str) -> Result<()> {
+    const MAX: usize = 200;
+    if name.chars().count() > MAX {
+        return Err(Error::invalid(
+            "name",
+            format!("must be at most {MAX} characters"),
+        ));
+    }
+    let bidi = |c: char| matches!(c, '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}');
+    if let Some(c) = name.chars().find(|&c| c.is_control() || bidi(c)) {
+        return Err(Error::invalid(
+            "name",
+            format!(
+                "must not contain control or bidirectional-override characters (found U+{:04X})",
+                c as u32
+            ),
+        ));
+    }
+    Ok(())
+}
+
 impl App {
     /// Validates and stores a dataset; the same arrays again return the stored one
     /// (`created = false`).
@@ -98,10 +122,8 @@ impl App {
             }
         };
         let name = name.or(body_name);
-        if let Some(n) = &name
-            && n.len() > 200
-        {
-            return Err(Error::invalid("name", "must be at most 200 characters"));
+        if let Some(n) = &name {
+            check_name(n)?;
         }
         self.store.insert_dataset(name.as_deref(), &ds).await
     }

@@ -9,9 +9,9 @@ use serde_json::Value;
 use super::App;
 use crate::error::{Error, Result};
 use crate::model::spec::ModelSpec;
-use crate::store::{JobRow, JobState, MetricRow, NewJob, Submitted};
-use crate::train::TrainConfig;
+use crate::store::{DatasetRow, JobRow, JobState, MetricRow, NewJob, Submitted};
 use crate::train::trainer::physical_init;
+use crate::train::{TrainConfig, budget};
 
 /// The body of POST /v1/jobs.
 #[derive(Debug, Deserialize, utoipa::ToSchema)]
@@ -148,13 +148,121 @@ impl App {
                 message: "a dataset of one transition cannot be split; set it to 0 or give validation_dataset_id".into(),
             });
         }
-        Ok(JobSpec {
+        let val_count = match &req.validation_dataset_id {
+            Some(vid) => self
+                .dataset(vid)
+                .await
+                .map(|v| v.count as usize)
+                .unwrap_or(0),
+            None => 0,
+        };
+        let job = JobSpec {
             model_name,
             spec,
             init,
             training,
             dataset_id: req.dataset_id,
             validation_dataset_id: req.validation_dataset_id,
+        };
+        self.check_job_cost(&job, &data, val_count)?;
+        self.check_job_data(&job).await?;
+        Ok(job)
+    }
+
+    /// Refuses a job over the service's limits (422 naming the field and the estimate),
+    /// before it is queued.
+    fn check_job_cost(&self, job: &JobSpec, data: &DatasetRow, val_count: usize) -> Result<()> {
+        let s = &self.settings;
+        let (n, m) = (data.n as usize, data.m as usize);
+        let refuse = |field: &str, message: String| {
+            Err(Error::Unprocessable {
+                field: field.into(),
+                message,
+            })
+        };
+        if n > s.max_dof {
+            return refuse(
+                "dataset_id",
+                format!(
+                    "the dataset has n = {n} coordinates; this service trains at most {} (--max-dof)",
+                    s.max_dof
+                ),
+            );
+        }
+        let count = data.count as usize;
+        // Training samples: a batch larger than the training set is the whole set.
+        let train = if job.validation_dataset_id.is_some() {
+            count
+        } else {
+            count - (count as f64 * job.training.val_fraction) as usize
+        };
+        let batch = job.training.batch_size.min(train.max(1));
+        let physical = job.spec.template().map_or(0, |t| t.params().len());
+        let est = budget::estimate(&job.spec, n, m, batch, count + val_count, physical);
+        if est.params > s.max_model_params {
+            return refuse(
+                "model",
+                format!(
+                    "the model would have {} trainable parameters, over the limit of {} \
+                     (--max-model-params); use narrower or fewer hidden layers",
+                    est.params, s.max_model_params
+                ),
+            );
+        }
+        if est.checkpoint_bytes > budget::STORE_MAX_BLOB {
+            return refuse(
+                "model",
+                format!(
+                    "the model's checkpoint would take about {} MB, more than the store holds ({} MB)",
+                    est.checkpoint_bytes >> 20,
+                    budget::STORE_MAX_BLOB >> 20
+                ),
+            );
+        }
+        if est.peak_bytes > s.max_job_memory_bytes {
+            return refuse(
+                "training.batch_size",
+                format!(
+                    "training would take about {} MB at its peak (batch {batch}), over the limit of \
+                     {} MB (--max-job-memory-mb); lower batch_size or the network widths",
+                    est.peak_bytes >> 20,
+                    s.max_job_memory_bytes >> 20
+                ),
+            );
+        }
+        Ok(())
+    }
+
+    /// The scalings training derives from the data must be finite (values near the f64
+    /// range overflow them), else the job would "succeed" with a model that cannot answer.
+    async fn check_job_data(&self, job: &JobSpec) -> Result<()> {
+        let load = |field: &'static str, id: String| async move {
+            self.store
+                .load_dataset(&id)
+                .await?
+                .ok_or_else(|| Error::Unprocessable {
+                    field: field.into(),
+                    message: format!("dataset {id} does not exist"),
+                })
+        };
+        let data = load("dataset_id", job.dataset_id.clone()).await?;
+        let val = match &job.validation_dataset_id {
+            Some(id) => Some(load("validation_dataset_id", id.clone()).await?),
+            None => None,
+        };
+        let job = job.clone();
+        tokio::task::spawn_blocking(move || {
+            crate::train::trainer::prepare(&job.spec, &job.init, &data, val.as_ref(), &job.training)
+                .map(|_| ())
+        })
+        .await
+        .map_err(|e| Error::Internal(format!("checking the data failed: {e}")))?
+        .map_err(|e| match e {
+            Error::Invalid { field, message } if field == "data" => Error::Unprocessable {
+                field: "dataset_id".into(),
+                message,
+            },
+            e => e.unprocessable(),
         })
     }
 

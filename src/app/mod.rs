@@ -2,6 +2,7 @@
 //! Handlers translate; every rule lives here or below.
 
 pub mod datasets;
+pub mod events;
 pub mod inference;
 pub mod jobs;
 pub mod models;
@@ -11,7 +12,8 @@ use std::sync::Arc;
 
 use crate::store::Store;
 
-/// Service settings the core needs (flags and environment, see `cli::ServeArgs`).
+/// Service settings the core needs (flags and environment, see `cli::ServeArgs`). The limits
+/// bound what one accepted request may cost; README documents each flag.
 #[derive(Debug, Clone)]
 pub struct Settings {
     pub workers: usize,
@@ -20,8 +22,22 @@ pub struct Settings {
     pub max_body_bytes: usize,
     /// Longest Rollout (steps) a gRPC caller may ask for.
     pub max_rollout_steps: usize,
-    /// Largest gRPC message, in bytes (decode limit).
+    /// Largest gRPC message, in bytes (decode and encode limit).
     pub grpc_max_message_bytes: usize,
+    /// Concurrent gRPC streams (calls) per connection.
+    pub grpc_max_streams: u32,
+    /// Memory one inference call may take (inputs, outputs, intermediate work).
+    pub max_call_memory_bytes: usize,
+    /// Inference calls computing at once beyond the inline small ones; the others wait.
+    pub max_heavy_calls: usize,
+    /// Estimated peak memory of one training job.
+    pub max_job_memory_bytes: usize,
+    /// Trainable parameters of one model.
+    pub max_model_params: usize,
+    /// Generalized coordinates n of a dataset a job may train on.
+    pub max_dof: usize,
+    /// Times a job's worker may die (its lease expire) before the job fails.
+    pub max_attempts: i64,
 }
 
 impl Default for Settings {
@@ -33,6 +49,13 @@ impl Default for Settings {
             max_body_bytes: 256 << 20,
             max_rollout_steps: 100_000,
             grpc_max_message_bytes: 64 << 20,
+            grpc_max_streams: 100,
+            max_call_memory_bytes: 512 << 20,
+            max_heavy_calls: 2,
+            max_job_memory_bytes: 4096 << 20,
+            max_model_params: 1_000_000,
+            max_dof: 64,
+            max_attempts: 3,
         }
     }
 }
@@ -45,15 +68,24 @@ pub struct App {
     pub telemetry: Arc<telemetry::Telemetry>,
     /// Trained models loaded for inference, by model id.
     pub models: Arc<inference::ModelCache>,
+    /// Shared progress pollers of followed jobs.
+    pub feeds: Arc<events::Feeds>,
+    /// Admission of heavy inference calls (see `Settings::max_heavy_calls`).
+    pub heavy: Arc<inference::Heavy>,
+    /// Admission of rollout chunks, a share of its own.
+    pub streaming: Arc<inference::Heavy>,
 }
 
 impl App {
     pub fn new(store: Store, settings: Settings) -> Self {
         Self {
             store,
-            settings: Arc::new(settings),
             telemetry: Arc::default(),
             models: Arc::default(),
+            feeds: Arc::default(),
+            heavy: Arc::new(inference::Heavy::new(settings.max_heavy_calls)),
+            streaming: Arc::new(inference::Heavy::streaming(settings.max_heavy_calls)),
+            settings: Arc::new(settings),
         }
     }
 }

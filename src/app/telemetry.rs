@@ -26,6 +26,8 @@ pub struct Telemetry {
     pub epochs_trained: AtomicU64,
     /// Long computations stopped because the caller's deadline passed or it went away.
     pub computations_stopped: AtomicU64,
+    /// Store reads made to follow jobs' progress (server-sent events), all subscribers together.
+    pub job_polls: AtomicU64,
 }
 
 fn escape(s: &str) -> String {
@@ -75,6 +77,13 @@ impl Telemetry {
             out,
             "graybox_computations_stopped_total {}",
             self.computations_stopped.load(Ordering::Relaxed)
+        );
+        out.push_str("# HELP graybox_job_polls_total Store reads made to follow jobs (all event subscribers together).\n");
+        out.push_str("# TYPE graybox_job_polls_total counter\n");
+        let _ = writeln!(
+            out,
+            "graybox_job_polls_total {}",
+            self.job_polls.load(Ordering::Relaxed)
         );
         out.push_str(
             "# HELP graybox_http_requests_total HTTP requests by method, route and status.\n",

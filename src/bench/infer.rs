@@ -255,6 +255,7 @@ async fn over_grpc(
             ..Settings::default()
         },
         rest: RestSettings::default(),
+        tls: None,
     })
     .await?;
     let app = running.app.clone();

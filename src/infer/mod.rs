@@ -7,11 +7,13 @@
 
 pub mod col;
 pub mod jet;
+pub mod limits;
 
 use std::collections::HashMap;
 
 use col::{Col, Column, Lanes};
 use jet::Jet;
+use limits::Pass;
 
 use crate::control::linalg::Mat;
 use crate::control::tvlqr::{Gains, tvlqr};
@@ -399,7 +401,7 @@ fn standardize<S: Scalar>(x: &[S], mean: &[f64], std: &[f64]) -> Vec<S> {
 impl Evaluator {
     /// x' (and q̈ when asked) for `[B, 2n]` states and `[B, m]` inputs.
     pub fn predict(&self, x: &[f64], u: &[f64], want_accel: bool) -> (Vec<f64>, Option<Vec<f64>>) {
-        let parts = self.split(x, u, |x, u| {
+        let parts = self.split(x, u, Pass::Step, |x, u| {
             if x.len() == 2 * self.config.n {
                 self.predict_cols::<f64>(x, u, want_accel)
             } else {
@@ -432,7 +434,7 @@ impl Evaluator {
     /// are dual variables (2n + m directions, each sample its own), pushed through one step.
     pub fn linearize_batch(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let parts = self.split(x, u, |x, u| {
+        let parts = self.split(x, u, Pass::Linearize, |x, u| {
             if x.len() == nx {
                 self.jacobian_rows(columns::<f64>(x, nx), columns(u, m))
             } else {
@@ -470,27 +472,35 @@ impl Evaluator {
             .collect()
     }
 
-    /// Runs `f` over a batch, in two halves on two threads when the batch is large enough
-    /// for the thread to pay off; the parts in order.
+    /// Runs `f` over a batch in chunks whose intermediate work is bounded (see [`limits`]),
+    /// each in two halves on two threads when it is large enough for the thread to pay off;
+    /// the parts in order.
     fn split<T: Send>(
         &self,
         x: &[f64],
         u: &[f64],
+        pass: Pass,
         f: impl Fn(&[f64], &[f64]) -> T + Sync,
     ) -> Vec<T> {
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let rows = x.len() / nx;
-        if rows < PARALLEL_ROWS {
-            return vec![f(x, u)];
+        let chunk = 2 * self.chunk_states(pass);
+        let mut parts = Vec::new();
+        for (x, u) in x.chunks(chunk * nx).zip(u.chunks(chunk * m)) {
+            let rows = x.len() / nx;
+            if rows < PARALLEL_ROWS {
+                parts.push(f(x, u));
+                continue;
+            }
+            let half = rows / 2;
+            let (x0, x1) = x.split_at(half * nx);
+            let (u0, u1) = u.split_at(half * m);
+            std::thread::scope(|s| {
+                let second = s.spawn(|| f(x1, u1));
+                parts.push(f(x0, u0));
+                parts.push(second.join().expect("inference thread"));
+            });
         }
-        let half = rows / 2;
-        let (x0, x1) = x.split_at(half * nx);
-        let (u0, u1) = u.split_at(half * m);
-        std::thread::scope(|s| {
-            let second = s.spawn(|| f(x1, u1));
-            let first = f(x0, u0);
-            vec![first, second.join().expect("inference thread")]
-        })
+        parts
     }
 
     /// TVLQR gains along a nominal `x̄ [(T+1), 2n]`, `ū [T, m]` (defects ignored).

@@ -50,7 +50,11 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
         if *shutdown.borrow() {
             return;
         }
-        match app.store.claim_job(&owner, lease_ms(&app)).await {
+        match app
+            .store
+            .claim_job(&owner, lease_ms(&app), app.settings.max_attempts)
+            .await
+        {
             Ok(Some(claimed)) => {
                 let id = claimed.job.id.clone();
                 match run_claimed(&app, claimed, shutdown.clone()).await {
@@ -179,6 +183,15 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
         .transpose()?;
     let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
     let mut trainer = match rt.block_on(app.store.load_checkpoint(&c.job.id))? {
+        Some((epoch, _)) if epoch > c.job.epochs => {
+            return Err(Error::corrupt(
+                "checkpoint",
+                format!(
+                    "its epoch {epoch} is past the job's {} epochs",
+                    c.job.epochs
+                ),
+            ));
+        }
         Some((epoch, bytes)) => {
             info!(job = %c.job.id, epoch, "resuming from checkpoint");
             Trainer::resume(
@@ -240,7 +253,7 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
         dt: file.config.dt,
         spec: &spec_json,
         report: &report,
-        file: &file.to_bytes(),
+        file: &file.to_bytes()?,
     };
     match rt.block_on(app.store.finish_job(c, model))? {
         Some(id) => Ok(Outcome::Succeeded(id)),

@@ -54,6 +54,23 @@ fn column_stats(a: &[f64], width: usize) -> (Vec<f64>, Vec<f64>) {
 }
 
 impl Scaling {
+    /// Every statistic is a finite number.
+    pub fn is_finite(&self) -> bool {
+        [
+            &self.q_mean,
+            &self.q_std,
+            &self.qdot_mean,
+            &self.qdot_std,
+            &self.u_mean,
+            &self.u_std,
+            &self.acc_mean,
+            &self.acc_std,
+            &self.force_scale,
+        ]
+        .iter()
+        .all(|v| v.iter().all(|x| x.is_finite()))
+    }
+
     /// Identity scalings (used where no data is at hand, e.g. in unit tests).
     pub fn identity(n: usize, m: usize) -> Self {
         Self {

@@ -166,6 +166,22 @@ pub(super) fn fenced<'q>(q: SqliteQuery<'q>, c: &Claimed) -> SqliteQuery<'q> {
         .bind(c.owner.clone())
 }
 
+/// SQLite refuses a blob over its length limit (SQLITE_TOOBIG): no retry can store it, so
+/// it is not a storage fault but a job that cannot be checkpointed.
+fn too_big(e: sqlx::Error, len: usize) -> Error {
+    match &e {
+        sqlx::Error::Database(db)
+            if db.code().as_deref() == Some("18") || db.message().contains("too big") =>
+        {
+            Error::ResourceExhausted(format!(
+                "the checkpoint ({} MB) is larger than the store can hold",
+                len >> 20
+            ))
+        }
+        _ => e.into(),
+    }
+}
+
 impl Store {
     pub async fn submit_job(&self, new: NewJob) -> Result<Submitted> {
         let request_sha = sha256_hex(new.request.as_bytes());
@@ -187,6 +203,24 @@ impl Store {
                     });
                 }
                 return Ok(Submitted::Existing(row(&r)?));
+            }
+        }
+        // Inside the write transaction, so that a concurrent DELETE of a dataset either runs
+        // first (and this submission fails) or sees this job and refuses.
+        for (field, id) in [
+            ("dataset_id", Some(&new.dataset_id)),
+            ("validation_dataset_id", new.validation_dataset_id.as_ref()),
+        ] {
+            let Some(id) = id else { continue };
+            let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM datasets WHERE id = ?")
+                .bind(id)
+                .fetch_one(&mut *tx)
+                .await?;
+            if found == 0 {
+                return Err(Error::Unprocessable {
+                    field: field.into(),
+                    message: format!("dataset {id} does not exist"),
+                });
             }
         }
         let r = sqlx::query(sql(
@@ -234,17 +268,21 @@ impl Store {
         rows.iter().map(row).collect()
     }
 
-    /// Queued → cancelled at once; running → the cancel flag, which the worker sees at its next
-    /// heartbeat. A finished job is a conflict.
+    /// Queued, or running with an expired lease (its worker died) → cancelled at once; running
+    /// → the cancel flag, which the worker sees at its next heartbeat. A finished job is a
+    /// conflict.
     pub async fn cancel_job(&self, id: &str) -> Result<JobRow> {
         let mut tx = self.write().await?;
         let r = sqlx::query(sql("UPDATE jobs SET
-                state = CASE state WHEN 'queued' THEN 'cancelled' ELSE state END,
-                finished_at = CASE state WHEN 'queued' THEN ?2 ELSE finished_at END,
+                state = CASE WHEN state = 'queued' OR (state = 'running' AND lease_expires_ms < ?3)
+                             THEN 'cancelled' ELSE state END,
+                finished_at = CASE WHEN state = 'queued' OR (state = 'running' AND lease_expires_ms < ?3)
+                             THEN ?2 ELSE finished_at END,
                 cancel_requested = CASE state WHEN 'running' THEN 1 ELSE cancel_requested END
              WHERE id = ?1 RETURNING {COLUMNS}"))
         .bind(id)
         .bind(now_rfc3339())
+        .bind(now_ms())
         .fetch_optional(&mut *tx)
         .await?;
         tx.commit().await?;
@@ -262,13 +300,40 @@ impl Store {
         }
     }
 
-    /// Claims the oldest queued job, or a running one whose lease expired (its worker died),
-    /// in one statement.
-    pub async fn claim_job(&self, owner: &str, lease_ms: i64) -> Result<Option<Claimed>> {
+    /// Claims the oldest queued job, or a running one whose lease expired (its worker died:
+    /// counted), in one transaction. An expired job that was asked to cancel is cancelled, and
+    /// one whose worker died `max_attempts` times fails, instead of running again.
+    pub async fn claim_job(
+        &self,
+        owner: &str,
+        lease_ms: i64,
+        max_attempts: i64,
+    ) -> Result<Option<Claimed>> {
         let now = now_ms();
         let mut tx = self.write().await?;
+        const EXPIRED: &str = "state = 'running' AND lease_expires_ms < ?1";
+        sqlx::query(sqlx::AssertSqlSafe(format!(
+            "UPDATE jobs SET state = 'cancelled', finished_at = ?2, lease_owner = NULL,
+                lease_expires_ms = NULL WHERE {EXPIRED} AND cancel_requested = 1"
+        )))
+        .bind(now)
+        .bind(now_rfc3339())
+        .execute(&mut *tx)
+        .await?;
+        sqlx::query(sqlx::AssertSqlSafe(format!(
+            "UPDATE jobs SET state = 'failed', worker_deaths = worker_deaths + 1,
+                error = 'the worker died ' || (worker_deaths + 1) || ' times running this job',
+                finished_at = ?2, lease_owner = NULL, lease_expires_ms = NULL
+             WHERE {EXPIRED} AND worker_deaths + 1 >= ?3"
+        )))
+        .bind(now)
+        .bind(now_rfc3339())
+        .bind(max_attempts)
+        .execute(&mut *tx)
+        .await?;
         let r = sqlx::query(sql(
             "UPDATE jobs SET state = 'running', attempt = attempt + 1, lease_owner = ?1,
+                worker_deaths = worker_deaths + (state = 'running'),
                 lease_expires_ms = ?2 + ?3, heartbeat_ms = ?2, started_at = COALESCE(started_at, ?4)
              WHERE id = (SELECT id FROM jobs
                          WHERE state = 'queued' OR (state = 'running' AND lease_expires_ms < ?2)
@@ -384,7 +449,8 @@ impl Store {
         .bind(sha256_hex(state))
         .bind(now_rfc3339())
         .execute(&mut *tx)
-        .await?;
+        .await
+        .map_err(|e| too_big(e, state.len()))?;
         tx.commit().await?;
         Ok(true)
     }

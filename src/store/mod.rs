@@ -62,6 +62,30 @@ pub fn new_id(prefix: &str) -> String {
     format!("{prefix}_{}", uuid::Uuid::new_v4().simple())
 }
 
+/// An exclusive lock on `<db>.lock` for the duration of the migrations: two processes that
+/// start at once on a new database would otherwise both create its tables, and one fails
+/// ("table datasets already exists"). A lock file beside the database, not the database file
+/// itself: closing any other descriptor of the database would drop SQLite's own locks.
+async fn migration_lock(db: &str) -> Result<Option<std::fs::File>> {
+    if db == ":memory:" || db.starts_with("file:") {
+        return Ok(None);
+    }
+    let path = format!("{db}.lock");
+    tokio::task::spawn_blocking(move || {
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|e| Error::invalid("db", format!("cannot open {path}: {e}")))?;
+        file.lock()
+            .map_err(|e| Error::invalid("db", format!("cannot lock {path}: {e}")))?;
+        Ok(Some(file))
+    })
+    .await
+    .map_err(|e| Error::Internal(format!("migration lock: {e}")))?
+}
+
 impl Store {
     /// Opens (creating if needed) the database file and applies the migrations.
     pub async fn open(path: &str) -> Result<Self> {
@@ -76,7 +100,10 @@ impl Store {
             .max_connections(8)
             .connect_with(opts)
             .await?;
-        sqlx::migrate!("./migrations").run(&pool).await?;
+        let lock = migration_lock(path).await?;
+        let migrated = sqlx::migrate!("./migrations").run(&pool).await;
+        drop(lock);
+        migrated?;
         Ok(Self { pool })
     }
 

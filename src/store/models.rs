@@ -129,6 +129,24 @@ impl Store {
         rows.iter().map(row).collect()
     }
 
+    /// Which of `ids` are still stored.
+    pub async fn existing_models(
+        &self,
+        ids: &[String],
+    ) -> Result<std::collections::HashSet<String>> {
+        let mut found = std::collections::HashSet::new();
+        for chunk in ids.chunks(500) {
+            let marks = vec!["?"; chunk.len()].join(", ");
+            let sql = format!("SELECT id FROM models WHERE id IN ({marks})");
+            let mut q = sqlx::query_scalar::<_, String>(sqlx::AssertSqlSafe(sql));
+            for id in chunk {
+                q = q.bind(id);
+            }
+            found.extend(q.fetch_all(&self.pool).await?);
+        }
+        Ok(found)
+    }
+
     pub async fn delete_model(&self, id: &str) -> Result<()> {
         let mut tx = self.write().await?;
         let r = sqlx::query("DELETE FROM models WHERE id = ?")

@@ -31,8 +31,25 @@ impl ModelFile {
         }
     }
 
-    pub fn to_bytes(&self) -> Vec<u8> {
-        serde_json::to_vec(self).expect("model files serialize")
+    /// The file's bytes. A non-finite number (JSON would write it as null and the file would
+    /// not load back) is an error naming where it is: such a model is never written.
+    pub fn to_bytes(&self) -> Result<Vec<u8>> {
+        if !self.config.scaling.is_finite() || !self.config.dt.is_finite() {
+            return Err(Error::Training(
+                "the model's scalings are not finite; the data's values are out of range".into(),
+            ));
+        }
+        if let Some(a) = self
+            .params
+            .iter()
+            .find(|a| a.values.iter().any(|v| !v.is_finite()))
+        {
+            return Err(Error::Training(format!(
+                "the trained parameters '{}' are not finite; training diverged",
+                a.name
+            )));
+        }
+        Ok(serde_json::to_vec(self).expect("model files serialize"))
     }
 
     pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
@@ -48,7 +65,7 @@ impl ModelFile {
     }
 
     pub fn save(&self, path: &Path) -> Result<()> {
-        write_atomic(path, &self.to_bytes())
+        write_atomic(path, &self.to_bytes()?)
     }
 
     pub fn load(path: &Path) -> Result<Self> {

@@ -37,6 +37,12 @@ struct DatasetJson<'a> {
     qdot_next: Vec<&'a [f64]>,
 }
 
+/// The sampling intervals graybox accepts, in seconds. Below 10 µs the one-step differences
+/// q' − q drown in f32 rounding during training; above 10 s one RK4 step of a mechanical
+/// system says nothing about its dynamics. A Δt outside this range has always been a unit or
+/// export error (a reported 1e-320 produced a model with NaN scalings).
+pub const DT_RANGE: (f64, f64) = (1e-5, 10.0);
+
 impl Dataset {
     pub fn count(&self) -> usize {
         self.q.len().checked_div(self.n).unwrap_or(0)
@@ -60,10 +66,14 @@ impl Dataset {
     }
 
     fn validate(&self) -> Result<()> {
-        if !(self.dt.is_finite() && self.dt > 0.0) {
+        let (lo, hi) = DT_RANGE;
+        if !(self.dt.is_finite() && (lo..=hi).contains(&self.dt)) {
             return Err(Error::invalid(
                 "dt",
-                format!("must be a finite number > 0, got {}", self.dt),
+                format!(
+                    "must be a number of seconds in [{lo:e}, {hi}], got {}",
+                    self.dt
+                ),
             ));
         }
         if self.n == 0 {

@@ -2,6 +2,7 @@
 
 pub mod adam;
 pub mod artifact;
+pub mod budget;
 pub mod data;
 pub mod report;
 pub mod trainer;

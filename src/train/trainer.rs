@@ -246,6 +246,10 @@ fn fingerprint(train: &Dataset, val: Option<&Dataset>) -> u64 {
     h
 }
 
+/// Largest |initial value| of a physical parameter: SI values of real mechanisms are far
+/// below it, and larger ones (1e308 was accepted once) overflow the first epoch's dynamics.
+pub const PHYSICAL_MAX: f64 = 1e6;
+
 /// Template parameter values from name=value pairs over the defaults.
 pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<Vec<f64>>> {
     let Some(t) = spec.template() else {
@@ -262,11 +266,67 @@ pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<
         let i = t
             .index_of(name)
             .ok_or_else(|| unknown_param(t, name, &format!("init.{name}")))?;
+        if !(v.is_finite() && v.abs() <= PHYSICAL_MAX) {
+            return Err(Error::invalid(
+                format!("init.{name}"),
+                format!("must be a number with |value| ≤ {PHYSICAL_MAX:e}, got {v}"),
+            ));
+        }
+        if t.params()[i].positive && *v > 0.0 && *v < 1.0 / PHYSICAL_MAX {
+            return Err(Error::invalid(
+                format!("init.{name}"),
+                format!("must be at least {:e}, got {v}", 1.0 / PHYSICAL_MAX),
+            ));
+        }
         values[i] = *v;
     }
     // Positive parameters must start positive (they are trained in log space).
     crate::model::raw_physical(t, &values)?;
     Ok(Some(values))
+}
+
+/// What [`prepare`] returns: the model configuration, the initial physical values, and the
+/// training and validation data.
+pub type Prepared = (ModelConfig, Option<Vec<f64>>, Dataset, Option<Dataset>);
+
+/// A run's model configuration, initial physical values and data split, checked: what a new
+/// run needs before its model exists (the service calls it at submission too). A scaling
+/// that is not finite (data near the f64 range) is an error naming "data".
+pub fn prepare(
+    spec: &ModelSpec,
+    init: &[(String, f64)],
+    data: &Dataset,
+    val: Option<&Dataset>,
+    cfg: &TrainConfig,
+) -> Result<Prepared> {
+    cfg.validate()?;
+    spec.validate()?;
+    spec.check_dims(data.n, data.m)?;
+    let physical = physical_init(spec, init)?;
+    let (train_ds, val_ds) = split_data(data, val, cfg)?;
+    let white_box_mass = spec.white_box_parts().contains(&Part::Mass);
+    let mass = match (white_box_mass, spec.template(), &physical) {
+        (true, Some(t), Some(p)) => Some((t, p.as_slice())),
+        _ => None,
+    };
+    let scaling = Scaling::from_data(&train_ds, mass);
+    if !scaling.is_finite() {
+        return Err(Error::invalid(
+            "data",
+            "the data's statistics (means, spreads, accelerations) are not finite: values or \
+             differences near the limits of f64; check units and dt",
+        ));
+    }
+    let config = ModelConfig {
+        spec: spec.clone(),
+        n: data.n,
+        m: data.m,
+        dt: data.dt,
+        integrator: cfg.integrator,
+        lambda: cfg.lambda,
+        scaling,
+    };
+    Ok((config, physical, train_ds, val_ds))
 }
 
 impl Trainer {
@@ -281,25 +341,7 @@ impl Trainer {
         cfg: TrainConfig,
         device: &Device,
     ) -> Result<Self> {
-        cfg.validate()?;
-        spec.validate()?;
-        spec.check_dims(data.n, data.m)?;
-        let physical = physical_init(&spec, init)?;
-        let (train_ds, val_ds) = split_data(data, val, &cfg)?;
-        let white_box_mass = spec.white_box_parts().contains(&Part::Mass);
-        let mass = match (white_box_mass, spec.template(), &physical) {
-            (true, Some(t), Some(p)) => Some((t, p.as_slice())),
-            _ => None,
-        };
-        let config = ModelConfig {
-            spec,
-            n: data.n,
-            m: data.m,
-            dt: data.dt,
-            integrator: cfg.integrator,
-            lambda: cfg.lambda,
-            scaling: Scaling::from_data(&train_ds, mass),
-        };
+        let (config, physical, train_ds, val_ds) = prepare(&spec, init, data, val, &cfg)?;
         let model = Model::init(config, physical, cfg.seed, device)?;
         Ok(Self::start(
             model_name,

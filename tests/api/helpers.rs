@@ -22,19 +22,59 @@ pub async fn spawn_app(workers: usize) -> TestApp {
 }
 
 pub async fn spawn_with(workers: usize, rest: RestSettings, max_body_bytes: usize) -> TestApp {
+    let settings = Settings {
+        workers,
+        checkpoint_every: 2,
+        lease_secs: 30,
+        max_body_bytes,
+        ..Settings::default()
+    };
     let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("test.db").to_string_lossy().into_owned();
+    spawn_on(db, settings, rest, dir).await
+}
+
+/// The service with these settings on a new database.
+pub async fn spawn_configured(settings: Settings) -> TestApp {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("test.db").to_string_lossy().into_owned();
+    spawn_on(db, settings, RestSettings::default(), dir).await
+}
+
+/// A second service process (its own App, cache and workers) on `app`'s database.
+pub async fn spawn_app_on(app: &TestApp, workers: usize) -> TestApp {
+    let db = app
+        ._dir
+        .path()
+        .join("test.db")
+        .to_string_lossy()
+        .into_owned();
+    let settings = Settings {
+        workers,
+        ..Settings::default()
+    };
+    spawn_on(
+        db,
+        settings,
+        RestSettings::default(),
+        tempfile::tempdir().unwrap(),
+    )
+    .await
+}
+
+async fn spawn_on(
+    db: String,
+    settings: Settings,
+    rest: RestSettings,
+    dir: tempfile::TempDir,
+) -> TestApp {
     let cfg = ServiceConfig {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
-        db: dir.path().join("test.db").to_string_lossy().into_owned(),
-        settings: Settings {
-            workers,
-            checkpoint_every: 2,
-            lease_secs: 30,
-            max_body_bytes,
-            ..Settings::default()
-        },
+        db,
+        settings,
         rest,
+        tls: None,
     };
     let running = start(cfg).await.expect("service starts");
     let base = format!("http://{}", running.http_addr);

@@ -5,6 +5,7 @@ mod datasets;
 mod errors;
 mod grpc;
 mod helpers;
+mod hostile;
 mod jobs;
 
 /// The paper's double pendulum in closed form (shared with the numerics tests).

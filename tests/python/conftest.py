@@ -1,18 +1,23 @@
 """One `graybox serve` for the whole session (the binary from $GRAYBOX_BIN) on free ports
 with a temporary database, and two small trained models on simulated double-pendulum data.
+`serve` starts further servers with their own flags for the tests that need them.
 
-The server's log is attached to every failing test's report.
+The server's log is attached to every failing test's report, with those of the other
+servers running at the time.
 """
 
+import contextlib
 import json
 import os
 import socket
+import ssl
 import subprocess
 import time
 import urllib.error
 import urllib.request
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Iterator
 
 import grpc
 import numpy as np
@@ -22,6 +27,7 @@ from graybox_client import Client
 
 MAX_ROLLOUT_STEPS = 200_000
 _server_log: Path | None = None
+_other_logs: dict[str, Path] = {}  # the servers `serve` started that are still running
 
 
 def rel(a, b) -> float:
@@ -44,17 +50,23 @@ def free_ports(k: int) -> list[int]:
 
 
 class Rest:
-    """The REST API over urllib: (status, JSON body) for every answer, errors included."""
+    """The REST API over urllib: (status, JSON body) for every answer, errors included.
+    With `token`, every request carries `Authorization: Bearer <token>`; `context` is the
+    TLS context of an https `base`."""
 
-    def __init__(self, base: str):
+    def __init__(self, base: str, token: str | None = None, context: ssl.SSLContext | None = None):
         self.base = base
+        self.token = token
+        self.context = context
 
     def request(self, method: str, path: str, body=None, raw: bytes | None = None):
         data = raw if raw is not None else (None if body is None else json.dumps(body).encode())
-        req = urllib.request.Request(self.base + path, data=data, method=method,
-                                     headers={"content-type": "application/json"})
+        headers = {"content-type": "application/json"}
+        if self.token is not None:
+            headers["authorization"] = f"Bearer {self.token}"
+        req = urllib.request.Request(self.base + path, data=data, method=method, headers=headers)
         try:
-            with urllib.request.urlopen(req, timeout=60) as r:
+            with urllib.request.urlopen(req, timeout=60, context=self.context) as r:
                 return r.status, json.loads(r.read() or b"null")
         except urllib.error.HTTPError as e:
             return e.code, json.loads(e.read() or b"null")
@@ -95,10 +107,11 @@ class Models:
     mvf_job: str
 
 
-def _log_tail(lines: int = 80) -> str:
-    if _server_log is None or not _server_log.exists():
+def _log_tail(lines: int = 80, log: Path | None = None) -> str:
+    log = log or _server_log
+    if log is None or not log.exists():
         return ""
-    return "\n".join(_server_log.read_text(errors="replace").splitlines()[-lines:])
+    return "\n".join(log.read_text(errors="replace").splitlines()[-lines:])
 
 
 @pytest.hookimpl(hookwrapper=True)
@@ -107,6 +120,9 @@ def pytest_runtest_makereport(item, call):
     report = outcome.get_result()
     if report.failed and _server_log is not None:
         report.sections.append(("graybox serve log (last 80 lines)", _log_tail()))
+    if report.failed:
+        for name, log in _other_logs.items():
+            report.sections.append((f"{name} log (last 80 lines)", _log_tail(log=log)))
 
 
 def server_env() -> dict:
@@ -116,31 +132,59 @@ def server_env() -> dict:
     return {**env, "NO_COLOR": "1"}
 
 
+@dataclass
+class Serving:
+    """A running `graybox serve`: its process, addresses, REST client and log."""
+
+    proc: subprocess.Popen
+    http_port: int
+    grpc_port: int
+    grpc_target: str
+    rest: Rest
+    log: Path
+
+    def status(self, field: str) -> int:
+        """A number from /proc/<pid>/status, e.g. "VmHWM" (kB) or "Threads"."""
+        for line in Path(f"/proc/{self.proc.pid}/status").read_text().splitlines():
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+        raise KeyError(field)
+
+
 @pytest.fixture(scope="session")
-def server(tmp_path_factory):
-    global _server_log
+def graybox_bin() -> str:
     binary = os.environ.get("GRAYBOX_BIN")
     if not binary:
         pytest.fail("GRAYBOX_BIN is not set: point it at a built graybox binary, e.g. "
                     "GRAYBOX_BIN=$PWD/target/release/graybox", pytrace=False)
     if not os.access(binary, os.X_OK):
         pytest.fail(f"GRAYBOX_BIN={binary} is not an executable file", pytrace=False)
-    tmp = tmp_path_factory.mktemp("graybox")
+    return binary
+
+
+@contextlib.contextmanager
+def serve(binary: str, tmp: Path, *flags: str, name: str = "graybox serve",
+          token: str | None = None, context: ssl.SSLContext | None = None) -> Iterator[Serving]:
+    """`graybox serve` on free loopback ports with a database in `tmp` and `flags` added, once
+    it answers /healthz (over https with `context`; `token` goes to the REST client); stopped
+    on exit. While it runs, failing tests' reports carry its log under `name`."""
     http, grpc_port = free_ports(2)
-    _server_log = tmp / "serve.log"
-    log = open(_server_log, "wb")
+    log_path = tmp / "serve.log"
+    log = open(log_path, "wb")
     proc = subprocess.Popen(
         [binary, "serve", "--http", f"127.0.0.1:{http}", "--grpc", f"127.0.0.1:{grpc_port}",
-         "--db", str(tmp / "graybox.db"), "--workers", "1",
-         "--max-rollout-steps", str(MAX_ROLLOUT_STEPS)],
+         "--db", str(tmp / "graybox.db"), *flags],
         stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
         env=server_env())
-    rest = Rest(f"http://127.0.0.1:{http}")
+    scheme = "http" if context is None else "https"
+    rest = Rest(f"{scheme}://127.0.0.1:{http}", token=token, context=context)
+    if name != "graybox serve":
+        _other_logs[name] = log_path
     try:
         end = time.monotonic() + 60
         while True:
             if proc.poll() is not None:
-                pytest.fail(f"graybox serve exited with {proc.returncode}:\n{_log_tail()}",
+                pytest.fail(f"{name} exited with {proc.returncode}:\n{_log_tail(log=log_path)}",
                             pytrace=False)
             try:
                 if rest.get("/healthz")[0] == 200:
@@ -148,12 +192,12 @@ def server(tmp_path_factory):
             except OSError:
                 pass
             if time.monotonic() > end:
-                pytest.fail(f"graybox serve did not answer /healthz:\n{_log_tail()}", pytrace=False)
+                pytest.fail(f"{name} did not answer /healthz:\n{_log_tail(log=log_path)}",
+                            pytrace=False)
             time.sleep(0.05)
-        with grpc.insecure_channel(f"127.0.0.1:{grpc_port}") as ch:
-            grpc.channel_ready_future(ch).result(timeout=30)
-        yield Server(binary, f"127.0.0.1:{grpc_port}", rest, tmp)
+        yield Serving(proc, http, grpc_port, f"127.0.0.1:{grpc_port}", rest, log_path)
     finally:
+        _other_logs.pop(name, None)
         proc.terminate()
         try:
             proc.wait(timeout=20)
@@ -161,6 +205,18 @@ def server(tmp_path_factory):
             proc.kill()
             proc.wait()
         log.close()
+
+
+@pytest.fixture(scope="session")
+def server(tmp_path_factory, graybox_bin):
+    global _server_log
+    tmp = tmp_path_factory.mktemp("graybox")
+    _server_log = tmp / "serve.log"
+    with serve(graybox_bin, tmp, "--workers", "1",
+               "--max-rollout-steps", str(MAX_ROLLOUT_STEPS)) as s:
+        with grpc.insecure_channel(s.grpc_target) as ch:
+            grpc.channel_ready_future(ch).result(timeout=30)
+        yield Server(graybox_bin, s.grpc_target, s.rest, tmp)
 
 
 @pytest.fixture(scope="session")

@@ -3,13 +3,17 @@
 The client converts arrays and errors and nothing else: shapes, finiteness and the LQR
 weights are validated by the server, which names the offending field, so a bad request
 reaches it and comes back as a GrayboxError with the server's status code and message.
+
+Predict, Linearize and Rollout also report, per row, `max_abs_z`: the largest |z-score| of
+q, q̇ and u under the model's training data statistics (how far outside its data the model
+was asked to answer; above ~4, treat the outputs with doubt). Pass `return_z=True` to get it.
 """
 
 from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from typing import Any, Iterator, Optional, Sequence
+from typing import Any, Iterator, Optional, Sequence, Union
 
 import grpc
 import numpy as np
@@ -64,6 +68,14 @@ def _model_info(m: pb.ModelInfo) -> ModelInfo:
     )
 
 
+def _z(values: Sequence[float], rows: int, single: bool):
+    """max_abs_z as [B] (a float for a single point); a server that sent none is an error."""
+    z = np.asarray(values, dtype=np.float64)
+    if len(z) != rows:
+        raise GrayboxError("DATA_LOSS", f"the server sent {len(z)} max_abs_z values for {rows} rows")
+    return float(z[0]) if single else z
+
+
 def _batch(x: Any, u: Any) -> tuple[np.ndarray, np.ndarray, bool]:
     """(x, u) as [B, ·] arrays and whether the caller gave a single point ([2n] and [m])."""
     x = np.asarray(x, dtype=np.float64)
@@ -77,21 +89,36 @@ def _batch(x: Any, u: Any) -> tuple[np.ndarray, np.ndarray, bool]:
 
 
 class Client:
-    """A connection to a graybox gRPC endpoint ("host:port"), plaintext.
+    """A connection to a graybox gRPC endpoint ("host:port"): plaintext, or TLS when
+    `root_certificates` is given.
 
     `timeout` (seconds) is the deadline of every call, None for none; a Rollout's deadline
     covers the whole stream and the server stops computing when it passes.
     `max_message_mb` raises grpc's 4 MiB default receive limit to the server's default
     (64 MiB), so that large batches, TVLQR gains and rollout chunks fit.
+    `token` is the server's API token (`graybox serve --api-token`), sent on every call as
+    `authorization: Bearer <token>` metadata; without it such a server answers UNAUTHENTICATED.
+    `root_certificates` (PEM bytes, or the path of a PEM file) are the certificates trusted
+    for a server started with --tls-cert; the target's host must be named by its certificate.
     """
 
-    def __init__(self, target: str, timeout: Optional[float] = None, max_message_mb: int = 64):
+    def __init__(self, target: str, timeout: Optional[float] = None, max_message_mb: int = 64,
+                 token: Optional[str] = None, root_certificates: Union[bytes, str, None] = None):
         limit = max_message_mb * 1024 * 1024
         self.timeout = timeout
-        self.channel = grpc.insecure_channel(target, options=[
+        self.metadata = (("authorization", f"Bearer {token}"),) if token else None
+        options = [
             ("grpc.max_receive_message_length", limit),
             ("grpc.max_send_message_length", limit),
-        ])
+        ]
+        if root_certificates is None:
+            self.channel = grpc.insecure_channel(target, options=options)
+        else:
+            if isinstance(root_certificates, str):
+                with open(root_certificates, "rb") as f:
+                    root_certificates = f.read()
+            creds = grpc.ssl_channel_credentials(root_certificates=root_certificates)
+            self.channel = grpc.secure_channel(target, creds, options=options)
         self.stub = pb_grpc.DynamicsStub(self.channel)
 
     def close(self) -> None:
@@ -105,28 +132,31 @@ class Client:
 
     def _call(self, method, request):
         try:
-            return method(request, timeout=self.timeout)
+            return method(request, timeout=self.timeout, metadata=self.metadata)
         except grpc.RpcError as e:
             raise GrayboxError(e.code().name, e.details() or "") from None
 
-    def predict(self, model_id: str, x, u, want_accel: bool = False):
+    def predict(self, model_id: str, x, u, want_accel: bool = False, return_z: bool = False):
         """x' = f(x, u) for x [2n] and u [m], or a batch x [B, 2n] and u [B, m]; with
-        `want_accel` also q̈ ([n] or [B, n]) as (x_next, accel)."""
+        `want_accel` also q̈ ([n] or [B, n]) as (x_next, accel); with `return_z` also
+        max_abs_z (a float, or [B]) last: (x_next, z) or (x_next, accel, z)."""
         xb, ub, single = _batch(x, u)
         r = self._call(self.stub.Predict, pb.PredictRequest(
             model_id=model_id, x=to_array(xb), u=to_array(ub), want_accel=want_accel))
         x_next = from_array(r.x_next)
-        if single:
-            x_next = x_next[0]
-        if not want_accel:
-            return x_next
-        accel = from_array(r.accel)
-        return x_next, (accel[0] if single else accel)
+        out = [x_next[0] if single else x_next]
+        if want_accel:
+            accel = from_array(r.accel)
+            out.append(accel[0] if single else accel)
+        if return_z:
+            out.append(_z(r.max_abs_z, len(x_next), single))
+        return out[0] if len(out) == 1 else tuple(out)
 
     def rollout_chunks(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
-                       chunk: Optional[int] = None) -> Iterator[tuple[int, np.ndarray, np.ndarray]]:
+                       chunk: Optional[int] = None, return_z: bool = False) -> Iterator[tuple]:
         """The streamed rollout as it arrives: (index of the chunk's first state, states
-        [c, 2n], inputs applied in the chunk [c', m]). Arguments as `rollout`."""
+        [c, 2n], inputs applied in the chunk [c', m]), with `return_z` also max_abs_z [c'] of
+        each applied input and the state it was applied at. Arguments as `rollout`."""
         if u is not None and policy is not None:
             raise ValueError("give u or policy, not both")
         req = pb.RolloutRequest(model_id=model_id, chunk=chunk or 0,
@@ -136,41 +166,54 @@ class Client:
         elif policy is not None:
             x_bar, u_bar, k = policy
             req.policy.CopyFrom(pb.Policy(x_bar=to_array(x_bar), u_bar=to_array(u_bar), k=to_array(k)))
-        call = self.stub.Rollout(req, timeout=self.timeout)
+        call = self.stub.Rollout(req, timeout=self.timeout, metadata=self.metadata)
         try:
             for c in call:
-                yield c.start, from_array(c.x), from_array(c.u)
+                if return_z:
+                    applied = from_array(c.u)
+                    yield c.start, from_array(c.x), applied, _z(c.max_abs_z, len(applied), False)
+                else:
+                    yield c.start, from_array(c.x), from_array(c.u)
         except grpc.RpcError as e:
             raise GrayboxError(e.code().name, e.details() or "") from None
         finally:
             call.cancel()  # a caller that stops reading early stops the server's computation
 
     def rollout(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
-                chunk: Optional[int] = None, with_inputs: bool = False):
+                chunk: Optional[int] = None, with_inputs: bool = False, return_z: bool = False):
         """The states x_0..x_T ([T+1, 2n]) from x0 under inputs u [T, m] or a TVLQR policy
         (x_bar [T+1 or T, 2n], u_bar [T, m], K [T, m, 2n]) applying u_t = ū_t − K_t(x_t − x̄_t).
-        `chunk` is the states per streamed message (server default 1000); the chunks are
-        joined. `with_inputs` also returns the applied inputs [T, m] as (xs, us)."""
-        xs, us, rows = [], [], 0
-        for start, x, applied in self.rollout_chunks(model_id, x0, u, policy, chunk):
+        `chunk` is the states per streamed message (server default 1000, capped so that a
+        message stays within 256 KiB); the chunks are joined. `with_inputs` also returns the
+        applied inputs [T, m] as (xs, us); `return_z` also max_abs_z [T] of (x_t, u_t) last:
+        (xs, z) or (xs, us, z)."""
+        xs, us, zs, rows = [], [], [], 0
+        for start, x, applied, *z in self.rollout_chunks(model_id, x0, u, policy, chunk, return_z):
             if start != rows:
                 raise GrayboxError("DATA_LOSS", f"a chunk starts at state {start}, expected {rows}")
             xs.append(x)
             us.append(applied)
+            zs.extend(z)
             rows += len(x)
         if not xs:
             raise GrayboxError("DATA_LOSS", "the rollout stream ended without states")
-        states = np.concatenate(xs)
-        return (states, np.concatenate(us)) if with_inputs else states
+        out = [np.concatenate(xs)]
+        if with_inputs:
+            out.append(np.concatenate(us))
+        if return_z:
+            out.append(np.concatenate(zs))
+        return out[0] if len(out) == 1 else tuple(out)
 
-    def linearize(self, model_id: str, x, u):
+    def linearize(self, model_id: str, x, u, return_z: bool = False):
         """A = ∂f/∂x and B = ∂f/∂u of the one-step map: [2n, 2n] and [2n, m] at one point,
-        [B, 2n, 2n] and [B, 2n, m] for a batch."""
+        [B, 2n, 2n] and [B, 2n, m] for a batch; with `return_z` also max_abs_z (a float, or
+        [B]) as (A, B, z)."""
         xb, ub, single = _batch(x, u)
         r = self._call(self.stub.Linearize, pb.LinearizeRequest(
             model_id=model_id, x=to_array(xb), u=to_array(ub)))
         a, b = from_array(r.a), from_array(r.b)
-        return (a[0], b[0]) if single else (a, b)
+        out = (a[0], b[0]) if single else (a, b)
+        return (*out, _z(r.max_abs_z, len(a), single)) if return_z else out
 
     def tvlqr(self, model_id: str, xbar, ubar, Q, R, Qf):
         """TVLQR gains K [T, m, 2n] and cost-to-go S [T+1, 2n, 2n] along x̄ [T+1, 2n],

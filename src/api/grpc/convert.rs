@@ -17,7 +17,10 @@ impl From<Error> for Status {
             Error::ResourceExhausted(_) => Status::resource_exhausted(msg),
             Error::Cancelled => Status::cancelled(msg),
             Error::Storage(_) => Status::unavailable(msg),
-            Error::Training(_) | Error::Io(_) | Error::Corrupt { .. } => Status::internal(msg),
+            Error::DeadlineExceeded(_) => Status::deadline_exceeded(msg),
+            Error::Internal(_) | Error::Training(_) | Error::Io(_) | Error::Corrupt { .. } => {
+                Status::internal(msg)
+            }
         }
     }
 }

@@ -73,7 +73,9 @@ impl From<Error> for ApiError {
             Error::Conflict(_) | Error::FailedPrecondition(_) => {
                 (StatusCode::CONFLICT, "conflict", None)
             }
-            Error::Training(_)
+            Error::DeadlineExceeded(_) => (StatusCode::GATEWAY_TIMEOUT, "deadline_exceeded", None),
+            Error::Internal(_)
+            | Error::Training(_)
             | Error::Cancelled
             | Error::Io(_)
             | Error::Storage(_)

@@ -1,5 +1,5 @@
+use std::collections::VecDeque;
 use std::convert::Infallible;
-use std::time::Duration;
 
 use axum::Router;
 use axum::body::Bytes;
@@ -14,8 +14,10 @@ use serde_json::json;
 
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, int_param, json_body, page};
-use crate::app::App;
+use crate::app::events::Progress;
 use crate::app::jobs::{JobRequest, parse_body};
+use crate::store::JobState;
+use tokio::sync::watch;
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -91,36 +93,55 @@ async fn metrics(
 }
 
 /// Server-sent events: `progress` per epoch with the metrics row, `state` on each change; the
-/// stream ends after the final state. Reads the store, so it follows jobs any worker runs.
+/// stream ends after the final state. Every subscriber of a job shares one store poller.
 async fn events(
     State(s): State<RestState>,
     Path(id): Path<String>,
 ) -> ApiResult<impl IntoResponse> {
-    let job = s.app.job(&id).await?;
-    let stream = event_stream(s.app.clone(), id, job.state);
-    Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
+    let rx = s.app.follow_job(&id).await?;
+    Ok(Sse::new(event_stream(rx)).keep_alive(KeepAlive::default()))
 }
 
 struct Cursor {
-    app: App,
-    id: String,
+    rx: watch::Receiver<Progress>,
     last_epoch: i64,
-    last_state: Option<crate::store::JobState>,
-    pending: std::collections::VecDeque<Event>,
+    last_state: Option<JobState>,
+    pending: VecDeque<Event>,
     done: bool,
 }
 
-fn event_stream(
-    app: App,
-    id: String,
-    _initial: crate::store::JobState,
-) -> impl Stream<Item = Result<Event, Infallible>> {
+impl Cursor {
+    /// Queues the events `p` adds to what this subscriber has seen.
+    fn catch_up(&mut self, p: &Progress) {
+        let seen = self.last_epoch;
+        for r in p.metrics.iter().filter(|r| r.epoch > seen) {
+            self.last_epoch = r.epoch;
+            self.pending.push_back(
+                Event::default()
+                    .event("progress")
+                    .json_data(r)
+                    .expect("json"),
+            );
+        }
+        if self.last_state != Some(p.job.state) {
+            self.last_state = Some(p.job.state);
+            self.done = p.job.state.is_final();
+            self.pending.push_back(
+                Event::default()
+                    .event("state")
+                    .json_data(&p.job)
+                    .expect("json"),
+            );
+        }
+    }
+}
+
+fn event_stream(rx: watch::Receiver<Progress>) -> impl Stream<Item = Result<Event, Infallible>> {
     let cursor = Cursor {
-        app,
-        id,
+        rx,
         last_epoch: 0,
         last_state: None,
-        pending: Default::default(),
+        pending: VecDeque::new(),
         done: false,
     };
     futures_util::stream::unfold(cursor, |mut c| async move {
@@ -131,34 +152,13 @@ fn event_stream(
             if c.done {
                 return None;
             }
-            let (Ok(Some(job)), Ok(rows)) = (
-                c.app.store.get_job(&c.id).await,
-                c.app.store.metrics(&c.id, c.last_epoch).await,
-            ) else {
-                tokio::time::sleep(Duration::from_millis(250)).await;
-                continue;
-            };
-            for r in rows {
-                c.last_epoch = r.epoch;
-                c.pending.push_back(
-                    Event::default()
-                        .event("progress")
-                        .json_data(r)
-                        .expect("json"),
-                );
-            }
-            if c.last_state != Some(job.state) {
-                c.last_state = Some(job.state);
-                c.done = job.state.is_final();
-                c.pending.push_back(
-                    Event::default()
-                        .event("state")
-                        .json_data(&job)
-                        .expect("json"),
-                );
-            }
-            if c.pending.is_empty() {
-                tokio::time::sleep(Duration::from_millis(200)).await;
+            let p = c.rx.borrow_and_update().clone();
+            c.catch_up(&p);
+            if c.pending.is_empty() && c.rx.changed().await.is_err() {
+                // The poller stopped (the job ended): its last value is all there is.
+                let p = c.rx.borrow().clone();
+                c.catch_up(&p);
+                c.done = true;
             }
         }
     })

@@ -72,15 +72,7 @@ async fn authorize(State(s): State<RestState>, req: Request, next: Next) -> Resp
         .headers()
         .get(header::AUTHORIZATION)
         .and_then(|v| v.to_str().ok());
-    let expected = format!("Bearer {token}");
-    // Constant-time comparison: a token must not leak through response timing.
-    let ok = given.is_some_and(|g| {
-        g.len() == expected.len()
-            && g.bytes()
-                .zip(expected.bytes())
-                .fold(0u8, |acc, (a, b)| acc | (a ^ b))
-                == 0
-    });
+    let ok = crate::api::listen::bearer_matches(given, token);
     if ok {
         next.run(req).await
     } else {

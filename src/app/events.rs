@@ -1,0 +1,100 @@
+//! Following a job's progress: one store poller per followed job, shared by every subscriber
+//! (800 SSE clients on one job once cost a full core, each polling the store itself). The
+//! poller reads the store, so it follows jobs any process's workers run; it stops when its
+//! last subscriber leaves or the job reaches a final state.
+
+use std::collections::HashMap;
+use std::sync::atomic::Ordering;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use tokio::sync::watch;
+
+use super::App;
+use crate::error::Result;
+use crate::store::{JobRow, MetricRow};
+
+/// How often a followed job is read from the store.
+pub const POLL: Duration = Duration::from_millis(200);
+
+/// A job as last read, with every epoch's metrics so far.
+#[derive(Debug, Clone)]
+pub struct Progress {
+    pub job: JobRow,
+    pub metrics: Arc<Vec<MetricRow>>,
+}
+
+/// The live pollers by job id (each entry a receiver kept to hand out clones).
+#[derive(Default)]
+pub struct Feeds {
+    live: Mutex<HashMap<String, watch::Receiver<Progress>>>,
+}
+
+impl Feeds {
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, watch::Receiver<Progress>>> {
+        self.live.lock().expect("feeds lock")
+    }
+}
+
+impl App {
+    /// A receiver of `id`'s progress, joining the job's poller or starting it.
+    pub async fn follow_job(&self, id: &str) -> Result<watch::Receiver<Progress>> {
+        if let Some(rx) = self
+            .feeds
+            .lock()
+            .get(id)
+            .filter(|rx| rx.has_changed().is_ok())
+        {
+            return Ok(rx.clone());
+        }
+        let first = self.read_progress(id, None).await?;
+        let mut live = self.feeds.lock();
+        if let Some(rx) = live.get(id).filter(|rx| rx.has_changed().is_ok()) {
+            return Ok(rx.clone());
+        }
+        let (tx, rx) = watch::channel(first);
+        live.insert(id.to_string(), rx.clone());
+        tokio::spawn(poll(self.clone(), id.to_string(), tx));
+        Ok(rx)
+    }
+
+    /// The job and its metrics, appending to `prev`'s.
+    async fn read_progress(&self, id: &str, prev: Option<&Progress>) -> Result<Progress> {
+        self.telemetry.job_polls.fetch_add(1, Ordering::Relaxed);
+        let job = self.job(id).await?;
+        let last = prev.and_then(|p| p.metrics.last()).map_or(0, |m| m.epoch);
+        let new = self.store.metrics(id, last).await?;
+        let metrics = match prev {
+            Some(p) if new.is_empty() => p.metrics.clone(),
+            Some(p) => Arc::new(p.metrics.iter().cloned().chain(new).collect()),
+            None => Arc::new(new),
+        };
+        Ok(Progress { job, metrics })
+    }
+}
+
+async fn poll(app: App, id: String, tx: watch::Sender<Progress>) {
+    loop {
+        let done = tx.borrow().job.state.is_final();
+        // One receiver is the map's own: with no other, nobody is listening.
+        if done || tx.receiver_count() <= 1 {
+            break;
+        }
+        tokio::time::sleep(POLL).await;
+        let prev = tx.borrow().clone();
+        match app.read_progress(&id, Some(&prev)).await {
+            Ok(p) if p.job != prev.job || p.metrics.len() != prev.metrics.len() => {
+                tx.send_replace(p);
+            }
+            Ok(_) => {}
+            Err(e) => tracing::debug!(job = %id, error = %e, "reading job progress failed"),
+        }
+    }
+    let mut live = app.feeds.lock();
+    if live
+        .get(&id)
+        .is_some_and(|rx| rx.same_channel(&tx.subscribe()))
+    {
+        live.remove(&id);
+    }
+}

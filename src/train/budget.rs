@@ -1,0 +1,106 @@
+//! What a training job will cost, estimated from its spec and data sizes before it is queued:
+//! the service refuses a job over its limits at submission instead of discovering it at
+//! 12 GB in epoch 0.
+
+use crate::model::mass_matrix;
+use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
+
+/// The largest blob SQLite stores (SQLITE_MAX_LENGTH, 10⁹ bytes by default), less a margin
+/// for the row around it.
+pub const STORE_MAX_BLOB: usize = 900_000_000;
+
+/// Bytes a checkpoint takes per trainable parameter: parameters, Adam's two moments and the
+/// best parameters so far, as JSON numbers of up to ~24 characters each.
+const CHECKPOINT_BYTES_PER_PARAM: usize = 4 * 25;
+
+/// Tensors autodiff keeps per layer unit and derivative block in one integrator stage (the
+/// linear output, the activation and its derivative, the Jacobian products), measured within
+/// this factor on the paper's MVF.
+const TAPE_TENSORS: usize = 8;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JobEstimate {
+    /// Trainable parameters.
+    pub params: usize,
+    /// Peak memory of the training process for this job, bytes.
+    pub peak_bytes: usize,
+    /// The checkpoint's size, bytes.
+    pub checkpoint_bytes: usize,
+}
+
+/// A network's (parameters, Σ layer widths) for `d_in` → `hidden` → `d_out`.
+fn mlp(d_in: usize, hidden: &[usize], d_out: usize) -> (usize, usize) {
+    let widths: Vec<usize> = std::iter::once(d_in)
+        .chain(hidden.iter().copied())
+        .chain(std::iter::once(d_out))
+        .collect();
+    let params = widths.windows(2).map(|w| w[0] * w[1] + w[1]).sum();
+    (params, widths.iter().sum())
+}
+
+/// The job's cost with `batch` samples per step, `samples` transitions held (training and
+/// validation) and `physical` template parameters. Saturating arithmetic: absurd specs
+/// estimate as `usize::MAX`, never wrap.
+pub fn estimate(
+    spec: &ModelSpec,
+    n: usize,
+    m: usize,
+    batch: usize,
+    samples: usize,
+    physical: usize,
+) -> JobEstimate {
+    let tri = mass_matrix::outputs(n);
+    // (params, widths × derivative blocks) per component; M's and V's networks carry their
+    // n q-derivatives (Coriolis term, ∇V), the others only values.
+    let mut parts: Vec<(usize, usize)> = vec![];
+    let with_grad = |(p, w): (usize, usize)| (p, w.saturating_mul(n + 1));
+    match spec {
+        ModelSpec::Naive { hidden } => parts.push(mlp(2 * n + m, hidden, n)),
+        ModelSpec::Structured {
+            mass,
+            potential,
+            forces,
+            ..
+        } => {
+            parts.push(match mass {
+                MassSpec::Mlp { hidden } => with_grad(mlp(n, hidden, tri)),
+                MassSpec::Constant => (tri, 0),
+                MassSpec::Template => (0, 0),
+            });
+            parts.push(match potential {
+                PotentialSpec::Mlp { hidden } => with_grad(mlp(n, hidden, 1)),
+                PotentialSpec::Quadratic => (tri, 0),
+                PotentialSpec::Template | PotentialSpec::Zero => (0, 0),
+            });
+            parts.push(match forces {
+                ForceSpec::Mlp { hidden } => mlp(2 * n + m, hidden, n),
+                ForceSpec::ControlAffine { hidden } => {
+                    let (p, w) = mlp(n, hidden, n * m);
+                    (p + n, w)
+                }
+                ForceSpec::ConstantAffine => (n * m + n, 0),
+                ForceSpec::Template => (0, 0),
+            });
+            parts.push((physical, 0));
+        }
+    }
+    let params = parts.iter().fold(0usize, |a, p| a.saturating_add(p.0));
+    let units = parts.iter().fold(0usize, |a, p| a.saturating_add(p.1));
+    // The structure per sample: L and ∂L/∂q, the Coriolis products and the solve.
+    let structure = n.saturating_pow(3).saturating_add(8 * n * n + n * m);
+    let per_sample = units
+        .saturating_add(structure)
+        .saturating_mul(TAPE_TENSORS * 4 * 4); // × RK4 stages × f32 bytes
+    // Host f64 arrays and their f32 device copies.
+    let data = samples.saturating_mul(4 * n + m).saturating_mul(8 + 4 * 2);
+    // Parameters, gradients, two Adam moments, the best copy, f64 exports.
+    let state = params.saturating_mul(4 * 6 + 8 * 2);
+    JobEstimate {
+        params,
+        peak_bytes: batch
+            .saturating_mul(per_sample)
+            .saturating_add(data)
+            .saturating_add(state),
+        checkpoint_bytes: params.saturating_mul(CHECKPOINT_BYTES_PER_PARAM),
+    }
+}

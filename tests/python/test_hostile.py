@@ -1,0 +1,423 @@
+"""A hostile or careless network: the API token, TLS (and clients that connect and say
+nothing), calls too large to answer, streams nobody reads, inputs far outside the training
+data and shapes that overflow. The tests needing special flags start their own server."""
+
+import datetime
+import http.client
+import ipaddress
+import socket
+import ssl
+import subprocess
+import threading
+import time
+import urllib.error
+import urllib.request
+
+import grpc
+import numpy as np
+import pytest
+from grpc_health.v1 import health_pb2, health_pb2_grpc
+from grpc_reflection.v1alpha import reflection_pb2
+
+from conftest import Rest, Serving, rel, serve
+from graybox_client import Client, GrayboxError, pb, pb_grpc, to_array
+
+SECRET = "s3cret-t0ken"
+X, U = np.array([0.3, -0.6, 2.0, -1.0]), np.array([15.0, -40.0])
+GB_KB = 2 * 1024 * 1024  # 2 GB, in the kB of /proc/<pid>/status
+
+
+@pytest.fixture(scope="module")
+def dp_data(graybox_bin, tmp_path_factory):
+    """256 simulated double-pendulum transitions (the session models' data)."""
+    out = tmp_path_factory.mktemp("data") / "train.json"
+    subprocess.run([graybox_bin, "simulate", "--system", "double_pendulum", "--count", "256",
+                    "--seed", "0", "--out", str(out)], check=True, capture_output=True)
+    return out
+
+
+def upload(s: Serving, data) -> str:
+    status, ds = s.rest.post("/v1/datasets?name=dp", raw=data.read_bytes())
+    assert status == 201, ds
+    return ds["id"]
+
+
+def submit(s: Serving, dataset_id: str, epochs: int, model: str = "MVF") -> str:
+    status, job = s.rest.post("/v1/jobs", {
+        "dataset_id": dataset_id, "model": model, "template": "double_pendulum",
+        "training": {"epochs": epochs, "batch_size": 64, "lr": 0.01}})
+    assert status == 201, job
+    return job["id"]
+
+
+def train(s: Serving, data, model: str = "MVF") -> tuple[str, str]:
+    """(dataset id, model id) of a model trained for 2 epochs on `data`."""
+    ds = upload(s, data)
+    job = s.rest.wait_job(submit(s, ds, 2, model))
+    assert job["state"] == "succeeded", job
+    return ds, job["model_id"]
+
+
+def tvlqr(c: Client, model: str, T: int):
+    return c.tvlqr(model, np.zeros((T + 1, 4)), np.zeros((T, 2)), np.eye(4), np.eye(2), np.eye(4))
+
+
+# --- a. the API token on gRPC (and REST) ---------------------------------------------------
+
+@pytest.fixture
+def token_server(graybox_bin, tmp_path, dp_data):
+    with serve(graybox_bin, tmp_path, "--workers", "1", "--api-token", SECRET, "--auth-reads",
+               name="graybox serve --api-token", token=SECRET) as s:
+        yield s, train(s, dp_data)[1]
+
+
+def test_dynamics_calls_need_the_token_health_and_reflection_do_not(token_server):
+    s, model = token_server
+    calls = {
+        "list_models": lambda c: c.list_models(),
+        "get_model": lambda c: c.get_model(model),
+        "predict": lambda c: c.predict(model, X, U),
+        "rollout": lambda c: c.rollout(model, X, u=np.zeros((5, 2))),
+        "linearize": lambda c: c.linearize(model, X, U),
+        "tvlqr": lambda c: tvlqr(c, model, 3),
+    }
+    for token in [None, "wrong", SECRET + "x", SECRET[:-1]]:
+        with Client(s.grpc_target, timeout=30, token=token) as c:
+            for name, call in calls.items():
+                with pytest.raises(GrayboxError) as e:
+                    call(c)
+                assert e.value.code == "UNAUTHENTICATED", (token, name, e.value)
+    with Client(s.grpc_target, timeout=30) as c:
+        # Only `Bearer <token>` exactly: not the bare token, another scheme or extra spaces.
+        for value in [SECRET, f"Basic {SECRET}", f"Bearer  {SECRET}"]:
+            with pytest.raises(grpc.RpcError) as e:
+                c.stub.ListModels(pb.ListModelsRequest(), timeout=30,
+                                  metadata=(("authorization", value),))
+            assert e.value.code() == grpc.StatusCode.UNAUTHENTICATED, value
+
+    with Client(s.grpc_target, timeout=30, token=SECRET) as c:
+        models, _ = c.list_models()
+        assert [m.id for m in models] == [model]
+        assert c.get_model(model).id == model
+        assert c.predict(model, X, U).shape == (4,)
+        assert c.rollout(model, X, u=np.zeros((5, 2))).shape == (6, 4)
+        a, b = c.linearize(model, X, U)
+        assert a.shape == (4, 4) and b.shape == (4, 2)
+        k, _ = tvlqr(c, model, 3)
+        assert k.shape == (3, 2, 4)
+        # The raw stub with the client's metadata, as the README says.
+        assert c.stub.GetModel(pb.GetModelRequest(model_id=model), timeout=30,
+                               metadata=c.metadata).id == model
+
+    with grpc.insecure_channel(s.grpc_target) as ch:
+        health = health_pb2_grpc.HealthStub(ch)
+        for service in ["", "graybox.v1.Dynamics"]:
+            r = health.Check(health_pb2.HealthCheckRequest(service=service), timeout=30)
+            assert r.status == health_pb2.HealthCheckResponse.SERVING, service
+        reflect = ch.stream_stream(
+            "/grpc.reflection.v1.ServerReflection/ServerReflectionInfo",
+            request_serializer=reflection_pb2.ServerReflectionRequest.SerializeToString,
+            response_deserializer=reflection_pb2.ServerReflectionResponse.FromString)
+        (listed,) = reflect(iter([reflection_pb2.ServerReflectionRequest(list_services="")]),
+                            timeout=30)
+        assert "graybox.v1.Dynamics" in {x.name for x in listed.list_services_response.service}
+
+    # REST: with --auth-reads, reads need the token as well as writes; /healthz stays open.
+    anonymous = Rest(s.rest.base)
+    assert anonymous.get("/healthz")[0] == 200
+    for method, path in [("GET", "/v1/models"), ("GET", f"/v1/models/{model}"), ("GET", "/v1/jobs"),
+                         ("POST", "/v1/jobs")]:
+        status, body = anonymous.request(method, path, {} if method == "POST" else None)
+        assert status == 401, (method, path, body)
+    status, body = s.rest.get("/v1/models")
+    assert status == 200 and [m["id"] for m in body["items"]] == [model], body
+
+
+# --- b. TLS --------------------------------------------------------------------------------
+
+def self_signed(tmp_path):
+    """A self-signed certificate for localhost and 127.0.0.1 and its key (PEM files)."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "localhost")])
+    now = datetime.datetime.now(datetime.timezone.utc)
+    cert = (x509.CertificateBuilder()
+            .subject_name(name).issuer_name(name).public_key(key.public_key())
+            .serial_number(x509.random_serial_number())
+            .not_valid_before(now - datetime.timedelta(minutes=5))
+            .not_valid_after(now + datetime.timedelta(days=1))
+            .add_extension(x509.SubjectAlternativeName([
+                x509.DNSName("localhost"), x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]),
+                critical=False)
+            .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
+            .sign(key, hashes.SHA256()))
+    cert_path, key_path = tmp_path / "cert.pem", tmp_path / "key.pem"
+    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    key_path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
+                                           serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
+    return cert_path, key_path
+
+
+@pytest.fixture
+def tls_server(graybox_bin, tmp_path):
+    cert, key = self_signed(tmp_path)
+    ctx = ssl.create_default_context(cafile=str(cert))
+    with serve(graybox_bin, tmp_path, "--workers", "1", "--api-token", SECRET,
+               "--tls-cert", str(cert), "--tls-key", str(key),
+               name="graybox serve --tls-cert", token=SECRET, context=ctx) as s:
+        yield s, cert, ctx
+
+
+def test_tls_for_rest_and_grpc_and_silent_connections_block_nobody(tls_server):
+    s, cert, ctx = tls_server
+    # Clients that connect and never start their handshake, before anyone else connects
+    # (the server drops them only after its 10 s handshake timeout).
+    silent = [socket.create_connection(("127.0.0.1", port), timeout=5)
+              for port in (s.http_port, s.grpc_port) for _ in range(3)]
+    try:
+        start = time.monotonic()
+        with urllib.request.urlopen(f"https://127.0.0.1:{s.http_port}/healthz",
+                                    context=ctx, timeout=5) as r:
+            assert r.status == 200
+        with Client(f"127.0.0.1:{s.grpc_port}", timeout=5, token=SECRET,
+                    root_certificates=cert.read_bytes()) as c:
+            assert c.list_models() == ([], "")
+        assert time.monotonic() - start < 5
+    finally:
+        for sock in silent:
+            sock.close()
+
+    # The DNS name of the certificate, and the certificate given as a path.
+    with Client(f"localhost:{s.grpc_port}", timeout=30, token=SECRET,
+                root_certificates=str(cert)) as c:
+        assert c.list_models() == ([], "")
+    status, body = s.rest.get("/v1/models")
+    assert status == 200 and body["items"] == [], body
+    # TLS does not replace the token.
+    with Client(f"localhost:{s.grpc_port}", timeout=30, root_certificates=str(cert)) as c:
+        with pytest.raises(GrayboxError) as e:
+            c.list_models()
+        assert e.value.code == "UNAUTHENTICATED", e.value
+    # Plaintext to the TLS ports fails.
+    with Client(s.grpc_target, timeout=10, token=SECRET) as c:
+        with pytest.raises(GrayboxError) as e:
+            c.list_models()
+        assert e.value.code == "UNAVAILABLE", e.value
+    with pytest.raises((OSError, http.client.HTTPException)):  # a TLS alert is no HTTP
+        urllib.request.urlopen(f"http://127.0.0.1:{s.http_port}/healthz", timeout=10).close()
+    # A client that does not trust the certificate refuses the server.
+    with pytest.raises(urllib.error.URLError) as e:
+        urllib.request.urlopen(f"https://127.0.0.1:{s.http_port}/healthz",
+                               context=ssl.create_default_context(), timeout=10).close()
+    assert isinstance(e.value.reason, ssl.SSLCertVerificationError), e.value
+
+
+# --- c. memory of oversized calls -----------------------------------------------------------
+
+@pytest.fixture
+def probe_server(graybox_bin, tmp_path, dp_data):
+    with serve(graybox_bin, tmp_path, "--workers", "1", "--max-rollout-steps", "100000",
+               name="graybox serve (memory probes)") as s:
+        yield s, train(s, dp_data)[1]
+
+
+def test_oversized_calls_are_refused_or_chunked_within_bounded_memory(probe_server):
+    s, model = probe_server
+    rng = np.random.default_rng(3)
+    B = 10**6
+    x = np.column_stack([rng.uniform(-np.pi, np.pi, (B, 2)), rng.uniform(-10, 10, (B, 2))])
+    u = rng.normal(0.0, 50.0, (B, 2))
+    hwm = {"trained": s.status("VmHWM")}
+    with Client(s.grpc_target, timeout=300) as c:
+        # [10⁶, 4, 4] and [10⁶, 4, 2] doubles: 192 MB, three times the message limit.
+        with pytest.raises(GrayboxError) as e:
+            c.linearize(model, x, u)
+        assert e.value.code == "RESOURCE_EXHAUSTED", e.value
+        assert "message limit" in e.value.message and "--grpc-max-message-mb" in e.value.message, \
+            e.value
+        hwm["linearize refused"] = s.status("VmHWM")
+        assert hwm["linearize refused"] < GB_KB, hwm
+
+        x_next, z = c.predict(model, x, u, return_z=True)
+        hwm["predict"] = s.status("VmHWM")
+        assert x_next.shape == (B, 4) and np.isfinite(x_next).all()
+        assert z.shape == (B,) and np.isfinite(z).all()
+        for i in [0, 123_457, B - 1]:  # rows in different chunks equal single-point calls
+            assert rel(c.predict(model, x[i], u[i]), x_next[i]) <= 1e-12, i
+        assert hwm["predict"] < GB_KB, hwm
+
+        T = 10**5
+        try:
+            K, S = tvlqr(c, model, T)
+            assert K.shape == (T, 2, 4) and S.shape == (T + 1, 4, 4) and np.isfinite(K).all()
+        except GrayboxError as e:
+            assert e.code == "RESOURCE_EXHAUSTED" and "limit" in e.message, e
+        hwm["tvlqr"] = s.status("VmHWM")
+        assert hwm["tvlqr"] < GB_KB, hwm
+
+
+# --- d. streams nobody reads ----------------------------------------------------------------
+
+@pytest.fixture
+def busy_server(graybox_bin, tmp_path, dp_data):
+    with serve(graybox_bin, tmp_path, "--workers", "1", "--max-rollout-steps", "100000",
+               "--grpc-max-streams", "100", name="graybox serve (unread streams)") as s:
+        yield (s, *train(s, dp_data))
+
+
+def test_unread_rollout_streams_starve_neither_calls_nor_training(busy_server):
+    s, dataset, model = busy_server
+    job = submit(s, dataset, 100_000)
+    end = time.monotonic() + 60
+    while (j := s.rest.get(f"/v1/jobs/{job}")[1])["state"] != "running" or j["epoch"] < 1:
+        assert j["state"] in ("queued", "running") and time.monotonic() < end, j
+        time.sleep(0.05)
+
+    # Other callers, from before the streams open until after they stall: every Predict
+    # (100 states) and Tvlqr (T = 10) must succeed within its 10 s deadline.
+    failures, probes, threads, stop = [], [0], [], threading.Event()
+    t0 = time.monotonic()
+
+    def probe():
+        rng = np.random.default_rng(4)
+        xs, us = rng.uniform(-1.0, 1.0, (100, 4)), rng.uniform(-10.0, 10.0, (100, 2))
+        with Client(s.grpc_target, timeout=10) as c:
+            while not stop.is_set():
+                threads.append(s.status("Threads"))
+                for name, call in [("predict", lambda: c.predict(model, xs, us)),
+                                   ("tvlqr", lambda: tvlqr(c, model, 10)[0])]:
+                    try:
+                        out = call()
+                        if not np.isfinite(out).all():
+                            failures.append((round(time.monotonic() - t0, 1), name, "non-finite"))
+                    except GrayboxError as e:
+                        failures.append((round(time.monotonic() - t0, 1), name, str(e)))
+                probes[0] += 1
+                time.sleep(0.1)
+
+    T, per_channel = 10**5, 100
+    req = pb.RolloutRequest(model_id=model, x0=X.tolist(), u=to_array(np.zeros((T, 2))), chunk=1)
+    # Six connections (a local subchannel pool each: grpc would otherwise share one), each
+    # with as many streams as the server allows on a connection.
+    channels = [grpc.insecure_channel(s.grpc_target, options=[("grpc.use_local_subchannel_pool", 1)])
+                for _ in range(6)]
+    calls = []
+    prober = threading.Thread(target=probe)
+    prober.start()
+    try:
+        for ch in channels:
+            stub = pb_grpc.DynamicsStub(ch)
+            calls += [stub.Rollout(req, timeout=600) for _ in range(per_channel)]
+        opened = round(time.monotonic() - t0, 1)
+        epoch = s.rest.get(f"/v1/jobs/{job}")[1]["epoch"]
+        time.sleep(3.0)
+        end = time.monotonic() + 30
+        while (e := s.rest.get(f"/v1/jobs/{job}")[1]["epoch"]) <= epoch:
+            assert time.monotonic() < end, f"training stalled at epoch {e}"
+            time.sleep(0.2)
+        stop.set()
+        prober.join()
+        assert probes[0] >= 5 and not failures, (
+            f"{len(failures)} failed calls in {probes[0]} rounds of Predict and Tvlqr (the streams "
+            f"were opened from 0 to {opened} s): first {failures[:1]}, last {failures[-1:]}")
+        assert threads and max(threads) <= 64, threads
+        # Every stream is still held open: none was refused or ended.
+        ended = [call.code().name for call in calls if call.done()]
+        assert not ended, f"{len(ended)} of {len(calls)} streams ended: {set(ended)}"
+    finally:
+        stop.set()
+        prober.join()
+        for call in calls:
+            call.cancel()
+        for ch in channels:
+            ch.close()
+        status, body = s.rest.post(f"/v1/jobs/{job}/cancel")
+    assert status == 200, body
+    assert s.rest.wait_job(job)["state"] == "cancelled"
+
+
+# --- e. how far outside the training data ---------------------------------------------------
+
+@pytest.fixture(params=["wb", "mvf"])
+def model(request, models):
+    return getattr(models, request.param)
+
+
+def test_max_abs_z_grows_outside_the_training_data(client, model):
+    x_next, z = client.predict(model, X, U, return_z=True)
+    assert x_next.shape == (4,) and isinstance(z, float) and 0.0 <= z < 5.0, z
+    _, far = client.predict(model, [1e6, 0.0, 0.0, 0.0], [0.0, 0.0], return_z=True)
+    _, farther = client.predict(model, [2e6, 0.0, 0.0, 0.0], [0.0, 0.0], return_z=True)
+    assert far > 1e4, far
+    assert abs(farther / far - 2.0) < 1e-4, (far, farther)  # |q − mean| / std
+    _, z_u = client.predict(model, X, [0.0, -1e6], return_z=True)
+    assert z_u > 1e3, z_u  # u counts too
+    # A batch gives one z per row, equal to the single points'.
+    xb = np.array([X, [1e6, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, -1e5]])
+    ub = np.array([U, [0.0, 0.0], [0.0, 0.0]])
+    x_b, accel, zb = client.predict(model, xb, ub, want_accel=True, return_z=True)
+    assert x_b.shape == (3, 4) and accel.shape == (3, 2) and zb.shape == (3,)
+    assert zb[0] == z and zb[1] == far and zb[2] > 1e3, zb
+
+
+def test_linearize_and_rollout_report_z_per_point(client, model):
+    a, b, z = client.linearize(model, X, U, return_z=True)
+    assert a.shape == (4, 4) and b.shape == (4, 2) and z == client.predict(model, X, U, return_z=True)[1]
+    xb = np.array([X, [0.0, 1e6, 0.0, 0.0], [0.1, 0.2, 0.3, 0.4]])
+    ub = np.array([U, [0.0, 0.0], [1.0, -1.0]])
+    a, b, zb = client.linearize(model, xb, ub, return_z=True)
+    assert a.shape == (3, 4, 4) and b.shape == (3, 4, 2) and zb.shape == (3,)
+    assert np.array_equal(zb, client.predict(model, xb, ub, return_z=True)[1])
+    assert zb[1] > 1e4 and zb[0] < 5 and zb[2] < 5, zb
+
+    T = 60
+    t = np.arange(T)
+    u = np.column_stack([20 * np.sin(0.1 * t), -10 + 0 * t])
+    xs, z = client.rollout(model, X, u=u, chunk=7, return_z=True)
+    assert xs.shape == (T + 1, 4) and z.shape == (T,)
+    # z_t is that of (x_t, u_t), the state each input was applied at.
+    assert np.array_equal(z, client.predict(model, xs[:-1], u, return_z=True)[1])
+    xs2, us2, z2 = client.rollout(model, X, u=u, chunk=1, with_inputs=True, return_z=True)
+    assert np.array_equal(xs2, xs) and np.array_equal(us2, u) and np.array_equal(z2, z)
+    chunks = list(client.rollout_chunks(model, X, u=u, chunk=7, return_z=True))
+    assert all(len(cz) == len(cu) for _, _, cu, cz in chunks)
+    assert np.array_equal(np.concatenate([cz for *_, cz in chunks]), z)
+    assert all(len(c) == 3 for c in client.rollout_chunks(model, X, u=u, chunk=7))
+
+
+# --- f. numbers chosen to overflow ----------------------------------------------------------
+
+def overflowing(rows: int, width: int) -> pb.Array:
+    """Shape [rows, width] with as many values as rows·width leaves when it wraps in 64 bits."""
+    return pb.Array(shape=[rows, width], data=[0.0] * ((rows * width) % 2**64))
+
+
+@pytest.mark.parametrize("rows", [2**63 + 1, 2**62, 2**62 + 1])
+def test_shapes_whose_size_overflows_are_invalid(client, models, rows):
+    """[2⁶³ + 1, 4] with 4 values, [2⁶², 4] with none, …: the shape must not match its data
+    modulo 2⁶⁴."""
+    x = overflowing(rows, 4)
+    u = overflowing(2**63 + (rows % 2), 2)  # [2⁶³ + 1, 2] with 2 values or [2⁶³, 2] with none
+    assert len(x.data) <= 4 and len(u.data) <= 2
+    ok_x, ok_u = to_array(np.zeros((1, 4))), to_array(np.zeros((1, 2)))
+    eye = {"q": to_array(np.eye(4)), "r": to_array(np.eye(2)), "qf": to_array(np.eye(4))}
+    rollout = lambda r, **kw: list(client.stub.Rollout(r, **kw))  # noqa: E731
+    requests = [
+        ("x", client.stub.Predict, pb.PredictRequest(model_id=models.wb, x=x, u=ok_u)),
+        ("u", client.stub.Predict, pb.PredictRequest(model_id=models.wb, x=ok_x, u=u)),
+        ("x", client.stub.Linearize, pb.LinearizeRequest(model_id=models.mvf, x=x, u=ok_u)),
+        ("x_bar", client.stub.Tvlqr, pb.TvlqrRequest(
+            model_id=models.wb, x_bar=x, u_bar=to_array(np.zeros((2, 2))), **eye)),
+        ("u_bar", client.stub.Tvlqr, pb.TvlqrRequest(
+            model_id=models.wb, x_bar=to_array(np.zeros((3, 4))), u_bar=u, **eye)),
+        ("u", rollout, pb.RolloutRequest(model_id=models.wb, x0=X.tolist(), u=u)),
+    ]
+    for field, method, request in requests:
+        with pytest.raises(GrayboxError) as e:
+            client._call(method, request)
+        assert e.value.code == "INVALID_ARGUMENT" and field in e.value.message, (field, e.value)
