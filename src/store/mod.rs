@@ -62,9 +62,10 @@ pub fn new_id(prefix: &str) -> String {
     format!("{prefix}_{}", uuid::Uuid::new_v4().simple())
 }
 
-/// An exclusive lock on `<db>.lock` for the duration of the migrations: two processes that
-/// start at once on a new database would otherwise both create its tables, and one fails
-/// ("table datasets already exists"). A lock file beside the database, not the database file
+/// An exclusive lock on `<db>.lock` while a process opens and migrates the database: two
+/// processes that start at once on a new database would otherwise both create its tables,
+/// and one fails ("table datasets already exists", or "database is locked" while the other
+/// switches the new file to WAL). A lock file beside the database, not the database file
 /// itself: closing any other descriptor of the database would drop SQLite's own locks.
 async fn migration_lock(db: &str) -> Result<Option<std::fs::File>> {
     if db == ":memory:" || db.starts_with("file:") {
@@ -96,11 +97,13 @@ impl Store {
             .synchronous(SqliteSynchronous::Full)
             .busy_timeout(Duration::from_secs(30))
             .foreign_keys(true);
+        // Held from creating the file (and switching it to WAL, which takes an exclusive lock
+        // that SQLite's busy handler does not wait for) through the migrations.
+        let lock = migration_lock(path).await?;
         let pool = SqlitePoolOptions::new()
             .max_connections(8)
             .connect_with(opts)
             .await?;
-        let lock = migration_lock(path).await?;
         let migrated = sqlx::migrate!("./migrations").run(&pool).await;
         drop(lock);
         migrated?;

@@ -224,6 +224,15 @@ async fn values_outside_their_ranges_are_refused() {
         assert_eq!(status, 400, "{bad:?}: {v}");
         assert_eq!(v["error"]["field"], "name");
     }
+    // Finite values whose statistics are not (their sum overflows): refused at submission,
+    // where the job used to "succeed" with a model file that cannot be read back.
+    let mut d = dataset(8, 11);
+    d["q"] = json!(vec![vec![1.5e308, 1.5e308]; 8]);
+    let huge = app.upload(&d).await;
+    let (status, v) = app.post("/v1/jobs", &job_body(&huge, "MVF", 1)).await;
+    assert_eq!(status, 422, "{v}");
+    assert_eq!(v["error"]["field"], "dataset_id", "{v}");
+
     let ds = app.upload(&dataset(8, 1)).await;
     let mut body = job_body(&ds, "W-B", 1);
     body["init"] = json!({"m1": 1e308});
@@ -415,4 +424,41 @@ async fn event_subscribers_share_one_poller() {
     );
     drop(streams);
     app.stop().await;
+}
+
+/// Finding 9: a model file is never written with a non-finite number (JSON would store it as
+/// null and the file would not load back).
+#[test]
+fn model_files_with_non_finite_numbers_are_not_written() {
+    use graybox::model::ModelConfig;
+    use graybox::model::params_io::NamedArray;
+    use graybox::model::scaling::Scaling;
+    use graybox::model::spec::ModelSpec;
+    use graybox::train::artifact::ModelFile;
+    let config = ModelConfig {
+        spec: ModelSpec::named("naive", None).unwrap(),
+        n: 1,
+        m: 1,
+        dt: 0.01,
+        integrator: Default::default(),
+        lambda: 1.0,
+        scaling: Scaling::identity(1, 1),
+    };
+    let array = |v: f64| NamedArray {
+        name: "naive.layers.0.bias".into(),
+        shape: vec![1],
+        values: vec![v],
+    };
+    let good = ModelFile::new(config.clone(), vec![array(0.5)], None);
+    assert!(good.to_bytes().is_ok());
+    let bad = ModelFile::new(config.clone(), vec![array(f64::NAN)], None);
+    let e = bad.to_bytes().unwrap_err().to_string();
+    assert!(e.contains("naive.layers.0.bias"), "{e}");
+    let mut scaled = config;
+    scaled.scaling.q_std[0] = f64::NAN;
+    assert!(
+        ModelFile::new(scaled, vec![array(0.5)], None)
+            .to_bytes()
+            .is_err()
+    );
 }
