@@ -62,29 +62,27 @@ impl Telemetry {
         for (state, count) in jobs {
             let _ = writeln!(out, "graybox_jobs{{state=\"{}\"}} {count}", state.as_str());
         }
-        out.push_str(
-            "# HELP graybox_epochs_trained_total Training epochs completed by this process.\n",
-        );
-        out.push_str("# TYPE graybox_epochs_trained_total counter\n");
-        let _ = writeln!(
-            out,
-            "graybox_epochs_trained_total {}",
-            self.epochs_trained.load(Ordering::Relaxed)
-        );
-        out.push_str("# HELP graybox_computations_stopped_total Computations stopped by a deadline or cancellation.\n");
-        out.push_str("# TYPE graybox_computations_stopped_total counter\n");
-        let _ = writeln!(
-            out,
-            "graybox_computations_stopped_total {}",
-            self.computations_stopped.load(Ordering::Relaxed)
-        );
-        out.push_str("# HELP graybox_job_polls_total Store reads made to follow jobs (all event subscribers together).\n");
-        out.push_str("# TYPE graybox_job_polls_total counter\n");
-        let _ = writeln!(
-            out,
-            "graybox_job_polls_total {}",
-            self.job_polls.load(Ordering::Relaxed)
-        );
+        let counters = [
+            (
+                "graybox_epochs_trained_total",
+                "Training epochs completed by this process.",
+                &self.epochs_trained,
+            ),
+            (
+                "graybox_computations_stopped_total",
+                "Computations stopped by a deadline or cancellation.",
+                &self.computations_stopped,
+            ),
+            (
+                "graybox_job_polls_total",
+                "Store reads made to follow jobs (all event subscribers together).",
+                &self.job_polls,
+            ),
+        ];
+        for (name, help, value) in counters {
+            let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} counter");
+            let _ = writeln!(out, "{name} {}", value.load(Ordering::Relaxed));
+        }
         out.push_str(
             "# HELP graybox_http_requests_total HTTP requests by method, route and status.\n",
         );
