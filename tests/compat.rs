@@ -1,0 +1,103 @@
+//! Compatibility: model files and a database written by an earlier graybox
+//! (tests/fixtures/compat, made by scripts/compat_fixtures.sh) keep working: the models load
+//! and predict bit for bit as they did, and a job killed while running resumes and finishes.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use graybox::infer::Evaluator;
+use graybox::store::JobState;
+use graybox::train::artifact::ModelFile;
+use serde_json::{Value, json};
+
+fn fixtures() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/compat")
+}
+
+/// Fixed points inside and outside the training data's range.
+fn points(k: usize, width: usize, seed: u64) -> Vec<f64> {
+    (0..k * width)
+        .map(|i| ((i as u64 * 2654435761 + seed) % 1000) as f64 / 125.0 - 4.0)
+        .collect()
+}
+
+/// Predict (with q̈) at 5 points and Linearize at 3, as JSON.
+fn outputs(file: &ModelFile) -> Value {
+    let eval = Evaluator::from_file(file).unwrap();
+    let (nx, m) = (2 * file.config.n, file.config.m);
+    let (x, u) = (points(5, nx, 1), points(5, m, 2));
+    let (next, accel) = eval.predict(&x, &u, true);
+    let (a, b) = eval.linearize_batch(&x[..3 * nx], &u[..3 * m]);
+    json!({"x_next": next, "accel": accel, "a": a, "b": b})
+}
+
+#[test]
+fn models_predict_as_they_did() {
+    let dir = fixtures();
+    let mut got = serde_json::Map::new();
+    for name in ["mvf", "wb", "naive"] {
+        let file = ModelFile::load(&dir.join(format!("{name}.gbx"))).unwrap();
+        got.insert(name.into(), outputs(&file));
+    }
+    let path = dir.join("expected.json");
+    if std::env::var_os("GRAYBOX_WRITE_COMPAT").is_some() {
+        std::fs::write(&path, serde_json::to_string_pretty(&got).unwrap()).unwrap();
+        return;
+    }
+    let expected: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    for (name, outs) in &got {
+        for (what, values) in outs.as_object().unwrap() {
+            let (g, e) = (values.as_array().unwrap(), expected[name][what].as_array().unwrap());
+            assert_eq!(g.len(), e.len(), "{name} {what}");
+            for (i, (g, e)) in g.iter().zip(e).enumerate() {
+                // Bit for bit: the JSON round trip of an f64 is exact (float_roundtrip).
+                let (g, e) = (g.as_f64().unwrap(), e.as_f64().unwrap());
+                assert_eq!(g.to_bits(), e.to_bits(), "{name} {what}[{i}]: {g} vs {e}");
+            }
+        }
+    }
+}
+
+#[tokio::test]
+async fn a_job_killed_while_running_resumes_and_finishes() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("running.db");
+    std::fs::copy(fixtures().join("running.db"), &db).unwrap();
+    let job = std::fs::read_to_string(fixtures().join("running.job")).unwrap();
+    let job = job.trim();
+    let cfg = graybox::service::ServiceConfig {
+        http: "127.0.0.1:0".into(),
+        grpc: "127.0.0.1:0".into(),
+        db: db.to_string_lossy().into_owned(),
+        settings: graybox::app::Settings::default(),
+        rest: Default::default(),
+        tls: None,
+    };
+    let running = graybox::service::start(cfg).await.unwrap();
+    let before = running.app.job(job).await.unwrap();
+    assert_eq!(before.state, JobState::Running);
+    assert!(before.checkpoint_epoch >= 2, "{before:?}");
+    let deadline = tokio::time::Instant::now() + Duration::from_secs(300);
+    let done = loop {
+        let j = running.app.job(job).await.unwrap();
+        if j.state.is_final() {
+            break j;
+        }
+        assert!(tokio::time::Instant::now() < deadline, "{j:?}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    assert_eq!(done.state, JobState::Succeeded, "{done:?}");
+    assert_eq!(done.attempt, before.attempt + 1);
+    let epochs: Vec<i64> = running
+        .app
+        .job_metrics(job)
+        .await
+        .unwrap()
+        .iter()
+        .map(|m| m.epoch)
+        .collect();
+    assert_eq!(epochs, (1..=done.epochs).collect::<Vec<_>>());
+    let model = running.app.evaluator(done.model_id.as_deref().unwrap()).await;
+    assert!(model.is_ok());
+    running.shutdown().await;
+}
