@@ -1,5 +1,6 @@
-//! One error type for the library. Adapters (CLI now; REST and gRPC later) map its variants
-//! exhaustively, so a new variant forces every mapping to be decided.
+//! One error type for the library. The adapters (REST, gRPC, the CLI's exit codes) map its
+//! variants exhaustively, so a new variant forces every mapping to be decided; ARCHITECTURE.md
+//! has the table.
 
 use std::fmt;
 

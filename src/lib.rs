@@ -1,9 +1,11 @@
 //! graybox: structured Lagrangian (gray-box) dynamics models of mechanical systems, learned from
 //! transition data and served to controllers.
 //!
-//! Layout (design.md §3): `model` holds the math (components, dynamics, integrators, specs),
-//! `train` the datasets and the training loop, `sim` the simulated datasets, `cli` the
-//! command-line front end. The service and gRPC layers call the same pieces.
+//! Layers (ARCHITECTURE.md, enforced by tests/architecture.rs), bottom up: `error`, `rng`,
+//! `backend`, `data` (the dataset type); the math in `model` (components, dynamics, the model
+//! file), `infer` (f64 evaluation), `control` (TVLQR) and `sim`; `train` (the training loop);
+//! `store` (SQLite); `app` (the one core); `jobs` (the worker); `api` (REST, gRPC); and at the
+//! top `cli`, `service`, `bench`.
 
 pub mod api;
 pub mod app;
@@ -11,6 +13,7 @@ pub mod backend;
 pub mod bench;
 pub mod cli;
 pub mod control;
+pub mod data;
 pub mod error;
 pub mod infer;
 pub mod jobs;

@@ -1,12 +1,12 @@
 //! Simulated datasets from a template, with the paper's sampling: q ~ U(−r_q, r_q),
 //! q̇ ~ U(−r_q̇, r_q̇), u ~ N(0, σ_u²), next state by RK4 of the true system.
 
+use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::dynamics::TemplateSystem;
 use crate::model::integrator::Integrator;
 use crate::model::templates::Template;
 use crate::rng::Rng;
-use crate::train::data::Dataset;
 
 #[derive(Debug, Clone)]
 pub struct SimConfig {

@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use graybox::infer::Evaluator;
+use graybox::model::file::ModelFile;
 use graybox::store::JobState;
-use graybox::train::artifact::ModelFile;
 use serde_json::{Value, json};
 
 fn fixtures() -> PathBuf {
@@ -47,7 +47,10 @@ fn models_predict_as_they_did() {
     let expected: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     for (name, outs) in &got {
         for (what, values) in outs.as_object().unwrap() {
-            let (g, e) = (values.as_array().unwrap(), expected[name][what].as_array().unwrap());
+            let (g, e) = (
+                values.as_array().unwrap(),
+                expected[name][what].as_array().unwrap(),
+            );
             assert_eq!(g.len(), e.len(), "{name} {what}");
             for (i, (g, e)) in g.iter().zip(e).enumerate() {
                 // Bit for bit: the JSON round trip of an f64 is exact (float_roundtrip).
@@ -97,7 +100,10 @@ async fn a_job_killed_while_running_resumes_and_finishes() {
         .map(|m| m.epoch)
         .collect();
     assert_eq!(epochs, (1..=done.epochs).collect::<Vec<_>>());
-    let model = running.app.evaluator(done.model_id.as_deref().unwrap()).await;
+    let model = running
+        .app
+        .evaluator(done.model_id.as_deref().unwrap())
+        .await;
     assert!(model.is_ok());
     running.shutdown().await;
 }

@@ -1,9 +1,9 @@
 //! Dataset files: the JSON and CSV forms, round trips, and clear errors for bad files.
 
+use graybox::data::Dataset;
 use graybox::error::Error;
 use graybox::model::templates::Template;
 use graybox::sim::{SimConfig, simulate};
-use graybox::train::data::Dataset;
 
 fn field_of(err: Error) -> String {
     match err {

@@ -7,11 +7,11 @@ use burn::tensor::Device;
 use common::*;
 use graybox::backend::{Backend, Precision, device};
 use graybox::infer::Evaluator;
+use graybox::model::file::ModelFile;
 use graybox::model::params_io::export;
 use graybox::model::spec::{ModelSpec, NAMED};
 use graybox::model::templates::Template;
 use graybox::model::{Model, ModelConfig};
-use graybox::train::artifact::ModelFile;
 
 fn f64_device() -> Device {
     device(Backend::Flex, Precision::F64).expect("f64 device")
@@ -105,7 +105,7 @@ fn linearize_matches_central_differences() {
         let (q, qd, u) = paper_samples(n, m, 3, 9);
         for i in 0..q.len() {
             let x: Vec<f64> = [q[i].clone(), qd[i].clone()].concat();
-            let (a, b) = eval.linearize(&x, &u[i]);
+            let (a, b) = eval.linearize_batch(&x, &u[i]);
             let h = 1e-6;
             let nx = x.len();
             let mut fd_a = vec![0.0; nx * nx];
@@ -159,7 +159,7 @@ fn batched_linearize_equals_single_points() {
         let (a, b) = eval.linearize_batch(&x, &u.concat());
         let (nx, mm) = (2 * n, m);
         for i in 0..q.len() {
-            let (ai, bi) = eval.linearize(&x[i * nx..(i + 1) * nx], &u[i]);
+            let (ai, bi) = eval.linearize_batch(&x[i * nx..(i + 1) * nx], &u[i]);
             let ea = rel_err(&a[i * nx * nx..(i + 1) * nx * nx], &ai);
             let eb = rel_err(&b[i * nx * mm..(i + 1) * nx * mm], &bi);
             assert!(

@@ -395,7 +395,7 @@ fn loss_gradients_match_finite_differences() {
 fn white_box_recovers_dynamics_and_identifiable_ratios() {
     let dev = f64_device().autodiff();
     let t = Template::DoublePendulum;
-    let truth = graybox::train::report::identifiable(
+    let truth = graybox::model::report::identifiable(
         t,
         &ModelSpec::named("W-B", Some(t)).unwrap().white_box_parts(),
         &t.params()

@@ -7,13 +7,13 @@ use std::sync::atomic::AtomicBool;
 
 use burn::tensor::Device;
 use graybox::backend::{Backend, Precision, device};
+use graybox::data::Dataset;
 use graybox::error::Error;
+use graybox::model::file::ModelFile;
 use graybox::model::params_io::export;
 use graybox::model::spec::{ModelSpec, NAMED};
 use graybox::model::templates::Template;
 use graybox::sim::{SimConfig, simulate};
-use graybox::train::artifact::ModelFile;
-use graybox::train::data::Dataset;
 use graybox::train::trainer::evaluate;
 use graybox::train::{TrainConfig, TrainState, Trainer};
 
@@ -175,7 +175,7 @@ fn resumed_run_equals_uninterrupted_run() {
         let (a, b) = (full.model_file(), resumed.model_file());
         assert_eq!(a.params, b.params);
         let (ra, rb) = (a.report.unwrap(), b.report.unwrap());
-        let losses = |r: &graybox::train::report::TrainReport| {
+        let losses = |r: &graybox::model::report::TrainReport| {
             r.history
                 .iter()
                 .map(|h| (h.train_loss, h.val_loss))

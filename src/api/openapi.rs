@@ -10,10 +10,10 @@ use utoipa::openapi::{
 use utoipa::{OpenApi as _, ToSchema};
 
 use crate::app::jobs::JobRequest;
-use crate::store::{DatasetRow, JobRow, JobState, MetricRow};
+use crate::app::views::{Dataset, Job, JobState, Metric};
 
 #[derive(utoipa::OpenApi)]
-#[openapi(components(schemas(DatasetRow, JobRow, JobState, MetricRow, JobRequest)))]
+#[openapi(components(schemas(Dataset, Job, JobState, Metric, JobRequest)))]
 struct Components;
 
 /// One route: method, path, summary, request schema, parameters ("?name" for query ones).

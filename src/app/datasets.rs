@@ -4,9 +4,9 @@ use serde::Deserialize;
 use serde_json::Value;
 
 use super::App;
+use super::views::Dataset as DatasetView;
+use crate::data::Dataset;
 use crate::error::{Error, Result};
-use crate::store::DatasetRow;
-use crate::train::data::Dataset;
 
 /// One trajectory: T+1 states and T inputs.
 #[derive(Debug, Deserialize)]
@@ -64,7 +64,7 @@ fn from_trajectories(value: &Value) -> Result<Dataset> {
     }
     let mut obj = serde_json::Map::new();
     obj.insert("dt".into(), Value::from(dt));
-    for (name, f) in crate::train::data::FIELDS.iter().zip(fields) {
+    for (name, f) in crate::data::FIELDS.iter().zip(fields) {
         obj.insert((*name).into(), Value::Array(f));
     }
     Dataset::from_json_value(&Value::Object(obj))
@@ -101,7 +101,7 @@ impl App {
         &self,
         name: Option<String>,
         upload: Upload,
-    ) -> Result<(DatasetRow, bool)> {
+    ) -> Result<(DatasetView, bool)> {
         let (ds, body_name) = match upload {
             Upload::Csv { text, dt } => {
                 let dt = dt.ok_or_else(|| Error::invalid("dt", "a CSV upload needs ?dt="))?;
@@ -125,13 +125,20 @@ impl App {
         if let Some(n) = &name {
             check_name(n)?;
         }
-        self.store.insert_dataset(name.as_deref(), &ds).await
+        let (row, created) = self.store.insert_dataset(name.as_deref(), &ds).await?;
+        Ok((row.into(), created))
     }
 
-    pub async fn dataset(&self, id: &str) -> Result<DatasetRow> {
+    pub async fn dataset(&self, id: &str) -> Result<DatasetView> {
         self.store
             .get_dataset(id)
             .await?
+            .map(DatasetView::from)
             .ok_or_else(|| Error::NotFound(format!("dataset {id}")))
+    }
+
+    /// Deletes a dataset unless a queued or running job uses it (409).
+    pub async fn delete_dataset(&self, id: &str) -> Result<()> {
+        self.store.delete_dataset(id).await
     }
 }

@@ -11,8 +11,8 @@ use std::time::Duration;
 use tokio::sync::watch;
 
 use super::App;
+use super::views::{Job, Metric};
 use crate::error::Result;
-use crate::store::{JobRow, MetricRow};
 
 /// How often a followed job is read from the store.
 pub const POLL: Duration = Duration::from_millis(200);
@@ -20,8 +20,8 @@ pub const POLL: Duration = Duration::from_millis(200);
 /// A job as last read, with every epoch's metrics so far.
 #[derive(Debug, Clone)]
 pub struct Progress {
-    pub job: JobRow,
-    pub metrics: Arc<Vec<MetricRow>>,
+    pub job: Job,
+    pub metrics: Arc<Vec<Metric>>,
 }
 
 /// The live pollers by job id (each entry a receiver kept to hand out clones).
@@ -63,7 +63,7 @@ impl App {
         self.telemetry.job_polls.fetch_add(1, Ordering::Relaxed);
         let job = self.job(id).await?;
         let last = prev.and_then(|p| p.metrics.last()).map_or(0, |m| m.epoch);
-        let new = self.store.metrics(id, last).await?;
+        let new = self.metrics_after(id, last).await?;
         let metrics = match prev {
             Some(p) if new.is_empty() => p.metrics.clone(),
             Some(p) => Arc::new(p.metrics.iter().cloned().chain(new).collect()),

@@ -7,10 +7,11 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::App;
+use super::views::{Dataset, Job, JobState, Metric};
 use crate::error::{Error, Result};
 use crate::model::spec::ModelSpec;
-use crate::store::{DatasetRow, JobRow, JobState, MetricRow, NewJob, Submitted};
-use crate::train::trainer::physical_init;
+use crate::store::{NewJob, Submitted};
+use crate::train::setup::physical_init;
 use crate::train::{TrainConfig, budget};
 
 /// The body of POST /v1/jobs.
@@ -69,6 +70,29 @@ pub fn parse_body<T: serde::de::DeserializeOwned>(value: Value) -> Result<T> {
     })
 }
 
+/// The model of a request: a paper name ("MVF", …) or a spec object, with an optional
+/// template for its white-box parts.
+fn parse_model(model: &Value, template: Option<&str>) -> Result<(String, ModelSpec)> {
+    let template = template
+        .map(crate::model::templates::Template::parse)
+        .transpose()
+        .map_err(Error::unprocessable)?;
+    let (name, spec) = match model {
+        Value::String(name) => (name.clone(), ModelSpec::named(name, template)),
+        Value::Object(_) => (
+            "custom".to_string(),
+            ModelSpec::parse(&model.to_string(), template),
+        ),
+        _ => {
+            return Err(Error::Unprocessable {
+                field: "model".into(),
+                message: "must be a model name or a spec object".into(),
+            });
+        }
+    };
+    Ok((name, spec.map_err(Error::unprocessable)?))
+}
+
 impl App {
     /// Validates a request against its datasets and queues it (or returns the job an earlier
     /// request with the same idempotency key created).
@@ -76,7 +100,7 @@ impl App {
         &self,
         req: JobRequest,
         idempotency_key: Option<String>,
-    ) -> Result<(JobRow, bool)> {
+    ) -> Result<(Job, bool)> {
         let spec = self.validate_job(req).await?;
         let new = NewJob {
             dataset_id: spec.dataset_id.clone(),
@@ -86,76 +110,17 @@ impl App {
             idempotency_key,
         };
         Ok(match self.store.submit_job(new).await? {
-            Submitted::Created(job) => (job, true),
-            Submitted::Existing(job) => (job, false),
+            Submitted::Created(job) => (job.into(), true),
+            Submitted::Existing(job) => (job.into(), false),
         })
     }
 
     async fn validate_job(&self, req: JobRequest) -> Result<JobSpec> {
         let training = req.training.unwrap_or_default();
         training.validate().map_err(Error::unprocessable)?;
-        let template = req
-            .template
-            .as_deref()
-            .map(crate::cli::parse_template)
-            .transpose()
-            .map_err(Error::unprocessable)?;
-        let (model_name, spec) = match &req.model {
-            Value::String(name) => (name.clone(), ModelSpec::named(name, template)),
-            Value::Object(_) => (
-                "custom".to_string(),
-                ModelSpec::parse(&req.model.to_string(), template),
-            ),
-            _ => {
-                return Err(Error::Unprocessable {
-                    field: "model".into(),
-                    message: "must be a model name or a spec object".into(),
-                });
-            }
-        };
-        let spec = spec.map_err(Error::unprocessable)?;
+        let (model_name, spec) = parse_model(&req.model, req.template.as_deref())?;
         let init: Vec<(String, f64)> = req.init.unwrap_or_default().into_iter().collect();
         physical_init(&spec, &init).map_err(Error::unprocessable)?;
-        let missing = |field: &str, id: &str| Error::Unprocessable {
-            field: field.into(),
-            message: format!("dataset {id} does not exist"),
-        };
-        let data = self
-            .store
-            .get_dataset(&req.dataset_id)
-            .await?
-            .ok_or_else(|| missing("dataset_id", &req.dataset_id))?;
-        spec.check_dims(data.n as usize, data.m as usize)
-            .map_err(Error::unprocessable)?;
-        if let Some(vid) = &req.validation_dataset_id {
-            let v = self
-                .store
-                .get_dataset(vid)
-                .await?
-                .ok_or_else(|| missing("validation_dataset_id", vid))?;
-            if (v.n, v.m) != (data.n, data.m) || (v.dt - data.dt).abs() > 1e-12 * data.dt {
-                return Err(Error::Unprocessable {
-                    field: "validation_dataset_id".into(),
-                    message: format!(
-                        "has n = {}, m = {}, dt = {} but the training dataset has n = {}, m = {}, dt = {}",
-                        v.n, v.m, v.dt, data.n, data.m, data.dt
-                    ),
-                });
-            }
-        } else if training.val_fraction > 0.0 && data.count < 2 {
-            return Err(Error::Unprocessable {
-                field: "training.val_fraction".into(),
-                message: "a dataset of one transition cannot be split; set it to 0 or give validation_dataset_id".into(),
-            });
-        }
-        let val_count = match &req.validation_dataset_id {
-            Some(vid) => self
-                .dataset(vid)
-                .await
-                .map(|v| v.count as usize)
-                .unwrap_or(0),
-            None => 0,
-        };
         let job = JobSpec {
             model_name,
             spec,
@@ -164,14 +129,54 @@ impl App {
             dataset_id: req.dataset_id,
             validation_dataset_id: req.validation_dataset_id,
         };
+        let (data, val_count) = self.check_datasets(&job).await?;
         self.check_job_cost(&job, &data, val_count)?;
         self.check_job_data(&job).await?;
         Ok(job)
     }
 
+    /// The job's datasets exist and fit its model and each other; the training dataset and
+    /// the validation dataset's size.
+    async fn check_datasets(&self, job: &JobSpec) -> Result<(Dataset, usize)> {
+        let find = |field: &'static str, id: String| async move {
+            self.store
+                .get_dataset(&id)
+                .await?
+                .map(Dataset::from)
+                .ok_or_else(|| Error::Unprocessable {
+                    field: field.into(),
+                    message: format!("dataset {id} does not exist"),
+                })
+        };
+        let data = find("dataset_id", job.dataset_id.clone()).await?;
+        job.spec
+            .check_dims(data.n as usize, data.m as usize)
+            .map_err(Error::unprocessable)?;
+        let Some(vid) = &job.validation_dataset_id else {
+            if job.training.val_fraction > 0.0 && data.count < 2 {
+                return Err(Error::Unprocessable {
+                    field: "training.val_fraction".into(),
+                    message: "a dataset of one transition cannot be split; set it to 0 or give validation_dataset_id".into(),
+                });
+            }
+            return Ok((data, 0));
+        };
+        let v = find("validation_dataset_id", vid.clone()).await?;
+        if (v.n, v.m) != (data.n, data.m) || (v.dt - data.dt).abs() > 1e-12 * data.dt {
+            return Err(Error::Unprocessable {
+                field: "validation_dataset_id".into(),
+                message: format!(
+                    "has n = {}, m = {}, dt = {} but the training dataset has n = {}, m = {}, dt = {}",
+                    v.n, v.m, v.dt, data.n, data.m, data.dt
+                ),
+            });
+        }
+        Ok((data, v.count as usize))
+    }
+
     /// Refuses a job over the service's limits (422 naming the field and the estimate),
     /// before it is queued.
-    fn check_job_cost(&self, job: &JobSpec, data: &DatasetRow, val_count: usize) -> Result<()> {
+    fn check_job_cost(&self, job: &JobSpec, data: &Dataset, val_count: usize) -> Result<()> {
         let s = &self.settings;
         let (n, m) = (data.n as usize, data.m as usize);
         let refuse = |field: &str, message: String| {
@@ -252,7 +257,7 @@ impl App {
         };
         let job = job.clone();
         tokio::task::spawn_blocking(move || {
-            crate::train::trainer::prepare(&job.spec, &job.init, &data, val.as_ref(), &job.training)
+            crate::train::setup::prepare(&job.spec, &job.init, &data, val.as_ref(), &job.training)
                 .map(|_| ())
         })
         .await
@@ -266,20 +271,27 @@ impl App {
         })
     }
 
-    pub async fn job(&self, id: &str) -> Result<JobRow> {
+    pub async fn job(&self, id: &str) -> Result<Job> {
         self.store
             .get_job(id)
             .await?
+            .map(Job::from)
             .ok_or_else(|| Error::NotFound(format!("job {id}")))
     }
 
-    pub async fn job_metrics(&self, id: &str) -> Result<Vec<MetricRow>> {
+    pub async fn job_metrics(&self, id: &str) -> Result<Vec<Metric>> {
         self.job(id).await?;
-        self.store.metrics(id, 0).await
+        self.metrics_after(id, 0).await
     }
 
-    pub async fn cancel_job(&self, id: &str) -> Result<JobRow> {
-        self.store.cancel_job(id).await
+    /// A job's metrics after `epoch`, in order.
+    pub(super) async fn metrics_after(&self, id: &str, epoch: i64) -> Result<Vec<Metric>> {
+        let rows = self.store.metrics(id, epoch).await?;
+        Ok(rows.into_iter().map(Metric::from).collect())
+    }
+
+    pub async fn cancel_job(&self, id: &str) -> Result<Job> {
+        self.store.cancel_job(id).await.map(Job::from)
     }
 
     pub async fn list_jobs(
@@ -287,7 +299,7 @@ impl App {
         state: Option<&str>,
         size: Option<i64>,
         token: Option<&str>,
-    ) -> Result<(Vec<JobRow>, Option<String>)> {
+    ) -> Result<(Vec<Job>, Option<String>)> {
         let state = match state {
             None | Some("") => None,
             Some(s) => Some(JobState::parse(s).ok_or_else(|| {
@@ -301,7 +313,7 @@ impl App {
         let after = super::paging::decode("jobs", token)?;
         let items = self.store.list_jobs(state, after, size).await?;
         let next = super::paging::next("jobs", &items, size, |j| j.seq);
-        Ok((items, next))
+        Ok((items.into_iter().map(Job::from).collect(), next))
     }
 }
 

@@ -7,9 +7,11 @@ pub mod inference;
 pub mod jobs;
 pub mod models;
 pub mod telemetry;
+pub mod views;
 
 use std::sync::Arc;
 
+use crate::error::Result;
 use crate::store::Store;
 
 /// Service settings the core needs (flags and environment, see `cli::ServeArgs`). The limits
@@ -63,7 +65,8 @@ impl Default for Settings {
 /// The shared core. Cheap to clone.
 #[derive(Clone)]
 pub struct App {
-    pub store: Store,
+    /// The store is the core's own: adapters go through `App` (ARCHITECTURE.md).
+    pub(crate) store: Store,
     pub settings: Arc<Settings>,
     pub telemetry: Arc<telemetry::Telemetry>,
     /// Trained models loaded for inference, by model id.
@@ -77,6 +80,17 @@ pub struct App {
 }
 
 impl App {
+    /// Ready when the database answers.
+    pub async fn ready(&self) -> Result<()> {
+        self.store.ping().await
+    }
+
+    /// The Prometheus exposition text: this process's counters and the jobs by state.
+    pub async fn metrics_text(&self) -> Result<String> {
+        let jobs = self.store.job_counts().await?;
+        Ok(self.telemetry.render(&jobs))
+    }
+
     pub fn new(store: Store, settings: Settings) -> Self {
         Self {
             store,

@@ -21,12 +21,12 @@ use crate::error::{Error, Result};
 use crate::model::ModelConfig;
 use crate::model::dual::Dual;
 use crate::model::dynamics::{Tri, acceleration};
+use crate::model::file::ModelFile;
 use crate::model::mass_matrix::factor_from_outputs;
 use crate::model::params_io::NamedArray;
 use crate::model::scalar::Scalar;
 use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
 use crate::model::templates::Template;
-use crate::train::artifact::ModelFile;
 
 /// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
 #[derive(Debug, Clone)]
@@ -350,12 +350,6 @@ impl Evaluator {
                 dx.extend(self.accel(q, qd, u));
                 dx
             })
-    }
-
-    /// The one-step map's Jacobians A = ∂x'/∂x (2n×2n) and B = ∂x'/∂u (2n×m), row-major,
-    /// exact through dual numbers (second derivatives of M and V included).
-    pub fn linearize(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        self.linearize_batch(x, u)
     }
 }
 

@@ -8,6 +8,7 @@ use std::time::Duration;
 
 use tokio::runtime::Handle;
 use tokio::sync::watch;
+use tokio::task::JoinHandle;
 use tracing::{info, warn};
 
 use crate::app::App;
@@ -84,42 +85,11 @@ fn lease_ms(app: &App) -> i64 {
 pub async fn run_claimed(
     app: &App,
     claimed: Claimed,
-    mut shutdown: watch::Receiver<bool>,
+    shutdown: watch::Receiver<bool>,
 ) -> Result<Outcome> {
     let flags = Arc::new(Flags::default());
-    let heartbeat = {
-        let (app, claimed, flags) = (app.clone(), claimed.clone(), flags.clone());
-        let every = Duration::from_millis((lease_ms(&app) / 6).max(50) as u64);
-        tokio::spawn(async move {
-            loop {
-                tokio::time::sleep(every).await;
-                match app.store.heartbeat(&claimed, lease_ms(&app)).await {
-                    Ok(Lease::Held { cancel_requested }) => {
-                        if cancel_requested {
-                            flags.cancel.store(true, Ordering::Relaxed);
-                        }
-                    }
-                    Ok(Lease::Lost) => {
-                        flags.lost.store(true, Ordering::Relaxed);
-                        flags.cancel.store(true, Ordering::Relaxed);
-                        return;
-                    }
-                    Err(e) => warn!(job = %claimed.job.id, error = %e, "heartbeat failed"),
-                }
-            }
-        })
-    };
-    let shutdown_watch = {
-        let flags = flags.clone();
-        tokio::spawn(async move {
-            while !*shutdown.borrow() {
-                if shutdown.changed().await.is_err() {
-                    return;
-                }
-            }
-            flags.shutdown.store(true, Ordering::Relaxed);
-        })
-    };
+    let heartbeat = spawn_heartbeat(app, &claimed, &flags);
+    let shutdown_watch = spawn_shutdown_watch(shutdown, &flags);
     let result = {
         let (app, claimed, flags) = (app.clone(), claimed.clone(), flags.clone());
         let handle = Handle::current();
@@ -136,42 +106,123 @@ pub async fn run_claimed(
     if flags.lost.load(Ordering::Relaxed) {
         return Ok(Outcome::LeaseLost);
     }
+    match result {
+        Ok(outcome) => Ok(outcome),
+        Err(e) => end_with_error(app, &claimed, e).await,
+    }
+}
+
+/// Renews the lease every lease/6; delivers cancellation, and notices a lost lease.
+fn spawn_heartbeat(app: &App, claimed: &Claimed, flags: &Arc<Flags>) -> JoinHandle<()> {
+    let (app, claimed, flags) = (app.clone(), claimed.clone(), flags.clone());
+    let every = Duration::from_millis((lease_ms(&app) / 6).max(50) as u64);
+    tokio::spawn(async move {
+        loop {
+            tokio::time::sleep(every).await;
+            match app.store.heartbeat(&claimed, lease_ms(&app)).await {
+                Ok(Lease::Held { cancel_requested }) => {
+                    if cancel_requested {
+                        flags.cancel.store(true, Ordering::Relaxed);
+                    }
+                }
+                Ok(Lease::Lost) => {
+                    flags.lost.store(true, Ordering::Relaxed);
+                    flags.cancel.store(true, Ordering::Relaxed);
+                    return;
+                }
+                Err(e) => warn!(job = %claimed.job.id, error = %e, "heartbeat failed"),
+            }
+        }
+    })
+}
+
+/// Raises the shutdown flag the training thread reads at epoch ends.
+fn spawn_shutdown_watch(mut shutdown: watch::Receiver<bool>, flags: &Arc<Flags>) -> JoinHandle<()> {
+    let flags = flags.clone();
+    tokio::spawn(async move {
+        while !*shutdown.borrow() {
+            if shutdown.changed().await.is_err() {
+                return;
+            }
+        }
+        flags.shutdown.store(true, Ordering::Relaxed);
+    })
+}
+
+/// Ends a job whose training returned an error: cancelled, retried after a storage fault (at
+/// most [`MAX_INFRA_RETRIES`] times), or failed with the error's message.
+async fn end_with_error(app: &App, claimed: &Claimed, e: Error) -> Result<Outcome> {
     let store = &app.store;
-    let outcome = match result {
-        Ok(outcome) => outcome,
-        Err(Error::Cancelled) => {
-            store.end_job(&claimed, JobState::Cancelled, None).await?;
+    Ok(match e {
+        Error::Cancelled => {
+            store.end_job(claimed, JobState::Cancelled, None).await?;
             Outcome::Cancelled
         }
-        Err(Error::Storage(msg)) => {
+        Error::Storage(msg) => {
             let failures = store.infra_failures(&claimed.job.id).await.unwrap_or(0) + 1;
             if failures > MAX_INFRA_RETRIES {
                 let msg = format!("storage failed {failures} times; last error: {msg}");
-                store
-                    .end_job(&claimed, JobState::Failed, Some(&msg))
-                    .await?;
+                store.end_job(claimed, JobState::Failed, Some(&msg)).await?;
                 Outcome::Failed(msg)
             } else {
-                store.release_job(&claimed, true).await?;
+                store.release_job(claimed, true).await?;
                 Outcome::Retried
             }
         }
-        Err(e) => {
+        e => {
             let msg = e.to_string();
-            store
-                .end_job(&claimed, JobState::Failed, Some(&msg))
-                .await?;
+            store.end_job(claimed, JobState::Failed, Some(&msg)).await?;
             Outcome::Failed(msg)
         }
-    };
-    Ok(outcome)
+    })
 }
 
-/// The blocking part: build or resume the trainer, run epochs, write progress through the
-/// runtime handle.
+/// The blocking part: build or resume the trainer, run epochs (recording each, with a
+/// checkpoint every `--checkpoint-every`), then store the model; progress goes through the
+/// runtime handle. Every write is fenced: a lost lease ends it without writing.
 fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outcome> {
     let spec = JobSpec::from_json(&c.job.request)?;
-    let load = |id: &str| -> Result<crate::train::data::Dataset> {
+    let mut trainer = build_trainer(app, c, &spec, rt)?;
+    let every = app.settings.checkpoint_every.max(1);
+    let mut checkpointed = trainer.epoch();
+    let lost = || {
+        flags.lost.store(true, Ordering::Relaxed);
+        Ok(Outcome::LeaseLost)
+    };
+    while !trainer.finished() {
+        if flags.shutdown.load(Ordering::Relaxed) {
+            return release(app, c, &trainer, checkpointed, rt);
+        }
+        let m = trainer.run_epoch(&flags.cancel)?;
+        app.telemetry.epochs_trained.fetch_add(1, Ordering::Relaxed);
+        let row = MetricRow {
+            epoch: m.epoch as i64,
+            train_loss: m.train_loss,
+            val_loss: m.val_loss,
+            seconds: m.seconds,
+        };
+        if !rt.block_on(app.store.record_epoch(c, &row, trainer.best_val_loss()))? {
+            return lost();
+        }
+        if trainer.epoch() % every == 0 && !trainer.finished() {
+            let bytes = trainer.checkpoint().to_bytes();
+            let epoch = trainer.epoch() as i64;
+            if !rt.block_on(app.store.save_checkpoint(c, epoch, &bytes))? {
+                return lost();
+            }
+            checkpointed = trainer.epoch();
+        }
+    }
+    match rt.block_on(store_model(app, c, &spec, &trainer))? {
+        Some(id) => Ok(Outcome::Succeeded(id)),
+        None => lost(),
+    }
+}
+
+/// A new trainer for the job, or the one its last checkpoint holds (refused as corrupt when
+/// the checkpoint claims an epoch past the job's last).
+fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<Trainer> {
+    let load = |id: &str| -> Result<crate::data::Dataset> {
         rt.block_on(app.store.load_dataset(id))?
             .ok_or_else(|| Error::invalid("dataset_id", format!("dataset {id} was deleted")))
     };
@@ -182,24 +233,18 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
         .map(load)
         .transpose()?;
     let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
-    let mut trainer = match rt.block_on(app.store.load_checkpoint(&c.job.id))? {
-        Some((epoch, _)) if epoch > c.job.epochs => {
-            return Err(Error::corrupt(
-                "checkpoint",
-                format!(
-                    "its epoch {epoch} is past the job's {} epochs",
-                    c.job.epochs
-                ),
-            ));
-        }
+    match rt.block_on(app.store.load_checkpoint(&c.job.id))? {
+        Some((epoch, _)) if epoch > c.job.epochs => Err(Error::corrupt(
+            "checkpoint",
+            format!(
+                "its epoch {epoch} is past the job's {} epochs",
+                c.job.epochs
+            ),
+        )),
         Some((epoch, bytes)) => {
             info!(job = %c.job.id, epoch, "resuming from checkpoint");
-            Trainer::resume(
-                TrainState::from_bytes(&bytes)?,
-                &data,
-                val.as_ref(),
-                &device,
-            )?
+            let state = TrainState::from_bytes(&bytes)?;
+            Trainer::resume(state, &data, val.as_ref(), &device)
         }
         None => Trainer::new(
             &spec.model_name,
@@ -209,42 +254,21 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
             val.as_ref(),
             spec.training.clone(),
             &device,
-        )?,
-    };
-    let every = app.settings.checkpoint_every.max(1);
-    let mut checkpointed = trainer.epoch();
-    while !trainer.finished() {
-        if flags.shutdown.load(Ordering::Relaxed) {
-            return release(app, c, &trainer, checkpointed, rt);
-        }
-        let m = trainer.run_epoch(&flags.cancel)?;
-        app.telemetry.epochs_trained.fetch_add(1, Ordering::Relaxed);
-        let best = trainer.best_val_loss();
-        let row = MetricRow {
-            epoch: m.epoch as i64,
-            train_loss: m.train_loss,
-            val_loss: m.val_loss,
-            seconds: m.seconds,
-        };
-        if !rt.block_on(app.store.record_epoch(c, &row, best))? {
-            flags.lost.store(true, Ordering::Relaxed);
-            return Ok(Outcome::LeaseLost);
-        }
-        if trainer.epoch() % every == 0 && !trainer.finished() {
-            if !rt.block_on(app.store.save_checkpoint(
-                c,
-                trainer.epoch() as i64,
-                &trainer.checkpoint().to_bytes(),
-            ))? {
-                flags.lost.store(true, Ordering::Relaxed);
-                return Ok(Outcome::LeaseLost);
-            }
-            checkpointed = trainer.epoch();
-        }
+        ),
     }
+}
+
+/// The trained model and the job's success in one fenced transaction; None when the lease
+/// was lost. A model file with a non-finite number is an error instead.
+async fn store_model(
+    app: &App,
+    c: &Claimed,
+    spec: &JobSpec,
+    trainer: &Trainer,
+) -> Result<Option<String>> {
     let file = trainer.model_file();
-    let report = serde_json::to_string(file.report.as_ref().expect("trained files carry a report"))
-        .expect("json");
+    let report = file.report.as_ref().expect("trained files carry a report");
+    let report = serde_json::to_string(report).expect("json");
     let spec_json = serde_json::to_string(&file.config.spec).expect("json");
     let model = NewModel {
         name: &spec.model_name,
@@ -255,13 +279,7 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
         report: &report,
         file: &file.to_bytes()?,
     };
-    match rt.block_on(app.store.finish_job(c, model))? {
-        Some(id) => Ok(Outcome::Succeeded(id)),
-        None => {
-            flags.lost.store(true, Ordering::Relaxed);
-            Ok(Outcome::LeaseLost)
-        }
-    }
+    app.store.finish_job(c, model).await
 }
 
 /// Shutdown: checkpoint at this epoch end (unless just taken) and give the job back.

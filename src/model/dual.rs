@@ -193,10 +193,10 @@ impl<S: Scalar> Scalar for Dual<S> {
     }
 }
 
-/// 1/x through the scalar operations only (`Scalar` has no literal constructor).
+/// 1/x as x / (x · x). `Scalar::lift(1.0) / x` would do too, but served models' outputs were
+/// computed in this form, and another form changes their last bits (tests/compat.rs).
 trait RecipLike: Scalar {
     fn recip_like(&self) -> Self {
-        // x / (x · x) = 1/x without needing a literal 1 of type S.
         self.clone() / self.square()
     }
 }

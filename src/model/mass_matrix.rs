@@ -4,7 +4,7 @@
 use burn::tensor::Tensor;
 
 use super::dual::Dual;
-use super::dynamics::{Tri, cholesky};
+use super::dynamics::Tri;
 use super::scalar::Scalar;
 
 /// softplus(c) = 1, so a zero network output puts 1 on L's diagonal: M starts near I.
@@ -36,11 +36,6 @@ pub fn factor_from_outputs<S: Scalar>(raw: Vec<Dual<S>>, n: usize) -> Tri<Dual<S
     }
     assert_eq!(entries.len(), outputs(n), "n(n+1)/2 outputs for L");
     Tri { n, entries }
-}
-
-/// The Cholesky factor of an analytic M(q) given with dual entries.
-pub fn factor_of<S: Scalar>(m: &[Vec<Dual<S>>]) -> Tri<Dual<S>> {
-    cholesky(m)
 }
 
 /// Splits a network's output y `[batch, k]` and Jacobian J `[batch, n, k]` into k dual

@@ -3,11 +3,13 @@
 
 pub mod dual;
 pub mod dynamics;
+pub mod file;
 pub mod forces;
 pub mod integrator;
 pub mod mass_matrix;
 pub mod mlp;
 pub mod params_io;
+pub mod report;
 pub mod scalar;
 pub mod scaling;
 pub mod spec;
@@ -365,7 +367,7 @@ impl Model {
             MassSpec::Template => {
                 let t = template.expect("validated: template present");
                 let qv = dual_vars(q_cols(), &c.one);
-                mass_matrix::factor_of(&t.mass(&phys_dual(), &qv))
+                dynamics::cholesky(&t.mass(&phys_dual(), &qv))
             }
         };
 

@@ -9,7 +9,7 @@
 use serde::{Deserialize, Serialize};
 
 use super::templates::Template;
-use crate::train::data::Dataset;
+use crate::data::Dataset;
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Scaling {

@@ -147,6 +147,19 @@ impl Template {
         Self::ALL.into_iter().find(|t| t.name() == name)
     }
 
+    /// A template by name, or an error (field "template") listing the known ones.
+    pub fn parse(name: &str) -> crate::error::Result<Self> {
+        Self::from_name(name).ok_or_else(|| {
+            crate::error::Error::invalid(
+                "template",
+                format!(
+                    "unknown template '{name}'; expected one of {}",
+                    Self::ALL.map(|t| t.name()).join(", ")
+                ),
+            )
+        })
+    }
+
     /// Number of generalized coordinates.
     pub fn n(self) -> usize {
         match self {

@@ -6,8 +6,8 @@ use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
 
 use super::{Store, new_id, now_rfc3339};
+use crate::data::Dataset;
 use crate::error::{Error, Result};
-use crate::train::data::Dataset;
 
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct DatasetRow {

@@ -5,10 +5,12 @@
 mod datasets;
 mod jobs;
 mod models;
+mod queue;
 
 pub use datasets::DatasetRow;
-pub use jobs::{Claimed, JobRow, JobState, Lease, MetricRow, NewJob, Submitted};
+pub use jobs::{JobRow, JobState, MetricRow, NewJob, Submitted};
 pub use models::{ModelRow, NewModel};
+pub use queue::{Claimed, Lease};
 
 use std::str::FromStr;
 use std::time::Duration;

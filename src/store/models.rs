@@ -4,7 +4,7 @@ use serde::Serialize;
 use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
 
-use super::jobs::{Claimed, FENCE, fenced};
+use super::queue::{Claimed, FENCE, fenced};
 use super::{Store, new_id, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
 

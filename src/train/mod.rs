@@ -1,10 +1,10 @@
-//! Training: datasets, the training loop with Adam, checkpoints, reports.
+//! Training: the training loop with Adam, checkpoints, and what a job will cost. Returns
+//! bytes (checkpoints, model files); knows no database.
 
 pub mod adam;
-pub mod artifact;
 pub mod budget;
-pub mod data;
-pub mod report;
+pub mod setup;
 pub mod trainer;
 
-pub use trainer::{TrainConfig, TrainState, Trainer};
+pub use setup::TrainConfig;
+pub use trainer::{TrainState, Trainer};

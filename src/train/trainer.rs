@@ -9,78 +9,15 @@ use burn::tensor::{Device, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
 
 use super::adam::{Adam, AdamState};
-use super::artifact::ModelFile;
-use super::data::Dataset;
-use super::report::{EpochMetrics, TrainReport, identifiable, used_physical};
+use super::setup::{TrainConfig, prepare, split_data};
+use crate::data::Dataset;
 use crate::error::{Error, Result};
-use crate::model::integrator::Integrator;
+use crate::model::file::ModelFile;
 use crate::model::params_io::{NamedArray, export, import};
-use crate::model::scaling::Scaling;
+use crate::model::report::{EpochMetrics, TrainReport, identifiable, used_physical};
 use crate::model::spec::ModelSpec;
-use crate::model::templates::Part;
 use crate::model::{Model, ModelConfig};
 use crate::rng::Rng;
-use crate::sim::unknown_param;
-
-/// Training hyper-parameters; every field has the CLI's default.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct TrainConfig {
-    pub epochs: usize,
-    pub batch_size: usize,
-    pub lr: f64,
-    /// Weight of the velocity error in the loss.
-    pub lambda: f64,
-    /// Share of the data held out for validation when no validation set is given.
-    pub val_fraction: f64,
-    pub seed: u64,
-    pub integrator: Integrator,
-    /// Stop after this many epochs without a better validation loss (off when `None`).
-    pub patience: Option<usize>,
-}
-
-impl Default for TrainConfig {
-    fn default() -> Self {
-        Self {
-            epochs: 500,
-            batch_size: 256,
-            lr: 1e-3,
-            lambda: 1.0,
-            val_fraction: 0.2,
-            seed: 0,
-            integrator: Integrator::Rk4,
-            patience: None,
-        }
-    }
-}
-
-impl TrainConfig {
-    pub fn validate(&self) -> Result<()> {
-        let bad = |f: &str, m: &str| Err(Error::invalid(format!("training.{f}"), m));
-        if self.epochs == 0 || self.epochs > 1_000_000 {
-            return bad("epochs", "must be between 1 and 1000000");
-        }
-        if self.batch_size == 0 || self.batch_size > 1 << 22 {
-            return bad("batch_size", "must be between 1 and 4194304");
-        }
-        if !(self.lr.is_finite() && self.lr > 0.0 && self.lr <= 10.0) {
-            return bad("lr", "must be a finite number in (0, 10]");
-        }
-        if !(self.lambda.is_finite() && self.lambda >= 0.0) {
-            return bad("lambda", "must be a finite number ≥ 0");
-        }
-        if !(self.val_fraction.is_finite() && (0.0..1.0).contains(&self.val_fraction)) {
-            return bad("val_fraction", "must be in [0, 1)");
-        }
-        if self.patience == Some(0) {
-            return bad(
-                "patience",
-                "must be at least 1 (omit it to train every epoch)",
-            );
-        }
-        Ok(())
-    }
-}
 
 /// Everything needed to continue a run from an epoch boundary.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -204,34 +141,6 @@ pub struct Trainer {
     fingerprint: u64,
 }
 
-/// The (train, validation) sets: `val` when given, else a seeded split of `data`.
-fn split_data(
-    data: &Dataset,
-    val: Option<&Dataset>,
-    cfg: &TrainConfig,
-) -> Result<(Dataset, Option<Dataset>)> {
-    if let Some(v) = val {
-        if (v.n, v.m) != (data.n, data.m) {
-            return Err(Error::invalid(
-                "validation_data",
-                "must have the same n and m as the training data",
-            ));
-        }
-        if (v.dt - data.dt).abs() > 1e-12 * data.dt {
-            return Err(Error::invalid(
-                "validation_data",
-                format!("dt {} differs from the training data's {}", v.dt, data.dt),
-            ));
-        }
-        return Ok((data.clone(), Some(v.clone())));
-    }
-    if cfg.val_fraction > 0.0 && data.count() > 1 {
-        let (t, v) = data.split(cfg.val_fraction, cfg.seed);
-        return Ok((t, Some(v)));
-    }
-    Ok((data.clone(), None))
-}
-
 /// FNV-1a over the bits of every value, train then validation.
 fn fingerprint(train: &Dataset, val: Option<&Dataset>) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
@@ -244,89 +153,6 @@ fn fingerprint(train: &Dataset, val: Option<&Dataset>) -> u64 {
         }
     }
     h
-}
-
-/// Largest |initial value| of a physical parameter: SI values of real mechanisms are far
-/// below it, and larger ones (1e308 was accepted once) overflow the first epoch's dynamics.
-pub const PHYSICAL_MAX: f64 = 1e6;
-
-/// Template parameter values from name=value pairs over the defaults.
-pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<Vec<f64>>> {
-    let Some(t) = spec.template() else {
-        if let Some((name, _)) = init.first() {
-            return Err(Error::invalid(
-                format!("init.{name}"),
-                "initial values need a model with a template",
-            ));
-        }
-        return Ok(None);
-    };
-    let mut values = t.defaults();
-    for (name, v) in init {
-        let i = t
-            .index_of(name)
-            .ok_or_else(|| unknown_param(t, name, &format!("init.{name}")))?;
-        if !(v.is_finite() && v.abs() <= PHYSICAL_MAX) {
-            return Err(Error::invalid(
-                format!("init.{name}"),
-                format!("must be a number with |value| ≤ {PHYSICAL_MAX:e}, got {v}"),
-            ));
-        }
-        if t.params()[i].positive && *v > 0.0 && *v < 1.0 / PHYSICAL_MAX {
-            return Err(Error::invalid(
-                format!("init.{name}"),
-                format!("must be at least {:e}, got {v}", 1.0 / PHYSICAL_MAX),
-            ));
-        }
-        values[i] = *v;
-    }
-    // Positive parameters must start positive (they are trained in log space).
-    crate::model::raw_physical(t, &values)?;
-    Ok(Some(values))
-}
-
-/// What [`prepare`] returns: the model configuration, the initial physical values, and the
-/// training and validation data.
-pub type Prepared = (ModelConfig, Option<Vec<f64>>, Dataset, Option<Dataset>);
-
-/// A run's model configuration, initial physical values and data split, checked: what a new
-/// run needs before its model exists (the service calls it at submission too). A scaling
-/// that is not finite (data near the f64 range) is an error naming "data".
-pub fn prepare(
-    spec: &ModelSpec,
-    init: &[(String, f64)],
-    data: &Dataset,
-    val: Option<&Dataset>,
-    cfg: &TrainConfig,
-) -> Result<Prepared> {
-    cfg.validate()?;
-    spec.validate()?;
-    spec.check_dims(data.n, data.m)?;
-    let physical = physical_init(spec, init)?;
-    let (train_ds, val_ds) = split_data(data, val, cfg)?;
-    let white_box_mass = spec.white_box_parts().contains(&Part::Mass);
-    let mass = match (white_box_mass, spec.template(), &physical) {
-        (true, Some(t), Some(p)) => Some((t, p.as_slice())),
-        _ => None,
-    };
-    let scaling = Scaling::from_data(&train_ds, mass);
-    if !scaling.is_finite() {
-        return Err(Error::invalid(
-            "data",
-            "the data's statistics (means, spreads, accelerations) are not finite: values or \
-             differences near the limits of f64; check units and dt",
-        ));
-    }
-    let config = ModelConfig {
-        spec: spec.clone(),
-        n: data.n,
-        m: data.m,
-        dt: data.dt,
-        integrator: cfg.integrator,
-        lambda: cfg.lambda,
-        scaling,
-    };
-    Ok((config, physical, train_ds, val_ds))
 }
 
 impl Trainer {
@@ -443,18 +269,6 @@ impl Trainer {
 
     pub fn model(&self) -> &Model {
         &self.model
-    }
-
-    pub fn history(&self) -> &[EpochMetrics] {
-        &self.history
-    }
-
-    pub fn config(&self) -> &TrainConfig {
-        &self.cfg
-    }
-
-    pub fn train_count(&self) -> usize {
-        self.train.count
     }
 
     /// The best validation loss so far (`None` without a validation set or before epoch 1).

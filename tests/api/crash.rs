@@ -6,7 +6,7 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use graybox::train::artifact::ModelFile;
+use graybox::model::file::ModelFile;
 use serde_json::{Value, json};
 
 use crate::helpers::{dataset, final_state};

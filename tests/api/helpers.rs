@@ -87,6 +87,14 @@ async fn spawn_on(
 }
 
 impl TestApp {
+    /// Another connection pool on the service's database, as a second process would open it.
+    pub async fn open_store(&self) -> graybox::store::Store {
+        let db = self._dir.path().join("test.db");
+        graybox::store::Store::open(&db.to_string_lossy())
+            .await
+            .unwrap()
+    }
+
     pub fn url(&self, path: &str) -> String {
         format!("{}{path}", self.base)
     }

@@ -65,9 +65,8 @@ async fn oversized_calls_are_refused_before_computing() {
     assert!(e.message().contains("--grpc-max-message-mb"), "{e:?}");
 
     // The memory budget alone (a tiny one) refuses a mid-size Predict and names its flag.
-    let running = app.running.as_ref().unwrap();
     let tight = App::new(
-        running.app.store.clone(),
+        app.open_store().await,
         Settings {
             max_call_memory_bytes: 1 << 20,
             ..Settings::default()
@@ -267,7 +266,7 @@ async fn job_submission_and_dataset_deletion_exclude_each_other() {
 async fn deleted_models_stop_being_served() {
     let app = spawn_app(1).await;
     let mut c = client(&app).await;
-    let store = app.running.as_ref().unwrap().app.store.clone();
+    let store = app.open_store().await;
     for trial in 0..6 {
         let model = trained(&app, "W-B").await;
         let mut racing = c.clone();
@@ -320,7 +319,7 @@ async fn concurrent_first_opens_both_succeed() {
 #[tokio::test]
 async fn dead_workers_are_counted_and_expired_jobs_cancel_at_once() {
     let app = spawn_app(0).await;
-    let store = app.running.as_ref().unwrap().app.store.clone();
+    let store = app.open_store().await;
     let ds = app.upload(&dataset(8, 9)).await;
     let (_, job) = app.post("/v1/jobs", &job_body(&ds, "MVF", 1)).await;
     let id = job["id"].as_str().unwrap().to_string();
@@ -356,7 +355,7 @@ async fn dead_workers_are_counted_and_expired_jobs_cancel_at_once() {
 #[tokio::test]
 async fn a_checkpoint_past_the_last_epoch_is_corrupt() {
     let app = spawn_app(0).await;
-    let store = app.running.as_ref().unwrap().app.store.clone();
+    let store = app.open_store().await;
     let ds = app.upload(&dataset(8, 9)).await;
     let (_, job) = app.post("/v1/jobs", &job_body(&ds, "MVF", 2)).await;
     let id = job["id"].as_str().unwrap().to_string();
@@ -431,10 +430,10 @@ async fn event_subscribers_share_one_poller() {
 #[test]
 fn model_files_with_non_finite_numbers_are_not_written() {
     use graybox::model::ModelConfig;
+    use graybox::model::file::ModelFile;
     use graybox::model::params_io::NamedArray;
     use graybox::model::scaling::Scaling;
     use graybox::model::spec::ModelSpec;
-    use graybox::train::artifact::ModelFile;
     let config = ModelConfig {
         spec: ModelSpec::named("naive", None).unwrap(),
         n: 1,

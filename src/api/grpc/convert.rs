@@ -4,8 +4,8 @@
 use tonic::Status;
 
 use super::pb;
+use crate::app::views::Model;
 use crate::error::Error;
-use crate::store::ModelRow;
 
 impl From<Error> for Status {
     fn from(e: Error) -> Self {
@@ -38,13 +38,7 @@ pub fn take(field: &str, a: Option<pb::Array>) -> Result<(Vec<f64>, Vec<u64>), S
         .ok_or_else(|| Status::invalid_argument(format!("{field}: is required")))
 }
 
-pub fn model_info(m: &ModelRow) -> pb::ModelInfo {
-    let report: serde_json::Value = serde_json::from_str(&m.report).unwrap_or_default();
-    let metrics = serde_json::json!({
-        "epochs": report["epochs"], "train_loss": report["train_loss"], "val_loss": report["val_loss"],
-        "best_epoch": report["best_epoch"], "best_val_loss": report["best_val_loss"],
-        "physical_parameters": report["physical_parameters"], "identifiable": report["identifiable"],
-    });
+pub fn model_info(m: &Model) -> pb::ModelInfo {
     pb::ModelInfo {
         id: m.id.clone(),
         job_id: m.job_id.clone(),
@@ -52,8 +46,8 @@ pub fn model_info(m: &ModelRow) -> pb::ModelInfo {
         n: m.n as u64,
         m: m.m as u64,
         dt: m.dt,
-        spec_json: m.spec.clone(),
-        metrics_json: metrics.to_string(),
+        spec_json: m.spec.to_string(),
+        metrics_json: m.metrics.to_string(),
         created_at: m.created_at.clone(),
     }
 }

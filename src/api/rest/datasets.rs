@@ -66,6 +66,6 @@ async fn read(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<i
 }
 
 async fn remove(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<StatusCode> {
-    s.app.store.delete_dataset(&id).await?;
+    s.app.delete_dataset(&id).await?;
     Ok(StatusCode::NO_CONTENT)
 }

@@ -70,16 +70,15 @@ impl From<Error> for ApiError {
             Error::ResourceExhausted(_) => {
                 (StatusCode::PAYLOAD_TOO_LARGE, "payload_too_large", None)
             }
-            Error::Conflict(_) | Error::FailedPrecondition(_) => {
+            Error::Conflict(_) | Error::FailedPrecondition(_) | Error::Cancelled => {
                 (StatusCode::CONFLICT, "conflict", None)
             }
             Error::DeadlineExceeded(_) => (StatusCode::GATEWAY_TIMEOUT, "deadline_exceeded", None),
-            Error::Internal(_)
-            | Error::Training(_)
-            | Error::Cancelled
-            | Error::Io(_)
-            | Error::Storage(_)
-            | Error::Corrupt { .. } => {
+            Error::Storage(_) => {
+                tracing::error!(error = %message, "storage unavailable");
+                (StatusCode::SERVICE_UNAVAILABLE, "unavailable", None)
+            }
+            Error::Internal(_) | Error::Training(_) | Error::Io(_) | Error::Corrupt { .. } => {
                 tracing::error!(error = %message, "internal error");
                 (StatusCode::INTERNAL_SERVER_ERROR, "internal", None)
             }

@@ -16,7 +16,7 @@ use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, int_param, json_body, page};
 use crate::app::events::Progress;
 use crate::app::jobs::{JobRequest, parse_body};
-use crate::store::JobState;
+use crate::app::views::JobState;
 use tokio::sync::watch;
 
 pub fn routes() -> Router<RestState> {

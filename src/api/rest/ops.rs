@@ -24,10 +24,10 @@ pub fn routes() -> Router<RestState> {
 
 /// Ready when the database answers.
 async fn ready(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
-    s.app.store.ping().await.map_err(|e| {
+    s.app.ready().await.map_err(|e| {
         ApiError::new(
             StatusCode::SERVICE_UNAVAILABLE,
-            "internal",
+            "unavailable",
             format!("database unavailable: {e}"),
         )
     })?;
@@ -35,9 +35,8 @@ async fn ready(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
 }
 
 async fn metrics(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
-    let jobs = s.app.store.job_counts().await?;
     Ok((
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        s.app.telemetry.render(&jobs),
+        s.app.metrics_text().await?,
     ))
 }

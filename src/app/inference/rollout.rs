@@ -1,0 +1,263 @@
+//! Rollouts: checked, then computed chunk by chunk as heavy work and streamed without holding
+//! a thread, so that a reader that stalls costs one chunk of memory and nothing else.
+
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+use tokio::sync::mpsc;
+
+use super::{Array, Cost, rows};
+use crate::app::App;
+use crate::control::policy::Policy;
+use crate::error::{Error, Result};
+use crate::infer::Evaluator;
+use crate::infer::limits::Pass;
+
+/// A Rollout chunk's bytes at most (states, inputs and z of one message): a stream whose
+/// reader stalls holds one chunk in its channel and one being sent, so 600 stalled streams
+/// stay within a few hundred MB.
+const ROLLOUT_CHUNK_BYTES: usize = 256 << 10;
+
+/// The inputs of a rollout as requested: a sequence `[T, m]`, or a feedback policy with
+/// x̄ `[T or T+1, 2n]`, ū `[T, m]` and K `[T, m, 2n]`.
+pub enum RolloutInputs {
+    U(Array),
+    Policy {
+        x_bar: Array,
+        u_bar: Array,
+        k: Array,
+    },
+}
+
+/// The inputs checked against the model.
+enum Inputs {
+    Open(Vec<f64>),
+    Policy(Policy),
+}
+
+impl Inputs {
+    /// The checked inputs and the number of steps T.
+    fn check(req: RolloutInputs, nx: usize, m: usize) -> Result<(Self, usize)> {
+        match req {
+            RolloutInputs::U((u, shape)) => {
+                let t = rows("u", &shape, &u, m)?.rows;
+                Ok((Inputs::Open(u), t))
+            }
+            RolloutInputs::Policy { x_bar, u_bar, k } => {
+                let t = rows("policy.u_bar", &u_bar.1, &u_bar.0, m)?.rows;
+                let tx = rows("policy.x_bar", &x_bar.1, &x_bar.0, nx)?.rows;
+                if tx != t && tx != t + 1 {
+                    return Err(Error::invalid(
+                        "policy.x_bar",
+                        format!("needs T or T+1 rows for T = {t}, got {tx}"),
+                    ));
+                }
+                let expected = [t as u64, m as u64, nx as u64];
+                if k.1 != expected
+                    || t.checked_mul(m * nx) != Some(k.0.len())
+                    || k.0.iter().any(|v| !v.is_finite())
+                {
+                    return Err(Error::invalid(
+                        "policy.k",
+                        format!("must be {expected:?} finite values, got shape {:?}", k.1),
+                    ));
+                }
+                let policy = Policy {
+                    xbar: x_bar.0,
+                    ubar: u_bar.0,
+                    k: k.0,
+                    nx,
+                    m,
+                };
+                Ok((Inputs::Policy(policy), t))
+            }
+        }
+    }
+}
+
+/// One streamed piece of a rollout: states from index `start` (x0 is state 0), the inputs
+/// applied in it, and for each input the largest |z| of the (state, input) it was applied at.
+pub struct RolloutChunk {
+    pub start: usize,
+    /// Widths of a state row and of an input row (2n, m).
+    pub width: (usize, usize),
+    pub x: Vec<f64>,
+    pub u: Vec<f64>,
+    pub max_abs_z: Vec<f64>,
+}
+
+impl App {
+    /// Checks a rollout and starts it: chunks arrive on the receiver as they are computed.
+    /// Each chunk is computed as a heavy call and then sent without holding a thread, so a
+    /// reader that stalls holds one chunk of memory and no thread; the rollout ends at the
+    /// caller's deadline `until`, or when the receiver is dropped.
+    pub async fn rollout(
+        &self,
+        id: &str,
+        x0: Vec<f64>,
+        inputs: RolloutInputs,
+        chunk: usize,
+        until: Option<Instant>,
+    ) -> Result<mpsc::Receiver<Result<RolloutChunk>>> {
+        let eval = self.evaluator(id).await?;
+        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        if x0.len() != nx || x0.iter().any(|v| !v.is_finite()) {
+            return Err(Error::invalid("x0", format!("must be {nx} finite values")));
+        }
+        let (inputs, steps) = Inputs::check(inputs, nx, m)?;
+        let max = self.settings.max_rollout_steps;
+        if steps > max {
+            return Err(Error::ResourceExhausted(format!(
+                "{steps} steps is over the limit of {max} (--max-rollout-steps)"
+            )));
+        }
+        let row_bytes = 8 * (nx + m + 1);
+        let chunk = if chunk == 0 { 1000 } else { chunk }.clamp(1, ROLLOUT_CHUNK_BYTES / row_bytes);
+        self.admit(
+            "chunk",
+            &Cost {
+                response_bytes: chunk * row_bytes,
+                memory_bytes: 3 * chunk * row_bytes + eval.work_bytes_per_state(Pass::Step),
+            },
+        )?;
+        let (tx, rx) = mpsc::channel(1);
+        let app = self.clone();
+        let job = Rollout {
+            eval,
+            inputs: Arc::new(inputs),
+            steps,
+            chunk,
+        };
+        tokio::spawn(async move { job.stream(&app, x0, tx, until).await });
+        Ok(rx)
+    }
+}
+
+struct Rollout {
+    eval: Arc<Evaluator>,
+    inputs: Arc<Inputs>,
+    steps: usize,
+    chunk: usize,
+}
+
+/// A computed piece: the chunk, the state to continue from, and the error that ended it.
+type Piece = (RolloutChunk, Vec<f64>, Option<Error>);
+
+impl Rollout {
+    async fn stream(
+        self,
+        app: &App,
+        x0: Vec<f64>,
+        tx: mpsc::Sender<Result<RolloutChunk>>,
+        until: Option<Instant>,
+    ) {
+        let stopped = || {
+            app.telemetry
+                .computations_stopped
+                .fetch_add(1, Ordering::Relaxed)
+        };
+        let passed = || until.is_some_and(|d| Instant::now() > d);
+        let (mut t, mut x) = (0, x0);
+        while t < self.steps {
+            if passed() || tx.is_closed() {
+                stopped();
+                let _ = tx.try_send(Err(deadline_passed()));
+                return;
+            }
+            let first = t == 0;
+            let take = (self.chunk - usize::from(first)).max(1).min(self.steps - t);
+            let piece = {
+                let (eval, inputs) = (self.eval.clone(), self.inputs.clone());
+                let start = x.clone();
+                app.streaming
+                    .run(move || compute_piece(&eval, &inputs, start, t, take, first))
+                    .await
+            };
+            let (chunk, last, error) = match piece {
+                Ok(p) => p,
+                Err(e) => {
+                    let _ = tx.send(Err(e)).await;
+                    return;
+                }
+            };
+            let sent = if chunk.u.is_empty() {
+                true
+            } else {
+                let send = tx.send(Ok(chunk));
+                match until {
+                    Some(d) => tokio::time::timeout_at(d.into(), send)
+                        .await
+                        .is_ok_and(|r| r.is_ok()),
+                    None => send.await.is_ok(),
+                }
+            };
+            if !sent {
+                stopped();
+                return;
+            }
+            if let Some(e) = error {
+                let _ = tx.send(Err(e)).await;
+                return;
+            }
+            t += take;
+            x = last;
+        }
+    }
+}
+
+fn deadline_passed() -> Error {
+    Error::DeadlineExceeded("the rollout passed its deadline".into())
+}
+
+/// `take` steps from state `x` at step `t` (the first piece also carries x0).
+fn compute_piece(
+    eval: &Evaluator,
+    inputs: &Inputs,
+    x: Vec<f64>,
+    t: usize,
+    take: usize,
+    first: bool,
+) -> Piece {
+    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let mut states = if first { x.clone() } else { vec![] };
+    let (mut applied, mut from) = (Vec::with_capacity(take * m), Vec::with_capacity(take * nx));
+    let mut last = x.clone();
+    let mut error = None;
+    let input = |s: usize, x: &[f64]| match inputs {
+        Inputs::Open(u) => u[(t + s) * m..(t + s + 1) * m].to_vec(),
+        Inputs::Policy(p) => p.input(t + s, x),
+    };
+    let mut done = 0;
+    eval.rollout(&x, take, input, |next, u| {
+        if next.iter().any(|v| !v.is_finite()) {
+            error = Some(Error::invalid(
+                "x0",
+                format!(
+                    "the state became non-finite at step {}: the trajectory left what the model can evaluate",
+                    t + done + 1
+                ),
+            ));
+            return false;
+        }
+        from.extend_from_slice(&last);
+        applied.extend_from_slice(u);
+        states.extend_from_slice(next);
+        last = next.to_vec();
+        done += 1;
+        true
+    });
+    let max_abs_z = eval.max_abs_z(&from, &applied);
+    let start = if first { 0 } else { t + 1 };
+    (
+        RolloutChunk {
+            start,
+            width: (nx, m),
+            x: states,
+            u: applied,
+            max_abs_z,
+        },
+        last,
+        error,
+    )
+}

@@ -1,0 +1,256 @@
+//! The layers of ARCHITECTURE.md, enforced: reads every file under `src/` and fails on a
+//! dependency that points up, naming file and line. It sees `use crate::x`, grouped
+//! `use crate::{x, y::z}`, paths written inline without a `use` (`crate::store::JobState`),
+//! and `super::` paths that climb out of a layer.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+/// Top-level modules each layer must not import. Layers not listed (cli, service, bench, and
+/// the crate root) may import anything.
+fn forbidden(layer: &str) -> &'static [&'static str] {
+    const ABOVE_GROUND: &[&str] = &[
+        "model", "infer", "control", "sim", "train", "store", "app", "jobs", "api", "cli",
+        "service", "bench",
+    ];
+    match layer {
+        "error" | "rng" | "backend" | "data" => ABOVE_GROUND,
+        "model" | "infer" | "control" | "sim" => &[
+            "train", "app", "store", "jobs", "api", "cli", "service", "bench",
+        ],
+        "train" => &["app", "store", "jobs", "api", "cli", "service"],
+        "store" => &["app", "jobs", "api", "cli", "service"],
+        "app" => &["jobs", "api", "cli", "service", "bench"],
+        "jobs" => &["api", "cli"],
+        "api" => &["store", "jobs"],
+        _ => &[],
+    }
+}
+
+/// The module path of a source file: `src/app/jobs.rs` → [app, jobs], `src/app/mod.rs` →
+/// [app], `src/sim.rs` → [sim], `src/lib.rs` → [].
+fn module_path(rel: &Path) -> Vec<String> {
+    let mut parts: Vec<String> = rel
+        .iter()
+        .map(|p| p.to_string_lossy().into_owned())
+        .collect();
+    let file = parts.pop().unwrap_or_default();
+    let stem = file.trim_end_matches(".rs");
+    if !matches!(stem, "mod" | "lib" | "main") {
+        parts.push(stem.to_string());
+    }
+    parts
+}
+
+/// The code of a line without its `//` comment (string literals are rare enough in `use`
+/// positions that a `//` inside one is not worth a lexer).
+fn code(line: &str) -> &str {
+    line.find("//").map_or(line, |i| &line[..i])
+}
+
+fn ident(s: &str) -> &str {
+    let end = s
+        .find(|c: char| !(c.is_alphanumeric() || c == '_'))
+        .unwrap_or(s.len());
+    &s[..end]
+}
+
+/// The names after `{` of a grouped path, at brace depth one: `{x, y::z, w::{a}}` → x, y, w.
+fn grouped(s: &str) -> Vec<&str> {
+    let (mut depth, mut start, mut out) = (0, 1, vec![]);
+    for (i, c) in s.char_indices() {
+        match c {
+            '{' => depth += 1,
+            '}' | ',' if depth == 1 => {
+                let name = ident(s[start..i].trim_start());
+                if !name.is_empty() {
+                    out.push(name);
+                }
+                start = i + 1;
+                if c == '}' {
+                    return out;
+                }
+            }
+            '}' => depth -= 1,
+            _ => {}
+        }
+    }
+    out
+}
+
+/// Top-level modules a line of the file at `module` refers to.
+fn deps_of_line<'a>(module: &[String], line: &'a str) -> Vec<&'a str> {
+    let line = code(line);
+    let mut out = vec![];
+    let mut rest = line;
+    while let Some(i) = rest.find("crate::") {
+        let before = rest[..i].chars().last();
+        let after = &rest[i + "crate::".len()..];
+        rest = after;
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == '$') {
+            continue; // `$crate::`, `my_crate::`
+        }
+        if after.starts_with('{') {
+            out.extend(grouped(after));
+        } else {
+            out.push(ident(after));
+        }
+    }
+    let mut rest = line;
+    while let Some(i) = rest.find("super::") {
+        let before = rest[..i].chars().last();
+        if before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == ':') {
+            rest = &rest[i + "super::".len()..];
+            continue; // the middle of a `super::super::` chain, counted from its start
+        }
+        let mut after = &rest[i..];
+        let mut ups = 0;
+        while let Some(a) = after.strip_prefix("super::") {
+            ups += 1;
+            after = a;
+        }
+        rest = after;
+        if ups >= module.len() {
+            if after.starts_with('{') {
+                out.extend(grouped(after));
+            } else {
+                out.push(ident(after));
+            }
+        }
+    }
+    out.retain(|d| !d.is_empty() && *d != "self" && *d != "super");
+    out
+}
+
+/// `file:line: layer imports module` for every forbidden dependency in `src`.
+fn violations(src: &Path) -> Vec<String> {
+    let mut files = vec![];
+    collect(src, &mut files);
+    let mut out = vec![];
+    for file in files {
+        let rel = file.strip_prefix(src).unwrap();
+        let module = module_path(rel);
+        let Some(layer) = module.first() else {
+            continue;
+        };
+        let text = std::fs::read_to_string(&file).unwrap();
+        for (n, line) in text.lines().enumerate() {
+            // The core's store field is crate-visible for the worker; adapters must not use it.
+            if layer == "api" && code(line).contains("app.store") {
+                out.push(format!(
+                    "src/{}:{}: `api` must not reach the store through App: {}",
+                    rel.display(),
+                    n + 1,
+                    line.trim()
+                ));
+            }
+            let deps: BTreeSet<&str> = deps_of_line(&module, line).into_iter().collect();
+            for dep in deps {
+                if forbidden(layer).contains(&dep) {
+                    out.push(format!(
+                        "src/{}:{}: `{layer}` must not import `{dep}`: {}",
+                        rel.display(),
+                        n + 1,
+                        line.trim()
+                    ));
+                }
+            }
+        }
+    }
+    out
+}
+
+fn collect(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    entries.sort();
+    for p in entries {
+        if p.is_dir() {
+            collect(&p, out);
+        } else if p.extension().is_some_and(|e| e == "rs") {
+            out.push(p);
+        }
+    }
+}
+
+#[test]
+fn no_dependency_points_up() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let v = violations(&src);
+    assert!(
+        v.is_empty(),
+        "{} forbidden dependencies (see ARCHITECTURE.md):\n{}",
+        v.len(),
+        v.join("\n")
+    );
+}
+
+#[cfg(test)]
+mod checker {
+    use super::*;
+
+    fn deps(file: &str, line: &str) -> Vec<String> {
+        deps_of_line(&module_path(Path::new(file)), line)
+            .into_iter()
+            .map(String::from)
+            .collect()
+    }
+
+    #[test]
+    fn sees_every_form_of_dependency() {
+        assert_eq!(deps("model/mod.rs", "use crate::store::Store;"), ["store"]);
+        assert_eq!(
+            deps(
+                "app/jobs.rs",
+                "use crate::{cli, store::{JobRow, JobState}, model};"
+            ),
+            ["cli", "store", "model"]
+        );
+        assert_eq!(
+            deps(
+                "api/rest/jobs.rs",
+                "    last_state: Option<crate::store::JobState>,"
+            ),
+            ["store"]
+        );
+        // `super::` inside a layer stays in it; climbing out of it names the target.
+        assert!(deps("app/jobs.rs", "use super::App;").is_empty());
+        assert_eq!(deps("app/mod.rs", "use super::store::Store;"), ["store"]);
+        assert_eq!(
+            deps(
+                "api/rest/jobs.rs",
+                "use super::super::super::jobs::run_worker;"
+            ),
+            ["jobs"]
+        );
+        assert_eq!(
+            deps("sim.rs", "use super::{cli, model::Model};"),
+            ["cli", "model"]
+        );
+        // Not dependencies: comments, `$crate::` and other crates' `…crate::`.
+        assert!(deps("model/mod.rs", "// see crate::store").is_empty());
+        assert!(deps("model/mod.rs", "$crate::model::x!()").is_empty());
+        assert!(deps("model/mod.rs", "use my_crate::store;").is_empty());
+    }
+
+    #[test]
+    fn reports_file_line_and_layer() {
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("model");
+        std::fs::create_dir(&model).unwrap();
+        std::fs::write(
+            model.join("mod.rs"),
+            "//! math\nuse crate::error::Result;\nfn f() -> crate::app::App { todo!() }\n",
+        )
+        .unwrap();
+        std::fs::write(dir.path().join("cli.rs"), "use crate::store::Store;\n").unwrap();
+        let v = violations(dir.path());
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(
+            v[0].starts_with("src/model/mod.rs:3: `model` must not import `app`"),
+            "{v:?}"
+        );
+    }
+}
