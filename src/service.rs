@@ -10,21 +10,10 @@ use tokio::task::JoinHandle;
 use tracing::info;
 
 use crate::api::listen::{TlsFiles, TlsListener, acceptor};
-use crate::api::rest::{RestSettings, router};
+use crate::api::rest::router;
 use crate::app::{App, Settings};
 use crate::error::{Error, Result};
 use crate::store::Store;
-
-#[derive(Debug, Clone)]
-pub struct ServiceConfig {
-    pub http: String,
-    pub grpc: String,
-    pub db: String,
-    pub settings: Settings,
-    pub rest: RestSettings,
-    /// Serve REST and gRPC over TLS with this certificate and key.
-    pub tls: Option<TlsFiles>,
-}
 
 /// A started service. Dropping it does not stop it; call `shutdown`.
 pub struct Running {
@@ -42,9 +31,12 @@ async fn bind(addr: &str, what: &str) -> Result<TcpListener> {
         .map_err(|e| Error::invalid(what, format!("cannot listen on {addr}: {e}")))
 }
 
-pub async fn start(cfg: ServiceConfig) -> Result<Running> {
+/// Starts the service `settings` describe (checked first).
+pub async fn start(settings: Settings) -> Result<Running> {
+    settings.validate()?;
+    let cfg = settings.clone();
     let store = Store::open(&cfg.db).await?;
-    let app = App::new(store, cfg.settings.clone());
+    let app = App::new(store, settings);
     let http = bind(&cfg.http, "http").await?;
     let grpc = bind(&cfg.grpc, "grpc").await?;
     let (http_addr, grpc_addr) = (http.local_addr()?, grpc.local_addr()?);
@@ -56,9 +48,14 @@ pub async fn start(cfg: ServiceConfig) -> Result<Running> {
             }
         }
     };
-    let rest = router(app.clone(), cfg.rest.clone());
+    let rest = router(app.clone());
     let http_stop = until_stopped(stopped.clone());
-    let tls = |alpn: &[&[u8]]| cfg.tls.as_ref().map(|f| acceptor(f, alpn)).transpose();
+    let files = cfg
+        .tls_cert
+        .clone()
+        .zip(cfg.tls_key.clone())
+        .map(|(cert, key)| TlsFiles { cert, key });
+    let tls = |alpn: &[&[u8]]| files.as_ref().map(|f| acceptor(f, alpn)).transpose();
     let (rest_tls, grpc_tls) = (tls(&[b"http/1.1"])?, tls(&[b"h2"])?);
     let rest_server = async move {
         let served = match rest_tls {
@@ -80,7 +77,7 @@ pub async fn start(cfg: ServiceConfig) -> Result<Running> {
         tokio::spawn(crate::api::grpc::serve(
             app.clone(),
             grpc,
-            cfg.rest.api_token.clone(),
+            cfg.token().map(String::from),
             grpc_tls,
             until_stopped(stopped.clone()),
         )),
@@ -89,13 +86,13 @@ pub async fn start(cfg: ServiceConfig) -> Result<Running> {
             until_stopped(stopped.clone()),
         )),
     ];
-    let workers = (0..cfg.settings.workers)
+    let workers = (0..cfg.workers)
         .map(|i| {
             let owner = format!("{}-w{i}", crate::store::new_id("proc"));
             tokio::spawn(crate::jobs::run_worker(app.clone(), owner, stopped.clone()))
         })
         .collect();
-    info!(%http_addr, %grpc_addr, db = %cfg.db, workers = cfg.settings.workers, "graybox serving");
+    info!(%http_addr, %grpc_addr, db = %cfg.db, workers = cfg.workers, "graybox serving");
     Ok(Running {
         http_addr,
         grpc_addr,

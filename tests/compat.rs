@@ -68,13 +68,11 @@ async fn a_job_killed_while_running_resumes_and_finishes() {
     std::fs::copy(fixtures().join("running.db"), &db).unwrap();
     let job = std::fs::read_to_string(fixtures().join("running.job")).unwrap();
     let job = job.trim();
-    let cfg = graybox::service::ServiceConfig {
+    let cfg = graybox::app::Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
         db: db.to_string_lossy().into_owned(),
-        settings: graybox::app::Settings::default(),
-        rest: Default::default(),
-        tls: None,
+        ..Default::default()
     };
     let running = graybox::service::start(cfg).await.unwrap();
     let before = running.app.job(job).await.unwrap();

@@ -224,14 +224,14 @@ impl App {
                 ),
             );
         }
-        if est.peak_bytes > s.max_job_memory_bytes {
+        if est.peak_bytes > s.max_job_memory_bytes() {
             return refuse(
                 "training.batch_size",
                 format!(
                     "training would take about {} MB at its peak (batch {batch}), over the limit of \
                      {} MB (--max-job-memory-mb); lower batch_size or the network widths",
                     est.peak_bytes >> 20,
-                    s.max_job_memory_bytes >> 20
+                    s.max_job_memory_bytes() >> 20
                 ),
             );
         }

@@ -6,61 +6,16 @@ pub mod events;
 pub mod inference;
 pub mod jobs;
 pub mod models;
+pub mod settings;
 pub mod telemetry;
 pub mod views;
 
 use std::sync::Arc;
 
+pub use settings::Settings;
+
 use crate::error::Result;
 use crate::store::Store;
-
-/// Service settings the core needs (flags and environment, see `cli::ServeArgs`). The limits
-/// bound what one accepted request may cost; README documents each flag.
-#[derive(Debug, Clone)]
-pub struct Settings {
-    pub workers: usize,
-    pub checkpoint_every: usize,
-    pub lease_secs: u64,
-    pub max_body_bytes: usize,
-    /// Longest Rollout (steps) a gRPC caller may ask for.
-    pub max_rollout_steps: usize,
-    /// Largest gRPC message, in bytes (decode and encode limit).
-    pub grpc_max_message_bytes: usize,
-    /// Concurrent gRPC streams (calls) per connection.
-    pub grpc_max_streams: u32,
-    /// Memory one inference call may take (inputs, outputs, intermediate work).
-    pub max_call_memory_bytes: usize,
-    /// Inference calls computing at once beyond the inline small ones; the others wait.
-    pub max_heavy_calls: usize,
-    /// Estimated peak memory of one training job.
-    pub max_job_memory_bytes: usize,
-    /// Trainable parameters of one model.
-    pub max_model_params: usize,
-    /// Generalized coordinates n of a dataset a job may train on.
-    pub max_dof: usize,
-    /// Times a job's worker may die (its lease expire) before the job fails.
-    pub max_attempts: i64,
-}
-
-impl Default for Settings {
-    fn default() -> Self {
-        Self {
-            workers: 1,
-            checkpoint_every: 10,
-            lease_secs: 30,
-            max_body_bytes: 256 << 20,
-            max_rollout_steps: 100_000,
-            grpc_max_message_bytes: 64 << 20,
-            grpc_max_streams: 100,
-            max_call_memory_bytes: 512 << 20,
-            max_heavy_calls: 2,
-            max_job_memory_bytes: 4096 << 20,
-            max_model_params: 1_000_000,
-            max_dof: 64,
-            max_attempts: 3,
-        }
-    }
-}
 
 /// The shared core. Cheap to clone.
 #[derive(Clone)]

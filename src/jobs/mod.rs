@@ -53,7 +53,7 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
         }
         match app
             .store
-            .claim_job(&owner, lease_ms(&app), app.settings.max_attempts)
+            .claim_job(&owner, lease_ms(&app), app.settings.max_attempts as i64)
             .await
         {
             Ok(Some(claimed)) => {
@@ -183,7 +183,7 @@ async fn end_with_error(app: &App, claimed: &Claimed, e: Error) -> Result<Outcom
 fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outcome> {
     let spec = JobSpec::from_json(&c.job.request)?;
     let mut trainer = build_trainer(app, c, &spec, rt)?;
-    let every = app.settings.checkpoint_every.max(1);
+    let every = app.settings.checkpoint_epochs();
     let mut checkpointed = trainer.epoch();
     let lost = || {
         flags.lost.store(true, Ordering::Relaxed);

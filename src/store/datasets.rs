@@ -91,21 +91,18 @@ impl Store {
         let blob = encode(ds);
         let sha = sha256(ds, &blob);
         let mut tx = self.write().await?;
-        let existing = sqlx::query(const_format(
-            "SELECT {COLUMNS} FROM datasets WHERE sha256 = ?",
-        ))
-        .bind(&sha)
-        .fetch_optional(&mut *tx)
-        .await?;
+        let existing = sqlx::query(sql("SELECT {COLUMNS} FROM datasets WHERE sha256 = ?"))
+            .bind(&sha)
+            .fetch_optional(&mut *tx)
+            .await?;
         if let Some(r) = existing {
             tx.commit().await?;
             return Ok((row(&r)?, false));
         }
-        let r = sqlx::query(
+        let r = sqlx::query(sql(
             "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at)
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)
-             RETURNING seq, id, name, n, m, dt, count, sha256, created_at",
-        )
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+        ))
         .bind(new_id("ds"))
         .bind(name)
         .bind(&sha)
@@ -122,7 +119,7 @@ impl Store {
     }
 
     pub async fn get_dataset(&self, id: &str) -> Result<Option<DatasetRow>> {
-        let r = sqlx::query(const_format("SELECT {COLUMNS} FROM datasets WHERE id = ?"))
+        let r = sqlx::query(sql("SELECT {COLUMNS} FROM datasets WHERE id = ?"))
             .bind(id)
             .fetch_optional(&self.pool)
             .await?;
@@ -150,7 +147,7 @@ impl Store {
 
     /// Newest first; `before` is the `seq` of the last row of the previous page.
     pub async fn list_datasets(&self, before: Option<i64>, limit: i64) -> Result<Vec<DatasetRow>> {
-        let rows = sqlx::query(const_format(
+        let rows = sqlx::query(sql(
             "SELECT {COLUMNS} FROM datasets WHERE seq < ? ORDER BY seq DESC LIMIT ?",
         ))
         .bind(before.unwrap_or(i64::MAX))
@@ -187,7 +184,6 @@ impl Store {
     }
 }
 
-/// The `{COLUMNS}` placeholder filled in; the SQL stays static and parameterized.
-fn const_format(sql: &'static str) -> sqlx::AssertSqlSafe<String> {
-    sqlx::AssertSqlSafe(sql.replace("{COLUMNS}", COLUMNS))
+fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
+    super::with_columns(s, COLUMNS)
 }

@@ -83,7 +83,7 @@ const COLUMNS: &str = "seq, id, state, epoch, epochs, checkpoint_epoch, train_lo
     request, cancel_requested";
 
 pub(super) fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
-    sqlx::AssertSqlSafe(s.replace("{COLUMNS}", COLUMNS))
+    super::with_columns(s, COLUMNS)
 }
 
 pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {

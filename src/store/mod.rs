@@ -60,6 +60,12 @@ pub fn verified(bytes: Vec<u8>, sha256: &str, what: &str, id: &str) -> Result<Ve
     Ok(bytes)
 }
 
+/// `sql` with its `{COLUMNS}` placeholder filled in by a table's column list: the SQL stays
+/// static and parameterized (no value is ever formatted into it).
+fn with_columns(sql: &'static str, columns: &'static str) -> sqlx::AssertSqlSafe<String> {
+    sqlx::AssertSqlSafe(sql.replace("{COLUMNS}", columns))
+}
+
 pub fn new_id(prefix: &str) -> String {
     format!("{prefix}_{}", uuid::Uuid::new_v4().simple())
 }

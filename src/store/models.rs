@@ -28,7 +28,7 @@ pub struct ModelRow {
 const COLUMNS: &str = "seq, id, job_id, name, n, m, dt, spec, report, sha256, created_at";
 
 fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
-    sqlx::AssertSqlSafe(s.replace("{COLUMNS}", COLUMNS))
+    super::with_columns(s, COLUMNS)
 }
 
 fn row(r: &SqliteRow) -> Result<ModelRow> {

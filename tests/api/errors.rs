@@ -1,7 +1,7 @@
 //! The bad-input table: every case is a 4xx with `{"error": {"code", "message", "field"?}}`,
 //! and the service keeps answering.
 
-use graybox::api::rest::RestSettings;
+use graybox::app::Settings;
 use serde_json::{Value, json};
 
 use crate::helpers::*;
@@ -540,16 +540,15 @@ async fn bad_input_table() {
 
 #[tokio::test]
 async fn body_limit_and_auth() {
-    let app = spawn_with(
-        0,
-        RestSettings {
-            api_token: Some("s3cret".into()),
-            auth_reads: false,
-        },
-        4096,
-    )
+    let app = spawn_configured(Settings {
+        api_token: Some("s3cret".into()),
+        max_body_mb: 1,
+        ..test_settings()
+    })
     .await;
-    let big = dataset(64, 2);
+    // Over the 1 MiB limit: 8000 transitions are ~1.7 MB of JSON.
+    let big = dataset(8000, 2);
+    assert!(big.to_string().len() > 1 << 20);
     let authed = [("Authorization", "Bearer s3cret")];
     let cases = vec![
         Case {

@@ -3,10 +3,9 @@
 
 use std::time::Duration;
 
-use graybox::api::rest::RestSettings;
 use graybox::app::Settings;
 use graybox::model::templates::Template;
-use graybox::service::{Running, ServiceConfig, start};
+use graybox::service::{Running, start};
 use graybox::sim::{SimConfig, simulate};
 use serde_json::{Value, json};
 
@@ -18,27 +17,30 @@ pub struct TestApp {
 }
 
 pub async fn spawn_app(workers: usize) -> TestApp {
-    spawn_with(workers, RestSettings::default(), 64 << 20).await
+    spawn_configured(Settings {
+        workers,
+        ..test_settings()
+    })
+    .await
 }
 
-pub async fn spawn_with(workers: usize, rest: RestSettings, max_body_bytes: usize) -> TestApp {
-    let settings = Settings {
-        workers,
+/// What the tests run with unless they say otherwise: checkpoints every 2 epochs, 64 MB
+/// bodies.
+pub fn test_settings() -> Settings {
+    Settings {
         checkpoint_every: 2,
         lease_secs: 30,
-        max_body_bytes,
+        max_body_mb: 64,
         ..Settings::default()
-    };
-    let dir = tempfile::tempdir().unwrap();
-    let db = dir.path().join("test.db").to_string_lossy().into_owned();
-    spawn_on(db, settings, rest, dir).await
+    }
 }
 
-/// The service with these settings on a new database.
+/// The service with these settings on a new database (their addresses and database are
+/// replaced: port 0 and a temporary file).
 pub async fn spawn_configured(settings: Settings) -> TestApp {
     let dir = tempfile::tempdir().unwrap();
     let db = dir.path().join("test.db").to_string_lossy().into_owned();
-    spawn_on(db, settings, RestSettings::default(), dir).await
+    spawn_on(db, settings, dir).await
 }
 
 /// A second service process (its own App, cache and workers) on `app`'s database.
@@ -53,30 +55,18 @@ pub async fn spawn_app_on(app: &TestApp, workers: usize) -> TestApp {
         workers,
         ..Settings::default()
     };
-    spawn_on(
-        db,
-        settings,
-        RestSettings::default(),
-        tempfile::tempdir().unwrap(),
-    )
-    .await
+    spawn_on(db, settings, tempfile::tempdir().unwrap()).await
 }
 
-async fn spawn_on(
-    db: String,
-    settings: Settings,
-    rest: RestSettings,
-    dir: tempfile::TempDir,
-) -> TestApp {
-    let cfg = ServiceConfig {
+async fn spawn_on(db: String, settings: Settings, dir: tempfile::TempDir) -> TestApp {
+    let running = start(Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
         db,
-        settings,
-        rest,
-        tls: None,
-    };
-    let running = start(cfg).await.expect("service starts");
+        ..settings
+    })
+    .await
+    .expect("service starts");
     let base = format!("http://{}", running.http_addr);
     TestApp {
         running: Some(running),

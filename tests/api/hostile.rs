@@ -68,7 +68,7 @@ async fn oversized_calls_are_refused_before_computing() {
     let tight = App::new(
         app.open_store().await,
         Settings {
-            max_call_memory_bytes: 1 << 20,
+            max_call_memory_mb: 1,
             ..Settings::default()
         },
     );
@@ -152,7 +152,7 @@ async fn jobs_over_the_limits_are_refused_at_submission() {
     .await;
     // Within the parameter limit but over the memory limit (set low here).
     let tight = spawn_configured(Settings {
-        max_job_memory_bytes: 1 << 20,
+        max_job_memory_mb: 1,
         ..Settings::default()
     })
     .await;

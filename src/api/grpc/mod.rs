@@ -86,7 +86,7 @@ pub async fn serve(
     let reflect_err = |e| Error::Internal(format!("reflection: {e}"));
     let reflection_v1 = reflection().build_v1().map_err(reflect_err)?;
     let reflection_v1alpha = reflection().build_v1alpha().map_err(reflect_err)?;
-    let limit = app.settings.grpc_max_message_bytes;
+    let limit = app.settings.grpc_max_message_bytes();
     let streams = app.settings.grpc_max_streams;
     let dynamics = pb::dynamics_server::DynamicsServer::new(dynamics::DynamicsService { app })
         .max_decoding_message_size(limit)

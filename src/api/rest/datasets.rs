@@ -22,7 +22,7 @@ async fn upload(
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> ApiResult<impl IntoResponse> {
-    let limit = s.app.settings.max_body_bytes;
+    let limit = s.app.settings.max_body_bytes();
     let csv = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())

@@ -48,7 +48,7 @@ async fn submit(
             )
         }
     };
-    let req: JobRequest = parse_body(json_body(body, s.app.settings.max_body_bytes)?)?;
+    let req: JobRequest = parse_body(json_body(body, s.app.settings.max_body_bytes())?)?;
     let (job, created) = s.app.submit_job(req, key).await?;
     Ok((
         if created {

@@ -18,28 +18,15 @@ use axum::response::{IntoResponse, Response};
 use crate::app::App;
 use error::{ApiError, ApiResult};
 
-/// REST settings beyond the core's.
-#[derive(Debug, Clone, Default)]
-pub struct RestSettings {
-    /// With a token, writes need `Authorization: Bearer <token>`.
-    pub api_token: Option<String>,
-    /// Reads need the token too.
-    pub auth_reads: bool,
-}
-
 #[derive(Clone)]
 pub struct RestState {
     pub app: App,
-    pub settings: std::sync::Arc<RestSettings>,
 }
 
 /// The whole REST router; tests call it with `oneshot` or over a socket.
-pub fn router(app: App, settings: RestSettings) -> Router {
-    let limit = app.settings.max_body_bytes;
-    let state = RestState {
-        app,
-        settings: std::sync::Arc::new(settings),
-    };
+pub fn router(app: App) -> Router {
+    let limit = app.settings.max_body_bytes();
+    let state = RestState { app };
     Router::new()
         .merge(datasets::routes())
         .merge(jobs::routes())
@@ -60,12 +47,12 @@ pub fn router(app: App, settings: RestSettings) -> Router {
 }
 
 async fn authorize(State(s): State<RestState>, req: Request, next: Next) -> Response {
-    let Some(token) = &s.settings.api_token else {
+    let Some(token) = s.app.settings.token() else {
         return next.run(req).await;
     };
     let read = matches!(*req.method(), Method::GET | Method::HEAD | Method::OPTIONS);
     let open = matches!(req.uri().path(), "/healthz" | "/readyz");
-    if open || (read && !s.settings.auth_reads) {
+    if open || (read && !s.app.settings.auth_reads) {
         return next.run(req).await;
     }
     let given = req

@@ -157,20 +157,20 @@ impl App {
     /// RESOURCE_EXHAUSTED naming the limit when `cost` is over one, before any computing.
     fn admit(&self, what: &str, cost: &Cost) -> Result<()> {
         let s = &self.settings;
-        if cost.response_bytes > s.grpc_max_message_bytes {
+        if cost.response_bytes > s.grpc_max_message_bytes() {
             return Err(Error::ResourceExhausted(format!(
                 "{what}: the response would be {:.1} MB, over the message limit of {:.0} MB \
                  (--grpc-max-message-mb); send fewer states per call",
                 cost.response_bytes as f64 / MB,
-                s.grpc_max_message_bytes as f64 / MB
+                s.grpc_max_message_bytes() as f64 / MB
             )));
         }
-        if cost.memory_bytes > s.max_call_memory_bytes {
+        if cost.memory_bytes > s.max_call_memory_bytes() {
             return Err(Error::ResourceExhausted(format!(
                 "{what}: the call would take about {:.0} MB, over the per-call memory budget of \
                  {:.0} MB (--max-call-memory-mb); send fewer states per call",
                 cost.memory_bytes as f64 / MB,
-                s.max_call_memory_bytes as f64 / MB
+                s.max_call_memory_bytes() as f64 / MB
             )));
         }
         Ok(())

@@ -7,13 +7,12 @@ use serde_json::{Value, json};
 
 use super::{BATCH, BenchInferArgs, HORIZON, Problem, ROLLOUT, summary, weights};
 use crate::api::grpc::pb::{self, dynamics_client::DynamicsClient};
-use crate::api::rest::RestSettings;
 use crate::app::Settings;
 use crate::app::datasets::Upload;
 use crate::app::jobs::JobRequest;
 use crate::app::views::JobState;
 use crate::error::{Error, Result};
-use crate::service::{ServiceConfig, start};
+use crate::service::start;
 
 fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
     Some(pb::Array {
@@ -54,16 +53,12 @@ pub(super) async fn over_grpc(
     let db = TempDb(
         std::env::temp_dir().join(format!("graybox-bench-{}.db", crate::store::new_id("b"))),
     );
-    let running = start(ServiceConfig {
+    let running = start(Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
         db: db.0.to_string_lossy().into_owned(),
-        settings: Settings {
-            workers: 1,
-            ..Settings::default()
-        },
-        rest: RestSettings::default(),
-        tls: None,
+        workers: 1,
+        ..Settings::default()
     })
     .await?;
     let app = running.app.clone();

@@ -1,0 +1,160 @@
+//! The service's one settings type: `graybox serve`'s flags (and `GRAYBOX_*` environment),
+//! what the core, the adapters and the workers read. The limits bound what one accepted
+//! request may cost; README documents each flag.
+
+use std::path::PathBuf;
+
+use clap::Args;
+
+use crate::error::{Error, Result};
+
+/// Blocking threads of the service's runtime: training jobs, heavy inference calls and
+/// rollout chunks (at most `--max-heavy-calls` each) and model loads. A cap, so that no burst
+/// of requests can make the process spawn hundreds of threads.
+pub const MAX_BLOCKING_THREADS: usize = 32;
+
+#[derive(Args, Debug, Clone)]
+pub struct Settings {
+    /// REST listen address.
+    #[arg(long, env = "GRAYBOX_HTTP", default_value = "127.0.0.1:8080")]
+    pub http: String,
+    /// gRPC listen address.
+    #[arg(long, env = "GRAYBOX_GRPC", default_value = "127.0.0.1:50051")]
+    pub grpc: String,
+    /// SQLite database file (created if missing).
+    #[arg(long, env = "GRAYBOX_DB", default_value = "./graybox.db")]
+    pub db: String,
+    /// Training workers (jobs trained at once).
+    #[arg(long, env = "GRAYBOX_WORKERS", default_value_t = 1)]
+    pub workers: usize,
+    /// Checkpoint a running job every this many epochs.
+    #[arg(long, env = "GRAYBOX_CHECKPOINT_EVERY", default_value_t = 10)]
+    pub checkpoint_every: usize,
+    /// A job whose worker has not heartbeated for this long is reclaimed.
+    #[arg(long, env = "GRAYBOX_LEASE_SECS", default_value_t = 30)]
+    pub lease_secs: u64,
+    /// Times a job's worker may die (lease expired) before the job fails.
+    #[arg(long, env = "GRAYBOX_MAX_ATTEMPTS", default_value_t = 3)]
+    pub max_attempts: u32,
+    /// Largest accepted request body, in MiB.
+    #[arg(long, env = "GRAYBOX_MAX_BODY_MB", default_value_t = 256)]
+    pub max_body_mb: usize,
+    /// Longest gRPC Rollout (and Tvlqr horizon), in steps.
+    #[arg(long, env = "GRAYBOX_MAX_ROLLOUT_STEPS", default_value_t = 100_000)]
+    pub max_rollout_steps: usize,
+    /// Largest gRPC message, in MiB.
+    #[arg(long, env = "GRAYBOX_GRPC_MAX_MESSAGE_MB", default_value_t = 64)]
+    pub grpc_max_message_mb: usize,
+    /// Concurrent gRPC calls (HTTP/2 streams) per connection.
+    #[arg(long, env = "GRAYBOX_GRPC_MAX_STREAMS", default_value_t = 100)]
+    pub grpc_max_streams: u32,
+    /// Memory one inference call may take, in MiB (larger calls: RESOURCE_EXHAUSTED).
+    #[arg(long, env = "GRAYBOX_MAX_CALL_MEMORY_MB", default_value_t = 512)]
+    pub max_call_memory_mb: usize,
+    /// Heavy inference calls computing at once (the others wait); rollout chunks get as many.
+    #[arg(long, env = "GRAYBOX_MAX_HEAVY_CALLS", default_value_t = 2)]
+    pub max_heavy_calls: usize,
+    /// Estimated peak memory of one training job, in MiB (larger jobs: 422 at submission).
+    #[arg(long, env = "GRAYBOX_MAX_JOB_MEMORY_MB", default_value_t = 4096)]
+    pub max_job_memory_mb: usize,
+    /// Trainable parameters of one model.
+    #[arg(long, env = "GRAYBOX_MAX_MODEL_PARAMS", default_value_t = 1_000_000)]
+    pub max_model_params: usize,
+    /// Generalized coordinates n a job may train on.
+    #[arg(long, env = "GRAYBOX_MAX_DOF", default_value_t = 64)]
+    pub max_dof: usize,
+    /// With a token, REST writes and every gRPC Dynamics call need `Authorization: Bearer <token>`.
+    #[arg(long, env = "GRAYBOX_API_TOKEN", hide_env_values = true)]
+    pub api_token: Option<String>,
+    /// Require the token for REST reads too.
+    #[arg(long, env = "GRAYBOX_AUTH_READS")]
+    pub auth_reads: bool,
+    /// Serve REST and gRPC over TLS with this certificate chain (PEM); needs --tls-key.
+    #[arg(long, env = "GRAYBOX_TLS_CERT", requires = "tls_key")]
+    pub tls_cert: Option<PathBuf>,
+    /// The private key (PEM) of --tls-cert.
+    #[arg(long, env = "GRAYBOX_TLS_KEY", requires = "tls_cert")]
+    pub tls_key: Option<PathBuf>,
+}
+
+impl Default for Settings {
+    /// The flags' defaults (without reading the environment).
+    fn default() -> Self {
+        #[derive(clap::Parser)]
+        struct Defaults {
+            #[command(flatten)]
+            settings: Settings,
+        }
+        // Parsing an empty command line gives exactly the declared defaults; the environment
+        // is ignored so that a library user's GRAYBOX_* variables cannot change them.
+        let cmd = <Defaults as clap::CommandFactory>::command();
+        let cmd = cmd.mut_args(|a| a.env(None::<&str>));
+        let matches = cmd
+            .try_get_matches_from(["graybox"])
+            .expect("the declared defaults parse");
+        <Defaults as clap::FromArgMatches>::from_arg_matches(&matches)
+            .expect("the declared defaults parse")
+            .settings
+    }
+}
+
+const MB: usize = 1 << 20;
+
+impl Settings {
+    /// Checks the values together (each flag that counts something is at least 1; the
+    /// threads the settings imply fit the runtime's cap).
+    pub fn validate(&self) -> Result<()> {
+        let at_least_one = [
+            ("lease-secs", self.lease_secs as usize),
+            ("max-body-mb", self.max_body_mb),
+            ("grpc-max-message-mb", self.grpc_max_message_mb),
+            ("grpc-max-streams", self.grpc_max_streams as usize),
+            ("max-call-memory-mb", self.max_call_memory_mb),
+            ("max-heavy-calls", self.max_heavy_calls),
+            ("max-job-memory-mb", self.max_job_memory_mb),
+            ("max-model-params", self.max_model_params),
+            ("max-dof", self.max_dof),
+            ("max-attempts", self.max_attempts as usize),
+        ];
+        if let Some((flag, _)) = at_least_one.iter().find(|(_, v)| *v == 0) {
+            return Err(Error::invalid(*flag, "must be at least 1"));
+        }
+        // Calls and rollout streams each get --max-heavy-calls threads; 8 spare for loads.
+        if self.workers + 2 * self.max_heavy_calls + 8 > MAX_BLOCKING_THREADS {
+            return Err(Error::invalid(
+                "workers",
+                format!(
+                    "--workers plus twice --max-heavy-calls must be at most {}",
+                    MAX_BLOCKING_THREADS - 8
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    pub fn max_body_bytes(&self) -> usize {
+        self.max_body_mb.saturating_mul(MB)
+    }
+
+    pub fn grpc_max_message_bytes(&self) -> usize {
+        self.grpc_max_message_mb.saturating_mul(MB)
+    }
+
+    pub fn max_call_memory_bytes(&self) -> usize {
+        self.max_call_memory_mb.saturating_mul(MB)
+    }
+
+    pub fn max_job_memory_bytes(&self) -> usize {
+        self.max_job_memory_mb.saturating_mul(MB)
+    }
+
+    /// The API token, if one is set (an empty one is none).
+    pub fn token(&self) -> Option<&str> {
+        self.api_token.as_deref().filter(|t| !t.is_empty())
+    }
+
+    /// Checkpoint interval in epochs (at least 1).
+    pub fn checkpoint_epochs(&self) -> usize {
+        self.checkpoint_every.max(1)
+    }
+}
