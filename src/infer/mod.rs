@@ -8,103 +8,30 @@
 pub mod col;
 pub mod jet;
 pub mod limits;
+mod nets;
+
+pub use nets::Mlp64;
+use nets::{Columns, JetNets, NetOutputs, input_jet};
 
 use std::collections::HashMap;
 
 use col::{Col, Column, Lanes};
-use jet::Jet;
 use limits::Pass;
 
 use crate::control::linalg::Mat;
 use crate::control::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
+use crate::model::assembly::{Structure, Values};
 use crate::model::dual::Dual;
-use crate::model::dynamics::{Tri, acceleration};
+use crate::model::dynamics::acceleration;
 use crate::model::file::ModelFile;
-use crate::model::mass_matrix::factor_from_outputs;
 use crate::model::params_io::NamedArray;
 use crate::model::scalar::Scalar;
 use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
-use crate::model::templates::Template;
-
-/// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
-#[derive(Debug, Clone)]
-pub struct Mlp64 {
-    layers: Vec<(usize, usize, Vec<f64>, Vec<f64>)>,
-}
-
-impl Mlp64 {
-    fn from_arrays(arrays: &HashMap<&str, &NamedArray>, prefix: &str) -> Result<Option<Self>> {
-        let mut layers = vec![];
-        for i in 0.. {
-            let (Some(w), Some(b)) = (
-                arrays.get(format!("{prefix}.layers.{i}.weight").as_str()),
-                arrays.get(format!("{prefix}.layers.{i}.bias").as_str()),
-            ) else {
-                break;
-            };
-            let (d_in, d_out) = (w.shape[0], w.shape[1]);
-            if b.values.len() != d_out || w.values.len() != d_in * d_out {
-                return Err(Error::corrupt(
-                    "model file",
-                    format!("{prefix} layer {i} has inconsistent shapes"),
-                ));
-            }
-            layers.push((d_in, d_out, w.values.clone(), b.values.clone()));
-        }
-        Ok((!layers.is_empty()).then_some(Self { layers }))
-    }
-
-    /// The network on a batch with derivatives (see [`jet`]): one matrix product per layer.
-    pub fn jet(&self, input: &Jet) -> Jet {
-        let last = self.layers.len() - 1;
-        let mut x: Option<Jet> = None;
-        for (l, (_, d_out, w, b)) in self.layers.iter().enumerate() {
-            let mut z = x.as_ref().unwrap_or(input).linear(w, b, *d_out);
-            if l != last {
-                z.tanh();
-            }
-            x = Some(z);
-        }
-        x.expect("an MLP has layers")
-    }
-}
-
-/// A batch's network inputs as a jet: values and outer tangents from the columns; with
-/// `inner_scale`, input k also gets the inner tangent ∂x_k/∂q_k = inner_scale[k].
-fn input_jet<C: Lanes>(cols: &[C], inner_scale: Option<&[f64]>, outer: usize) -> Jet {
-    let batch = cols[0].rows();
-    let inner = inner_scale.map_or(0, <[f64]>::len);
-    let mut jet = Jet::zeros(batch, cols.len(), inner, outer);
-    for (j, x) in cols.iter().enumerate() {
-        x.write(&mut jet, j);
-    }
-    for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
-        for b in 0..batch {
-            jet.set(0, k + 1, b, k, s);
-        }
-    }
-    jet
-}
-
-/// Output j as a dual number over q (inner tangents), each part a batch coordinate.
-fn dual_at<C: Lanes>(jet: &Jet, j: usize) -> Dual<C> {
-    Dual::new(
-        C::read(jet, 0, j),
-        (1..=jet.inner).map(|i| Some(C::read(jet, i, j))),
-    )
-}
 
 /// A structured spec's three parts.
 type Parts<'a> = (&'a MassSpec, &'a PotentialSpec, &'a ForceSpec);
-
-/// Network outputs of one batch, computed before the structure.
-struct NetOutputs {
-    mass: Option<Jet>,
-    potential: Option<Jet>,
-    force: Option<Jet>,
-}
 
 /// Batches at least this large run on two threads: a thread costs ~20–40 µs, a step of 64
 /// states ~0.35 ms on one (measured: 64 states in 0.26 ms split vs 0.35–0.48 ms not).
@@ -155,21 +82,6 @@ impl Evaluator {
             physical,
             naive: Mlp64::from_arrays(&arrays, "naive")?,
         })
-    }
-
-    fn template(&self) -> Template {
-        self.config
-            .template()
-            .expect("validated: white-box parts have a template")
-    }
-
-    fn phys<S: Scalar>(&self, like: &S) -> Vec<S> {
-        self.physical
-            .as_ref()
-            .expect("a template model has physical parameters")
-            .iter()
-            .map(|&v| like.lift(v))
-            .collect()
     }
 
     /// q̈ for a batch given as columns: q and q̇ n coordinates, u m coordinates, each a whole
@@ -230,8 +142,8 @@ impl Evaluator {
         self.structure((mass, potential, forces), &nets, q, qd, u)
     }
 
-    /// q̈ from the networks' outputs: M = LLᵀ, ∇V, F, then the manipulator equation (the
-    /// same generic code the Burn path trains with).
+    /// q̈ from the networks' outputs: the structure assembled from the spec (the same
+    /// generic code the Burn path trains with), then the manipulator equation.
     fn structure<S: Lanes>(
         &self,
         parts: Parts,
@@ -241,102 +153,24 @@ impl Evaluator {
         u: &[S],
     ) -> Vec<S> {
         let (mass, potential, forces) = parts;
-        let s = &self.config.scaling;
-        let (n, m) = (q.len(), u.len());
-        let zero = q[0].lift(0.0);
-        // q as dual variables for the template parts that need ∂/∂q.
-        let qv: Vec<Dual<S>> = q
-            .iter()
-            .enumerate()
-            .map(|(k, x)| Dual::variable(x.clone(), k, n, x.lift(1.0)))
-            .collect();
-        let l: Tri<Dual<S>> = match mass {
-            MassSpec::Mlp { .. } => {
-                let out = nets.mass.as_ref().expect("mass outputs");
-                factor_from_outputs((0..out.width).map(|j| dual_at(out, j)).collect(), n)
-            }
-            MassSpec::Constant => {
-                let raw = self.mass_const.as_ref().expect("constant mass");
-                factor_from_outputs(
-                    raw.iter().map(|&v| Dual::constant(q[0].lift(v))).collect(),
-                    n,
-                )
-            }
-            MassSpec::Template => {
-                let p: Vec<Dual<S>> = self.phys(&q[0]).into_iter().map(Dual::constant).collect();
-                crate::model::dynamics::cholesky(&self.template().mass(&p, &qv))
-            }
+        let structure = Structure {
+            mass,
+            potential,
+            forces,
+            template: self.config.template(),
+            scaling: &self.config.scaling,
+            values: Values {
+                mass_const: self.mass_const.as_deref(),
+                potential_quad: self.potential_quad.as_deref(),
+                b_const: self.b_const.as_deref(),
+                eta: self.eta.as_deref(),
+                physical: self.physical.as_deref(),
+            },
+            n: q.len(),
+            m: u.len(),
         };
-        let tangent = |v: &Dual<S>, k: usize| v.tangent(k).cloned().unwrap_or_else(|| zero.clone());
-        let grad_v: Option<Vec<S>> = match potential {
-            PotentialSpec::Zero => None,
-            PotentialSpec::Mlp { .. } => {
-                let v = dual_at::<S>(nets.potential.as_ref().expect("potential outputs"), 0);
-                Some(
-                    (0..n)
-                        .map(|k| tangent(&v, k).scale(s.potential_scale()))
-                        .collect(),
-                )
-            }
-            PotentialSpec::Quadratic => {
-                let k = self.potential_quad.as_ref().expect("quadratic potential");
-                let kij = |i: usize, j: usize| k[Tri::<()>::index(i.max(j), i.min(j))];
-                Some(
-                    (0..n)
-                        .map(|i| {
-                            (0..n)
-                                .map(|j| q[j].scale(kij(i, j)))
-                                .reduce(|a, b| a + b)
-                                .expect("n ≥ 1")
-                                .scale(s.quadratic_scale())
-                        })
-                        .collect(),
-                )
-            }
-            PotentialSpec::Template => {
-                let p: Vec<Dual<S>> = self.phys(&q[0]).into_iter().map(Dual::constant).collect();
-                let v = self.template().potential(&p, &qv);
-                Some((0..n).map(|k| tangent(&v, k)).collect())
-            }
-        };
-        let affine = |b: Vec<S>, eta: &[f64]| -> Vec<S> {
-            (0..n)
-                .map(|i| {
-                    let bu = (0..m)
-                        .map(|j| b[i * m + j].clone() * u[j].clone())
-                        .reduce(|a, b| a + b)
-                        .expect("m ≥ 1");
-                    bu + qd[i].scale(eta[i] * s.force_scale[i] / s.qdot_std[i])
-                })
-                .collect()
-        };
-        let b_scale = |i: usize, j: usize| s.force_scale[i] / s.u_std[j];
-        let f: Vec<S> = match forces {
-            ForceSpec::Mlp { .. } => {
-                let out = nets.force.as_ref().expect("force outputs");
-                (0..n)
-                    .map(|j| S::read(out, 0, j).scale(s.force_scale[j]))
-                    .collect()
-            }
-            ForceSpec::ControlAffine { .. } => {
-                let out = nets.force.as_ref().expect("B outputs");
-                let bm = (0..n * m)
-                    .map(|k| S::read(out, 0, k).scale(b_scale(k / m, k % m)))
-                    .collect();
-                affine(bm, self.eta.as_ref().expect("eta"))
-            }
-            ForceSpec::ConstantAffine => {
-                let raw = self.b_const.as_ref().expect("constant B");
-                let bm = raw
-                    .iter()
-                    .enumerate()
-                    .map(|(k, &v)| q[0].lift(v * b_scale(k / m, k % m)))
-                    .collect();
-                affine(bm, self.eta.as_ref().expect("eta"))
-            }
-            ForceSpec::Template => self.template().forces(&self.phys(&q[0]), q, qd, u),
-        };
-        acceleration(&l, grad_v, f, qd)
+        let t = structure.terms(&JetNets::new(nets), &Columns { q, qd, u });
+        acceleration(&t.l, t.grad_v, t.forces, qd)
     }
 
     /// One step of the model's integrator: x = [q, q̇] (2n coordinates), u (m) → x'.

@@ -1,10 +1,10 @@
 //! The structured Lagrangian model (design.md §2) on Burn: parameters, the dynamics
 //! q̈ = M⁻¹(F − c − ∂V/∂q), one-step prediction by an integrator, and the loss.
 
+pub mod assembly;
 pub mod dual;
 pub mod dynamics;
 pub mod file;
-pub mod forces;
 pub mod integrator;
 pub mod mass_matrix;
 pub mod mlp;
@@ -14,20 +14,25 @@ pub mod scalar;
 pub mod scaling;
 pub mod spec;
 pub mod templates;
+mod tensors;
 
 use burn::module::{Module, Param};
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 use crate::rng::Rng;
+use assembly::{Structure, Values};
+use tensors::{BurnNets, Consts, LazyColumns};
+
 use dual::Dual;
-use dynamics::{Tri, acceleration, dual_vars};
+use dynamics::{Tri, acceleration};
 use integrator::Integrator;
 use mlp::{Mlp, param};
 use scaling::Scaling;
 use spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
 use templates::{Part, Template};
+pub use tensors::columns;
 
 /// Everything that defines a model apart from its trainable values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -63,60 +68,6 @@ pub struct Params {
     pub naive: Option<Mlp>,
 }
 
-/// Constant tensors derived from the config, built once per device.
-#[derive(Debug, Clone)]
-struct Consts {
-    one: Tensor<2>,         // [1, 1]
-    q_mean: Tensor<2>,      // [1, n]
-    q_inv_std: Tensor<2>,   // [1, n]
-    dq_in: Tensor<2>,       // [n, n] = diag(1/σ_q): ∂(standardized q)/∂q
-    in_mean: Tensor<2>,     // [1, 2n+m] for [q, q̇, u]
-    in_inv_std: Tensor<2>,  // [1, 2n+m]
-    force_scale: Tensor<2>, // [1, n]
-    acc_mean: Tensor<2>,    // [1, n]
-    acc_std: Tensor<2>,     // [1, n]
-    b_scale: Tensor<2>,     // [1, n·m] = force_scale_i / σ_u_j
-    eta_scale: Tensor<2>,   // [1, n] = force_scale_i / σ_q̇_i
-    loss_w: Tensor<2>,      // [1, 2n] = [1…1, λ…λ]
-}
-
-fn row(values: Vec<f64>, device: &Device) -> Tensor<2> {
-    let k = values.len();
-    Tensor::from_data(TensorData::new(values, [1, k]), device)
-}
-
-impl Consts {
-    fn new(c: &ModelConfig, device: &Device) -> Self {
-        let s = &c.scaling;
-        let (n, m) = (c.n, c.m);
-        let inv = |v: &[f64]| v.iter().map(|x| 1.0 / x).collect::<Vec<_>>();
-        let mut diag = vec![0.0; n * n];
-        for i in 0..n {
-            diag[i * n + i] = 1.0 / s.q_std[i];
-        }
-        let cat = |a: &[f64], b: &[f64], c: &[f64]| [a, b, c].concat();
-        let b_scale = (0..n)
-            .flat_map(|i| (0..m).map(move |j| s.force_scale[i] / s.u_std[j]))
-            .collect();
-        let eta_scale = (0..n).map(|i| s.force_scale[i] / s.qdot_std[i]).collect();
-        let loss_w = [vec![1.0; n], vec![c.lambda; n]].concat();
-        Self {
-            one: row(vec![1.0], device),
-            q_mean: row(s.q_mean.clone(), device),
-            q_inv_std: row(inv(&s.q_std), device),
-            dq_in: Tensor::from_data(TensorData::new(diag, [n, n]), device),
-            in_mean: row(cat(&s.q_mean, &s.qdot_mean, &s.u_mean), device),
-            in_inv_std: row(inv(&cat(&s.q_std, &s.qdot_std, &s.u_std)), device),
-            force_scale: row(s.force_scale.clone(), device),
-            acc_mean: row(s.acc_mean.clone(), device),
-            acc_std: row(s.acc_std.clone(), device),
-            b_scale: row(b_scale, device),
-            eta_scale: row(eta_scale, device),
-            loss_w: row(loss_w, device),
-        }
-    }
-}
-
 /// A model bound to a device: config, parameters and the derived constants.
 #[derive(Debug, Clone)]
 pub struct Model {
@@ -132,12 +83,6 @@ pub struct Parts {
     /// ∂V/∂q (`None` for a zero potential).
     pub grad_v: Option<Vec<Tensor<2>>>,
     pub forces: Vec<Tensor<2>>,
-}
-
-/// Splits `[batch, k]` into k columns `[batch, 1]`.
-pub fn columns(x: &Tensor<2>) -> Vec<Tensor<2>> {
-    let k = x.dims()[1];
-    (0..k).map(|j| x.clone().narrow(1, j, 1)).collect()
 }
 
 impl ModelConfig {
@@ -315,7 +260,9 @@ impl Model {
         Tensor::cat(acceleration(&p.l, p.grad_v, p.forces, &qd_cols), 1)
     }
 
-    /// The terms of the manipulator equation of a structured model, as `[batch, 1]` columns.
+    /// The terms of the manipulator equation of a structured model, as `[batch, 1]` columns:
+    /// the networks run here on whole tensors, the structure is the one assembly
+    /// ([`assembly`]) inference runs too.
     pub fn parts(&self, q: Tensor<2>, qd: Tensor<2>, u: Tensor<2>) -> Parts {
         let c = &self.consts;
         let ModelSpec::Structured {
@@ -327,131 +274,62 @@ impl Model {
         else {
             panic!("parts() is for structured models");
         };
-        let n = self.config.n;
-        let phys: Option<Vec<Tensor<2>>> = template
-            .filter(|_| self.params.physical.is_some())
-            .map(|t| self.physical(t));
-        let phys_dual = || -> Vec<Dual<Tensor<2>>> {
-            phys.as_ref()
-                .expect("template params")
-                .iter()
-                .cloned()
-                .map(Dual::constant)
-                .collect()
-        };
-        // Built on first use: a tracked result that never reaches the loss (here, columns
-        // of q that only analytic parts read) keeps its whole autodiff graph alive in Burn's
-        // registry, and every later backward pass slows down.
-        let q_cols_cell = std::cell::OnceCell::new();
-        let q_cols = || q_cols_cell.get_or_init(|| columns(&q));
+        let (n, p) = (self.config.n, &self.params);
         let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
-
-        let l: Tri<Dual<Tensor<2>>> = match mass {
-            MassSpec::Mlp { .. } => {
-                let net = self.params.mass_net.as_ref().expect("mass net");
+        let nets = BurnNets {
+            mass: p.mass_net.as_ref().map(|net| {
                 let (y, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
-                mass_matrix::factor_from_outputs(mass_matrix::dual_columns(y, jac), n)
-            }
-            MassSpec::Constant => {
-                let raw = self
-                    .params
-                    .mass_const
-                    .as_ref()
-                    .expect("constant mass")
-                    .val();
-                mass_matrix::factor_from_outputs(
-                    columns(&raw).into_iter().map(Dual::constant).collect(),
-                    n,
-                )
-            }
-            MassSpec::Template => {
-                let t = template.expect("validated: template present");
-                let qv = dual_vars(q_cols(), &c.one);
-                dynamics::cholesky(&t.mass(&phys_dual(), &qv))
-            }
-        };
-
-        let grad_v: Option<Vec<Tensor<2>>> = match potential {
-            PotentialSpec::Zero => None,
-            PotentialSpec::Mlp { .. } => {
-                let net = self.params.potential_net.as_ref().expect("potential net");
+                mass_matrix::dual_columns(y, jac)
+            }),
+            potential_grad: p.potential_net.as_ref().map(|net| {
                 let jac = net.jacobian(q_norm(), c.dq_in.clone());
-                let g = jac
-                    .reshape([q.dims()[0], n])
-                    .mul_scalar(self.config.scaling.potential_scale());
-                Some(columns(&g))
-            }
-            PotentialSpec::Quadratic => {
-                let k = self
-                    .params
-                    .potential_quad
-                    .as_ref()
-                    .expect("quadratic potential")
-                    .val();
-                let scale = self.config.scaling.quadratic_scale();
-                let kij = |i: usize, j: usize| {
-                    let (a, b) = if j <= i { (i, j) } else { (j, i) };
-                    k.clone().narrow(1, Tri::<()>::index(a, b), 1)
-                };
-                Some(
-                    (0..n)
-                        .map(|i| {
-                            (0..n)
-                                .map(|j| q_cols()[j].clone() * kij(i, j))
-                                .reduce(|a, b| a + b)
-                                .expect("n ≥ 1")
-                                .mul_scalar(scale)
-                        })
-                        .collect(),
-                )
-            }
-            PotentialSpec::Template => {
-                let t = template.expect("validated: template present");
-                let v = t.potential(&phys_dual(), &dual_vars(q_cols(), &c.one));
-                Some(
-                    (0..n)
-                        .map(|k| {
-                            v.tangent(k)
-                                .cloned()
-                                .unwrap_or_else(|| q_cols()[k].clone().mul_scalar(0.0))
-                        })
-                        .collect(),
-                )
-            }
+                columns(&jac.reshape([q.dims()[0], n]))
+            }),
+            force: match forces {
+                ForceSpec::Mlp { .. } => p.force_net.as_ref().map(|net| {
+                    let input = (Tensor::cat(vec![q.clone(), qd.clone(), u.clone()], 1)
+                        - c.in_mean.clone())
+                        * c.in_inv_std.clone();
+                    columns(&net.forward(input))
+                }),
+                ForceSpec::ControlAffine { .. } => {
+                    p.b_net.as_ref().map(|net| columns(&net.forward(q_norm())))
+                }
+                _ => None,
+            },
         };
-
-        let f: Vec<Tensor<2>> = match forces {
-            ForceSpec::Mlp { .. } => {
-                let net = self.params.force_net.as_ref().expect("force net");
-                let input = (Tensor::cat(vec![q.clone(), qd, u], 1) - c.in_mean.clone())
-                    * c.in_inv_std.clone();
-                columns(&(net.forward(input) * c.force_scale.clone()))
-            }
-            ForceSpec::ControlAffine { .. } => {
-                let net = self.params.b_net.as_ref().expect("B net");
-                let b = net.forward(q_norm()) * c.b_scale.clone();
-                let eta = self.params.eta.as_ref().expect("eta").val() * c.eta_scale.clone();
-                columns(&forces::affine(b, u, eta, qd))
-            }
-            ForceSpec::ConstantAffine => {
-                let b = self.params.b_const.as_ref().expect("constant B").val() * c.b_scale.clone();
-                let eta = self.params.eta.as_ref().expect("eta").val() * c.eta_scale.clone();
-                columns(&forces::affine(b, u, eta, qd))
-            }
-            ForceSpec::Template => {
-                let t = template.expect("validated: template present");
-                t.forces(
-                    phys.as_ref().expect("template params"),
-                    q_cols(),
-                    &columns(&qd),
-                    &columns(&u),
-                )
-            }
+        let value_columns = |t: &Option<Param<Tensor<2>>>| t.as_ref().map(|t| columns(&t.val()));
+        let (mass_const, potential_quad, b_const, eta) = (
+            value_columns(&p.mass_const),
+            value_columns(&p.potential_quad),
+            value_columns(&p.b_const),
+            value_columns(&p.eta),
+        );
+        let physical = template
+            .filter(|_| p.physical.is_some())
+            .map(|t| self.physical(t));
+        let structure = Structure {
+            mass,
+            potential,
+            forces,
+            template: *template,
+            scaling: &self.config.scaling,
+            values: Values {
+                mass_const: mass_const.as_deref(),
+                potential_quad: potential_quad.as_deref(),
+                b_const: b_const.as_deref(),
+                eta: eta.as_deref(),
+                physical: physical.as_deref(),
+            },
+            n,
+            m: self.config.m,
         };
+        let inputs = LazyColumns::new(&q, &qd, &u, &c.one);
+        let t = structure.terms(&nets, &inputs);
         Parts {
-            l,
-            grad_v,
-            forces: f,
+            l: t.l,
+            grad_v: t.grad_v,
+            forces: t.forces,
         }
     }
 

@@ -1,0 +1,141 @@
+//! The networks on the inference path: their weights, their batched evaluation with
+//! derivatives (jets), and their outputs as the model's assembly reads them.
+
+use std::collections::HashMap;
+
+use super::col::Lanes;
+use super::jet::Jet;
+use crate::error::{Error, Result};
+use crate::model::assembly::{Inputs, Networks};
+use crate::model::dual::Dual;
+use crate::model::params_io::NamedArray;
+use crate::model::scalar::Scalar;
+
+/// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
+#[derive(Debug, Clone)]
+pub struct Mlp64 {
+    pub(super) layers: Vec<(usize, usize, Vec<f64>, Vec<f64>)>,
+}
+
+impl Mlp64 {
+    pub(super) fn from_arrays(
+        arrays: &HashMap<&str, &NamedArray>,
+        prefix: &str,
+    ) -> Result<Option<Self>> {
+        let mut layers = vec![];
+        for i in 0.. {
+            let (Some(w), Some(b)) = (
+                arrays.get(format!("{prefix}.layers.{i}.weight").as_str()),
+                arrays.get(format!("{prefix}.layers.{i}.bias").as_str()),
+            ) else {
+                break;
+            };
+            let (d_in, d_out) = (w.shape[0], w.shape[1]);
+            if b.values.len() != d_out || w.values.len() != d_in * d_out {
+                return Err(Error::corrupt(
+                    "model file",
+                    format!("{prefix} layer {i} has inconsistent shapes"),
+                ));
+            }
+            layers.push((d_in, d_out, w.values.clone(), b.values.clone()));
+        }
+        Ok((!layers.is_empty()).then_some(Self { layers }))
+    }
+
+    /// The network on a batch with derivatives (see [`jet`]): one matrix product per layer.
+    pub fn jet(&self, input: &Jet) -> Jet {
+        let last = self.layers.len() - 1;
+        let mut x: Option<Jet> = None;
+        for (l, (_, d_out, w, b)) in self.layers.iter().enumerate() {
+            let mut z = x.as_ref().unwrap_or(input).linear(w, b, *d_out);
+            if l != last {
+                z.tanh();
+            }
+            x = Some(z);
+        }
+        x.expect("an MLP has layers")
+    }
+}
+
+/// A batch's network inputs as a jet: values and outer tangents from the columns; with
+/// `inner_scale`, input k also gets the inner tangent ∂x_k/∂q_k = inner_scale[k].
+pub(super) fn input_jet<C: Lanes>(cols: &[C], inner_scale: Option<&[f64]>, outer: usize) -> Jet {
+    let batch = cols[0].rows();
+    let inner = inner_scale.map_or(0, <[f64]>::len);
+    let mut jet = Jet::zeros(batch, cols.len(), inner, outer);
+    for (j, x) in cols.iter().enumerate() {
+        x.write(&mut jet, j);
+    }
+    for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
+        for b in 0..batch {
+            jet.set(0, k + 1, b, k, s);
+        }
+    }
+    jet
+}
+
+/// Output j as a dual number over q (inner tangents), each part a batch coordinate.
+fn dual_at<C: Lanes>(jet: &Jet, j: usize) -> Dual<C> {
+    Dual::new(
+        C::read(jet, 0, j),
+        (1..=jet.inner).map(|i| Some(C::read(jet, i, j))),
+    )
+}
+
+/// The networks' outputs as the assembly reads them.
+pub(super) struct JetNets<'a, S> {
+    outs: &'a NetOutputs,
+    /// V's output with its q-tangents, read once.
+    potential: Option<Dual<S>>,
+}
+
+impl<'a, S: Lanes> JetNets<'a, S> {
+    pub(super) fn new(outs: &'a NetOutputs) -> Self {
+        Self {
+            outs,
+            potential: outs.potential.as_ref().map(|p| dual_at(p, 0)),
+        }
+    }
+}
+
+impl<S: Lanes> Networks<S> for JetNets<'_, S> {
+    fn mass(&self, j: usize) -> Dual<S> {
+        dual_at(self.outs.mass.as_ref().expect("mass outputs"), j)
+    }
+    fn potential_grad(&self, k: usize) -> S {
+        let v = self.potential.as_ref().expect("potential outputs");
+        v.tangent(k).cloned().unwrap_or_else(|| v.v.lift(0.0))
+    }
+    fn force(&self, j: usize) -> S {
+        S::read(self.outs.force.as_ref().expect("force outputs"), 0, j)
+    }
+}
+
+/// A batch's inputs, already columns.
+pub(super) struct Columns<'a, S> {
+    pub(super) q: &'a [S],
+    pub(super) qd: &'a [S],
+    pub(super) u: &'a [S],
+}
+
+impl<S: Scalar> Inputs<S> for Columns<'_, S> {
+    fn q(&self) -> &[S] {
+        self.q
+    }
+    fn qd(&self) -> &[S] {
+        self.qd
+    }
+    fn u(&self) -> &[S] {
+        self.u
+    }
+    fn one(&self) -> S {
+        self.q[0].lift(1.0)
+    }
+}
+
+/// Network outputs of one batch, computed before the structure.
+pub(super) struct NetOutputs {
+    pub(super) mass: Option<Jet>,
+    pub(super) potential: Option<Jet>,
+    pub(super) force: Option<Jet>,
+}

@@ -1,0 +1,270 @@
+//! A structured model assembled from its spec, once, for every number type: L(q) with its
+//! q-derivatives, ∇V and F, the terms of the manipulator equation M q̈ = F − c − ∇V
+//! (design.md §2). Training runs it on Burn column tensors, inference on f64, batch columns
+//! and dual numbers; only the networks' evaluation differs, behind [`Networks`], and the
+//! trainable non-network values, behind [`Coef`] (tracked tensors in training, constants in
+//! inference). A new component kind is one arm here.
+
+use super::dual::Dual;
+use super::dynamics::{Tri, cholesky};
+use super::mass_matrix::factor_from_outputs;
+use super::scalar::Scalar;
+use super::scaling::Scaling;
+use super::spec::{ForceSpec, MassSpec, PotentialSpec};
+use super::templates::Template;
+
+/// The networks' outputs for a batch, read by index; each is asked for only when the spec
+/// has that network.
+pub trait Networks<S> {
+    /// Output j of the mass network (the raw entries of L) with its n q-tangents.
+    fn mass(&self, j: usize) -> Dual<S>;
+    /// ∂V/∂q_k of the potential network's (unscaled) output.
+    fn potential_grad(&self, k: usize) -> S;
+    /// Output j of the force network (general F, unscaled) or of the B network (B_θ(q)).
+    fn force(&self, j: usize) -> S;
+}
+
+/// The batch's inputs as columns, built when first read: in training, a tracked value that
+/// never reaches the loss keeps its autodiff graph alive (see `Model::parts`).
+pub trait Inputs<S> {
+    fn q(&self) -> &[S];
+    fn qd(&self) -> &[S];
+    fn u(&self) -> &[S];
+    /// The unit tangent seeding q's dual variables.
+    fn one(&self) -> S;
+}
+
+/// A trainable value that is not a network output: a constant in inference, a tracked
+/// tensor in training.
+pub trait Coef<S>: Clone {
+    /// x · self.
+    fn times(&self, x: &S) -> S;
+    /// self as a value of the batch's kind, shaped like `like`.
+    fn value(&self, like: &S) -> S;
+    /// self · mul / div.
+    fn mul_div(&self, mul: f64, div: f64) -> Self;
+}
+
+impl<S: Scalar> Coef<S> for f64 {
+    fn times(&self, x: &S) -> S {
+        x.scale(*self)
+    }
+    fn value(&self, like: &S) -> S {
+        like.lift(*self)
+    }
+    fn mul_div(&self, mul: f64, div: f64) -> Self {
+        self * mul / div
+    }
+}
+
+/// The non-network values of a structured model, each present when the spec uses it.
+pub struct Values<'a, P> {
+    /// Raw entries of a constant L.
+    pub mass_const: Option<&'a [P]>,
+    /// K of ½qᵀKq, row-major lower triangle.
+    pub potential_quad: Option<&'a [P]>,
+    /// Constant B, `n·m` row-major.
+    pub b_const: Option<&'a [P]>,
+    /// Damping η.
+    pub eta: Option<&'a [P]>,
+    /// The template's physical values (positive ones exponentiated).
+    pub physical: Option<&'a [P]>,
+}
+
+/// The terms of M q̈ = F − c − ∂V/∂q for a batch.
+pub struct Terms<S> {
+    /// L(q) with ∂L/∂q_k.
+    pub l: Tri<Dual<S>>,
+    /// ∂V/∂q (`None` for a zero potential).
+    pub grad_v: Option<Vec<S>>,
+    pub forces: Vec<S>,
+}
+
+/// A structured model's parts and what they read.
+pub struct Structure<'a, P> {
+    pub mass: &'a MassSpec,
+    pub potential: &'a PotentialSpec,
+    pub forces: &'a ForceSpec,
+    pub template: Option<Template>,
+    pub scaling: &'a Scaling,
+    pub values: Values<'a, P>,
+    pub n: usize,
+    pub m: usize,
+}
+
+impl<P> Structure<'_, P> {
+    /// L, ∇V and F for a batch.
+    pub fn terms<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Terms<S>
+    where
+        P: Coef<S>,
+    {
+        Terms {
+            l: self.mass_factor(nets, x),
+            grad_v: self.potential_grad(nets, x),
+            forces: self.generalized_forces(nets, x),
+        }
+    }
+
+    fn template(&self) -> Template {
+        self.template
+            .expect("validated: white-box parts have a template")
+    }
+
+    fn physical<S: Scalar>(&self, like: &S) -> Vec<S>
+    where
+        P: Coef<S>,
+    {
+        let p = self
+            .values
+            .physical
+            .expect("a template model has physical values");
+        p.iter().map(|v| v.value(like)).collect()
+    }
+
+    fn physical_dual<S: Scalar>(&self, like: &S) -> Vec<Dual<S>>
+    where
+        P: Coef<S>,
+    {
+        self.physical(like)
+            .into_iter()
+            .map(Dual::constant)
+            .collect()
+    }
+
+    /// q as dual variables, for the analytic parts that need ∂/∂q.
+    fn q_vars<S: Scalar>(&self, x: &impl Inputs<S>) -> Vec<Dual<S>> {
+        let one = x.one();
+        let n = self.n;
+        x.q()
+            .iter()
+            .enumerate()
+            .map(|(k, qk)| Dual::variable(qk.clone(), k, n, one.clone()))
+            .collect()
+    }
+
+    /// L(q) = the Cholesky factor of M(q), with its q-tangents.
+    fn mass_factor<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Tri<Dual<S>>
+    where
+        P: Coef<S>,
+    {
+        let n = self.n;
+        match self.mass {
+            MassSpec::Mlp { .. } => {
+                factor_from_outputs((0..n * (n + 1) / 2).map(|j| nets.mass(j)).collect(), n)
+            }
+            MassSpec::Constant => {
+                let raw = self.values.mass_const.expect("constant mass");
+                let like = &x.q()[0];
+                factor_from_outputs(
+                    raw.iter().map(|v| Dual::constant(v.value(like))).collect(),
+                    n,
+                )
+            }
+            MassSpec::Template => {
+                let p = self.physical_dual(&x.q()[0]);
+                cholesky(&self.template().mass(&p, &self.q_vars(x)))
+            }
+        }
+    }
+
+    /// ∂V/∂q.
+    fn potential_grad<S: Scalar>(
+        &self,
+        nets: &impl Networks<S>,
+        x: &impl Inputs<S>,
+    ) -> Option<Vec<S>>
+    where
+        P: Coef<S>,
+    {
+        let (n, s) = (self.n, self.scaling);
+        match self.potential {
+            PotentialSpec::Zero => None,
+            PotentialSpec::Mlp { .. } => Some(
+                (0..n)
+                    .map(|k| nets.potential_grad(k).scale(s.potential_scale()))
+                    .collect(),
+            ),
+            PotentialSpec::Quadratic => {
+                let k = self.values.potential_quad.expect("quadratic potential");
+                let kij = |i: usize, j: usize| &k[Tri::<()>::index(i.max(j), i.min(j))];
+                let q = x.q();
+                Some(
+                    (0..n)
+                        .map(|i| {
+                            (0..n)
+                                .map(|j| kij(i, j).times(&q[j]))
+                                .reduce(|a, b| a + b)
+                                .expect("n ≥ 1")
+                                .scale(s.quadratic_scale())
+                        })
+                        .collect(),
+                )
+            }
+            PotentialSpec::Template => {
+                let p = self.physical_dual(&x.q()[0]);
+                let v = self.template().potential(&p, &self.q_vars(x));
+                let zero = || x.q()[0].lift(0.0);
+                Some(
+                    (0..n)
+                        .map(|k| v.tangent(k).cloned().unwrap_or_else(zero))
+                        .collect(),
+                )
+            }
+        }
+    }
+
+    /// F(q, q̇, u).
+    fn generalized_forces<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Vec<S>
+    where
+        P: Coef<S>,
+    {
+        let (n, m, s) = (self.n, self.m, self.scaling);
+        let b_scale = |k: usize| s.force_scale[k / m] / s.u_std[k % m];
+        match self.forces {
+            ForceSpec::Mlp { .. } => (0..n)
+                .map(|j| nets.force(j).scale(s.force_scale[j]))
+                .collect(),
+            ForceSpec::ControlAffine { .. } => {
+                let b = (0..n * m)
+                    .map(|k| nets.force(k).scale(b_scale(k)))
+                    .collect();
+                self.affine(b, x)
+            }
+            ForceSpec::ConstantAffine => {
+                let raw = self.values.b_const.expect("constant B");
+                let like = &x.u()[0];
+                let b = raw
+                    .iter()
+                    .enumerate()
+                    .map(|(k, v)| v.mul_div(b_scale(k), 1.0).value(like))
+                    .collect();
+                self.affine(b, x)
+            }
+            ForceSpec::Template => {
+                self.template()
+                    .forces(&self.physical(&x.q()[0]), x.q(), x.qd(), x.u())
+            }
+        }
+    }
+
+    /// B u + η ∘ q̇ in the data's units (B `n·m` row-major).
+    fn affine<S: Scalar>(&self, b: Vec<S>, x: &impl Inputs<S>) -> Vec<S>
+    where
+        P: Coef<S>,
+    {
+        let (n, m, s) = (self.n, self.m, self.scaling);
+        let eta = self.values.eta.expect("eta");
+        let (u, qd) = (x.u(), x.qd());
+        (0..n)
+            .map(|i| {
+                let bu = (0..m)
+                    .map(|j| b[i * m + j].clone() * u[j].clone())
+                    .reduce(|a, b| a + b)
+                    .expect("m ≥ 1");
+                bu + eta[i]
+                    .mul_div(s.force_scale[i], s.qdot_std[i])
+                    .times(&qd[i])
+            })
+            .collect()
+    }
+}
