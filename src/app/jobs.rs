@@ -241,24 +241,18 @@ impl App {
     /// The scalings training derives from the data must be finite (values near the f64
     /// range overflow them), else the job would "succeed" with a model that cannot answer.
     async fn check_job_data(&self, job: &JobSpec) -> Result<()> {
-        let load = |field: &'static str, id: String| async move {
-            self.store
-                .load_dataset(&id)
-                .await?
-                .ok_or_else(|| Error::Unprocessable {
-                    field: field.into(),
-                    message: format!("dataset {id} does not exist"),
-                })
-        };
-        let data = load("dataset_id", job.dataset_id.clone()).await?;
-        let val = match &job.validation_dataset_id {
-            Some(id) => Some(load("validation_dataset_id", id.clone()).await?),
-            None => None,
-        };
+        let data = self
+            .store
+            .load_dataset(&job.dataset_id)
+            .await?
+            .ok_or_else(|| Error::Unprocessable {
+                field: "dataset_id".into(),
+                message: format!("dataset {} does not exist", job.dataset_id),
+            })?;
         let job = job.clone();
         tokio::task::spawn_blocking(move || {
-            crate::train::setup::prepare(&job.spec, &job.init, &data, val.as_ref(), &job.training)
-                .map(|_| ())
+            let physical = physical_init(&job.spec, &job.init)?;
+            crate::train::setup::scaling(&job.spec, physical.as_deref(), &data).map(|_| ())
         })
         .await
         .map_err(|e| Error::Internal(format!("checking the data failed: {e}")))?

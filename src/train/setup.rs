@@ -139,6 +139,26 @@ pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<
     Ok(Some(values))
 }
 
+/// The scalings training derives from `data` at the initial physical values; not finite
+/// (data near the f64 range) is an error naming "data". The service checks a submission's
+/// whole dataset with it, without copying the data into a split.
+pub fn scaling(spec: &ModelSpec, physical: Option<&[f64]>, data: &Dataset) -> Result<Scaling> {
+    let white_box_mass = spec.white_box_parts().contains(&Part::Mass);
+    let mass = match (white_box_mass, spec.template(), physical) {
+        (true, Some(t), Some(p)) => Some((t, p)),
+        _ => None,
+    };
+    let scaling = Scaling::from_data(data, mass);
+    if !scaling.is_finite() {
+        return Err(Error::invalid(
+            "data",
+            "the data's statistics (means, spreads, accelerations) are not finite: values or \
+             differences near the limits of f64; check units and dt",
+        ));
+    }
+    Ok(scaling)
+}
+
 /// What [`prepare`] returns: the model configuration, the initial physical values, and the
 /// training and validation data.
 pub type Prepared = (ModelConfig, Option<Vec<f64>>, Dataset, Option<Dataset>);
@@ -158,19 +178,7 @@ pub fn prepare(
     spec.check_dims(data.n, data.m)?;
     let physical = physical_init(spec, init)?;
     let (train_ds, val_ds) = split_data(data, val, cfg)?;
-    let white_box_mass = spec.white_box_parts().contains(&Part::Mass);
-    let mass = match (white_box_mass, spec.template(), &physical) {
-        (true, Some(t), Some(p)) => Some((t, p.as_slice())),
-        _ => None,
-    };
-    let scaling = Scaling::from_data(&train_ds, mass);
-    if !scaling.is_finite() {
-        return Err(Error::invalid(
-            "data",
-            "the data's statistics (means, spreads, accelerations) are not finite: values or \
-             differences near the limits of f64; check units and dt",
-        ));
-    }
+    let scaling = scaling(spec, physical.as_deref(), &train_ds)?;
     let config = ModelConfig {
         spec: spec.clone(),
         n: data.n,
