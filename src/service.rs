@@ -41,44 +41,24 @@ pub async fn start(settings: Settings) -> Result<Running> {
     let grpc = bind(&cfg.grpc, "grpc").await?;
     let (http_addr, grpc_addr) = (http.local_addr()?, grpc.local_addr()?);
     let (stop, stopped) = watch::channel(false);
-    let until_stopped = |mut rx: watch::Receiver<bool>| async move {
-        while !*rx.borrow() {
-            if rx.changed().await.is_err() {
-                return;
-            }
-        }
-    };
-    let rest = router(app.clone());
-    let http_stop = until_stopped(stopped.clone());
     let files = cfg
         .tls_cert
         .clone()
         .zip(cfg.tls_key.clone())
         .map(|(cert, key)| TlsFiles { cert, key });
     let tls = |alpn: &[&[u8]]| files.as_ref().map(|f| acceptor(f, alpn)).transpose();
-    let (rest_tls, grpc_tls) = (tls(&[b"http/1.1"])?, tls(&[b"h2"])?);
-    let rest_server = async move {
-        let served = match rest_tls {
-            None => {
-                axum::serve(http, rest)
-                    .with_graceful_shutdown(http_stop)
-                    .await
-            }
-            Some(a) => {
-                axum::serve(TlsListener::new(http, a)?, rest)
-                    .with_graceful_shutdown(http_stop)
-                    .await
-            }
-        };
-        served.map_err(Error::Io)
-    };
     let servers = vec![
-        tokio::spawn(rest_server),
+        tokio::spawn(serve_rest(
+            app.clone(),
+            http,
+            tls(&[b"http/1.1"])?,
+            until_stopped(stopped.clone()),
+        )),
         tokio::spawn(crate::api::grpc::serve(
             app.clone(),
             grpc,
             cfg.token().map(String::from),
-            grpc_tls,
+            tls(&[b"h2"])?,
             until_stopped(stopped.clone()),
         )),
         tokio::spawn(sweep_model_cache(
@@ -101,6 +81,38 @@ pub async fn start(settings: Settings) -> Result<Running> {
         workers,
         servers,
     })
+}
+
+/// Resolves once `rx` turns true (or its sender is gone).
+async fn until_stopped(mut rx: watch::Receiver<bool>) {
+    while !*rx.borrow() {
+        if rx.changed().await.is_err() {
+            return;
+        }
+    }
+}
+
+/// The REST API on `listener`, over TLS when `tls` is given, until `stop` resolves.
+async fn serve_rest(
+    app: App,
+    listener: TcpListener,
+    tls: Option<tokio_rustls::TlsAcceptor>,
+    stop: impl std::future::Future<Output = ()> + Send + 'static,
+) -> Result<()> {
+    let rest = router(app);
+    let served = match tls {
+        None => {
+            axum::serve(listener, rest)
+                .with_graceful_shutdown(stop)
+                .await
+        }
+        Some(a) => {
+            axum::serve(TlsListener::new(listener, a)?, rest)
+                .with_graceful_shutdown(stop)
+                .await
+        }
+    };
+    served.map_err(Error::Io)
 }
 
 /// Evicts cached models that another process on the same database deleted, every

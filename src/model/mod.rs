@@ -85,6 +85,68 @@ pub struct Parts {
     pub forces: Vec<Tensor<2>>,
 }
 
+impl Params {
+    fn empty() -> Self {
+        Self {
+            mass_net: None,
+            mass_const: None,
+            potential_net: None,
+            potential_quad: None,
+            force_net: None,
+            b_net: None,
+            b_const: None,
+            eta: None,
+            physical: None,
+            naive: None,
+        }
+    }
+
+    fn init_mass(&mut self, mass: &MassSpec, n: usize, rng: &mut Rng, device: &Device) {
+        let tri = mass_matrix::outputs(n);
+        match mass {
+            MassSpec::Mlp { hidden } => {
+                self.mass_net = Some(Mlp::init(n, hidden, tri, rng, device));
+            }
+            MassSpec::Constant => self.mass_const = Some(param(vec![0.0; tri], [1, tri], device)),
+            MassSpec::Template => {}
+        }
+    }
+
+    fn init_potential(&mut self, v: &PotentialSpec, n: usize, rng: &mut Rng, device: &Device) {
+        let tri = mass_matrix::outputs(n);
+        match v {
+            PotentialSpec::Mlp { hidden } => {
+                self.potential_net = Some(Mlp::init(n, hidden, 1, rng, device));
+            }
+            PotentialSpec::Quadratic => {
+                self.potential_quad = Some(param(vec![0.0; tri], [1, tri], device));
+            }
+            PotentialSpec::Template | PotentialSpec::Zero => {}
+        }
+    }
+
+    fn init_forces(&mut self, f: &ForceSpec, n: usize, m: usize, rng: &mut Rng, device: &Device) {
+        match f {
+            ForceSpec::Mlp { hidden } => {
+                self.force_net = Some(Mlp::init(2 * n + m, hidden, n, rng, device));
+            }
+            ForceSpec::ControlAffine { hidden } => {
+                self.b_net = Some(Mlp::init(n, hidden, n * m, rng, device));
+                self.eta = Some(param(vec![0.0; n], [1, n], device));
+            }
+            ForceSpec::ConstantAffine => {
+                // B starts as the (rectangular) identity in scaled units.
+                let b = (0..n * m)
+                    .map(|k| if k / m == k % m { 1.0 } else { 0.0 })
+                    .collect();
+                self.b_const = Some(param(b, [1, n * m], device));
+                self.eta = Some(param(vec![0.0; n], [1, n], device));
+            }
+            ForceSpec::Template => {}
+        }
+    }
+}
+
 impl ModelConfig {
     pub fn template(&self) -> Option<Template> {
         self.spec.template()
@@ -102,19 +164,7 @@ impl Model {
     ) -> Result<Self> {
         let (n, m) = (config.n, config.m);
         let mut rng = Rng::derive(seed, 0x1_417);
-        let mut p = Params {
-            mass_net: None,
-            mass_const: None,
-            potential_net: None,
-            potential_quad: None,
-            force_net: None,
-            b_net: None,
-            b_const: None,
-            eta: None,
-            physical: None,
-            naive: None,
-        };
-        let tri = n * (n + 1) / 2;
+        let mut p = Params::empty();
         match &config.spec {
             ModelSpec::Naive { hidden } => {
                 p.naive = Some(Mlp::init(2 * n + m, hidden, n, &mut rng, device));
@@ -125,48 +175,10 @@ impl Model {
                 forces,
                 template,
             } => {
-                match mass {
-                    MassSpec::Mlp { hidden } => {
-                        p.mass_net = Some(Mlp::init(
-                            n,
-                            hidden,
-                            mass_matrix::outputs(n),
-                            &mut rng,
-                            device,
-                        ))
-                    }
-                    MassSpec::Constant => {
-                        p.mass_const = Some(param(vec![0.0; tri], [1, tri], device))
-                    }
-                    MassSpec::Template => {}
-                }
-                match potential {
-                    PotentialSpec::Mlp { hidden } => {
-                        p.potential_net = Some(Mlp::init(n, hidden, 1, &mut rng, device))
-                    }
-                    PotentialSpec::Quadratic => {
-                        p.potential_quad = Some(param(vec![0.0; tri], [1, tri], device))
-                    }
-                    PotentialSpec::Template | PotentialSpec::Zero => {}
-                }
-                match forces {
-                    ForceSpec::Mlp { hidden } => {
-                        p.force_net = Some(Mlp::init(2 * n + m, hidden, n, &mut rng, device))
-                    }
-                    ForceSpec::ControlAffine { hidden } => {
-                        p.b_net = Some(Mlp::init(n, hidden, n * m, &mut rng, device));
-                        p.eta = Some(param(vec![0.0; n], [1, n], device));
-                    }
-                    ForceSpec::ConstantAffine => {
-                        // B starts as the (rectangular) identity in scaled units.
-                        let b = (0..n * m)
-                            .map(|k| if k / m == k % m { 1.0 } else { 0.0 })
-                            .collect();
-                        p.b_const = Some(param(b, [1, n * m], device));
-                        p.eta = Some(param(vec![0.0; n], [1, n], device));
-                    }
-                    ForceSpec::Template => {}
-                }
+                // One rng, drawn in this order (M, V, F): a seed gives the same networks.
+                p.init_mass(mass, n, &mut rng, device);
+                p.init_potential(potential, n, &mut rng, device);
+                p.init_forces(forces, n, m, &mut rng, device);
                 // Physical parameters exist only when some part is white-box.
                 if let Some(t) = template.filter(|_| !config.spec.white_box_parts().is_empty()) {
                     let values = physical.unwrap_or_else(|| t.defaults());
@@ -274,30 +286,8 @@ impl Model {
         else {
             panic!("parts() is for structured models");
         };
-        let (n, p) = (self.config.n, &self.params);
-        let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
-        let nets = BurnNets {
-            mass: p.mass_net.as_ref().map(|net| {
-                let (y, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
-                mass_matrix::dual_columns(y, jac)
-            }),
-            potential_grad: p.potential_net.as_ref().map(|net| {
-                let jac = net.jacobian(q_norm(), c.dq_in.clone());
-                columns(&jac.reshape([q.dims()[0], n]))
-            }),
-            force: match forces {
-                ForceSpec::Mlp { .. } => p.force_net.as_ref().map(|net| {
-                    let input = (Tensor::cat(vec![q.clone(), qd.clone(), u.clone()], 1)
-                        - c.in_mean.clone())
-                        * c.in_inv_std.clone();
-                    columns(&net.forward(input))
-                }),
-                ForceSpec::ControlAffine { .. } => {
-                    p.b_net.as_ref().map(|net| columns(&net.forward(q_norm())))
-                }
-                _ => None,
-            },
-        };
+        let p = &self.params;
+        let nets = self.networks(forces, &q, &qd, &u);
         let value_columns = |t: &Option<Param<Tensor<2>>>| t.as_ref().map(|t| columns(&t.val()));
         let (mass_const, potential_quad, b_const, eta) = (
             value_columns(&p.mass_const),
@@ -321,7 +311,7 @@ impl Model {
                 eta: eta.as_deref(),
                 physical: physical.as_deref(),
             },
-            n,
+            n: self.config.n,
             m: self.config.m,
         };
         let inputs = LazyColumns::new(&q, &qd, &u, &c.one);
@@ -330,6 +320,41 @@ impl Model {
             l: t.l,
             grad_v: t.grad_v,
             forces: t.forces,
+        }
+    }
+
+    /// The structured model's networks on a batch, as columns (M's and V's with their
+    /// q-derivatives, in forward mode).
+    fn networks(
+        &self,
+        forces: &ForceSpec,
+        q: &Tensor<2>,
+        qd: &Tensor<2>,
+        u: &Tensor<2>,
+    ) -> BurnNets {
+        let (c, p, n) = (&self.consts, &self.params, self.config.n);
+        let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
+        BurnNets {
+            mass: p.mass_net.as_ref().map(|net| {
+                let (y, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
+                mass_matrix::dual_columns(y, jac)
+            }),
+            potential_grad: p.potential_net.as_ref().map(|net| {
+                let jac = net.jacobian(q_norm(), c.dq_in.clone());
+                columns(&jac.reshape([q.dims()[0], n]))
+            }),
+            force: match forces {
+                ForceSpec::Mlp { .. } => p.force_net.as_ref().map(|net| {
+                    let input = (Tensor::cat(vec![q.clone(), qd.clone(), u.clone()], 1)
+                        - c.in_mean.clone())
+                        * c.in_inv_std.clone();
+                    columns(&net.forward(input))
+                }),
+                ForceSpec::ControlAffine { .. } => {
+                    p.b_net.as_ref().map(|net| columns(&net.forward(q_norm())))
+                }
+                _ => None,
+            },
         }
     }
 
