@@ -5,6 +5,7 @@ pub mod assembly;
 pub mod dual;
 pub mod dynamics;
 pub mod file;
+mod init;
 pub mod integrator;
 pub mod mass_matrix;
 pub mod mlp;
@@ -30,7 +31,7 @@ use dynamics::{Tri, acceleration};
 use integrator::Integrator;
 use mlp::{Mlp, param};
 use scaling::Scaling;
-use spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
+use spec::{ForceSpec, ModelSpec, PotentialSpec};
 use templates::{Part, Template};
 pub use tensors::columns;
 
@@ -83,68 +84,6 @@ pub struct Parts {
     /// ∂V/∂q (`None` for a zero potential).
     pub grad_v: Option<Vec<Tensor<2>>>,
     pub forces: Vec<Tensor<2>>,
-}
-
-impl Params {
-    fn empty() -> Self {
-        Self {
-            mass_net: None,
-            mass_const: None,
-            potential_net: None,
-            potential_quad: None,
-            force_net: None,
-            b_net: None,
-            b_const: None,
-            eta: None,
-            physical: None,
-            naive: None,
-        }
-    }
-
-    fn init_mass(&mut self, mass: &MassSpec, n: usize, rng: &mut Rng, device: &Device) {
-        let tri = mass_matrix::outputs(n);
-        match mass {
-            MassSpec::Mlp { hidden } => {
-                self.mass_net = Some(Mlp::init(n, hidden, tri, rng, device));
-            }
-            MassSpec::Constant => self.mass_const = Some(param(vec![0.0; tri], [1, tri], device)),
-            MassSpec::Template => {}
-        }
-    }
-
-    fn init_potential(&mut self, v: &PotentialSpec, n: usize, rng: &mut Rng, device: &Device) {
-        let tri = mass_matrix::outputs(n);
-        match v {
-            PotentialSpec::Mlp { hidden } => {
-                self.potential_net = Some(Mlp::init(n, hidden, 1, rng, device));
-            }
-            PotentialSpec::Quadratic => {
-                self.potential_quad = Some(param(vec![0.0; tri], [1, tri], device));
-            }
-            PotentialSpec::Template | PotentialSpec::Zero => {}
-        }
-    }
-
-    fn init_forces(&mut self, f: &ForceSpec, n: usize, m: usize, rng: &mut Rng, device: &Device) {
-        match f {
-            ForceSpec::Mlp { hidden } => {
-                self.force_net = Some(Mlp::init(2 * n + m, hidden, n, rng, device));
-            }
-            ForceSpec::ControlAffine { hidden } => {
-                self.b_net = Some(Mlp::init(n, hidden, n * m, rng, device));
-                self.eta = Some(param(vec![0.0; n], [1, n], device));
-            }
-            ForceSpec::ConstantAffine => {
-                // B starts as the (rectangular) identity in scaled units.
-                let b = (0..n * m)
-                    .map(|k| if k / m == k % m { 1.0 } else { 0.0 })
-                    .collect();
-                self.b_const = Some(param(b, [1, n * m], device));
-                self.eta = Some(param(vec![0.0; n], [1, n], device));
-            }
-            ForceSpec::Template => {}
-        }
-    }
 }
 
 impl ModelConfig {
