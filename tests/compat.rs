@@ -74,8 +74,11 @@ async fn a_job_killed_while_running_resumes_and_finishes() {
         db: db.to_string_lossy().into_owned(),
         ..Default::default()
     };
+    // The job as the killed process left it, read before a worker can reclaim it.
+    let store = graybox::store::Store::open(&cfg.db).await.unwrap();
+    let before = store.get_job(job).await.unwrap().unwrap();
+    drop(store);
     let running = graybox::service::start(cfg).await.unwrap();
-    let before = running.app.job(job).await.unwrap();
     assert_eq!(before.state, JobState::Running);
     assert!(before.checkpoint_epoch >= 2, "{before:?}");
     let deadline = tokio::time::Instant::now() + Duration::from_secs(300);
