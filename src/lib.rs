@@ -2,10 +2,10 @@
 //! transition data and served to controllers.
 //!
 //! Layers (ARCHITECTURE.md, enforced by tests/architecture.rs), bottom up: `error`, `rng`,
-//! `backend`, `data` (the dataset type); the math in `model` (components, dynamics, the model
-//! file), `infer` (f64 evaluation), `control` (TVLQR) and `sim`; `train` (the training loop);
-//! `store` (SQLite); `app` (the one core); `jobs` (the worker); `api` (REST, gRPC); and at the
-//! top `cli`, `service`, `bench`.
+//! `backend`, `data` (the dataset type), `records` (what the store keeps); the math in
+//! `model` (components, dynamics, the model file), `infer` (f64 evaluation), `control`
+//! (TVLQR) and `sim`; `train` (the training loop); `store` (SQLite); `app` (the one core);
+//! `jobs` (the worker); `api` (REST, gRPC); and at the top `cli`, `service`, `bench`.
 
 pub mod api;
 pub mod app;
@@ -18,6 +18,7 @@ pub mod error;
 pub mod infer;
 pub mod jobs;
 pub mod model;
+pub mod records;
 pub mod rng;
 pub mod service;
 pub mod sim;

@@ -14,7 +14,7 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         "service", "bench",
     ];
     match layer {
-        "error" | "rng" | "backend" | "data" => ABOVE_GROUND,
+        "error" | "rng" | "backend" | "data" | "records" => ABOVE_GROUND,
         "model" | "infer" | "control" | "sim" => &[
             "train", "app", "store", "jobs", "api", "cli", "service", "bench",
         ],

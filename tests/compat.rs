@@ -61,6 +61,37 @@ fn models_predict_as_they_did() {
     }
 }
 
+/// Files written today name and order their values as the earlier files do (the names are
+/// the file format; a checkpoint's optimizer state follows the order), and the earlier files
+/// load into today's models.
+#[test]
+fn files_keep_their_value_names_and_order() {
+    use graybox::backend::{Backend, Precision};
+    let device = graybox::backend::device(Backend::Flex, Precision::F32).unwrap();
+    for name in ["mvf", "wb", "naive"] {
+        let old = ModelFile::load(&fixtures().join(format!("{name}.gbx"))).unwrap();
+        let fresh = graybox::model::Model::init(old.config.clone(), None, 7, &device).unwrap();
+        let layout =
+            |arrays: &[graybox::model::params_io::NamedArray]| -> Vec<(String, Vec<usize>)> {
+                arrays
+                    .iter()
+                    .map(|a| (a.name.clone(), a.shape.clone()))
+                    .collect()
+            };
+        assert_eq!(
+            layout(&fresh.params.export()),
+            layout(&old.params),
+            "{name}"
+        );
+        let loaded = old.model(&device).unwrap();
+        assert_eq!(
+            loaded.params.export(),
+            old.params,
+            "{name}: values round trip"
+        );
+    }
+}
+
 #[tokio::test]
 async fn a_job_killed_while_running_resumes_and_finishes() {
     let dir = tempfile::tempdir().unwrap();

@@ -8,7 +8,6 @@ use common::*;
 use graybox::backend::{Backend, Precision, device};
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
-use graybox::model::params_io::export;
 use graybox::model::spec::{ModelSpec, NAMED};
 use graybox::model::templates::Template;
 use graybox::model::{Model, ModelConfig};
@@ -54,7 +53,7 @@ fn build(spec: ModelSpec, n: usize, m: usize, dev: &Device) -> (Model, Evaluator
     cfg.scaling.q_mean = vec![0.1; n];
     cfg.scaling.u_mean = vec![-2.0; m];
     let model = perturb(&Model::init(cfg, None, 3, dev).unwrap(), dev);
-    let file = ModelFile::new(model.config.clone(), export(&model.params), None);
+    let file = ModelFile::new(model.config.clone(), model.params.export(), None);
     let file = ModelFile::from_bytes(&file.to_bytes().unwrap()).unwrap();
     (model, Evaluator::from_file(&file).unwrap())
 }

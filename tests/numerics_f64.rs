@@ -10,7 +10,7 @@ use graybox::backend::{Backend, Precision, device};
 use graybox::model::dynamics::TemplateSystem;
 use graybox::model::integrator::Integrator;
 use graybox::model::mlp::Mlp;
-use graybox::model::params_io::{export, import};
+use graybox::model::params_io::import;
 use graybox::model::spec::ModelSpec;
 use graybox::model::templates::Template;
 use graybox::model::{Model, mass_matrix};
@@ -361,7 +361,7 @@ fn loss_gradients_match_finite_differences() {
             out: vec![],
         };
         m0.params.visit(&mut gc);
-        let arrays = export(&m0.params);
+        let arrays = m0.params.export();
         let mut r = Rng::new(3);
         let mut worst: f64 = 0.0;
         let mut gmax: f64 = 0.0;

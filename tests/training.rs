@@ -10,7 +10,6 @@ use graybox::backend::{Backend, Precision, device};
 use graybox::data::Dataset;
 use graybox::error::Error;
 use graybox::model::file::ModelFile;
-use graybox::model::params_io::export;
 use graybox::model::spec::{ModelSpec, NAMED};
 use graybox::model::templates::Template;
 use graybox::sim::{SimConfig, simulate};
@@ -117,7 +116,10 @@ fn flex_and_ndarray_agree_on_a_training_step() {
         let spec = ModelSpec::named("MVF", None).unwrap();
         let mut trainer = Trainer::new("MVF", spec, &[], &train, None, cfg.clone(), &dev).unwrap();
         let m = trainer.run_epoch(&AtomicBool::new(false)).unwrap();
-        let params: Vec<f64> = export(&trainer.model().params)
+        let params: Vec<f64> = trainer
+            .model()
+            .params
+            .export()
             .into_iter()
             .flat_map(|a| a.values)
             .collect();
@@ -134,7 +136,10 @@ fn flex_and_ndarray_agree_on_a_training_step() {
     // The step moved the parameters: the comparison is not of two initializations.
     let spec = ModelSpec::named("MVF", None).unwrap();
     let fresh = Trainer::new("MVF", spec, &[], &train, None, cfg, &flex()).unwrap();
-    let init: Vec<f64> = export(&fresh.model().params)
+    let init: Vec<f64> = fresh
+        .model()
+        .params
+        .export()
         .into_iter()
         .flat_map(|a| a.values)
         .collect();
@@ -168,8 +173,8 @@ fn resumed_run_equals_uninterrupted_run() {
         resumed.run(&never, |_, _| {}).unwrap();
 
         assert_eq!(
-            export(&full.model().params),
-            export(&resumed.model().params),
+            full.model().params.export(),
+            resumed.model().params.export(),
             "{name}"
         );
         let (a, b) = (full.model_file(), resumed.model_file());

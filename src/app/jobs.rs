@@ -176,9 +176,11 @@ impl App {
 
     /// Refuses a job over the service's limits (422 naming the field and the estimate),
     /// before it is queued.
+    /// The job's size, memory and checkpoint against the service's limits, each refusal
+    /// naming the field to change.
     fn check_job_cost(&self, job: &JobSpec, data: &Dataset, val_count: usize) -> Result<()> {
         let s = &self.settings;
-        let (n, m) = (data.n as usize, data.m as usize);
+        let n = data.n as usize;
         let refuse = |field: &str, message: String| {
             Err(Error::Unprocessable {
                 field: field.into(),
@@ -194,16 +196,7 @@ impl App {
                 ),
             );
         }
-        let count = data.count as usize;
-        // Training samples: a batch larger than the training set is the whole set.
-        let train = if job.validation_dataset_id.is_some() {
-            count
-        } else {
-            count - (count as f64 * job.training.val_fraction) as usize
-        };
-        let batch = job.training.batch_size.min(train.max(1));
-        let physical = job.spec.template().map_or(0, |t| t.params().len());
-        let est = budget::estimate(&job.spec, n, m, batch, count + val_count, physical);
+        let (est, batch) = job_estimate(job, data, val_count);
         if est.params > s.max_model_params {
             return refuse(
                 "model",
@@ -280,8 +273,7 @@ impl App {
 
     /// A job's metrics after `epoch`, in order.
     pub(super) async fn metrics_after(&self, id: &str, epoch: i64) -> Result<Vec<Metric>> {
-        let rows = self.store.metrics(id, epoch).await?;
-        Ok(rows.into_iter().map(Metric::from).collect())
+        self.store.metrics(id, epoch).await
     }
 
     pub async fn cancel_job(&self, id: &str) -> Result<Job> {
@@ -309,6 +301,22 @@ impl App {
         let next = super::paging::next("jobs", &items, size, |j| j.seq);
         Ok((items.into_iter().map(Job::from).collect(), next))
     }
+}
+
+/// The job's estimated cost and its effective batch: a batch larger than the training set is
+/// the whole set.
+fn job_estimate(job: &JobSpec, data: &Dataset, val_count: usize) -> (budget::JobEstimate, usize) {
+    let (n, m) = (data.n as usize, data.m as usize);
+    let count = data.count as usize;
+    let train = if job.validation_dataset_id.is_some() {
+        count
+    } else {
+        count - (count as f64 * job.training.val_fraction) as usize
+    };
+    let batch = job.training.batch_size.min(train.max(1));
+    let physical = job.spec.template().map_or(0, |t| t.params().len());
+    let est = budget::estimate(&job.spec, n, m, batch, count + val_count, physical);
+    (est, batch)
 }
 
 #[cfg(test)]

@@ -31,7 +31,7 @@ impl App {
             return Ok(m);
         }
         match self.store.get_job(id).await? {
-            Some(job) if job.state == JobState::Succeeded => match job.model_id {
+            Some(job) if job.state == JobState::Succeeded => match job.info.model_id {
                 Some(mid) => self.model_row(&mid).await,
                 None => Err(Error::NotFound(format!("model of job {id}"))),
             },

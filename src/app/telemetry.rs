@@ -62,6 +62,13 @@ impl Telemetry {
         for (state, count) in jobs {
             let _ = writeln!(out, "graybox_jobs{{state=\"{}\"}} {count}", state.as_str());
         }
+        self.render_counters(&mut out);
+        self.render_requests(&mut out);
+        self.render_latency(&mut out);
+        out
+    }
+
+    fn render_counters(&self, out: &mut String) {
         let counters = [
             (
                 "graybox_epochs_trained_total",
@@ -83,6 +90,9 @@ impl Telemetry {
             let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} counter");
             let _ = writeln!(out, "{name} {}", value.load(Ordering::Relaxed));
         }
+    }
+
+    fn render_requests(&self, out: &mut String) {
         out.push_str(
             "# HELP graybox_http_requests_total HTTP requests by method, route and status.\n",
         );
@@ -95,32 +105,20 @@ impl Telemetry {
                 escape(route)
             );
         }
-        out.push_str("# HELP graybox_http_request_duration_seconds HTTP request latency.\n");
-        out.push_str("# TYPE graybox_http_request_duration_seconds histogram\n");
+    }
+
+    fn render_latency(&self, out: &mut String) {
+        const NAME: &str = "graybox_http_request_duration_seconds";
+        let _ = writeln!(out, "# HELP {NAME} HTTP request latency.");
+        let _ = writeln!(out, "# TYPE {NAME} histogram");
         for ((method, route), h) in self.latency.lock().expect("telemetry lock").iter() {
             let labels = format!("method=\"{}\",route=\"{}\"", escape(method), escape(route));
             for (b, c) in BUCKETS.iter().zip(h.counts) {
-                let _ = writeln!(
-                    out,
-                    "graybox_http_request_duration_seconds_bucket{{{labels},le=\"{b}\"}} {c}"
-                );
+                let _ = writeln!(out, "{NAME}_bucket{{{labels},le=\"{b}\"}} {c}");
             }
-            let _ = writeln!(
-                out,
-                "graybox_http_request_duration_seconds_bucket{{{labels},le=\"+Inf\"}} {}",
-                h.count
-            );
-            let _ = writeln!(
-                out,
-                "graybox_http_request_duration_seconds_sum{{{labels}}} {}",
-                h.sum
-            );
-            let _ = writeln!(
-                out,
-                "graybox_http_request_duration_seconds_count{{{labels}}} {}",
-                h.count
-            );
+            let _ = writeln!(out, "{NAME}_bucket{{{labels},le=\"+Inf\"}} {}", h.count);
+            let _ = writeln!(out, "{NAME}_sum{{{labels}}} {}", h.sum);
+            let _ = writeln!(out, "{NAME}_count{{{labels}}} {}", h.count);
         }
-        out
     }
 }

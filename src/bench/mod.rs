@@ -197,7 +197,7 @@ fn bench_step(a: BenchStepArgs) -> Result<()> {
         let grads = loss.backward();
         let t2 = Instant::now();
         model.params = adam.step(model.params.clone(), &grads, 1e-3);
-        let _ = crate::model::params_io::export(&model.params);
+        let _ = model.params.export();
         let t3 = Instant::now();
         if i >= 5 {
             fwd += (t1 - t0).as_secs_f64();

@@ -43,17 +43,12 @@ impl Evaluator {
             Pass::Linearize => 2 * n + m,
         };
         let lanes = (n + 1) * (outer + 1);
-        let nets: usize = [
-            &self.mass_net,
-            &self.potential_net,
-            &self.force_net,
-            &self.b_net,
-            &self.naive,
-        ]
-        .into_iter()
-        .flatten()
-        .map(|net| 3 * net.widest() * lanes)
-        .sum();
+        let nets: usize = self
+            .weights
+            .networks()
+            .into_iter()
+            .map(|net| 3 * net.widest() * lanes)
+            .sum();
         let structure = 4 * (n * (n + 1) / 2 + 4 * n * n + n * m) * lanes;
         2 * 8 * (nets + structure)
     }

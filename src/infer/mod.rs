@@ -9,11 +9,12 @@ pub mod col;
 pub mod jet;
 pub mod limits;
 mod nets;
+mod weights;
 
+use jet::Jet;
 pub use nets::Mlp64;
 use nets::{Columns, JetNets, NetOutputs, input_jet};
-
-use std::collections::HashMap;
+use weights::{Components, Forces, Weights};
 
 use col::{Col, Column, Lanes};
 use limits::Pass;
@@ -22,11 +23,10 @@ use crate::control::linalg::Mat;
 use crate::control::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
-use crate::model::assembly::{Structure, Values};
+use crate::model::assembly::Structure;
 use crate::model::dual::Dual;
 use crate::model::dynamics::acceleration;
 use crate::model::file::ModelFile;
-use crate::model::params_io::NamedArray;
 use crate::model::scalar::Scalar;
 use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
 
@@ -41,46 +41,14 @@ const PARALLEL_ROWS: usize = 32;
 #[derive(Debug, Clone)]
 pub struct Evaluator {
     pub config: ModelConfig,
-    mass_net: Option<Mlp64>,
-    mass_const: Option<Vec<f64>>,
-    potential_net: Option<Mlp64>,
-    potential_quad: Option<Vec<f64>>,
-    force_net: Option<Mlp64>,
-    b_net: Option<Mlp64>,
-    b_const: Option<Vec<f64>>,
-    eta: Option<Vec<f64>>,
-    /// Physical values (positive ones already exponentiated).
-    physical: Option<Vec<f64>>,
-    naive: Option<Mlp64>,
+    weights: Weights,
 }
 
 impl Evaluator {
     pub fn from_file(file: &ModelFile) -> Result<Self> {
-        let arrays: HashMap<&str, &NamedArray> =
-            file.params.iter().map(|a| (a.name.as_str(), a)).collect();
-        let flat = |name: &str| arrays.get(name).map(|a| a.values.clone());
-        let physical = match (file.config.template(), flat("physical")) {
-            (Some(t), Some(raw)) => Some(
-                t.params()
-                    .iter()
-                    .zip(raw)
-                    .map(|(info, r)| if info.positive { r.exp() } else { r })
-                    .collect(),
-            ),
-            _ => None,
-        };
         Ok(Self {
             config: file.config.clone(),
-            mass_net: Mlp64::from_arrays(&arrays, "mass_net")?,
-            mass_const: flat("mass_const"),
-            potential_net: Mlp64::from_arrays(&arrays, "potential_net")?,
-            potential_quad: flat("potential_quad"),
-            force_net: Mlp64::from_arrays(&arrays, "force_net")?,
-            b_net: Mlp64::from_arrays(&arrays, "b_net")?,
-            b_const: flat("b_const"),
-            eta: flat("eta"),
-            physical,
-            naive: Mlp64::from_arrays(&arrays, "naive")?,
+            weights: Weights::from_file(file)?,
         })
     }
 
@@ -101,71 +69,53 @@ impl Evaluator {
             let mut v = q_std();
             v.extend(standardize(qd, &sc.qdot_mean, &sc.qdot_std));
             v.extend(standardize(u, &sc.u_mean, &sc.u_std));
-            v
+            input_jet(&v, None, outer)
         };
-        let ModelSpec::Structured {
-            mass,
-            potential,
-            forces,
-            ..
-        } = &self.config.spec
-        else {
-            let out = net(&self.naive).jet(&input_jet(&full(), None, outer));
-            return (0..self.config.n)
-                .map(|j| {
-                    C::read(&out, 0, j)
-                        .scale(sc.acc_std[j])
-                        .shift(sc.acc_mean[j])
-                })
-                .collect();
-        };
-        let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
-        let q_jet = |inner: bool| input_jet(&q_std(), inner.then_some(&inv_std[..]), outer);
-        // M's and V's networks both read q with its ∂/∂q directions: one input jet for both.
-        let (mass_mlp, potential_mlp) = (
-            matches!(mass, MassSpec::Mlp { .. }),
-            matches!(potential, PotentialSpec::Mlp { .. }),
-        );
-        let q_in = (mass_mlp || potential_mlp).then(|| q_jet(true));
-        let q_in = || q_in.as_ref().expect("built when a network reads it");
-        let nets = NetOutputs {
-            mass: mass_mlp.then(|| net(&self.mass_net).jet(q_in())),
-            potential: potential_mlp.then(|| net(&self.potential_net).jet(q_in())),
-            force: match forces {
-                ForceSpec::Mlp { .. } => {
-                    Some(net(&self.force_net).jet(&input_jet(&full(), None, outer)))
-                }
-                ForceSpec::ControlAffine { .. } => Some(net(&self.b_net).jet(&q_jet(false))),
-                _ => None,
-            },
-        };
-        self.structure((mass, potential, forces), &nets, q, qd, u)
+        match (&self.config.spec, &self.weights) {
+            (
+                ModelSpec::Structured {
+                    mass,
+                    potential,
+                    forces,
+                    ..
+                },
+                Weights::Structured(w),
+            ) => {
+                let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
+                let q_jet = |inner: bool| input_jet(&q_std(), inner.then_some(&inv_std[..]), outer);
+                let nets = networks(w, q_jet, full);
+                self.structure((mass, potential, forces), w, &nets, (q, qd, u))
+            }
+            (_, Weights::Naive(net)) => {
+                let out = net.jet(&full());
+                (0..self.config.n)
+                    .map(|j| {
+                        C::read(&out, 0, j)
+                            .scale(sc.acc_std[j])
+                            .shift(sc.acc_mean[j])
+                    })
+                    .collect()
+            }
+            (ModelSpec::Naive { .. }, _) => unreachable!("the weights follow the spec"),
+        }
     }
 
     /// q̈ from the networks' outputs: the structure assembled from the spec (the same
     /// generic code the Burn path trains with), then the manipulator equation.
     fn structure<S: Lanes>(
         &self,
-        parts: Parts,
+        (mass, potential, forces): Parts,
+        w: &Components,
         nets: &NetOutputs,
-        q: &[S],
-        qd: &[S],
-        u: &[S],
+        (q, qd, u): (&[S], &[S], &[S]),
     ) -> Vec<S> {
-        let (mass, potential, forces) = parts;
         let structure = Structure {
             mass,
             potential,
             forces,
             template: self.config.template(),
             scaling: &self.config.scaling,
-            values: Values {
-                mass_const: self.mass_const.as_deref(),
-                potential_quad: self.potential_quad.as_deref(),
-                b_const: self.b_const.as_deref(),
-                eta: self.eta.as_deref(),
-                physical: self.physical.as_deref(),
-            },
+            values: w.values(),
             n: q.len(),
             m: u.len(),
         };
@@ -187,6 +137,24 @@ impl Evaluator {
     }
 }
 
+/// The structured model's networks on a batch. `q_jet(true)` is the standardized q with
+/// its ∂/∂q directions; `full()` the standardized (q, q̇, u).
+fn networks(w: &Components, q_jet: impl Fn(bool) -> Jet, full: impl Fn() -> Jet) -> NetOutputs {
+    let (mass_net, potential_net) = (w.mass_net(), w.potential_net());
+    // M's and V's networks both read q with its ∂/∂q directions: one input jet for both.
+    let q_in = (mass_net.is_some() || potential_net.is_some()).then(|| q_jet(true));
+    let q_in = || q_in.as_ref().expect("built when a network reads it");
+    NetOutputs {
+        mass: mass_net.map(|net| net.jet(q_in())),
+        potential: potential_net.map(|net| net.jet(q_in())),
+        force: match &w.forces {
+            Some(Forces::Net(net)) => Some(net.jet(&full())),
+            Some(Forces::ControlAffine { b_net, .. }) => Some(b_net.jet(&q_jet(false))),
+            _ => None,
+        },
+    }
+}
+
 /// A model can leave its range (states far outside the training data, huge inputs): its
 /// outputs are then not finite, which a controller must hear as an error, not as numbers.
 pub fn finite_rows(field: &str, what: &str, out: &[f64], width: usize) -> Result<()> {
@@ -200,10 +168,6 @@ pub fn finite_rows(field: &str, what: &str, out: &[f64], width: usize) -> Result
             ),
         )),
     }
-}
-
-fn net(n: &Option<Mlp64>) -> &Mlp64 {
-    n.as_ref().expect("the spec's network is in the model file")
 }
 
 /// Row-major `[B, width]` as `width` batch coordinates.

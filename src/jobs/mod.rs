@@ -15,7 +15,8 @@ use crate::app::App;
 use crate::app::jobs::JobSpec;
 use crate::backend::{self, Backend, Precision};
 use crate::error::{Error, Result};
-use crate::store::{Claimed, JobState, Lease, MetricRow, NewModel};
+use crate::records::Metric;
+use crate::store::{Claimed, JobState, Lease, NewModel};
 use crate::train::{TrainState, Trainer};
 
 /// Infrastructure failures (storage errors) a job survives before it is failed.
@@ -195,7 +196,7 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
         }
         let m = trainer.run_epoch(&flags.cancel)?;
         app.telemetry.epochs_trained.fetch_add(1, Ordering::Relaxed);
-        let row = MetricRow {
+        let row = Metric {
             epoch: m.epoch as i64,
             train_loss: m.train_loss,
             val_loss: m.val_loss,

@@ -9,6 +9,7 @@ mod init;
 pub mod integrator;
 pub mod mass_matrix;
 pub mod mlp;
+pub mod params;
 pub mod params_io;
 pub mod report;
 pub mod scalar;
@@ -17,7 +18,7 @@ pub mod spec;
 pub mod templates;
 mod tensors;
 
-use burn::module::{Module, Param};
+use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
@@ -30,8 +31,10 @@ use dual::Dual;
 use dynamics::{Tri, acceleration};
 use integrator::Integrator;
 use mlp::{Mlp, param};
+pub use params::Params;
+use params::{Components, ForceParams, MassParams, PotentialParams, Values as Trainable};
 use scaling::Scaling;
-use spec::{ForceSpec, ModelSpec, PotentialSpec};
+use spec::{ModelSpec, PotentialSpec};
 use templates::{Part, Template};
 pub use tensors::columns;
 
@@ -46,27 +49,6 @@ pub struct ModelConfig {
     /// Weight of the velocity error in the loss.
     pub lambda: f64,
     pub scaling: Scaling,
-}
-
-/// The trainable parameters. Components the spec does not use are `None`. Every tensor is
-/// rank 2 (see `mlp`).
-#[derive(Module, Debug)]
-pub struct Params {
-    pub mass_net: Option<Mlp>,
-    /// Raw entries of a constant L, `[1, n(n+1)/2]`.
-    pub mass_const: Option<Param<Tensor<2>>>,
-    pub potential_net: Option<Mlp>,
-    /// Entries of the symmetric K of ½qᵀKq, `[1, n(n+1)/2]` (row-major lower triangle).
-    pub potential_quad: Option<Param<Tensor<2>>>,
-    pub force_net: Option<Mlp>,
-    pub b_net: Option<Mlp>,
-    /// Constant B, `[1, n·m]` row-major.
-    pub b_const: Option<Param<Tensor<2>>>,
-    /// Damping η, `[1, n]`.
-    pub eta: Option<Param<Tensor<2>>>,
-    /// The template's physical parameters, positive ones as logarithms, `[1, k]`.
-    pub physical: Option<Param<Tensor<2>>>,
-    pub naive: Option<Mlp>,
 }
 
 /// A model bound to a device: config, parameters and the derived constants.
@@ -103,10 +85,9 @@ impl Model {
     ) -> Result<Self> {
         let (n, m) = (config.n, config.m);
         let mut rng = Rng::derive(seed, 0x1_417);
-        let mut p = Params::empty();
-        match &config.spec {
+        let params = match &config.spec {
             ModelSpec::Naive { hidden } => {
-                p.naive = Some(Mlp::init(2 * n + m, hidden, n, &mut rng, device));
+                Params::Naive(Mlp::init(2 * n + m, hidden, n, &mut rng, device))
             }
             ModelSpec::Structured {
                 mass,
@@ -115,17 +96,28 @@ impl Model {
                 template,
             } => {
                 // One rng, drawn in this order (M, V, F): a seed gives the same networks.
-                p.init_mass(mass, n, &mut rng, device);
-                p.init_potential(potential, n, &mut rng, device);
-                p.init_forces(forces, n, m, &mut rng, device);
+                let mass = init::mass(mass, n, &mut rng, device);
+                let potential = init::potential(potential, n, &mut rng, device);
+                let forces = init::forces(forces, n, m, &mut rng, device);
                 // Physical parameters exist only when some part is white-box.
-                if let Some(t) = template.filter(|_| !config.spec.white_box_parts().is_empty()) {
-                    let values = physical.unwrap_or_else(|| t.defaults());
-                    p.physical = Some(param(raw_physical(t, &values)?, [1, values.len()], device));
-                }
+                let physical = match template.filter(|_| !config.spec.white_box_parts().is_empty())
+                {
+                    Some(t) => {
+                        let values = physical.unwrap_or_else(|| t.defaults());
+                        let raw = raw_physical(t, &values)?;
+                        Some(param(raw, [1, values.len()], device))
+                    }
+                    None => None,
+                };
+                Params::Structured(Components {
+                    mass,
+                    potential,
+                    forces,
+                    physical,
+                })
             }
-        }
-        Ok(Self::from_parts(config, p, device))
+        };
+        Ok(Self::from_parts(config, params, device))
     }
 
     pub fn from_parts(config: ModelConfig, params: Params, device: &Device) -> Self {
@@ -154,7 +146,7 @@ impl Model {
     /// later backward pass slows down.
     fn physical(&self, t: Template) -> Vec<Tensor<2>> {
         let raw = self
-            .params
+            .components()
             .physical
             .as_ref()
             .expect("a template model has physical parameters")
@@ -178,6 +170,7 @@ impl Model {
         let t = self.config.template()?;
         let raw: Vec<f64> = self
             .params
+            .components()?
             .physical
             .as_ref()?
             .val()
@@ -200,9 +193,8 @@ impl Model {
 
     /// q̈ for a batch: q, q̇ `[batch, n]`, u `[batch, m]` → `[batch, n]`.
     pub fn accel(&self, q: Tensor<2>, qd: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
-        if let ModelSpec::Naive { .. } = &self.config.spec {
+        if let Params::Naive(net) = &self.params {
             let c = &self.consts;
-            let net = self.params.naive.as_ref().expect("naive net");
             let input = (Tensor::cat(vec![q, qd, u], 1) - c.in_mean.clone()) * c.in_inv_std.clone();
             return net.forward(input) * c.acc_std.clone() + c.acc_mean.clone();
         }
@@ -225,14 +217,14 @@ impl Model {
         else {
             panic!("parts() is for structured models");
         };
-        let p = &self.params;
-        let nets = self.networks(forces, &q, &qd, &u);
-        let value_columns = |t: &Option<Param<Tensor<2>>>| t.as_ref().map(|t| columns(&t.val()));
+        let p = self.components();
+        let nets = self.networks(&q, &qd, &u);
+        let value_columns = |t: Option<&Trainable>| t.map(|t| columns(&t.val()));
         let (mass_const, potential_quad, b_const, eta) = (
-            value_columns(&p.mass_const),
-            value_columns(&p.potential_quad),
-            value_columns(&p.b_const),
-            value_columns(&p.eta),
+            value_columns(p.mass_const()),
+            value_columns(p.potential_quad()),
+            value_columns(p.b_const()),
+            value_columns(p.eta()),
         );
         let physical = template
             .filter(|_| p.physical.is_some())
@@ -264,37 +256,41 @@ impl Model {
 
     /// The structured model's networks on a batch, as columns (M's and V's with their
     /// q-derivatives, in forward mode).
-    fn networks(
-        &self,
-        forces: &ForceSpec,
-        q: &Tensor<2>,
-        qd: &Tensor<2>,
-        u: &Tensor<2>,
-    ) -> BurnNets {
-        let (c, p, n) = (&self.consts, &self.params, self.config.n);
+    fn networks(&self, q: &Tensor<2>, qd: &Tensor<2>, u: &Tensor<2>) -> BurnNets {
+        let (c, p, n) = (&self.consts, self.components(), self.config.n);
         let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
         BurnNets {
-            mass: p.mass_net.as_ref().map(|net| {
-                let (y, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
-                mass_matrix::dual_columns(y, jac)
-            }),
-            potential_grad: p.potential_net.as_ref().map(|net| {
-                let jac = net.jacobian(q_norm(), c.dq_in.clone());
-                columns(&jac.reshape([q.dims()[0], n]))
-            }),
-            force: match forces {
-                ForceSpec::Mlp { .. } => p.force_net.as_ref().map(|net| {
-                    let input = (Tensor::cat(vec![q.clone(), qd.clone(), u.clone()], 1)
-                        - c.in_mean.clone())
-                        * c.in_inv_std.clone();
-                    columns(&net.forward(input))
-                }),
-                ForceSpec::ControlAffine { .. } => {
-                    p.b_net.as_ref().map(|net| columns(&net.forward(q_norm())))
+            mass: match &p.mass {
+                Some(MassParams::Net(net)) => {
+                    let (y, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
+                    Some(mass_matrix::dual_columns(y, jac))
                 }
                 _ => None,
             },
+            potential_grad: match &p.potential {
+                Some(PotentialParams::Net(net)) => {
+                    let jac = net.jacobian(q_norm(), c.dq_in.clone());
+                    Some(columns(&jac.reshape([q.dims()[0], n])))
+                }
+                _ => None,
+            },
+            force: match &p.forces {
+                Some(ForceParams::Net(net)) => {
+                    let input = (Tensor::cat(vec![q.clone(), qd.clone(), u.clone()], 1)
+                        - c.in_mean.clone())
+                        * c.in_inv_std.clone();
+                    Some(columns(&net.forward(input)))
+                }
+                Some(ForceParams::ControlAffine(f)) => Some(columns(&f.b_net.forward(q_norm()))),
+                _ => None,
+            },
         }
+    }
+
+    fn components(&self) -> &Components {
+        self.params
+            .components()
+            .expect("a structured model's parameters are per component")
     }
 
     /// V(q) `[batch, 1]` for a structured model (`None` for a zero potential or the naive
@@ -313,18 +309,18 @@ impl Model {
         match potential {
             PotentialSpec::Zero => None,
             PotentialSpec::Mlp { .. } => {
-                let net = self.params.potential_net.as_ref().expect("potential net");
+                let Some(PotentialParams::Net(net)) = &self.components().potential else {
+                    unreachable!("a network potential has a network");
+                };
                 let q_norm = (q - c.q_mean.clone()) * c.q_inv_std.clone();
                 Some(net.forward(q_norm).mul_scalar(s.potential_scale()))
             }
             PotentialSpec::Quadratic => {
                 // ½ qᵀKq = Σ_i ½ K_ii q_i² + Σ_{i>j} K_ij q_i q_j
-                let k = self
-                    .params
-                    .potential_quad
-                    .as_ref()
-                    .expect("quadratic potential")
-                    .val();
+                let Some(PotentialParams::Quadratic(k)) = &self.components().potential else {
+                    unreachable!("a quadratic potential has its K");
+                };
+                let k = k.val();
                 let cols = columns(&q);
                 let n = cols.len();
                 let terms = (0..n)

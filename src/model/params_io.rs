@@ -10,7 +10,7 @@ use crate::error::{Error, Result};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct NamedArray {
-    /// Module path, e.g. "mass_net.layers.0.weight".
+    /// The value's name in the file, e.g. "mass_net.layers.0.weight" (see `params::names`).
     pub name: String,
     pub shape: Vec<usize>,
     pub values: Vec<f64>,
@@ -38,10 +38,11 @@ impl ModuleVisitor for Exporter {
     }
 }
 
-/// Every float parameter in visiting order (declaration order, deterministic).
-pub fn export<M: Module>(module: &M) -> Vec<NamedArray> {
+/// Every float parameter of `module` in visiting order (declaration order, deterministic),
+/// named `prefix.<path>` (or `prefix` for a lone tensor).
+pub fn export_as<M: Module>(prefix: &str, module: &M) -> Vec<NamedArray> {
     let mut v = Exporter {
-        path: vec![],
+        path: vec![prefix.to_string()],
         out: vec![],
     };
     module.visit(&mut v);

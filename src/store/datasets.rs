@@ -1,6 +1,5 @@
 //! Datasets: canonical arrays stored once, identified by their sha256.
 
-use serde::Serialize;
 use sha2::{Digest, Sha256};
 use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
@@ -8,26 +7,32 @@ use sqlx::sqlite::SqliteRow;
 use super::{Store, new_id, now_rfc3339};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
+use crate::records;
 
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+/// A dataset as stored: the record and its listing key (its arrays are read separately).
+#[derive(Debug, Clone, PartialEq)]
 pub struct DatasetRow {
-    pub id: String,
-    pub name: Option<String>,
-    pub n: i64,
-    pub m: i64,
-    pub dt: f64,
-    pub count: i64,
-    pub sha256: String,
-    pub created_at: String,
-    #[serde(skip)]
+    pub info: records::Dataset,
     pub seq: i64,
+}
+
+impl std::ops::Deref for DatasetRow {
+    type Target = records::Dataset;
+    fn deref(&self) -> &records::Dataset {
+        &self.info
+    }
+}
+
+impl From<DatasetRow> for records::Dataset {
+    fn from(r: DatasetRow) -> Self {
+        r.info
+    }
 }
 
 const COLUMNS: &str = "seq, id, name, n, m, dt, count, sha256, created_at";
 
 fn row(r: &SqliteRow) -> Result<DatasetRow> {
-    Ok(DatasetRow {
-        seq: r.try_get("seq")?,
+    let info = records::Dataset {
         id: r.try_get("id")?,
         name: r.try_get("name")?,
         n: r.try_get("n")?,
@@ -36,6 +41,10 @@ fn row(r: &SqliteRow) -> Result<DatasetRow> {
         count: r.try_get("count")?,
         sha256: r.try_get("sha256")?,
         created_at: r.try_get("created_at")?,
+    };
+    Ok(DatasetRow {
+        info,
+        seq: r.try_get("seq")?,
     })
 }
 

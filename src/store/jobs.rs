@@ -2,80 +2,35 @@
 //! same transaction), listing, cancellation, per-epoch metrics and counts. The worker's side
 //! of the queue is in `queue.rs`.
 
-use serde::Serialize;
 use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
 
 use super::{Store, new_id, now_ms, now_rfc3339, sha256_hex};
 use crate::error::{Error, Result};
+pub use crate::records::JobState;
+use crate::records::{Job, Metric};
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, utoipa::ToSchema)]
-#[serde(rename_all = "snake_case")]
-pub enum JobState {
-    Queued,
-    Running,
-    Succeeded,
-    Failed,
-    Cancelled,
-}
-
-impl JobState {
-    pub const ALL: [JobState; 5] = [
-        JobState::Queued,
-        JobState::Running,
-        JobState::Succeeded,
-        JobState::Failed,
-        JobState::Cancelled,
-    ];
-
-    pub fn as_str(self) -> &'static str {
-        match self {
-            JobState::Queued => "queued",
-            JobState::Running => "running",
-            JobState::Succeeded => "succeeded",
-            JobState::Failed => "failed",
-            JobState::Cancelled => "cancelled",
-        }
-    }
-
-    pub fn parse(s: &str) -> Option<Self> {
-        Self::ALL.into_iter().find(|j| j.as_str() == s)
-    }
-
-    pub fn is_final(self) -> bool {
-        matches!(
-            self,
-            JobState::Succeeded | JobState::Failed | JobState::Cancelled
-        )
-    }
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+/// A job as stored: the record and what only the queue reads.
+#[derive(Debug, Clone, PartialEq)]
 pub struct JobRow {
-    pub id: String,
-    pub state: JobState,
-    /// Last completed epoch, counting from 1 (0 before the first).
-    pub epoch: i64,
-    pub epochs: i64,
-    pub checkpoint_epoch: i64,
-    pub train_loss: Option<f64>,
-    pub val_loss: Option<f64>,
-    pub best_val_loss: Option<f64>,
-    pub attempt: i64,
-    pub error: Option<String>,
-    pub model_id: Option<String>,
-    pub dataset_id: String,
-    pub validation_dataset_id: Option<String>,
-    pub created_at: String,
-    pub started_at: Option<String>,
-    pub finished_at: Option<String>,
-    #[serde(skip)]
+    pub info: Job,
     pub seq: i64,
     /// The normalized submission (JSON).
-    #[serde(skip)]
     pub request: String,
-    #[serde(skip)]
     pub cancel_requested: bool,
+}
+
+impl std::ops::Deref for JobRow {
+    type Target = Job;
+    fn deref(&self) -> &Job {
+        &self.info
+    }
+}
+
+impl From<JobRow> for Job {
+    fn from(r: JobRow) -> Self {
+        r.info
+    }
 }
 
 const COLUMNS: &str = "seq, id, state, epoch, epochs, checkpoint_epoch, train_loss, val_loss, best_val_loss, \
@@ -88,8 +43,7 @@ pub(super) fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
 
 pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {
     let state: String = r.try_get("state")?;
-    Ok(JobRow {
-        seq: r.try_get("seq")?,
+    let info = Job {
         id: r.try_get("id")?,
         state: JobState::parse(&state)
             .ok_or_else(|| Error::Storage(format!("unknown job state {state}")))?,
@@ -107,6 +61,10 @@ pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {
         created_at: r.try_get("created_at")?,
         started_at: r.try_get("started_at")?,
         finished_at: r.try_get("finished_at")?,
+    };
+    Ok(JobRow {
+        info,
+        seq: r.try_get("seq")?,
         request: r.try_get("request")?,
         cancel_requested: r.try_get::<i64, _>("cancel_requested")? != 0,
     })
@@ -125,14 +83,6 @@ pub enum Submitted {
     Created(JobRow),
     /// Same idempotency key, same request: the job created the first time.
     Existing(JobRow),
-}
-
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct MetricRow {
-    pub epoch: i64,
-    pub train_loss: f64,
-    pub val_loss: Option<f64>,
-    pub seconds: f64,
 }
 
 impl Store {
@@ -253,7 +203,7 @@ impl Store {
         }
     }
 
-    pub async fn metrics(&self, job_id: &str, after_epoch: i64) -> Result<Vec<MetricRow>> {
+    pub async fn metrics(&self, job_id: &str, after_epoch: i64) -> Result<Vec<Metric>> {
         let rows = sqlx::query(
             "SELECT epoch, train_loss, val_loss, seconds FROM metrics WHERE job_id = ? AND epoch > ? ORDER BY epoch",
         )
@@ -263,7 +213,7 @@ impl Store {
         .await?;
         rows.iter()
             .map(|r| {
-                Ok(MetricRow {
+                Ok(Metric {
                     epoch: r.try_get("epoch")?,
                     train_loss: r.try_get("train_loss")?,
                     val_loss: r.try_get("val_loss")?,

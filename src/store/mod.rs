@@ -8,7 +8,7 @@ mod models;
 mod queue;
 
 pub use datasets::DatasetRow;
-pub use jobs::{JobRow, JobState, MetricRow, NewJob, Submitted};
+pub use jobs::{JobRow, JobState, NewJob, Submitted};
 pub use models::{ModelRow, NewModel};
 pub use queue::{Claimed, Lease};
 

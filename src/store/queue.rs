@@ -3,9 +3,10 @@
 
 use sqlx::Row;
 
-use super::jobs::{JobRow, JobState, MetricRow, row, sql};
+use super::jobs::{JobRow, JobState, row, sql};
 use super::{Store, now_ms, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
+use crate::records::Metric;
 
 /// A job a worker holds: fenced writes name this attempt and owner.
 #[derive(Debug, Clone)]
@@ -142,7 +143,7 @@ impl Store {
     pub async fn record_epoch(
         &self,
         c: &Claimed,
-        m: &MetricRow,
+        m: &Metric,
         best_val_loss: Option<f64>,
     ) -> Result<bool> {
         let mut tx = self.write().await?;

@@ -38,6 +38,42 @@ fn mlp(d_in: usize, hidden: &[usize], d_out: usize) -> (usize, usize) {
     (params, widths.iter().sum())
 }
 
+/// (params, widths × derivative blocks) per component; M's and V's networks carry their n
+/// q-derivatives (Coriolis term, ∇V), the others only values.
+fn components(spec: &ModelSpec, n: usize, m: usize, physical: usize) -> Vec<(usize, usize)> {
+    let tri = mass_matrix::outputs(n);
+    let with_grad = |(p, w): (usize, usize)| (p, w.saturating_mul(n + 1));
+    let (mass, potential, forces) = match spec {
+        ModelSpec::Naive { hidden } => return vec![mlp(2 * n + m, hidden, n)],
+        ModelSpec::Structured {
+            mass,
+            potential,
+            forces,
+            ..
+        } => (mass, potential, forces),
+    };
+    let mass = match mass {
+        MassSpec::Mlp { hidden } => with_grad(mlp(n, hidden, tri)),
+        MassSpec::Constant => (tri, 0),
+        MassSpec::Template => (0, 0),
+    };
+    let potential = match potential {
+        PotentialSpec::Mlp { hidden } => with_grad(mlp(n, hidden, 1)),
+        PotentialSpec::Quadratic => (tri, 0),
+        PotentialSpec::Template | PotentialSpec::Zero => (0, 0),
+    };
+    let forces = match forces {
+        ForceSpec::Mlp { hidden } => mlp(2 * n + m, hidden, n),
+        ForceSpec::ControlAffine { hidden } => {
+            let (p, w) = mlp(n, hidden, n * m);
+            (p + n, w)
+        }
+        ForceSpec::ConstantAffine => (n * m + n, 0),
+        ForceSpec::Template => (0, 0),
+    };
+    vec![mass, potential, forces, (physical, 0)]
+}
+
 /// The job's cost with `batch` samples per step, `samples` transitions held (training and
 /// validation) and `physical` template parameters. Saturating arithmetic: absurd specs
 /// estimate as `usize::MAX`, never wrap.
@@ -49,41 +85,7 @@ pub fn estimate(
     samples: usize,
     physical: usize,
 ) -> JobEstimate {
-    let tri = mass_matrix::outputs(n);
-    // (params, widths × derivative blocks) per component; M's and V's networks carry their
-    // n q-derivatives (Coriolis term, ∇V), the others only values.
-    let mut parts: Vec<(usize, usize)> = vec![];
-    let with_grad = |(p, w): (usize, usize)| (p, w.saturating_mul(n + 1));
-    match spec {
-        ModelSpec::Naive { hidden } => parts.push(mlp(2 * n + m, hidden, n)),
-        ModelSpec::Structured {
-            mass,
-            potential,
-            forces,
-            ..
-        } => {
-            parts.push(match mass {
-                MassSpec::Mlp { hidden } => with_grad(mlp(n, hidden, tri)),
-                MassSpec::Constant => (tri, 0),
-                MassSpec::Template => (0, 0),
-            });
-            parts.push(match potential {
-                PotentialSpec::Mlp { hidden } => with_grad(mlp(n, hidden, 1)),
-                PotentialSpec::Quadratic => (tri, 0),
-                PotentialSpec::Template | PotentialSpec::Zero => (0, 0),
-            });
-            parts.push(match forces {
-                ForceSpec::Mlp { hidden } => mlp(2 * n + m, hidden, n),
-                ForceSpec::ControlAffine { hidden } => {
-                    let (p, w) = mlp(n, hidden, n * m);
-                    (p + n, w)
-                }
-                ForceSpec::ConstantAffine => (n * m + n, 0),
-                ForceSpec::Template => (0, 0),
-            });
-            parts.push((physical, 0));
-        }
-    }
+    let parts = components(spec, n, m, physical);
     let params = parts.iter().fold(0usize, |a, p| a.saturating_add(p.0));
     let units = parts.iter().fold(0usize, |a, p| a.saturating_add(p.1));
     // The structure per sample: L and ∂L/∂q, the Coriolis products and the solve.

@@ -13,7 +13,7 @@ use super::setup::{TrainConfig, prepare, split_data};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::file::ModelFile;
-use crate::model::params_io::{NamedArray, export, import};
+use crate::model::params_io::{NamedArray, import};
 use crate::model::report::{EpochMetrics, TrainReport, identifiable, used_physical};
 use crate::model::spec::ModelSpec;
 use crate::model::{Model, ModelConfig};
@@ -185,7 +185,7 @@ impl Trainer {
         train: &Dataset,
         val: Option<&Dataset>,
     ) -> Self {
-        let best_params = export(&model.params);
+        let best_params = model.params.export();
         Self {
             model_name: model_name.to_string(),
             model,
@@ -249,7 +249,7 @@ impl Trainer {
             config: self.model.config.clone(),
             train: self.cfg.clone(),
             epoch: self.epoch,
-            params: export(&self.model.params),
+            params: self.model.params.export(),
             adam: self.adam.state(),
             rng: self.rng,
             best_epoch: self.best_epoch,
@@ -325,7 +325,7 @@ impl Trainer {
         if criterion < self.best_loss {
             self.best_loss = criterion;
             self.best_epoch = epoch;
-            self.best_params = export(&self.model.params);
+            self.best_params = self.model.params.export();
             self.stale_epochs = 0;
         } else {
             self.stale_epochs += 1;

@@ -3,7 +3,7 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use graybox::model::integrator::Integrator;
-use graybox::model::params_io::{export, import};
+use graybox::model::params_io::import;
 use graybox::model::scaling::Scaling;
 use graybox::model::spec::ModelSpec;
 use graybox::model::templates::Template;
@@ -143,7 +143,9 @@ pub fn gauss_solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
 /// L) are exercised too.
 pub fn perturb(model: &Model, dev: &Device) -> Model {
     let mut r = Rng::new(99);
-    let arrays: Vec<_> = export(&model.params)
+    let arrays: Vec<_> = model
+        .params
+        .export()
         .into_iter()
         .map(|mut a| {
             for v in &mut a.values {

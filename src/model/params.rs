@@ -1,0 +1,173 @@
+//! A model's trainable values, per component, following its spec: the naive network, or the
+//! mass matrix's, the potential's and the forces' own values plus the template's physical
+//! parameters. A component kind with no values of its own (a template part, a zero potential)
+//! is `None`. Every tensor is rank 2 (see `mlp`).
+//!
+//! Model files and checkpoints name each value (see [`names`]); the names are the file
+//! format's, not Rust paths, so the layout here can change without changing the files.
+//! The visiting order (mass, potential, forces, physical) is the order of the first
+//! releases' fields, which checkpoints' optimizer state follows.
+
+use burn::module::{Module, Param};
+use burn::tensor::Tensor;
+
+use super::mlp::Mlp;
+use super::params_io::{NamedArray, export_as};
+
+/// The file names of a model's values. A network's arrays are `<name>.layers.<i>.weight`
+/// and `<name>.layers.<i>.bias`.
+pub mod names {
+    pub const NAIVE: &str = "naive";
+    pub const MASS_NET: &str = "mass_net";
+    pub const MASS_CONST: &str = "mass_const";
+    pub const POTENTIAL_NET: &str = "potential_net";
+    pub const POTENTIAL_QUAD: &str = "potential_quad";
+    pub const FORCE_NET: &str = "force_net";
+    pub const B_NET: &str = "b_net";
+    pub const B_CONST: &str = "b_const";
+    pub const ETA: &str = "eta";
+    pub const PHYSICAL: &str = "physical";
+}
+
+/// A rank-2 trainable tensor.
+pub type Values = Param<Tensor<2>>;
+
+// A model holds one `Params`, and Burn has no `Module` for `Box`: the size gap costs nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Module, Debug)]
+pub enum Params {
+    /// One network from (q, q̇, u) to q̈.
+    Naive(Mlp),
+    Structured(Components),
+}
+
+#[derive(Module, Debug)]
+pub struct Components {
+    pub mass: Option<MassParams>,
+    pub potential: Option<PotentialParams>,
+    pub forces: Option<ForceParams>,
+    /// The template's physical parameters, positive ones as logarithms, `[1, k]`; present
+    /// when some part is white-box.
+    pub physical: Option<Values>,
+}
+
+#[derive(Module, Debug)]
+pub enum MassParams {
+    /// The raw entries of L(q).
+    Net(Mlp),
+    /// Raw entries of a constant L, `[1, n(n+1)/2]`.
+    Constant(Values),
+}
+
+#[derive(Module, Debug)]
+pub enum PotentialParams {
+    Net(Mlp),
+    /// Entries of the symmetric K of ½qᵀKq, `[1, n(n+1)/2]` (row-major lower triangle).
+    Quadratic(Values),
+}
+
+#[derive(Module, Debug)]
+pub enum ForceParams {
+    /// F(q, q̇, u).
+    Net(Mlp),
+    /// B_θ(q)u + ηq̇.
+    ControlAffine(ControlAffine),
+    /// Bu + ηq̇.
+    ConstantAffine(ConstantAffine),
+}
+
+#[derive(Module, Debug)]
+pub struct ControlAffine {
+    pub b_net: Mlp,
+    /// Damping η, `[1, n]`.
+    pub eta: Values,
+}
+
+#[derive(Module, Debug)]
+pub struct ConstantAffine {
+    /// B, `[1, n·m]` row-major.
+    pub b_const: Values,
+    /// Damping η, `[1, n]`.
+    pub eta: Values,
+}
+
+impl Params {
+    pub fn components(&self) -> Option<&Components> {
+        match self {
+            Params::Structured(c) => Some(c),
+            Params::Naive(_) => None,
+        }
+    }
+
+    /// Every value under its file name, in visiting order (what `params_io::import` reads).
+    pub fn export(&self) -> Vec<NamedArray> {
+        let c = match self {
+            Params::Naive(net) => return export_as(names::NAIVE, net),
+            Params::Structured(c) => c,
+        };
+        let mut out = vec![];
+        match &c.mass {
+            Some(MassParams::Net(net)) => out.extend(export_as(names::MASS_NET, net)),
+            Some(MassParams::Constant(l)) => out.extend(export_as(names::MASS_CONST, l)),
+            None => {}
+        }
+        match &c.potential {
+            Some(PotentialParams::Net(net)) => out.extend(export_as(names::POTENTIAL_NET, net)),
+            Some(PotentialParams::Quadratic(k)) => {
+                out.extend(export_as(names::POTENTIAL_QUAD, k));
+            }
+            None => {}
+        }
+        match &c.forces {
+            Some(ForceParams::Net(net)) => out.extend(export_as(names::FORCE_NET, net)),
+            Some(ForceParams::ControlAffine(f)) => {
+                out.extend(export_as(names::B_NET, &f.b_net));
+                out.extend(export_as(names::ETA, &f.eta));
+            }
+            Some(ForceParams::ConstantAffine(f)) => {
+                out.extend(export_as(names::B_CONST, &f.b_const));
+                out.extend(export_as(names::ETA, &f.eta));
+            }
+            None => {}
+        }
+        if let Some(p) = &c.physical {
+            out.extend(export_as(names::PHYSICAL, p));
+        }
+        out
+    }
+}
+
+impl Components {
+    /// The raw entries of a constant L.
+    pub fn mass_const(&self) -> Option<&Values> {
+        match &self.mass {
+            Some(MassParams::Constant(l)) => Some(l),
+            _ => None,
+        }
+    }
+
+    /// K of a quadratic potential.
+    pub fn potential_quad(&self) -> Option<&Values> {
+        match &self.potential {
+            Some(PotentialParams::Quadratic(k)) => Some(k),
+            _ => None,
+        }
+    }
+
+    /// A constant B.
+    pub fn b_const(&self) -> Option<&Values> {
+        match &self.forces {
+            Some(ForceParams::ConstantAffine(f)) => Some(&f.b_const),
+            _ => None,
+        }
+    }
+
+    /// The damping η of an affine force model.
+    pub fn eta(&self) -> Option<&Values> {
+        match &self.forces {
+            Some(ForceParams::ControlAffine(f)) => Some(&f.eta),
+            Some(ForceParams::ConstantAffine(f)) => Some(&f.eta),
+            _ => None,
+        }
+    }
+}

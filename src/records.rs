@@ -1,0 +1,91 @@
+//! What the service keeps about datasets and jobs, as every layer sees it: the store reads
+//! and writes these records (its rows add keys, leases and blobs around them), the core hands
+//! them to adapters as they are. `JobState` is the queue's vocabulary.
+
+use serde::Serialize;
+
+/// A dataset's metadata.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct Dataset {
+    pub id: String,
+    pub name: Option<String>,
+    pub n: i64,
+    pub m: i64,
+    pub dt: f64,
+    pub count: i64,
+    pub sha256: String,
+    pub created_at: String,
+}
+
+/// A training job and its progress.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct Job {
+    pub id: String,
+    pub state: JobState,
+    /// Last completed epoch, counting from 1 (0 before the first).
+    pub epoch: i64,
+    pub epochs: i64,
+    /// The epoch of the last checkpoint (a job resumes from it after a crash).
+    pub checkpoint_epoch: i64,
+    pub train_loss: Option<f64>,
+    pub val_loss: Option<f64>,
+    pub best_val_loss: Option<f64>,
+    pub attempt: i64,
+    pub error: Option<String>,
+    pub model_id: Option<String>,
+    pub dataset_id: String,
+    pub validation_dataset_id: Option<String>,
+    pub created_at: String,
+    pub started_at: Option<String>,
+    pub finished_at: Option<String>,
+}
+
+/// One epoch's losses.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct Metric {
+    pub epoch: i64,
+    pub train_loss: f64,
+    pub val_loss: Option<f64>,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum JobState {
+    Queued,
+    Running,
+    Succeeded,
+    Failed,
+    Cancelled,
+}
+
+impl JobState {
+    pub const ALL: [JobState; 5] = [
+        JobState::Queued,
+        JobState::Running,
+        JobState::Succeeded,
+        JobState::Failed,
+        JobState::Cancelled,
+    ];
+
+    pub fn as_str(self) -> &'static str {
+        match self {
+            JobState::Queued => "queued",
+            JobState::Running => "running",
+            JobState::Succeeded => "succeeded",
+            JobState::Failed => "failed",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+
+    pub fn parse(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|j| j.as_str() == s)
+    }
+
+    pub fn is_final(self) -> bool {
+        matches!(
+            self,
+            JobState::Succeeded | JobState::Failed | JobState::Cancelled
+        )
+    }
+}
