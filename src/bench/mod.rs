@@ -8,7 +8,10 @@ use std::time::Instant;
 use clap::{Args, Subcommand};
 use serde_json::json;
 
+use burn::tensor::Device;
+
 use crate::backend::{self, Backend, Precision};
+use crate::data::Dataset;
 use crate::error::Result;
 use crate::model::spec::ModelSpec;
 use crate::model::templates::Template;
@@ -88,68 +91,91 @@ fn bench_train(a: BenchTrainArgs) -> Result<()> {
     let train = simulate(t, t.defaults(), &cfg(a.train, a.seed))?;
     let val = simulate(t, t.defaults(), &cfg(a.val, a.seed + 1))?;
     let device = backend::device(a.backend, Precision::F32)?.autodiff();
-    let never = AtomicBool::new(false);
     for model in a.models.split(',').map(str::trim) {
         for bs in a
             .batch_sizes
             .split(',')
             .filter_map(|s| s.trim().parse::<usize>().ok())
         {
-            let spec = ModelSpec::named(model, Some(t))?;
-            let tc = TrainConfig {
-                epochs: a.epochs + 1,
-                batch_size: bs,
-                seed: a.seed,
-                ..TrainConfig::default()
-            };
-            let mut trainer = Trainer::new(model, spec, &[], &train, Some(&val), tc, &device)?;
-            trainer.run_epoch(&never)?; // warm-up: allocations, first-touch
-            let start = Instant::now();
-            for _ in 0..a.epochs {
-                trainer.run_epoch(&never)?;
-            }
-            let secs = start.elapsed().as_secs_f64();
-            let sps = (a.epochs * a.train) as f64 / secs;
-            println!(
-                "{}",
-                json!({"bench": "train_throughput", "model": model, "batch_size": bs, "backend": a.backend,
-                       "samples_per_second": sps, "epoch_seconds": secs / a.epochs as f64,
-                       "note": "epoch time includes validation on the held-out set"})
-            );
+            throughput(&a, model, bs, (&train, &val), &device)?;
         }
     }
     if a.time_limit > 0.0 {
-        let spec = ModelSpec::named("MVF", Some(t))?;
-        let tc = TrainConfig {
-            epochs: 1_000_000,
-            batch_size: a.target_batch_size,
-            lr: a.target_lr,
-            seed: a.seed,
-            ..TrainConfig::default()
-        };
-        let target = 10f64.powf(a.target_log10);
-        let mut trainer = Trainer::new("MVF", spec, &[], &train, Some(&val), tc, &device)?;
-        let start = Instant::now();
-        let mut reached = None;
-        let mut best = f64::INFINITY;
-        while start.elapsed().as_secs_f64() < a.time_limit {
-            let m = trainer.run_epoch(&never)?;
-            let v = m.val_loss.unwrap_or(f64::INFINITY);
-            best = best.min(v);
-            if v <= target {
-                reached = Some((m.epoch, start.elapsed().as_secs_f64()));
-                break;
-            }
-        }
-        println!(
-            "{}",
-            json!({"bench": "time_to_target", "model": "MVF", "target_val_loss": target,
-                   "batch_size": a.target_batch_size, "lr": a.target_lr,
-                   "reached": reached.is_some(), "seconds": reached.map(|r| r.1),
-                   "epochs": reached.map_or(trainer.epoch(), |r| r.0), "best_val_loss": best,
-                   "time_limit": a.time_limit})
-        );
+        time_to_target(&a, (&train, &val), &device)?;
     }
+    Ok(())
+}
+
+/// Training samples per second of `model` at batch size `bs`, after a warm-up epoch.
+fn throughput(
+    a: &BenchTrainArgs,
+    model: &str,
+    bs: usize,
+    (train, val): (&Dataset, &Dataset),
+    device: &Device,
+) -> Result<()> {
+    let spec = ModelSpec::named(model, Some(Template::DoublePendulum))?;
+    let tc = TrainConfig {
+        epochs: a.epochs + 1,
+        batch_size: bs,
+        seed: a.seed,
+        ..TrainConfig::default()
+    };
+    let never = AtomicBool::new(false);
+    let mut trainer = Trainer::new(model, spec, &[], train, Some(val), tc, device)?;
+    trainer.run_epoch(&never)?; // warm-up: allocations, first-touch
+    let start = Instant::now();
+    for _ in 0..a.epochs {
+        trainer.run_epoch(&never)?;
+    }
+    let secs = start.elapsed().as_secs_f64();
+    let sps = (a.epochs * a.train) as f64 / secs;
+    println!(
+        "{}",
+        json!({"bench": "train_throughput", "model": model, "batch_size": bs, "backend": a.backend,
+               "samples_per_second": sps, "epoch_seconds": secs / a.epochs as f64,
+               "note": "epoch time includes validation on the held-out set"})
+    );
+    Ok(())
+}
+
+/// Wall time for MVF to reach the target validation loss, within `a.time_limit` seconds.
+fn time_to_target(
+    a: &BenchTrainArgs,
+    (train, val): (&Dataset, &Dataset),
+    device: &Device,
+) -> Result<()> {
+    let spec = ModelSpec::named("MVF", Some(Template::DoublePendulum))?;
+    let tc = TrainConfig {
+        epochs: 1_000_000,
+        batch_size: a.target_batch_size,
+        lr: a.target_lr,
+        seed: a.seed,
+        ..TrainConfig::default()
+    };
+    let target = 10f64.powf(a.target_log10);
+    let never = AtomicBool::new(false);
+    let mut trainer = Trainer::new("MVF", spec, &[], train, Some(val), tc, device)?;
+    let start = Instant::now();
+    let mut reached = None;
+    let mut best = f64::INFINITY;
+    while start.elapsed().as_secs_f64() < a.time_limit {
+        let m = trainer.run_epoch(&never)?;
+        let v = m.val_loss.unwrap_or(f64::INFINITY);
+        best = best.min(v);
+        if v <= target {
+            reached = Some((m.epoch, start.elapsed().as_secs_f64()));
+            break;
+        }
+    }
+    println!(
+        "{}",
+        json!({"bench": "time_to_target", "model": "MVF", "target_val_loss": target,
+               "batch_size": a.target_batch_size, "lr": a.target_lr,
+               "reached": reached.is_some(), "seconds": reached.map(|r| r.1),
+               "epochs": reached.map_or(trainer.epoch(), |r| r.0), "best_val_loss": best,
+               "time_limit": a.time_limit})
+    );
     Ok(())
 }
 

@@ -7,10 +7,11 @@ use serde_json::{Value, json};
 
 use super::{BATCH, BenchInferArgs, HORIZON, Problem, ROLLOUT, summary, weights};
 use crate::api::grpc::pb::{self, dynamics_client::DynamicsClient};
-use crate::app::Settings;
 use crate::app::datasets::Upload;
 use crate::app::jobs::JobRequest;
+use crate::app::views::Job;
 use crate::app::views::JobState;
+use crate::app::{App, Settings};
 use crate::error::{Error, Result};
 use crate::service::start;
 
@@ -64,15 +65,7 @@ pub(super) async fn over_grpc(
     let app = running.app.clone();
     let body: Value = serde_json::from_str(&data.to_json()).expect("datasets serialize to JSON");
     let (ds, _) = app.upload_dataset(None, Upload::Json(body)).await?;
-    let submit = |epochs: usize| {
-        let req: JobRequest = serde_json::from_value(json!({
-            "dataset_id": ds.id, "model": "MVF", "template": "double_pendulum",
-            "training": {"epochs": epochs, "batch_size": 256}
-        }))
-        .expect("a valid job request");
-        app.submit_job(req, None)
-    };
-    let (job, _) = submit(1).await?;
+    let (job, _) = submit(&app, &ds.id, 1).await?;
     let model = wait_for(&app, &job.id, |s| s == JobState::Succeeded).await?;
     let model = model.model_id.expect("a succeeded job has a model");
     let url = format!("http://{}", running.grpc_addr);
@@ -88,16 +81,48 @@ pub(super) async fn over_grpc(
     })
     .await
     .expect("client thread")?;
-    let predict1 = predict_one(&model, p);
 
-    // Concurrent clients, each on its own connection, while a long training job runs.
-    let (train_job, _) = submit(1_000_000).await?;
+    let (train_job, _) = submit(&app, &ds.id, 1_000_000).await?;
     wait_for(&app, &train_job.id, |s| s == JobState::Running).await?;
+    let (lat, secs) = concurrent(&url, predict_one(&model, p), a).await?;
+    let still_training = app.job(&train_job.id).await?.state == JobState::Running;
+    let rps = lat.len() as f64 / secs;
+    println!(
+        "{}",
+        summary(
+            "grpc_predict_1_concurrent",
+            lat,
+            json!({"clients": a.clients, "requests_per_second": rps, "seconds": secs,
+                   "training_job_running": still_training}),
+        )
+    );
+    app.cancel_job(&train_job.id).await?;
+    running.shutdown().await;
+    Ok(())
+}
+
+/// An MVF job on the dataset for `epochs` epochs.
+async fn submit(app: &App, dataset: &str, epochs: usize) -> Result<(Job, bool)> {
+    let req: JobRequest = serde_json::from_value(json!({
+        "dataset_id": dataset, "model": "MVF", "template": "double_pendulum",
+        "training": {"epochs": epochs, "batch_size": 256}
+    }))
+    .expect("a valid job request");
+    app.submit_job(req, None).await
+}
+
+/// Concurrent clients, each on its own connection, calling Predict for `a.seconds`: every
+/// call's latency (µs) and the seconds it took.
+async fn concurrent(
+    url: &str,
+    req: pb::PredictRequest,
+    a: &BenchInferArgs,
+) -> Result<(Vec<f64>, f64)> {
     let until = Instant::now() + Duration::from_secs_f64(a.seconds);
     let mut tasks = vec![];
     for _ in 0..a.clients {
-        let mut c = connect(&url).await?;
-        let req = predict1.clone();
+        let mut c = connect(url).await?;
+        let req = req.clone();
         tasks.push(tokio::spawn(async move {
             let mut lat = vec![];
             while Instant::now() < until {
@@ -113,21 +138,7 @@ pub(super) async fn over_grpc(
     for t in tasks {
         all.extend(t.await.expect("client task").map_err(status)?);
     }
-    let secs = started.elapsed().as_secs_f64();
-    let still_training = app.job(&train_job.id).await?.state == JobState::Running;
-    let rps = all.len() as f64 / secs;
-    println!(
-        "{}",
-        summary(
-            "grpc_predict_1_concurrent",
-            all,
-            json!({"clients": a.clients, "requests_per_second": rps, "seconds": secs,
-                   "training_job_running": still_training}),
-        )
-    );
-    app.cancel_job(&train_job.id).await?;
-    running.shutdown().await;
-    Ok(())
+    Ok((all, started.elapsed().as_secs_f64()))
 }
 
 async fn connect(url: &str) -> Result<DynamicsClient<tonic::transport::Channel>> {
@@ -147,42 +158,62 @@ fn predict_one(model: &str, p: &Problem) -> pb::PredictRequest {
 }
 
 /// The one-client figures: each RPC timed call by call.
+/// The sequential benchmark's requests.
+struct Requests {
+    predict1: pb::PredictRequest,
+    predict_b: pb::PredictRequest,
+    rollout: pb::RolloutRequest,
+    linearize: pb::LinearizeRequest,
+    tvlqr: pb::TvlqrRequest,
+}
+
+fn requests(model: &str, p: &Problem) -> Requests {
+    let (q, r, qf) = weights();
+    Requests {
+        predict1: predict_one(model, p),
+        predict_b: pb::PredictRequest {
+            model_id: model.to_string(),
+            x: arr(&[BATCH, 4], &p.xb),
+            u: arr(&[BATCH, 2], &p.ub),
+            ..Default::default()
+        },
+        rollout: pb::RolloutRequest {
+            model_id: model.to_string(),
+            x0: p.x1.clone(),
+            inputs: Some(pb::rollout_request::Inputs::U(pb::Array {
+                shape: vec![ROLLOUT as u64, 2],
+                data: p.u500.clone(),
+            })),
+            chunk: ROLLOUT as u64 + 1,
+            ..Default::default()
+        },
+        linearize: pb::LinearizeRequest {
+            model_id: model.to_string(),
+            x: arr(&[1, 4], &p.x1),
+            u: arr(&[1, 2], &p.u1),
+            ..Default::default()
+        },
+        tvlqr: pb::TvlqrRequest {
+            model_id: model.to_string(),
+            x_bar: arr(&[HORIZON + 1, 4], &p.xbar),
+            u_bar: arr(&[HORIZON, 2], &p.ubar),
+            q: arr(&[4, 4], &q.data),
+            r: arr(&[2, 2], &r.data),
+            qf: arr(&[4, 4], &qf.data),
+            ..Default::default()
+        },
+    }
+}
+
 async fn sequential(url: &str, model: &str, calls: usize, p: &Problem) -> Result<()> {
     let c = connect(url).await?;
-
-    let predict1 = predict_one(model, p);
-    let predict_b = pb::PredictRequest {
-        model_id: model.to_string(),
-        x: arr(&[BATCH, 4], &p.xb),
-        u: arr(&[BATCH, 2], &p.ub),
-        ..Default::default()
-    };
-    let rollout = pb::RolloutRequest {
-        model_id: model.to_string(),
-        x0: p.x1.clone(),
-        inputs: Some(pb::rollout_request::Inputs::U(pb::Array {
-            shape: vec![ROLLOUT as u64, 2],
-            data: p.u500.clone(),
-        })),
-        chunk: ROLLOUT as u64 + 1,
-        ..Default::default()
-    };
-    let linearize = pb::LinearizeRequest {
-        model_id: model.to_string(),
-        x: arr(&[1, 4], &p.x1),
-        u: arr(&[1, 2], &p.u1),
-        ..Default::default()
-    };
-    let (q, r, qf) = weights();
-    let tv = pb::TvlqrRequest {
-        model_id: model.to_string(),
-        x_bar: arr(&[HORIZON + 1, 4], &p.xbar),
-        u_bar: arr(&[HORIZON, 2], &p.ubar),
-        q: arr(&[4, 4], &q.data),
-        r: arr(&[2, 2], &r.data),
-        qf: arr(&[4, 4], &qf.data),
-        ..Default::default()
-    };
+    let Requests {
+        predict1,
+        predict_b,
+        rollout,
+        linearize,
+        tvlqr: tv,
+    } = requests(model, p);
     let few = (calls / 10).max(20);
     let note = json!({"transport": "gRPC round trip on loopback, one client"});
     let fig = |name: &str, v: Vec<f64>, target: f64| {
