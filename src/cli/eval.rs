@@ -1,0 +1,75 @@
+//! `graybox eval` and `graybox inspect`: a model file's loss on a dataset, and what it holds.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use serde_json::json;
+
+use crate::backend::{self, Backend, Precision};
+use crate::data::Dataset;
+use crate::error::Result;
+use crate::model::file::ModelFile;
+use crate::model::report::{identifiable, used_physical};
+use crate::train::trainer::evaluate;
+
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    #[arg(long)]
+    pub model: PathBuf,
+    #[arg(long)]
+    pub data: PathBuf,
+    #[arg(long)]
+    pub dt: Option<f64>,
+    #[arg(long, value_enum, default_value_t = Backend::Flex)]
+    pub backend: Backend,
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    pub precision: Precision,
+}
+
+#[derive(Args, Debug)]
+pub struct InspectArgs {
+    #[arg(long)]
+    pub model: PathBuf,
+}
+
+pub(super) fn eval(a: EvalArgs) -> Result<()> {
+    let file = ModelFile::load(&a.model)?;
+    let data = Dataset::load(&a.data, a.dt)?;
+    let device = backend::device(a.backend, a.precision)?;
+    let model = file.model(&device)?;
+    let loss = evaluate(&model, &data)?;
+    println!("{}", json!({"loss": loss, "count": data.count()}));
+    Ok(())
+}
+
+pub(super) fn inspect(a: InspectArgs) -> Result<()> {
+    let file = ModelFile::load(&a.model)?;
+    let c = &file.config;
+    let mut out = json!({
+        "spec": c.spec,
+        "n": c.n,
+        "m": c.m,
+        "dt": c.dt,
+        "integrator": c.integrator,
+        "lambda": c.lambda,
+        "scaling": c.scaling,
+        "parameters": file.params.iter().map(|p| p.values.len()).sum::<usize>(),
+    });
+    if let Some(t) = c.template() {
+        let device = backend::device(Backend::Flex, Precision::F32)?;
+        let values = file.model(&device)?.physical_values().unwrap_or_default();
+        let parts = c.spec.white_box_parts();
+        out["template"] = json!(t.name());
+        out["physical_parameters"] = json!(used_physical(t, &parts, &values));
+        out["identifiable"] = json!(identifiable(t, &parts, &values));
+    }
+    if let Some(r) = &file.report {
+        out["training"] = json!({
+            "model": r.model, "epochs": r.epochs, "best_epoch": r.best_epoch,
+            "train_loss": r.train_loss, "val_loss": r.val_loss, "best_val_loss": r.best_val_loss,
+            "seconds": r.seconds,
+        });
+    }
+    println!("{}", serde_json::to_string_pretty(&out).expect("json"));
+    Ok(())
+}

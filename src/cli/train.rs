@@ -1,0 +1,186 @@
+//! `graybox train`: train a model on a dataset file and write the best-validation model file,
+//! with progress on stderr.
+
+use std::io::IsTerminal;
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use clap::Args;
+
+use crate::backend::{self, Backend, Precision};
+use crate::data::Dataset;
+use crate::error::{Error, Result};
+use crate::model::file::write_atomic;
+use crate::model::integrator::Integrator;
+use crate::model::spec::ModelSpec;
+use crate::model::templates::Template;
+use crate::sim::parse_pairs;
+use crate::train::{TrainConfig, Trainer};
+
+#[derive(Args, Debug)]
+pub struct TrainArgs {
+    /// Dataset (JSON, or CSV with --dt).
+    #[arg(long)]
+    pub data: PathBuf,
+    /// Δt of a CSV dataset.
+    #[arg(long)]
+    pub dt: Option<f64>,
+    /// One of MVF, MVB, MV, VB, MB, M, V, B, F, W-B, naive (default MVF unless --spec).
+    #[arg(long)]
+    pub model: Option<String>,
+    /// A JSON model spec file instead of a named model.
+    #[arg(long, conflicts_with = "model")]
+    pub spec: Option<PathBuf>,
+    /// Template for the white-box parts: double_pendulum, pendulum, cartpole.
+    #[arg(long)]
+    pub template: Option<String>,
+    /// Initial physical values, e.g. m1=13,l2=0.8.
+    #[arg(long)]
+    pub init: Option<String>,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[arg(long, default_value_t = 500)]
+    pub epochs: usize,
+    #[arg(long, default_value_t = 256)]
+    pub batch_size: usize,
+    #[arg(long, default_value_t = 1e-3)]
+    pub lr: f64,
+    #[arg(long, default_value_t = 1.0)]
+    pub lambda: f64,
+    /// Validation dataset (else --val-fraction of --data is held out).
+    #[arg(long)]
+    pub val_data: Option<PathBuf>,
+    #[arg(long, default_value_t = 0.2)]
+    pub val_fraction: f64,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// rk4, euler or midpoint.
+    #[arg(long, default_value = "rk4")]
+    pub integrator: String,
+    /// Early stopping after this many epochs without improvement.
+    #[arg(long)]
+    pub patience: Option<usize>,
+    #[arg(long, value_enum, default_value_t = Backend::Flex)]
+    pub backend: Backend,
+    #[arg(long, value_enum, default_value_t = Precision::F32)]
+    pub precision: Precision,
+    /// Write the training report (JSON) here as well as to stdout.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+pub(super) fn train(a: TrainArgs) -> Result<()> {
+    let template = a.template.as_deref().map(Template::parse).transpose()?;
+    let (name, spec) = match &a.spec {
+        Some(path) => {
+            let text = std::fs::read_to_string(path).map_err(|e| {
+                Error::invalid("spec", format!("cannot read {}: {e}", path.display()))
+            })?;
+            ("custom".to_string(), ModelSpec::parse(&text, template)?)
+        }
+        None => {
+            let name = a.model.clone().unwrap_or_else(|| "MVF".into());
+            let spec = ModelSpec::named(&name, template)?;
+            (name, spec)
+        }
+    };
+    let init = parse_pairs(a.init.as_deref().unwrap_or(""), "init")?;
+    let integrator = Integrator::from_name(&a.integrator).ok_or_else(|| {
+        Error::invalid(
+            "integrator",
+            format!(
+                "unknown integrator '{}'; expected rk4, euler or midpoint",
+                a.integrator
+            ),
+        )
+    })?;
+    let cfg = TrainConfig {
+        epochs: a.epochs,
+        batch_size: a.batch_size,
+        lr: a.lr,
+        lambda: a.lambda,
+        val_fraction: a.val_fraction,
+        seed: a.seed,
+        integrator,
+        patience: a.patience,
+    };
+    let data = Dataset::load(&a.data, a.dt)?;
+    let val = a
+        .val_data
+        .as_deref()
+        .map(|p| Dataset::load(p, a.dt))
+        .transpose()?;
+    let device = backend::device(a.backend, a.precision)?.autodiff();
+    let mut trainer = Trainer::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?;
+    let progress = Progress::new(a.epochs as u64);
+    trainer.run(&AtomicBool::new(false), |m, _| progress.epoch(m))?;
+    progress.finish();
+    let file = trainer.model_file();
+    file.save(&a.out)?;
+    let report =
+        serde_json::to_string_pretty(file.report.as_ref().expect("trained files carry a report"))
+            .expect("reports serialize");
+    if let Some(path) = &a.report {
+        write_atomic(path, report.as_bytes())?;
+    }
+    println!("{report}");
+    Ok(())
+}
+
+/// A progress bar on a terminal; otherwise one line per epoch, at most one a second.
+struct Progress {
+    bar: Option<indicatif::ProgressBar>,
+    last_line: std::cell::Cell<Option<Instant>>,
+    total: u64,
+}
+
+impl Progress {
+    fn new(total: u64) -> Self {
+        let bar = std::io::stderr().is_terminal().then(|| {
+            let b = indicatif::ProgressBar::new(total);
+            b.set_style(
+                indicatif::ProgressStyle::with_template(
+                    "{elapsed_precise} [{bar:30}] epoch {pos}/{len} {msg}",
+                )
+                .expect("valid template")
+                .progress_chars("=> "),
+            );
+            b
+        });
+        Self {
+            bar,
+            last_line: std::cell::Cell::new(None),
+            total,
+        }
+    }
+
+    fn epoch(&self, m: &crate::model::report::EpochMetrics) {
+        let msg = match m.val_loss {
+            Some(v) => format!("train {:.4e} val {:.4e}", m.train_loss, v),
+            None => format!("train {:.4e}", m.train_loss),
+        };
+        match &self.bar {
+            Some(b) => {
+                b.set_position(m.epoch as u64);
+                b.set_message(msg);
+            }
+            None => {
+                let due = self
+                    .last_line
+                    .get()
+                    .is_none_or(|t| t.elapsed().as_secs_f64() >= 1.0);
+                if due || m.epoch as u64 == self.total {
+                    eprintln!("epoch {}/{} {msg} ({:.2}s)", m.epoch, self.total, m.seconds);
+                    self.last_line.set(Some(Instant::now()));
+                }
+            }
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(b) = &self.bar {
+            b.finish();
+        }
+    }
+}
