@@ -30,17 +30,23 @@ pub struct TlsFiles {
     pub key: std::path::PathBuf,
 }
 
+/// The certificate chain in a PEM file (at least one certificate).
+pub fn certificates(path: &Path) -> Result<Vec<CertificateDer<'static>>> {
+    let certs = CertificateDer::pem_file_iter(path)
+        .and_then(|it| it.collect::<std::result::Result<Vec<_>, _>>())
+        .map_err(|e| Error::invalid("tls_cert", format!("cannot read {}: {e}", path.display())))?;
+    if certs.is_empty() {
+        return Err(Error::invalid("tls_cert", "the file has no certificate"));
+    }
+    Ok(certs)
+}
+
 /// A TLS acceptor for `files`, offering the ALPN protocols given (gRPC needs "h2").
 pub fn acceptor(files: &TlsFiles, alpn: &[&[u8]]) -> Result<TlsAcceptor> {
     let bad = |field: &str, path: &Path, e: &dyn std::fmt::Display| {
         Error::invalid(field, format!("cannot read {}: {e}", path.display()))
     };
-    let certs = CertificateDer::pem_file_iter(&files.cert)
-        .and_then(|it| it.collect::<std::result::Result<Vec<_>, _>>())
-        .map_err(|e| bad("tls_cert", &files.cert, &e))?;
-    if certs.is_empty() {
-        return Err(Error::invalid("tls_cert", "the file has no certificate"));
-    }
+    let certs = certificates(&files.cert)?;
     let key =
         PrivateKeyDer::from_pem_file(&files.key).map_err(|e| bad("tls_key", &files.key, &e))?;
     let provider = Arc::new(tokio_rustls::rustls::crypto::ring::default_provider());

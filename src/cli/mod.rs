@@ -6,11 +6,13 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 mod eval;
+mod health;
 mod serve;
 mod simulate;
 mod train;
 
 pub use eval::{EvalArgs, InspectArgs};
+pub use health::HealthArgs;
 pub use serve::ServeArgs;
 pub use simulate::SimulateArgs;
 pub use train::TrainArgs;
@@ -40,6 +42,8 @@ pub enum Command {
     Inspect(InspectArgs),
     /// Run the service: REST, gRPC and training workers over one SQLite file.
     Serve(ServeArgs),
+    /// Exit 0 if the service on this machine is ready (for container health checks).
+    Health(HealthArgs),
     /// Benchmarks (figures for the issues' targets).
     #[command(subcommand)]
     Bench(crate::bench::BenchCommand),
@@ -56,10 +60,15 @@ pub fn main() -> ExitCode {
                 .unwrap_or_else(|_| "warn,graybox=info".into()),
         )
         .init();
+    // A container health check reads 1 as unhealthy (2 is reserved there).
+    let health = matches!(cli.command, Command::Health(_));
     match run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
+            if health {
+                return ExitCode::FAILURE;
+            }
             ExitCode::from(match e {
                 Error::Invalid { .. }
                 | Error::Unprocessable { .. }
@@ -86,6 +95,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Eval(a) => eval::eval(a),
         Command::Inspect(a) => eval::inspect(a),
         Command::Serve(a) => serve::serve(a),
+        Command::Health(a) => health::health(a),
         Command::Bench(b) => crate::bench::run(b),
     }
 }

@@ -3,6 +3,7 @@ nothing), calls too large to answer, streams nobody reads, inputs far outside th
 data and shapes that overflow. The tests needing special flags start their own server."""
 
 import datetime
+import os
 import http.client
 import ipaddress
 import socket
@@ -215,6 +216,42 @@ def test_tls_for_rest_and_grpc_and_silent_connections_block_nobody(tls_server):
         urllib.request.urlopen(f"https://127.0.0.1:{s.http_port}/healthz",
                                context=ssl.create_default_context(), timeout=10).close()
     assert isinstance(e.value.reason, ssl.SSLCertVerificationError), e.value
+
+
+def health(graybox_bin, http, cert=None):
+    """`graybox health` as a container runs it: configured by the service's own variables."""
+    env = {k: v for k, v in os.environ.items() if not k.startswith("GRAYBOX_")}
+    env["GRAYBOX_HTTP"] = http
+    if cert is not None:
+        env["GRAYBOX_TLS_CERT"] = str(cert)
+    return subprocess.run([graybox_bin, "health"], env=env, capture_output=True, text=True,
+                          timeout=30)
+
+
+def test_health_check_follows_the_address_and_tls(graybox_bin, tls_server, tmp_path):
+    s, cert, _ = tls_server
+    ok = health(graybox_bin, f"0.0.0.0:{s.http_port}", cert)
+    assert ok.returncode == 0 and ok.stdout.strip() == "ready", ok
+    # Another certificate than the service's: refused (exit 1, the unhealthy code).
+    other_dir = tmp_path / "other"
+    other_dir.mkdir()
+    other, _ = self_signed(other_dir)
+    bad = health(graybox_bin, f"127.0.0.1:{s.http_port}", other)
+    assert bad.returncode == 1 and "certificate" in bad.stderr, bad
+    # Plain HTTP against the TLS port: unhealthy, not a hang.
+    plain = health(graybox_bin, f"127.0.0.1:{s.http_port}")
+    assert plain.returncode == 1, plain
+    # Nothing listening.
+    with socket.socket() as sock:
+        sock.bind(("127.0.0.1", 0))
+        free = sock.getsockname()[1]
+    gone = health(graybox_bin, f"127.0.0.1:{free}")
+    assert gone.returncode == 1 and gone.stderr.startswith("error:"), gone
+
+
+def test_health_check_without_tls(graybox_bin, server):
+    ok = health(graybox_bin, server.rest.base.removeprefix("http://"))
+    assert ok.returncode == 0 and ok.stdout.strip() == "ready", ok
 
 
 # --- c. memory of oversized calls -----------------------------------------------------------
