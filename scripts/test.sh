@@ -7,6 +7,22 @@ cd "$(dirname "$0")/.."
 
 cargo test --release --locked "$@"
 
+# The README's run command must reuse this build: with the dev-dependencies' features declared
+# on the normal ones (Cargo.toml), a plain release build now compiles nothing.
+stale=$(cargo build --release --locked --message-format=json 2>/dev/null | python3 -c '
+import json, sys
+for line in sys.stdin:
+    m = json.loads(line)
+    if m.get("reason") == "compiler-artifact" and not m["fresh"]:
+        print(m["package_id"].rsplit("#", 1)[-1], m["target"]["name"])
+')
+if [ -n "$stale" ]; then
+  echo "error: after the tests, cargo build --release recompiled (features differ between" >&2
+  echo "the test and the plain build; declare them on the normal dependencies):" >&2
+  echo "$stale" >&2
+  exit 1
+fi
+
 if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
   venv=${GRAYBOX_VENV:-.venv}
   if [ ! -x "$venv/bin/python" ]; then

@@ -2,7 +2,7 @@
 //! and writes these records (its rows add keys, leases and blobs around them), the core hands
 //! them to adapters as they are. `JobState` is the queue's vocabulary.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// A dataset's metadata.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
@@ -15,6 +15,29 @@ pub struct Dataset {
     pub count: i64,
     pub sha256: String,
     pub created_at: String,
+    /// What the sanity checks at upload found (see README, "Dataset warnings").
+    pub warnings: Vec<Warning>,
+}
+
+/// Something in the data or in a training run a person should look at. Warnings never block.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct Warning {
+    /// A stable identifier, e.g. `coordinate_span`.
+    pub code: String,
+    /// What it concerns, e.g. `q[0]` (coordinate 0 of q), when it is one field.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub field: Option<String>,
+    pub message: String,
+}
+
+impl Warning {
+    pub fn new(code: &str, field: Option<String>, message: String) -> Self {
+        Self {
+            code: code.to_string(),
+            field,
+            message,
+        }
+    }
 }
 
 /// A training job and its progress.
@@ -25,7 +48,9 @@ pub struct Job {
     /// Last completed epoch, counting from 1 (0 before the first).
     pub epoch: i64,
     pub epochs: i64,
-    /// The epoch of the last checkpoint (a job resumes from it after a crash).
+    /// The epoch of the last checkpoint: a job resumes from it after a crash. Checkpoints are
+    /// taken every `--checkpoint-every` epochs (10) before the last (the finished model is
+    /// stored whole instead), so a finished 20-epoch job says 10.
     pub checkpoint_epoch: i64,
     pub train_loss: Option<f64>,
     pub val_loss: Option<f64>,
@@ -38,6 +63,9 @@ pub struct Job {
     pub created_at: String,
     pub started_at: Option<String>,
     pub finished_at: Option<String>,
+    /// The training checks' findings, set when the job finishes (see README, "Training
+    /// warnings").
+    pub warnings: Vec<Warning>,
 }
 
 /// One epoch's losses.

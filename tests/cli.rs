@@ -1,6 +1,5 @@
 //! The `graybox` binary end to end: simulate → train → eval → inspect, and its errors.
 
-use std::path::Path;
 use std::process::{Command, Output};
 
 fn graybox(args: &[&str]) -> Output {
@@ -86,7 +85,12 @@ fn simulate_train_eval_inspect() {
     }
     assert_eq!(report["epochs"], 3);
     assert!(report["physical_parameters"]["m1"].as_f64().unwrap() > 0.0);
-    assert!(Path::new(&r).exists());
+    // stdout is the report without the per-epoch history; --report has it all.
+    assert!(report.get("history").is_none(), "{report}");
+    let full: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&r).unwrap()).unwrap();
+    assert_eq!(full["history"].as_array().map(Vec::len), Some(3));
+    assert_eq!(full["best_val_loss"], report["best_val_loss"]);
     let eval = json(&graybox(&["eval", "--model", &m, "--data", &v]));
     assert_eq!(eval["count"], 32);
     let best = report["best_val_loss"].as_f64().unwrap();

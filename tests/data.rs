@@ -25,9 +25,9 @@ fn json_round_trip() {
         },
     )
     .unwrap();
-    let back = Dataset::from_json(&ds.to_json()).unwrap();
+    let back = Dataset::from_json(&ds.to_json(), None).unwrap();
     assert_eq!(ds, back);
-    let g = Dataset::from_json(GOOD).unwrap();
+    let g = Dataset::from_json(GOOD, None).unwrap();
     assert_eq!((g.n, g.m, g.count()), (2, 1, 2));
 }
 
@@ -36,7 +36,7 @@ fn csv_matches_json() {
     let csv = "q0,q1,qdot0,qdot1,u0,q_next0,q_next1,qdot_next0,qdot_next1\n0,1,0,0,1,0,1,0,0\n2,3,1,1,2,2,3,1,1\n";
     assert_eq!(
         Dataset::from_csv(csv, 0.01).unwrap(),
-        Dataset::from_json(GOOD).unwrap()
+        Dataset::from_json(GOOD, None).unwrap()
     );
 }
 
@@ -98,7 +98,7 @@ fn bad_files_name_the_field() {
     ];
     assert!(cases.len() >= 8);
     for (what, text, field) in cases {
-        let err = Dataset::from_json(&text).expect_err(what);
+        let err = Dataset::from_json(&text, None).expect_err(what);
         let msg = err.to_string();
         assert_eq!(field_of(err), field, "{what}: {msg}");
     }
@@ -154,4 +154,75 @@ fn split_is_seeded_and_disjoint() {
     assert_eq!((t1.count(), v1.count()), (40, 10));
     assert_eq!((&t1, &v1), (&t2, &v2));
     assert!(v1.q.iter().all(|q| !t1.q.contains(q)));
+}
+
+/// Δt from the file or from the caller (--dt, ?dt=): either alone works, both must agree.
+#[test]
+fn dt_from_the_file_or_the_caller_never_contradicting() {
+    let without = GOOD.replace(r#""dt":0.01,"#, "");
+    let ds = Dataset::from_json(&without, Some(0.02)).unwrap();
+    assert_eq!(ds.dt, 0.02);
+    assert_eq!(Dataset::from_json(GOOD, Some(0.01)).unwrap().dt, 0.01);
+    let err = Dataset::from_json(GOOD, Some(0.02)).unwrap_err();
+    let msg = err.to_string();
+    assert_eq!(field_of(err), "dt");
+    assert!(msg.contains("0.01") && msg.contains("0.02"), "{msg}");
+    let msg = Dataset::from_json(&without, None).unwrap_err().to_string();
+    assert!(msg.contains("--dt"), "the error says how to give it: {msg}");
+}
+
+/// The trajectory form is a dataset file too (`graybox train --data`), with --dt when it has
+/// no dt of its own.
+#[test]
+fn trajectory_files_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("traj.json");
+    std::fs::write(
+        &path,
+        r#"{"trajectories": [{"q": [[0.0], [0.1], [0.2]], "qdot": [[1.0], [1.0], [1.1]], "u": [[0.5], [0.4]]}]}"#,
+    )
+    .unwrap();
+    let ds = Dataset::load(&path, Some(0.1)).unwrap();
+    assert_eq!((ds.count(), ds.n, ds.m, ds.dt), (2, 1, 1, 0.1));
+    assert_eq!(ds.q_next, [0.1, 0.2]);
+    assert_eq!(ds.qdot_next, [1.0, 1.1]);
+    let err = Dataset::load(&path, None).unwrap_err();
+    assert_eq!(field_of(err), "dt");
+}
+
+/// The sanity checks stay silent on the paper's data (every template, default sampling) and
+/// fire on the same data in degrees (README, "Dataset warnings").
+#[test]
+fn paper_data_raises_no_warnings_and_degrees_do() {
+    for t in [
+        Template::DoublePendulum,
+        Template::Pendulum,
+        Template::Cartpole,
+    ] {
+        let ds = simulate(t, t.defaults(), &SimConfig::default()).unwrap();
+        assert_eq!(ds.warnings(), [], "{t:?}");
+        let mut deg = ds.clone();
+        // The angles (all of q for the pendulums, θ for the cart-pole) to degrees.
+        let angles: Vec<usize> = match t {
+            Template::Cartpole => vec![1],
+            _ => (0..ds.n).collect(),
+        };
+        for a in [
+            &mut deg.q,
+            &mut deg.qdot,
+            &mut deg.q_next,
+            &mut deg.qdot_next,
+        ] {
+            for (k, v) in a.iter_mut().enumerate() {
+                if angles.contains(&(k % ds.n)) {
+                    *v = v.to_degrees();
+                }
+            }
+        }
+        let codes: Vec<String> = deg.warnings().into_iter().map(|w| w.code).collect();
+        assert!(
+            codes.contains(&"coordinate_span".to_string()),
+            "{t:?}: {codes:?}"
+        );
+    }
 }

@@ -445,6 +445,8 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
         let report = trainer.report();
         let best = report.best_val_loss.unwrap();
         assert!(best < 1e-5, "seed {seed}: best validation loss {best}");
+        // A good run on the paper's data raises no training warning.
+        assert_eq!(report.warnings, [], "seed {seed}");
         for (got, want) in report.identifiable.iter().zip(&truth) {
             assert_eq!(got.name, want.name);
             let rel = (got.value - want.value).abs() / want.value.abs();

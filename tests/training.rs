@@ -277,3 +277,22 @@ fn early_stopping_keeps_the_best_epoch() {
             .all(|h| h.val_loss.unwrap() >= best)
     );
 }
+
+/// The silent bad run of issue 11: the paper's data with its angles in degrees, trained W-B.
+/// It "succeeds", but its report (and so the job) carries warnings that say why not to trust it.
+#[test]
+fn a_run_on_degrees_warns() {
+    let mut ds = data(Template::DoublePendulum, 256, 5);
+    for a in [&mut ds.q, &mut ds.qdot, &mut ds.q_next, &mut ds.qdot_next] {
+        a.iter_mut().for_each(|v| *v = v.to_degrees());
+    }
+    assert!(!ds.warnings().is_empty(), "the data's own checks fire too");
+    let spec = ModelSpec::named("W-B", Some(Template::DoublePendulum)).unwrap();
+    let mut t = Trainer::new("W-B", spec, &[], &ds, None, quick(6), &flex()).unwrap();
+    t.run(&AtomicBool::new(false), |_, _| {}).unwrap();
+    let codes: Vec<String> = t.report().warnings.into_iter().map(|w| w.code).collect();
+    assert!(
+        codes.contains(&"no_better_than_zero_acceleration".to_string()),
+        "{codes:?}"
+    );
+}

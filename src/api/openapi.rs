@@ -9,11 +9,12 @@ use utoipa::openapi::{
 };
 use utoipa::{OpenApi as _, ToSchema};
 
+use crate::app::datasets::Uploaded;
 use crate::app::jobs::JobRequest;
-use crate::app::views::{Dataset, Job, JobState, Metric};
+use crate::app::views::{Dataset, Job, JobState, Metric, Warning};
 
 #[derive(utoipa::OpenApi)]
-#[openapi(components(schemas(Dataset, Job, JobState, Metric, JobRequest)))]
+#[openapi(components(schemas(Dataset, Job, JobState, Metric, JobRequest, Uploaded, Warning)))]
 struct Components;
 
 /// One route: method, path, summary, request schema, parameters ("?name" for query ones).

@@ -1,6 +1,5 @@
 //! Dataset uploads in the three accepted forms, validated and deduplicated by content.
 
-use serde::Deserialize;
 use serde_json::Value;
 
 use super::App;
@@ -8,66 +7,21 @@ use super::views::Dataset as DatasetView;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 
-/// One trajectory: T+1 states and T inputs.
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct Trajectory {
-    q: Vec<Vec<f64>>,
-    qdot: Vec<Vec<f64>>,
-    u: Vec<Vec<f64>>,
-}
-
-/// What a POST /v1/datasets body was.
+/// What a POST /v1/datasets body was, with the Δt given beside it (`?dt=`).
 pub enum Upload {
-    Json(Value),
+    Json { value: Value, dt: Option<f64> },
     Csv { text: String, dt: Option<f64> },
 }
 
-/// Trajectories `{"dt", "trajectories": [{"q", "qdot", "u"}]}` → transitions (x_t, u_t, x_{t+1}).
-fn from_trajectories(value: &Value) -> Result<Dataset> {
-    let dt = value
-        .get("dt")
-        .ok_or_else(|| Error::invalid("dt", "is required"))?
-        .as_f64()
-        .ok_or_else(|| Error::invalid("dt", "must be a number"))?;
-    let trajs = value["trajectories"]
-        .as_array()
-        .ok_or_else(|| Error::invalid("trajectories", "must be an array of {q, qdot, u}"))?;
-    let mut fields: [Vec<Value>; 5] = Default::default();
-    for (k, t) in trajs.iter().enumerate() {
-        let tr: Trajectory = serde_json::from_value(t.clone()).map_err(|e| {
-            Error::invalid(
-                format!("trajectories[{k}]"),
-                format!("expected {{q, qdot, u}} arrays of number rows: {e}"),
-            )
-        })?;
-        let steps = tr.u.len();
-        if tr.q.len() != steps + 1 || tr.qdot.len() != steps + 1 {
-            return Err(Error::invalid(
-                format!("trajectories[{k}]"),
-                format!(
-                    "needs T+1 states for T inputs: q has {}, qdot {}, u {}",
-                    tr.q.len(),
-                    tr.qdot.len(),
-                    steps
-                ),
-            ));
-        }
-        for t in 0..steps {
-            let push = |f: &mut Vec<Value>, r: &Vec<f64>| f.push(Value::from(r.clone()));
-            push(&mut fields[0], &tr.q[t]);
-            push(&mut fields[1], &tr.qdot[t]);
-            push(&mut fields[2], &tr.u[t]);
-            push(&mut fields[3], &tr.q[t + 1]);
-            push(&mut fields[4], &tr.qdot[t + 1]);
-        }
-    }
-    let mut obj = serde_json::Map::new();
-    obj.insert("dt".into(), Value::from(dt));
-    for (name, f) in crate::data::FIELDS.iter().zip(fields) {
-        obj.insert((*name).into(), Value::Array(f));
-    }
-    Dataset::from_json_value(&Value::Object(obj))
+/// An upload's outcome: the stored dataset, whether this upload created it, and a note when
+/// it did not do all it asked (the data was already stored under another name).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
+pub struct Uploaded {
+    #[serde(flatten)]
+    pub dataset: DatasetView,
+    pub created: bool,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
 }
 
 /// Names are shown to people in listings and logs: at most 200 characters (not bytes), and
@@ -97,28 +51,19 @@ pub fn check_name(name: &str) -> Result<()> {
 impl App {
     /// Validates and stores a dataset; the same arrays again return the stored one
     /// (`created = false`).
-    pub async fn upload_dataset(
-        &self,
-        name: Option<String>,
-        upload: Upload,
-    ) -> Result<(DatasetView, bool)> {
+    pub async fn upload_dataset(&self, name: Option<String>, upload: Upload) -> Result<Uploaded> {
         let (ds, body_name) = match upload {
             Upload::Csv { text, dt } => {
                 let dt = dt.ok_or_else(|| Error::invalid("dt", "a CSV upload needs ?dt="))?;
                 (Dataset::from_csv(&text, dt)?, None)
             }
-            Upload::Json(value) => {
+            Upload::Json { value, dt } => {
                 let body_name = match value.get("name") {
                     None | Some(Value::Null) => None,
                     Some(Value::String(s)) => Some(s.clone()),
                     Some(_) => return Err(Error::invalid("name", "must be a string")),
                 };
-                let ds = if value.get("trajectories").is_some() {
-                    from_trajectories(&value)?
-                } else {
-                    Dataset::from_json_value(&value)?
-                };
-                (ds, body_name)
+                (Dataset::from_json_value(&value, dt)?, body_name)
             }
         };
         let name = name.or(body_name);
@@ -126,7 +71,23 @@ impl App {
             check_name(n)?;
         }
         let (row, created) = self.store.insert_dataset(name.as_deref(), &ds).await?;
-        Ok((row.into(), created))
+        let dataset: DatasetView = row.into();
+        let note = match (&name, &dataset.name) {
+            (Some(asked), stored) if !created && stored.as_ref() != Some(asked) => Some(format!(
+                "this data was already stored as {}{}; the name '{asked}' was not applied \
+                 (a dataset is identified by its arrays)",
+                dataset.id,
+                stored
+                    .as_ref()
+                    .map_or(" without a name".to_string(), |s| format!(" named '{s}'"))
+            )),
+            _ => None,
+        };
+        Ok(Uploaded {
+            dataset,
+            created,
+            note,
+        })
     }
 
     pub async fn dataset(&self, id: &str) -> Result<DatasetView> {

@@ -5,7 +5,7 @@
 use serde::Serialize;
 use serde_json::{Value, json};
 
-pub use crate::records::{Dataset, Job, JobState, Metric};
+pub use crate::records::{Dataset, Job, JobState, Metric, Warning};
 use crate::store::ModelRow;
 
 /// A trained model: the one projection REST and gRPC both serve.
@@ -41,6 +41,7 @@ impl From<ModelRow> for Model {
             "samples_per_second": report["samples_per_second"],
             "physical_parameters": report["physical_parameters"],
             "identifiable": report["identifiable"],
+            "warnings": report.get("warnings").cloned().unwrap_or_else(|| json!([])),
         });
         Self {
             id: m.id,

@@ -20,10 +20,11 @@ use crate::train::{TrainConfig, Trainer};
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
-    /// Dataset (JSON, or CSV with --dt).
+    /// Dataset: JSON transitions or trajectories, or CSV (README, "Dataset files").
     #[arg(long)]
     pub data: PathBuf,
-    /// Δt of a CSV dataset.
+    /// Δt in seconds, for data files without one (CSV, or JSON without "dt"); a file's own dt
+    /// that disagrees is an error.
     #[arg(long)]
     pub dt: Option<f64>,
     /// One of MVF, MVB, MV, VB, MB, M, V, B, F, W-B, naive (default MVF unless --spec).
@@ -65,7 +66,8 @@ pub struct TrainArgs {
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
     pub precision: Precision,
-    /// Write the training report (JSON) here as well as to stdout.
+    /// Write the full training report (JSON, with the per-epoch history) here; stdout gets
+    /// the report without the history.
     #[arg(long)]
     pub report: Option<PathBuf>,
 }
@@ -105,12 +107,8 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
         integrator,
         patience: a.patience,
     };
-    let data = Dataset::load(&a.data, a.dt)?;
-    let val = a
-        .val_data
-        .as_deref()
-        .map(|p| Dataset::load(p, a.dt))
-        .transpose()?;
+    let data = load(&a.data, a.dt)?;
+    let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;
     let device = backend::device(a.backend, a.precision)?.autodiff();
     let mut trainer = Trainer::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?;
     let progress = Progress::new(a.epochs as u64);
@@ -118,14 +116,32 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
     progress.finish();
     let file = trainer.model_file();
     file.save(&a.out)?;
-    let report =
-        serde_json::to_string_pretty(file.report.as_ref().expect("trained files carry a report"))
-            .expect("reports serialize");
+    let report = file.report.as_ref().expect("trained files carry a report");
     if let Some(path) = &a.report {
-        write_atomic(path, report.as_bytes())?;
+        let full = serde_json::to_string_pretty(report).expect("reports serialize");
+        write_atomic(path, full.as_bytes())?;
     }
-    println!("{report}");
+    for w in &report.warnings {
+        eprintln!("warning: {}", w.message);
+    }
+    let mut summary = serde_json::to_value(report).expect("reports serialize");
+    if let Some(obj) = summary.as_object_mut() {
+        obj.remove("history");
+    }
+    println!(
+        "{}",
+        serde_json::to_string_pretty(&summary).expect("reports serialize")
+    );
     Ok(())
+}
+
+/// A dataset file, with its sanity warnings on stderr.
+fn load(path: &std::path::Path, dt: Option<f64>) -> Result<Dataset> {
+    let ds = Dataset::load(path, dt)?;
+    for w in ds.warnings() {
+        eprintln!("warning: {}: {}", path.display(), w.message);
+    }
+    Ok(ds)
 }
 
 /// A progress bar on a terminal; otherwise one line per epoch, at most one a second.

@@ -269,6 +269,7 @@ async fn store_model(
 ) -> Result<Option<String>> {
     let file = trainer.model_file();
     let report = file.report.as_ref().expect("trained files carry a report");
+    let warnings = serde_json::to_string(&report.warnings).expect("json");
     let report = serde_json::to_string(report).expect("json");
     let spec_json = serde_json::to_string(&file.config.spec).expect("json");
     let model = NewModel {
@@ -279,6 +280,7 @@ async fn store_model(
         spec: &spec_json,
         report: &report,
         file: &file.to_bytes()?,
+        warnings: &warnings,
     };
     app.store.finish_job(c, model).await
 }

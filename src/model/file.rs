@@ -82,25 +82,26 @@ impl ModelFile {
     }
 }
 
-/// Write to a temporary file, fsync, rename over the target: a crash leaves the old file or the
-/// new one, never half of one.
+/// Write to a temporary file beside the target, fsync, rename over the target: a crash leaves
+/// the old file or the new one, never half of one; a failed write leaves no temporary file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let dir = path
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        path.file_name().and_then(|s| s.to_str()).unwrap_or("out"),
-        std::process::id()
-    ));
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".graybox-").suffix(".tmp");
+    #[cfg(unix)]
     {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
+        // Readable like any file the user writes (a temporary file would be 0600).
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o644));
     }
-    std::fs::rename(&tmp, path)?;
+    let mut tmp = builder.tempfile_in(dir)?;
+    tmp.write_all(bytes)?;
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
     if let Ok(d) = std::fs::File::open(dir) {
         let _ = d.sync_all();
     }

@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 
 use crate::model::spec::ModelSpec;
 use crate::model::templates::{Part, Template};
+use crate::records::Warning;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct EpochMetrics {
@@ -44,6 +45,9 @@ pub struct TrainReport {
     pub physical_parameters: BTreeMap<String, f64>,
     pub identifiable: Vec<Identified>,
     pub history: Vec<EpochMetrics>,
+    /// The training checks' findings (`train::warnings`); absent in earlier files.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<Warning>,
 }
 
 /// The parameters that the white-box parts use, by name.

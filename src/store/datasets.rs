@@ -29,7 +29,7 @@ impl From<DatasetRow> for records::Dataset {
     }
 }
 
-const COLUMNS: &str = "seq, id, name, n, m, dt, count, sha256, created_at";
+const COLUMNS: &str = "seq, id, name, n, m, dt, count, sha256, created_at, warnings";
 
 fn row(r: &SqliteRow) -> Result<DatasetRow> {
     let info = records::Dataset {
@@ -41,6 +41,7 @@ fn row(r: &SqliteRow) -> Result<DatasetRow> {
         count: r.try_get("count")?,
         sha256: r.try_get("sha256")?,
         created_at: r.try_get("created_at")?,
+        warnings: super::warnings(r)?,
     };
     Ok(DatasetRow {
         info,
@@ -109,8 +110,8 @@ impl Store {
             return Ok((row(&r)?, false));
         }
         let r = sqlx::query(sql(
-            "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at)
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+            "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at, warnings)
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
         ))
         .bind(new_id("ds"))
         .bind(name)
@@ -121,6 +122,7 @@ impl Store {
         .bind(ds.count() as i64)
         .bind(blob)
         .bind(now_rfc3339())
+        .bind(serde_json::to_string(&ds.warnings()).expect("warnings serialize"))
         .fetch_one(&mut *tx)
         .await?;
         tx.commit().await?;

@@ -35,7 +35,7 @@ impl From<JobRow> for Job {
 
 const COLUMNS: &str = "seq, id, state, epoch, epochs, checkpoint_epoch, train_loss, val_loss, best_val_loss, \
     attempt, error, model_id, dataset_id, validation_dataset_id, created_at, started_at, finished_at, \
-    request, cancel_requested";
+    request, cancel_requested, warnings";
 
 pub(super) fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::with_columns(s, COLUMNS)
@@ -61,6 +61,7 @@ pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {
         created_at: r.try_get("created_at")?,
         started_at: r.try_get("started_at")?,
         finished_at: r.try_get("finished_at")?,
+        warnings: super::warnings(r)?,
     };
     Ok(JobRow {
         info,

@@ -66,6 +66,13 @@ fn with_columns(sql: &'static str, columns: &'static str) -> sqlx::AssertSqlSafe
     sqlx::AssertSqlSafe(sql.replace("{COLUMNS}", columns))
 }
 
+/// A row's `warnings` column (a JSON array).
+fn warnings(r: &sqlx::sqlite::SqliteRow) -> Result<Vec<crate::records::Warning>> {
+    use sqlx::Row;
+    let text: String = r.try_get("warnings")?;
+    serde_json::from_str(&text).map_err(|e| Error::Storage(format!("warnings column: {e}")))
+}
+
 pub fn new_id(prefix: &str) -> String {
     format!("{prefix}_{}", uuid::Uuid::new_v4().simple())
 }

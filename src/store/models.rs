@@ -55,6 +55,8 @@ pub struct NewModel<'a> {
     pub spec: &'a str,
     pub report: &'a str,
     pub file: &'a [u8],
+    /// The training checks' findings (JSON), recorded on the job.
+    pub warnings: &'a str,
 }
 
 impl Store {
@@ -65,11 +67,12 @@ impl Store {
         let model_id = new_id("mdl");
         let updated = fenced(
             sqlx::query(sqlx::AssertSqlSafe(format!(
-                "UPDATE jobs SET state = 'succeeded', model_id = ?, finished_at = ?, lease_owner = NULL,
-                    lease_expires_ms = NULL WHERE {FENCE}"
+                "UPDATE jobs SET state = 'succeeded', model_id = ?, finished_at = ?, warnings = ?,
+                    lease_owner = NULL, lease_expires_ms = NULL WHERE {FENCE}"
             )))
             .bind(&model_id)
-            .bind(now_rfc3339()),
+            .bind(now_rfc3339())
+            .bind(m.warnings),
             c,
         )
         .execute(&mut *tx)

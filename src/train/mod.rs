@@ -5,6 +5,7 @@ pub mod adam;
 pub mod budget;
 pub mod setup;
 pub mod trainer;
+pub mod warnings;
 
 pub use setup::TrainConfig;
 pub use trainer::{TrainState, Trainer};

@@ -2,6 +2,7 @@
 //! validation, early stopping that keeps the best-validation parameters, and checkpoints at
 //! epoch boundaries from which a resumed run equals an uninterrupted one.
 
+use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -10,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::adam::{Adam, AdamState};
 use super::setup::{TrainConfig, prepare, split_data};
+use super::warnings::{RunSummary, training_warnings, zero_acceleration_loss};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::file::ModelFile;
@@ -39,6 +41,10 @@ pub struct TrainState {
     pub samples_seen: u64,
     /// Identifies the training and validation data, so that a resume on other data fails.
     pub data_fingerprint: u64,
+    /// The used physical values at the start, for the training checks (absent in
+    /// checkpoints of earlier versions: that check is then skipped).
+    #[serde(default)]
+    pub initial_physical: Option<BTreeMap<String, f64>>,
 }
 
 impl TrainState {
@@ -139,6 +145,20 @@ pub struct Trainer {
     train_seconds: f64,
     samples_seen: u64,
     fingerprint: u64,
+    /// The zero-acceleration loss on the set that picks the best epoch (validation, else
+    /// training), for the training checks.
+    baseline: f64,
+    initial_physical: Option<BTreeMap<String, f64>>,
+}
+
+/// The physical values the model's white-box parts use, by name.
+fn used_physical_values(model: &Model) -> Option<BTreeMap<String, f64>> {
+    let t = model.config.template()?;
+    Some(used_physical(
+        t,
+        &model.white_box_parts(),
+        &model.physical_values()?,
+    ))
 }
 
 /// FNV-1a over the bits of every value, train then validation.
@@ -186,6 +206,8 @@ impl Trainer {
         val: Option<&Dataset>,
     ) -> Self {
         let best_params = model.params.export();
+        let baseline = zero_acceleration_loss(val.unwrap_or(train), model.config.lambda);
+        let initial_physical = used_physical_values(&model);
         Self {
             model_name: model_name.to_string(),
             model,
@@ -203,6 +225,8 @@ impl Trainer {
             stale_epochs: 0,
             train_seconds: 0.0,
             samples_seen: 0,
+            baseline,
+            initial_physical,
         }
     }
 
@@ -240,6 +264,7 @@ impl Trainer {
         t.stale_epochs = state.stale_epochs;
         t.train_seconds = state.train_seconds;
         t.samples_seen = state.samples_seen;
+        t.initial_physical = state.initial_physical;
         Ok(t)
     }
 
@@ -260,6 +285,7 @@ impl Trainer {
             train_seconds: self.train_seconds,
             samples_seen: self.samples_seen,
             data_fingerprint: self.fingerprint,
+            initial_physical: self.initial_physical.clone(),
         }
     }
 
@@ -381,7 +407,20 @@ impl Trainer {
             physical_parameters,
             identifiable: ident,
             history: self.history.clone(),
+            warnings: self.warnings(),
         }
+    }
+
+    /// The training checks on the run so far.
+    fn warnings(&self) -> Vec<crate::records::Warning> {
+        let physical = used_physical_values(&self.model).unwrap_or_default();
+        training_warnings(&RunSummary {
+            history: &self.history,
+            best_loss: self.best_loss,
+            baseline: self.baseline,
+            initial_physical: self.initial_physical.as_ref(),
+            physical: &physical,
+        })
     }
 
     /// The best parameters as a model file, with the report.

@@ -151,3 +151,81 @@ async fn dataset_in_use_cannot_be_deleted() {
     assert_eq!(app.get(&format!("/v1/datasets/{ds}")).await.0, 404);
     app.stop().await;
 }
+
+/// What a person gets from an upload: CSV recognised without its content type, ?dt= for a
+/// JSON body without one (and a contradiction refused), a note when a name is not applied,
+/// and the sanity warnings with the dataset.
+#[tokio::test]
+async fn uploads_say_what_happened() {
+    let app = spawn_app(0).await;
+    let csv = "q0,qdot0,u0,q_next0,qdot_next0\n0.1,0.2,1.0,0.102,0.19\n0.3,0.0,-1.0,0.3,-0.01\n";
+    // curl --data-binary sends application/x-www-form-urlencoded.
+    let r = app
+        .client
+        .post(app.url("/v1/datasets?dt=0.01"))
+        .header("content-type", "application/x-www-form-urlencoded")
+        .body(csv)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    // Declared JSON but CSV inside: the error says how to send CSV.
+    let r = app
+        .client
+        .post(app.url("/v1/datasets?dt=0.01"))
+        .header("content-type", "application/json")
+        .body(csv)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 400);
+    let e: Value = r.json().await.unwrap();
+    assert!(
+        e["error"]["message"].as_str().unwrap().contains("text/csv"),
+        "{e}"
+    );
+
+    let mut body = dataset(16, 3);
+    body.as_object_mut().unwrap().remove("dt");
+    let (s, e) = app.post("/v1/datasets", &body).await;
+    assert_eq!((s, e["error"]["field"].as_str()), (400, Some("dt")), "{e}");
+    let (s, d) = app.post("/v1/datasets?name=first&dt=0.01", &body).await;
+    assert_eq!(
+        (s, &d["dt"], &d["created"]),
+        (201, &json!(0.01), &json!(true)),
+        "{d}"
+    );
+    assert!(d.get("note").is_none(), "{d}");
+    let (s, e) = app.post("/v1/datasets?dt=0.02", &dataset(16, 3)).await;
+    assert_eq!((s, e["error"]["field"].as_str()), (400, Some("dt")), "{e}");
+
+    // The same arrays under another name: the stored record, and a note saying so.
+    let (s, again) = app.post("/v1/datasets?name=second&dt=0.01", &body).await;
+    assert_eq!(
+        (s, &again["id"], &again["name"]),
+        (200, &d["id"], &json!("first"))
+    );
+    assert_eq!(again["created"], false);
+    let note = again["note"].as_str().unwrap();
+    assert!(
+        note.contains("'second'") && note.contains("'first'"),
+        "{note}"
+    );
+    // The same name again: nothing to say.
+    let (_, same) = app.post("/v1/datasets?name=first&dt=0.01", &body).await;
+    assert!(same.get("note").is_none(), "{same}");
+
+    // Angles in degrees: stored, with a warning naming the coordinate (also on GET).
+    let deg = json!({"dt": 0.01, "q": [[0.0], [90.0], [-170.0]], "qdot": [[0.0], [5.0], [1.0]],
+                     "u": [[0.0], [0.0], [0.0]], "q_next": [[0.0], [90.05], [-169.99]],
+                     "qdot_next": [[0.0], [5.0], [1.0]]});
+    let (s, d) = app.post("/v1/datasets", &deg).await;
+    assert_eq!(s, 201, "{d}");
+    assert_eq!(d["warnings"][0]["code"], "coordinate_span", "{d}");
+    assert_eq!(d["warnings"][0]["field"], "q[0]", "{d}");
+    let (_, got) = app
+        .get(&format!("/v1/datasets/{}", d["id"].as_str().unwrap()))
+        .await;
+    assert_eq!(got["warnings"], d["warnings"]);
+    app.stop().await;
+}

@@ -278,3 +278,41 @@ async fn metrics_are_prometheus_text() {
     assert!(doc["paths"]["/v1/jobs"].is_object());
     app.stop().await;
 }
+
+/// A job whose run went nowhere still succeeds, and says so: its warnings are on the job and
+/// in the model's metrics (the data's own warnings on the dataset).
+#[tokio::test]
+async fn a_job_on_degrees_succeeds_with_warnings() {
+    let app = spawn_app(1).await;
+    let mut body = dataset(256, 7);
+    for field in ["q", "qdot", "q_next", "qdot_next"] {
+        for row in body[field].as_array_mut().unwrap() {
+            for v in row.as_array_mut().unwrap() {
+                *v = json!(v.as_f64().unwrap().to_degrees());
+            }
+        }
+    }
+    let (s, ds) = app.post("/v1/datasets", &body).await;
+    assert_eq!(s, 201, "{ds}");
+    assert!(!ds["warnings"].as_array().unwrap().is_empty(), "{ds}");
+    let (s, job) = app
+        .post("/v1/jobs", &job_body(ds["id"].as_str().unwrap(), "W-B", 6))
+        .await;
+    assert_eq!(s, 201, "{job}");
+    let job = app
+        .wait_job(job["id"].as_str().unwrap(), 120, final_state)
+        .await;
+    assert_eq!(job["state"], "succeeded", "{job}");
+    let codes: Vec<&str> = job["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w["code"].as_str().unwrap())
+        .collect();
+    assert!(codes.contains(&"no_better_than_zero_acceleration"), "{job}");
+    let (_, model) = app
+        .get(&format!("/v1/models/{}", job["model_id"].as_str().unwrap()))
+        .await;
+    assert_eq!(model["metrics"]["warnings"], job["warnings"], "{model}");
+    app.stop().await;
+}

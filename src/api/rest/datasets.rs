@@ -16,6 +16,25 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/datasets/{id}", get(read).delete(remove))
 }
 
+/// The body's format: `content-type: text/csv` is CSV and `application/json` JSON; any other
+/// (curl's `--data-binary` sends `application/x-www-form-urlencoded`) is told by its first
+/// character: `{` is JSON, anything else CSV.
+fn is_csv(headers: &HeaderMap, body: &[u8]) -> bool {
+    let ct = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("");
+    if ct.starts_with("text/csv") {
+        return true;
+    }
+    if ct.starts_with("application/json") {
+        return false;
+    }
+    body.iter()
+        .find(|b| !b.is_ascii_whitespace())
+        .is_some_and(|&b| b != b'{')
+}
+
 async fn upload(
     State(s): State<RestState>,
     params: Params,
@@ -23,31 +42,29 @@ async fn upload(
     body: Result<Bytes, BytesRejection>,
 ) -> ApiResult<impl IntoResponse> {
     let limit = s.app.settings.max_body_bytes();
-    let csv = headers
-        .get(header::CONTENT_TYPE)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|ct| ct.starts_with("text/csv"));
-    let upload = if csv {
-        let bytes = body.map_err(|_| ApiError::too_large(limit))?;
+    let dt = float_param(&params, "dt")?;
+    let bytes = body.map_err(|_| ApiError::too_large(limit))?;
+    let upload = if is_csv(&headers, &bytes) {
         let text = String::from_utf8(bytes.to_vec())
             .map_err(|_| ApiError::bad_request("body", "CSV must be UTF-8"))?;
-        Upload::Csv {
-            text,
-            dt: float_param(&params, "dt")?,
-        }
+        Upload::Csv { text, dt }
     } else {
-        Upload::Json(json_body(body, limit)?)
+        let value = json_body(Ok(bytes), limit).map_err(|mut e| {
+            e.message += "; a CSV upload is sent with content-type: text/csv (and ?dt=)";
+            e
+        })?;
+        Upload::Json { value, dt }
     };
-    let (row, created) = s
+    let uploaded = s
         .app
         .upload_dataset(params.get("name").cloned(), upload)
         .await?;
-    let status = if created {
+    let status = if uploaded.created {
         StatusCode::CREATED
     } else {
         StatusCode::OK
     };
-    Ok((status, axum::Json(row)))
+    Ok((status, axum::Json(uploaded)))
 }
 
 async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoResponse> {

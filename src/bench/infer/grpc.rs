@@ -64,7 +64,16 @@ pub(super) async fn over_grpc(
     .await?;
     let app = running.app.clone();
     let body: Value = serde_json::from_str(&data.to_json()).expect("datasets serialize to JSON");
-    let (ds, _) = app.upload_dataset(None, Upload::Json(body)).await?;
+    let ds = app
+        .upload_dataset(
+            None,
+            Upload::Json {
+                value: body,
+                dt: None,
+            },
+        )
+        .await?
+        .dataset;
     let (job, _) = submit(&app, &ds.id, 1).await?;
     let model = wait_for(&app, &job.id, |s| s == JobState::Succeeded).await?;
     let model = model.model_id.expect("a succeeded job has a model");

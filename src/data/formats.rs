@@ -1,31 +1,20 @@
-//! Transition datasets (q, q̇, u → q', q̇'): the file formats, validation, and splits.
+//! The dataset file formats. Every error names the field and, where there is one, the row.
 //!
-//! JSON (also the REST upload body):
-//!   {"dt": 0.01, "q": [[…]], "qdot": [[…]], "u": [[…]], "q_next": [[…]], "qdot_next": [[…]]}
-//! one inner array per transition, n wide (m for "u"). CSV: a header
-//! `q0..,qdot0..,u0..,q_next0..,qdot_next0..` and Δt given separately.
-//! Every error names the field and, where there is one, the row.
+//! - Transitions (JSON, also the REST upload body):
+//!   `{"dt": 0.01, "q": [[…]], "qdot": [[…]], "u": [[…]], "q_next": [[…]], "qdot_next": [[…]]}`,
+//!   one inner array per transition, n wide (m for "u").
+//! - Trajectories (JSON): `{"dt": 0.01, "trajectories": [{"q": [[…]], "qdot": [[…]],
+//!   "u": [[…]]}]}`, each with T+1 states and T inputs, giving T transitions.
+//! - CSV: a header `q0..,qdot0..,u0..,q_next0..,qdot_next0..`, one transition per line; Δt
+//!   given separately.
+//!
+//! Δt comes from the file or from the caller (`--dt`, `?dt=`); given both, they must agree.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
+use super::{Dataset, FIELDS};
 use crate::error::{Error, Result};
-use crate::rng::Rng;
-
-/// Row-major arrays of `count` transitions.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Dataset {
-    pub dt: f64,
-    pub n: usize,
-    pub m: usize,
-    pub q: Vec<f64>,
-    pub qdot: Vec<f64>,
-    pub u: Vec<f64>,
-    pub q_next: Vec<f64>,
-    pub qdot_next: Vec<f64>,
-}
-
-pub const FIELDS: [&str; 5] = ["q", "qdot", "u", "q_next", "qdot_next"];
 
 #[derive(Serialize)]
 struct DatasetJson<'a> {
@@ -37,105 +26,37 @@ struct DatasetJson<'a> {
     qdot_next: Vec<&'a [f64]>,
 }
 
-/// The sampling intervals graybox accepts, in seconds. Below 10 µs the one-step differences
-/// q' − q drown in f32 rounding during training; above 10 s one RK4 step of a mechanical
-/// system says nothing about its dynamics. A Δt outside this range has always been a unit or
-/// export error (a reported 1e-320 produced a model with NaN scalings).
-pub const DT_RANGE: (f64, f64) = (1e-5, 10.0);
+/// One trajectory: T+1 states and T inputs.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Trajectory {
+    q: Vec<Vec<f64>>,
+    qdot: Vec<Vec<f64>>,
+    u: Vec<Vec<f64>>,
+}
 
 impl Dataset {
-    pub fn count(&self) -> usize {
-        self.q.len().checked_div(self.n).unwrap_or(0)
-    }
-
-    /// Builds a dataset from row-major arrays, checking every invariant.
-    pub fn new(dt: f64, n: usize, m: usize, arrays: [Vec<f64>; 5]) -> Result<Self> {
-        let [q, qdot, u, q_next, qdot_next] = arrays;
-        let d = Dataset {
-            dt,
-            n,
-            m,
-            q,
-            qdot,
-            u,
-            q_next,
-            qdot_next,
-        };
-        d.validate()?;
-        Ok(d)
-    }
-
-    fn validate(&self) -> Result<()> {
-        let (lo, hi) = DT_RANGE;
-        if !(self.dt.is_finite() && (lo..=hi).contains(&self.dt)) {
-            return Err(Error::invalid(
-                "dt",
-                format!(
-                    "must be a number of seconds in [{lo:e}, {hi}], got {}",
-                    self.dt
-                ),
-            ));
-        }
-        if self.n == 0 {
-            return Err(Error::invalid(
-                "q",
-                "rows must have at least one coordinate",
-            ));
-        }
-        if self.m == 0 {
-            return Err(Error::invalid(
-                "u",
-                "rows must have at least one input (use a column of zeros for an unforced system)",
-            ));
-        }
-        let count = self.count();
-        if count == 0 {
-            return Err(Error::invalid("q", "the dataset has no transitions"));
-        }
-        for (name, arr, width) in self.fields() {
-            if arr.len() != count * width {
-                return Err(Error::invalid(
-                    name,
-                    format!("expected {count} rows of {width}"),
-                ));
-            }
-            if let Some(i) = arr.iter().position(|v| !v.is_finite()) {
-                return Err(Error::invalid(
-                    format!("{name}[{}]", i / width),
-                    format!("row {} has a non-finite value ({})", i / width, arr[i]),
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    fn fields(&self) -> [(&'static str, &Vec<f64>, usize); 5] {
-        [
-            ("q", &self.q, self.n),
-            ("qdot", &self.qdot, self.n),
-            ("u", &self.u, self.m),
-            ("q_next", &self.q_next, self.n),
-            ("qdot_next", &self.qdot_next, self.n),
-        ]
-    }
-
-    /// Parses the JSON form. `dt` may be supplied by the caller when the file has none.
-    pub fn from_json(text: &str) -> Result<Self> {
+    /// Parses either JSON form (transitions, or trajectories). `dt` is the caller's Δt, for a
+    /// file without one (or to check against the file's).
+    pub fn from_json(text: &str, dt: Option<f64>) -> Result<Self> {
         let value: Value = serde_json::from_str(text)
             .map_err(|e| Error::invalid("body", format!("malformed JSON: {e}")))?;
-        Self::from_json_value(&value)
+        Self::from_json_value(&value, dt)
     }
 
-    pub fn from_json_value(value: &Value) -> Result<Self> {
+    /// Either JSON form, already parsed.
+    pub fn from_json_value(value: &Value, dt: Option<f64>) -> Result<Self> {
         let obj = value
             .as_object()
             .ok_or_else(|| Error::invalid("body", "expected a JSON object"))?;
-        let dt = match obj.get("dt") {
-            Some(v) => v
-                .as_f64()
-                .ok_or_else(|| Error::invalid("dt", "must be a number"))?,
-            None => return Err(Error::invalid("dt", "is required")),
-        };
+        let dt = resolve_dt(obj.get("dt"), dt)?;
+        if obj.contains_key("trajectories") {
+            return Self::from_trajectories(value, dt);
+        }
+        Self::from_transitions(obj, dt)
+    }
+
+    fn from_transitions(obj: &serde_json::Map<String, Value>, dt: f64) -> Result<Self> {
         let mut widths = [0usize; 5];
         let mut arrays: [Vec<f64>; 5] = Default::default();
         let mut count = None;
@@ -258,55 +179,75 @@ impl Dataset {
             let dt = dt.ok_or_else(|| Error::invalid("dt", "a CSV dataset needs --dt"))?;
             Self::from_csv(&text, dt)
         } else {
-            Self::from_json(&text)
+            Self::from_json(&text, dt)
         }
     }
 
-    /// The transitions at `idx`, in that order.
-    pub fn subset(&self, idx: &[usize]) -> Dataset {
-        let take = |a: &[f64], w: usize| -> Vec<f64> {
-            idx.iter()
-                .flat_map(|&i| a[i * w..(i + 1) * w].iter().copied())
-                .collect()
-        };
-        Dataset {
-            dt: self.dt,
-            n: self.n,
-            m: self.m,
-            q: take(&self.q, self.n),
-            qdot: take(&self.qdot, self.n),
-            u: take(&self.u, self.m),
-            q_next: take(&self.q_next, self.n),
-            qdot_next: take(&self.qdot_next, self.n),
+    /// Trajectories → transitions (x_t, u_t, x_{t+1}).
+    fn from_trajectories(value: &Value, dt: f64) -> Result<Self> {
+        let trajs = value["trajectories"]
+            .as_array()
+            .ok_or_else(|| Error::invalid("trajectories", "must be an array of {q, qdot, u}"))?;
+        let mut fields: [Vec<Value>; 5] = Default::default();
+        for (k, t) in trajs.iter().enumerate() {
+            let tr: Trajectory = serde_json::from_value(t.clone()).map_err(|e| {
+                Error::invalid(
+                    format!("trajectories[{k}]"),
+                    format!("expected {{q, qdot, u}} arrays of number rows: {e}"),
+                )
+            })?;
+            let steps = tr.u.len();
+            if tr.q.len() != steps + 1 || tr.qdot.len() != steps + 1 {
+                return Err(Error::invalid(
+                    format!("trajectories[{k}]"),
+                    format!(
+                        "needs T+1 states for T inputs: q has {}, qdot {}, u {}",
+                        tr.q.len(),
+                        tr.qdot.len(),
+                        steps
+                    ),
+                ));
+            }
+            for t in 0..steps {
+                let push = |f: &mut Vec<Value>, r: &Vec<f64>| f.push(Value::from(r.clone()));
+                push(&mut fields[0], &tr.q[t]);
+                push(&mut fields[1], &tr.qdot[t]);
+                push(&mut fields[2], &tr.u[t]);
+                push(&mut fields[3], &tr.q[t + 1]);
+                push(&mut fields[4], &tr.qdot[t + 1]);
+            }
         }
+        let obj = FIELDS
+            .iter()
+            .zip(fields)
+            .map(|(name, f)| ((*name).to_string(), Value::Array(f)))
+            .collect();
+        Self::from_transitions(&obj, dt)
     }
+}
 
-    /// A seeded random split into (train, validation); validation gets round(fraction·count)
-    /// transitions, at least one when fraction > 0 and count > 1.
-    pub fn split(&self, fraction: f64, seed: u64) -> (Dataset, Dataset) {
-        let count = self.count();
-        let mut idx: Vec<usize> = (0..count).collect();
-        Rng::derive(seed, 0x5_9117).shuffle(&mut idx);
-        let mut n_val = (fraction * count as f64).round() as usize;
-        if fraction > 0.0 && count > 1 {
-            n_val = n_val.clamp(1, count - 1);
-        }
-        let (val, train) = idx.split_at(n_val.min(count));
-        (self.subset(train), self.subset(val))
-    }
-
-    /// State rows x = [q, q̇] (count × 2n) and targets x' = [q', q̇'].
-    pub fn states(&self) -> (Vec<f64>, Vec<f64>) {
-        let join = |a: &[f64], b: &[f64]| -> Vec<f64> {
-            a.chunks(self.n)
-                .zip(b.chunks(self.n))
-                .flat_map(|(x, y)| x.iter().chain(y).copied())
-                .collect()
-        };
-        (
-            join(&self.q, &self.qdot),
-            join(&self.q_next, &self.qdot_next),
-        )
+/// Δt from the file, the caller, or both when they agree.
+fn resolve_dt(file: Option<&Value>, given: Option<f64>) -> Result<f64> {
+    let file = file
+        .map(|v| {
+            v.as_f64()
+                .ok_or_else(|| Error::invalid("dt", "must be a number of seconds"))
+        })
+        .transpose()?;
+    match (file, given) {
+        (Some(f), Some(g)) if (f - g).abs() > 1e-12 * f.abs().max(g.abs()) => Err(Error::invalid(
+            "dt",
+            format!(
+                "the data says dt = {f} but dt = {g} was given separately; remove one or make them agree"
+            ),
+        )),
+        (Some(f), _) => Ok(f),
+        (None, Some(g)) => Ok(g),
+        (None, None) => Err(Error::invalid(
+            "dt",
+            "is required: put \"dt\" (seconds) in the data, or give it separately \
+             (--dt on the command line, ?dt= on REST)",
+        )),
     }
 }
 

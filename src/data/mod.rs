@@ -1,0 +1,155 @@
+//! Transition datasets (q, q̇, u → q', q̇'): validation and splits here, the file formats in
+//! `formats.rs`, the sanity warnings in `sanity.rs`.
+
+mod formats;
+mod sanity;
+
+pub use sanity::{ACCEL_RMS_MAX, SPAN_MAX, VELOCITY_MISMATCH_MAX};
+
+use crate::error::{Error, Result};
+use crate::rng::Rng;
+
+/// Row-major arrays of `count` transitions.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dataset {
+    pub dt: f64,
+    pub n: usize,
+    pub m: usize,
+    pub q: Vec<f64>,
+    pub qdot: Vec<f64>,
+    pub u: Vec<f64>,
+    pub q_next: Vec<f64>,
+    pub qdot_next: Vec<f64>,
+}
+
+pub const FIELDS: [&str; 5] = ["q", "qdot", "u", "q_next", "qdot_next"];
+
+/// The sampling intervals graybox accepts, in seconds. Below 10 µs the one-step differences
+/// q' − q drown in f32 rounding during training; above 10 s one RK4 step of a mechanical
+/// system says nothing about its dynamics. A Δt outside this range has always been a unit or
+/// export error (a reported 1e-320 produced a model with NaN scalings).
+pub const DT_RANGE: (f64, f64) = (1e-5, 10.0);
+
+impl Dataset {
+    pub fn count(&self) -> usize {
+        self.q.len().checked_div(self.n).unwrap_or(0)
+    }
+
+    /// Builds a dataset from row-major arrays, checking every invariant.
+    pub fn new(dt: f64, n: usize, m: usize, arrays: [Vec<f64>; 5]) -> Result<Self> {
+        let [q, qdot, u, q_next, qdot_next] = arrays;
+        let d = Dataset {
+            dt,
+            n,
+            m,
+            q,
+            qdot,
+            u,
+            q_next,
+            qdot_next,
+        };
+        d.validate()?;
+        Ok(d)
+    }
+
+    fn validate(&self) -> Result<()> {
+        let (lo, hi) = DT_RANGE;
+        if !(self.dt.is_finite() && (lo..=hi).contains(&self.dt)) {
+            return Err(Error::invalid(
+                "dt",
+                format!(
+                    "must be a number of seconds in [{lo:e}, {hi}], got {}",
+                    self.dt
+                ),
+            ));
+        }
+        if self.n == 0 {
+            return Err(Error::invalid(
+                "q",
+                "rows must have at least one coordinate",
+            ));
+        }
+        if self.m == 0 {
+            return Err(Error::invalid(
+                "u",
+                "rows must have at least one input (use a column of zeros for an unforced system)",
+            ));
+        }
+        let count = self.count();
+        if count == 0 {
+            return Err(Error::invalid("q", "the dataset has no transitions"));
+        }
+        for (name, arr, width) in self.fields() {
+            if arr.len() != count * width {
+                return Err(Error::invalid(
+                    name,
+                    format!("expected {count} rows of {width}"),
+                ));
+            }
+            if let Some(i) = arr.iter().position(|v| !v.is_finite()) {
+                return Err(Error::invalid(
+                    format!("{name}[{}]", i / width),
+                    format!("row {} has a non-finite value ({})", i / width, arr[i]),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn fields(&self) -> [(&'static str, &Vec<f64>, usize); 5] {
+        [
+            ("q", &self.q, self.n),
+            ("qdot", &self.qdot, self.n),
+            ("u", &self.u, self.m),
+            ("q_next", &self.q_next, self.n),
+            ("qdot_next", &self.qdot_next, self.n),
+        ]
+    }
+
+    /// The transitions at `idx`, in that order.
+    pub fn subset(&self, idx: &[usize]) -> Dataset {
+        let take = |a: &[f64], w: usize| -> Vec<f64> {
+            idx.iter()
+                .flat_map(|&i| a[i * w..(i + 1) * w].iter().copied())
+                .collect()
+        };
+        Dataset {
+            dt: self.dt,
+            n: self.n,
+            m: self.m,
+            q: take(&self.q, self.n),
+            qdot: take(&self.qdot, self.n),
+            u: take(&self.u, self.m),
+            q_next: take(&self.q_next, self.n),
+            qdot_next: take(&self.qdot_next, self.n),
+        }
+    }
+
+    /// A seeded random split into (train, validation); validation gets round(fraction·count)
+    /// transitions, at least one when fraction > 0 and count > 1.
+    pub fn split(&self, fraction: f64, seed: u64) -> (Dataset, Dataset) {
+        let count = self.count();
+        let mut idx: Vec<usize> = (0..count).collect();
+        Rng::derive(seed, 0x5_9117).shuffle(&mut idx);
+        let mut n_val = (fraction * count as f64).round() as usize;
+        if fraction > 0.0 && count > 1 {
+            n_val = n_val.clamp(1, count - 1);
+        }
+        let (val, train) = idx.split_at(n_val.min(count));
+        (self.subset(train), self.subset(val))
+    }
+
+    /// State rows x = [q, q̇] (count × 2n) and targets x' = [q', q̇'].
+    pub fn states(&self) -> (Vec<f64>, Vec<f64>) {
+        let join = |a: &[f64], b: &[f64]| -> Vec<f64> {
+            a.chunks(self.n)
+                .zip(b.chunks(self.n))
+                .flat_map(|(x, y)| x.iter().chain(y).copied())
+                .collect()
+        };
+        (
+            join(&self.q, &self.qdot),
+            join(&self.q_next, &self.qdot_next),
+        )
+    }
+}

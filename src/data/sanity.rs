@@ -1,0 +1,168 @@
+//! Sanity checks on uploaded data: findings a person should read before training on it
+//! (angles in degrees, velocities that are not the positions' derivative, accelerations at
+//! absurd scales). They never block an upload: the data may be right and unusual.
+//! The thresholds are documented in README ("Dataset warnings").
+
+use std::f64::consts::PI;
+
+use super::Dataset;
+use crate::records::Warning;
+
+/// A coordinate whose values span more than four turns is most likely in degrees (±180 spans
+/// 360) or an angle unwrapped over a long log; the templates and networks expect radians in a
+/// few turns. The paper's data spans 2π.
+pub const SPAN_MAX: f64 = 8.0 * PI;
+
+/// The velocities must be the derivative of the positions at this Δt: RMS of
+/// (q′ − q)/Δt − (q̇ + q̇′)/2 over the larger of the two sides' RMS. Consistent data is near 0
+/// (the paper's: below 0.002, the trapezoid's O(Δt²) error); mixed units (q in degrees, q̇ in rad/s)
+/// or a wrong Δt give ~1.
+pub const VELOCITY_MISMATCH_MAX: f64 = 0.5;
+
+/// RMS of the implied accelerations (q̇′ − q̇)/Δt, in units/s², above which the data's scale is
+/// implausible for a mechanical system (about 1000 g on a 1 m link; the paper's systems with
+/// inputs of σ = 120: 45–360).
+pub const ACCEL_RMS_MAX: f64 = 1e4;
+
+impl Dataset {
+    /// Every finding of the checks, per coordinate.
+    pub fn warnings(&self) -> Vec<Warning> {
+        let mut out = vec![];
+        for i in 0..self.n {
+            out.extend(self.span_warning(i));
+            out.extend(self.velocity_warning(i));
+            out.extend(self.accel_warning(i));
+        }
+        out
+    }
+
+    /// Coordinate `i` of every row of `a` (n wide).
+    fn coordinate<'a>(&self, a: &'a [f64], i: usize) -> impl Iterator<Item = f64> + 'a {
+        a.iter().skip(i).step_by(self.n).copied()
+    }
+
+    fn span_warning(&self, i: usize) -> Option<Warning> {
+        let values = self
+            .coordinate(&self.q, i)
+            .chain(self.coordinate(&self.q_next, i));
+        let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+        (hi - lo > SPAN_MAX).then(|| {
+            Warning::new(
+                "coordinate_span",
+                Some(format!("q[{i}]")),
+                format!(
+                    "q[{i}] spans {:.4} (from {lo:.4} to {hi:.4}), more than four turns (8π): \
+                     angles must be in radians and wrapped to a few turns",
+                    hi - lo
+                ),
+            )
+        })
+    }
+
+    fn velocity_warning(&self, i: usize) -> Option<Warning> {
+        let (mut diff, mut fd, mut mid) = (0.0, 0.0, 0.0);
+        let rows = self
+            .coordinate(&self.q, i)
+            .zip(self.coordinate(&self.q_next, i))
+            .zip(
+                self.coordinate(&self.qdot, i)
+                    .zip(self.coordinate(&self.qdot_next, i)),
+            );
+        for ((q, q1), (v, v1)) in rows {
+            let (f, m) = ((q1 - q) / self.dt, 0.5 * (v + v1));
+            diff += (f - m) * (f - m);
+            fd += f * f;
+            mid += m * m;
+        }
+        let ratio = diff.sqrt() / fd.sqrt().max(mid.sqrt()).max(f64::MIN_POSITIVE);
+        (ratio > VELOCITY_MISMATCH_MAX).then(|| {
+            let count = self.count() as f64;
+            Warning::new(
+                "velocity_mismatch",
+                Some(format!("qdot[{i}]")),
+                format!(
+                    "qdot[{i}] does not match the change of q[{i}] over dt = {}: \
+                     RMS of (q'−q)/dt is {:.4}, of (qdot+qdot')/2 {:.4}, of their difference \
+                     {:.4}; check units (both radians), dt and the column order",
+                    self.dt,
+                    (fd / count).sqrt(),
+                    (mid / count).sqrt(),
+                    (diff / count).sqrt()
+                ),
+            )
+        })
+    }
+
+    fn accel_warning(&self, i: usize) -> Option<Warning> {
+        let sum: f64 = self
+            .coordinate(&self.qdot, i)
+            .zip(self.coordinate(&self.qdot_next, i))
+            .map(|(v, v1)| ((v1 - v) / self.dt).powi(2))
+            .sum();
+        let rms = (sum / self.count() as f64).sqrt();
+        (rms > ACCEL_RMS_MAX).then(|| {
+            Warning::new(
+                "extreme_acceleration",
+                Some(format!("qdot[{i}]")),
+                format!(
+                    "the implied accelerations (qdot'−qdot)/dt of coordinate {i} have RMS \
+                     {rms:.4e}, above {ACCEL_RMS_MAX:e}: check the units and dt"
+                ),
+            )
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A pendulum-like coordinate: q(t) = a sin(t), sampled consistently at dt.
+    fn consistent(a: f64, dt: f64, count: usize) -> Dataset {
+        let (mut q, mut v, mut q1, mut v1) = (vec![], vec![], vec![], vec![]);
+        for k in 0..count {
+            let t = k as f64 * 0.37;
+            q.push(a * t.sin());
+            v.push(a * t.cos());
+            q1.push(a * (t + dt).sin());
+            v1.push(a * (t + dt).cos());
+        }
+        Dataset::new(dt, 1, 1, [q, v, vec![0.0; count], q1, v1]).unwrap()
+    }
+
+    fn codes(d: &Dataset) -> Vec<String> {
+        d.warnings().into_iter().map(|w| w.code).collect()
+    }
+
+    #[test]
+    fn consistent_radians_raise_nothing() {
+        assert!(codes(&consistent(3.0, 0.01, 500)).is_empty());
+    }
+
+    #[test]
+    fn degrees_span_more_than_four_turns() {
+        // The same motion with q and q̇ both in degrees: consistent, but it spans 344°.
+        let d = consistent(3.0f64.to_degrees(), 0.01, 500);
+        assert_eq!(codes(&d), ["coordinate_span"]);
+    }
+
+    #[test]
+    fn positions_in_degrees_with_velocities_in_radians_mismatch() {
+        let mut d = consistent(0.2, 0.01, 500);
+        d.q.iter_mut().for_each(|q| *q = q.to_degrees());
+        d.q_next.iter_mut().for_each(|q| *q = q.to_degrees());
+        assert_eq!(codes(&d), ["velocity_mismatch"]);
+    }
+
+    #[test]
+    fn a_wrong_dt_gives_extreme_accelerations_and_a_mismatch() {
+        // Recorded at 0.1 s but labelled 1e-5 s.
+        let mut d = consistent(3.0, 0.1, 500);
+        d.dt = 1e-5;
+        let c = codes(&d);
+        assert!(c.contains(&"velocity_mismatch".to_string()), "{c:?}");
+        assert!(c.contains(&"extreme_acceleration".to_string()), "{c:?}");
+    }
+}

@@ -1,0 +1,208 @@
+//! Checks on a finished training run: findings a person should read before trusting the
+//! model (it does no better than q̈ = 0, its loss never went down, its physical parameters
+//! never moved). They never fail a job. Thresholds in README ("Training warnings").
+
+use std::collections::BTreeMap;
+
+use crate::data::Dataset;
+use crate::model::report::EpochMetrics;
+use crate::records::Warning;
+
+/// Runs shorter than this are not judged on progress (loss, parameters).
+pub const MIN_EPOCHS: usize = 5;
+/// "Not decreasing": no later epoch's training loss is below this fraction of the first's.
+pub const DECREASE_FACTOR: f64 = 0.99;
+/// "Never moved": every used physical value within this relative change of its initial one.
+pub const MOVED_REL: f64 = 1e-6;
+
+/// The loss of predicting q̈ = 0 (every integrator then gives q′ = q + q̇Δt, q̇′ = q̇) on `ds`,
+/// with the model's velocity weight λ: the bar a model must clear to have learned anything.
+pub fn zero_acceleration_loss(ds: &Dataset, lambda: f64) -> f64 {
+    let mut total = 0.0;
+    for (k, (&q1, &v1)) in ds.q_next.iter().zip(&ds.qdot_next).enumerate() {
+        let (q, v) = (ds.q[k], ds.qdot[k]);
+        let dq = q1 - (q + v * ds.dt);
+        let dv = v1 - v;
+        total += dq * dq + lambda * dv * dv;
+    }
+    total / ds.count() as f64
+}
+
+/// What a run's checks look at.
+pub struct RunSummary<'a> {
+    pub history: &'a [EpochMetrics],
+    /// The kept model's loss on the validation set (training set without one).
+    pub best_loss: f64,
+    /// The zero-acceleration loss on the same set.
+    pub baseline: f64,
+    /// Used physical values at the start and now, by name.
+    pub initial_physical: Option<&'a BTreeMap<String, f64>>,
+    pub physical: &'a BTreeMap<String, f64>,
+}
+
+pub fn training_warnings(r: &RunSummary) -> Vec<Warning> {
+    let mut out = vec![];
+    if r.history.is_empty() {
+        return out;
+    }
+    if r.best_loss >= r.baseline {
+        out.push(Warning::new(
+            "no_better_than_zero_acceleration",
+            None,
+            format!(
+                "the best loss {:.4e} is not below {:.4e}, the loss of predicting no \
+                 acceleration at all (q' = q + qdot·dt, qdot' = qdot): the model has learned \
+                 nothing usable; check the data's units and dt, or train longer",
+                r.best_loss, r.baseline
+            ),
+        ));
+    }
+    if r.history.len() >= MIN_EPOCHS {
+        out.extend(not_decreasing(r.history));
+        if let Some(initial) = r.initial_physical {
+            out.extend(unmoved(initial, r.physical, r.history.len()));
+        }
+    }
+    out
+}
+
+fn not_decreasing(history: &[EpochMetrics]) -> Option<Warning> {
+    let first = history[0].train_loss;
+    let best_later = history[1..]
+        .iter()
+        .map(|h| h.train_loss)
+        .fold(f64::INFINITY, f64::min);
+    (best_later >= DECREASE_FACTOR * first).then(|| {
+        Warning::new(
+            "loss_not_decreasing",
+            None,
+            format!(
+                "the training loss did not decrease over {} epochs (epoch 1: {first:.4e}, best \
+                 since: {best_later:.4e}); try another learning rate, or check the data",
+                history.len()
+            ),
+        )
+    })
+}
+
+fn unmoved(
+    initial: &BTreeMap<String, f64>,
+    now: &BTreeMap<String, f64>,
+    epochs: usize,
+) -> Option<Warning> {
+    let moved = |name: &String, v0: f64| {
+        now.get(name)
+            .is_none_or(|v| (v - v0).abs() > MOVED_REL * v0.abs().max(f64::MIN_POSITIVE))
+    };
+    let stuck: Vec<&str> = initial
+        .iter()
+        .filter(|(name, v0)| !moved(name, **v0))
+        .map(|(name, _)| name.as_str())
+        .collect();
+    (!stuck.is_empty()).then(|| {
+        Warning::new(
+            "physical_parameters_unmoved",
+            None,
+            format!(
+                "the physical parameters {} did not change in {epochs} epochs: their gradients \
+                 vanish or the loss is dominated by something they cannot fit (check units)",
+                stuck.join(", ")
+            ),
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn history(losses: &[f64]) -> Vec<EpochMetrics> {
+        losses
+            .iter()
+            .enumerate()
+            .map(|(i, &l)| EpochMetrics {
+                epoch: i + 1,
+                train_loss: l,
+                val_loss: Some(l),
+                seconds: 0.1,
+            })
+            .collect()
+    }
+
+    fn codes(r: &RunSummary) -> Vec<String> {
+        training_warnings(r).into_iter().map(|w| w.code).collect()
+    }
+
+    fn values(v: &[(&str, f64)]) -> BTreeMap<String, f64> {
+        v.iter().map(|(k, v)| (k.to_string(), *v)).collect()
+    }
+
+    #[test]
+    fn a_learning_run_raises_nothing() {
+        let h = history(&[1.0, 0.5, 0.2, 0.1, 0.05]);
+        let (p0, p1) = (values(&[("m1", 10.0)]), values(&[("m1", 9.0)]));
+        let r = RunSummary {
+            history: &h,
+            best_loss: 0.05,
+            baseline: 3.0,
+            initial_physical: Some(&p0),
+            physical: &p1,
+        };
+        assert!(codes(&r).is_empty());
+    }
+
+    #[test]
+    fn each_check_fires_on_its_case() {
+        let h = history(&[1.0, 1.0, 0.995, 1.2, 1.0]);
+        let p0 = values(&[("m1", 10.0), ("l1", 1.0)]);
+        let r = RunSummary {
+            history: &h,
+            best_loss: 4.0,
+            baseline: 3.0,
+            initial_physical: Some(&p0),
+            physical: &p0,
+        };
+        assert_eq!(
+            codes(&r),
+            [
+                "no_better_than_zero_acceleration",
+                "loss_not_decreasing",
+                "physical_parameters_unmoved"
+            ]
+        );
+    }
+
+    #[test]
+    fn short_runs_are_not_judged_on_progress() {
+        let h = history(&[1.0, 1.0]);
+        let p0 = values(&[("m1", 10.0)]);
+        let r = RunSummary {
+            history: &h,
+            best_loss: 1.0,
+            baseline: 3.0,
+            initial_physical: Some(&p0),
+            physical: &p0,
+        };
+        assert!(codes(&r).is_empty());
+    }
+
+    #[test]
+    fn the_baseline_is_the_loss_of_no_acceleration() {
+        // q' = q + q̇dt exactly, q̇' = q̇ + 1: only the velocity error counts, λ-weighted.
+        let ds = Dataset::new(
+            0.1,
+            1,
+            1,
+            [
+                vec![0.0, 1.0],
+                vec![2.0, 3.0],
+                vec![0.0; 2],
+                vec![0.2, 1.3],
+                vec![3.0, 4.0],
+            ],
+        )
+        .unwrap();
+        let l = zero_acceleration_loss(&ds, 0.5);
+        assert!((l - 0.5).abs() < 1e-12, "{l}");
+    }
+}

@@ -1,0 +1,145 @@
+"""README.md, as written, works: its curl walkthrough, its command-line example and its Python
+example run verbatim (the fenced blocks tagged `readme-test:<name>`, the blocks of one name
+as one script) against the release binary, and what the README says they print holds.
+
+The walkthroughs take the service's address from GRAYBOX_HTTP / GRAYBOX_GRPC as the README
+says; the test sets those to its own server's free ports. The Docker section is not run.
+"""
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from conftest import serve
+
+ROOT = Path(__file__).resolve().parents[2]
+FENCE = re.compile(r"^```(\w+) readme-test:(\w+)\n(.*?)^```$", re.S | re.M)
+
+
+def blocks(name: str) -> tuple[str, str]:
+    """The language and the joined text of the README's blocks tagged readme-test:<name>."""
+    found = [(lang, body) for lang, tag, body in FENCE.findall((ROOT / "README.md").read_text())
+             if tag == name]
+    assert found, f"README.md has no block tagged readme-test:{name}"
+    langs = {lang for lang, _ in found}
+    assert len(langs) == 1, langs
+    return langs.pop(), "\n".join(body for _, body in found)
+
+
+def run_sh(script: str, env: dict, timeout: float) -> subprocess.CompletedProcess:
+    """A README shell block as a reader runs it: bash from the repository root, stopping at the
+    first failing command."""
+    return subprocess.run(["bash", "-euo", "pipefail", "-c", script], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def reader_env(**extra) -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("GRAYBOX_")}
+    env.update(extra)
+    return env
+
+
+def json_lines(text: str) -> list:
+    out = []
+    for line in text.splitlines():
+        try:
+            out.append(json.loads(line))
+        except ValueError:
+            pass
+    return out
+
+
+@pytest.fixture(scope="module")
+def walkthrough(graybox_bin, tmp_path_factory):
+    """The service started as the README's first command would, then the curl walkthrough."""
+    assert Path(graybox_bin).resolve() == (ROOT / "target/release/graybox").resolve(), \
+        "the README runs target/release/graybox: test that binary"
+    tmp = tmp_path_factory.mktemp("readme")
+    with serve(graybox_bin, tmp, "--workers", "1", name="graybox serve (README)") as s:
+        env = reader_env(GRAYBOX_HTTP=f"127.0.0.1:{s.http_port}", GRAYBOX_GRPC=s.grpc_target)
+        _, script = blocks("curl")
+        # Expose what the walkthrough set, for the checks and the Python example.
+        done = run_sh(script + '\necho "README-TEST MODEL=$MODEL JOB=$JOB WORK=$WORK"',
+                      env, timeout=600)
+        yield s, env, done
+
+
+def test_curl_walkthrough(walkthrough):
+    s, _, done = walkthrough
+    assert done.returncode == 0, f"stdout:\n{done.stdout}\nstderr:\n{done.stderr}"
+    ids = dict(kv.split("=", 1) for kv in done.stdout.strip().splitlines()[-1].split()[1:])
+    status, job = s.rest.get(f"/v1/jobs/{ids['JOB']}")
+    assert status == 200 and job["state"] == "succeeded", job
+    assert job["model_id"] == ids["MODEL"]
+    # Its claim: `graybox eval` on the validation file gives the job's best_val_loss.
+    evals = [j for j in json_lines(done.stdout) if isinstance(j, dict) and "loss" in j]
+    assert evals, done.stdout
+    assert evals[-1]["loss"] == pytest.approx(job["best_val_loss"], rel=1e-5)
+    # Its model print ends in a newline (the next output does not run on).
+    models = [j for j in json_lines(done.stdout) if isinstance(j, dict) and j.get("id") == ids["MODEL"]]
+    assert models and models[0]["metrics"]["best_val_loss"] == job["best_val_loss"]
+    # The CSV and trajectory uploads were stored, with no warnings on this clean data.
+    names = {d["name"]: d for d in s.rest.get("/v1/datasets")[1]["items"]}
+    assert names["pend-csv"]["count"] == 2 and names["pend-traj"]["count"] == 2, names
+    assert all(d["warnings"] == [] for d in names.values()), names
+    # The scratch directory, not the repository, got the files.
+    assert Path(ids["WORK"], "mvf.gbx").is_file()
+    assert not (Path(__file__).resolve().parents[2] / "mvf.gbx").exists()
+
+
+def test_python_example(walkthrough):
+    _, env, done = walkthrough
+    assert done.returncode == 0, done.stderr
+    ids = dict(kv.split("=", 1) for kv in done.stdout.strip().splitlines()[-1].split()[1:])
+    lang, script = blocks("client")
+    assert lang == "python"
+    r = subprocess.run([sys.executable, "-c", script], cwd=ids["WORK"],
+                       env={**env, "MODEL": ids["MODEL"]}, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, f"stdout:\n{r.stdout}\nstderr:\n{r.stderr}"
+    out = r.stdout
+    assert f"model {ids['MODEL']}: n = 2, m = 2" in out, out
+    # Its point: TVLQR brings the perturbed start back to the swing, open loop does not.
+    m = re.search(r"open loop ([\d.]+), TVLQR ([\d.]+)", out)
+    assert m, out
+    assert float(m.group(2)) < 0.5 * float(m.group(1)), out
+    assert "refused: INVALID_ARGUMENT" in out, out
+
+
+def test_command_line_example(graybox_bin):
+    lang, script = blocks("cli")
+    assert lang == "sh"
+    done = run_sh(script + '\necho "README-TEST WORK=$PWD"', reader_env(), timeout=900)
+    assert done.returncode == 0, f"stdout:\n{done.stdout}\nstderr:\n{done.stderr}"
+    work = Path(done.stdout.strip().splitlines()[-1].split("=", 1)[1])
+    report = json.loads((work / "mvf-report.json").read_text())
+    assert report["epochs"] == 50 and len(report["history"]) == 50
+    # stdout's report is one JSON object without the history.
+    wb = json.loads((work / "wb-report.json").read_text())
+    assert "history" not in wb and wb["model"] == "W-B", wb
+    evals = [j for j in json_lines(done.stdout) if isinstance(j, dict) and "loss" in j]
+    assert evals and evals[0]["count"] == 1024
+    # W-B identifies the ratios the README lists.
+    inspected = [j for j in json.loads("[" + _objects(done.stdout) + "]") if "identifiable" in j]
+    names = {c["name"] for c in inspected[-1]["identifiable"]}
+    assert {"m1/m2", "l1/l2", "g/l1"} <= names, names
+
+
+def _objects(text: str) -> str:
+    """The top-level JSON objects printed (pretty or not) in `text`, comma-joined."""
+    objs, depth, start = [], 0, None
+    for i, ch in enumerate(text):
+        if ch == "{":
+            if depth == 0:
+                start = i
+            depth += 1
+        elif ch == "}" and depth:
+            depth -= 1
+            if depth == 0:
+                objs.append(text[start:i + 1])
+    return ",".join(objs)
