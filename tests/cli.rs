@@ -139,3 +139,69 @@ fn bad_input_exits_2_naming_the_field() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown parameter 'mass'"));
 }
+
+/// `graybox model` writes the true system as a model file: it loads, inspects as made (not
+/// trained) with the values given, and plans; a bad template or dt exits 2 naming it.
+#[test]
+fn model_writes_a_white_box_model_that_plans() {
+    let m = tmp("made.gbx");
+    let out = json(&graybox(&[
+        "model",
+        "--template",
+        "pendulum",
+        "--set",
+        "m=2",
+        "--dt",
+        "0.05",
+        "--out",
+        &m,
+    ]));
+    assert_eq!(out["physical_parameters"]["m"], 2.0);
+    let info = json(&graybox(&["inspect", "--model", &m]));
+    assert_eq!(info["made"]["physical_parameters"]["m"], 2.0);
+    assert!(
+        info["made"]["note"]
+            .as_str()
+            .unwrap()
+            .contains("not trained")
+    );
+    assert!(info.get("training").is_none(), "{info}");
+    let p = tmp("plan.json");
+    let summary = json(&graybox(&[
+        "plan",
+        "--model",
+        &m,
+        "--x0",
+        "0,0",
+        "--goal",
+        "3.14159,0",
+        "--horizon",
+        "30",
+        "--u-min",
+        "-20",
+        "--u-max",
+        "20",
+        "--out",
+        &p,
+    ]));
+    assert!(summary["goal_error"].as_f64().unwrap() < 0.1, "{summary}");
+    let plan: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+    assert_eq!(plan["x"].as_array().unwrap().len(), 31);
+    assert_eq!(plan["K"].as_array().unwrap().len(), 30);
+    for (args, field) in [
+        (
+            vec!["model", "--template", "acrobot", "--dt", "0.1", "--out", &m],
+            "template",
+        ),
+        (
+            vec!["model", "--template", "pendulum", "--dt", "0", "--out", &m],
+            "dt",
+        ),
+    ] {
+        let o = graybox(&args);
+        assert_eq!(o.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(field), "{err}");
+    }
+}

@@ -92,6 +92,13 @@ const ROUTES: &[Route] = &[
         &["id"],
     ),
     Route(
+        "post",
+        "/v1/models",
+        "Upload a model file (.gbx, as /checkpoint returns it); the same file again returns the stored model",
+        Some("object"),
+        &["?name"],
+    ),
+    Route(
         "get",
         "/v1/models",
         "List models, newest first",

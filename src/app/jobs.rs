@@ -50,11 +50,39 @@ impl JobSpec {
     }
 }
 
+/// serde's messages with the Rust type names said in words (`expected usize` → `expected a
+/// whole number ≥ 0`), so that an error names what to send, not how it is stored.
+fn in_words(message: &str) -> String {
+    const WORDS: [(&str, &str); 8] = [
+        ("expected usize", "expected a whole number ≥ 0"),
+        ("expected u64", "expected a whole number ≥ 0"),
+        ("expected u32", "expected a whole number ≥ 0"),
+        ("expected i64", "expected a whole number"),
+        ("expected f64", "expected a number"),
+        ("expected f32", "expected a number"),
+        ("expected a sequence", "expected a list"),
+        ("expected a map", "expected an object"),
+    ];
+    let mut out = message.to_string();
+    for (rust, words) in WORDS {
+        out = out.replace(rust, words);
+    }
+    // "expected struct TrainConfig" names a Rust type: an object is what to send.
+    if let Some(at) = out.find("expected struct ") {
+        let rest = &out[at + "expected struct ".len()..];
+        let name_len = rest
+            .find(|c: char| !c.is_alphanumeric() && c != '_')
+            .unwrap_or(rest.len());
+        out = format!("{}expected an object{}", &out[..at], &rest[name_len..]);
+    }
+    out
+}
+
 /// Parses a JSON body into `T`, naming the field at fault in the error.
 pub fn parse_body<T: serde::de::DeserializeOwned>(value: Value) -> Result<T> {
     serde_path_to_error::deserialize(value).map_err(|e| {
         let path = e.path().to_string();
-        let message = e.into_inner().to_string();
+        let message = in_words(&e.into_inner().to_string());
         // serde reports a missing field at its parent: name the field itself.
         let missing = message
             .strip_prefix("missing field `")
@@ -336,5 +364,24 @@ mod tests {
             ),
             "training.epochs"
         );
+    }
+
+    #[test]
+    fn body_errors_say_types_in_words() {
+        let message = |v: Value| match parse_body::<JobRequest>(v) {
+            Err(Error::Unprocessable { message, .. }) => message,
+            other => panic!("{other:?}"),
+        };
+        let m = message(serde_json::json!({"dataset_id": "d", "model": "MVF",
+                                           "training": {"epochs": "x"}}));
+        assert!(m.contains("a whole number"), "{m}");
+        let m = message(serde_json::json!({"dataset_id": "d", "model": "MVF",
+                                           "training": {"lr": "fast"}}));
+        assert!(m.contains("expected a number"), "{m}");
+        let m = message(serde_json::json!({"dataset_id": "d", "model": "MVF", "training": 3}));
+        assert!(m.contains("expected an object"), "{m}");
+        for rust in ["usize", "f64", "struct", "TrainConfig"] {
+            assert!(!m.contains(rust), "{m}");
+        }
     }
 }

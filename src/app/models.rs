@@ -1,9 +1,13 @@
 //! Trained models: listing, reading, the model file, deletion.
 
+use serde_json::json;
+
 use super::App;
 use super::views::{Dataset, Model};
 use crate::error::{Error, Result};
-use crate::store::{JobState, ModelRow};
+use crate::infer::Evaluator;
+use crate::model::file::ModelFile;
+use crate::store::{JobState, ModelRow, NewModel};
 
 impl App {
     async fn model_row(&self, id: &str) -> Result<ModelRow> {
@@ -43,6 +47,54 @@ impl App {
         }
     }
 
+    /// Stores a model file as it is (POST /v1/models): checked as the evaluator will read
+    /// it, identified by its bytes (the same file again returns the stored model,
+    /// `created = false`). A bad file is a 422 naming what is wrong.
+    pub async fn upload_model(
+        &self,
+        name: Option<String>,
+        bytes: Vec<u8>,
+    ) -> Result<(Model, bool)> {
+        let bad = |e: Error| Error::Unprocessable {
+            field: "body".into(),
+            message: format!("not a usable model file: {e}"),
+        };
+        let file = ModelFile::from_bytes(&bytes).map_err(bad)?;
+        check_model_file(&file, self.settings.max_dof).map_err(bad)?;
+        if let Some(n) = &name {
+            super::datasets::check_name(n)?;
+        }
+        let name = name
+            .or_else(|| file.report.as_ref().map(|r| r.model.clone()))
+            .unwrap_or_else(|| {
+                if file.made.is_some() {
+                    "W-B"
+                } else {
+                    "uploaded"
+                }
+                .into()
+            });
+        let report = match (&file.report, &file.made) {
+            (Some(r), _) => serde_json::to_string(r).expect("json"),
+            (None, Some(made)) => json!({ "made": made }).to_string(),
+            (None, None) => "null".into(),
+        };
+        let spec = serde_json::to_string(&file.config.spec).expect("json");
+        let (row, created) = self
+            .store
+            .insert_model(NewModel {
+                name: &name,
+                n: file.config.n as i64,
+                m: file.config.m as i64,
+                dt: file.config.dt,
+                spec: &spec,
+                report: &report,
+                file: &bytes,
+            })
+            .await?;
+        Ok((row.into(), created))
+    }
+
     pub async fn model_file(&self, id: &str) -> Result<Vec<u8>> {
         self.store
             .model_file(id)
@@ -73,4 +125,31 @@ impl App {
         let next = super::paging::next("datasets", &items, size, |d| d.seq);
         Ok((items.into_iter().map(Dataset::from).collect(), next))
     }
+}
+
+/// A model file the service can serve: a valid spec for its dimensions, finite scalings and
+/// values, a Δt in range, and every value its spec needs (what `Evaluator::from_file` reads).
+fn check_model_file(file: &ModelFile, max_dof: usize) -> Result<()> {
+    let c = &file.config;
+    c.spec.validate()?;
+    if c.n == 0 || c.m == 0 || c.n > max_dof {
+        return Err(Error::invalid(
+            "config",
+            format!(
+                "n = {} and m = {} must be ≥ 1 (n ≤ {max_dof}, --max-dof)",
+                c.n, c.m
+            ),
+        ));
+    }
+    c.spec.check_dims(c.n, c.m)?;
+    let (lo, hi) = crate::data::DT_RANGE;
+    if !(c.dt.is_finite() && (lo..=hi).contains(&c.dt)) {
+        return Err(Error::invalid(
+            "config.dt",
+            format!("must be in [{lo:e}, {hi}] s"),
+        ));
+    }
+    file.to_bytes()?; // finite scalings and values
+    Evaluator::from_file(file)?; // every value the spec needs, each of its shape
+    Ok(())
 }

@@ -42,6 +42,9 @@ pub struct Settings {
     /// Longest gRPC Rollout (and Tvlqr horizon), in steps.
     #[arg(long, env = "GRAYBOX_MAX_ROLLOUT_STEPS", default_value_t = 100_000)]
     pub max_rollout_steps: usize,
+    /// Longest gRPC Plan horizon, in steps.
+    #[arg(long, env = "GRAYBOX_MAX_PLAN_HORIZON", default_value_t = 10_000)]
+    pub max_plan_horizon: usize,
     /// Largest gRPC message, in MiB.
     #[arg(long, env = "GRAYBOX_GRPC_MAX_MESSAGE_MB", default_value_t = 64)]
     pub grpc_max_message_mb: usize,

@@ -8,11 +8,14 @@ use serde_json::{Value, json};
 pub use crate::records::{Dataset, Job, JobState, Metric, Warning};
 use crate::store::ModelRow;
 
-/// A trained model: the one projection REST and gRPC both serve.
+/// A model: the one projection REST and gRPC both serve.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Model {
     pub id: String,
-    pub job_id: String,
+    /// The job that trained it; `None` for an uploaded model.
+    pub job_id: Option<String>,
+    /// "trained" or "uploaded".
+    pub origin: String,
     pub name: String,
     /// The model spec (JSON).
     pub spec: Value,
@@ -46,12 +49,17 @@ impl From<ModelRow> for Model {
         Self {
             id: m.id,
             job_id: m.job_id,
+            origin: m.origin,
             name: m.name,
             spec: serde_json::from_str(&m.spec).unwrap_or(Value::Null),
             n: m.n,
             m: m.m,
             dt: m.dt,
-            physical_parameters: report["physical_parameters"].clone(),
+            // A model made from a template (no training) states its values in "made".
+            physical_parameters: match &report["physical_parameters"] {
+                Value::Null => report["made"]["physical_parameters"].clone(),
+                p => p.clone(),
+            },
             identifiable: report["identifiable"].clone(),
             metrics,
             sha256: m.sha256,

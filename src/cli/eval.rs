@@ -63,6 +63,9 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
         out["physical_parameters"] = json!(used_physical(t, &parts, &values));
         out["identifiable"] = json!(identifiable(t, &parts, &values));
     }
+    if let Some(made) = &file.made {
+        out["made"] = json!(made);
+    }
     if let Some(r) = &file.report {
         out["training"] = json!({
             "model": r.model, "epochs": r.epochs, "best_epoch": r.best_epoch,

@@ -7,12 +7,16 @@ use clap::{Parser, Subcommand};
 
 mod eval;
 mod health;
+mod model;
+mod plan;
 mod serve;
 mod simulate;
 mod train;
 
 pub use eval::{EvalArgs, InspectArgs};
 pub use health::HealthArgs;
+pub use model::ModelArgs;
+pub use plan::PlanArgs;
 pub use serve::ServeArgs;
 pub use simulate::SimulateArgs;
 pub use train::TrainArgs;
@@ -40,6 +44,10 @@ pub enum Command {
     Eval(EvalArgs),
     /// Print a model file's spec, dimensions, scalings and physical parameters.
     Inspect(InspectArgs),
+    /// Write the white-box model of a template with given physical values (no training).
+    Model(ModelArgs),
+    /// Plan a trajectory to a goal on a model file (iLQR with input bounds) and its gains.
+    Plan(PlanArgs),
     /// Run the service: REST, gRPC and training workers over one SQLite file.
     Serve(ServeArgs),
     /// Exit 0 if the service on this machine is ready (for container health checks).
@@ -94,6 +102,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Train(a) => train::train(a),
         Command::Eval(a) => eval::eval(a),
         Command::Inspect(a) => eval::inspect(a),
+        Command::Model(a) => model::model(a),
+        Command::Plan(a) => plan::run(a),
         Command::Serve(a) => serve::serve(a),
         Command::Health(a) => health::health(a),
         Command::Bench(b) => crate::bench::run(b),

@@ -88,15 +88,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
         }
     };
     let init = parse_pairs(a.init.as_deref().unwrap_or(""), "init")?;
-    let integrator = Integrator::from_name(&a.integrator).ok_or_else(|| {
-        Error::invalid(
-            "integrator",
-            format!(
-                "unknown integrator '{}'; expected rk4, euler or midpoint",
-                a.integrator
-            ),
-        )
-    })?;
+    let integrator = Integrator::parse(&a.integrator)?;
     let cfg = TrainConfig {
         epochs: a.epochs,
         batch_size: a.batch_size,

@@ -1,6 +1,9 @@
-//! Control from trained models (design.md §2): finite-horizon TVLQR in f64 and the feedback
-//! policy it defines.
+//! Control from trained models (design.md §2, §8): finite-horizon TVLQR in f64, the feedback
+//! policy it defines, and trajectory optimisation (iLQR with control bounds).
 
+pub mod boxqp;
 pub mod linalg;
+pub mod plan;
+mod plan_request;
 pub mod policy;
 pub mod tvlqr;

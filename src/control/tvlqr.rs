@@ -26,7 +26,8 @@ pub struct Gains {
     pub s: Vec<Mat>,
 }
 
-fn check_weight(name: &str, w: &Mat, dim: usize, definite: bool) -> Result<()> {
+/// A weight matrix of the right size, finite, symmetric, and PSD (PD when `definite`).
+pub fn check_weight(name: &str, w: &Mat, dim: usize, definite: bool) -> Result<()> {
     if w.rows != dim || w.cols != dim {
         return Err(Error::invalid(
             name,

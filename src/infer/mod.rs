@@ -20,6 +20,7 @@ use col::{Col, Column, Lanes};
 use limits::Pass;
 
 use crate::control::linalg::Mat;
+use crate::control::plan::Dynamics;
 use crate::control::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
@@ -302,15 +303,21 @@ impl Evaluator {
         let (a, b) = self.linearize_batch(&xbar[..t * nx], ubar);
         finite_rows("x_bar", "linearization", &a, nx * nx)?;
         finite_rows("x_bar", "linearization", &b, nx * m)?;
-        let a: Vec<Mat> = a
-            .chunks(nx * nx)
-            .map(|a| Mat::new(nx, nx, a.to_vec()))
-            .collect();
-        let b: Vec<Mat> = b
-            .chunks(nx * m)
-            .map(|b| Mat::new(nx, m, b.to_vec()))
-            .collect();
+        let (a, b) = self.jacobians(a, b);
         tvlqr(&a, &b, q, r, qf)
+    }
+
+    /// Flat `[T, nx, nx]` and `[T, nx, m]` Jacobians as matrices.
+    fn jacobians(&self, a: Vec<f64>, b: Vec<f64>) -> (Vec<Mat>, Vec<Mat>) {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        (
+            a.chunks(nx * nx)
+                .map(|a| Mat::new(nx, nx, a.to_vec()))
+                .collect(),
+            b.chunks(nx * m)
+                .map(|b| Mat::new(nx, m, b.to_vec()))
+                .collect(),
+        )
     }
 
     /// `steps` states after x0 under inputs `u_t = input(t, x_t)`, each handed to `emit`
@@ -330,5 +337,22 @@ impl Evaluator {
                 return;
             }
         }
+    }
+}
+
+/// Plans run on the model's one-step map and its exact Jacobians (`control::plan`).
+impl Dynamics for Evaluator {
+    fn nx(&self) -> usize {
+        2 * self.config.n
+    }
+    fn m(&self) -> usize {
+        self.config.m
+    }
+    fn step(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        self.predict(x, u, false).0
+    }
+    fn linearize(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
+        let (a, b) = self.linearize_batch(x, u);
+        self.jacobians(a, b)
     }
 }

@@ -87,19 +87,41 @@ impl Components {
     }
 }
 
-/// The file's arrays by name.
-struct Arrays<'a>(HashMap<&'a str, &'a NamedArray>);
+/// The file's arrays by name, read with the widths the model's dimensions require.
+struct Arrays<'a> {
+    by_name: HashMap<&'a str, &'a NamedArray>,
+    n: usize,
+    m: usize,
+}
 
 impl Arrays<'_> {
-    fn net(&self, name: &str) -> Result<Mlp64> {
-        Mlp64::from_arrays(&self.0, name)?.ok_or_else(|| missing(name))
+    /// A network from `d_in` inputs to `d_out` outputs, its layers chained.
+    fn net(&self, name: &str, d_in: usize, d_out: usize) -> Result<Mlp64> {
+        let net = Mlp64::from_arrays(&self.by_name, name)?.ok_or_else(|| missing(name))?;
+        let widths: Vec<(usize, usize)> = net.layers.iter().map(|l| (l.0, l.1)).collect();
+        let chained = widths.windows(2).all(|w| w[0].1 == w[1].0);
+        let ends = (widths[0].0, widths[widths.len() - 1].1);
+        if !chained || ends != (d_in, d_out) {
+            return Err(Error::corrupt(
+                "model file",
+                format!("{name}'s layers {widths:?} do not map {d_in} inputs to {d_out} outputs"),
+            ));
+        }
+        Ok(net)
     }
 
-    fn values(&self, name: &str) -> Result<Vec<f64>> {
-        self.0
-            .get(name)
-            .map(|a| a.values.clone())
-            .ok_or_else(|| missing(name))
+    fn values(&self, name: &str, len: usize) -> Result<Vec<f64>> {
+        let a = self.by_name.get(name).ok_or_else(|| missing(name))?;
+        if a.values.len() != len {
+            return Err(Error::corrupt(
+                "model file",
+                format!(
+                    "'{name}' has {} values; the model needs {len}",
+                    a.values.len()
+                ),
+            ));
+        }
+        Ok(a.values.clone())
     }
 }
 
@@ -112,7 +134,12 @@ fn missing(name: &str) -> Error {
 
 impl Weights {
     pub(super) fn from_file(file: &ModelFile) -> Result<Self> {
-        let arrays = Arrays(file.params.iter().map(|a| (a.name.as_str(), a)).collect());
+        let (n, m) = (file.config.n, file.config.m);
+        let arrays = Arrays {
+            by_name: file.params.iter().map(|a| (a.name.as_str(), a)).collect(),
+            n,
+            m,
+        };
         let ModelSpec::Structured {
             mass,
             potential,
@@ -120,13 +147,13 @@ impl Weights {
             template,
         } = &file.config.spec
         else {
-            return Ok(Weights::Naive(arrays.net(names::NAIVE)?));
+            return Ok(Weights::Naive(arrays.net(names::NAIVE, 2 * n + m, n)?));
         };
         let physical = match template.filter(|_| !file.config.spec.white_box_parts().is_empty()) {
             Some(t) => Some(
                 t.params()
                     .iter()
-                    .zip(arrays.values(names::PHYSICAL)?)
+                    .zip(arrays.values(names::PHYSICAL, t.params().len())?)
                     .map(|(info, r)| if info.positive { r.exp() } else { r })
                     .collect(),
             ),
@@ -157,34 +184,36 @@ impl Weights {
     }
 }
 
-fn mass_weights(arrays: &Arrays, spec: &MassSpec) -> Result<Option<Mass>> {
+fn mass_weights(a: &Arrays, spec: &MassSpec) -> Result<Option<Mass>> {
+    let tri = a.n * (a.n + 1) / 2;
     Ok(match spec {
-        MassSpec::Mlp { .. } => Some(Mass::Net(arrays.net(names::MASS_NET)?)),
-        MassSpec::Constant => Some(Mass::Constant(arrays.values(names::MASS_CONST)?)),
+        MassSpec::Mlp { .. } => Some(Mass::Net(a.net(names::MASS_NET, a.n, tri)?)),
+        MassSpec::Constant => Some(Mass::Constant(a.values(names::MASS_CONST, tri)?)),
         MassSpec::Template => None,
     })
 }
 
-fn potential_weights(arrays: &Arrays, spec: &PotentialSpec) -> Result<Option<Potential>> {
+fn potential_weights(a: &Arrays, spec: &PotentialSpec) -> Result<Option<Potential>> {
     Ok(match spec {
-        PotentialSpec::Mlp { .. } => Some(Potential::Net(arrays.net(names::POTENTIAL_NET)?)),
-        PotentialSpec::Quadratic => {
-            Some(Potential::Quadratic(arrays.values(names::POTENTIAL_QUAD)?))
-        }
+        PotentialSpec::Mlp { .. } => Some(Potential::Net(a.net(names::POTENTIAL_NET, a.n, 1)?)),
+        PotentialSpec::Quadratic => Some(Potential::Quadratic(
+            a.values(names::POTENTIAL_QUAD, a.n * (a.n + 1) / 2)?,
+        )),
         PotentialSpec::Template | PotentialSpec::Zero => None,
     })
 }
 
-fn force_weights(arrays: &Arrays, spec: &ForceSpec) -> Result<Option<Forces>> {
+fn force_weights(a: &Arrays, spec: &ForceSpec) -> Result<Option<Forces>> {
+    let (n, m) = (a.n, a.m);
     Ok(match spec {
-        ForceSpec::Mlp { .. } => Some(Forces::Net(arrays.net(names::FORCE_NET)?)),
+        ForceSpec::Mlp { .. } => Some(Forces::Net(a.net(names::FORCE_NET, 2 * n + m, n)?)),
         ForceSpec::ControlAffine { .. } => Some(Forces::ControlAffine {
-            b_net: arrays.net(names::B_NET)?,
-            eta: arrays.values(names::ETA)?,
+            b_net: a.net(names::B_NET, n, n * m)?,
+            eta: a.values(names::ETA, n)?,
         }),
         ForceSpec::ConstantAffine => Some(Forces::ConstantAffine {
-            b_const: arrays.values(names::B_CONST)?,
-            eta: arrays.values(names::ETA)?,
+            b_const: a.values(names::B_CONST, n * m)?,
+            eta: a.values(names::ETA, n)?,
         }),
         ForceSpec::Template => None,
     })

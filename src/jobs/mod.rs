@@ -280,9 +280,8 @@ async fn store_model(
         spec: &spec_json,
         report: &report,
         file: &file.to_bytes()?,
-        warnings: &warnings,
     };
-    app.store.finish_job(c, model).await
+    app.store.finish_job(c, model, &warnings).await
 }
 
 /// Shutdown: checkpoint at this epoch end (unless just taken) and give the job back.

@@ -1,13 +1,21 @@
-//! The trained-model file (`.gbx`): config, parameters and the training report, as JSON.
+//! The model file (`.gbx`): config, parameters and the training report (or how the model was
+//! made, for one that was not trained), as JSON.
 //! f64 values print in shortest round-trip form, so loading gives back the exact weights.
 
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
+use std::collections::BTreeMap;
+
+use super::integrator::Integrator;
+use super::params::names;
 use super::report::TrainReport;
+use super::scaling::Scaling;
+use super::spec::ModelSpec;
+use super::templates::Template;
 use crate::error::{Error, Result};
 use crate::model::params_io::{NamedArray, import};
-use crate::model::{Model, ModelConfig};
+use crate::model::{Model, ModelConfig, raw_physical};
 use burn::tensor::Device;
 
 pub const FORMAT: &str = "graybox.model/1";
@@ -19,6 +27,17 @@ pub struct ModelFile {
     pub params: Vec<NamedArray>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub report: Option<TrainReport>,
+    /// Set for a model made from a template's equations instead of trained (`graybox model`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub made: Option<Made>,
+}
+
+/// How a model that was not trained was made: a template's equations with these values.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Made {
+    pub template: String,
+    pub physical_parameters: BTreeMap<String, f64>,
+    pub note: String,
 }
 
 impl ModelFile {
@@ -28,7 +47,53 @@ impl ModelFile {
             config,
             params,
             report,
+            made: None,
         }
+    }
+
+    /// The white-box model of a template with the given physical values: "the true system"
+    /// as a model, with no data and no training. Its scalings are the identity (a template's
+    /// equations read no network and no data statistics).
+    pub fn from_template(
+        t: Template,
+        values: &[f64],
+        dt: f64,
+        integrator: Integrator,
+    ) -> Result<Self> {
+        let (lo, hi) = crate::data::DT_RANGE;
+        if !(dt.is_finite() && (lo..=hi).contains(&dt)) {
+            return Err(Error::invalid(
+                "dt",
+                format!("must be a number of seconds in [{lo:e}, {hi}], got {dt}"),
+            ));
+        }
+        let raw = raw_physical(t, values)?;
+        let config = ModelConfig {
+            spec: ModelSpec::named("W-B", Some(t))?,
+            n: t.n(),
+            m: t.m(),
+            dt,
+            integrator,
+            lambda: 1.0,
+            scaling: Scaling::identity(t.n(), t.m()),
+        };
+        let params = vec![NamedArray {
+            name: names::PHYSICAL.to_string(),
+            shape: vec![1, raw.len()],
+            values: raw,
+        }];
+        let mut file = Self::new(config, params, None);
+        file.made = Some(Made {
+            template: t.name().to_string(),
+            physical_parameters: t
+                .params()
+                .iter()
+                .zip(values)
+                .map(|(p, v)| (p.name.to_string(), *v))
+                .collect(),
+            note: "made from the template's equations with these values; not trained".into(),
+        });
+        Ok(file)
     }
 
     /// The file's bytes. A non-finite number (JSON would write it as null and the file would

@@ -30,6 +30,17 @@ impl Integrator {
             .find(|i| i.name() == s)
     }
 
+    /// A name given by a person (the `integrator` field or flag); an unknown one is an error
+    /// listing the known.
+    pub fn parse(s: &str) -> crate::error::Result<Self> {
+        Self::from_name(s).ok_or_else(|| {
+            crate::error::Error::invalid(
+                "integrator",
+                format!("unknown integrator '{s}'; expected rk4, euler or midpoint"),
+            )
+        })
+    }
+
     /// x_{t+Δt} from x_t, given the vector field `g` (the input is captured by `g`).
     pub fn step<V: StateVec>(self, x: &V, dt: f64, g: impl Fn(&V) -> V) -> V {
         match self {

@@ -15,6 +15,7 @@ pub mod report;
 pub mod scalar;
 pub mod scaling;
 pub mod spec;
+mod spec_json;
 pub mod templates;
 mod tensors;
 

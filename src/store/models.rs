@@ -1,4 +1,5 @@
-//! Trained models: a finished job's best parameters as a model file, with its report.
+//! Models: a finished job's best parameters as a model file with its report, or a model
+//! file uploaded as it is.
 
 use serde::Serialize;
 use sqlx::Row;
@@ -11,7 +12,10 @@ use crate::error::{Error, Result};
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ModelRow {
     pub id: String,
-    pub job_id: String,
+    /// The job that trained it; `None` for an uploaded model.
+    pub job_id: Option<String>,
+    /// "trained" or "uploaded".
+    pub origin: String,
     pub name: String,
     pub n: i64,
     pub m: i64,
@@ -25,7 +29,7 @@ pub struct ModelRow {
     pub seq: i64,
 }
 
-const COLUMNS: &str = "seq, id, job_id, name, n, m, dt, spec, report, sha256, created_at";
+const COLUMNS: &str = "seq, id, job_id, origin, name, n, m, dt, spec, report, sha256, created_at";
 
 fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::with_columns(s, COLUMNS)
@@ -36,6 +40,7 @@ fn row(r: &SqliteRow) -> Result<ModelRow> {
         seq: r.try_get("seq")?,
         id: r.try_get("id")?,
         job_id: r.try_get("job_id")?,
+        origin: r.try_get("origin")?,
         name: r.try_get("name")?,
         n: r.try_get("n")?,
         m: r.try_get("m")?,
@@ -47,22 +52,29 @@ fn row(r: &SqliteRow) -> Result<ModelRow> {
     })
 }
 
+/// A model's record and file, as `finish_job` (trained) and `insert_model` (uploaded) store it.
 pub struct NewModel<'a> {
     pub name: &'a str,
     pub n: i64,
     pub m: i64,
     pub dt: f64,
+    /// The spec (JSON).
     pub spec: &'a str,
+    /// The report (JSON; `null` for an uploaded file without one).
     pub report: &'a str,
     pub file: &'a [u8],
-    /// The training checks' findings (JSON), recorded on the job.
-    pub warnings: &'a str,
 }
 
 impl Store {
     /// Stores the model and marks the job succeeded in one transaction, fenced by the lease:
     /// either both happen or neither. Returns the model id, or None when the lease was lost.
-    pub async fn finish_job(&self, c: &Claimed, m: NewModel<'_>) -> Result<Option<String>> {
+    /// `warnings` (JSON) are the training checks' findings, recorded on the job.
+    pub async fn finish_job(
+        &self,
+        c: &Claimed,
+        m: NewModel<'_>,
+        warnings: &str,
+    ) -> Result<Option<String>> {
         let mut tx = self.write().await?;
         let model_id = new_id("mdl");
         let updated = fenced(
@@ -72,7 +84,7 @@ impl Store {
             )))
             .bind(&model_id)
             .bind(now_rfc3339())
-            .bind(m.warnings),
+            .bind(warnings),
             c,
         )
         .execute(&mut *tx)
@@ -99,6 +111,42 @@ impl Store {
         .await?;
         tx.commit().await?;
         Ok(Some(model_id))
+    }
+
+    /// Stores an uploaded model unless the same file is stored already; the row and whether
+    /// it was created.
+    pub async fn insert_model(&self, m: NewModel<'_>) -> Result<(ModelRow, bool)> {
+        let sha = sha256_hex(m.file);
+        let mut tx = self.write().await?;
+        let existing = sqlx::query(sql(
+            "SELECT {COLUMNS} FROM models WHERE origin = 'uploaded' AND sha256 = ?",
+        ))
+        .bind(&sha)
+        .fetch_optional(&mut *tx)
+        .await?;
+        if let Some(r) = existing {
+            tx.commit().await?;
+            return Ok((row(&r)?, false));
+        }
+        let r = sqlx::query(sql(
+            "INSERT INTO models (id, job_id, origin, name, n, m, dt, spec, report, file, sha256,
+                 created_at)
+             VALUES (?, NULL, 'uploaded', ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+        ))
+        .bind(new_id("mdl"))
+        .bind(m.name)
+        .bind(m.n)
+        .bind(m.m)
+        .bind(m.dt)
+        .bind(m.spec)
+        .bind(m.report)
+        .bind(m.file)
+        .bind(&sha)
+        .bind(now_rfc3339())
+        .fetch_one(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok((row(&r)?, true))
     }
 
     pub async fn get_model(&self, id: &str) -> Result<Option<ModelRow>> {

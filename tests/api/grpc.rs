@@ -336,3 +336,105 @@ async fn dynamics_rpcs_against_independent_references() {
     .await;
     app.stop().await;
 }
+
+/// A model that was never trained: `graybox model`'s file uploaded over REST (201, then 200
+/// for the same file), served over gRPC exactly as the file's own evaluator computes it, and
+/// refused with a 422 naming the body when it is not a usable model file.
+#[tokio::test]
+async fn uploaded_models_are_served_like_trained_ones() {
+    use graybox::infer::Evaluator;
+    use graybox::model::file::ModelFile;
+    use graybox::model::integrator::Integrator;
+    use graybox::model::templates::Template;
+
+    let app = spawn_app(0).await;
+    let t = Template::DoublePendulum;
+    let file = ModelFile::from_template(t, &t.defaults(), 0.05, Integrator::Rk4).unwrap();
+    let bytes = file.to_bytes().unwrap();
+    let post = |body: Vec<u8>| {
+        app.client
+            .post(app.url("/v1/models?name=true-dp"))
+            .header("content-type", "application/octet-stream")
+            .body(body)
+            .send()
+    };
+    let r = post(bytes.clone()).await.unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    let model: Value = r.json().await.unwrap();
+    assert_eq!(
+        (model["origin"].as_str(), &model["job_id"]),
+        (Some("uploaded"), &Value::Null)
+    );
+    assert_eq!(model["name"], "true-dp");
+    assert_eq!(model["physical_parameters"]["m1"], 10.0, "{model}");
+    let again = post(bytes.clone()).await.unwrap();
+    assert_eq!(again.status().as_u16(), 200);
+    let same: Value = again.json().await.unwrap();
+    assert_eq!(same["id"], model["id"]);
+    // The stored file is the uploaded file.
+    let id = model["id"].as_str().unwrap();
+    let back = app
+        .client
+        .get(app.url(&format!("/v1/models/{id}/checkpoint")))
+        .send()
+        .await
+        .unwrap()
+        .bytes()
+        .await
+        .unwrap();
+    assert_eq!(back.as_ref(), bytes.as_slice());
+
+    let addr = format!("http://{}", app.running.as_ref().unwrap().grpc_addr);
+    let mut c = DynamicsClient::connect(addr).await.unwrap();
+    let x = vec![0.3, -0.2, 0.5, 1.0, 1.0, 2.0, -1.0, 0.0];
+    let u = vec![10.0, -5.0, 0.0, 20.0];
+    let got = c
+        .predict(pb::PredictRequest {
+            model_id: id.into(),
+            x: Some(pb::Array {
+                shape: vec![2, 4],
+                data: x.clone(),
+            }),
+            u: Some(pb::Array {
+                shape: vec![2, 2],
+                data: u.clone(),
+            }),
+            ..Default::default()
+        })
+        .await
+        .unwrap()
+        .into_inner();
+    let want = Evaluator::from_file(&file)
+        .unwrap()
+        .predict(&x, &u, false)
+        .0;
+    assert_eq!(got.x_next.unwrap().data, want);
+
+    for (bad, says) in [
+        (b"not json".to_vec(), "model file"),
+        (
+            String::from_utf8(bytes.clone())
+                .unwrap()
+                .replace("\"physical\"", "\"physics\"")
+                .into_bytes(),
+            "physical",
+        ),
+        (
+            String::from_utf8(bytes.clone())
+                .unwrap()
+                .replace("\"dt\":0.05", "\"dt\":-1")
+                .into_bytes(),
+            "dt",
+        ),
+    ] {
+        let r = post(bad).await.unwrap();
+        assert_eq!(r.status().as_u16(), 422);
+        let e: Value = r.json().await.unwrap();
+        assert_eq!(e["error"]["field"], "body", "{e}");
+        assert!(
+            e["error"]["message"].as_str().unwrap().contains(says),
+            "{e}"
+        );
+    }
+    app.stop().await;
+}

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import rel
+from graybox_client import Client, GrayboxError
 
 PARAMS = ["m1", "m2", "l1", "l2", "g", "b1", "b2", "eta1", "eta2"]
 X = np.array([[0.3, -0.6, 2.0, -1.0], [1.2, 0.4, -3.0, 0.5], [-2.0, 2.5, 0.1, 4.0]])
@@ -213,3 +214,46 @@ def test_tvlqr_over_a_long_constant_horizon_converges_to_dlqr(client, models):
     K_inf, S_inf, _ = control.dlqr(A, B, Q, R)
     assert relp(K[0], K_inf) < 1e-9
     assert relp(S[0], S_inf) < 1e-9
+
+
+def test_plan_end_to_end(client, models):
+    """Client.plan on a served model: shapes, bounds, non-increasing costs, the goal error as
+    defined, gains equal to Tvlqr's along the returned plan, and a policy rollout that follows
+    the plan from its own start."""
+    Q, R, Qf = np.diag([1, 1, 0.1, 0.1]), 1e-4 * np.eye(2), np.diag([1000, 1000, 100, 100.0])
+    goal = np.array([np.pi, 0, 0, 0])
+    p = client.plan(models.wb, np.zeros(4), goal, 21, Q, R, Qf, u_min=[-120, -120],
+                    u_max=[120, 120])
+    assert p.x.shape == (22, 4) and p.u.shape == (21, 2) and p.K.shape == (21, 2, 4)
+    assert np.all(np.abs(p.u) <= 120)
+    assert np.all(np.diff(p.costs) <= 0) and p.costs[-1] == p.cost
+    assert p.iterations == len(p.costs) - 1
+    assert p.goal_error == pytest.approx(np.linalg.norm(p.x[-1] - goal), rel=1e-12)
+    K, _ = client.tvlqr(models.wb, p.x, p.u, Q, R, Qf)
+    assert rel(p.K, K) < 1e-12
+    xs = client.rollout(models.wb, p.x[0], policy=(p.x, p.u, p.K))
+    assert rel(xs, p.x) < 1e-9, "the plan is a rollout of the model"
+    with pytest.raises(GrayboxError) as e:
+        client.plan(models.wb, np.zeros(4), goal, 21, Q, R, Qf, u_min=[1, 1], u_max=[0, 0])
+    assert e.value.code == "INVALID_ARGUMENT" and "u_min" in e.value.message
+    with pytest.raises(GrayboxError) as e:
+        client.plan(models.wb, np.zeros(4), goal, 10_001, Q, R, Qf)
+    assert e.value.code == "RESOURCE_EXHAUSTED" and "--max-plan-horizon" in e.value.message
+    with pytest.raises(GrayboxError) as e:
+        client.plan("mdl_nonexistent", np.zeros(4), goal, 21, Q, R, Qf)
+    assert e.value.code == "NOT_FOUND", e.value
+    with pytest.raises(GrayboxError) as e:
+        client.plan(models.wb, np.zeros(4), goal, 21, -Q, R, Qf)
+    assert e.value.code == "INVALID_ARGUMENT" and "Q" in e.value.message
+
+
+def test_plan_time_limit_and_deadline(server, models):
+    Q, R, Qf = np.diag([1, 1, 0.1, 0.1]), 1e-4 * np.eye(2), np.diag([1000, 1000, 100, 100.0])
+    goal = [np.pi, 0, 0, 0]
+    with Client(server.grpc_target, timeout=300) as c:
+        p = c.plan(models.wb, np.zeros(4), goal, 200, Q, R, Qf, restarts=50, time_limit_ms=50)
+        assert not p.converged and np.isfinite(p.x).all() and p.x.shape == (201, 4)
+    with Client(server.grpc_target, timeout=0.05) as c:
+        with pytest.raises(GrayboxError) as e:
+            c.plan(models.wb, np.zeros(4), goal, 2000, Q, R, Qf, restarts=50)
+        assert e.value.code == "DEADLINE_EXCEEDED", e.value

@@ -128,6 +128,11 @@ def test_command_line_example(graybox_bin):
     inspected = [j for j in json.loads("[" + _objects(done.stdout) + "]") if "identifiable" in j]
     names = {c["name"] for c in inspected[-1]["identifiable"]}
     assert {"m1/m2", "l1/l2", "g/l1"} <= names, names
+    # The Control example: the swing-up on the true double pendulum reaches the top.
+    plan = json.loads((work / "swing-up.json").read_text())
+    assert plan["goal_error"] < 0.1 and len(plan["u"]) == 21, plan["goal_error"]
+    assert all(abs(u) <= 120 for row in plan["u"] for u in row)
+    assert all(b <= a for a, b in zip(plan["costs"], plan["costs"][1:]))
 
 
 def _objects(text: str) -> str:
@@ -143,3 +148,30 @@ def _objects(text: str) -> str:
             if depth == 0:
                 objs.append(text[start:i + 1])
     return ",".join(objs)
+
+
+def test_every_serve_flag_is_in_the_readme_table(graybox_bin):
+    """The flag table lists every flag `graybox serve --help` shows, with its variable and
+    its default."""
+    help_text = subprocess.run([graybox_bin, "serve", "--help"], capture_output=True,
+                               text=True, check=True).stdout
+    readme = (ROOT / "README.md").read_text()
+    table = {}
+    for line in readme.splitlines():
+        m = re.match(r"\| `(--[a-z-]+)[^|]*\| `?(GRAYBOX_\w+)", line)
+        if m:
+            table[m.group(1)] = line
+            for extra in re.findall(r"`(--[a-z-]+)", line)[1:]:
+                table[extra] = line
+    flags = re.findall(r"^\s+(--[a-z][a-z-]*)", help_text, re.M)
+    assert len(flags) >= 20, help_text
+    for flag in flags:
+        if flag == "--help":
+            continue
+        assert flag in table, f"{flag} is not in README's flag table"
+        entry = help_text[help_text.index(flag):].split("\n      --", 1)[0]
+        env = re.search(r"\[env: (\w+)", entry)
+        assert env and env.group(1) in table[flag], (flag, table[flag])
+        default = re.search(r"\[default: ([^\]]+)\]", entry)
+        if default:
+            assert default.group(1).split()[0] in table[flag], (flag, default.group(1), table[flag])

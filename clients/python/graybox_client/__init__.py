@@ -9,6 +9,7 @@
 
 from ._pb import dynamics_pb2 as pb
 from ._pb import dynamics_pb2_grpc as pb_grpc
-from .client import Client, GrayboxError, ModelInfo, from_array, to_array
+from .client import Client, GrayboxError, ModelInfo, PlanResult, from_array, to_array
 
-__all__ = ["Client", "GrayboxError", "ModelInfo", "from_array", "to_array", "pb", "pb_grpc"]
+__all__ = ["Client", "GrayboxError", "ModelInfo", "PlanResult", "from_array", "to_array", "pb",
+           "pb_grpc"]

@@ -48,6 +48,23 @@ class ModelInfo:
     created_at: str
 
 
+@dataclass
+class PlanResult:
+    """A Plan response: states `x` [T+1, 2n], inputs `u` [T, m], TVLQR gains `K` [T, m, 2n]
+    along them (u = ū − K(x − x̄)), the `cost`, `costs` (the initial guess's, then after each
+    accepted iteration; non-increasing), `iterations`, `converged` and `goal_error`
+    (‖x_T − goal‖₂)."""
+
+    x: np.ndarray
+    u: np.ndarray
+    K: np.ndarray
+    cost: float
+    costs: np.ndarray
+    iterations: int
+    converged: bool
+    goal_error: float
+
+
 def to_array(a: Any) -> pb.Array:
     """A float64 array in C order as Array{shape, data}."""
     a = np.ascontiguousarray(a, dtype=np.float64)
@@ -222,6 +239,28 @@ class Client:
             model_id=model_id, x_bar=to_array(xbar), u_bar=to_array(ubar),
             q=to_array(Q), r=to_array(R), qf=to_array(Qf)))
         return from_array(r.k), from_array(r.s)
+
+    def plan(self, model_id: str, x0, goal, horizon: int, Q, R, Qf, u_min=None, u_max=None,
+             u_init=None, max_iterations: int = 200, tolerance: float = 1e-6, restarts: int = 0,
+             seed: int = 0, time_limit_ms: int = 0) -> PlanResult:
+        """A trajectory of `horizon` steps from x0 toward `goal` minimizing
+        Σ (x_t−g)ᵀQ(x_t−g) + u_tᵀRu_t + (x_T−g)ᵀQf(x_T−g) with u_min ≤ u_t ≤ u_max (None:
+        unbounded), by iLQR with input bounds on the model, and TVLQR gains along it.
+        `u_init` [T, m] is the first guess (zeros by default); `restarts` adds that many
+        randomised guesses (uniform within the bounds) and keeps the best; `time_limit_ms`
+        returns the best so far with converged = False."""
+        flat = lambda v: [] if v is None else np.asarray(v, dtype=np.float64).ravel().tolist()
+        req = pb.PlanRequest(
+            model_id=model_id, x0=flat(x0), goal=flat(goal), horizon=horizon,
+            q=to_array(Q), r=to_array(R), qf=to_array(Qf), u_min=flat(u_min), u_max=flat(u_max),
+            max_iterations=max_iterations, tolerance=tolerance, restarts=restarts, seed=seed,
+            time_limit_ms=time_limit_ms)
+        if u_init is not None:
+            req.u_init.CopyFrom(to_array(u_init))
+        r = self._call(self.stub.Plan, req)
+        return PlanResult(x=from_array(r.x), u=from_array(r.u), K=from_array(r.k), cost=r.cost,
+                          costs=np.asarray(r.costs), iterations=r.iterations,
+                          converged=r.converged, goal_error=r.goal_error)
 
     def get_model(self, model_id: str) -> ModelInfo:
         """A model, by its id or by the id of the job that trained it."""

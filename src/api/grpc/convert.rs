@@ -41,7 +41,7 @@ pub fn take(field: &str, a: Option<pb::Array>) -> Result<(Vec<f64>, Vec<u64>), S
 pub fn model_info(m: &Model) -> pb::ModelInfo {
     pb::ModelInfo {
         id: m.id.clone(),
-        job_id: m.job_id.clone(),
+        job_id: m.job_id.clone().unwrap_or_default(),
         name: m.name.clone(),
         n: m.n as u64,
         m: m.m as u64,

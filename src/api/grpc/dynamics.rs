@@ -10,7 +10,7 @@ use tonic::{Request, Response, Status};
 use super::convert::{array, model_info, take};
 use super::pb::{self, dynamics_server::Dynamics};
 use crate::app::App;
-use crate::app::inference::RolloutInputs;
+use crate::app::inference::{PlanCall, RolloutInputs};
 
 /// Dimension `i` of a shape the core has validated (0 if absent).
 fn dim(shape: &[u64], i: usize) -> usize {
@@ -130,6 +130,47 @@ impl Dynamics for DynamicsService {
             id: r.id,
             k: Some(array(&[t, m, nx], k)),
             s: Some(array(&[t + 1, nx, nx], s)),
+        }))
+    }
+
+    async fn plan(
+        &self,
+        req: Request<pb::PlanRequest>,
+    ) -> Result<Response<pb::PlanResponse>, Status> {
+        let until = deadline(&req);
+        let r = req.into_inner();
+        let call = PlanCall {
+            x0: r.x0,
+            goal: r.goal,
+            horizon: r.horizon,
+            q: take("q", r.q)?,
+            r: take("r", r.r)?,
+            qf: take("qf", r.qf)?,
+            u_min: r.u_min,
+            u_max: r.u_max,
+            u_init: r.u_init.map(|a| take("u_init", Some(a))).transpose()?,
+            max_iterations: r.max_iterations,
+            tolerance: r.tolerance,
+            restarts: r.restarts,
+            seed: r.seed,
+            time_limit_ms: r.time_limit_ms,
+        };
+        let p = self.app.plan(&r.model_id, call, until).await?;
+        let (t, m) = (p.gains.k.len(), p.gains.k[0].rows);
+        let nx = p.x.len() / (t + 1);
+        Ok(Response::new(pb::PlanResponse {
+            id: r.id,
+            x: Some(array(&[t + 1, nx], p.x)),
+            u: Some(array(&[t, m], p.u)),
+            k: Some(array(
+                &[t, m, nx],
+                p.gains.k.into_iter().flat_map(|k| k.data).collect(),
+            )),
+            cost: p.cost,
+            costs: p.costs,
+            iterations: p.iterations as u32,
+            converged: p.converged,
+            goal_error: p.goal_error,
         }))
     }
 

@@ -1,17 +1,40 @@
 use axum::Router;
+use axum::body::Bytes;
+use axum::extract::rejection::BytesRejection;
 use axum::extract::{Path, State};
 use axum::http::{StatusCode, header};
 use axum::response::IntoResponse;
 use axum::routing::get;
 
-use super::error::ApiResult;
+use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, int_param, page};
 
 pub fn routes() -> Router<RestState> {
     Router::new()
-        .route("/v1/models", get(list))
+        .route("/v1/models", get(list).post(upload))
         .route("/v1/models/{id}", get(read).delete(remove))
         .route("/v1/models/{id}/checkpoint", get(checkpoint))
+}
+
+/// A model file (`.gbx`, the format `checkpoint` returns) stored as it is: 201, or 200 with
+/// the stored model when the same file was uploaded before.
+async fn upload(
+    State(s): State<RestState>,
+    p: Params,
+    body: Result<Bytes, BytesRejection>,
+) -> ApiResult<impl IntoResponse> {
+    let limit = s.app.settings.max_body_bytes();
+    let bytes = body.map_err(|_| ApiError::too_large(limit))?;
+    let (model, created) = s
+        .app
+        .upload_model(p.get("name").cloned(), bytes.to_vec())
+        .await?;
+    let status = if created {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    };
+    Ok((status, axum::Json(model)))
 }
 
 async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoResponse> {

@@ -7,10 +7,12 @@
 
 mod admission;
 mod cache;
+mod plan;
 mod rollout;
 
 pub use admission::Heavy;
 pub use cache::{CACHE_SWEEP, ModelCache};
+pub use plan::PlanCall;
 pub use rollout::{RolloutChunk, RolloutInputs};
 
 use std::sync::Arc;

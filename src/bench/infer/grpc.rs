@@ -90,6 +90,9 @@ pub(super) async fn over_grpc(
     })
     .await
     .expect("client thread")?;
+    let made = super::plan::true_double_pendulum().to_bytes()?;
+    let (true_dp, _) = app.upload_model(Some("true-dp".into()), made).await?;
+    super::plan::over_grpc(&url, &true_dp.id).await?;
 
     let (train_job, _) = submit(&app, &ds.id, 1_000_000).await?;
     wait_for(&app, &train_job.id, |s| s == JobState::Running).await?;

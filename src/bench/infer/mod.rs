@@ -1,5 +1,5 @@
 //! `graybox bench infer`: inference latency for controllers on the double pendulum MVF 3×32
-//! (issue 4's targets). In process (the evaluator alone) and as gRPC round trips on loopback
+//! (issue 4's targets) and Plan swing-ups. In process (the evaluator alone) and as gRPC round trips on loopback
 //! against a real service: idle, then with concurrent clients while a training job runs.
 
 use std::sync::Arc;
@@ -15,6 +15,7 @@ use crate::model::templates::Template;
 use crate::sim::{SimConfig, simulate};
 
 mod grpc;
+mod plan;
 
 #[derive(Args, Debug)]
 pub struct BenchInferArgs {
@@ -115,6 +116,7 @@ pub fn run(a: BenchInferArgs) -> Result<()> {
     let p = problem(&data);
     let eval = Arc::new(trained_mvf(&data)?);
     in_process(&eval, &p, a.calls);
+    plan::in_process()?;
     if !a.in_process_only {
         let rt = tokio::runtime::Builder::new_multi_thread()
             .enable_all()

@@ -1,0 +1,46 @@
+//! `graybox model`: the white-box model of a template with given physical values, written as
+//! a model file without data or training ("the true system" as a model).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use serde_json::json;
+
+use crate::error::Result;
+use crate::model::file::ModelFile;
+use crate::model::integrator::Integrator;
+use crate::model::templates::Template;
+use crate::sim::parse_assignments;
+
+#[derive(Args, Debug)]
+pub struct ModelArgs {
+    /// Template: double_pendulum, pendulum or cartpole.
+    #[arg(long)]
+    pub template: String,
+    /// Physical values, e.g. m1=10,l2=0.8 (others keep the template's defaults).
+    #[arg(long)]
+    pub set: Option<String>,
+    /// The model's time step, seconds.
+    #[arg(long)]
+    pub dt: f64,
+    /// rk4, euler or midpoint.
+    #[arg(long, default_value = "rk4")]
+    pub integrator: String,
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub(super) fn model(a: ModelArgs) -> Result<()> {
+    let t = Template::parse(&a.template)?;
+    let values = parse_assignments(t, a.set.as_deref(), "set")?;
+    let integrator = Integrator::parse(&a.integrator)?;
+    let file = ModelFile::from_template(t, &values, a.dt, integrator)?;
+    file.save(&a.out)?;
+    println!(
+        "{}",
+        json!({"out": a.out, "template": t.name(), "n": file.config.n, "m": file.config.m,
+               "dt": a.dt, "integrator": a.integrator,
+               "physical_parameters": file.made.as_ref().map(|m| &m.physical_parameters)})
+    );
+    Ok(())
+}

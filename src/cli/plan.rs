@@ -1,0 +1,149 @@
+//! `graybox plan`: trajectory optimisation on a model file (`control::plan`), written as JSON
+//! with the fields of the gRPC `Plan` response.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use serde_json::json;
+
+use crate::control::linalg::Mat;
+use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, PlanRequest, plan};
+use crate::error::{Error, Result};
+use crate::infer::Evaluator;
+use crate::model::file::{ModelFile, write_atomic};
+
+#[derive(Args, Debug)]
+pub struct PlanArgs {
+    #[arg(long)]
+    pub model: PathBuf,
+    /// The start state, 2n comma-separated values (q then q̇).
+    #[arg(long, allow_hyphen_values = true)]
+    pub x0: String,
+    /// The goal state, 2n values.
+    #[arg(long, allow_hyphen_values = true)]
+    pub goal: String,
+    /// Steps T (the plan lasts T·Δt, Δt the model's).
+    #[arg(long)]
+    pub horizon: usize,
+    /// Lower input bounds, m values (default: unbounded).
+    #[arg(long, allow_hyphen_values = true)]
+    pub u_min: Option<String>,
+    /// Upper input bounds, m values (default: unbounded).
+    #[arg(long, allow_hyphen_values = true)]
+    pub u_max: Option<String>,
+    /// Diagonal of Q, 2n values (default: 1 for each q, 0.1 for each q̇).
+    #[arg(long)]
+    pub q_diag: Option<String>,
+    /// Diagonal of R, m values (default: 1e-4 each).
+    #[arg(long)]
+    pub r_diag: Option<String>,
+    /// Diagonal of Q_f, 2n values (default: 1000 × Q's).
+    #[arg(long)]
+    pub qf_diag: Option<String>,
+    #[arg(long, default_value_t = 0)]
+    pub restarts: usize,
+    #[arg(long, default_value_t = DEFAULT_MAX_ITERATIONS)]
+    pub max_iterations: usize,
+    #[arg(long, default_value_t = DEFAULT_TOLERANCE)]
+    pub tolerance: f64,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Return the best plan so far after this many milliseconds (0: no limit).
+    #[arg(long, default_value_t = 0)]
+    pub time_limit_ms: u64,
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// "1,2,3" → [1, 2, 3], `len` values.
+fn values(field: &str, text: &str, len: usize) -> Result<Vec<f64>> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|s| {
+            s.trim()
+                .parse()
+                .map_err(|_| Error::invalid(field, format!("'{}' is not a number", s.trim())))
+        })
+        .collect::<Result<_>>()?;
+    if v.len() != len {
+        return Err(Error::invalid(
+            field,
+            format!("expected {len} values, got {}", v.len()),
+        ));
+    }
+    Ok(v)
+}
+
+fn diag(v: &[f64]) -> Mat {
+    let n = v.len();
+    let mut m = Mat::zeros(n, n);
+    for (i, x) in v.iter().enumerate() {
+        m.data[i * n + i] = *x;
+    }
+    m
+}
+
+fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
+    let q = match &a.q_diag {
+        Some(s) => values("q_diag", s, nx)?,
+        None => (0..nx)
+            .map(|i| if i < nx / 2 { 1.0 } else { 0.1 })
+            .collect(),
+    };
+    let r = match &a.r_diag {
+        Some(s) => values("r_diag", s, m)?,
+        None => vec![1e-4; m],
+    };
+    let qf = match &a.qf_diag {
+        Some(s) => values("qf_diag", s, nx)?,
+        None => q.iter().map(|v| 1000.0 * v).collect(),
+    };
+    let bound =
+        |name: &str, v: &Option<String>| v.as_deref().map(|s| values(name, s, m)).transpose();
+    Ok(PlanRequest {
+        x0: values("x0", &a.x0, nx)?,
+        goal: values("goal", &a.goal, nx)?,
+        horizon: a.horizon,
+        q: diag(&q),
+        r: diag(&r),
+        qf: diag(&qf),
+        u_min: bound("u_min", &a.u_min)?,
+        u_max: bound("u_max", &a.u_max)?,
+        u_init: None,
+        max_iterations: a.max_iterations,
+        tolerance: a.tolerance,
+        restarts: a.restarts,
+        seed: a.seed,
+        time_limit: (a.time_limit_ms > 0)
+            .then(|| Instant::now().checked_add(Duration::from_millis(a.time_limit_ms)))
+            .flatten(),
+    })
+}
+
+pub(super) fn run(a: PlanArgs) -> Result<()> {
+    let eval = Evaluator::from_file(&ModelFile::load(&a.model)?)?;
+    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let req = request(&a, nx, m)?;
+    let started = Instant::now();
+    let p = plan(&eval, &req, &|| false)?;
+    let seconds = started.elapsed().as_secs_f64();
+    let rows =
+        |v: &[f64], w: usize| -> Vec<Vec<f64>> { v.chunks(w).map(<[f64]>::to_vec).collect() };
+    let k: Vec<Vec<Vec<f64>>> = p.gains.k.iter().map(|k| rows(&k.data, nx)).collect();
+    let out = json!({
+        "x": rows(&p.x, nx), "u": rows(&p.u, m), "K": k, "cost": p.cost, "costs": p.costs,
+        "iterations": p.iterations, "converged": p.converged, "goal_error": p.goal_error,
+        "dt": eval.config.dt,
+    });
+    write_atomic(
+        &a.out,
+        serde_json::to_string_pretty(&out).expect("json").as_bytes(),
+    )?;
+    println!(
+        "{}",
+        json!({"out": a.out, "cost": p.cost, "iterations": p.iterations,
+               "converged": p.converged, "goal_error": p.goal_error, "seconds": seconds})
+    );
+    Ok(())
+}

@@ -1,0 +1,92 @@
+//! What a plan is asked for, and its checks: every field validated with an error naming it.
+
+use std::time::Instant;
+
+use super::linalg::Mat;
+use super::tvlqr::check_weight;
+use crate::error::{Error, Result};
+
+pub const DEFAULT_MAX_ITERATIONS: usize = 200;
+pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+
+/// What to plan. Arrays are row-major; `u_init` is `[T, m]`.
+#[derive(Debug, Clone)]
+pub struct PlanRequest {
+    pub x0: Vec<f64>,
+    pub goal: Vec<f64>,
+    pub horizon: usize,
+    pub q: Mat,
+    pub r: Mat,
+    pub qf: Mat,
+    pub u_min: Option<Vec<f64>>,
+    pub u_max: Option<Vec<f64>>,
+    pub u_init: Option<Vec<f64>>,
+    pub max_iterations: usize,
+    pub tolerance: f64,
+    pub restarts: usize,
+    pub seed: u64,
+    /// Return the best plan so far at this instant, with `converged = false`.
+    pub time_limit: Option<Instant>,
+}
+
+/// Every field of a request checked, each error naming it.
+pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
+    let finite = |name: &str, v: &[f64], len: usize| -> Result<()> {
+        if v.len() != len {
+            return Err(Error::invalid(
+                name,
+                format!("expected {len} values, got {}", v.len()),
+            ));
+        }
+        match v.iter().position(|x| !x.is_finite()) {
+            Some(i) => Err(Error::invalid(
+                name,
+                format!("value {i} is not finite ({})", v[i]),
+            )),
+            None => Ok(()),
+        }
+    };
+    finite("x0", &req.x0, nx)?;
+    finite("goal", &req.goal, nx)?;
+    if req.horizon == 0 {
+        return Err(Error::invalid("horizon", "must be at least 1"));
+    }
+    check_weight("Q", &req.q, nx, false)?;
+    check_weight("Qf", &req.qf, nx, false)?;
+    check_weight("R", &req.r, m, true)?;
+    if let Some(lo) = &req.u_min {
+        check_bound("u_min", lo, m)?;
+    }
+    if let Some(hi) = &req.u_max {
+        check_bound("u_max", hi, m)?;
+    }
+    if let (Some(lo), Some(hi)) = (&req.u_min, &req.u_max)
+        && let Some(i) = (0..m).find(|&i| lo[i] > hi[i])
+    {
+        return Err(Error::invalid(
+            "u_min",
+            format!("u_min[{i}] = {} is above u_max[{i}] = {}", lo[i], hi[i]),
+        ));
+    }
+    if let Some(u) = &req.u_init {
+        finite("u_init", u, req.horizon * m)?;
+    }
+    if !(req.tolerance.is_finite() && req.tolerance >= 0.0) {
+        return Err(Error::invalid("tolerance", "must be a finite number ≥ 0"));
+    }
+    Ok(())
+}
+
+/// A bound may be ±∞ on a component (unbounded there) but not NaN.
+fn check_bound(name: &str, v: &[f64], m: usize) -> Result<()> {
+    if v.len() != m {
+        return Err(Error::invalid(
+            name,
+            format!("expected {m} values, got {}", v.len()),
+        ));
+    }
+    match v.iter().position(|x| x.is_nan()) {
+        Some(i) => Err(Error::invalid(name, format!("value {i} is NaN"))),
+        None => Ok(()),
+    }
+}

@@ -1,0 +1,282 @@
+//! Trajectory optimisation (`control::plan`) against independent references: the paper's
+//! double-pendulum swing-up tracked on a closed-form RK4 written here, and a linear-quadratic
+//! problem solved by batch least squares.
+
+mod common;
+
+use graybox::control::linalg::Mat;
+use graybox::control::plan::{Dynamics, Plan, PlanRequest, plan};
+use graybox::infer::Evaluator;
+use graybox::model::file::ModelFile;
+use graybox::model::integrator::Integrator;
+use graybox::model::scaling::Scaling;
+use graybox::model::spec::ModelSpec;
+use graybox::model::templates::Template;
+use graybox::model::{Model, ModelConfig};
+
+use common::{PAPER, double_pendulum_accel, gauss_solve};
+
+fn diag(v: &[f64]) -> Mat {
+    let n = v.len();
+    let mut m = Mat::zeros(n, n);
+    for (i, x) in v.iter().enumerate() {
+        m.data[i * n + i] = *x;
+    }
+    m
+}
+
+fn swing_up(horizon: usize) -> PlanRequest {
+    let q = diag(&[1.0, 1.0, 0.1, 0.1]);
+    PlanRequest {
+        x0: vec![0.0; 4],
+        goal: vec![std::f64::consts::PI, 0.0, 0.0, 0.0],
+        horizon,
+        qf: diag(&[1000.0, 1000.0, 100.0, 100.0]),
+        q,
+        r: diag(&[1e-4, 1e-4]),
+        u_min: Some(vec![-120.0; 2]),
+        u_max: Some(vec![120.0; 2]),
+        u_init: None,
+        max_iterations: 200,
+        tolerance: 1e-6,
+        restarts: 0,
+        seed: 0,
+        time_limit: None,
+    }
+}
+
+fn true_double_pendulum() -> Evaluator {
+    let file =
+        ModelFile::from_template(Template::DoublePendulum, &PAPER, 0.1, Integrator::Rk4).unwrap();
+    Evaluator::from_file(&file).unwrap()
+}
+
+/// One RK4 step of the closed-form double pendulum (tests/common), independent of graybox.
+fn reference_step(x: &[f64], u: &[f64], dt: f64) -> Vec<f64> {
+    let f = |x: &[f64]| -> Vec<f64> {
+        let a = double_pendulum_accel(&PAPER, &x[..2], &x[2..], u);
+        vec![x[2], x[3], a[0], a[1]]
+    };
+    let at = |k: &[f64], h: f64| x.iter().zip(k).map(|(a, b)| a + h * b).collect::<Vec<_>>();
+    let k1 = f(x);
+    let k2 = f(&at(&k1, dt / 2.0));
+    let k3 = f(&at(&k2, dt / 2.0));
+    let k4 = f(&at(&k3, dt));
+    (0..4)
+        .map(|i| x[i] + dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+        .collect()
+}
+
+fn assert_costs_never_increase(p: &Plan) {
+    for w in p.costs.windows(2) {
+        assert!(w[1] <= w[0], "costs increased: {:?}", p.costs);
+    }
+    assert_eq!(*p.costs.last().unwrap(), p.cost);
+}
+
+#[test]
+fn swing_up_reaches_the_top_and_its_gains_track_the_true_system() {
+    let eval = true_double_pendulum();
+    let req = swing_up(21);
+    let p = plan(&eval, &req, &|| false).unwrap();
+    let end = &p.x[21 * 4..];
+    // The issue's bounds: within 0.05 rad and 0.2 rad/s of (π, 0, 0, 0) on the model.
+    for i in 0..2 {
+        assert!(
+            (end[i] - req.goal[i]).abs() < 0.05,
+            "end {end:?}, {} iterations",
+            p.iterations
+        );
+        assert!(end[2 + i].abs() < 0.2, "end {end:?}");
+    }
+    assert_costs_never_increase(&p);
+    assert!(
+        p.u.iter().all(|u| u.abs() <= 120.0),
+        "an input leaves the bounds"
+    );
+    assert!(
+        (p.goal_error
+            - end
+                .iter()
+                .zip(&req.goal)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt())
+        .abs()
+            < 1e-12
+    );
+
+    // Tracking with the plan's own gains on the reference system from a perturbed start.
+    let mut x: Vec<f64> = p.x[..4].iter().map(|v| v + 0.01).collect();
+    for t in 0..21 {
+        let u: Vec<f64> = (0..2)
+            .map(|i| {
+                let k = &p.gains.k[t];
+                let fb: f64 = (0..4).map(|j| k.at(i, j) * (x[j] - p.x[t * 4 + j])).sum();
+                (p.u[t * 2 + i] - fb).clamp(-120.0, 120.0)
+            })
+            .collect();
+        x = reference_step(&x, &u, 0.1);
+    }
+    for i in 0..2 {
+        assert!((x[i] - req.goal[i]).abs() < 0.1, "tracked end {x:?}");
+        assert!(x[2 + i].abs() < 0.5, "tracked end {x:?}");
+    }
+}
+
+/// A model whose RK4 map is linear (constant M, quadratic V, constant-affine F: no Coriolis
+/// term): iLQR must equal the batch least-squares optimum and converge at once.
+#[test]
+fn linear_quadratic_plan_equals_batch_least_squares() {
+    let spec: ModelSpec = ModelSpec::parse(
+        r#"{"mass": "constant", "potential": "quadratic", "forces": "constant_affine"}"#,
+        None,
+    )
+    .unwrap();
+    let config = ModelConfig {
+        spec,
+        n: 2,
+        m: 2,
+        dt: 0.05,
+        integrator: Integrator::Rk4,
+        lambda: 1.0,
+        scaling: Scaling::identity(2, 2),
+    };
+    let dev = graybox::backend::device(
+        graybox::backend::Backend::Flex,
+        graybox::backend::Precision::F32,
+    )
+    .unwrap();
+    let model = Model::init(config.clone(), None, 0, &dev).unwrap();
+    let mut params = model.params.export();
+    for a in &mut params {
+        a.values = match a.name.as_str() {
+            "mass_const" => vec![0.3, 0.2, -0.1],
+            "potential_quad" => vec![4.0, 1.0, 2.5],
+            "b_const" => vec![1.0, 0.3, -0.2, 0.8],
+            "eta" => vec![-0.2, -0.1],
+            other => panic!("unexpected value {other}"),
+        };
+    }
+    let eval = Evaluator::from_file(&ModelFile::new(config, params, None)).unwrap();
+    let t = 12;
+    let req = PlanRequest {
+        x0: vec![0.5, -0.3, 0.1, 0.2],
+        goal: vec![0.2, 0.4, 0.0, 0.0],
+        horizon: t,
+        q: diag(&[2.0, 1.0, 0.3, 0.2]),
+        r: diag(&[0.05, 0.1]),
+        qf: diag(&[20.0, 10.0, 3.0, 2.0]),
+        u_min: None,
+        u_max: None,
+        u_init: None,
+        max_iterations: 50,
+        tolerance: 1e-9,
+        restarts: 0,
+        seed: 0,
+        time_limit: None,
+    };
+    let p = plan(&eval, &req, &|| false).unwrap();
+    assert!(
+        p.converged && p.iterations <= 2,
+        "{} iterations",
+        p.iterations
+    );
+
+    // x_{t+1} = A x_t + B u_t + c: A, B from the exact Jacobian, c from one step at 0.
+    let (a, b) = eval.linearize(&[0.0; 4], &[0.0; 2]);
+    let (a, b) = (&a[0], &b[0]);
+    let c = eval.step(&[0.0; 4], &[0.0; 2]);
+    // X = Φ + Γ U stacked over t = 1..T; least squares on the weighted residuals.
+    let (nx, m) = (4, 2);
+    let mut phi = vec![req.x0.clone()];
+    let mut gamma: Vec<Vec<Vec<f64>>> = vec![vec![vec![0.0; t * m]; nx]];
+    for s in 0..t {
+        let (px, gx) = (&phi[s], &gamma[s]);
+        let next_phi: Vec<f64> = (0..nx)
+            .map(|i| (0..nx).map(|j| a.at(i, j) * px[j]).sum::<f64>() + c[i])
+            .collect();
+        let mut next_g = vec![vec![0.0; t * m]; nx];
+        for (i, row) in next_g.iter_mut().enumerate() {
+            for (k, v) in row.iter_mut().enumerate() {
+                *v = (0..nx).map(|j| a.at(i, j) * gx[j][k]).sum::<f64>();
+            }
+            for k in 0..m {
+                row[s * m + k] += b.at(i, k);
+            }
+        }
+        phi.push(next_phi);
+        gamma.push(next_g);
+    }
+    // Normal equations: (Σ Γ_tᵀ W_t Γ_t + R̄) U = Σ Γ_tᵀ W_t (g − Φ_t).
+    let dim = t * m;
+    let mut h = vec![vec![0.0; dim]; dim];
+    let mut rhs = vec![0.0; dim];
+    for s in 1..=t {
+        let w = if s == t { &req.qf } else { &req.q };
+        for i in 0..nx {
+            let wi = w.at(i, i);
+            let e = req.goal[i] - phi[s][i];
+            for k in 0..dim {
+                rhs[k] += gamma[s][i][k] * wi * e;
+                for l in 0..dim {
+                    h[k][l] += gamma[s][i][k] * wi * gamma[s][i][l];
+                }
+            }
+        }
+    }
+    for s in 0..t {
+        for k in 0..m {
+            h[s * m + k][s * m + k] += req.r.at(k, k);
+        }
+    }
+    let u = gauss_solve(h, rhs);
+    let scale = u.iter().fold(1.0f64, |a, v| a.max(v.abs()));
+    for (got, want) in p.u.iter().zip(&u) {
+        // 1e-8 of the inputs' scale: the two solutions differ by rounding in ~10³ operations.
+        assert!((got - want).abs() <= 1e-8 * scale, "{got} vs {want}");
+    }
+}
+
+#[test]
+fn a_time_limit_returns_the_best_so_far() {
+    let eval = true_double_pendulum();
+    let mut req = swing_up(200);
+    req.restarts = 3;
+    req.time_limit = Some(std::time::Instant::now());
+    let p = plan(&eval, &req, &|| false).unwrap();
+    assert!(!p.converged);
+    assert!(p.x.iter().chain(&p.u).all(|v| v.is_finite()));
+    assert_eq!(p.x.len(), 201 * 4);
+}
+
+#[test]
+fn bad_requests_name_their_field() {
+    let eval = true_double_pendulum();
+    let field = |f: &dyn Fn(&mut PlanRequest)| {
+        let mut req = swing_up(5);
+        f(&mut req);
+        match plan(&eval, &req, &|| false) {
+            Err(graybox::error::Error::Invalid { field, .. }) => field,
+            other => panic!("expected an invalid-argument error, got {other:?}"),
+        }
+    };
+    assert_eq!(field(&|r| r.x0 = vec![0.0; 3]), "x0");
+    assert_eq!(field(&|r| r.goal[1] = f64::NAN), "goal");
+    assert_eq!(field(&|r| r.horizon = 0), "horizon");
+    assert_eq!(field(&|r| r.q.data[0] = -1.0), "Q");
+    assert_eq!(field(&|r| r.r.data[3] = 0.0), "R");
+    assert_eq!(field(&|r| r.u_min = Some(vec![200.0, 0.0])), "u_min");
+    assert_eq!(field(&|r| r.u_init = Some(vec![0.0; 3])), "u_init");
+}
+
+/// A long horizon of an unstable system (20 s of the double pendulum): the backward pass's
+/// regularization must keep it solvable (see `control::plan`).
+#[test]
+fn a_long_swing_up_converges_too() {
+    let eval = true_double_pendulum();
+    let p = plan(&eval, &swing_up(200), &|| false).unwrap();
+    assert!(p.converged, "{} iterations, cost {}", p.iterations, p.cost);
+    assert!(p.goal_error < 0.01, "goal error {}", p.goal_error);
+    assert_costs_never_increase(&p);
+}
