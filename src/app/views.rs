@@ -34,7 +34,7 @@ pub struct Model {
 impl From<ModelRow> for Model {
     fn from(m: ModelRow) -> Self {
         let report: Value = serde_json::from_str(&m.report).unwrap_or(Value::Null);
-        let metrics = json!({
+        let mut metrics = json!({
             "epochs": report["epochs"],
             "train_loss": report["train_loss"],
             "val_loss": report["val_loss"],
@@ -46,6 +46,10 @@ impl From<ModelRow> for Model {
             "identifiable": report["identifiable"],
             "warnings": report.get("warnings").cloned().unwrap_or_else(|| json!([])),
         });
+        if let Some(made) = report.get("made") {
+            // Not trained: how it was made instead of losses.
+            metrics["made"] = made.clone();
+        }
         Self {
             id: m.id,
             job_id: m.job_id,

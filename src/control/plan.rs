@@ -74,12 +74,15 @@ impl Bounds {
     }
 }
 
-/// One candidate solution: inputs, the states they give, and its cost.
+/// One candidate solution: inputs, the states they give, its cost, and the Jacobians
+/// (A_t, B_t) along it once computed (a rejected step reuses them; the gains of the returned
+/// plan too).
 #[derive(Clone)]
 struct Trajectory {
     x: Vec<f64>,
     u: Vec<f64>,
     cost: f64,
+    jacobians: Option<(Vec<Mat>, Vec<Mat>)>,
 }
 
 /// The planner for one request on one system.
@@ -188,7 +191,19 @@ impl<D: Dynamics> Planner<'_, D> {
             x.extend(next);
         }
         let cost = self.cost(&x, &u);
-        Trajectory { x, u, cost }
+        Trajectory {
+            x,
+            u,
+            cost,
+            jacobians: None,
+        }
+    }
+
+    /// A_t and B_t along `t`, computed once per trajectory.
+    fn linearized<'t>(&self, t: &'t mut Trajectory) -> &'t (Vec<Mat>, Vec<Mat>) {
+        let states = self.req.horizon * self.sys.nx();
+        t.jacobians
+            .get_or_insert_with(|| self.sys.linearize(&t.x[..states], &t.u))
     }
 
     /// iLQR from `u0`: the trajectory, its costs and whether it converged.
@@ -204,10 +219,9 @@ impl<D: Dynamics> Planner<'_, D> {
             if self.out_of_time() || !cur.cost.is_finite() {
                 return Ok((cur, costs, false));
             }
-            let (a, b) = self
-                .sys
-                .linearize(&cur.x[..self.req.horizon * self.sys.nx()], &cur.u);
-            let Some(back) = self.backward(&cur, &a, &b, mu, &ks) else {
+            self.linearized(&mut cur);
+            let (a, b) = cur.jacobians.as_ref().expect("just computed");
+            let Some(back) = self.backward(&cur, a, b, mu, &ks) else {
                 mu = (mu * 10.0).max(MU_MIN);
                 if mu > MU_MAX {
                     return Ok((cur, costs, false));
@@ -222,7 +236,7 @@ impl<D: Dynamics> Planner<'_, D> {
             match self.line_search(&cur, &back) {
                 Some(next) => {
                     let decrease = (cur.cost - next.cost) / cur.cost.abs().max(f64::MIN_POSITIVE);
-                    ks = back.k.clone();
+                    ks = back.k;
                     cur = next;
                     costs.push(cur.cost);
                     mu = if mu <= MU_MIN { 0.0 } else { mu / 10.0 };
@@ -362,17 +376,22 @@ impl<D: Dynamics> Planner<'_, D> {
             .zip(us)
             .map(|(x, u)| {
                 let cost = self.cost(&x, &u);
-                Trajectory { x, u, cost }
+                Trajectory {
+                    x,
+                    u,
+                    cost,
+                    jacobians: None,
+                }
             })
             .filter(|c| c.cost < cur.cost)
             .min_by(|a, b| a.cost.total_cmp(&b.cost))
     }
 
     /// The plan to return: TVLQR gains along it with the request's weights.
-    fn finish(&self, t: Trajectory, costs: Vec<f64>, converged: bool) -> Result<Plan> {
+    fn finish(&self, mut t: Trajectory, costs: Vec<f64>, converged: bool) -> Result<Plan> {
         let (nx, horizon) = (self.sys.nx(), self.req.horizon);
-        let (a, b) = self.sys.linearize(&t.x[..horizon * nx], &t.u);
-        let gains = tvlqr(&a, &b, &self.req.q, &self.req.r, &self.req.qf)?;
+        let (a, b) = self.linearized(&mut t);
+        let gains = tvlqr(a, b, &self.req.q, &self.req.r, &self.req.qf)?;
         let end = &t.x[horizon * nx..];
         let goal_error = end
             .iter()

@@ -367,6 +367,15 @@ async fn uploaded_models_are_served_like_trained_ones() {
     );
     assert_eq!(model["name"], "true-dp");
     assert_eq!(model["physical_parameters"]["m1"], 10.0, "{model}");
+    assert_eq!(
+        model["metrics"]["made"]["template"], "double_pendulum",
+        "{model}"
+    );
+    assert_eq!(
+        model["metrics"]["epochs"],
+        Value::Null,
+        "no training, no losses"
+    );
     let again = post(bytes.clone()).await.unwrap();
     assert_eq!(again.status().as_u16(), 200);
     let same: Value = again.json().await.unwrap();
