@@ -150,6 +150,27 @@ fn check_model_file(file: &ModelFile, max_dof: usize) -> Result<()> {
         ));
     }
     file.to_bytes()?; // finite scalings and values
+    let sc = &c.scaling;
+    let per_coordinate = [
+        &sc.q_mean,
+        &sc.q_std,
+        &sc.qdot_mean,
+        &sc.qdot_std,
+        &sc.acc_mean,
+    ];
+    let sized = per_coordinate.iter().all(|v| v.len() == c.n)
+        && [&sc.acc_std, &sc.force_scale]
+            .iter()
+            .all(|v| v.len() == c.n)
+        && [&sc.u_mean, &sc.u_std].iter().all(|v| v.len() == c.m);
+    let spreads = [&sc.q_std, &sc.qdot_std, &sc.u_std, &sc.acc_std];
+    // The evaluator divides by the spreads: a zero would make every answer non-finite.
+    if !sized || spreads.iter().any(|v| v.iter().any(|s| *s <= 0.0)) {
+        return Err(Error::invalid(
+            "config.scaling",
+            "needs n values per coordinate statistic (m per input one), standard deviations > 0",
+        ));
+    }
     Evaluator::from_file(file)?; // every value the spec needs, each of its shape
     Ok(())
 }

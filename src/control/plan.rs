@@ -282,11 +282,8 @@ impl<D: Dynamics> Planner<'_, D> {
         let mut vxx = scaled(&req.qf, 2.0);
         let (mut k_ff, mut k_fb) = (vec![Vec::new(); t], vec![Mat::zeros(m, nx); t]);
         let mut expected = 0.0;
-        let eye_mu = |n: usize| {
-            let mut e = Mat::zeros(n, n);
-            (0..n).for_each(|i| e.data[i * n + i] = mu);
-            e
-        };
+        let mut mu_eye = Mat::zeros(m, m);
+        (0..m).for_each(|i| mu_eye.data[i * m + i] = mu);
         for s in (0..t).rev() {
             let u = &cur.u[s * m..(s + 1) * m];
             let (at, bt) = (&a[s], &b[s]);
@@ -297,7 +294,7 @@ impl<D: Dynamics> Planner<'_, D> {
             let qxx = scaled(&req.q, 2.0).add(&at.t().mul(&vxx).mul(at));
             let quu = scaled(&req.r, 2.0)
                 .add(&bt.t().mul(&vxx).mul(bt))
-                .add(&eye_mu(m))
+                .add(&mu_eye)
                 .symmetrized();
             let qux = bt.t().mul(&vxx).mul(at);
             let lo: Vec<f64> = (0..m).map(|i| self.bounds.lo[i] - u[i]).collect();

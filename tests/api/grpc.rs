@@ -435,6 +435,13 @@ async fn uploaded_models_are_served_like_trained_ones() {
                 .into_bytes(),
             "dt",
         ),
+        (
+            String::from_utf8(bytes.clone())
+                .unwrap()
+                .replace("\"q_std\":[1.0,1.0]", "\"q_std\":[0.0,1.0]")
+                .into_bytes(),
+            "scaling",
+        ),
     ] {
         let r = post(bad).await.unwrap();
         assert_eq!(r.status().as_u16(), 422);
