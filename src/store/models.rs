@@ -2,8 +2,8 @@
 //! file uploaded as it is.
 
 use serde::Serialize;
-use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
+use sqlx::{Row, Sqlite, Transaction};
 
 use super::queue::{Claimed, FENCE, fenced};
 use super::{Store, new_id, now_rfc3339, sha256_hex, verified};
@@ -65,6 +65,40 @@ pub struct NewModel<'a> {
     pub file: &'a [u8],
 }
 
+/// Inserts a model in `tx`: trained when it has a job, uploaded when not.
+async fn insert_row(
+    tx: &mut Transaction<'static, Sqlite>,
+    id: &str,
+    job_id: Option<&str>,
+    m: &NewModel<'_>,
+) -> Result<ModelRow> {
+    let origin = if job_id.is_some() {
+        "trained"
+    } else {
+        "uploaded"
+    };
+    let r = sqlx::query(sql(
+        "INSERT INTO models (id, job_id, origin, name, n, m, dt, spec, report, file, sha256,
+             created_at)
+         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+    ))
+    .bind(id)
+    .bind(job_id)
+    .bind(origin)
+    .bind(m.name)
+    .bind(m.n)
+    .bind(m.m)
+    .bind(m.dt)
+    .bind(m.spec)
+    .bind(m.report)
+    .bind(m.file)
+    .bind(sha256_hex(m.file))
+    .bind(now_rfc3339())
+    .fetch_one(&mut **tx)
+    .await?;
+    row(&r)
+}
+
 impl Store {
     /// Stores the model and marks the job succeeded in one transaction, fenced by the lease:
     /// either both happen or neither. Returns the model id, or None when the lease was lost.
@@ -92,23 +126,7 @@ impl Store {
         if updated.rows_affected() == 0 {
             return Ok(None);
         }
-        sqlx::query(
-            "INSERT INTO models (id, job_id, name, n, m, dt, spec, report, file, sha256, created_at)
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
-        )
-        .bind(&model_id)
-        .bind(&c.job.id)
-        .bind(m.name)
-        .bind(m.n)
-        .bind(m.m)
-        .bind(m.dt)
-        .bind(m.spec)
-        .bind(m.report)
-        .bind(m.file)
-        .bind(sha256_hex(m.file))
-        .bind(now_rfc3339())
-        .execute(&mut *tx)
-        .await?;
+        insert_row(&mut tx, &model_id, Some(&c.job.id), &m).await?;
         tx.commit().await?;
         Ok(Some(model_id))
     }
@@ -128,25 +146,9 @@ impl Store {
             tx.commit().await?;
             return Ok((row(&r)?, false));
         }
-        let r = sqlx::query(sql(
-            "INSERT INTO models (id, job_id, origin, name, n, m, dt, spec, report, file, sha256,
-                 created_at)
-             VALUES (?, NULL, 'uploaded', ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
-        ))
-        .bind(new_id("mdl"))
-        .bind(m.name)
-        .bind(m.n)
-        .bind(m.m)
-        .bind(m.dt)
-        .bind(m.spec)
-        .bind(m.report)
-        .bind(m.file)
-        .bind(&sha)
-        .bind(now_rfc3339())
-        .fetch_one(&mut *tx)
-        .await?;
+        let stored = insert_row(&mut tx, &new_id("mdl"), None, &m).await?;
         tx.commit().await?;
-        Ok((row(&r)?, true))
+        Ok((stored, true))
     }
 
     pub async fn get_model(&self, id: &str) -> Result<Option<ModelRow>> {
