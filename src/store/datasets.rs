@@ -100,6 +100,8 @@ impl Store {
     ) -> Result<(DatasetRow, bool)> {
         let blob = encode(ds);
         let sha = sha256(ds, &blob);
+        // Computed before the write lock is taken: the checks read every value.
+        let warnings = serde_json::to_string(&ds.warnings()).expect("warnings serialize");
         let mut tx = self.write().await?;
         let existing = sqlx::query(sql("SELECT {COLUMNS} FROM datasets WHERE sha256 = ?"))
             .bind(&sha)
@@ -122,7 +124,7 @@ impl Store {
         .bind(ds.count() as i64)
         .bind(blob)
         .bind(now_rfc3339())
-        .bind(serde_json::to_string(&ds.warnings()).expect("warnings serialize"))
+        .bind(warnings)
         .fetch_one(&mut *tx)
         .await?;
         tx.commit().await?;
