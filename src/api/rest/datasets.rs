@@ -7,7 +7,7 @@ use axum::response::IntoResponse;
 use axum::routing::get;
 
 use super::error::{ApiError, ApiResult};
-use super::{Params, RestState, float_param, int_param, json_body, page};
+use super::{Params, RestState, body_bytes, float_param, int_param, json_body, page};
 use crate::app::datasets::Upload;
 
 pub fn routes() -> Router<RestState> {
@@ -43,7 +43,7 @@ async fn upload(
 ) -> ApiResult<impl IntoResponse> {
     let limit = s.app.settings.max_body_bytes();
     let dt = float_param(&params, "dt")?;
-    let bytes = body.map_err(|_| ApiError::too_large(limit))?;
+    let bytes = body_bytes(body, limit)?;
     let upload = if is_csv(&headers, &bytes) {
         let text = String::from_utf8(bytes.to_vec())
             .map_err(|_| ApiError::bad_request("body", "CSV must be UTF-8"))?;

@@ -107,17 +107,25 @@ pub fn float_param(p: &HashMap<String, String>, name: &str) -> ApiResult<Option<
 }
 
 /// A JSON body: malformed JSON is a 400 naming "body"; an oversized body a 413.
-pub fn json_body(
+/// A request body's bytes: over the limit is 413, any other failure to read it 400.
+pub fn body_bytes(
     body: Result<axum::body::Bytes, axum::extract::rejection::BytesRejection>,
     limit: usize,
-) -> ApiResult<serde_json::Value> {
-    let bytes = body.map_err(|e| {
+) -> ApiResult<axum::body::Bytes> {
+    body.map_err(|e| {
         if e.status() == StatusCode::PAYLOAD_TOO_LARGE {
             ApiError::too_large(limit)
         } else {
             ApiError::bad_request("body", e.body_text())
         }
-    })?;
+    })
+}
+
+pub fn json_body(
+    body: Result<axum::body::Bytes, axum::extract::rejection::BytesRejection>,
+    limit: usize,
+) -> ApiResult<serde_json::Value> {
+    let bytes = body_bytes(body, limit)?;
     serde_json::from_slice(&bytes)
         .map_err(|e| ApiError::bad_request("body", format!("malformed JSON: {e}")))
 }

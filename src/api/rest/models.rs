@@ -6,8 +6,8 @@ use axum::http::{StatusCode, header};
 use axum::response::IntoResponse;
 use axum::routing::get;
 
-use super::error::{ApiError, ApiResult};
-use super::{Params, RestState, int_param, page};
+use super::error::ApiResult;
+use super::{Params, RestState, body_bytes, int_param, page};
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -24,7 +24,7 @@ async fn upload(
     body: Result<Bytes, BytesRejection>,
 ) -> ApiResult<impl IntoResponse> {
     let limit = s.app.settings.max_body_bytes();
-    let bytes = body.map_err(|_| ApiError::too_large(limit))?;
+    let bytes = body_bytes(body, limit)?;
     let (model, created) = s
         .app
         .upload_model(p.get("name").cloned(), bytes.to_vec())
