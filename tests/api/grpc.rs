@@ -382,16 +382,7 @@ async fn uploaded_models_are_served_like_trained_ones() {
     assert_eq!(same["id"], model["id"]);
     // The stored file is the uploaded file.
     let id = model["id"].as_str().unwrap();
-    let back = app
-        .client
-        .get(app.url(&format!("/v1/models/{id}/checkpoint")))
-        .send()
-        .await
-        .unwrap()
-        .bytes()
-        .await
-        .unwrap();
-    assert_eq!(back.as_ref(), bytes.as_slice());
+    assert_eq!(app.model_file(id).await, bytes);
 
     let addr = format!("http://{}", app.running.as_ref().unwrap().grpc_addr);
     let mut c = DynamicsClient::connect(addr).await.unwrap();

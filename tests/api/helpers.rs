@@ -107,6 +107,17 @@ impl TestApp {
         (status, r.json().await.unwrap_or(Value::Null))
     }
 
+    /// A model's file as `GET /v1/models/{id}/checkpoint` serves it.
+    pub async fn model_file(&self, id: &str) -> Vec<u8> {
+        let r = self
+            .client
+            .get(self.url(&format!("/v1/models/{id}/checkpoint")))
+            .send()
+            .await
+            .unwrap();
+        r.bytes().await.unwrap().to_vec()
+    }
+
     pub async fn upload(&self, body: &Value) -> String {
         let (status, v) = self.post("/v1/datasets", body).await;
         assert!(status == 201 || status == 200, "{status} {v}");

@@ -40,15 +40,7 @@ async fn job_lifecycle_and_checkpoint_matches_cli_eval() {
         (Some(2), Some(id))
     );
 
-    let file = app
-        .client
-        .get(app.url(&format!("/v1/models/{model_id}/checkpoint")))
-        .send()
-        .await
-        .unwrap()
-        .bytes()
-        .await
-        .unwrap();
+    let file = app.model_file(model_id).await;
     let dir = tempfile::tempdir().unwrap();
     let (mpath, vpath) = (dir.path().join("m.gbx"), dir.path().join("v.json"));
     std::fs::write(&mpath, &file).unwrap();
