@@ -66,17 +66,22 @@ impl App {
         )?;
         let gone = Arc::new(AtomicBool::new(false));
         let _guard = Gone(gone.clone());
-        let result = self
-            .heavy
-            .run(move || {
-                let stop = || {
-                    gone.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d)
-                };
-                plan(eval.as_ref(), &req, &stop)
-            })
-            .await?;
+        let work = self.heavy.run(move || {
+            let stop =
+                || gone.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d);
+            plan(eval.as_ref(), &req, &stop)
+        });
+        let passed = || Error::DeadlineExceeded("the plan passed its deadline".into());
+        // The answer leaves at the deadline, not at the solver's next check (one iteration of a
+        // long horizon takes tens of milliseconds); `_guard` stops the solver when this returns.
+        let result = match deadline {
+            Some(d) => tokio::time::timeout_at(d.into(), work)
+                .await
+                .map_err(|_| passed())??,
+            None => work.await?,
+        };
         result.map_err(|e| match e {
-            Error::Cancelled => Error::DeadlineExceeded("the plan passed its deadline".into()),
+            Error::Cancelled => passed(),
             other => other,
         })
     }
