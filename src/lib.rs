@@ -5,7 +5,7 @@
 //! `backend`, `data` (the dataset type), `records` (what the store keeps); the math in
 //! `model` (components, dynamics, the model file), `infer` (f64 evaluation), `control`
 //! (TVLQR) and `sim`; `train` (the training loop); `store` (SQLite); `app` (the one core);
-//! `jobs` (the worker); `api` (REST, gRPC); and at the top `cli`, `service`, `bench`.
+//! `jobs` (the worker); `api` (REST, gRPC); and at the top `cli`, `service`, `bench`, `experiment`.
 
 pub mod api;
 pub mod app;
@@ -15,6 +15,7 @@ pub mod cli;
 pub mod control;
 pub mod data;
 pub mod error;
+pub mod experiment;
 pub mod infer;
 pub mod jobs;
 pub mod model;

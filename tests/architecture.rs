@@ -6,23 +6,50 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-/// Top-level modules each layer must not import. Layers not listed (cli, service, bench, and
-/// the crate root) may import anything.
+/// Top-level modules each layer must not import. Layers not listed (cli, service, bench,
+/// experiment, and the crate root) may import anything.
 fn forbidden(layer: &str) -> &'static [&'static str] {
     const ABOVE_GROUND: &[&str] = &[
-        "model", "infer", "control", "sim", "train", "store", "app", "jobs", "api", "cli",
-        "service", "bench",
+        "model",
+        "infer",
+        "control",
+        "sim",
+        "train",
+        "store",
+        "app",
+        "jobs",
+        "api",
+        "cli",
+        "service",
+        "bench",
+        "experiment",
     ];
     match layer {
         "error" | "rng" | "backend" | "data" | "records" => ABOVE_GROUND,
         "model" | "infer" | "control" | "sim" => &[
-            "train", "app", "store", "jobs", "api", "cli", "service", "bench",
+            "train",
+            "app",
+            "store",
+            "jobs",
+            "api",
+            "cli",
+            "service",
+            "bench",
+            "experiment",
         ],
-        "train" => &["app", "store", "jobs", "api", "cli", "service"],
-        "store" => &["app", "jobs", "api", "cli", "service"],
-        "app" => &["jobs", "api", "cli", "service", "bench"],
-        "jobs" => &["api", "cli"],
-        "api" => &["store", "jobs"],
+        "train" => &[
+            "app",
+            "store",
+            "jobs",
+            "api",
+            "cli",
+            "service",
+            "experiment",
+        ],
+        "store" => &["app", "jobs", "api", "cli", "service", "experiment"],
+        "app" => &["jobs", "api", "cli", "service", "bench", "experiment"],
+        "jobs" => &["api", "cli", "experiment"],
+        "api" => &["store", "jobs", "experiment"],
         _ => &[],
     }
 }

@@ -55,6 +55,9 @@ pub enum Command {
     /// Benchmarks (figures for the issues' targets).
     #[command(subcommand)]
     Bench(crate::bench::BenchCommand),
+    /// The paper's experiments, each writing tables, plots and run.json to --out (resumable).
+    #[command(subcommand)]
+    Experiment(crate::experiment::ExperimentCommand),
 }
 
 pub fn main() -> ExitCode {
@@ -107,5 +110,6 @@ pub fn run(command: Command) -> Result<()> {
         Command::Serve(a) => serve::serve(a),
         Command::Health(a) => health::health(a),
         Command::Bench(b) => crate::bench::run(b),
+        Command::Experiment(e) => crate::experiment::run(e),
     }
 }

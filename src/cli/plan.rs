@@ -75,15 +75,6 @@ fn values(field: &str, text: &str, len: usize) -> Result<Vec<f64>> {
     Ok(v)
 }
 
-fn diag(v: &[f64]) -> Mat {
-    let n = v.len();
-    let mut m = Mat::zeros(n, n);
-    for (i, x) in v.iter().enumerate() {
-        m.data[i * n + i] = *x;
-    }
-    m
-}
-
 fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
     let q = match &a.q_diag {
         Some(s) => values("q_diag", s, nx)?,
@@ -105,9 +96,9 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
         x0: values("x0", &a.x0, nx)?,
         goal: values("goal", &a.goal, nx)?,
         horizon: a.horizon,
-        q: diag(&q),
-        r: diag(&r),
-        qf: diag(&qf),
+        q: Mat::diag(&q),
+        r: Mat::diag(&r),
+        qf: Mat::diag(&qf),
         u_min: bound("u_min", &a.u_min)?,
         u_max: bound("u_max", &a.u_max)?,
         u_init: None,

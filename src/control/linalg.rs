@@ -23,6 +23,16 @@ impl Mat {
         Self::new(rows, cols, vec![0.0; rows * cols])
     }
 
+    /// The square matrix with `v` on its diagonal.
+    pub fn diag(v: &[f64]) -> Self {
+        let n = v.len();
+        let mut m = Self::zeros(n, n);
+        for (i, x) in v.iter().enumerate() {
+            m.data[i * n + i] = *x;
+        }
+        m
+    }
+
     pub fn at(&self, i: usize, j: usize) -> f64 {
         self.data[i * self.cols + j]
     }

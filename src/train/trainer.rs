@@ -268,6 +268,40 @@ impl Trainer {
         Ok(t)
     }
 
+    /// Goes on training the same model on `data` (no validation set) for `epochs` more
+    /// epochs in batches of `batch_size`: the parameters, Adam's moments and the shuffling RNG
+    /// carry on, the scalings stay those of the first data, and the best-epoch tracking starts
+    /// over (losses on other data do not compare). Model-based RL grows its dataset this way
+    /// after every episode; a checkpoint taken afterwards resumes with `data`.
+    pub fn extend(&mut self, data: &Dataset, epochs: usize, batch_size: usize) -> Result<()> {
+        let c = &self.model.config;
+        if (data.n, data.m) != (c.n, c.m) || data.dt != c.dt {
+            return Err(Error::invalid(
+                "data",
+                format!(
+                    "has n = {}, m = {}, dt = {} but the model has n = {}, m = {}, dt = {}",
+                    data.n, data.m, data.dt, c.n, c.m, c.dt
+                ),
+            ));
+        }
+        let cfg = TrainConfig {
+            epochs: self.epoch + epochs,
+            batch_size,
+            val_fraction: 0.0,
+            ..self.cfg.clone()
+        };
+        cfg.validate()?;
+        self.cfg = cfg;
+        self.train = HostData::new(data);
+        self.val = None;
+        self.fingerprint = fingerprint(data, None);
+        self.baseline = zero_acceleration_loss(data, c.lambda);
+        self.best_loss = f64::INFINITY;
+        self.best_params = self.model.params.export();
+        self.stale_epochs = 0;
+        Ok(())
+    }
+
     pub fn checkpoint(&self) -> TrainState {
         TrainState {
             model_name: self.model_name.clone(),

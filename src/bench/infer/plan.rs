@@ -24,25 +24,14 @@ pub(super) fn true_double_pendulum() -> ModelFile {
 
 const Q: [f64; 4] = [1.0, 1.0, 0.1, 0.1];
 
-fn diag(v: &[f64]) -> Mat {
-    let n = v.len();
-    Mat::new(
-        n,
-        n,
-        (0..n * n)
-            .map(|k| if k / n == k % n { v[k / n] } else { 0.0 })
-            .collect(),
-    )
-}
-
 fn swing_up(horizon: usize) -> PlanRequest {
     PlanRequest {
         x0: vec![0.0; 4],
         goal: vec![std::f64::consts::PI, 0.0, 0.0, 0.0],
         horizon,
-        q: diag(&Q),
-        r: diag(&[1e-4; 2]),
-        qf: diag(&Q.map(|v| 1000.0 * v)),
+        q: Mat::diag(&Q),
+        r: Mat::diag(&[1e-4; 2]),
+        qf: Mat::diag(&Q.map(|v| 1000.0 * v)),
         u_min: Some(vec![-120.0; 2]),
         u_max: Some(vec![120.0; 2]),
         u_init: None,
