@@ -191,6 +191,72 @@ fn resumed_run_equals_uninterrupted_run() {
     }
 }
 
+/// Model-based RL grows its data between episodes: `extend` trains on from the same
+/// parameters (the first data's loss is not reset by it), a checkpoint taken after it resumes
+/// on the grown data bit-equal to an uninterrupted run, and data of another shape is refused.
+#[test]
+fn extended_run_trains_on_and_resumes_on_the_grown_data() {
+    let first = data(Template::DoublePendulum, 32, 11);
+    let more = data(Template::DoublePendulum, 64, 12);
+    let grown = {
+        let idx: Vec<usize> = (0..64).collect();
+        let m = more.subset(&idx);
+        let cat = |a: &[f64], b: &[f64]| [a, b].concat();
+        Dataset::new(
+            first.dt,
+            2,
+            2,
+            [
+                cat(&first.q, &m.q),
+                cat(&first.qdot, &m.qdot),
+                cat(&first.u, &m.u),
+                cat(&first.q_next, &m.q_next),
+                cat(&first.qdot_next, &m.qdot_next),
+            ],
+        )
+        .unwrap()
+    };
+    let cfg = TrainConfig {
+        val_fraction: 0.0,
+        ..quick(3)
+    };
+    let never = AtomicBool::new(false);
+    let spec = ModelSpec::named("MVB", Some(Template::DoublePendulum)).unwrap();
+    let start = |cfg: &TrainConfig| {
+        let mut t =
+            Trainer::new("MVB", spec.clone(), &[], &first, None, cfg.clone(), &flex()).unwrap();
+        t.run(&never, |_, _| {}).unwrap();
+        t
+    };
+    let mut full = start(&cfg);
+    let before = full.model().params.export();
+    full.extend(&grown, 4, grown.count()).unwrap();
+    assert_eq!(
+        full.model().params.export(),
+        before,
+        "extend keeps the parameters"
+    );
+    full.run(&never, |_, _| {}).unwrap();
+    assert_eq!(full.epoch(), 7);
+    assert_ne!(full.model().params.export(), before, "and trains them on");
+
+    let mut cut = start(&cfg);
+    cut.extend(&grown, 4, grown.count()).unwrap();
+    cut.run_epoch(&never).unwrap();
+    let state = TrainState::from_bytes(&cut.checkpoint().to_bytes()).unwrap();
+    assert!(Trainer::resume(state.clone(), &first, None, &flex()).is_err());
+    let mut resumed = Trainer::resume(state, &grown, None, &flex()).unwrap();
+    resumed.run(&never, |_, _| {}).unwrap();
+    assert_eq!(
+        full.model().params.export(),
+        resumed.model().params.export()
+    );
+
+    let other = data(Template::Pendulum, 8, 1);
+    let e = full.extend(&other, 1, 8).unwrap_err();
+    assert!(e.to_string().contains("data"), "{e}");
+}
+
 #[test]
 fn cancel_flag_stops_training() {
     let train = data(Template::DoublePendulum, 64, 5);

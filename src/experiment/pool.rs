@@ -1,11 +1,12 @@
 //! Independent work items on all cores, with progress on stderr: on a terminal a bar for the
 //! whole experiment and a status line per worker (what it trains, which epoch); otherwise one
-//! line per finished cell.
+//! line per finished cell and each worker's status once a minute.
 
+use std::cell::Cell;
 use std::io::IsTerminal;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 
@@ -18,16 +19,25 @@ pub struct Progress {
     start: Instant,
 }
 
-/// One worker's status line.
+/// How often a worker's status goes to a log that is not a terminal.
+const LOG_EVERY: Duration = Duration::from_secs(60);
+
+/// One worker's status line (each worker owns its own).
 pub struct Status {
     line: Option<ProgressBar>,
+    logged: Cell<Instant>,
 }
 
 impl Status {
-    /// Shows what the worker is doing now (terminal only: elsewhere it would flood the log).
+    /// Shows what the worker is doing now: on a terminal in its line, in a log once a minute.
     pub fn show(&self, what: &str) {
-        if let Some(l) = &self.line {
-            l.set_message(what.to_string());
+        match &self.line {
+            Some(l) => l.set_message(what.to_string()),
+            None if self.logged.get().elapsed() >= LOG_EVERY => {
+                eprintln!("  {what}");
+                self.logged.set(Instant::now());
+            }
+            None => {}
         }
     }
 }
@@ -65,7 +75,10 @@ impl Progress {
             l.set_style(ProgressStyle::with_template("  {msg}").expect("valid template"));
             l
         });
-        Status { line }
+        Status {
+            line,
+            logged: Cell::new(Instant::now()),
+        }
     }
 
     /// `count` more cells are finished (or no longer needed); `what` says which.

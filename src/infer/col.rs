@@ -85,6 +85,12 @@ impl Scalar for Col {
     fn exp(&self) -> Self {
         self.map(f64::exp)
     }
+    fn ln(&self) -> Self {
+        self.map(f64::ln)
+    }
+    fn atan2(&self, x: &Self) -> Self {
+        self.clone().zip(x, f64::atan2)
+    }
     fn sigmoid(&self) -> Self {
         self.map(|v| Scalar::sigmoid(&v))
     }

@@ -159,6 +159,26 @@ impl<S: Scalar> Scalar for Dual<S> {
         let e = self.v.exp();
         self.chain(e.clone(), || e.clone())
     }
+    fn ln(&self) -> Self {
+        self.chain(self.v.ln(), || self.v.recip_like())
+    }
+    fn atan2(&self, x: &Self) -> Self {
+        // ∂atan2(y, x) = (x dy − y dx) / (x² + y²)
+        let r2 = self.v.square() + x.v.square();
+        let d = zip_tangents(&self.d, &x.d, |dy, dx| {
+            let num = match (dy, dx) {
+                (None, None) => return None,
+                (Some(dy), None) => x.v.clone() * dy.clone(),
+                (None, Some(dx)) => -(self.v.clone() * dx.clone()),
+                (Some(dy), Some(dx)) => x.v.clone() * dy.clone() - self.v.clone() * dx.clone(),
+            };
+            Some(num / r2.clone())
+        });
+        Self {
+            v: self.v.atan2(&x.v),
+            d,
+        }
+    }
     fn sigmoid(&self) -> Self {
         let s = self.v.sigmoid();
         // σ' = σ(1 − σ)

@@ -5,6 +5,7 @@ pub mod assembly;
 pub mod dual;
 pub mod dynamics;
 pub mod file;
+pub mod formula;
 mod init;
 pub mod integrator;
 pub mod mass_matrix;

@@ -22,6 +22,10 @@ pub trait Scalar:
     fn sin(&self) -> Self;
     fn sqrt(&self) -> Self;
     fn exp(&self) -> Self;
+    /// Natural logarithm.
+    fn ln(&self) -> Self;
+    /// The angle of (x, y) = (`x`, self), in (−π, π].
+    fn atan2(&self, x: &Self) -> Self;
     /// Logistic sigmoid, the derivative of softplus.
     fn sigmoid(&self) -> Self;
     /// ln(1 + eˣ), computed without overflow.
@@ -50,6 +54,12 @@ impl Scalar for f64 {
     }
     fn exp(&self) -> Self {
         f64::exp(*self)
+    }
+    fn ln(&self) -> Self {
+        f64::ln(*self)
+    }
+    fn atan2(&self, x: &Self) -> Self {
+        f64::atan2(*self, *x)
     }
     fn sigmoid(&self) -> Self {
         1.0 / (1.0 + (-self).exp())
@@ -86,6 +96,12 @@ impl Scalar for Tensor<2> {
     }
     fn exp(&self) -> Self {
         self.clone().exp()
+    }
+    fn ln(&self) -> Self {
+        self.clone().log()
+    }
+    fn atan2(&self, x: &Self) -> Self {
+        self.clone().atan2(x.clone())
     }
     fn sigmoid(&self) -> Self {
         burn::tensor::activation::sigmoid(self.clone())

@@ -1,0 +1,135 @@
+"""`graybox experiment … --quick`: the files are written, the tables are well formed, the PNGs
+decode and show their series, a rerun with the same --out resumes instead of recomputing, a
+run cut short continues with only its missing cells, and other settings in the same --out are
+refused. No test here asserts a research outcome: the quick runs are far too small for one."""
+
+import csv
+import json
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+# matplotlib's blue (graybox's first series colour) and the paper bars' gray.
+BLUE = (0x1F, 0x77, 0xB4)
+GRAY = (0x99, 0x99, 0x99)
+
+EXPERIMENTS = {
+    "data-efficiency": ("data_efficiency.png", GRAY),
+    "rollout": ("rollouts.png", BLUE),
+    "mbrl": ("mbrl.png", BLUE),
+}
+
+
+def experiment(binary: str, *args: str, ok: bool = True) -> subprocess.CompletedProcess:
+    p = subprocess.run([binary, "experiment", *args], capture_output=True, text=True,
+                       timeout=300)
+    if ok:
+        assert p.returncode == 0, p.stderr
+    return p
+
+
+def markdown_tables(text: str) -> list[list[list[str]]]:
+    """Every Markdown table in `text` as rows of cells (separator rows dropped)."""
+    tables, rows = [], []
+    for line in text.splitlines() + [""]:
+        if line.startswith("|"):
+            rows.append([c.strip() for c in line.strip().strip("|").split("|")])
+        elif rows:
+            tables.append(rows)
+            rows = []
+    return tables
+
+
+def assert_well_formed(table: list[list[str]]):
+    header, sep, *body = table
+    assert all(set(c) <= set("-:") and c for c in sep), sep
+    assert body, "a table with no rows"
+    for row in [sep, *body]:
+        assert len(row) == len(header), (header, row)
+    assert all(c for row in body for c in row), "an empty cell"
+
+
+def share_of(png: Path, rgb: tuple[int, int, int], tol: int = 12) -> float:
+    """The share of the image's pixels within `tol` of colour `rgb` in every channel."""
+    px = np.asarray(Image.open(png).convert("RGB"), dtype=int)
+    return float((np.abs(px - np.array(rgb)) <= tol).all(axis=-1).mean())
+
+
+@pytest.mark.parametrize("name", EXPERIMENTS)
+def test_quick_run_writes_its_results_and_a_rerun_resumes(graybox_bin, tmp_path, name):
+    out = tmp_path / name
+    experiment(graybox_bin, name, "--quick", "--out", str(out))
+    png, colour = EXPERIMENTS[name]
+    for f in ["results.md", "results.csv", "run.json", "cells.jsonl", png]:
+        assert (out / f).is_file(), f
+
+    run = json.loads((out / "run.json").read_text())
+    assert run["experiment"] == name and run["complete"] is True
+    assert run["invocations"] == 1 and run["wall_seconds"] > 0
+    assert run["graybox_version"] and len(run["commit"]) in (40, len("unknown"))
+    assert "--quick" in run["command"] and run["settings"]
+
+    md = (out / "results.md").read_text()
+    tables = markdown_tables(md)
+    assert tables, md
+    for t in tables:
+        assert_well_formed(t)
+    assert f"]({png})" in md
+
+    with open(out / "results.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and all(None not in r and None not in r.values() for r in rows)
+
+    img = Image.open(out / png)
+    img.load()
+    assert img.format == "PNG" and img.width >= 800 and img.height >= 400
+    # Looked at: mostly white background with the experiment's series drawn on it.
+    assert share_of(out / png, (255, 255, 255), tol=0) > 0.3
+    # A 2-px line across a third of the plot is ~0.15% of the pixels.
+    assert share_of(out / png, colour) > 0.0005, f"no {colour} series in {png}"
+
+    cells = (out / "cells.jsonl").read_bytes()
+    again = experiment(graybox_bin, name, "--quick", "--out", str(out))
+    assert (out / "cells.jsonl").read_bytes() == cells, "the rerun recomputed finished cells"
+    assert "earlier" in again.stderr
+    assert (out / "results.md").read_text() == md
+    rerun = json.loads((out / "run.json").read_text())
+    assert rerun["invocations"] == 2 and rerun["started"] == run["started"]
+
+
+def test_a_run_cut_short_recomputes_only_its_missing_cells(graybox_bin, tmp_path):
+    out = tmp_path / "de"
+    experiment(graybox_bin, "data-efficiency", "--quick", "--out", str(out))
+    md = (out / "results.md").read_text()
+    lines = (out / "cells.jsonl").read_bytes().splitlines(keepends=True)
+    # Killed while writing: the last cell lost, and half a line of the next one.
+    (out / "cells.jsonl").write_bytes(b"".join(lines[:-1]) + lines[-1][:17])
+    again = experiment(graybox_bin, "data-efficiency", "--quick", "--out", str(out))
+    now = (out / "cells.jsonl").read_bytes().splitlines(keepends=True)
+    assert len(now) == len(lines), again.stderr
+    assert all(line.endswith(b"\n") for line in now)
+    assert json.loads(now[-1])["key"] == json.loads(lines[-1])["key"]
+    # Cells are seeded: the recomputed one, and so the results, are the same.
+    assert (out / "results.md").read_text() == md
+
+
+def test_other_settings_in_the_same_out_are_refused(graybox_bin, tmp_path):
+    out = tmp_path / "de"
+    experiment(graybox_bin, "data-efficiency", "--quick", "--out", str(out))
+    p = experiment(graybox_bin, "data-efficiency", "--quick", "--seeds", "1", "--out", str(out),
+                   ok=False)
+    assert p.returncode == 2 and "seeds" in p.stderr and "--out" in p.stderr, p.stderr
+    p = experiment(graybox_bin, "rollout", "--quick", "--out", str(out), ok=False)
+    assert p.returncode == 2 and "data-efficiency" in p.stderr, p.stderr
+
+
+def test_bad_arguments_name_the_field(graybox_bin, tmp_path):
+    p = experiment(graybox_bin, "data-efficiency", "--quick", "--models", "W-B,XYZ",
+                   "--out", str(tmp_path / "x"), ok=False)
+    assert p.returncode == 2 and "models" in p.stderr and "XYZ" in p.stderr, p.stderr
+    p = experiment(graybox_bin, "mbrl", "--quick", "--seeds", "0", "--out",
+                   str(tmp_path / "y"), ok=False)
+    assert p.returncode == 2 and "seeds" in p.stderr, p.stderr
