@@ -187,6 +187,28 @@ pub fn dual_vars<S: Scalar>(q: &[S], one: &S) -> Vec<Dual<S>> {
         .collect()
 }
 
+/// Values as dual numbers without tangents (parameters: constants for ∂/∂q).
+pub fn constants(values: &[f64]) -> Vec<Dual<f64>> {
+    values.iter().map(|&v| Dual::constant(v)).collect()
+}
+
+/// q̈ in f64 of a white-box mechanism: M(q) and V(q) over dual numbers (their q-tangents give
+/// ∂M/∂q for the Coriolis term and ∇V), and the generalized forces.
+pub fn white_box_acceleration(
+    mass: impl Fn(&[Dual<f64>]) -> Vec<Vec<Dual<f64>>>,
+    potential: impl Fn(&[Dual<f64>]) -> Dual<f64>,
+    forces: Vec<f64>,
+    q: &[f64],
+    qd: &[f64],
+) -> Vec<f64> {
+    let qv = dual_vars(q, &1.0);
+    let v = potential(&qv);
+    let grad_v = (0..q.len())
+        .map(|k| v.tangent(k).copied().unwrap_or(0.0))
+        .collect();
+    acceleration(&cholesky(&mass(&qv)), Some(grad_v), forces, qd)
+}
+
 /// The analytic system of a template at physical parameter values `p`, in f64: the "true"
 /// system for simulation and the reference for tests.
 pub struct TemplateSystem {
@@ -200,21 +222,19 @@ impl TemplateSystem {
     }
 
     pub fn mass_factor(&self, q: &[f64]) -> Tri<Dual<f64>> {
-        let pd: Vec<Dual<f64>> = self.params.iter().map(|&v| Dual::constant(v)).collect();
-        cholesky(&self.template.mass(&pd, &dual_vars(q, &1.0)))
-    }
-
-    pub fn grad_potential(&self, q: &[f64]) -> Vec<f64> {
-        let pd: Vec<Dual<f64>> = self.params.iter().map(|&v| Dual::constant(v)).collect();
-        let v = self.template.potential(&pd, &dual_vars(q, &1.0));
-        (0..q.len())
-            .map(|k| v.tangent(k).copied().unwrap_or(0.0))
-            .collect()
+        let p = constants(&self.params);
+        cholesky(&self.template.mass(&p, &dual_vars(q, &1.0)))
     }
 
     pub fn acceleration(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
-        let f = self.template.forces(&self.params, q, qd, u);
-        acceleration(&self.mass_factor(q), Some(self.grad_potential(q)), f, qd)
+        let p = constants(&self.params);
+        white_box_acceleration(
+            |q| self.template.mass(&p, q),
+            |q| self.template.potential(&p, q),
+            self.template.forces(&self.params, q, qd, u),
+            q,
+            qd,
+        )
     }
 
     /// Kinetic and potential energy (T, V).

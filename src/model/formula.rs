@@ -98,7 +98,7 @@ impl fmt::Display for ParseError {
 }
 
 /// The names an expression may use, by kind, in order (index = position).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Names {
     pub coordinates: Vec<String>,
     pub inputs: Vec<String>,

@@ -6,6 +6,7 @@ pub mod dual;
 pub mod dynamics;
 pub mod file;
 pub mod formula;
+pub mod formula_template;
 mod init;
 pub mod integrator;
 pub mod mass_matrix;

@@ -1,0 +1,371 @@
+//! Formula templates (design.md §9): a mechanism's M(q), V(q) and F(q, q̇, u) written as
+//! expressions over named coordinates, velocities, inputs and parameters, checked once when
+//! the document is read and then evaluated over [`Scalar`] like the built-in templates.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use super::dual::Dual;
+use super::dynamics::cholesky;
+use super::formula::{Expr, Names, Symbol, parse, reserved};
+use super::scalar::Scalar;
+use crate::error::{Error, Result};
+use crate::rng::Rng;
+
+/// A formula template as its JSON document (kept whole: a model file embeds it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FormulaDoc {
+    pub kind: String,
+    pub name: String,
+    pub coordinates: Vec<String>,
+    /// Empty: no coordinate is an angle.
+    #[serde(default)]
+    pub periodic: Vec<bool>,
+    #[serde(default)]
+    pub inputs: Vec<String>,
+    /// By name; trained in this (alphabetical) order.
+    #[serde(default)]
+    pub parameters: BTreeMap<String, ParamDoc>,
+    pub mass: Vec<Vec<String>>,
+    pub potential: String,
+    pub forces: Vec<String>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParamDoc {
+    pub value: f64,
+    /// Trained in log space (masses, lengths): it cannot turn negative.
+    #[serde(default)]
+    pub positive: bool,
+}
+
+/// A checked formula template with its expressions parsed.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FormulaTemplate {
+    pub doc: FormulaDoc,
+    names: Names,
+    mass: Vec<Vec<Expr>>,
+    potential: Expr,
+    forces: Vec<Expr>,
+}
+
+fn bad(field: impl Into<String>, message: impl std::fmt::Display) -> Error {
+    Error::Unprocessable {
+        field: field.into(),
+        message: message.to_string(),
+    }
+}
+
+fn identifier(name: &str) -> bool {
+    let mut c = name.chars();
+    c.next()
+        .is_some_and(|f| f.is_ascii_alphabetic() || f == '_')
+        && c.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+/// Points at which M is checked for symmetry and positive definiteness: q uniform in
+/// (−π, π) (angles cover a turn; lengths of a few units cover typical mechanisms).
+const CHECK_POINTS: usize = 16;
+
+impl FormulaTemplate {
+    /// Reads and checks a template document; errors name the field, and for an expression
+    /// the character offset in it.
+    pub fn parse(json: &str) -> Result<Self> {
+        let de = &mut serde_json::Deserializer::from_str(json);
+        let doc: FormulaDoc = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            // "." is the whole document, "?" a syntax error before any field.
+            let field = if path == "." || path == "?" {
+                "template".to_string()
+            } else {
+                path
+            };
+            bad(field, e.into_inner())
+        })?;
+        Self::from_doc(doc)
+    }
+
+    pub fn from_doc(doc: FormulaDoc) -> Result<Self> {
+        if doc.kind != "formula" {
+            return Err(bad(
+                "kind",
+                format!("expected \"formula\", got \"{}\"", doc.kind),
+            ));
+        }
+        if doc.name.trim().is_empty() {
+            return Err(bad("name", "must not be empty"));
+        }
+        let names = check_names(&doc)?;
+        let n = doc.coordinates.len();
+        if !doc.periodic.is_empty() && doc.periodic.len() != n {
+            return Err(bad(
+                "periodic",
+                format!(
+                    "expected {n} values (one per coordinate) or none, got {}",
+                    doc.periodic.len()
+                ),
+            ));
+        }
+        for (name, p) in &doc.parameters {
+            let field = format!("parameters.{name}.value");
+            if !p.value.is_finite() {
+                return Err(bad(field, "must be a finite number"));
+            }
+            if p.positive && p.value <= 0.0 {
+                return Err(bad(
+                    field,
+                    format!("must be > 0 for a positive parameter, got {}", p.value),
+                ));
+            }
+        }
+        if doc.mass.len() != n {
+            return Err(bad(
+                "mass",
+                format!(
+                    "expected {n} rows (one per coordinate), got {}",
+                    doc.mass.len()
+                ),
+            ));
+        }
+        let mut mass = vec![];
+        for (i, row) in doc.mass.iter().enumerate() {
+            if row.len() != n {
+                return Err(bad(
+                    format!("mass[{i}]"),
+                    format!("expected {n} entries, got {}", row.len()),
+                ));
+            }
+            let row = row
+                .iter()
+                .enumerate()
+                .map(|(j, text)| expression(&format!("mass[{i}][{j}]"), text, &names, true))
+                .collect::<Result<Vec<_>>>()?;
+            mass.push(row);
+        }
+        let potential = expression("potential", &doc.potential, &names, true)?;
+        if doc.forces.len() != n {
+            return Err(bad(
+                "forces",
+                format!(
+                    "expected {n} entries (one per coordinate), got {}",
+                    doc.forces.len()
+                ),
+            ));
+        }
+        let forces = doc
+            .forces
+            .iter()
+            .enumerate()
+            .map(|(i, text)| expression(&format!("forces[{i}]"), text, &names, false))
+            .collect::<Result<Vec<_>>>()?;
+        let t = Self {
+            doc,
+            names,
+            mass,
+            potential,
+            forces,
+        };
+        t.check_mass()?;
+        Ok(t)
+    }
+
+    pub fn n(&self) -> usize {
+        self.doc.coordinates.len()
+    }
+
+    pub fn m(&self) -> usize {
+        self.doc.inputs.len()
+    }
+
+    /// Parameter names in training order.
+    pub fn param_names(&self) -> &[String] {
+        &self.names.parameters
+    }
+
+    /// The document's parameter values, in training order.
+    pub fn defaults(&self) -> Vec<f64> {
+        self.doc.parameters.values().map(|p| p.value).collect()
+    }
+
+    pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
+        let sym = |s: Symbol| match s {
+            Symbol::Q(i) => q[i].clone(),
+            Symbol::Param(i) => p[i].clone(),
+            // The checks at reading keep velocities and inputs out of M.
+            Symbol::QDot(_) | Symbol::U(_) => {
+                unreachable!("checked: M depends on q and parameters")
+            }
+        };
+        self.mass
+            .iter()
+            .map(|row| row.iter().map(|e| e.eval(&sym, &q[0])).collect())
+            .collect()
+    }
+
+    pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
+        let sym = |s: Symbol| match s {
+            Symbol::Q(i) => q[i].clone(),
+            Symbol::Param(i) => p[i].clone(),
+            Symbol::QDot(_) | Symbol::U(_) => {
+                unreachable!("checked: V depends on q and parameters")
+            }
+        };
+        self.potential.eval(&sym, &q[0])
+    }
+
+    pub fn forces<S: Scalar>(&self, p: &[S], q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        let sym = |s: Symbol| match s {
+            Symbol::Q(i) => q[i].clone(),
+            Symbol::QDot(i) => qd[i].clone(),
+            Symbol::U(i) => u[i].clone(),
+            Symbol::Param(i) => p[i].clone(),
+        };
+        self.forces.iter().map(|e| e.eval(&sym, &q[0])).collect()
+    }
+
+    /// M at the document's values must be symmetric (to 1e-9 relative) and positive definite
+    /// at random configurations, and V finite there; a mistyped entry shows up here rather
+    /// than as a failed job.
+    fn check_mass(&self) -> Result<()> {
+        let p = self.defaults();
+        let mut rng = Rng::new(0x05EE_DF0A);
+        for _ in 0..CHECK_POINTS {
+            let q: Vec<f64> = (0..self.n())
+                .map(|_| rng.uniform_in(-std::f64::consts::PI, std::f64::consts::PI))
+                .collect();
+            let m = self.mass(&p, &q);
+            let at = format!("at q = {q:.3?} with the document's parameter values");
+            if let Some((i, j)) = asymmetry(&m) {
+                let (a, b) = (m[i][j], m[j][i]);
+                return Err(bad(
+                    format!("mass[{i}][{j}]"),
+                    format!(
+                        "M must be symmetric: mass[{i}][{j}] = {a} but mass[{j}][{i}] = {b} {at}"
+                    ),
+                ));
+            }
+            if !positive_definite(&m) {
+                return Err(bad(
+                    "mass",
+                    format!("M must be finite and positive definite; it is not {at}"),
+                ));
+            }
+            if !self.potential(&p, &q).is_finite() {
+                return Err(bad("potential", format!("V is not finite {at}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The first (i, j), j < i, where M differs from Mᵀ beyond rounding.
+fn asymmetry(m: &[Vec<f64>]) -> Option<(usize, usize)> {
+    (0..m.len())
+        .flat_map(|i| (0..i).map(move |j| (i, j)))
+        .find(|&(i, j)| {
+            let (a, b) = (m[i][j], m[j][i]);
+            (a - b).abs() > 1e-9 * a.abs().max(b.abs())
+        })
+}
+
+/// Finite with a Cholesky factor whose diagonal is positive.
+fn positive_definite(m: &[Vec<f64>]) -> bool {
+    if m.iter().flatten().any(|v| !v.is_finite()) {
+        return false;
+    }
+    let md: Vec<Vec<Dual<f64>>> = m
+        .iter()
+        .map(|r| r.iter().map(|&v| Dual::constant(v)).collect())
+        .collect();
+    let l = cholesky(&md);
+    (0..m.len()).all(|i| l.get(i, i).v > 0.0)
+}
+
+/// Names are identifiers, unique across coordinates, velocities, inputs and parameters, and
+/// not a function or `pi`.
+fn check_names(doc: &FormulaDoc) -> Result<Names> {
+    if doc.coordinates.is_empty() {
+        return Err(bad("coordinates", "name at least one coordinate"));
+    }
+    let mut seen: BTreeMap<String, String> = BTreeMap::new();
+    let groups = [
+        ("coordinates", doc.coordinates.clone()),
+        ("inputs", doc.inputs.clone()),
+        ("parameters", doc.parameters.keys().cloned().collect()),
+    ];
+    for (group, names) in &groups {
+        for (i, name) in names.iter().enumerate() {
+            let field = if *group == "parameters" {
+                format!("parameters.{name}")
+            } else {
+                format!("{group}[{i}]")
+            };
+            if !identifier(name) {
+                return Err(bad(
+                    field,
+                    format!(
+                        "'{name}' is not a name (letters, digits, _; not starting with a digit)"
+                    ),
+                ));
+            }
+            if reserved(name) {
+                return Err(bad(
+                    field,
+                    format!(
+                        "'{name}' is a function or constant of the expressions; choose another name"
+                    ),
+                ));
+            }
+            let mut claim = |n: String, owner: String| -> Result<()> {
+                if let Some(other) = seen.insert(n.clone(), owner) {
+                    return Err(bad(
+                        field.clone(),
+                        format!("'{n}' is already the name of {other}"),
+                    ));
+                }
+                Ok(())
+            };
+            claim(name.clone(), field.clone())?;
+            if *group == "coordinates" {
+                claim(format!("{name}_dot"), format!("the velocity of {field}"))?;
+            }
+        }
+    }
+    Ok(Names {
+        coordinates: doc.coordinates.clone(),
+        inputs: doc.inputs.clone(),
+        parameters: doc.parameters.keys().cloned().collect(),
+    })
+}
+
+/// Parses one expression; `configuration` ones (M, V) may use only q and parameters.
+fn expression(field: &str, text: &str, names: &Names, configuration: bool) -> Result<Expr> {
+    let e = parse(text, names).map_err(|e| bad(field, format!("{e} in \"{text}\"")))?;
+    if configuration
+        && let Some((s, at)) = e
+            .symbols()
+            .into_iter()
+            .find(|(s, _)| matches!(s, Symbol::QDot(_) | Symbol::U(_)))
+    {
+        let what = if matches!(s, Symbol::QDot(_)) {
+            "a velocity"
+        } else {
+            "an input"
+        };
+        let name: String = text
+            .chars()
+            .skip(at)
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect();
+        return Err(bad(
+            field,
+            format!(
+                "{what} '{name}' at offset {at} in \"{text}\": {field} may use only coordinates and parameters"
+            ),
+        ));
+    }
+    Ok(e)
+}

@@ -1,0 +1,301 @@
+//! Formula templates (design.md §9) against independent references: the built-in templates'
+//! equations written as formulas give the same M, V, F and q̈ in f64; a mechanism no built-in
+//! covers (a Furuta pendulum) conserves energy unforced; bad documents are refused naming the
+//! field and the offset.
+
+use graybox::error::Error;
+use graybox::model::dual::Dual;
+use graybox::model::dynamics::{TemplateSystem, constants, white_box_acceleration};
+use graybox::model::formula_template::FormulaTemplate;
+use graybox::model::integrator::Integrator;
+use graybox::model::templates::Template;
+use graybox::rng::Rng;
+use serde_json::{Value, json};
+
+fn double_pendulum() -> Value {
+    json!({
+        "kind": "formula", "name": "double_pendulum_formula",
+        "coordinates": ["q1", "q2"], "inputs": ["u1", "u2"],
+        "parameters": {
+            "m1": {"value": 10.0, "positive": true}, "m2": {"value": 10.0, "positive": true},
+            "l1": {"value": 1.0, "positive": true}, "l2": {"value": 1.0, "positive": true},
+            "g": {"value": 10.0, "positive": true},
+            "b1": {"value": 1.0}, "b2": {"value": 1.0}, "eta1": {"value": -0.5}, "eta2": {"value": -0.5}
+        },
+        "mass": [
+            ["m1*l1^2/3 + m2*l2^2/3 + m2*l1^2 + m2*l1*l2*cos(q2)", "m2*l2^2/3 + m2*l1*l2*cos(q2)/2"],
+            ["m2*l2^2/3 + m2*l1*l2*cos(q2)/2", "m2*l2^2/3"]
+        ],
+        "potential": "-m1*g*l1*cos(q1)/2 - m2*g*(l1*cos(q1) + l2*cos(q1 + q2)/2)",
+        "forces": ["b1*u1 + eta1*q1_dot", "b2*u2 + eta2*q2_dot"]
+    })
+}
+
+fn cartpole() -> Value {
+    json!({
+        "kind": "formula", "name": "cartpole", "coordinates": ["x", "theta"],
+        "periodic": [false, true], "inputs": ["f"],
+        "parameters": {
+            "mc": {"value": 1.0, "positive": true}, "mp": {"value": 0.5, "positive": true},
+            "l": {"value": 1.0, "positive": true}, "g": {"value": 10.0, "positive": true},
+            "b": {"value": 1.0}, "eta_x": {"value": -0.1}, "eta_th": {"value": -0.1}
+        },
+        "mass": [["mc + mp", "mp*l*cos(theta)"], ["mp*l*cos(theta)", "mp*l^2"]],
+        "potential": "-mp*g*l*cos(theta)",
+        "forces": ["b*f + eta_x*x_dot", "eta_th*theta_dot"]
+    })
+}
+
+/// A Furuta (rotary inverted) pendulum: arm angle θ, pendulum angle α (0 upright), a torque
+/// on the arm; Cazzolato & Prime (2011) with the pendulum's centre of mass at Lp/2.
+fn furuta() -> Value {
+    json!({
+        "kind": "formula", "name": "furuta", "coordinates": ["theta", "alpha"],
+        "periodic": [true, true], "inputs": ["tau"],
+        "parameters": {
+            "Jr": {"value": 0.01, "positive": true}, "Jp": {"value": 0.001, "positive": true},
+            "mp": {"value": 0.1, "positive": true}, "Lr": {"value": 0.2, "positive": true},
+            "Lp": {"value": 0.3, "positive": true}, "g": {"value": 9.81, "positive": true},
+            "br": {"value": 0.0}
+        },
+        "mass": [
+            ["Jr + mp*Lr^2 + mp*Lp^2*sin(alpha)^2/4", "-mp*Lp*Lr*cos(alpha)/2"],
+            ["-mp*Lp*Lr*cos(alpha)/2", "Jp + mp*Lp^2/4"]
+        ],
+        "potential": "mp*g*Lp*cos(alpha)/2",
+        "forces": ["tau - br*theta_dot", "0"]
+    })
+}
+
+fn template(doc: &Value) -> FormulaTemplate {
+    FormulaTemplate::parse(&doc.to_string()).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// The formula's parameter values in the built-in template's order (formula parameters are
+/// in alphabetical order).
+fn builtin_values(f: &FormulaTemplate, t: Template) -> Vec<f64> {
+    let d = f.defaults();
+    t.params()
+        .iter()
+        .map(|p| d[f.param_names().iter().position(|n| n == p.name).unwrap()])
+        .collect()
+}
+
+fn accel(f: &FormulaTemplate, p: &[f64], q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
+    let pd = constants(p);
+    white_box_acceleration(
+        |q| f.mass(&pd, q),
+        |q| f.potential(&pd, q),
+        f.forces(p, q, qd, u),
+        q,
+        qd,
+    )
+}
+
+/// Relative agreement to 1e-12: the same arithmetic in a different order rounds differently
+/// by a few ulps, amplified at most by M's condition number (≲ 1e3 here).
+fn close(a: f64, b: f64, what: &str) {
+    assert!(
+        (a - b).abs() <= 1e-12 * a.abs().max(b.abs()).max(1.0),
+        "{what}: {a} vs {b}"
+    );
+}
+
+#[test]
+fn builtin_templates_written_as_formulas_give_the_same_dynamics() {
+    for (doc, t) in [
+        (double_pendulum(), Template::DoublePendulum),
+        (cartpole(), Template::Cartpole),
+    ] {
+        let f = template(&doc);
+        assert_eq!((f.n(), f.m()), (t.n(), t.m()));
+        let p = f.defaults();
+        let pb = builtin_values(&f, t);
+        assert_eq!(pb, t.defaults(), "the documents use the built-in defaults");
+        let sys = TemplateSystem::new(t, pb.clone());
+        let mut rng = Rng::new(7);
+        for _ in 0..100 {
+            let mut r = |s: f64| {
+                (0..t.n())
+                    .map(|_| rng.uniform_in(-s, s))
+                    .collect::<Vec<f64>>()
+            };
+            let (q, qd) = (r(std::f64::consts::PI), r(10.0));
+            let u: Vec<f64> = (0..t.m()).map(|_| 50.0 * rng.normal()).collect();
+            let (mf, mb) = (f.mass(&p, &q), t.mass(&pb, &q));
+            for i in 0..t.n() {
+                for j in 0..t.n() {
+                    close(mf[i][j], mb[i][j], "M");
+                }
+            }
+            close(f.potential(&p, &q), t.potential(&pb, &q), "V");
+            for (a, b) in f
+                .forces(&p, &q, &qd, &u)
+                .iter()
+                .zip(t.forces(&pb, &q, &qd, &u))
+            {
+                close(*a, b, "F");
+            }
+            for (a, b) in accel(&f, &p, &q, &qd, &u)
+                .iter()
+                .zip(sys.acceleration(&q, &qd, &u))
+            {
+                close(*a, b, "q̈");
+            }
+        }
+    }
+}
+
+#[test]
+fn furuta_pendulum_conserves_energy_unforced() {
+    let f = template(&furuta());
+    let p = f.defaults();
+    let energy = |q: &[f64], qd: &[f64]| {
+        let m = f.mass(&p, q);
+        let t: f64 = (0..2)
+            .flat_map(|i| (0..2).map(move |j| (i, j)))
+            .map(|(i, j)| 0.5 * qd[i] * m[i][j] * qd[j])
+            .sum();
+        (t, f.potential(&p, q))
+    };
+    for (q0, qd0) in [
+        ([0.3, 0.2], [1.0, -2.0]),
+        ([-2.0, 2.5], [3.0, 4.0]),
+        ([1.0, -0.1], [0.0, 0.5]),
+    ] {
+        let (t0, v0) = energy(&q0, &qd0);
+        let mut x: Vec<f64> = q0.iter().chain(&qd0).copied().collect();
+        let mut drift: f64 = 0.0;
+        for _ in 0..1000 {
+            x = Integrator::Rk4.step(&x, 1e-3, |x: &Vec<f64>| {
+                let qdd = accel(&f, &p, &x[..2], &x[2..], &[0.0]);
+                x[2..].iter().chain(&qdd).copied().collect()
+            });
+            let (tk, vk) = energy(&x[..2], &x[2..]);
+            drift = drift.max((tk + vk - t0 - v0).abs());
+        }
+        // RK4's energy error at Δt = 1e-3 over 1 s is ~1e-10 of the energy.
+        assert!(drift < 1e-6 * (t0.abs() + v0.abs()), "drift {drift}");
+    }
+    // Dual numbers through the formula: ∂M/∂α against a central difference.
+    let q = [0.4, 0.9];
+    let qv = [
+        Dual::variable(q[0], 0, 2, 1.0),
+        Dual::variable(q[1], 1, 2, 1.0),
+    ];
+    let m = f.mass(&constants(&p), &qv);
+    let h = 1e-6;
+    let fd =
+        (f.mass(&p, &[q[0], q[1] + h])[0][0] - f.mass(&p, &[q[0], q[1] - h])[0][0]) / (2.0 * h);
+    let ad = m[0][0].tangent(1).copied().unwrap_or(0.0);
+    // Central difference: truncation ~h² ≈ 1e-12, rounding ~1e-16/h ≈ 1e-10.
+    assert!((ad - fd).abs() < 1e-8 * fd.abs(), "∂M00/∂α: {ad} vs {fd}");
+}
+
+/// Each bad document: the error names the field (and, in expressions, the offset).
+#[test]
+fn bad_documents_are_refused_naming_field_and_offset() {
+    let with = |path: &[&str], v: Value| {
+        let mut d = cartpole();
+        let mut at = &mut d;
+        for k in &path[..path.len() - 1] {
+            at = match k.parse::<usize>() {
+                Ok(i) => &mut at[i],
+                Err(_) => &mut at[*k],
+            };
+        }
+        let last = path[path.len() - 1];
+        match last.parse::<usize>() {
+            Ok(i) => at[i] = v,
+            Err(_) => at[last] = v,
+        }
+        d.to_string()
+    };
+    let cases: Vec<(String, &str, &str)> = vec![
+        ("{\"kind\": \"formula\",".into(), "template", "EOF"),
+        (with(&["kind"], json!("urdf")), "kind", "formula"),
+        (
+            with(&["mass", "0", "1"], json!("mp*l*cos(theta) + foo")),
+            "mass[0][1]",
+            "unknown name 'foo'",
+        ),
+        (
+            with(&["mass", "1", "1"], json!("mp*l^2 + theta_dot")),
+            "mass[1][1]",
+            "a velocity 'theta_dot' at offset 9",
+        ),
+        (
+            with(&["potential"], json!("f*x")),
+            "potential",
+            "an input 'f' at offset 0",
+        ),
+        (
+            with(&["mass", "1", "0"], json!("mp*l*sin(theta)")),
+            "mass[1][0]",
+            "symmetric",
+        ),
+        (
+            with(&["forces"], json!(["f"])),
+            "forces",
+            "expected 2 entries",
+        ),
+        (
+            with(&["mass", "1"], json!(["mp*l*cos(theta)"])),
+            "mass[1]",
+            "expected 2 entries",
+        ),
+        (
+            with(&["forces", "0"], json!("b*f + * x_dot")),
+            "forces[0]",
+            "offset 6",
+        ),
+        (
+            with(&["forces", "1"], json!("cosine(theta)")),
+            "forces[1]",
+            "unknown function 'cosine'",
+        ),
+        (
+            cartpole()
+                .to_string()
+                .replace("\"value\":10.0", "\"value\":1e400"),
+            "parameters.g.value",
+            "out of range",
+        ),
+        (
+            with(&["parameters", "mc", "value"], json!(-1.0)),
+            "parameters.mc.value",
+            "> 0",
+        ),
+        (
+            with(&["inputs"], json!(["x"])),
+            "inputs[0]",
+            "already the name of coordinates[0]",
+        ),
+        (
+            with(&["coordinates", "1"], json!("sin")),
+            "coordinates[1]",
+            "function",
+        ),
+        (
+            with(&["parameters", "x_dot"], json!({"value": 1.0})),
+            "parameters.x_dot",
+            "the velocity of coordinates[0]",
+        ),
+        (with(&["periodic"], json!([true])), "periodic", "expected 2"),
+        (
+            with(&["mass", "0", "0"], json!("mp - mc")),
+            "mass",
+            "positive definite",
+        ),
+        (with(&["extra"], json!(1)), "extra", "unknown field"),
+    ];
+    for (doc, field, needle) in cases {
+        match FormulaTemplate::parse(&doc) {
+            Err(Error::Unprocessable { field: f, message }) => {
+                assert_eq!(f, field, "{message}");
+                assert!(message.contains(needle), "{field}: {message}");
+            }
+            other => panic!("{field}: expected a 422, got {other:?}"),
+        }
+    }
+}
