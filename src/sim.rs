@@ -47,7 +47,7 @@ pub fn true_step(
     })
 }
 
-pub fn simulate(template: Template, params: Vec<f64>, cfg: &SimConfig) -> Result<Dataset> {
+pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Result<Dataset> {
     if cfg.count == 0 {
         return Err(Error::invalid("count", "must be at least 1"));
     }
@@ -65,7 +65,7 @@ pub fn simulate(template: Template, params: Vec<f64>, cfg: &SimConfig) -> Result
         }
     }
     let (n, m) = (template.n(), template.m());
-    let sys = TemplateSystem::new(template, params);
+    let sys = TemplateSystem::new(template.clone(), params);
     let mut rng = Rng::new(cfg.seed);
     let mut arrays: [Vec<f64>; 5] = Default::default();
     for _ in 0..cfg.count {
@@ -89,7 +89,7 @@ pub fn simulate(template: Template, params: Vec<f64>, cfg: &SimConfig) -> Result
 
 /// Parses "k=v,k=v" into template parameter values, starting from the defaults; unknown
 /// names are an error that lists the known ones.
-pub fn parse_assignments(template: Template, text: Option<&str>, field: &str) -> Result<Vec<f64>> {
+pub fn parse_assignments(template: &Template, text: Option<&str>, field: &str) -> Result<Vec<f64>> {
     let mut values = template.defaults();
     for (name, v) in parse_pairs(text.unwrap_or(""), field)? {
         let i = template
@@ -100,8 +100,8 @@ pub fn parse_assignments(template: Template, text: Option<&str>, field: &str) ->
     Ok(values)
 }
 
-pub fn unknown_param(template: Template, name: &str, field: &str) -> Error {
-    let known: Vec<&str> = template.params().iter().map(|p| p.name).collect();
+pub fn unknown_param(template: &Template, name: &str, field: &str) -> Error {
+    let known: Vec<&str> = template.params().iter().map(|p| p.name.as_ref()).collect();
     Error::invalid(
         field,
         format!(

@@ -17,7 +17,7 @@ const GOOD: &str = r#"{"dt":0.01,"q":[[0,1],[2,3]],"qdot":[[0,0],[1,1]],"u":[[1]
 #[test]
 fn json_round_trip() {
     let ds = simulate(
-        Template::Cartpole,
+        &Template::Cartpole,
         Template::Cartpole.defaults(),
         &SimConfig {
             count: 20,
@@ -141,7 +141,7 @@ fn bad_csv_names_the_field() {
 #[test]
 fn split_is_seeded_and_disjoint() {
     let ds = simulate(
-        Template::Pendulum,
+        &Template::Pendulum,
         Template::Pendulum.defaults(),
         &SimConfig {
             count: 50,
@@ -199,7 +199,7 @@ fn paper_data_raises_no_warnings_and_degrees_do() {
         Template::Pendulum,
         Template::Cartpole,
     ] {
-        let ds = simulate(t, t.defaults(), &SimConfig::default()).unwrap();
+        let ds = simulate(&t, t.defaults(), &SimConfig::default()).unwrap();
         assert_eq!(ds.warnings(), [], "{t:?}");
         let mut deg = ds.clone();
         // The angles (all of q for the pendulums, θ for the cart-pole) to degrees.

@@ -3,13 +3,22 @@
 //! covers (a Furuta pendulum) conserves energy unforced; bad documents are refused naming the
 //! field and the offset.
 
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use graybox::backend::{Backend, Precision};
 use graybox::error::Error;
+use graybox::infer::Evaluator;
 use graybox::model::dual::Dual;
 use graybox::model::dynamics::{TemplateSystem, constants, white_box_acceleration};
+use graybox::model::file::ModelFile;
 use graybox::model::formula_template::FormulaTemplate;
 use graybox::model::integrator::Integrator;
+use graybox::model::spec::ModelSpec;
 use graybox::model::templates::Template;
 use graybox::rng::Rng;
+use graybox::sim::{SimConfig, simulate};
+use graybox::train::{TrainConfig, Trainer};
 use serde_json::{Value, json};
 
 fn double_pendulum() -> Value {
@@ -73,11 +82,11 @@ fn template(doc: &Value) -> FormulaTemplate {
 
 /// The formula's parameter values in the built-in template's order (formula parameters are
 /// in alphabetical order).
-fn builtin_values(f: &FormulaTemplate, t: Template) -> Vec<f64> {
+fn builtin_values(f: &FormulaTemplate, t: &Template) -> Vec<f64> {
     let d = f.defaults();
     t.params()
         .iter()
-        .map(|p| d[f.param_names().iter().position(|n| n == p.name).unwrap()])
+        .map(|p| d[f.param_names().iter().position(|n| *n == p.name).unwrap()])
         .collect()
 }
 
@@ -110,9 +119,9 @@ fn builtin_templates_written_as_formulas_give_the_same_dynamics() {
         let f = template(&doc);
         assert_eq!((f.n(), f.m()), (t.n(), t.m()));
         let p = f.defaults();
-        let pb = builtin_values(&f, t);
+        let pb = builtin_values(&f, &t);
         assert_eq!(pb, t.defaults(), "the documents use the built-in defaults");
-        let sys = TemplateSystem::new(t, pb.clone());
+        let sys = TemplateSystem::new(t.clone(), pb.clone());
         let mut rng = Rng::new(7);
         for _ in 0..100 {
             let mut r = |s: f64| {
@@ -298,4 +307,89 @@ fn bad_documents_are_refused_naming_field_and_offset() {
             other => panic!("{field}: expected a 422, got {other:?}"),
         }
     }
+}
+
+fn flex() -> burn::tensor::Device {
+    graybox::backend::device(Backend::Flex, Precision::F32)
+        .unwrap()
+        .autodiff()
+}
+
+/// W-B on the double pendulum written as a formula trains like the built-in template (same
+/// data, seed and start; its parameters in another order), and its model file, which embeds
+/// the document, loads alone and predicts as the trained model does.
+#[test]
+fn formula_white_box_trains_like_the_builtin_and_its_file_stands_alone() {
+    let formula = Template::Formula(Arc::new(template(&double_pendulum())));
+    let builtin = Template::DoublePendulum;
+    let sim = |seed| {
+        simulate(
+            &builtin,
+            builtin.defaults(),
+            &SimConfig {
+                count: 64,
+                seed,
+                ..SimConfig::default()
+            },
+        )
+        .unwrap()
+    };
+    let (data, val) = (sim(1), sim(2));
+    let cfg = TrainConfig {
+        epochs: 3,
+        batch_size: 16,
+        ..TrainConfig::default()
+    };
+    // ±30% starts, by name.
+    let init: Vec<(String, f64)> = [
+        ("m1", 13.0),
+        ("m2", 7.0),
+        ("l1", 1.3),
+        ("l2", 0.7),
+        ("g", 8.0),
+        ("b1", 1.2),
+        ("b2", 0.8),
+        ("eta1", -0.4),
+        ("eta2", -0.6),
+    ]
+    .map(|(k, v)| (k.to_string(), v))
+    .to_vec();
+    let losses = |t: &Template| {
+        let spec = ModelSpec::named("W-B", Some(t.clone())).unwrap();
+        let mut tr =
+            Trainer::new("W-B", spec, &init, &data, Some(&val), cfg.clone(), &flex()).unwrap();
+        tr.run(&AtomicBool::new(false), |_, _| {}).unwrap();
+        let r = tr.report();
+        (
+            r.history
+                .iter()
+                .map(|h| (h.train_loss, h.val_loss.unwrap()))
+                .collect::<Vec<_>>(),
+            tr.model_file(),
+        )
+    };
+    let (a, _) = losses(&builtin);
+    let (b, file) = losses(&formula);
+    // f32 training: the same operations in another order differ by rounding (~1e-6 relative).
+    for ((ta, va), (tb, vb)) in a.iter().zip(&b) {
+        assert!(
+            (ta - tb).abs() <= 1e-4 * ta.abs() && (va - vb).abs() <= 1e-4 * va.abs(),
+            "{a:?} vs {b:?}"
+        );
+    }
+    assert!(b.last().unwrap().1 < b[0].1, "the loss decreases: {b:?}");
+
+    let bytes = file.to_bytes().unwrap();
+    assert!(String::from_utf8_lossy(&bytes).contains("\"graybox.model/2\""));
+    let loaded = ModelFile::from_bytes(&bytes).unwrap();
+    assert_eq!(loaded.config.template(), file.config.template());
+    let (e1, e2) = (
+        Evaluator::from_file(&file).unwrap(),
+        Evaluator::from_file(&loaded).unwrap(),
+    );
+    let x = [0.3, -0.2, 1.0, 0.5];
+    assert_eq!(
+        e1.predict(&x, &[3.0, -2.0], true),
+        e2.predict(&x, &[3.0, -2.0], true)
+    );
 }

@@ -256,7 +256,7 @@ fn energy_is_conserved_without_forces() {
                 p[i] = 0.0;
             }
         }
-        let sys = TemplateSystem::new(t, p);
+        let sys = TemplateSystem::new(t.clone(), p);
         let (q, qd, _) = paper_samples(2, 1, 5, 21);
         for (q0, qd0) in q.iter().zip(&qd) {
             let (t0, v0) = sys.energy(q0, qd0);
@@ -328,7 +328,7 @@ fn loss_gradients_match_finite_differences() {
     let dev = f64_device().autodiff();
     for (name, template) in [("MVF", None), ("W-B", Some(Template::DoublePendulum))] {
         let ds = simulate(
-            Template::DoublePendulum,
+            &Template::DoublePendulum,
             PAPER.to_vec(),
             &SimConfig {
                 count: 8,
@@ -344,7 +344,7 @@ fn loss_gradients_match_finite_differences() {
             tensor(&rows(&ds.u, 2), &dev),
             tensor(&rows(&y, 4), &dev),
         );
-        let m0 = model(name, template, 2, 2, 7, &dev);
+        let m0 = model(name, template.clone(), 2, 2, 7, &dev);
         let m0 = if template.is_some() {
             let p = [12.0, 8.0, 1.2, 0.9, 9.0, 1.1, 0.8, -0.4, -0.6];
             Model::init(m0.config.clone(), Some(p.to_vec()), 7, &dev).unwrap()
@@ -396,8 +396,10 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
     let dev = f64_device().autodiff();
     let t = Template::DoublePendulum;
     let truth = graybox::model::report::identifiable(
-        t,
-        &ModelSpec::named("W-B", Some(t)).unwrap().white_box_parts(),
+        &t,
+        &ModelSpec::named("W-B", Some(t.clone()))
+            .unwrap()
+            .white_box_parts(),
         &t.params()
             .iter()
             .map(|p| p.name.to_string())
@@ -406,7 +408,7 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
     );
     for seed in 0..3u64 {
         let data = simulate(
-            t,
+            &t,
             PAPER.to_vec(),
             &SimConfig {
                 count: 16,
@@ -416,7 +418,7 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
         )
         .unwrap();
         let val = simulate(
-            t,
+            &t,
             PAPER.to_vec(),
             &SimConfig {
                 count: 1024,
@@ -439,7 +441,7 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
             seed,
             ..TrainConfig::default()
         };
-        let spec = ModelSpec::named("W-B", Some(t)).unwrap();
+        let spec = ModelSpec::named("W-B", Some(t.clone())).unwrap();
         let mut trainer = Trainer::new("W-B", spec, &init, &data, Some(&val), cfg, &dev).unwrap();
         trainer.run(&Default::default(), |_, _| {}).unwrap();
         let report = trainer.report();

@@ -47,7 +47,7 @@ fn swing_up(horizon: usize) -> PlanRequest {
 
 fn true_double_pendulum() -> Evaluator {
     let file =
-        ModelFile::from_template(Template::DoublePendulum, &PAPER, 0.1, Integrator::Rk4).unwrap();
+        ModelFile::from_template(&Template::DoublePendulum, &PAPER, 0.1, Integrator::Rk4).unwrap();
     Evaluator::from_file(&file).unwrap()
 }
 

@@ -20,7 +20,7 @@ fn flex() -> Device {
     device(Backend::Flex, Precision::F32).unwrap().autodiff()
 }
 
-fn data(t: Template, count: usize, seed: u64) -> Dataset {
+fn data(t: &Template, count: usize, seed: u64) -> Dataset {
     simulate(
         t,
         t.defaults(),
@@ -44,10 +44,10 @@ fn quick(epochs: usize) -> TrainConfig {
 #[test]
 fn every_named_model_trains_and_evaluates() {
     for t in [Template::DoublePendulum, Template::Cartpole] {
-        let train = data(t, 64, 1);
-        let val = data(t, 32, 2);
+        let train = data(&t, 64, 1);
+        let val = data(&t, 32, 2);
         for name in NAMED {
-            let spec = ModelSpec::named(name, Some(t)).unwrap();
+            let spec = ModelSpec::named(name, Some(t.clone())).unwrap();
             let mut trainer =
                 Trainer::new(name, spec, &[], &train, Some(&val), quick(1), &flex()).unwrap();
             let m = trainer.run_epoch(&AtomicBool::new(false)).unwrap();
@@ -89,7 +89,7 @@ fn white_box_parts_need_a_template() {
         "W-B",
         spec,
         &[],
-        &data(Template::DoublePendulum, 8, 0),
+        &data(&Template::DoublePendulum, 8, 0),
         None,
         quick(1),
         &flex(),
@@ -103,7 +103,7 @@ fn white_box_parts_need_a_template() {
 /// between the backends' kernels, so 1e-4 relative.
 #[test]
 fn flex_and_ndarray_agree_on_a_training_step() {
-    let train = data(Template::DoublePendulum, 64, 3);
+    let train = data(&Template::DoublePendulum, 64, 3);
     let cfg = TrainConfig {
         epochs: 1,
         batch_size: 64,
@@ -150,7 +150,7 @@ fn flex_and_ndarray_agree_on_a_training_step() {
 /// bit (parameters, best parameters, losses).
 #[test]
 fn resumed_run_equals_uninterrupted_run() {
-    let train = data(Template::DoublePendulum, 96, 4);
+    let train = data(&Template::DoublePendulum, 96, 4);
     let cfg = quick(5);
     let never = AtomicBool::new(false);
     for name in ["MVF", "W-B"] {
@@ -196,8 +196,8 @@ fn resumed_run_equals_uninterrupted_run() {
 /// on the grown data bit-equal to an uninterrupted run, and data of another shape is refused.
 #[test]
 fn extended_run_trains_on_and_resumes_on_the_grown_data() {
-    let first = data(Template::DoublePendulum, 32, 11);
-    let more = data(Template::DoublePendulum, 64, 12);
+    let first = data(&Template::DoublePendulum, 32, 11);
+    let more = data(&Template::DoublePendulum, 64, 12);
     let grown = {
         let idx: Vec<usize> = (0..64).collect();
         let m = more.subset(&idx);
@@ -252,14 +252,14 @@ fn extended_run_trains_on_and_resumes_on_the_grown_data() {
         resumed.model().params.export()
     );
 
-    let other = data(Template::Pendulum, 8, 1);
+    let other = data(&Template::Pendulum, 8, 1);
     let e = full.extend(&other, 1, 8).unwrap_err();
     assert!(e.to_string().contains("data"), "{e}");
 }
 
 #[test]
 fn cancel_flag_stops_training() {
-    let train = data(Template::DoublePendulum, 64, 5);
+    let train = data(&Template::DoublePendulum, 64, 5);
     let spec = ModelSpec::named("MVF", None).unwrap();
     let mut t = Trainer::new("MVF", spec, &[], &train, None, quick(3), &flex()).unwrap();
     let err = t.run_epoch(&AtomicBool::new(true)).unwrap_err();
@@ -269,7 +269,7 @@ fn cancel_flag_stops_training() {
 
 #[test]
 fn non_finite_loss_is_an_error_naming_the_epoch() {
-    let mut bad = data(Template::DoublePendulum, 16, 6);
+    let mut bad = data(&Template::DoublePendulum, 16, 6);
     for v in &mut bad.q_next {
         *v = 1e30; // squared error overflows f32
     }
@@ -286,8 +286,8 @@ fn non_finite_loss_is_an_error_naming_the_epoch() {
 /// gives the reported best validation loss.
 #[test]
 fn saved_model_is_the_best_validation_model() {
-    let train = data(Template::DoublePendulum, 128, 7);
-    let val = data(Template::DoublePendulum, 64, 8);
+    let train = data(&Template::DoublePendulum, 128, 7);
+    let val = data(&Template::DoublePendulum, 64, 8);
     let spec = ModelSpec::named("MVB", None).unwrap();
     let cfg = TrainConfig {
         epochs: 6,
@@ -318,8 +318,8 @@ fn saved_model_is_the_best_validation_model() {
 
 #[test]
 fn early_stopping_keeps_the_best_epoch() {
-    let train = data(Template::DoublePendulum, 64, 9);
-    let val = data(Template::DoublePendulum, 32, 10);
+    let train = data(&Template::DoublePendulum, 64, 9);
+    let val = data(&Template::DoublePendulum, 32, 10);
     let spec = ModelSpec::named("naive", None).unwrap();
     // 64 samples and a large learning rate: the naive net overfits and oscillates, so the
     // validation loss stops improving long before 500 epochs.
@@ -348,7 +348,7 @@ fn early_stopping_keeps_the_best_epoch() {
 /// It "succeeds", but its report (and so the job) carries warnings that say why not to trust it.
 #[test]
 fn a_run_on_degrees_warns() {
-    let mut ds = data(Template::DoublePendulum, 256, 5);
+    let mut ds = data(&Template::DoublePendulum, 256, 5);
     for a in [&mut ds.q, &mut ds.qdot, &mut ds.q_next, &mut ds.qdot_next] {
         a.iter_mut().for_each(|v| *v = v.to_degrees());
     }

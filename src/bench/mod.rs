@@ -88,8 +88,8 @@ fn bench_train(a: BenchTrainArgs) -> Result<()> {
         seed,
         ..SimConfig::default()
     };
-    let train = simulate(t, t.defaults(), &cfg(a.train, a.seed))?;
-    let val = simulate(t, t.defaults(), &cfg(a.val, a.seed + 1))?;
+    let train = simulate(&t, t.defaults(), &cfg(a.train, a.seed))?;
+    let val = simulate(&t, t.defaults(), &cfg(a.val, a.seed + 1))?;
     let device = backend::device(a.backend, Precision::F32)?.autodiff();
     for model in a.models.split(',').map(str::trim) {
         for bs in a
@@ -184,7 +184,7 @@ fn bench_step(a: BenchStepArgs) -> Result<()> {
     use burn::tensor::{Tensor, TensorData};
     let t = Template::DoublePendulum;
     let data = simulate(
-        t,
+        &t,
         t.defaults(),
         &SimConfig {
             count: a.batch_size,

@@ -32,9 +32,9 @@ pub struct ModelArgs {
 
 pub(super) fn model(a: ModelArgs) -> Result<()> {
     let t = Template::parse(&a.template)?;
-    let values = parse_assignments(t, a.set.as_deref(), "set")?;
+    let values = parse_assignments(&t, a.set.as_deref(), "set")?;
     let integrator = Integrator::parse(&a.integrator)?;
-    let file = ModelFile::from_template(t, &values, a.dt, integrator)?;
+    let file = ModelFile::from_template(&t, &values, a.dt, integrator)?;
     file.save(&a.out)?;
     println!(
         "{}",

@@ -39,7 +39,7 @@ pub struct SimulateArgs {
 
 pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
     let t = Template::parse(&a.system)?;
-    let params = parse_assignments(t, a.set.as_deref(), "set")?;
+    let params = parse_assignments(&t, a.set.as_deref(), "set")?;
     let cfg = SimConfig {
         count: a.count,
         seed: a.seed,
@@ -48,7 +48,7 @@ pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
         qdot_range: a.qdot_range,
         u_std: a.u_std,
     };
-    let ds = sim::simulate(t, params, &cfg)?;
+    let ds = sim::simulate(&t, params, &cfg)?;
     write_atomic(&a.out, ds.to_json().as_bytes())?;
     println!(
         "{}",

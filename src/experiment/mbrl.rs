@@ -215,7 +215,7 @@ struct Reference {
 fn system() -> Result<Evaluator> {
     let t = Template::DoublePendulum;
     Evaluator::from_file(&ModelFile::from_template(
-        t,
+        &t,
         &t.defaults(),
         DT,
         Integrator::Rk4,
@@ -406,9 +406,13 @@ fn save_state(
     data: &Dataset,
     done: usize,
 ) -> Result<()> {
+    // The per-epoch history is most of a checkpoint and the experiment reads none of it: the
+    // states are committed with the results, so they stay small.
+    let mut checkpoint = trainer.checkpoint();
+    checkpoint.history.clear();
     let st = RunState {
         episodes_done: done,
-        checkpoint: trainer.checkpoint(),
+        checkpoint,
         data: [
             data.q.clone(),
             data.qdot.clone(),

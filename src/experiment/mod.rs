@@ -52,7 +52,7 @@ fn paper_double_pendulum(count: usize, seed: u64, stream: u64) -> Result<Dataset
         seed: Rng::derive(seed, 0xDA7A_0000 + stream).next_u64(),
         ..SimConfig::default()
     };
-    simulate(t, t.defaults(), &cfg)
+    simulate(&t, t.defaults(), &cfg)
 }
 
 /// The median of `v` (NaN when empty); infinities count as large values.

@@ -195,7 +195,7 @@ fn train(s: &Settings, model: &str, show: &dyn Fn(usize, f64)) -> Result<(Traine
 fn true_trajectories(s: &Settings) -> Vec<Trajectory> {
     let t = Template::DoublePendulum;
     let (n, m) = (t.n(), t.m());
-    let sys = TemplateSystem::new(t, t.defaults());
+    let sys = TemplateSystem::new(t.clone(), t.defaults());
     let mut rng = Rng::derive(s.seed, 0x0707_0001);
     (0..s.count)
         .map(|_| {

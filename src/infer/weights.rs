@@ -149,7 +149,10 @@ impl Weights {
         else {
             return Ok(Weights::Naive(arrays.net(names::NAIVE, 2 * n + m, n)?));
         };
-        let physical = match template.filter(|_| !file.config.spec.white_box_parts().is_empty()) {
+        let physical = match template
+            .as_ref()
+            .filter(|_| !file.config.spec.white_box_parts().is_empty())
+        {
             Some(t) => Some(
                 t.params()
                     .iter()

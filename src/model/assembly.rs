@@ -85,14 +85,14 @@ pub struct Structure<'a, P> {
     pub mass: &'a MassSpec,
     pub potential: &'a PotentialSpec,
     pub forces: &'a ForceSpec,
-    pub template: Option<Template>,
+    pub template: Option<&'a Template>,
     pub scaling: &'a Scaling,
     pub values: Values<'a, P>,
     pub n: usize,
     pub m: usize,
 }
 
-impl<P> Structure<'_, P> {
+impl<'a, P> Structure<'a, P> {
     /// L, ∇V and F for a batch.
     pub fn terms<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Terms<S>
     where
@@ -105,7 +105,7 @@ impl<P> Structure<'_, P> {
         }
     }
 
-    fn template(&self) -> Template {
+    fn template(&self) -> &'a Template {
         self.template
             .expect("validated: white-box parts have a template")
     }

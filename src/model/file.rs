@@ -18,7 +18,18 @@ use crate::model::params_io::{NamedArray, import};
 use crate::model::{Model, ModelConfig, raw_physical};
 use burn::tensor::Device;
 
+/// The format of files whose template is a built-in one (older graybox versions read them).
 pub const FORMAT: &str = "graybox.model/1";
+/// The format of files that embed a formula template's document.
+pub const FORMAT_EMBEDDED_TEMPLATE: &str = "graybox.model/2";
+
+/// The format a file with this configuration is written in.
+fn format_of(config: &ModelConfig) -> &'static str {
+    match config.template() {
+        Some(Template::Formula(_)) => FORMAT_EMBEDDED_TEMPLATE,
+        _ => FORMAT,
+    }
+}
 
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ModelFile {
@@ -43,7 +54,7 @@ pub struct Made {
 impl ModelFile {
     pub fn new(config: ModelConfig, params: Vec<NamedArray>, report: Option<TrainReport>) -> Self {
         Self {
-            format: FORMAT.to_string(),
+            format: format_of(&config).to_string(),
             config,
             params,
             report,
@@ -55,7 +66,7 @@ impl ModelFile {
     /// as a model, with no data and no training. Its scalings are the identity (a template's
     /// equations read no network and no data statistics).
     pub fn from_template(
-        t: Template,
+        t: &Template,
         values: &[f64],
         dt: f64,
         integrator: Integrator,
@@ -69,7 +80,7 @@ impl ModelFile {
         }
         let raw = raw_physical(t, values)?;
         let config = ModelConfig {
-            spec: ModelSpec::named("W-B", Some(t))?,
+            spec: ModelSpec::named("W-B", Some(t.clone()))?,
             n: t.n(),
             m: t.m(),
             dt,
@@ -120,10 +131,13 @@ impl ModelFile {
     pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
         let f: ModelFile =
             serde_json::from_slice(bytes).map_err(|e| Error::corrupt("model file", e))?;
-        if f.format != FORMAT {
+        if ![FORMAT, FORMAT_EMBEDDED_TEMPLATE].contains(&f.format.as_str()) {
             return Err(Error::corrupt(
                 "model file",
-                format!("format '{}' is not {FORMAT}", f.format),
+                format!(
+                    "format '{}' is not {FORMAT} or {FORMAT_EMBEDDED_TEMPLATE}",
+                    f.format
+                ),
             ));
         }
         Ok(f)

@@ -2,6 +2,7 @@
 //! expressions over named coordinates, velocities, inputs and parameters, checked once when
 //! the document is read and then evaluated over [`Scalar`] like the built-in templates.
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
@@ -10,6 +11,7 @@ use super::dual::Dual;
 use super::dynamics::cholesky;
 use super::formula::{Expr, Names, Symbol, parse, reserved};
 use super::scalar::Scalar;
+use super::templates::{ParamInfo, Part};
 use crate::error::{Error, Result};
 use crate::rng::Rng;
 
@@ -47,6 +49,7 @@ pub struct ParamDoc {
 pub struct FormulaTemplate {
     pub doc: FormulaDoc,
     names: Names,
+    params: Vec<ParamInfo>,
     mass: Vec<Vec<Expr>>,
     potential: Expr,
     forces: Vec<Expr>,
@@ -161,9 +164,11 @@ impl FormulaTemplate {
             .enumerate()
             .map(|(i, text)| expression(&format!("forces[{i}]"), text, &names, false))
             .collect::<Result<Vec<_>>>()?;
+        let params = param_infos(&doc, &mass, &potential, &forces);
         let t = Self {
             doc,
             names,
+            params,
             mass,
             potential,
             forces,
@@ -183,6 +188,11 @@ impl FormulaTemplate {
     /// Parameter names in training order.
     pub fn param_names(&self) -> &[String] {
         &self.names.parameters
+    }
+
+    /// The parameters in training order, with the parts that use them.
+    pub fn params(&self) -> &[ParamInfo] {
+        &self.params
     }
 
     /// The document's parameter values, in training order.
@@ -282,6 +292,42 @@ fn positive_definite(m: &[Vec<f64>]) -> bool {
         .collect();
     let l = cholesky(&md);
     (0..m.len()).all(|i| l.get(i, i).v > 0.0)
+}
+
+/// Each parameter with the parts whose expressions name it.
+fn param_infos(
+    doc: &FormulaDoc,
+    mass: &[Vec<Expr>],
+    potential: &Expr,
+    forces: &[Expr],
+) -> Vec<ParamInfo> {
+    let uses = |exprs: Vec<&Expr>, i: usize| {
+        exprs
+            .iter()
+            .any(|e| e.symbols().iter().any(|(s, _)| *s == Symbol::Param(i)))
+    };
+    doc.parameters
+        .iter()
+        .enumerate()
+        .map(|(i, (name, p))| {
+            let mut used_by = vec![];
+            if uses(mass.iter().flatten().collect(), i) {
+                used_by.push(Part::Mass);
+            }
+            if uses(vec![potential], i) {
+                used_by.push(Part::Potential);
+            }
+            if uses(forces.iter().collect(), i) {
+                used_by.push(Part::Forces);
+            }
+            ParamInfo {
+                name: Cow::Owned(name.clone()),
+                default: p.value,
+                positive: p.positive,
+                used_by: Cow::Owned(used_by),
+            }
+        })
+        .collect()
 }
 
 /// Names are identifiers, unique across coordinates, velocities, inputs and parameters, and

@@ -72,7 +72,7 @@ pub struct Parts {
 }
 
 impl ModelConfig {
-    pub fn template(&self) -> Option<Template> {
+    pub fn template(&self) -> Option<&Template> {
         self.spec.template()
     }
 }
@@ -103,7 +103,9 @@ impl Model {
                 let potential = init::potential(potential, n, &mut rng, device);
                 let forces = init::forces(forces, n, m, &mut rng, device);
                 // Physical parameters exist only when some part is white-box.
-                let physical = match template.filter(|_| !config.spec.white_box_parts().is_empty())
+                let physical = match template
+                    .as_ref()
+                    .filter(|_| !config.spec.white_box_parts().is_empty())
                 {
                     Some(t) => {
                         let values = physical.unwrap_or_else(|| t.defaults());
@@ -147,7 +149,7 @@ impl Model {
     /// Parameters no white-box part of this model reads are detached: a tracked value that
     /// never reaches the loss keeps its autodiff graph alive in Burn's registry, and every
     /// later backward pass slows down.
-    fn physical(&self, t: Template) -> Vec<Tensor<2>> {
+    fn physical(&self, t: &Template) -> Vec<Tensor<2>> {
         let raw = self
             .components()
             .physical
@@ -230,13 +232,14 @@ impl Model {
             value_columns(p.eta()),
         );
         let physical = template
+            .as_ref()
             .filter(|_| p.physical.is_some())
             .map(|t| self.physical(t));
         let structure = Structure {
             mass,
             potential,
             forces,
-            template: *template,
+            template: template.as_ref(),
             scaling: &self.config.scaling,
             values: Values {
                 mass_const: mass_const.as_deref(),
@@ -337,7 +340,7 @@ impl Model {
                 Some(v.mul_scalar(s.quadratic_scale()))
             }
             PotentialSpec::Template => {
-                let t = template.expect("validated: template present");
+                let t = template.as_ref().expect("validated: template present");
                 Some(t.potential(&self.physical(t), &columns(&q)))
             }
         }
@@ -370,7 +373,7 @@ impl Model {
 }
 
 /// Physical values → raw trainable values (logarithms for positive parameters).
-pub fn raw_physical(t: Template, values: &[f64]) -> Result<Vec<f64>> {
+pub fn raw_physical(t: &Template, values: &[f64]) -> Result<Vec<f64>> {
     t.params()
         .iter()
         .zip(values)

@@ -52,7 +52,7 @@ pub struct TrainReport {
 
 /// The parameters that the white-box parts use, by name.
 pub fn used_physical(
-    t: Template,
+    t: &Template,
     parts: &[Part],
     values: &[(String, f64)],
 ) -> BTreeMap<String, f64> {
@@ -65,7 +65,7 @@ pub fn used_physical(
 }
 
 /// The identifiable combinations whose parts are all white-box, evaluated at `values`.
-pub fn identifiable(t: Template, parts: &[Part], values: &[(String, f64)]) -> Vec<Identified> {
+pub fn identifiable(t: &Template, parts: &[Part], values: &[(String, f64)]) -> Vec<Identified> {
     let lookup = |name: &str| -> f64 {
         values
             .iter()

@@ -87,7 +87,7 @@ impl Scaling {
     }
 
     /// `mass` gives the analytic M at the initial physical parameters when M is white-box.
-    pub fn from_data(ds: &Dataset, mass: Option<(Template, &[f64])>) -> Self {
+    pub fn from_data(ds: &Dataset, mass: Option<(&Template, &[f64])>) -> Self {
         let (n, m) = (ds.n, ds.m);
         let (q_mean, q_std) = column_stats(&ds.q, n);
         let (qdot_mean, qdot_std) = column_stats(&ds.qdot, n);

@@ -207,9 +207,9 @@ impl ModelSpec {
         }
     }
 
-    pub fn template(&self) -> Option<Template> {
+    pub fn template(&self) -> Option<&Template> {
         match self {
-            ModelSpec::Structured { template, .. } => *template,
+            ModelSpec::Structured { template, .. } => template.as_ref(),
             ModelSpec::Naive { .. } => None,
         }
     }
@@ -251,7 +251,7 @@ impl ModelSpec {
                         format!(
                             "white-box component(s) {} need a template (one of {})",
                             names.join(", "),
-                            Template::ALL.map(|t| t.name()).join(", ")
+                            Template::ALL.map(|t| t.name().to_string()).join(", ")
                         ),
                     ));
                 }

@@ -2,16 +2,49 @@
 //! parameters, written once over [`Scalar`] so that the same equations serve training (Burn
 //! tensors), simulation and inference (f64), and their q-derivatives (dual numbers).
 
-use serde::{Deserialize, Serialize};
+use std::borrow::Cow;
+use std::sync::Arc;
 
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+use super::formula_template::{FormulaDoc, FormulaTemplate};
 use super::scalar::Scalar;
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
+/// A white-box system: one of the built-in ones, or a formula template (its whole document,
+/// so that a model file that names it needs no other file). Serialized as the built-in's name
+/// or as the formula document.
+#[derive(Debug, Clone, PartialEq)]
 pub enum Template {
     DoublePendulum,
     Pendulum,
     Cartpole,
+    Formula(Arc<FormulaTemplate>),
+}
+
+impl Serialize for Template {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            Template::Formula(f) => f.doc.serialize(s),
+            t => s.serialize_str(t.name()),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Template {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Repr {
+            Name(String),
+            Doc(FormulaDoc),
+        }
+        match Repr::deserialize(d)? {
+            Repr::Name(n) => Template::parse(&n).map_err(serde::de::Error::custom),
+            Repr::Doc(doc) => FormulaTemplate::from_doc(doc)
+                .map(|f| Template::Formula(Arc::new(f)))
+                .map_err(serde::de::Error::custom),
+        }
+    }
 }
 
 /// Which white-box component a parameter or an identifiable combination belongs to.
@@ -22,12 +55,13 @@ pub enum Part {
     Forces,
 }
 
+#[derive(Debug, Clone, PartialEq)]
 pub struct ParamInfo {
-    pub name: &'static str,
+    pub name: Cow<'static, str>,
     pub default: f64,
     /// Trained in log space so that the optimizer cannot make it negative.
     pub positive: bool,
-    pub used_by: &'static [Part],
+    pub used_by: Cow<'static, [Part]>,
 }
 
 /// Evaluates a combination given a lookup of parameter values by name.
@@ -50,10 +84,10 @@ const fn p(
     used_by: &'static [Part],
 ) -> ParamInfo {
     ParamInfo {
-        name,
+        name: Cow::Borrowed(name),
         default,
         positive,
-        used_by,
+        used_by: Cow::Borrowed(used_by),
     }
 }
 
@@ -135,11 +169,12 @@ impl Template {
         Template::Cartpole,
     ];
 
-    pub fn name(self) -> &'static str {
+    pub fn name(&self) -> &str {
         match self {
             Template::DoublePendulum => "double_pendulum",
             Template::Pendulum => "pendulum",
             Template::Cartpole => "cartpole",
+            Template::Formula(f) => &f.doc.name,
         }
     }
 
@@ -154,55 +189,61 @@ impl Template {
                 "template",
                 format!(
                     "unknown template '{name}'; expected one of {}",
-                    Self::ALL.map(|t| t.name()).join(", ")
+                    Self::ALL.map(|t| t.name().to_string()).join(", ")
                 ),
             )
         })
     }
 
     /// Number of generalized coordinates.
-    pub fn n(self) -> usize {
+    pub fn n(&self) -> usize {
         match self {
             Template::DoublePendulum | Template::Cartpole => 2,
             Template::Pendulum => 1,
+            Template::Formula(f) => f.n(),
         }
     }
 
     /// Number of inputs.
-    pub fn m(self) -> usize {
+    pub fn m(&self) -> usize {
         match self {
             Template::DoublePendulum => 2,
             Template::Pendulum | Template::Cartpole => 1,
+            Template::Formula(f) => f.m(),
         }
     }
 
-    pub fn params(self) -> &'static [ParamInfo] {
+    pub fn params(&self) -> &[ParamInfo] {
         match self {
             Template::DoublePendulum => DOUBLE_PENDULUM,
             Template::Pendulum => PENDULUM,
             Template::Cartpole => CARTPOLE,
+            Template::Formula(f) => f.params(),
         }
     }
 
-    pub fn combinations(self) -> &'static [Combination] {
+    /// The identifiable combinations graybox reports (none known for formula templates).
+    pub fn combinations(&self) -> &'static [Combination] {
         match self {
             Template::DoublePendulum => DOUBLE_PENDULUM_COMBOS,
             Template::Pendulum => PENDULUM_COMBOS,
             Template::Cartpole => CARTPOLE_COMBOS,
+            Template::Formula(_) => &[],
         }
     }
 
-    pub fn defaults(self) -> Vec<f64> {
+    pub fn defaults(&self) -> Vec<f64> {
         self.params().iter().map(|p| p.default).collect()
     }
 
-    pub fn index_of(self, name: &str) -> Option<usize> {
+    pub fn index_of(&self, name: &str) -> Option<usize> {
         self.params().iter().position(|p| p.name == name)
     }
 
     /// The symmetric mass matrix M(q), n×n.
-    pub fn mass<S: Scalar>(self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
+    pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
         match self {
+            Template::Formula(f) => f.mass(p, q),
             Template::DoublePendulum => {
                 let (m1, m2, l1, l2) = (&p[0], &p[1], &p[2], &p[3]);
                 let i1 = (m1.clone() * l1.square()).scale(1.0 / 3.0);
@@ -229,8 +270,9 @@ impl Template {
     }
 
     /// The potential energy V(q).
-    pub fn potential<S: Scalar>(self, p: &[S], q: &[S]) -> S {
+    pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
         match self {
+            Template::Formula(f) => f.potential(p, q),
             Template::DoublePendulum => {
                 let (m1, m2, l1, l2, g) = (&p[0], &p[1], &p[2], &p[3], &p[4]);
                 let c1 = q[0].cos();
@@ -252,8 +294,9 @@ impl Template {
     }
 
     /// The generalized forces F(q, q̇, u).
-    pub fn forces<S: Scalar>(self, p: &[S], _q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+    pub fn forces<S: Scalar>(&self, p: &[S], q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
         match self {
+            Template::Formula(f) => f.forces(p, q, qd, u),
             Template::DoublePendulum => {
                 let (b1, b2, e1, e2) = (&p[5], &p[6], &p[7], &p[8]);
                 vec![

@@ -349,7 +349,7 @@ async fn uploaded_models_are_served_like_trained_ones() {
 
     let app = spawn_app(0).await;
     let t = Template::DoublePendulum;
-    let file = ModelFile::from_template(t, &t.defaults(), 0.05, Integrator::Rk4).unwrap();
+    let file = ModelFile::from_template(&t, &t.defaults(), 0.05, Integrator::Rk4).unwrap();
     let bytes = file.to_bytes().unwrap();
     let post = |body: Vec<u8>| {
         app.client

@@ -158,7 +158,7 @@ pub fn final_state(job: &Value) -> bool {
 pub fn dataset(count: usize, seed: u64) -> Value {
     let t = Template::DoublePendulum;
     let ds = simulate(
-        t,
+        &t,
         t.defaults(),
         &SimConfig {
             count,

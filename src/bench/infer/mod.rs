@@ -105,7 +105,7 @@ fn weights() -> (Mat, Mat, Mat) {
 pub fn run(a: BenchInferArgs) -> Result<()> {
     let t = Template::DoublePendulum;
     let data = simulate(
-        t,
+        &t,
         t.defaults(),
         &SimConfig {
             count: 2048,

@@ -19,7 +19,7 @@ const CALLS: usize = 10;
 /// The true double pendulum as a model file.
 pub(super) fn true_double_pendulum() -> ModelFile {
     let t = Template::DoublePendulum;
-    ModelFile::from_template(t, &t.defaults(), 0.1, Integrator::Rk4).expect("valid template model")
+    ModelFile::from_template(&t, &t.defaults(), 0.1, Integrator::Rk4).expect("valid template model")
 }
 
 const Q: [f64; 4] = [1.0, 1.0, 0.1, 0.1];
