@@ -205,3 +205,108 @@ fn model_writes_a_white_box_model_that_plans() {
         assert!(err.contains(field), "{err}");
     }
 }
+
+/// A formula template file works wherever a template name does: simulate from it, train W-B
+/// on it from other starting values, make its white-box model, plan on it; a bad file's
+/// error names the file, the field and the offset.
+#[test]
+fn formula_template_files_simulate_train_and_plan() {
+    let doc = serde_json::json!({
+        "kind": "formula", "name": "cartpole_formula", "coordinates": ["x", "theta"],
+        "inputs": ["f"],
+        "parameters": {"mc": {"value": 1.0, "positive": true}, "mp": {"value": 0.5, "positive": true},
+                       "l": {"value": 0.6, "positive": true}, "g": {"value": 9.81, "positive": true},
+                       "eta": {"value": -0.1}},
+        "mass": [["mc + mp", "mp*l*cos(theta)"], ["mp*l*cos(theta)", "mp*l^2"]],
+        "potential": "-mp*g*l*cos(theta)",
+        "forces": ["f + eta*x_dot", "0"]
+    });
+    let (t, d, m, w, p) = (
+        tmp("cp.json"),
+        tmp("cp-d.json"),
+        tmp("cp.gbx"),
+        tmp("cp-true.gbx"),
+        tmp("cp-plan.json"),
+    );
+    std::fs::write(&t, doc.to_string()).unwrap();
+    let sim = json(&graybox(&[
+        "simulate",
+        "--template",
+        &t,
+        "--count",
+        "128",
+        "--seed",
+        "3",
+        "--q-range",
+        "1",
+        "--qdot-range",
+        "1",
+        "--u-std",
+        "5",
+        "--set",
+        "l=0.5",
+        "--out",
+        &d,
+    ]));
+    assert_eq!((sim["n"].as_u64(), sim["m"].as_u64()), (Some(2), Some(1)));
+    let report = json(&graybox(&[
+        "train",
+        "--data",
+        &d,
+        "--model",
+        "W-B",
+        "--template",
+        &t,
+        "--init",
+        "l=0.7,mp=0.4",
+        "--epochs",
+        "30",
+        "--batch-size",
+        "32",
+        "--lr",
+        "0.01",
+        "--out",
+        &m,
+    ]));
+    let best = report["best_val_loss"].as_f64().unwrap();
+    assert!(
+        best.is_finite() && report["physical_parameters"]["l"].as_f64().is_some(),
+        "{report}"
+    );
+    let made = json(&graybox(&[
+        "model",
+        "--template",
+        &t,
+        "--dt",
+        "0.05",
+        "--out",
+        &w,
+    ]));
+    assert_eq!(made["template"], "cartpole_formula");
+    json(&graybox(&[
+        "plan",
+        "--model",
+        &w,
+        "--x0",
+        "0,0,0,0",
+        "--goal",
+        "0.5,0,0,0",
+        "--horizon",
+        "20",
+        "--out",
+        &p,
+    ]));
+    let plan: serde_json::Value = serde_json::from_slice(&std::fs::read(&p).unwrap()).unwrap();
+    assert!(plan["goal_error"].as_f64().unwrap() < 0.1, "{plan}");
+
+    let mut bad = doc.clone();
+    bad["mass"][1][1] = serde_json::json!("mp*l^2 + f");
+    std::fs::write(&t, bad.to_string()).unwrap();
+    let out = graybox(&["simulate", "--template", &t, "--count", "8", "--out", &d]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("cp.json: mass[1][1]") && err.contains("'f' at offset 9"),
+        "{err}"
+    );
+}

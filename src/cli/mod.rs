@@ -22,6 +22,26 @@ pub use simulate::SimulateArgs;
 pub use train::TrainArgs;
 
 use crate::error::{Error, Result};
+use crate::model::formula_template::FormulaTemplate;
+use crate::model::templates::Template;
+
+/// A `--template` argument: a built-in template's name, or a formula template's JSON file
+/// (a path ending in .json); a bad document's error names the field and offset.
+fn template_arg(arg: &str) -> Result<Template> {
+    if !arg.ends_with(".json") {
+        return Template::parse(arg);
+    }
+    let text = std::fs::read_to_string(arg)
+        .map_err(|e| Error::invalid("template", format!("cannot read {arg}: {e}")))?;
+    let f = FormulaTemplate::parse(&text).map_err(|e| match e {
+        Error::Unprocessable { field, message } => Error::Unprocessable {
+            field: format!("{arg}: {field}"),
+            message,
+        },
+        other => other,
+    })?;
+    Ok(Template::Formula(std::sync::Arc::new(f)))
+}
 
 #[derive(Parser, Debug)]
 #[command(

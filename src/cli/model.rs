@@ -9,12 +9,11 @@ use serde_json::json;
 use crate::error::Result;
 use crate::model::file::ModelFile;
 use crate::model::integrator::Integrator;
-use crate::model::templates::Template;
 use crate::sim::parse_assignments;
 
 #[derive(Args, Debug)]
 pub struct ModelArgs {
-    /// Template: double_pendulum, pendulum or cartpole.
+    /// Template: double_pendulum, pendulum, cartpole, or a formula template's JSON file.
     #[arg(long)]
     pub template: String,
     /// Physical values, e.g. m1=10,l2=0.8 (others keep the template's defaults).
@@ -31,7 +30,7 @@ pub struct ModelArgs {
 }
 
 pub(super) fn model(a: ModelArgs) -> Result<()> {
-    let t = Template::parse(&a.template)?;
+    let t = super::template_arg(&a.template)?;
     let values = parse_assignments(&t, a.set.as_deref(), "set")?;
     let integrator = Integrator::parse(&a.integrator)?;
     let file = ModelFile::from_template(&t, &values, a.dt, integrator)?;

@@ -7,14 +7,13 @@ use serde_json::json;
 
 use crate::error::Result;
 use crate::model::file::write_atomic;
-use crate::model::templates::Template;
 use crate::sim::{self, SimConfig, parse_assignments};
 
 #[derive(Args, Debug)]
 pub struct SimulateArgs {
-    /// Template: double_pendulum, pendulum or cartpole.
-    #[arg(long)]
-    pub system: String,
+    /// Template: double_pendulum, pendulum, cartpole, or a formula template's JSON file.
+    #[arg(long, visible_alias = "system")]
+    pub template: String,
     #[arg(long, default_value_t = 1024)]
     pub count: usize,
     #[arg(long, default_value_t = 0)]
@@ -38,7 +37,7 @@ pub struct SimulateArgs {
 }
 
 pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
-    let t = Template::parse(&a.system)?;
+    let t = super::template_arg(&a.template)?;
     let params = parse_assignments(&t, a.set.as_deref(), "set")?;
     let cfg = SimConfig {
         count: a.count,

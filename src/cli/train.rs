@@ -14,7 +14,6 @@ use crate::error::{Error, Result};
 use crate::model::file::write_atomic;
 use crate::model::integrator::Integrator;
 use crate::model::spec::ModelSpec;
-use crate::model::templates::Template;
 use crate::sim::parse_pairs;
 use crate::train::{TrainConfig, Trainer};
 
@@ -33,7 +32,8 @@ pub struct TrainArgs {
     /// A JSON model spec file instead of a named model.
     #[arg(long, conflicts_with = "model")]
     pub spec: Option<PathBuf>,
-    /// Template for the white-box parts: double_pendulum, pendulum, cartpole.
+    /// Template for the white-box parts: double_pendulum, pendulum, cartpole, or a formula
+    /// template's JSON file.
     #[arg(long)]
     pub template: Option<String>,
     /// Initial physical values, e.g. m1=13,l2=0.8.
@@ -73,7 +73,7 @@ pub struct TrainArgs {
 }
 
 pub(super) fn train(a: TrainArgs) -> Result<()> {
-    let template = a.template.as_deref().map(Template::parse).transpose()?;
+    let template = a.template.as_deref().map(super::template_arg).transpose()?;
     let (name, spec) = match &a.spec {
         Some(path) => {
             let text = std::fs::read_to_string(path).map_err(|e| {
