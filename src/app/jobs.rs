@@ -1,6 +1,10 @@
 //! Job submission: the whole request is validated here, at submission, so that a job that
 //! cannot train never enters the queue.
 
+use std::sync::Arc;
+
+use crate::model::formula_template::{FormulaDoc, FormulaTemplate};
+use crate::model::templates::Template;
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
@@ -24,8 +28,11 @@ pub struct JobRequest {
     /// A paper name ("MVF", …, "W-B", "naive") or a JSON model spec.
     #[schema(value_type = Object)]
     pub model: Value,
+    /// A built-in template's name, or a formula template's document (README "Your own
+    /// mechanism").
     #[serde(default)]
-    pub template: Option<String>,
+    #[schema(value_type = Option<Object>)]
+    pub template: Option<Value>,
     #[serde(default)]
     pub init: Option<BTreeMap<String, f64>>,
     #[serde(default)]
@@ -98,13 +105,43 @@ pub fn parse_body<T: serde::de::DeserializeOwned>(value: Value) -> Result<T> {
     })
 }
 
+/// A request's template: a built-in name, or a formula document (errors name
+/// `template.<field>`).
+fn parse_template(t: &Value) -> Result<Template> {
+    match t {
+        Value::String(name) => Template::parse(name).map_err(Error::unprocessable),
+        Value::Object(_) => {
+            let doc: FormulaDoc = serde_path_to_error::deserialize(t).map_err(|e| {
+                let path = e.path().to_string();
+                Error::Unprocessable {
+                    field: if path == "." {
+                        "template".into()
+                    } else {
+                        format!("template.{path}")
+                    },
+                    message: in_words(&e.inner().to_string()),
+                }
+            })?;
+            let f = FormulaTemplate::from_doc(doc).map_err(|e| match e {
+                Error::Unprocessable { field, message } => Error::Unprocessable {
+                    field: format!("template.{field}"),
+                    message,
+                },
+                other => other,
+            })?;
+            Ok(Template::Formula(Arc::new(f)))
+        }
+        _ => Err(Error::Unprocessable {
+            field: "template".into(),
+            message: "must be a template name or a formula template document".into(),
+        }),
+    }
+}
+
 /// The model of a request: a paper name ("MVF", …) or a spec object, with an optional
 /// template for its white-box parts.
-fn parse_model(model: &Value, template: Option<&str>) -> Result<(String, ModelSpec)> {
-    let template = template
-        .map(crate::model::templates::Template::parse)
-        .transpose()
-        .map_err(Error::unprocessable)?;
+fn parse_model(model: &Value, template: Option<&Value>) -> Result<(String, ModelSpec)> {
+    let template = template.map(parse_template).transpose()?;
     let (name, spec) = match model {
         Value::String(name) => (name.clone(), ModelSpec::named(name, template)),
         Value::Object(_) => (
@@ -146,7 +183,7 @@ impl App {
     async fn validate_job(&self, req: JobRequest) -> Result<JobSpec> {
         let training = req.training.unwrap_or_default();
         training.validate().map_err(Error::unprocessable)?;
-        let (model_name, spec) = parse_model(&req.model, req.template.as_deref())?;
+        let (model_name, spec) = parse_model(&req.model, req.template.as_ref())?;
         let init: Vec<(String, f64)> = req.init.unwrap_or_default().into_iter().collect();
         physical_init(&spec, &init).map_err(Error::unprocessable)?;
         let job = JobSpec {
