@@ -154,14 +154,20 @@ impl Settings {
         })
     }
 
+    /// The cost's weights Q, R, Q_f.
+    fn weights(&self) -> [Mat; 3] {
+        [Mat::diag(&self.q), Mat::diag(&self.r), Mat::diag(&self.qf)]
+    }
+
     fn request(&self, seed: u64) -> PlanRequest {
+        let [q, r, qf] = self.weights();
         PlanRequest {
             x0: vec![0.0; 4],
             goal: vec![std::f64::consts::PI, 0.0, 0.0, 0.0],
             horizon: HORIZON,
-            q: Mat::diag(&self.q),
-            r: Mat::diag(&self.r),
-            qf: Mat::diag(&self.qf),
+            q,
+            r,
+            qf,
             u_min: Some(vec![-U_MAX; 2]),
             u_max: Some(vec![U_MAX; 2]),
             u_init: None,
@@ -455,11 +461,11 @@ fn explore(sys: &Evaluator, learned: &Evaluator, s: &Settings, p: &Plan, rng: &m
     };
     let xbar = noise(&p.x);
     let ubar = noise(&p.u);
-    let r = s.request(0);
+    let [q, r, qf] = s.weights();
     // A noisy nominal can leave the region where the model is finite; the plan's own gains
     // then still track it.
     let gains = learned
-        .tvlqr(&xbar, &ubar, &r.q, &r.r, &r.qf)
+        .tvlqr(&xbar, &ubar, &q, &r, &qf)
         .unwrap_or_else(|_| p.gains.clone());
     let states = track(sys, &xbar, &ubar, &gains);
     let inputs = applied_inputs(&states, &xbar, &ubar, &gains);
@@ -522,15 +528,16 @@ fn transitions(states: &[f64], u: &[f64]) -> Dataset {
         a[3].extend_from_slice(&y[..2]);
         a[4].extend_from_slice(&y[2..]);
     }
+    let [q, qdot, u, q_next, qdot_next] = a;
     Dataset {
         dt: DT,
         n: 2,
         m: 2,
-        q: a[0].clone(),
-        qdot: a[1].clone(),
-        u: a[2].clone(),
-        q_next: a[3].clone(),
-        qdot_next: a[4].clone(),
+        q,
+        qdot,
+        u,
+        q_next,
+        qdot_next,
     }
 }
 
