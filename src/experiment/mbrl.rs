@@ -186,7 +186,9 @@ struct Episode {
     model: String,
     seed: u64,
     episode: usize,
-    /// Mean distance of the end effector to the upright point over the evaluation rollout (m).
+    /// Mean distance of the end effector to the upright point over the evaluation rollout (m);
+    /// ∞ when the system's state left the finite numbers (stored as null: JSON has no ∞).
+    #[serde(with = "infinite_as_null")]
     score: f64,
     /// The plan's cost on the model, and whether iLQR converged.
     plan_cost: Option<f64>,
@@ -198,6 +200,23 @@ struct Episode {
     seconds: f64,
     /// Why the plan failed, when it did (the episode then explores with random inputs).
     error: Option<String>,
+}
+
+/// A score that may be ∞ in JSON: null stands for it.
+mod infinite_as_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_finite() {
+            s.serialize_f64(*v)
+        } else {
+            s.serialize_none()
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+    }
 }
 
 /// What a run needs to continue after its last finished episode.
@@ -710,4 +729,35 @@ fn plot_scores(s: &Settings, out: &OutDir, reference: &Reference, eps: &[Episode
             .draw()?;
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An episode whose system left the finite numbers scores ∞; its record must read back
+    /// (JSON writes ∞ as null, and a record that does not read back stops the resume).
+    #[test]
+    fn an_infinite_score_survives_its_record() {
+        let ep = Episode {
+            model: "MVB".into(),
+            seed: 1,
+            episode: 7,
+            score: f64::INFINITY,
+            plan_cost: Some(1.0),
+            converged: true,
+            data_size: 182,
+            train_loss: 2.0,
+            seconds: 3.0,
+            error: None,
+        };
+        let json = serde_json::to_value(&ep).unwrap();
+        assert!(json["score"].is_null());
+        let back: Episode = serde_json::from_value(json).unwrap();
+        assert_eq!(back.score, f64::INFINITY);
+        let finite: Episode =
+            serde_json::from_value(serde_json::to_value(Episode { score: 1.5, ..ep }).unwrap())
+                .unwrap();
+        assert_eq!(finite.score, 1.5);
+    }
 }

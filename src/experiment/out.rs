@@ -134,7 +134,8 @@ impl OutDir {
             .lock()
             .expect("cells lock")
             .insert(key.to_string(), value);
-        Ok(())
+        // The wall time so far, so that a run killed before it finishes still accounts for it.
+        self.write_run(false)
     }
 
     /// Writes `name` in the directory (atomically: a reader never sees half a file).
