@@ -21,23 +21,18 @@ use graybox::sim::{SimConfig, simulate};
 use graybox::train::{TrainConfig, Trainer};
 use serde_json::{Value, json};
 
+/// A document of `examples/templates/` (the ones the README points to).
+fn example(name: &str) -> Value {
+    let path = format!(
+        "{}/examples/templates/{name}.json",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap()
+}
+
+/// The built-in double pendulum (the paper's appendix) as a formula.
 fn double_pendulum() -> Value {
-    json!({
-        "kind": "formula", "name": "double_pendulum_formula",
-        "coordinates": ["q1", "q2"], "inputs": ["u1", "u2"],
-        "parameters": {
-            "m1": {"value": 10.0, "positive": true}, "m2": {"value": 10.0, "positive": true},
-            "l1": {"value": 1.0, "positive": true}, "l2": {"value": 1.0, "positive": true},
-            "g": {"value": 10.0, "positive": true},
-            "b1": {"value": 1.0}, "b2": {"value": 1.0}, "eta1": {"value": -0.5}, "eta2": {"value": -0.5}
-        },
-        "mass": [
-            ["m1*l1^2/3 + m2*l2^2/3 + m2*l1^2 + m2*l1*l2*cos(q2)", "m2*l2^2/3 + m2*l1*l2*cos(q2)/2"],
-            ["m2*l2^2/3 + m2*l1*l2*cos(q2)/2", "m2*l2^2/3"]
-        ],
-        "potential": "-m1*g*l1*cos(q1)/2 - m2*g*(l1*cos(q1) + l2*cos(q1 + q2)/2)",
-        "forces": ["b1*u1 + eta1*q1_dot", "b2*u2 + eta2*q2_dot"]
-    })
+    example("double_pendulum")
 }
 
 fn cartpole() -> Value {
@@ -58,22 +53,7 @@ fn cartpole() -> Value {
 /// A Furuta (rotary inverted) pendulum: arm angle θ, pendulum angle α (0 upright), a torque
 /// on the arm; Cazzolato & Prime (2011) with the pendulum's centre of mass at Lp/2.
 fn furuta() -> Value {
-    json!({
-        "kind": "formula", "name": "furuta", "coordinates": ["theta", "alpha"],
-        "periodic": [true, true], "inputs": ["tau"],
-        "parameters": {
-            "Jr": {"value": 0.01, "positive": true}, "Jp": {"value": 0.001, "positive": true},
-            "mp": {"value": 0.1, "positive": true}, "Lr": {"value": 0.2, "positive": true},
-            "Lp": {"value": 0.3, "positive": true}, "g": {"value": 9.81, "positive": true},
-            "br": {"value": 0.0}
-        },
-        "mass": [
-            ["Jr + mp*Lr^2 + mp*Lp^2*sin(alpha)^2/4", "-mp*Lp*Lr*cos(alpha)/2"],
-            ["-mp*Lp*Lr*cos(alpha)/2", "Jp + mp*Lp^2/4"]
-        ],
-        "potential": "mp*g*Lp*cos(alpha)/2",
-        "forces": ["tau - br*theta_dot", "0"]
-    })
+    example("furuta")
 }
 
 fn template(doc: &Value) -> FormulaTemplate {

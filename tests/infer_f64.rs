@@ -16,7 +16,51 @@ fn f64_device() -> Device {
     device(Backend::Flex, Precision::F64).expect("f64 device")
 }
 
-fn cases() -> Vec<(String, ModelSpec, usize, usize)> {
+/// A case: its name, spec, n, m and which coordinates are angles.
+type Case = (String, ModelSpec, usize, usize, Vec<bool>);
+
+fn cases() -> Vec<Case> {
+    let mut v: Vec<Case> = plain_cases()
+        .into_iter()
+        .map(|(name, spec, n, m)| (name, spec, n, m, vec![]))
+        .collect();
+    let dp = Some(Template::DoublePendulum);
+    // Angles as (sin q, cos q): every network kind that reads q (M, V, B, F, naive).
+    for (name, template, n, m, periodic) in [
+        ("MVF", dp.clone(), 2, 2, vec![true, true]),
+        ("MVB", Some(Template::Cartpole), 2, 1, vec![false, true]),
+        ("naive", dp.clone(), 2, 2, vec![true, false]),
+    ] {
+        v.push((
+            format!("{name}/periodic {periodic:?}"),
+            ModelSpec::named(name, template).unwrap(),
+            n,
+            m,
+            periodic,
+        ));
+    }
+    // Residual networks on the template's potential and forces.
+    let residual = r#"{"mass": "template",
+        "potential": {"type": "template", "residual": {"type": "mlp", "hidden": [16, 16]}},
+        "forces": {"type": "template", "residual": "mlp"}}"#;
+    v.push((
+        "W-B+residuals/double_pendulum".into(),
+        ModelSpec::parse(residual, dp.clone()).unwrap(),
+        2,
+        2,
+        vec![],
+    ));
+    v.push((
+        "W-B+residuals/periodic".into(),
+        ModelSpec::parse(residual, dp).unwrap(),
+        2,
+        2,
+        vec![true, true],
+    ));
+    v
+}
+
+fn plain_cases() -> Vec<(String, ModelSpec, usize, usize)> {
     let mut v = vec![];
     for name in NAMED {
         v.push((
@@ -48,8 +92,15 @@ fn cases() -> Vec<(String, ModelSpec, usize, usize)> {
     v
 }
 
-fn build(spec: ModelSpec, n: usize, m: usize, dev: &Device) -> (Model, Evaluator) {
+fn build(
+    spec: ModelSpec,
+    n: usize,
+    m: usize,
+    periodic: Vec<bool>,
+    dev: &Device,
+) -> (Model, Evaluator) {
     let mut cfg: ModelConfig = config(spec, n, m);
+    cfg.periodic = periodic;
     cfg.scaling.q_mean = vec![0.1; n];
     cfg.scaling.u_mean = vec![-2.0; m];
     let model = perturb(&Model::init(cfg, None, 3, dev).unwrap(), dev);
@@ -64,8 +115,8 @@ fn build(spec: ModelSpec, n: usize, m: usize, dev: &Device) -> (Model, Evaluator
 #[test]
 fn evaluator_matches_burn_for_every_parameterization() {
     let dev = f64_device();
-    for (name, spec, n, m) in cases() {
-        let (model, eval) = build(spec, n, m, &dev);
+    for (name, spec, n, m, periodic) in cases() {
+        let (model, eval) = build(spec, n, m, periodic, &dev);
         let (q, qd, u) = paper_samples(n, m, 150, 5);
         let x: Vec<Vec<f64>> = q
             .iter()
@@ -94,13 +145,14 @@ fn evaluator_matches_burn_for_every_parameterization() {
 #[test]
 fn linearize_matches_central_differences() {
     let dev = f64_device();
-    for (name, spec, n, m) in cases().into_iter().filter(|c| {
+    for (name, spec, n, m, periodic) in cases().into_iter().filter(|c| {
         c.0.starts_with("MVF/")
-            || c.0.starts_with("W-B/")
+            || c.0.starts_with("W-B")
             || c.0.starts_with("MVB/d")
             || c.0.starts_with("naive/d")
+            || c.0.contains("periodic")
     }) {
-        let (_, eval) = build(spec, n, m, &dev);
+        let (_, eval) = build(spec, n, m, periodic, &dev);
         let (q, qd, u) = paper_samples(n, m, 3, 9);
         for i in 0..q.len() {
             let x: Vec<f64> = [q[i].clone(), qd[i].clone()].concat();
@@ -149,8 +201,8 @@ fn linearize_matches_central_differences() {
 #[test]
 fn batched_linearize_equals_single_points() {
     let dev = f64_device();
-    for (name, spec, n, m) in cases() {
-        let (_, eval) = build(spec, n, m, &dev);
+    for (name, spec, n, m, periodic) in cases() {
+        let (_, eval) = build(spec, n, m, periodic, &dev);
         let (q, qd, u) = paper_samples(n, m, 100, 4);
         let x: Vec<f64> = (0..q.len())
             .flat_map(|i| [q[i].clone(), qd[i].clone()].concat())

@@ -141,6 +141,7 @@ fn linear_quadratic_plan_equals_batch_least_squares() {
         integrator: Integrator::Rk4,
         lambda: 1.0,
         scaling: Scaling::identity(2, 2),
+        periodic: vec![],
     };
     let dev = graybox::backend::device(
         graybox::backend::Backend::Flex,

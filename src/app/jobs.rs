@@ -28,13 +28,17 @@ pub struct JobRequest {
     /// A paper name ("MVF", …, "W-B", "naive") or a JSON model spec.
     #[schema(value_type = Object)]
     pub model: Value,
-    /// A built-in template's name, or a formula template's document (README "Your own
-    /// mechanism").
+    /// A built-in template's name, a stored template's id (POST /v1/templates), or a formula
+    /// template's document (README "Your own mechanism").
     #[serde(default)]
     #[schema(value_type = Option<Object>)]
     pub template: Option<Value>,
     #[serde(default)]
     pub init: Option<BTreeMap<String, f64>>,
+    /// Which coordinates are angles (README "Periodic coordinates") [default: the
+    /// template's own `periodic`, else none].
+    #[serde(default)]
+    pub periodic: Option<Vec<bool>>,
     #[serde(default)]
     #[schema(value_type = Option<Object>)]
     pub training: Option<TrainConfig>,
@@ -105,11 +109,9 @@ pub fn parse_body<T: serde::de::DeserializeOwned>(value: Value) -> Result<T> {
     })
 }
 
-/// A request's template: a built-in name, or a formula document (errors name
-/// `template.<field>`).
+/// A request's formula document (errors name `template.<field>`).
 fn parse_template(t: &Value) -> Result<Template> {
     match t {
-        Value::String(name) => Template::parse(name).map_err(Error::unprocessable),
         Value::Object(_) => {
             let doc: FormulaDoc = serde_path_to_error::deserialize(t).map_err(|e| {
                 let path = e.path().to_string();
@@ -140,8 +142,7 @@ fn parse_template(t: &Value) -> Result<Template> {
 
 /// The model of a request: a paper name ("MVF", …) or a spec object, with an optional
 /// template for its white-box parts.
-fn parse_model(model: &Value, template: Option<&Value>) -> Result<(String, ModelSpec)> {
-    let template = template.map(parse_template).transpose()?;
+fn parse_model(model: &Value, template: Option<Template>) -> Result<(String, ModelSpec)> {
     let (name, spec) = match model {
         Value::String(name) => (name.clone(), ModelSpec::named(name, template)),
         Value::Object(_) => (
@@ -166,13 +167,14 @@ impl App {
         req: JobRequest,
         idempotency_key: Option<String>,
     ) -> Result<(Job, bool)> {
-        let spec = self.validate_job(req).await?;
+        let (spec, template_id) = self.validate_job(req).await?;
         let new = NewJob {
             dataset_id: spec.dataset_id.clone(),
             validation_dataset_id: spec.validation_dataset_id.clone(),
             request: serde_json::to_string(&spec).expect("job specs serialize"),
             epochs: spec.training.epochs as i64,
             idempotency_key,
+            template_id,
         };
         Ok(match self.store.submit_job(new).await? {
             Submitted::Created(job) => (job.into(), true),
@@ -180,10 +182,44 @@ impl App {
         })
     }
 
-    async fn validate_job(&self, req: JobRequest) -> Result<JobSpec> {
-        let training = req.training.unwrap_or_default();
+    /// A request's template and, when it names a stored one, that template's id.
+    async fn request_template(&self, t: &Value) -> Result<(Template, Option<String>)> {
+        let Value::String(name) = t else {
+            return Ok((parse_template(t)?, None));
+        };
+        if let Some(builtin) = Template::from_name(name) {
+            return Ok((builtin, None));
+        }
+        match self.stored_template(name).await? {
+            Some(stored) => Ok((stored, Some(name.clone()))),
+            None => Err(Error::Unprocessable {
+                field: "template".into(),
+                message: format!(
+                    "{name:?} is neither a built-in template ({}) nor a stored template's id",
+                    Template::ALL.map(|t| t.name().to_string()).join(", ")
+                ),
+            }),
+        }
+    }
+
+    async fn validate_job(&self, req: JobRequest) -> Result<(JobSpec, Option<String>)> {
+        let mut training = req.training.unwrap_or_default();
+        if !training.periodic.is_empty() {
+            return Err(Error::Unprocessable {
+                field: "training.periodic".into(),
+                message: "give it as the job's own \"periodic\"".into(),
+            });
+        }
+        training.periodic = req.periodic.unwrap_or_default();
         training.validate().map_err(Error::unprocessable)?;
-        let (model_name, spec) = parse_model(&req.model, req.template.as_ref())?;
+        let (template, template_id) = match &req.template {
+            None => (None, None),
+            Some(t) => {
+                let (t, id) = self.request_template(t).await?;
+                (Some(t), id)
+            }
+        };
+        let (model_name, spec) = parse_model(&req.model, template)?;
         let init: Vec<(String, f64)> = req.init.unwrap_or_default().into_iter().collect();
         physical_init(&spec, &init).map_err(Error::unprocessable)?;
         let job = JobSpec {
@@ -197,7 +233,7 @@ impl App {
         let (data, val_count) = self.check_datasets(&job).await?;
         self.check_job_cost(&job, &data, val_count)?;
         self.check_job_data(&job).await?;
-        Ok(job)
+        Ok((job, template_id))
     }
 
     /// The job's datasets exist and fit its model and each other; the training dataset and
@@ -310,6 +346,7 @@ impl App {
         let job = job.clone();
         tokio::task::spawn_blocking(move || {
             let physical = physical_init(&job.spec, &job.init)?;
+            crate::train::setup::periodic(&job.spec, &job.training, data.n)?;
             crate::train::setup::scaling(&job.spec, physical.as_deref(), &data).map(|_| ())
         })
         .await

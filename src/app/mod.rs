@@ -8,6 +8,7 @@ pub mod jobs;
 pub mod models;
 pub mod settings;
 pub mod telemetry;
+pub mod templates;
 pub mod views;
 
 use std::sync::Arc;

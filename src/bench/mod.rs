@@ -54,6 +54,11 @@ pub struct BenchTrainArgs {
     /// Models to measure, comma-separated.
     #[arg(long, default_value = "MVF,naive")]
     pub models: String,
+    /// The system the data comes from and the white-box parts use: a built-in template's
+    /// name or a formula template's JSON file (e.g. examples/templates/double_pendulum.json,
+    /// to compare a formula's throughput with the built-in's).
+    #[arg(long, default_value = "double_pendulum")]
+    pub template: String,
     #[arg(long, default_value = "256,4096")]
     pub batch_sizes: String,
     /// log10 of the validation loss MVF must reach.
@@ -82,7 +87,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
 }
 
 fn bench_train(a: BenchTrainArgs) -> Result<()> {
-    let t = Template::DoublePendulum;
+    let t = crate::cli::template_arg(&a.template)?;
     let cfg = |count, seed| SimConfig {
         count,
         seed,
@@ -97,11 +102,11 @@ fn bench_train(a: BenchTrainArgs) -> Result<()> {
             .split(',')
             .filter_map(|s| s.trim().parse::<usize>().ok())
         {
-            throughput(&a, model, bs, (&train, &val), &device)?;
+            throughput(&a, model, &t, bs, (&train, &val), &device)?;
         }
     }
     if a.time_limit > 0.0 {
-        time_to_target(&a, (&train, &val), &device)?;
+        time_to_target(&a, &t, (&train, &val), &device)?;
     }
     Ok(())
 }
@@ -110,11 +115,12 @@ fn bench_train(a: BenchTrainArgs) -> Result<()> {
 fn throughput(
     a: &BenchTrainArgs,
     model: &str,
+    t: &Template,
     bs: usize,
     (train, val): (&Dataset, &Dataset),
     device: &Device,
 ) -> Result<()> {
-    let spec = ModelSpec::named(model, Some(Template::DoublePendulum))?;
+    let spec = ModelSpec::named(model, Some(t.clone()))?;
     let tc = TrainConfig {
         epochs: a.epochs + 1,
         batch_size: bs,
@@ -132,7 +138,8 @@ fn throughput(
     let sps = (a.epochs * a.train) as f64 / secs;
     println!(
         "{}",
-        json!({"bench": "train_throughput", "model": model, "batch_size": bs, "backend": a.backend,
+        json!({"bench": "train_throughput", "model": model, "template": t.name(),
+               "batch_size": bs, "backend": a.backend,
                "samples_per_second": sps, "epoch_seconds": secs / a.epochs as f64,
                "note": "epoch time includes validation on the held-out set"})
     );
@@ -142,10 +149,11 @@ fn throughput(
 /// Wall time for MVF to reach the target validation loss, within `a.time_limit` seconds.
 fn time_to_target(
     a: &BenchTrainArgs,
+    t: &Template,
     (train, val): (&Dataset, &Dataset),
     device: &Device,
 ) -> Result<()> {
-    let spec = ModelSpec::named("MVF", Some(Template::DoublePendulum))?;
+    let spec = ModelSpec::named("MVF", Some(t.clone()))?;
     let tc = TrainConfig {
         epochs: 1_000_000,
         batch_size: a.target_batch_size,

@@ -27,7 +27,7 @@ use crate::model::templates::Template;
 
 /// A `--template` argument: a built-in template's name, or a formula template's JSON file
 /// (a path ending in .json); a bad document's error names the field and offset.
-fn template_arg(arg: &str) -> Result<Template> {
+pub fn template_arg(arg: &str) -> Result<Template> {
     if !arg.ends_with(".json") {
         return Template::parse(arg);
     }

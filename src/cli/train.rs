@@ -62,6 +62,11 @@ pub struct TrainArgs {
     /// Early stopping after this many epochs without improvement.
     #[arg(long)]
     pub patience: Option<usize>,
+    /// Coordinates that are angles, one 1/0 (or true/false) per coordinate, e.g. 1,1: the
+    /// networks see (sin q, cos q) and the loss compares them on the circle [default: the
+    /// template's own `periodic`, else none].
+    #[arg(long)]
+    pub periodic: Option<String>,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
@@ -70,6 +75,20 @@ pub struct TrainArgs {
     /// the report without the history.
     #[arg(long)]
     pub report: Option<PathBuf>,
+}
+
+/// `--periodic 1,0` or `true,false`.
+fn parse_periodic(text: &str) -> Result<Vec<bool>> {
+    text.split(',')
+        .map(|v| match v.trim() {
+            "1" | "true" => Ok(true),
+            "0" | "false" => Ok(false),
+            other => Err(Error::invalid(
+                "periodic",
+                format!("expected 1/0 or true/false per coordinate, got '{other}'"),
+            )),
+        })
+        .collect()
 }
 
 pub(super) fn train(a: TrainArgs) -> Result<()> {
@@ -98,6 +117,12 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
         seed: a.seed,
         integrator,
         patience: a.patience,
+        periodic: a
+            .periodic
+            .as_deref()
+            .map(parse_periodic)
+            .transpose()?
+            .unwrap_or_default(),
     };
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;

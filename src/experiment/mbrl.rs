@@ -45,6 +45,11 @@ const QF_SCALE: f64 = 1000.0;
 const R: f64 = 1e-4;
 /// "Solved": within this factor of the reference score.
 const SOLVED: f64 = 1.1;
+/// Transitions are kept while every state component stays within this (rad, rad/s): RK4 at
+/// Δt = 0.1 on a pendulum spun up past this leaves the physical solution (and then f32), and
+/// one such transition makes a model's loss overflow. 5× the paper's training velocities; no
+/// state of a stored run before the bound existed came near it.
+const STATE_BOUND: f64 = 50.0;
 
 #[derive(Args, Debug)]
 pub struct MbrlArgs {
@@ -100,6 +105,7 @@ struct Settings {
     restarts: usize,
     max_iterations: usize,
     exploration_std: f64,
+    state_bound: f64,
     solved_within: f64,
     backend: &'static str,
     precision: &'static str,
@@ -148,6 +154,7 @@ impl Settings {
             restarts: a.restarts.unwrap_or(if q { 1 } else { 8 }),
             max_iterations: a.max_iterations.unwrap_or(if q { 30 } else { 200 }).max(1),
             exploration_std: EXPLORATION_STD,
+            state_bound: STATE_BOUND,
             solved_within: SOLVED,
             backend: "flex",
             precision: "f32",
@@ -195,8 +202,8 @@ struct Episode {
     converged: bool,
     /// Transitions the model had been trained on when it planned.
     data_size: usize,
-    /// Training loss after the episode's training.
-    train_loss: f64,
+    /// Training loss after the episode's training; none when that training diverged.
+    train_loss: Option<f64>,
     seconds: f64,
     /// Why the plan failed, when it did (the episode then explores with random inputs).
     error: Option<String>,
@@ -359,6 +366,7 @@ fn run_one(
         let what = format!("{model} seed {seed} episode {e}");
         status.show(&format!("{what}: planning"));
         let learned = Evaluator::from_file(&trainer.model_file())?;
+        let (before, planned_on) = (trainer.checkpoint(), data.count());
         let planned = plan(
             &learned,
             &s.request(seed.wrapping_mul(1000) + e as u64),
@@ -382,9 +390,23 @@ fn run_one(
                 )
             }
         };
-        data = append(&data, &explored)?;
-        trainer.extend(&data, s.episode_epochs, data.count())?;
-        let loss = train(&mut trainer, status, &what)?;
+        let (loss, error) = match train_on(&mut trainer, &data, &explored, s, status, &what) {
+            Ok((more, loss)) => {
+                data = more;
+                (Some(loss), error)
+            }
+            // A diverged training must not end the other runs: the episode keeps the model
+            // and the data from before it, and says why.
+            Err(err) => {
+                trainer = Trainer::resume(before, &data, None, &device)?;
+                let why = format!("training diverged, the episode's transitions dropped: {err}");
+                let error = match error {
+                    Some(plan_error) => format!("{plan_error}; {why}"),
+                    None => why,
+                };
+                (None, Some(error))
+            }
+        };
         let ep = Episode {
             model: model.to_string(),
             seed,
@@ -392,7 +414,7 @@ fn run_one(
             score: score_now,
             plan_cost,
             converged,
-            data_size: data.count() - explored.count(),
+            data_size: planned_on,
             train_loss: loss,
             seconds: start.elapsed().as_secs_f64(),
             error,
@@ -408,6 +430,21 @@ fn run_one(
         episodes.push(ep);
     }
     Ok(episodes)
+}
+
+/// Trains `epochs` more on the data with the episode's transitions; that data and the loss.
+fn train_on(
+    trainer: &mut Trainer,
+    data: &Dataset,
+    explored: &Dataset,
+    s: &Settings,
+    status: &Status,
+    what: &str,
+) -> Result<(Dataset, f64)> {
+    let more = append(data, explored)?;
+    trainer.extend(&more, s.episode_epochs, more.count())?;
+    let loss = train(trainer, status, what)?;
+    Ok((more, loss))
 }
 
 /// Trains to the trainer's epoch target, showing progress; the last training loss.
@@ -533,12 +570,14 @@ fn applied_inputs(states: &[f64], xbar: &[f64], ubar: &[f64], gains: &Gains) -> 
         .collect()
 }
 
-/// Transitions of a trajectory, up to its first non-finite state.
+/// Transitions of a trajectory, up to its first state outside `STATE_BOUND` (or not finite).
 fn transitions(states: &[f64], u: &[f64]) -> Dataset {
     let mut a: [Vec<f64>; 5] = Default::default();
     for t in 0..HORIZON {
         let (x, y) = (&states[4 * t..4 * t + 4], &states[4 * t + 4..4 * t + 8]);
-        if !(y.iter().chain(&u[2 * t..2 * t + 2]).all(|v| v.is_finite())) {
+        let sane = y.iter().all(|v| v.abs() <= STATE_BOUND)
+            && u[2 * t..2 * t + 2].iter().all(|v| v.is_finite());
+        if !sane {
             break;
         }
         a[0].extend_from_slice(&x[..2]);
@@ -613,7 +652,7 @@ fn report(s: &Settings, out: &OutDir, reference: &Reference, eps: &[Episode]) ->
             e.data_size.to_string(),
             e.plan_cost.map_or_else(String::new, |c| format!("{c:.6e}")),
             e.converged.to_string(),
-            format!("{:.6e}", e.train_loss),
+            e.train_loss.map_or(String::new(), |l| format!("{l:.6e}")),
             format!("{:.1}", e.seconds),
             e.error.clone().unwrap_or_default(),
         ]);
@@ -747,7 +786,7 @@ mod tests {
             plan_cost: Some(1.0),
             converged: true,
             data_size: 182,
-            train_loss: 2.0,
+            train_loss: Some(2.0),
             seconds: 3.0,
             error: None,
         };

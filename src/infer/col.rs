@@ -118,8 +118,8 @@ pub trait Column: Scalar {
     fn get(&self, b: usize) -> f64;
     /// Coordinate j of row-major `[B, width]` samples.
     fn gather(rows: &[f64], width: usize, j: usize) -> Self;
-    /// Stores this coordinate as unit j of the jet's block (o, 0).
-    fn write_block(&self, jet: &mut Jet, o: usize, j: usize);
+    /// Stores this coordinate as unit j of the jet's block (o, i).
+    fn write_block(&self, jet: &mut Jet, o: usize, i: usize, j: usize);
     /// Unit j of the jet's block (o, i).
     fn read_block(jet: &Jet, o: usize, i: usize, j: usize) -> Self;
 }
@@ -135,8 +135,8 @@ impl Column for f64 {
         debug_assert_eq!(rows.len(), width, "one sample");
         rows[j]
     }
-    fn write_block(&self, jet: &mut Jet, o: usize, j: usize) {
-        jet.set(o, 0, 0, j, *self);
+    fn write_block(&self, jet: &mut Jet, o: usize, i: usize, j: usize) {
+        jet.set(o, i, 0, j, *self);
     }
     fn read_block(jet: &Jet, o: usize, i: usize, j: usize) -> Self {
         jet.at(o, i, 0, j)
@@ -153,9 +153,9 @@ impl Column for Col {
     fn gather(rows: &[f64], width: usize, j: usize) -> Self {
         Col(rows.iter().skip(j).step_by(width).copied().collect())
     }
-    fn write_block(&self, jet: &mut Jet, o: usize, j: usize) {
+    fn write_block(&self, jet: &mut Jet, o: usize, i: usize, j: usize) {
         for (b, &v) in self.0.iter().enumerate() {
-            jet.set(o, 0, b, j, v);
+            jet.set(o, i, b, j, v);
         }
     }
     fn read_block(jet: &Jet, o: usize, i: usize, j: usize) -> Self {
@@ -169,8 +169,9 @@ pub trait Lanes: Scalar {
     fn rows(&self) -> usize;
     /// Outer directions carried.
     fn dirs(&self) -> usize;
-    /// Stores this coordinate (value and outer tangents) as input unit j of `jet`.
-    fn write(&self, jet: &mut Jet, j: usize);
+    /// Stores this coordinate (value and outer tangents) as unit j of the jet's inner block
+    /// i: the value of input j (i = 0) or its ∂/∂q_{i−1}.
+    fn write(&self, jet: &mut Jet, i: usize, j: usize);
     /// Output unit j of the jet's inner block i, with its outer tangents.
     fn read(jet: &Jet, i: usize, j: usize) -> Self;
 }
@@ -182,8 +183,8 @@ impl<C: Column> Lanes for C {
     fn dirs(&self) -> usize {
         0
     }
-    fn write(&self, jet: &mut Jet, j: usize) {
-        self.write_block(jet, 0, j);
+    fn write(&self, jet: &mut Jet, i: usize, j: usize) {
+        self.write_block(jet, 0, i, j);
     }
     fn read(jet: &Jet, i: usize, j: usize) -> Self {
         C::read_block(jet, 0, i, j)
@@ -197,12 +198,12 @@ impl<C: Column> Lanes for Dual<C> {
     fn dirs(&self) -> usize {
         self.d.len()
     }
-    fn write(&self, jet: &mut Jet, j: usize) {
-        self.v.write_block(jet, 0, j);
+    fn write(&self, jet: &mut Jet, i: usize, j: usize) {
+        self.v.write_block(jet, 0, i, j);
         // A missing tangent is zero, which the fresh jet already holds.
         for (o, t) in self.d.iter().enumerate() {
             if let Some(t) = t {
-                t.write_block(jet, o + 1, j);
+                t.write_block(jet, o + 1, i, j);
             }
         }
     }

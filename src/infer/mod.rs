@@ -13,7 +13,7 @@ mod weights;
 
 use jet::Jet;
 pub use nets::Mlp64;
-use nets::{Columns, JetNets, NetOutputs, input_jet};
+use nets::{Columns, JetNets, NetOutputs, input_jet, periodic_full_jet, periodic_q_jet};
 use weights::{Components, Forces, Weights};
 
 use col::{Col, Column, Lanes};
@@ -66,7 +66,11 @@ impl Evaluator {
             .max()
             .unwrap_or(0);
         let q_std = || standardize(q, &sc.q_mean, &sc.q_std);
+        let angles = &self.config.periodic;
         let full = || {
+            if !angles.is_empty() {
+                return periodic_full_jet((q, qd, u), sc, angles, outer);
+            }
             let mut v = q_std();
             v.extend(standardize(qd, &sc.qdot_mean, &sc.qdot_std));
             v.extend(standardize(u, &sc.u_mean, &sc.u_std));
@@ -83,7 +87,13 @@ impl Evaluator {
                 Weights::Structured(w),
             ) => {
                 let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
-                let q_jet = |inner: bool| input_jet(&q_std(), inner.then_some(&inv_std[..]), outer);
+                let q_jet = |inner: bool| {
+                    if angles.is_empty() {
+                        input_jet(&q_std(), inner.then_some(&inv_std[..]), outer)
+                    } else {
+                        periodic_q_jet(q, sc, angles, inner, outer)
+                    }
+                };
                 let nets = networks(w, q_jet, full);
                 self.structure((mass, potential, forces), w, &nets, (q, qd, u))
             }

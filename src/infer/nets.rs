@@ -10,6 +10,7 @@ use crate::model::assembly::{Inputs, Networks};
 use crate::model::dual::Dual;
 use crate::model::params_io::NamedArray;
 use crate::model::scalar::Scalar;
+use crate::model::scaling::Scaling;
 
 /// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
 #[derive(Debug, Clone)]
@@ -64,12 +65,77 @@ pub(super) fn input_jet<C: Lanes>(cols: &[C], inner_scale: Option<&[f64]>, outer
     let inner = inner_scale.map_or(0, <[f64]>::len);
     let mut jet = Jet::zeros(batch, cols.len(), inner, outer);
     for (j, x) in cols.iter().enumerate() {
-        x.write(&mut jet, j);
+        x.write(&mut jet, 0, j);
     }
     for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
         for b in 0..batch {
             jet.set(0, k + 1, b, k, s);
         }
+    }
+    jet
+}
+
+/// The networks' input from q with ∂/∂q (inner tangents, when `inner`) when some coordinate
+/// is an angle: standardized q, with (sin q, cos q) in place of an angle. The tangents of
+/// (sin q, cos q), cos q and −sin q, depend on the sample and carry outer tangents of their
+/// own (the second derivatives a linearization needs).
+pub(super) fn periodic_q_jet<C: Lanes>(
+    q: &[C],
+    sc: &Scaling,
+    angles: &[bool],
+    inner: bool,
+    outer: usize,
+) -> Jet {
+    let n = q.len();
+    let width = n + angles.iter().filter(|&&a| a).count();
+    let mut jet = Jet::zeros(q[0].rows(), width, if inner { n } else { 0 }, outer);
+    let mut j = 0;
+    for (k, qk) in q.iter().enumerate() {
+        if angles.get(k).copied().unwrap_or(false) {
+            let (sin, cos) = (qk.sin(), qk.cos());
+            if inner {
+                cos.write(&mut jet, k + 1, j);
+                (-sin.clone()).write(&mut jet, k + 1, j + 1);
+            }
+            sin.write(&mut jet, 0, j);
+            cos.write(&mut jet, 0, j + 1);
+            j += 2;
+        } else {
+            let inv = 1.0 / sc.q_std[k];
+            qk.shift(-sc.q_mean[k]).scale(inv).write(&mut jet, 0, j);
+            if inner {
+                qk.lift(inv).write(&mut jet, k + 1, j);
+            }
+            j += 1;
+        }
+    }
+    jet
+}
+
+/// The networks' input from [q, q̇, u] with angles (see [`periodic_q_jet`]).
+pub(super) fn periodic_full_jet<C: Lanes>(
+    (q, qd, u): (&[C], &[C], &[C]),
+    sc: &Scaling,
+    angles: &[bool],
+    outer: usize,
+) -> Jet {
+    let q_part = periodic_q_jet(q, sc, angles, false, outer);
+    let rest: Vec<C> = qd
+        .iter()
+        .zip(sc.qdot_mean.iter().zip(&sc.qdot_std))
+        .chain(u.iter().zip(sc.u_mean.iter().zip(&sc.u_std)))
+        .map(|(x, (m, s))| x.shift(-m).scale(1.0 / s))
+        .collect();
+    let mut jet = Jet::zeros(q_part.batch, q_part.width + rest.len(), 0, outer);
+    for o in 0..=outer {
+        for b in 0..q_part.batch {
+            for j in 0..q_part.width {
+                jet.set(o, 0, b, j, q_part.at(o, 0, b, j));
+            }
+        }
+    }
+    for (j, x) in rest.iter().enumerate() {
+        x.write(&mut jet, 0, q_part.width + j);
     }
     jet
 }

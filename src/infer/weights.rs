@@ -92,6 +92,8 @@ struct Arrays<'a> {
     by_name: HashMap<&'a str, &'a NamedArray>,
     n: usize,
     m: usize,
+    /// Width of a network input from q (two per angle).
+    q_in: usize,
 }
 
 impl Arrays<'_> {
@@ -139,6 +141,7 @@ impl Weights {
             by_name: file.params.iter().map(|a| (a.name.as_str(), a)).collect(),
             n,
             m,
+            q_in: file.config.q_inputs(),
         };
         let ModelSpec::Structured {
             mass,
@@ -147,7 +150,8 @@ impl Weights {
             template,
         } = &file.config.spec
         else {
-            return Ok(Weights::Naive(arrays.net(names::NAIVE, 2 * n + m, n)?));
+            let full = file.config.full_inputs();
+            return Ok(Weights::Naive(arrays.net(names::NAIVE, full, n)?));
         };
         let physical = match template
             .as_ref()
@@ -190,34 +194,46 @@ impl Weights {
 fn mass_weights(a: &Arrays, spec: &MassSpec) -> Result<Option<Mass>> {
     let tri = a.n * (a.n + 1) / 2;
     Ok(match spec {
-        MassSpec::Mlp { .. } => Some(Mass::Net(a.net(names::MASS_NET, a.n, tri)?)),
+        MassSpec::Mlp { .. } => Some(Mass::Net(a.net(names::MASS_NET, a.q_in, tri)?)),
         MassSpec::Constant => Some(Mass::Constant(a.values(names::MASS_CONST, tri)?)),
         MassSpec::Template => None,
     })
 }
 
 fn potential_weights(a: &Arrays, spec: &PotentialSpec) -> Result<Option<Potential>> {
+    if spec.network().is_some() {
+        return Ok(Some(Potential::Net(a.net(
+            names::POTENTIAL_NET,
+            a.q_in,
+            1,
+        )?)));
+    }
     Ok(match spec {
-        PotentialSpec::Mlp { .. } => Some(Potential::Net(a.net(names::POTENTIAL_NET, a.n, 1)?)),
         PotentialSpec::Quadratic => Some(Potential::Quadratic(
             a.values(names::POTENTIAL_QUAD, a.n * (a.n + 1) / 2)?,
         )),
-        PotentialSpec::Template | PotentialSpec::Zero => None,
+        _ => None,
     })
 }
 
 fn force_weights(a: &Arrays, spec: &ForceSpec) -> Result<Option<Forces>> {
     let (n, m) = (a.n, a.m);
+    if spec.network().is_some() {
+        return Ok(Some(Forces::Net(a.net(
+            names::FORCE_NET,
+            a.q_in + n + m,
+            n,
+        )?)));
+    }
     Ok(match spec {
-        ForceSpec::Mlp { .. } => Some(Forces::Net(a.net(names::FORCE_NET, 2 * n + m, n)?)),
         ForceSpec::ControlAffine { .. } => Some(Forces::ControlAffine {
-            b_net: a.net(names::B_NET, n, n * m)?,
+            b_net: a.net(names::B_NET, a.q_in, n * m)?,
             eta: a.values(names::ETA, n)?,
         }),
         ForceSpec::ConstantAffine => Some(Forces::ConstantAffine {
             b_const: a.values(names::B_CONST, n * m)?,
             eta: a.values(names::ETA, n)?,
         }),
-        ForceSpec::Template => None,
+        ForceSpec::Mlp { .. } | ForceSpec::Template { .. } => None,
     })
 }

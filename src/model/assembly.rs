@@ -177,13 +177,14 @@ impl<'a, P> Structure<'a, P> {
         P: Coef<S>,
     {
         let (n, s) = (self.n, self.scaling);
+        let network = || {
+            (0..n)
+                .map(|k| nets.potential_grad(k).scale(s.potential_scale()))
+                .collect::<Vec<_>>()
+        };
         match self.potential {
             PotentialSpec::Zero => None,
-            PotentialSpec::Mlp { .. } => Some(
-                (0..n)
-                    .map(|k| nets.potential_grad(k).scale(s.potential_scale()))
-                    .collect(),
-            ),
+            PotentialSpec::Mlp { .. } => Some(network()),
             PotentialSpec::Quadratic => {
                 let k = self.values.potential_quad.expect("quadratic potential");
                 let kij = |i: usize, j: usize| &k[Tri::<()>::index(i.max(j), i.min(j))];
@@ -200,15 +201,15 @@ impl<'a, P> Structure<'a, P> {
                         .collect(),
                 )
             }
-            PotentialSpec::Template => {
+            PotentialSpec::Template { residual } => {
                 let p = self.physical_dual(&x.q()[0]);
                 let v = self.template().potential(&p, &self.q_vars(x));
                 let zero = || x.q()[0].lift(0.0);
-                Some(
-                    (0..n)
-                        .map(|k| v.tangent(k).cloned().unwrap_or_else(zero))
-                        .collect(),
-                )
+                let grad = (0..n).map(|k| v.tangent(k).cloned().unwrap_or_else(zero));
+                Some(match residual {
+                    None => grad.collect(),
+                    Some(_) => grad.zip(network()).map(|(t, r)| t + r).collect(),
+                })
             }
         }
     }
@@ -220,10 +221,13 @@ impl<'a, P> Structure<'a, P> {
     {
         let (n, m, s) = (self.n, self.m, self.scaling);
         let b_scale = |k: usize| s.force_scale[k / m] / s.u_std[k % m];
-        match self.forces {
-            ForceSpec::Mlp { .. } => (0..n)
+        let network = || {
+            (0..n)
                 .map(|j| nets.force(j).scale(s.force_scale[j]))
-                .collect(),
+                .collect::<Vec<_>>()
+        };
+        match self.forces {
+            ForceSpec::Mlp { .. } => network(),
             ForceSpec::ControlAffine { .. } => {
                 let b = (0..n * m)
                     .map(|k| nets.force(k).scale(b_scale(k)))
@@ -240,9 +244,14 @@ impl<'a, P> Structure<'a, P> {
                     .collect();
                 self.affine(b, x)
             }
-            ForceSpec::Template => {
-                self.template()
-                    .forces(&self.physical(&x.q()[0]), x.q(), x.qd(), x.u())
+            ForceSpec::Template { residual } => {
+                let f = self
+                    .template()
+                    .forces(&self.physical(&x.q()[0]), x.q(), x.qd(), x.u());
+                match residual {
+                    None => f,
+                    Some(_) => f.into_iter().zip(network()).map(|(t, r)| t + r).collect(),
+                }
             }
         }
     }

@@ -87,6 +87,7 @@ impl ModelFile {
             integrator,
             lambda: 1.0,
             scaling: Scaling::identity(t.n(), t.m()),
+            periodic: vec![],
         };
         let params = vec![NamedArray {
             name: names::PHYSICAL.to_string(),

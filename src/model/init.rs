@@ -15,15 +15,25 @@ fn zeros(len: usize, device: &Device) -> Values {
     param(vec![0.0; len], [1, len], device)
 }
 
+/// The widths of the networks' inputs: q's (n, or more with angles as (sin, cos)) and
+/// [q, q̇, u]'s.
+pub(super) struct Widths {
+    pub n: usize,
+    pub m: usize,
+    pub q_in: usize,
+}
+
 pub(super) fn mass(
     mass: &MassSpec,
-    n: usize,
+    w: &Widths,
     rng: &mut Rng,
     device: &Device,
 ) -> Option<MassParams> {
-    let tri = mass_matrix::outputs(n);
+    let tri = mass_matrix::outputs(w.n);
     match mass {
-        MassSpec::Mlp { hidden } => Some(MassParams::Net(Mlp::init(n, hidden, tri, rng, device))),
+        MassSpec::Mlp { hidden } => {
+            Some(MassParams::Net(Mlp::init(w.q_in, hidden, tri, rng, device)))
+        }
         MassSpec::Constant => Some(MassParams::Constant(zeros(tri, device))),
         MassSpec::Template => None,
     }
@@ -31,39 +41,43 @@ pub(super) fn mass(
 
 pub(super) fn potential(
     v: &PotentialSpec,
-    n: usize,
+    w: &Widths,
     rng: &mut Rng,
     device: &Device,
 ) -> Option<PotentialParams> {
+    if let Some(hidden) = v.network() {
+        return Some(PotentialParams::Net(network(v.is_residual())(
+            w.q_in, hidden, 1, rng, device,
+        )));
+    }
     match v {
-        PotentialSpec::Mlp { hidden } => {
-            Some(PotentialParams::Net(Mlp::init(n, hidden, 1, rng, device)))
-        }
         PotentialSpec::Quadratic => Some(PotentialParams::Quadratic(zeros(
-            mass_matrix::outputs(n),
+            mass_matrix::outputs(w.n),
             device,
         ))),
-        PotentialSpec::Template | PotentialSpec::Zero => None,
+        _ => None,
     }
 }
 
 pub(super) fn forces(
     f: &ForceSpec,
-    n: usize,
-    m: usize,
+    w: &Widths,
     rng: &mut Rng,
     device: &Device,
 ) -> Option<ForceParams> {
-    match f {
-        ForceSpec::Mlp { hidden } => Some(ForceParams::Net(Mlp::init(
-            2 * n + m,
+    let (n, m) = (w.n, w.m);
+    if let Some(hidden) = f.network() {
+        return Some(ForceParams::Net(network(f.is_residual())(
+            w.q_in + n + m,
             hidden,
             n,
             rng,
             device,
-        ))),
+        )));
+    }
+    match f {
         ForceSpec::ControlAffine { hidden } => Some(ForceParams::ControlAffine(ControlAffine {
-            b_net: Mlp::init(n, hidden, n * m, rng, device),
+            b_net: Mlp::init(w.q_in, hidden, n * m, rng, device),
             eta: zeros(n, device),
         })),
         ForceSpec::ConstantAffine => {
@@ -76,6 +90,17 @@ pub(super) fn forces(
                 eta: zeros(n, device),
             }))
         }
-        ForceSpec::Template => None,
+        ForceSpec::Mlp { .. } | ForceSpec::Template { .. } => None,
+    }
+}
+
+type NetInit = fn(usize, &[usize], usize, &mut Rng, &Device) -> Mlp;
+
+/// A residual's network starts at zero output; any other at PyTorch's initialization.
+fn network(residual: bool) -> NetInit {
+    if residual {
+        Mlp::init_zero_output
+    } else {
+        Mlp::init
     }
 }

@@ -64,6 +64,26 @@ impl Mlp {
         Self { layers }
     }
 
+    /// A network whose output starts at zero (its last layer zero; the hidden layers drawn as
+    /// usual, so that gradients reach them once the last layer moves): a residual added to a
+    /// physics part leaves the model exactly that part at the start of training.
+    pub fn init_zero_output(
+        d_in: usize,
+        hidden: &[usize],
+        d_out: usize,
+        rng: &mut Rng,
+        device: &Device,
+    ) -> Self {
+        let mut net = Self::init(d_in, hidden, d_out, rng, device);
+        let last = net.layers.last_mut().expect("an MLP has an output layer");
+        let d_last = last.weight.val().dims()[0];
+        *last = Dense {
+            weight: param(vec![0.0; d_last * d_out], [d_last, d_out], device),
+            bias: param(vec![0.0; d_out], [1, d_out], device),
+        };
+        net
+    }
+
     pub fn d_out(&self) -> usize {
         self.layers.last().map_or(0, |l| l.weight.val().dims()[1])
     }
@@ -83,22 +103,26 @@ impl Mlp {
     ///
     /// Forward mode: J₁ = (∂x/∂q · W₁) ⊙ (1 − h₁²),  J_l = (J_{l−1} W_l) ⊙ (1 − h_l²),
     /// ∂y/∂q = J_L W_out.  Returns y `[batch, out]` and J `[batch, n, out]`.
-    pub fn forward_jacobian(&self, x: Tensor<2>, dx_dq: Tensor<2>) -> (Tensor<2>, Tensor<3>) {
-        let (y, j) = self.propagate(x, dx_dq, true);
+    pub fn forward_jacobian(
+        &self,
+        x: Tensor<2>,
+        dx_dq: impl Into<InputTangent>,
+    ) -> (Tensor<2>, Tensor<3>) {
+        let (y, j) = self.propagate(x, dx_dq.into(), true);
         (y.expect("asked for the output"), j)
     }
 
     /// Only the Jacobian `[batch, n, out]` (a potential needs ∂V/∂q, not V). Not computing
     /// the unused output matters: a tracked result that never reaches the loss stays in
     /// Burn's autodiff graph registry and slows every later backward pass.
-    pub fn jacobian(&self, x: Tensor<2>, dx_dq: Tensor<2>) -> Tensor<3> {
-        self.propagate(x, dx_dq, false).1
+    pub fn jacobian(&self, x: Tensor<2>, dx_dq: impl Into<InputTangent>) -> Tensor<3> {
+        self.propagate(x, dx_dq.into(), false).1
     }
 
     fn propagate(
         &self,
         x: Tensor<2>,
-        dx_dq: Tensor<2>,
+        dx_dq: InputTangent,
         want_y: bool,
     ) -> (Option<Tensor<2>>, Tensor<3>) {
         let (last, hidden) = self
@@ -106,10 +130,12 @@ impl Mlp {
             .split_last()
             .expect("an MLP has an output layer");
         let [batch, _] = x.dims();
-        let [n, _] = dx_dq.dims();
+        let (n, mut jac, mut dz_dq_const) = match dx_dq {
+            // The first layer's Jacobian is batch-independent: one small product.
+            InputTangent::Constant(d) => (d.dims()[0], None, Some(d)),
+            InputTangent::PerSample(d) => (d.dims()[1], Some(d), None),
+        };
         let mut h = x;
-        let mut jac: Option<Tensor<3>> = None; // [batch, n, width]
-        let mut dz_dq_const = Some(dx_dq); // the first layer's Jacobian is batch-independent
         for layer in hidden {
             h = tanh(layer.forward(h));
             let dh = h
@@ -136,6 +162,25 @@ impl Mlp {
         };
         debug_assert_eq!(j.dims()[1], n);
         (y, j)
+    }
+}
+
+/// ∂x/∂q of a network's input x: `[n, in]` when x is affine in q (standardized q), or
+/// `[batch, n, in]` when it is not (the (sin q, cos q) of periodic coordinates).
+pub enum InputTangent {
+    Constant(Tensor<2>),
+    PerSample(Tensor<3>),
+}
+
+impl From<Tensor<2>> for InputTangent {
+    fn from(t: Tensor<2>) -> Self {
+        InputTangent::Constant(t)
+    }
+}
+
+impl From<Tensor<3>> for InputTangent {
+    fn from(t: Tensor<3>) -> Self {
+        InputTangent::PerSample(t)
     }
 }
 

@@ -52,6 +52,10 @@ pub struct ModelConfig {
     /// Weight of the velocity error in the loss.
     pub lambda: f64,
     pub scaling: Scaling,
+    /// Which coordinates are angles (empty: none, as in every file before this field): the
+    /// networks see (sin q, cos q) for them and the loss compares them on the circle.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub periodic: Vec<bool>,
 }
 
 /// A model bound to a device: config, parameters and the derived constants.
@@ -75,6 +79,21 @@ impl ModelConfig {
     pub fn template(&self) -> Option<&Template> {
         self.spec.template()
     }
+
+    /// Whether coordinate k is an angle.
+    pub fn is_periodic(&self, k: usize) -> bool {
+        self.periodic.get(k).copied().unwrap_or(false)
+    }
+
+    /// The width of a network input made of q: one per coordinate, two per angle.
+    pub fn q_inputs(&self) -> usize {
+        self.n + (0..self.n).filter(|&k| self.is_periodic(k)).count()
+    }
+
+    /// The width of a network input made of [q, q̇, u].
+    pub fn full_inputs(&self) -> usize {
+        self.q_inputs() + self.n + self.m
+    }
 }
 
 impl Model {
@@ -88,9 +107,14 @@ impl Model {
     ) -> Result<Self> {
         let (n, m) = (config.n, config.m);
         let mut rng = Rng::derive(seed, 0x1_417);
+        let widths = init::Widths {
+            n,
+            m,
+            q_in: config.q_inputs(),
+        };
         let params = match &config.spec {
             ModelSpec::Naive { hidden } => {
-                Params::Naive(Mlp::init(2 * n + m, hidden, n, &mut rng, device))
+                Params::Naive(Mlp::init(config.full_inputs(), hidden, n, &mut rng, device))
             }
             ModelSpec::Structured {
                 mass,
@@ -99,9 +123,9 @@ impl Model {
                 template,
             } => {
                 // One rng, drawn in this order (M, V, F): a seed gives the same networks.
-                let mass = init::mass(mass, n, &mut rng, device);
-                let potential = init::potential(potential, n, &mut rng, device);
-                let forces = init::forces(forces, n, m, &mut rng, device);
+                let mass = init::mass(mass, &widths, &mut rng, device);
+                let potential = init::potential(potential, &widths, &mut rng, device);
+                let forces = init::forces(forces, &widths, &mut rng, device);
                 // Physical parameters exist only when some part is white-box.
                 let physical = match template
                     .as_ref()
@@ -200,7 +224,7 @@ impl Model {
     pub fn accel(&self, q: Tensor<2>, qd: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
         if let Params::Naive(net) = &self.params {
             let c = &self.consts;
-            let input = (Tensor::cat(vec![q, qd, u], 1) - c.in_mean.clone()) * c.in_inv_std.clone();
+            let input = c.full_input(&q, &qd, &u);
             return net.forward(input) * c.acc_std.clone() + c.acc_mean.clone();
         }
         let qd_cols = columns(&qd);
@@ -264,30 +288,32 @@ impl Model {
     /// q-derivatives, in forward mode).
     fn networks(&self, q: &Tensor<2>, qd: &Tensor<2>, u: &Tensor<2>) -> BurnNets {
         let (c, p, n) = (&self.consts, self.components(), self.config.n);
-        let q_norm = || (q.clone() - c.q_mean.clone()) * c.q_inv_std.clone();
+        let with_tangent = || {
+            let (x, dx_dq) = c.q_input(q, true);
+            (x, dx_dq.expect("asked for the tangent"))
+        };
         BurnNets {
             mass: match &p.mass {
                 Some(MassParams::Net(net)) => {
-                    let (y, jac) = net.forward_jacobian(q_norm(), c.dq_in.clone());
+                    let (x, dx_dq) = with_tangent();
+                    let (y, jac) = net.forward_jacobian(x, dx_dq);
                     Some(mass_matrix::dual_columns(y, jac))
                 }
                 _ => None,
             },
             potential_grad: match &p.potential {
                 Some(PotentialParams::Net(net)) => {
-                    let jac = net.jacobian(q_norm(), c.dq_in.clone());
+                    let (x, dx_dq) = with_tangent();
+                    let jac = net.jacobian(x, dx_dq);
                     Some(columns(&jac.reshape([q.dims()[0], n])))
                 }
                 _ => None,
             },
             force: match &p.forces {
-                Some(ForceParams::Net(net)) => {
-                    let input = (Tensor::cat(vec![q.clone(), qd.clone(), u.clone()], 1)
-                        - c.in_mean.clone())
-                        * c.in_inv_std.clone();
-                    Some(columns(&net.forward(input)))
+                Some(ForceParams::Net(net)) => Some(columns(&net.forward(c.full_input(q, qd, u)))),
+                Some(ForceParams::ControlAffine(f)) => {
+                    Some(columns(&f.b_net.forward(c.q_input(q, false).0)))
                 }
-                Some(ForceParams::ControlAffine(f)) => Some(columns(&f.b_net.forward(q_norm()))),
                 _ => None,
             },
         }
@@ -312,15 +338,16 @@ impl Model {
             return None;
         };
         let s = &self.config.scaling;
+        let network = |q: Tensor<2>| {
+            let Some(PotentialParams::Net(net)) = &self.components().potential else {
+                unreachable!("a network potential has a network");
+            };
+            net.forward(c.q_input(&q, false).0)
+                .mul_scalar(s.potential_scale())
+        };
         match potential {
             PotentialSpec::Zero => None,
-            PotentialSpec::Mlp { .. } => {
-                let Some(PotentialParams::Net(net)) = &self.components().potential else {
-                    unreachable!("a network potential has a network");
-                };
-                let q_norm = (q - c.q_mean.clone()) * c.q_inv_std.clone();
-                Some(net.forward(q_norm).mul_scalar(s.potential_scale()))
-            }
+            PotentialSpec::Mlp { .. } => Some(network(q)),
             PotentialSpec::Quadratic => {
                 // ½ qᵀKq = Σ_i ½ K_ii q_i² + Σ_{i>j} K_ij q_i q_j
                 let Some(PotentialParams::Quadratic(k)) = &self.components().potential else {
@@ -339,9 +366,13 @@ impl Model {
                 let v = terms.reduce(|a, b| a + b).expect("n ≥ 1");
                 Some(v.mul_scalar(s.quadratic_scale()))
             }
-            PotentialSpec::Template => {
+            PotentialSpec::Template { residual } => {
                 let t = template.as_ref().expect("validated: template present");
-                Some(t.potential(&self.physical(t), &columns(&q)))
+                let v = t.potential(&self.physical(t), &columns(&q));
+                Some(match residual {
+                    None => v,
+                    Some(_) => v + network(q),
+                })
             }
         }
     }
@@ -360,10 +391,10 @@ impl Model {
     }
 
     /// Sum over the batch of Σ(q' − q̂')² + λ Σ(q̇' − q̂̇')² (divide by the batch size for the
-    /// mean).
+    /// mean); an angle's position term is 2(1 − cos(q' − q̂')).
     pub fn loss_sum(&self, x: Tensor<2>, u: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
         let err = self.step(x, u) - target;
-        (err.square() * self.consts.loss_w.clone()).sum()
+        (self.consts.squared_error(err) * self.consts.loss_w.clone()).sum()
     }
 
     /// The white-box parts, for reports.

@@ -34,6 +34,17 @@ pub enum MassSpec {
     Constant,
 }
 
+/// A network added to a white-box part (F = F_t + F_net(q, q̇, u), V = V_t + V_net(q)); its
+/// last layer starts at zero, so training starts exactly at the physics model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Residual {
+    Mlp {
+        #[serde(default = "structured_hidden")]
+        hidden: Vec<usize>,
+    },
+}
+
 /// V(q).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -42,7 +53,10 @@ pub enum PotentialSpec {
         #[serde(default = "structured_hidden")]
         hidden: Vec<usize>,
     },
-    Template,
+    Template {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        residual: Option<Residual>,
+    },
     Zero,
     /// ½ qᵀKq with K symmetric and learned.
     Quadratic,
@@ -64,7 +78,56 @@ pub enum ForceSpec {
     },
     /// Constant learned B and diagonal damping: B u + η ∘ q̇.
     ConstantAffine,
-    Template,
+    Template {
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        residual: Option<Residual>,
+    },
+}
+
+impl Residual {
+    fn hidden(r: &Option<Residual>) -> Option<&[usize]> {
+        r.as_ref().map(|Residual::Mlp { hidden }| hidden.as_slice())
+    }
+}
+
+impl PotentialSpec {
+    /// The template's V without a residual.
+    pub const TEMPLATE: Self = PotentialSpec::Template { residual: None };
+
+    /// The hidden widths of the potential's network q → V: a network potential's, or a
+    /// template potential's residual.
+    pub fn network(&self) -> Option<&[usize]> {
+        match self {
+            PotentialSpec::Mlp { hidden } => Some(hidden),
+            PotentialSpec::Template { residual } => Residual::hidden(residual),
+            PotentialSpec::Zero | PotentialSpec::Quadratic => None,
+        }
+    }
+
+    /// Whether the network is a residual on the template's V (its last layer starts at zero).
+    pub fn is_residual(&self) -> bool {
+        matches!(self, PotentialSpec::Template { residual: Some(_) })
+    }
+}
+
+impl ForceSpec {
+    /// The template's F without a residual.
+    pub const TEMPLATE: Self = ForceSpec::Template { residual: None };
+
+    /// The hidden widths of the general force network [q, q̇, u] → F: an MLP force's, or a
+    /// template force's residual (the control-affine B network is another shape).
+    pub fn network(&self) -> Option<&[usize]> {
+        match self {
+            ForceSpec::Mlp { hidden } => Some(hidden),
+            ForceSpec::Template { residual } => Residual::hidden(residual),
+            ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => None,
+        }
+    }
+
+    /// Whether the network is a residual on the template's F (its last layer starts at zero).
+    pub fn is_residual(&self) -> bool {
+        matches!(self, ForceSpec::Template { residual: Some(_) })
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -126,7 +189,7 @@ impl ModelSpec {
                     hidden: structured_hidden(),
                 }
             } else {
-                PotentialSpec::Template
+                PotentialSpec::TEMPLATE
             },
             forces: if nn('F') {
                 ForceSpec::Mlp {
@@ -137,7 +200,7 @@ impl ModelSpec {
                     hidden: structured_hidden(),
                 }
             } else {
-                ForceSpec::Template
+                ForceSpec::TEMPLATE
             },
             template,
         };
@@ -196,10 +259,10 @@ impl ModelSpec {
                 if *mass == MassSpec::Template {
                     parts.push(Part::Mass);
                 }
-                if *potential == PotentialSpec::Template {
+                if matches!(potential, PotentialSpec::Template { .. }) {
                     parts.push(Part::Potential);
                 }
-                if *forces == ForceSpec::Template {
+                if matches!(forces, ForceSpec::Template { .. }) {
                     parts.push(Part::Forces);
                 }
                 parts
@@ -217,7 +280,7 @@ impl ModelSpec {
     /// Structural checks that need no data: a white-box part needs a template, hidden sizes
     /// are positive.
     pub fn validate(&self) -> Result<()> {
-        let hidden_ok = |h: &Vec<usize>, field: &str| -> Result<()> {
+        let hidden_ok = |h: &[usize], field: &str| -> Result<()> {
             if h.contains(&0) || h.len() > 16 || h.iter().any(|&w| w > 4096) {
                 return Err(Error::invalid(
                     field,
@@ -237,10 +300,19 @@ impl ModelSpec {
                 if let MassSpec::Mlp { hidden } = mass {
                     hidden_ok(hidden, "model.mass.hidden")?;
                 }
-                if let PotentialSpec::Mlp { hidden } = potential {
-                    hidden_ok(hidden, "model.potential.hidden")?;
+                let at = |part: &str, residual: bool| {
+                    format!(
+                        "model.{part}{}.hidden",
+                        if residual { ".residual" } else { "" }
+                    )
+                };
+                if let Some(hidden) = potential.network() {
+                    hidden_ok(hidden, &at("potential", potential.is_residual()))?;
                 }
-                if let ForceSpec::Mlp { hidden } | ForceSpec::ControlAffine { hidden } = forces {
+                if let Some(hidden) = forces.network() {
+                    hidden_ok(hidden, &at("forces", forces.is_residual()))?;
+                }
+                if let ForceSpec::ControlAffine { hidden } = forces {
                     hidden_ok(hidden, "model.forces.hidden")?;
                 }
                 let parts = self.white_box_parts();

@@ -115,8 +115,11 @@ fn part(v: Option<&Value>, name: &str, types: &[&str]) -> Result<Value> {
     let mut out = Map::new();
     out.insert("type".into(), ty.into());
     if let Some(o) = obj {
+        let residual = ty == "template" && name != "mass";
         let fields: &[&str] = if WITH_HIDDEN.contains(&ty) {
             &["type", "hidden"]
+        } else if residual {
+            &["type", "residual"]
         } else {
             &["type"]
         };
@@ -128,6 +131,12 @@ fn part(v: Option<&Value>, name: &str, types: &[&str]) -> Result<Value> {
         )?;
         if let Some(h) = o.get("hidden") {
             out.insert("hidden".into(), hidden(h, &format!("{at}.hidden"))?);
+        }
+        if let Some(r) = o.get("residual").filter(|_| residual) {
+            out.insert(
+                "residual".into(),
+                part(Some(r), &format!("{name}.residual"), &["mlp"])?,
+            );
         }
     }
     Ok(Value::Object(out))

@@ -178,6 +178,15 @@ impl Template {
         }
     }
 
+    /// The coordinates the template marks as angles (empty: none). Built-in templates mark
+    /// none: a run opts in with its own `periodic`.
+    pub fn periodic(&self) -> Vec<bool> {
+        match self {
+            Template::Formula(f) => f.doc.periodic.clone(),
+            _ => vec![],
+        }
+    }
+
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|t| t.name() == name)
     }

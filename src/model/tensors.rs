@@ -6,6 +6,7 @@ use burn::tensor::{Device, Tensor, TensorData};
 use super::ModelConfig;
 use super::assembly;
 use super::dual::Dual;
+use super::mlp::InputTangent;
 
 /// Constant tensors derived from the config, built once per device.
 #[derive(Debug, Clone)]
@@ -19,6 +20,22 @@ pub(super) struct Consts {
     pub(super) acc_mean: Tensor<2>,   // [1, n]
     pub(super) acc_std: Tensor<2>,    // [1, n]
     pub(super) loss_w: Tensor<2>,     // [1, 2n] = [1…1, λ…λ]
+    /// Present when some coordinate is an angle.
+    pub(super) periodic: Option<Periodic>,
+}
+
+/// What angles need: their networks' inputs are (sin q, cos q), their loss 2(1 − cos Δ).
+#[derive(Debug, Clone)]
+pub(super) struct Periodic {
+    angles: Vec<bool>,
+    /// Row k of the identity `[1, n]`: where ∂(an input from q_k)/∂q goes.
+    unit: Vec<Tensor<2>>,
+    /// Standardization of [q̇, u] `[1, n+m]`.
+    qdu_mean: Tensor<2>,
+    qdu_inv_std: Tensor<2>,
+    /// `[1, 2n]`: 1 at the angles' q columns of the state (`wrap`), 1 elsewhere (`keep`).
+    wrap: Tensor<2>,
+    keep: Tensor<2>,
 }
 
 fn row(values: Vec<f64>, device: &Device) -> Tensor<2> {
@@ -47,6 +64,82 @@ impl Consts {
             acc_mean: row(s.acc_mean.clone(), device),
             acc_std: row(s.acc_std.clone(), device),
             loss_w: row(loss_w, device),
+            periodic: (!c.periodic.is_empty()).then(|| Periodic {
+                angles: (0..n).map(|k| c.is_periodic(k)).collect(),
+                unit: (0..n)
+                    .map(|k| row((0..n).map(|j| f64::from(j == k)).collect(), device))
+                    .collect(),
+                qdu_mean: row([&s.qdot_mean[..], &s.u_mean].concat(), device),
+                qdu_inv_std: row(inv(&[&s.qdot_std[..], &s.u_std].concat()), device),
+                wrap: row(
+                    (0..2 * n).map(|k| f64::from(c.is_periodic(k))).collect(),
+                    device,
+                ),
+                keep: row(
+                    (0..2 * n).map(|k| f64::from(!c.is_periodic(k))).collect(),
+                    device,
+                ),
+            }),
+        }
+    }
+
+    /// The networks' input from q `[batch, q_in]`: standardized q, with (sin q, cos q) in
+    /// place of an angle; with ∂input/∂q when asked.
+    pub(super) fn q_input(
+        &self,
+        q: &Tensor<2>,
+        tangent: bool,
+    ) -> (Tensor<2>, Option<InputTangent>) {
+        let Some(p) = &self.periodic else {
+            let x = (q.clone() - self.q_mean.clone()) * self.q_inv_std.clone();
+            return (x, tangent.then(|| self.dq_in.clone().into()));
+        };
+        let batch = q.dims()[0];
+        let (mut inputs, mut tangents) = (vec![], vec![]);
+        for (k, &angle) in p.angles.iter().enumerate() {
+            // Column by column, only what is used: an unused tracked value slows training
+            // (see `LazyColumns`).
+            let qk = q.clone().narrow(1, k, 1);
+            let e = || p.unit[k].clone();
+            if angle {
+                let (sin, cos) = (qk.clone().sin(), qk.cos());
+                if tangent {
+                    tangents.push(cos.clone() * e());
+                    tangents.push(sin.clone().neg() * e());
+                }
+                inputs.extend([sin, cos]);
+            } else {
+                let inv = self.q_inv_std.clone().narrow(1, k, 1);
+                if tangent {
+                    tangents.push((e() * inv.clone()).repeat_dim(0, batch));
+                }
+                inputs.push((qk - self.q_mean.clone().narrow(1, k, 1)) * inv);
+            }
+        }
+        let tangent = tangent.then(|| InputTangent::PerSample(Tensor::stack(tangents, 2)));
+        (Tensor::cat(inputs, 1), tangent)
+    }
+
+    /// The networks' input from [q, q̇, u] `[batch, q_in + n + m]`.
+    pub(super) fn full_input(&self, q: &Tensor<2>, qd: &Tensor<2>, u: &Tensor<2>) -> Tensor<2> {
+        let Some(p) = &self.periodic else {
+            let x = Tensor::cat(vec![q.clone(), qd.clone(), u.clone()], 1);
+            return (x - self.in_mean.clone()) * self.in_inv_std.clone();
+        };
+        let rest = (Tensor::cat(vec![qd.clone(), u.clone()], 1) - p.qdu_mean.clone())
+            * p.qdu_inv_std.clone();
+        Tensor::cat(vec![self.q_input(q, false).0, rest], 1)
+    }
+
+    /// The per-entry loss of a state error `[batch, 2n]`: Δ², or 2(1 − cos Δ) for an angle
+    /// (Δ² near zero, blind to whole turns).
+    pub(super) fn squared_error(&self, err: Tensor<2>) -> Tensor<2> {
+        match &self.periodic {
+            None => err.square(),
+            Some(p) => {
+                let wrapped = err.clone().cos().neg().add_scalar(1.0).mul_scalar(2.0);
+                err.square() * p.keep.clone() + wrapped * p.wrap.clone()
+            }
         }
     }
 }

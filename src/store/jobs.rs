@@ -78,6 +78,9 @@ pub struct NewJob {
     pub request: String,
     pub epochs: i64,
     pub idempotency_key: Option<String>,
+    /// The stored template the request named, kept from deletion while the job is queued or
+    /// running.
+    pub template_id: Option<String>,
 }
 
 pub enum Submitted {
@@ -127,10 +130,23 @@ impl Store {
                 });
             }
         }
+        // Likewise for the template against a concurrent DELETE of it.
+        if let Some(id) = &new.template_id {
+            let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM templates WHERE id = ?")
+                .bind(id)
+                .fetch_one(&mut *tx)
+                .await?;
+            if found == 0 {
+                return Err(Error::Unprocessable {
+                    field: "template".into(),
+                    message: format!("template {id} does not exist"),
+                });
+            }
+        }
         let r = sqlx::query(sql(
             "INSERT INTO jobs (id, state, dataset_id, validation_dataset_id, request, epochs,
-                               idempotency_key, request_sha256, created_at)
-             VALUES (?, 'queued', ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+                               idempotency_key, request_sha256, created_at, template_id)
+             VALUES (?, 'queued', ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
         ))
         .bind(new_id("job"))
         .bind(&new.dataset_id)
@@ -140,6 +156,7 @@ impl Store {
         .bind(&new.idempotency_key)
         .bind(&request_sha)
         .bind(now_rfc3339())
+        .bind(&new.template_id)
         .fetch_one(&mut *tx)
         .await?;
         tx.commit().await?;

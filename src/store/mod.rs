@@ -6,11 +6,13 @@ mod datasets;
 mod jobs;
 mod models;
 mod queue;
+mod templates;
 
 pub use datasets::DatasetRow;
 pub use jobs::{JobRow, JobState, NewJob, Submitted};
 pub use models::{ModelRow, NewModel};
 pub use queue::{Claimed, Lease};
+pub use templates::{NewTemplate, TemplateRow};
 
 use std::str::FromStr;
 use std::time::Duration;

@@ -57,19 +57,19 @@ fn components(spec: &ModelSpec, n: usize, m: usize, physical: usize) -> Vec<(usi
         MassSpec::Constant => (tri, 0),
         MassSpec::Template => (0, 0),
     };
-    let potential = match potential {
-        PotentialSpec::Mlp { hidden } => with_grad(mlp(n, hidden, 1)),
-        PotentialSpec::Quadratic => (tri, 0),
-        PotentialSpec::Template | PotentialSpec::Zero => (0, 0),
+    let potential = match (potential.network(), potential) {
+        (Some(hidden), _) => with_grad(mlp(n, hidden, 1)),
+        (None, PotentialSpec::Quadratic) => (tri, 0),
+        (None, _) => (0, 0),
     };
-    let forces = match forces {
-        ForceSpec::Mlp { hidden } => mlp(2 * n + m, hidden, n),
-        ForceSpec::ControlAffine { hidden } => {
+    let forces = match (forces.network(), forces) {
+        (Some(hidden), _) => mlp(2 * n + m, hidden, n),
+        (None, ForceSpec::ControlAffine { hidden }) => {
             let (p, w) = mlp(n, hidden, n * m);
             (p + n, w)
         }
-        ForceSpec::ConstantAffine => (n * m + n, 0),
-        ForceSpec::Template => (0, 0),
+        (None, ForceSpec::ConstantAffine) => (n * m + n, 0),
+        (None, _) => (0, 0),
     };
     vec![mass, potential, forces, (physical, 0)]
 }

@@ -27,6 +27,10 @@ pub struct TrainConfig {
     pub integrator: Integrator,
     /// Stop after this many epochs without a better validation loss (off when `None`).
     pub patience: Option<usize>,
+    /// Which coordinates are angles (README "Periodic coordinates"); empty: the template's
+    /// own `periodic`, else none.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub periodic: Vec<bool>,
 }
 
 impl Default for TrainConfig {
@@ -40,6 +44,7 @@ impl Default for TrainConfig {
             seed: 0,
             integrator: Integrator::Rk4,
             patience: None,
+            periodic: vec![],
         }
     }
 }
@@ -179,6 +184,7 @@ pub fn prepare(
     let physical = physical_init(spec, init)?;
     let (train_ds, val_ds) = split_data(data, val, cfg)?;
     let scaling = scaling(spec, physical.as_deref(), &train_ds)?;
+    let periodic = periodic(spec, cfg, data.n)?;
     let config = ModelConfig {
         spec: spec.clone(),
         n: data.n,
@@ -187,6 +193,28 @@ pub fn prepare(
         integrator: cfg.integrator,
         lambda: cfg.lambda,
         scaling,
+        periodic,
     };
     Ok((config, physical, train_ds, val_ds))
+}
+
+/// The run's angles: the job's `periodic`, else its template's, one per coordinate; none
+/// marked is stored as empty (the model of a run without angles is what it always was).
+pub fn periodic(spec: &ModelSpec, cfg: &TrainConfig, n: usize) -> Result<Vec<bool>> {
+    let (given, field) = if cfg.periodic.is_empty() {
+        let own = spec.template().map(|t| t.periodic()).unwrap_or_default();
+        (own, "template.periodic")
+    } else {
+        (cfg.periodic.clone(), "periodic")
+    };
+    if !given.is_empty() && given.len() != n {
+        return Err(Error::invalid(
+            field,
+            format!(
+                "expected {n} values (one per coordinate), got {}",
+                given.len()
+            ),
+        ));
+    }
+    Ok(if given.contains(&true) { given } else { vec![] })
 }

@@ -442,6 +442,7 @@ fn model_files_with_non_finite_numbers_are_not_written() {
         integrator: Default::default(),
         lambda: 1.0,
         scaling: Scaling::identity(1, 1),
+        periodic: vec![],
     };
     let array = |v: f64| NamedArray {
         name: "naive.layers.0.bias".into(),

@@ -62,6 +62,7 @@ pub fn config(spec: ModelSpec, n: usize, m: usize) -> ModelConfig {
         integrator: Integrator::Rk4,
         lambda: 1.0,
         scaling: s,
+        periodic: vec![],
     }
 }
 

@@ -5,21 +5,15 @@ naming the field and the offset."""
 import copy
 import json
 import subprocess
+from pathlib import Path
 
 import numpy as np
 
 from graybox_client import Client
 
-CARTPOLE = {
-    "kind": "formula", "name": "cartpole_formula", "coordinates": ["x", "theta"],
-    "inputs": ["f"],
-    "parameters": {"mc": {"value": 1.0, "positive": True}, "mp": {"value": 0.5, "positive": True},
-                   "l": {"value": 0.6, "positive": True}, "g": {"value": 9.81, "positive": True},
-                   "eta": {"value": -0.1}},
-    "mass": [["mc + mp", "mp*l*cos(theta)"], ["mp*l*cos(theta)", "mp*l^2"]],
-    "potential": "-mp*g*l*cos(theta)",
-    "forces": ["f + eta*x_dot", "0"],
-}
+ROOT = Path(__file__).resolve().parents[2]
+# The README's example, as shipped in examples/templates/.
+CARTPOLE = json.loads((ROOT / "examples" / "templates" / "cartpole.json").read_text())
 
 
 def cartpole(mc, mp, l, g, eta, x):

@@ -5,6 +5,7 @@ pub mod error;
 mod jobs;
 mod models;
 mod ops;
+mod templates;
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -31,6 +32,7 @@ pub fn router(app: App) -> Router {
         .merge(datasets::routes())
         .merge(jobs::routes())
         .merge(models::routes())
+        .merge(templates::routes())
         .merge(ops::routes())
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "not_found", "no such route") })
         .method_not_allowed_fallback(|| async {
@@ -106,7 +108,6 @@ pub fn float_param(p: &HashMap<String, String>, name: &str) -> ApiResult<Option<
         .transpose()
 }
 
-/// A JSON body: malformed JSON is a 400 naming "body"; an oversized body a 413.
 /// A request body's bytes: over the limit is 413, any other failure to read it 400.
 pub fn body_bytes(
     body: Result<axum::body::Bytes, axum::extract::rejection::BytesRejection>,
@@ -121,6 +122,7 @@ pub fn body_bytes(
     })
 }
 
+/// A JSON body: malformed JSON is a 400 naming "body"; an oversized body a 413.
 pub fn json_body(
     body: Result<axum::body::Bytes, axum::extract::rejection::BytesRejection>,
     limit: usize,

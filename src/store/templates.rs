@@ -1,0 +1,132 @@
+//! Templates: a user's mechanism as its canonical JSON document, stored once per document.
+
+use sqlx::Row;
+use sqlx::sqlite::SqliteRow;
+
+use super::{Store, new_id, now_rfc3339, sha256_hex};
+use crate::error::{Error, Result};
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct TemplateRow {
+    pub id: String,
+    pub kind: String,
+    pub name: String,
+    pub n: i64,
+    pub m: i64,
+    /// The canonical JSON document (sorted keys, no spaces).
+    pub document: String,
+    pub sha256: String,
+    pub created_at: String,
+    pub seq: i64,
+}
+
+/// What `insert_template` stores.
+pub struct NewTemplate<'a> {
+    pub kind: &'a str,
+    pub name: &'a str,
+    pub n: i64,
+    pub m: i64,
+    pub document: &'a str,
+}
+
+const COLUMNS: &str = "seq, id, kind, name, n, m, document, sha256, created_at";
+
+fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
+    super::with_columns(s, COLUMNS)
+}
+
+fn row(r: &SqliteRow) -> Result<TemplateRow> {
+    Ok(TemplateRow {
+        seq: r.try_get("seq")?,
+        id: r.try_get("id")?,
+        kind: r.try_get("kind")?,
+        name: r.try_get("name")?,
+        n: r.try_get("n")?,
+        m: r.try_get("m")?,
+        document: r.try_get("document")?,
+        sha256: r.try_get("sha256")?,
+        created_at: r.try_get("created_at")?,
+    })
+}
+
+impl Store {
+    /// Stores a template unless the same document is stored already; the row and whether it
+    /// was created.
+    pub async fn insert_template(&self, t: NewTemplate<'_>) -> Result<(TemplateRow, bool)> {
+        let sha = sha256_hex(t.document.as_bytes());
+        let mut tx = self.write().await?;
+        let existing = sqlx::query(sql("SELECT {COLUMNS} FROM templates WHERE sha256 = ?"))
+            .bind(&sha)
+            .fetch_optional(&mut *tx)
+            .await?;
+        if let Some(r) = existing {
+            tx.commit().await?;
+            return Ok((row(&r)?, false));
+        }
+        let r = sqlx::query(sql(
+            "INSERT INTO templates (id, kind, name, n, m, document, sha256, created_at)
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+        ))
+        .bind(new_id("tpl"))
+        .bind(t.kind)
+        .bind(t.name)
+        .bind(t.n)
+        .bind(t.m)
+        .bind(t.document)
+        .bind(&sha)
+        .bind(now_rfc3339())
+        .fetch_one(&mut *tx)
+        .await?;
+        tx.commit().await?;
+        Ok((row(&r)?, true))
+    }
+
+    pub async fn get_template(&self, id: &str) -> Result<Option<TemplateRow>> {
+        let r = sqlx::query(sql("SELECT {COLUMNS} FROM templates WHERE id = ?"))
+            .bind(id)
+            .fetch_optional(&self.pool)
+            .await?;
+        r.as_ref().map(row).transpose()
+    }
+
+    /// Newest first; `before` is the `seq` of the last row of the previous page.
+    pub async fn list_templates(
+        &self,
+        before: Option<i64>,
+        limit: i64,
+    ) -> Result<Vec<TemplateRow>> {
+        let rows = sqlx::query(sql(
+            "SELECT {COLUMNS} FROM templates WHERE seq < ? ORDER BY seq DESC LIMIT ?",
+        ))
+        .bind(before.unwrap_or(i64::MAX))
+        .bind(limit)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter().map(row).collect()
+    }
+
+    /// Deletes a template unless a queued or running job uses it.
+    pub async fn delete_template(&self, id: &str) -> Result<()> {
+        let mut tx = self.write().await?;
+        let users: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running') AND template_id = ?",
+        )
+        .bind(id)
+        .fetch_one(&mut *tx)
+        .await?;
+        if users > 0 {
+            return Err(Error::Conflict(format!(
+                "template {id} is used by {users} queued or running job(s)"
+            )));
+        }
+        let deleted = sqlx::query("DELETE FROM templates WHERE id = ?")
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        if deleted.rows_affected() == 0 {
+            return Err(Error::NotFound(format!("template {id}")));
+        }
+        tx.commit().await?;
+        Ok(())
+    }
+}
