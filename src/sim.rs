@@ -16,6 +16,9 @@ pub struct SimConfig {
     pub q_range: f64,
     pub qdot_range: f64,
     pub u_std: f64,
+    /// One σ per input instead of `u_std` for all (empty: `u_std`): a robot's distal joints
+    /// are far lighter than its proximal ones and want far smaller torques.
+    pub u_stds: Vec<f64>,
 }
 
 impl Default for SimConfig {
@@ -27,6 +30,7 @@ impl Default for SimConfig {
             q_range: std::f64::consts::PI,
             qdot_range: 10.0,
             u_std: 120.0,
+            u_stds: vec![],
         }
     }
 }
@@ -65,6 +69,19 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
         }
     }
     let (n, m) = (template.n(), template.m());
+    if !cfg.u_stds.is_empty() && cfg.u_stds.len() != m {
+        return Err(Error::invalid(
+            "u_std",
+            format!(
+                "expected one value or {m} (one per input), got {}",
+                cfg.u_stds.len()
+            ),
+        ));
+    }
+    if cfg.u_stds.iter().any(|v| !v.is_finite() || *v < 0.0) {
+        return Err(Error::invalid("u_std", "must be finite numbers ≥ 0"));
+    }
+    let sigma = |i: usize| cfg.u_stds.get(i).copied().unwrap_or(cfg.u_std);
     let sys = TemplateSystem::new(template.clone(), params);
     let mut rng = Rng::new(cfg.seed);
     let mut arrays: [Vec<f64>; 5] = Default::default();
@@ -75,7 +92,7 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
         let qd: Vec<f64> = (0..n)
             .map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range))
             .collect();
-        let u: Vec<f64> = (0..m).map(|_| cfg.u_std * rng.normal()).collect();
+        let u: Vec<f64> = (0..m).map(|i| sigma(i) * rng.normal()).collect();
         let x: Vec<f64> = q.iter().chain(&qd).copied().collect();
         let next = true_step(&sys, &x, &u, cfg.dt, Integrator::Rk4);
         arrays[0].extend(&q);
@@ -97,6 +114,15 @@ pub fn parse_assignments(template: &Template, text: Option<&str>, field: &str) -
             .ok_or_else(|| unknown_param(template, &name, field))?;
         values[i] = v;
     }
+    // Values the template cannot take (a URDF body that is not physical, a negative mass)
+    // are refused here, naming them under `field`.
+    template.raw(&values).map_err(|e| match e {
+        Error::Invalid { field: f, message } => Error::Invalid {
+            field: f.replacen("init", field, 1),
+            message,
+        },
+        other => other,
+    })?;
     Ok(values)
 }
 

@@ -39,6 +39,20 @@ fn cases() -> Vec<Case> {
             periodic,
         ));
     }
+    // URDF robots (the rigid-body tree over Burn columns vs f64 and dual numbers): the
+    // 4-DoF arm white-box with its Coulomb friction, and with residual networks on top.
+    let dir = format!("{}/tests/fixtures/urdf", env!("CARGO_MANIFEST_DIR"));
+    let arm = std::fs::read_to_string(format!("{dir}/arm4.urdf")).unwrap();
+    let arm = Template::Urdf(std::sync::Arc::new(
+        graybox::model::urdf::UrdfTemplate::from_urdf(&arm).unwrap(),
+    ));
+    v.push((
+        "W-B/urdf arm4".into(),
+        ModelSpec::named("W-B", Some(arm.clone())).unwrap(),
+        4,
+        4,
+        arm.periodic(),
+    ));
     // Residual networks on the template's potential and forces.
     let residual = r#"{"mass": "template",
         "potential": {"type": "template", "residual": {"type": "mlp", "hidden": [16, 16]}},
@@ -49,6 +63,13 @@ fn cases() -> Vec<Case> {
         2,
         2,
         vec![],
+    ));
+    v.push((
+        "W-B+residuals/urdf arm4".into(),
+        ModelSpec::parse(residual, Some(arm.clone())).unwrap(),
+        4,
+        4,
+        arm.periodic(),
     ));
     v.push((
         "W-B+residuals/periodic".into(),

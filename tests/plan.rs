@@ -26,22 +26,16 @@ fn diag(v: &[f64]) -> Mat {
 }
 
 fn swing_up(horizon: usize) -> PlanRequest {
-    let q = diag(&[1.0, 1.0, 0.1, 0.1]);
+    let weights = [
+        diag(&[1.0, 1.0, 0.1, 0.1]),
+        diag(&[1e-4, 1e-4]),
+        diag(&[1000.0, 1000.0, 100.0, 100.0]),
+    ];
+    let goal = vec![std::f64::consts::PI, 0.0, 0.0, 0.0];
     PlanRequest {
-        x0: vec![0.0; 4],
-        goal: vec![std::f64::consts::PI, 0.0, 0.0, 0.0],
-        horizon,
-        qf: diag(&[1000.0, 1000.0, 100.0, 100.0]),
-        q,
-        r: diag(&[1e-4, 1e-4]),
         u_min: Some(vec![-120.0; 2]),
         u_max: Some(vec![120.0; 2]),
-        u_init: None,
-        max_iterations: 200,
-        tolerance: 1e-6,
-        restarts: 0,
-        seed: 0,
-        time_limit: None,
+        ..PlanRequest::new(vec![0.0; 4], goal, horizon, weights)
     }
 }
 

@@ -1,9 +1,6 @@
 //! Job submission: the whole request is validated here, at submission, so that a job that
 //! cannot train never enters the queue.
 
-use std::sync::Arc;
-
-use crate::model::formula_template::{FormulaDoc, FormulaTemplate};
 use crate::model::templates::Template;
 use std::collections::BTreeMap;
 
@@ -109,35 +106,19 @@ pub fn parse_body<T: serde::de::DeserializeOwned>(value: Value) -> Result<T> {
     })
 }
 
-/// A request's formula document (errors name `template.<field>`).
+/// A request's template document (errors name `template.<field>`).
 fn parse_template(t: &Value) -> Result<Template> {
-    match t {
-        Value::Object(_) => {
-            let doc: FormulaDoc = serde_path_to_error::deserialize(t).map_err(|e| {
-                let path = e.path().to_string();
-                Error::Unprocessable {
-                    field: if path == "." {
-                        "template".into()
-                    } else {
-                        format!("template.{path}")
-                    },
-                    message: in_words(&e.inner().to_string()),
-                }
-            })?;
-            let f = FormulaTemplate::from_doc(doc).map_err(|e| match e {
-                Error::Unprocessable { field, message } => Error::Unprocessable {
-                    field: format!("template.{field}"),
-                    message,
-                },
-                other => other,
-            })?;
-            Ok(Template::Formula(Arc::new(f)))
-        }
-        _ => Err(Error::Unprocessable {
-            field: "template".into(),
-            message: "must be a template name or a formula template document".into(),
-        }),
-    }
+    Template::from_document(t).map_err(|e| match e {
+        Error::Unprocessable { field, message } => Error::Unprocessable {
+            field: if field == "template" {
+                field
+            } else {
+                format!("template.{field}")
+            },
+            message: in_words(&message),
+        },
+        other => other,
+    })
 }
 
 /// The model of a request: a paper name ("MVF", …) or a spec object, with an optional

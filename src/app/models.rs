@@ -102,6 +102,13 @@ impl App {
             .ok_or_else(|| Error::NotFound(format!("model {id}")))
     }
 
+    /// The identified robot of a URDF model (GET /v1/models/{id}/urdf): its template's
+    /// document with the learned inertial and joint values written in.
+    pub async fn model_urdf(&self, id: &str) -> Result<String> {
+        let bytes = self.model_file(id).await?;
+        ModelFile::from_bytes(&bytes)?.urdf()
+    }
+
     pub async fn list_models(
         &self,
         size: Option<i64>,

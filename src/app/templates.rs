@@ -8,15 +8,15 @@ use serde_json::Value;
 
 use super::App;
 use crate::error::{Error, Result};
-use crate::model::formula_template::FormulaTemplate;
 use crate::model::templates::Template;
+use crate::model::urdf::UrdfTemplate;
 use crate::store::{NewTemplate, TemplateRow};
 
 /// A stored template as REST serves it.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
 pub struct TemplateView {
     pub id: String,
-    /// "formula" (URDF templates come later).
+    /// "formula" or "urdf".
     pub kind: String,
     pub name: String,
     pub n: i64,
@@ -24,8 +24,13 @@ pub struct TemplateView {
     pub coordinates: Vec<String>,
     pub inputs: Vec<String>,
     pub periodic: Vec<bool>,
+    /// `{name, value, positive}`: the physical values a job starts from (`init` sets them by
+    /// name).
     #[schema(value_type = Vec<Object>)]
     pub parameters: Vec<Value>,
+    /// What motion data can and cannot determine of these values (URDF robots).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub identifiability: Option<String>,
     /// The document as stored (canonical: sorted parameters, defaults filled in).
     #[schema(value_type = Object)]
     pub document: Value,
@@ -37,26 +42,27 @@ impl TryFrom<TemplateRow> for TemplateView {
     type Error = Error;
 
     fn try_from(r: TemplateRow) -> Result<Self> {
-        let t = FormulaTemplate::parse(&r.document)
+        let t = Template::from_json(&r.document)
             .map_err(|e| Error::corrupt(format!("template {}", r.id), e))?;
-        let doc = &t.doc;
-        let n = doc.coordinates.len();
+        let n = t.n();
+        let periodic = t.periodic();
         Ok(Self {
-            parameters: doc
-                .parameters
+            parameters: t
+                .params()
                 .iter()
-                .map(|(name, p)| {
-                    serde_json::json!({"name": name, "value": p.value, "positive": p.positive})
+                .map(|p| {
+                    serde_json::json!({"name": p.name, "value": p.default, "positive": p.positive})
                 })
                 .collect(),
-            coordinates: doc.coordinates.clone(),
-            inputs: doc.inputs.clone(),
-            periodic: if doc.periodic.is_empty() {
+            coordinates: t.coordinates(),
+            inputs: t.inputs(),
+            periodic: if periodic.is_empty() {
                 vec![false; n]
             } else {
-                doc.periodic.clone()
+                periodic
             },
-            document: serde_json::to_value(doc).expect("template documents serialize"),
+            identifiability: t.identifiability_note().map(str::to_string),
+            document: serde_json::to_value(&t).expect("template documents serialize"),
             id: r.id,
             kind: r.kind,
             name: r.name,
@@ -68,10 +74,17 @@ impl TryFrom<TemplateRow> for TemplateView {
     }
 }
 
-/// A template document from JSON bytes; errors name the field (under `prefix`, "" for a
-/// document of its own) and, for an expression, the character offset in it.
-pub fn parse_formula(json: &str, prefix: &str) -> Result<FormulaTemplate> {
-    FormulaTemplate::parse(json).map_err(|e| match e {
+/// A template document from a request body: JSON of either kind, or a raw URDF (XML, every
+/// default) when the content type says XML or the body is one; errors name the field (under
+/// `prefix`, "" for a document of its own) and, for an expression, the character offset.
+pub fn parse_document(body: &str, xml: bool, prefix: &str) -> Result<Template> {
+    let xml = xml || body.trim_start().starts_with('<');
+    let t = if xml {
+        UrdfTemplate::from_urdf(body).map(|u| Template::Urdf(Arc::new(u)))
+    } else {
+        Template::from_json(body)
+    };
+    t.map_err(|e| match e {
         Error::Unprocessable { field, message } => Error::Unprocessable {
             field: match (prefix, field.as_str()) {
                 ("", _) => field,
@@ -88,12 +101,12 @@ impl App {
     /// Stores a template document (POST /v1/templates): checked as a job would check it,
     /// identified by its canonical form (the same document again returns the stored one,
     /// `created = false`).
-    pub async fn upload_template(&self, body: &[u8]) -> Result<(TemplateView, bool)> {
-        let json = std::str::from_utf8(body).map_err(|e| Error::Unprocessable {
+    pub async fn upload_template(&self, body: &[u8], xml: bool) -> Result<(TemplateView, bool)> {
+        let text = std::str::from_utf8(body).map_err(|e| Error::Unprocessable {
             field: "template".into(),
             message: format!("not UTF-8: {e}"),
         })?;
-        let t = parse_formula(json, "")?;
+        let t = parse_document(text, xml, "")?;
         if t.n() > self.settings.max_dof {
             return Err(Error::Unprocessable {
                 field: "coordinates".into(),
@@ -104,12 +117,12 @@ impl App {
                 ),
             });
         }
-        let document = serde_json::to_string(&t.doc).expect("template documents serialize");
+        let document = serde_json::to_string(&t).expect("template documents serialize");
         let (row, created) = self
             .store
             .insert_template(NewTemplate {
-                kind: &t.doc.kind,
-                name: &t.doc.name,
+                kind: t.kind(),
+                name: t.name(),
                 n: t.n() as i64,
                 m: t.m() as i64,
                 document: &document,
@@ -152,8 +165,8 @@ impl App {
         let Some(row) = self.store.get_template(id).await? else {
             return Ok(None);
         };
-        let t = FormulaTemplate::parse(&row.document)
-            .map_err(|e| Error::corrupt(format!("template {id}"), e))?;
-        Ok(Some(Template::Formula(Arc::new(t))))
+        Template::from_json(&row.document)
+            .map(Some)
+            .map_err(|e| Error::corrupt(format!("template {id}"), e))
     }
 }

@@ -27,6 +27,9 @@ pub struct Model {
     pub metrics: Value,
     pub physical_parameters: Value,
     pub identifiable: Value,
+    /// What the data cannot determine of the physical parameters beyond `identifiable`
+    /// (null when the combinations say it all).
+    pub identifiability: Value,
     pub sha256: String,
     pub created_at: String,
 }
@@ -65,6 +68,7 @@ impl From<ModelRow> for Model {
                 p => p.clone(),
             },
             identifiable: report["identifiable"].clone(),
+            identifiability: report["identifiability"].clone(),
             metrics,
             sha256: m.sha256,
             created_at: m.created_at,

@@ -22,25 +22,31 @@ pub use simulate::SimulateArgs;
 pub use train::TrainArgs;
 
 use crate::error::{Error, Result};
-use crate::model::formula_template::FormulaTemplate;
 use crate::model::templates::Template;
+use crate::model::urdf::UrdfTemplate;
 
-/// A `--template` argument: a built-in template's name, or a formula template's JSON file
-/// (a path ending in .json); a bad document's error names the field and offset.
+/// A `--template` argument: a built-in template's name, a template document's JSON file (a
+/// path ending in .json) or a URDF file (.urdf, every default); a bad document's error names
+/// the file, the field and the offset.
 pub fn template_arg(arg: &str) -> Result<Template> {
-    if !arg.ends_with(".json") {
+    let urdf = arg.ends_with(".urdf");
+    if !arg.ends_with(".json") && !urdf {
         return Template::parse(arg);
     }
     let text = std::fs::read_to_string(arg)
         .map_err(|e| Error::invalid("template", format!("cannot read {arg}: {e}")))?;
-    let f = FormulaTemplate::parse(&text).map_err(|e| match e {
+    let t = if urdf {
+        UrdfTemplate::from_urdf(&text).map(|u| Template::Urdf(std::sync::Arc::new(u)))
+    } else {
+        Template::from_json(&text)
+    };
+    t.map_err(|e| match e {
         Error::Unprocessable { field, message } => Error::Unprocessable {
             field: format!("{arg}: {field}"),
             message,
         },
         other => other,
-    })?;
-    Ok(Template::Formula(std::sync::Arc::new(f)))
+    })
 }
 
 #[derive(Parser, Debug)]
@@ -66,6 +72,9 @@ pub enum Command {
     Inspect(InspectArgs),
     /// Write the white-box model of a template with given physical values (no training).
     Model(ModelArgs),
+    /// Write a URDF model's identified robot: its URDF with the learned inertial and joint
+    /// values.
+    ExportUrdf(model::ExportUrdfArgs),
     /// Plan a trajectory to a goal on a model file (iLQR with input bounds) and its gains.
     Plan(PlanArgs),
     /// Run the service: REST, gRPC and training workers over one SQLite file.
@@ -126,6 +135,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Eval(a) => eval::eval(a),
         Command::Inspect(a) => eval::inspect(a),
         Command::Model(a) => model::model(a),
+        Command::ExportUrdf(a) => model::export_urdf(a),
         Command::Plan(a) => plan::run(a),
         Command::Serve(a) => serve::serve(a),
         Command::Health(a) => health::health(a),

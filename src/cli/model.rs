@@ -13,7 +13,8 @@ use crate::sim::parse_assignments;
 
 #[derive(Args, Debug)]
 pub struct ModelArgs {
-    /// Template: double_pendulum, pendulum, cartpole, or a formula template's JSON file.
+    /// Template: double_pendulum, pendulum, cartpole, a template document's JSON file, or a
+    /// URDF file.
     #[arg(long)]
     pub template: String,
     /// Physical values, e.g. m1=10,l2=0.8 (others keep the template's defaults).
@@ -41,5 +42,24 @@ pub(super) fn model(a: ModelArgs) -> Result<()> {
                "dt": a.dt, "integrator": a.integrator,
                "physical_parameters": file.made.as_ref().map(|m| &m.physical_parameters)})
     );
+    Ok(())
+}
+
+#[derive(Args, Debug)]
+pub struct ExportUrdfArgs {
+    /// A model file whose template is a URDF robot.
+    #[arg(long)]
+    pub model: PathBuf,
+    /// Where to write the URDF.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// The identified robot: the template's URDF with the model's `<inertial>` and `<dynamics>`.
+pub(super) fn export_urdf(a: ExportUrdfArgs) -> Result<()> {
+    let file = ModelFile::load(&a.model)?;
+    let text = file.urdf()?;
+    crate::model::file::write_atomic(&a.out, text.as_bytes())?;
+    println!("{}", json!({"out": a.out, "bytes": text.len()}));
     Ok(())
 }

@@ -5,13 +5,14 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::json;
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::file::write_atomic;
 use crate::sim::{self, SimConfig, parse_assignments};
 
 #[derive(Args, Debug)]
 pub struct SimulateArgs {
-    /// Template: double_pendulum, pendulum, cartpole, or a formula template's JSON file.
+    /// Template: double_pendulum, pendulum, cartpole, a template document's JSON file, or a
+    /// URDF file.
     #[arg(long, visible_alias = "system")]
     pub template: String,
     #[arg(long, default_value_t = 1024)]
@@ -31,21 +32,34 @@ pub struct SimulateArgs {
     /// q̇ ~ U(−r, r).
     #[arg(long, default_value_t = 10.0)]
     pub qdot_range: f64,
-    /// u ~ N(0, σ²).
-    #[arg(long, default_value_t = 120.0)]
-    pub u_std: f64,
+    /// u ~ N(0, σ²): one σ for every input, or one per input (e.g. 8,8,3,0.2).
+    #[arg(long, default_value = "120")]
+    pub u_std: String,
 }
 
 pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
     let t = super::template_arg(&a.template)?;
     let params = parse_assignments(&t, a.set.as_deref(), "set")?;
+    let stds = a
+        .u_std
+        .split(',')
+        .map(|v| {
+            v.trim().parse::<f64>().map_err(|_| {
+                Error::invalid(
+                    "u-std",
+                    format!("'{v}' is not a number (σ, or σ₁,σ₂,… per input)"),
+                )
+            })
+        })
+        .collect::<Result<Vec<f64>>>()?;
     let cfg = SimConfig {
         count: a.count,
         seed: a.seed,
         dt: a.dt,
         q_range: a.q_range,
         qdot_range: a.qdot_range,
-        u_std: a.u_std,
+        u_std: stds.first().copied().unwrap_or(f64::NAN),
+        u_stds: if stds.len() > 1 { stds } else { vec![] },
     };
     let ds = sim::simulate(&t, params, &cfg)?;
     write_atomic(&a.out, ds.to_json().as_bytes())?;

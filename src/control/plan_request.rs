@@ -29,6 +29,29 @@ pub struct PlanRequest {
     pub time_limit: Option<Instant>,
 }
 
+impl PlanRequest {
+    /// From `x0` to `goal` in `horizon` steps under the cost weights, with the defaults of
+    /// everything else: inputs unbounded, a zero initial guess, no restarts, no time limit.
+    pub fn new(x0: Vec<f64>, goal: Vec<f64>, horizon: usize, [q, r, qf]: [Mat; 3]) -> Self {
+        Self {
+            x0,
+            goal,
+            horizon,
+            q,
+            r,
+            qf,
+            u_min: None,
+            u_max: None,
+            u_init: None,
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+            tolerance: DEFAULT_TOLERANCE,
+            restarts: 0,
+            seed: 0,
+            time_limit: None,
+        }
+    }
+}
+
 /// Every field of a request checked, each error naming it.
 pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
     let finite = |name: &str, v: &[f64], len: usize| -> Result<()> {

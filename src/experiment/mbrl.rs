@@ -20,7 +20,7 @@ use super::plot::{self, COLORS};
 use super::pool::{self, Progress, Status};
 use crate::backend::{self, Backend, Precision};
 use crate::control::linalg::Mat;
-use crate::control::plan::{DEFAULT_TOLERANCE, Plan, PlanRequest, plan};
+use crate::control::plan::{Plan, PlanRequest, plan};
 use crate::control::policy::Policy;
 use crate::control::tvlqr::Gains;
 use crate::data::Dataset;
@@ -167,22 +167,14 @@ impl Settings {
     }
 
     fn request(&self, seed: u64) -> PlanRequest {
-        let [q, r, qf] = self.weights();
+        let goal = vec![std::f64::consts::PI, 0.0, 0.0, 0.0];
         PlanRequest {
-            x0: vec![0.0; 4],
-            goal: vec![std::f64::consts::PI, 0.0, 0.0, 0.0],
-            horizon: HORIZON,
-            q,
-            r,
-            qf,
             u_min: Some(vec![-U_MAX; 2]),
             u_max: Some(vec![U_MAX; 2]),
-            u_init: None,
             max_iterations: self.max_iterations,
-            tolerance: DEFAULT_TOLERANCE,
             restarts: self.restarts,
             seed,
-            time_limit: None,
+            ..PlanRequest::new(vec![0.0; 4], goal, HORIZON, self.weights())
         }
     }
 }

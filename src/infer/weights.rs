@@ -157,13 +157,7 @@ impl Weights {
             .as_ref()
             .filter(|_| !file.config.spec.white_box_parts().is_empty())
         {
-            Some(t) => Some(
-                t.params()
-                    .iter()
-                    .zip(arrays.values(names::PHYSICAL, t.params().len())?)
-                    .map(|(info, r)| if info.positive { r.exp() } else { r })
-                    .collect(),
-            ),
+            Some(t) => Some(t.natural(&arrays.values(names::PHYSICAL, t.params().len())?)),
             None => None,
         };
         Ok(Weights::Structured(Components {

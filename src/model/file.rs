@@ -20,13 +20,13 @@ use burn::tensor::Device;
 
 /// The format of files whose template is a built-in one (older graybox versions read them).
 pub const FORMAT: &str = "graybox.model/1";
-/// The format of files that embed a formula template's document.
+/// The format of files that embed a template's document (a formula template or a URDF).
 pub const FORMAT_EMBEDDED_TEMPLATE: &str = "graybox.model/2";
 
 /// The format a file with this configuration is written in.
 fn format_of(config: &ModelConfig) -> &'static str {
     match config.template() {
-        Some(Template::Formula(_)) => FORMAT_EMBEDDED_TEMPLATE,
+        Some(Template::Formula(_) | Template::Urdf(_)) => FORMAT_EMBEDDED_TEMPLATE,
         _ => FORMAT,
     }
 }
@@ -152,6 +152,30 @@ impl ModelFile {
         let bytes = std::fs::read(path)
             .map_err(|e| Error::invalid("model", format!("cannot read {}: {e}", path.display())))?;
         Self::from_bytes(&bytes)
+    }
+
+    /// The physical values of the template's parameters (the template's own when no part is
+    /// white-box); None without a template.
+    pub fn physical_values(&self) -> Option<Vec<f64>> {
+        let t = self.config.template()?;
+        Some(
+            self.params
+                .iter()
+                .find(|a| a.name == crate::model::params::names::PHYSICAL)
+                .map_or_else(|| t.defaults(), |a| t.natural(&a.values)),
+        )
+    }
+
+    /// The identified robot as URDF (`urdf::export`): a model whose template is not a URDF
+    /// robot has none (failed precondition).
+    pub fn urdf(&self) -> Result<String> {
+        let Some(Template::Urdf(u)) = self.config.template() else {
+            return Err(Error::FailedPrecondition(
+                "this model's template is not a URDF robot, so it has no URDF".into(),
+            ));
+        };
+        let physical = self.physical_values().expect("a template model");
+        crate::model::urdf::export::export(u, &physical)
     }
 
     /// The model on `device` with these parameters.

@@ -20,12 +20,13 @@ pub mod spec;
 mod spec_json;
 pub mod templates;
 mod tensors;
+pub mod urdf;
 
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::rng::Rng;
 use assembly::{Structure, Values};
 use tensors::{BurnNets, Consts, LazyColumns};
@@ -181,17 +182,20 @@ impl Model {
             .expect("a template model has physical parameters")
             .val();
         let parts = self.white_box_parts();
-        t.params()
+        let raw: Vec<Tensor<2>> = t
+            .params()
             .iter()
             .enumerate()
             .map(|(i, info)| {
-                let mut v = raw.clone().narrow(1, i, 1);
-                if !info.used_by.iter().any(|p| parts.contains(p)) {
-                    v = v.detach();
+                let v = raw.clone().narrow(1, i, 1);
+                if info.used_by.iter().any(|p| parts.contains(p)) {
+                    v
+                } else {
+                    v.detach()
                 }
-                if info.positive { v.exp() } else { v }
             })
-            .collect()
+            .collect();
+        t.natural(&raw)
     }
 
     /// Learned physical values by name (host f64), for reports.
@@ -209,13 +213,8 @@ impl Model {
         Some(
             t.params()
                 .iter()
-                .zip(raw)
-                .map(|(info, r)| {
-                    (
-                        info.name.to_string(),
-                        if info.positive { r.exp() } else { r },
-                    )
-                })
+                .zip(t.natural(&raw))
+                .map(|(info, v)| (info.name.to_string(), v))
                 .collect(),
         )
     }
@@ -403,29 +402,7 @@ impl Model {
     }
 }
 
-/// Physical values → raw trainable values (logarithms for positive parameters).
+/// Physical values → raw trainable values (`Template::raw`).
 pub fn raw_physical(t: &Template, values: &[f64]) -> Result<Vec<f64>> {
-    t.params()
-        .iter()
-        .zip(values)
-        .map(|(info, &v)| {
-            if !v.is_finite() {
-                return Err(Error::invalid(
-                    format!("init.{}", info.name),
-                    "must be finite",
-                ));
-            }
-            if info.positive {
-                if v <= 0.0 {
-                    return Err(Error::invalid(
-                        format!("init.{}", info.name),
-                        format!("must be > 0, got {v}"),
-                    ));
-                }
-                Ok(v.ln())
-            } else {
-                Ok(v)
-            }
-        })
-        .collect()
+    t.raw(values)
 }

@@ -44,6 +44,10 @@ pub struct TrainReport {
     /// Learned white-box values by name (only parameters some white-box part uses).
     pub physical_parameters: BTreeMap<String, f64>,
     pub identifiable: Vec<Identified>,
+    /// What the data cannot determine of `physical_parameters` beyond `identifiable` (a URDF
+    /// robot's inertial values: only combinations of them); absent in earlier files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identifiability: Option<String>,
     pub history: Vec<EpochMetrics>,
     /// The training checks' findings (`train::warnings`); absent in earlier files.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]

@@ -9,42 +9,62 @@ use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use super::formula_template::{FormulaDoc, FormulaTemplate};
 use super::scalar::Scalar;
+use super::urdf::template::{UrdfDoc, UrdfTemplate};
+use crate::error::{Error, Result};
 
-/// A white-box system: one of the built-in ones, or a formula template (its whole document,
-/// so that a model file that names it needs no other file). Serialized as the built-in's name
-/// or as the formula document.
+/// A white-box system: one of the built-in ones, or a user's template document (a formula
+/// template or a URDF robot), kept whole so that a model file that names it needs no other
+/// file. Serialized as the built-in's name or as the document.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Template {
     DoublePendulum,
     Pendulum,
     Cartpole,
     Formula(Arc<FormulaTemplate>),
+    Urdf(Arc<UrdfTemplate>),
 }
 
 impl Serialize for Template {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
         match self {
             Template::Formula(f) => f.doc.serialize(s),
+            Template::Urdf(u) => u.doc.serialize(s),
             t => s.serialize_str(t.name()),
         }
     }
 }
 
 impl<'de> Deserialize<'de> for Template {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(untagged)]
-        enum Repr {
-            Name(String),
-            Doc(FormulaDoc),
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        match serde_json::Value::deserialize(d)? {
+            serde_json::Value::String(n) => Template::parse(&n),
+            doc => Template::from_document(&doc),
         }
-        match Repr::deserialize(d)? {
-            Repr::Name(n) => Template::parse(&n).map_err(serde::de::Error::custom),
-            Repr::Doc(doc) => FormulaTemplate::from_doc(doc)
-                .map(|f| Template::Formula(Arc::new(f)))
-                .map_err(serde::de::Error::custom),
-        }
+        .map_err(serde::de::Error::custom)
     }
+}
+
+/// The kinds of template document.
+pub const DOCUMENT_KINDS: [&str; 2] = ["formula", super::urdf::template::KIND];
+
+/// A document's fields from JSON; errors name the field ("template" for the whole).
+fn document<T: serde::de::DeserializeOwned>(v: &serde_json::Value) -> Result<T> {
+    serde_path_to_error::deserialize(v).map_err(|e| {
+        let path = e.path().to_string();
+        let message = e.inner().to_string();
+        // serde reports a missing field at its parent: name the field itself.
+        let missing = message
+            .strip_prefix("missing field `")
+            .and_then(|m| m.split('`').next());
+        let root = path == "." || path == "?";
+        let field = match (root, missing) {
+            (true, Some(m)) => m.to_string(),
+            (false, Some(m)) => format!("{path}.{m}"),
+            (true, None) => "template".to_string(),
+            (false, None) => path,
+        };
+        Error::Unprocessable { field, message }
+    })
 }
 
 /// Which white-box component a parameter or an identifiable combination belongs to.
@@ -175,6 +195,111 @@ impl Template {
             Template::Pendulum => "pendulum",
             Template::Cartpole => "cartpole",
             Template::Formula(f) => &f.doc.name,
+            Template::Urdf(u) => &u.doc.name,
+        }
+    }
+
+    /// "builtin", or the document's kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Template::Formula(_) => DOCUMENT_KINDS[0],
+            Template::Urdf(_) => DOCUMENT_KINDS[1],
+            _ => "builtin",
+        }
+    }
+
+    /// A template document (JSON, its "kind" says which); errors (422) name the field and,
+    /// for an expression, the character offset in it.
+    pub fn from_document(doc: &serde_json::Value) -> Result<Self> {
+        let kind = doc.get("kind").and_then(|k| k.as_str());
+        match kind {
+            Some("formula") => Ok(Template::Formula(Arc::new(FormulaTemplate::from_doc(
+                document::<FormulaDoc>(doc)?,
+            )?))),
+            Some(super::urdf::template::KIND) => Ok(Template::Urdf(Arc::new(
+                UrdfTemplate::from_doc(document::<UrdfDoc>(doc)?)?,
+            ))),
+            _ if !doc.is_object() => Err(Error::Unprocessable {
+                field: "template".into(),
+                message: "must be a template document (a JSON object)".into(),
+            }),
+            _ => Err(Error::Unprocessable {
+                field: "kind".into(),
+                message: format!(
+                    "must be one of {}, got {}",
+                    DOCUMENT_KINDS.map(|k| format!("\"{k}\"")).join(", "),
+                    doc.get("kind")
+                        .map_or("nothing".to_string(), |k| k.to_string())
+                ),
+            }),
+        }
+    }
+
+    /// A template document from JSON text (`from_document`); a syntax error names the field
+    /// being read (or "template") and its line and column.
+    pub fn from_json(text: &str) -> Result<Self> {
+        let de = &mut serde_json::Deserializer::from_str(text);
+        let doc: serde_json::Value = serde_path_to_error::deserialize(de).map_err(|e| {
+            let path = e.path().to_string();
+            Error::Unprocessable {
+                // The field being read when the text went wrong.
+                field: if path == "." || path == "?" {
+                    "template".into()
+                } else {
+                    path
+                },
+                message: e.into_inner().to_string(),
+            }
+        })?;
+        Self::from_document(&doc)
+    }
+
+    /// What reports say about which values the data determines, beyond `combinations`.
+    pub fn identifiability_note(&self) -> Option<&'static str> {
+        match self {
+            Template::Urdf(_) => Some(super::urdf::template::IDENTIFIABILITY),
+            _ => None,
+        }
+    }
+
+    /// Physical values from the raw values the optimiser moves (any scalar): positive
+    /// parameters are trained as logarithms; a URDF body's as its log-Cholesky factor.
+    pub fn natural<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
+        match self {
+            Template::Urdf(u) => u.natural(raw),
+            _ => self
+                .params()
+                .iter()
+                .zip(raw)
+                .map(|(info, r)| if info.positive { r.exp() } else { r.clone() })
+                .collect(),
+        }
+    }
+
+    /// Raw values from physical ones (`natural`'s inverse); an error names `init.<name>`.
+    pub fn raw(&self, values: &[f64]) -> Result<Vec<f64>> {
+        for (info, &v) in self.params().iter().zip(values) {
+            if !v.is_finite() {
+                return Err(Error::invalid(
+                    format!("init.{}", info.name),
+                    "must be finite",
+                ));
+            }
+            if info.positive && v <= 0.0 {
+                return Err(Error::invalid(
+                    format!("init.{}", info.name),
+                    format!("must be > 0, got {v}"),
+                ));
+            }
+        }
+        match self {
+            Template::Urdf(u) => u.raw(values),
+            _ => Ok(self
+                .params()
+                .iter()
+                .zip(values)
+                .map(|(info, &v)| if info.positive { v.ln() } else { v })
+                .collect()),
         }
     }
 
@@ -183,6 +308,7 @@ impl Template {
     pub fn periodic(&self) -> Vec<bool> {
         match self {
             Template::Formula(f) => f.doc.periodic.clone(),
+            Template::Urdf(u) => u.periodic(),
             _ => vec![],
         }
     }
@@ -192,9 +318,9 @@ impl Template {
     }
 
     /// A template by name, or an error (field "template") listing the known ones.
-    pub fn parse(name: &str) -> crate::error::Result<Self> {
+    pub fn parse(name: &str) -> Result<Self> {
         Self::from_name(name).ok_or_else(|| {
-            crate::error::Error::invalid(
+            Error::invalid(
                 "template",
                 format!(
                     "unknown template '{name}'; expected one of {}",
@@ -204,12 +330,31 @@ impl Template {
         })
     }
 
+    /// The coordinates' names (a built-in's are q1, q2, …).
+    pub fn coordinates(&self) -> Vec<String> {
+        match self {
+            Template::Formula(f) => f.doc.coordinates.clone(),
+            Template::Urdf(u) => u.coordinates(),
+            _ => (1..=self.n()).map(|i| format!("q{i}")).collect(),
+        }
+    }
+
+    /// The inputs' names (a built-in's are u1, u2, …).
+    pub fn inputs(&self) -> Vec<String> {
+        match self {
+            Template::Formula(f) => f.doc.inputs.clone(),
+            Template::Urdf(u) => u.inputs(),
+            _ => (1..=self.m()).map(|i| format!("u{i}")).collect(),
+        }
+    }
+
     /// Number of generalized coordinates.
     pub fn n(&self) -> usize {
         match self {
             Template::DoublePendulum | Template::Cartpole => 2,
             Template::Pendulum => 1,
             Template::Formula(f) => f.n(),
+            Template::Urdf(u) => u.n(),
         }
     }
 
@@ -219,6 +364,7 @@ impl Template {
             Template::DoublePendulum => 2,
             Template::Pendulum | Template::Cartpole => 1,
             Template::Formula(f) => f.m(),
+            Template::Urdf(u) => u.m(),
         }
     }
 
@@ -228,16 +374,17 @@ impl Template {
             Template::Pendulum => PENDULUM,
             Template::Cartpole => CARTPOLE,
             Template::Formula(f) => f.params(),
+            Template::Urdf(u) => u.params(),
         }
     }
 
-    /// The identifiable combinations graybox reports (none known for formula templates).
+    /// The identifiable combinations graybox reports (none known for a user's template).
     pub fn combinations(&self) -> &'static [Combination] {
         match self {
             Template::DoublePendulum => DOUBLE_PENDULUM_COMBOS,
             Template::Pendulum => PENDULUM_COMBOS,
             Template::Cartpole => CARTPOLE_COMBOS,
-            Template::Formula(_) => &[],
+            Template::Formula(_) | Template::Urdf(_) => &[],
         }
     }
 
@@ -253,6 +400,7 @@ impl Template {
     pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
         match self {
             Template::Formula(f) => f.mass(p, q),
+            Template::Urdf(u) => u.mass(p, q),
             Template::DoublePendulum => {
                 let (m1, m2, l1, l2) = (&p[0], &p[1], &p[2], &p[3]);
                 let i1 = (m1.clone() * l1.square()).scale(1.0 / 3.0);
@@ -282,6 +430,7 @@ impl Template {
     pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
         match self {
             Template::Formula(f) => f.potential(p, q),
+            Template::Urdf(u) => u.potential(p, q),
             Template::DoublePendulum => {
                 let (m1, m2, l1, l2, g) = (&p[0], &p[1], &p[2], &p[3], &p[4]);
                 let c1 = q[0].cos();
@@ -306,6 +455,7 @@ impl Template {
     pub fn forces<S: Scalar>(&self, p: &[S], q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
         match self {
             Template::Formula(f) => f.forces(p, q, qd, u),
+            Template::Urdf(t) => t.forces(p, q, qd, u),
             Template::DoublePendulum => {
                 let (b1, b2, e1, e2) = (&p[5], &p[6], &p[7], &p[8]);
                 vec![

@@ -440,6 +440,13 @@ impl Trainer {
             },
             physical_parameters,
             identifiable: ident,
+            identifiability: self
+                .model
+                .config
+                .template()
+                .filter(|_| !self.model.white_box_parts().is_empty())
+                .and_then(|t| t.identifiability_note())
+                .map(str::to_string),
             history: self.history.clone(),
             warnings: self.warnings(),
         }

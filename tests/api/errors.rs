@@ -479,6 +479,27 @@ async fn bad_input_table() {
             None,
         ),
         case(
+            "URDF of an unknown model",
+            "GET",
+            "/v1/models/mdl_nope/urdf",
+            None,
+            404,
+            "not_found",
+            None,
+        ),
+        Case {
+            raw: Some(("application/xml", "<robot name='x'><link name='a'>".into())),
+            ..case(
+                "malformed URDF template",
+                "POST",
+                "/v1/templates",
+                None,
+                422,
+                "unprocessable",
+                Some("urdf"),
+            )
+        },
+        case(
             "cancel unknown job",
             "POST",
             "/v1/jobs/job_nope/cancel",

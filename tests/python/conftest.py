@@ -59,17 +59,23 @@ class Rest:
         self.token = token
         self.context = context
 
-    def request(self, method: str, path: str, body=None, raw: bytes | None = None):
+    def request(self, method: str, path: str, body=None, raw: bytes | None = None,
+                headers: dict | None = None, text: bool = False):
+        """(status, body): JSON, or the body's text with `text` (errors are JSON always)."""
         data = raw if raw is not None else (None if body is None else json.dumps(body).encode())
-        headers = {"content-type": "application/json"}
+        headers = {"content-type": "application/json", **(headers or {})}
         if self.token is not None:
             headers["authorization"] = f"Bearer {self.token}"
         req = urllib.request.Request(self.base + path, data=data, method=method, headers=headers)
         try:
             with urllib.request.urlopen(req, timeout=60, context=self.context) as r:
-                return r.status, json.loads(r.read() or b"null")
+                answer = r.read()
+                return r.status, answer.decode() if text else json.loads(answer or b"null")
         except urllib.error.HTTPError as e:
             return e.code, json.loads(e.read() or b"null")
+
+    def get_text(self, path: str):
+        return self.request("GET", path, text=True)
 
     def get(self, path: str):
         return self.request("GET", path)

@@ -138,7 +138,7 @@ BAD = [
     # Malformed JSON: the field being read when the text ended, and where.
     (b'{"kind": "formula", "name": ', "name", "EOF while parsing a value at line 1 column 28"),
     (b'{"kind": "formula", "name" "x"}', "template", "line 1 column 28"),
-    (with_(["kind"], "urdf"), "kind", "formula"),
+    (with_(["kind"], "mechanism"), "kind", "\"formula\", \"urdf\""),
     (with_(["potential"], "-mp*g*L*cos(theta)"), "potential", "(at offset 6)"),
     (with_(["mass", 1, 1], "mp*l^2 + theta_dot"), "mass[1][1]", "a velocity 'theta_dot' at offset 9"),
     (with_(["mass", 1, 0], "mp*l*sin(theta)"), "mass[1][0]", "symmetric"),

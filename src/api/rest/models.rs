@@ -14,6 +14,7 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/models", get(list).post(upload))
         .route("/v1/models/{id}", get(read).delete(remove))
         .route("/v1/models/{id}/checkpoint", get(checkpoint))
+        .route("/v1/models/{id}/urdf", get(urdf))
 }
 
 /// A model file (`.gbx`, the format `checkpoint` returns) stored as it is: 201, or 200 with
@@ -64,6 +65,19 @@ async fn checkpoint(
             (header::CONTENT_DISPOSITION, disposition),
         ],
         file,
+    ))
+}
+
+/// The identified robot as URDF (409 when the model's template is not a URDF robot).
+async fn urdf(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<impl IntoResponse> {
+    let text = s.app.model_urdf(&id).await?;
+    let disposition = format!("attachment; filename=\"{id}.urdf\"");
+    Ok((
+        [
+            (header::CONTENT_TYPE, "application/xml".to_string()),
+            (header::CONTENT_DISPOSITION, disposition),
+        ],
+        text,
     ))
 }
 

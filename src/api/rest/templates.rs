@@ -2,7 +2,7 @@ use axum::Router;
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
 use axum::extract::{Path, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::IntoResponse;
 use axum::routing::get;
 
@@ -15,14 +15,20 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/templates/{id}", get(read).delete(remove))
 }
 
-/// A template document: 201, or 200 with the stored template when the same document was
+/// A template document (JSON, or a raw URDF as XML): 201, or 200 with the stored template when the same document was
 /// uploaded before.
 async fn upload(
     State(s): State<RestState>,
+    headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> ApiResult<impl IntoResponse> {
     let bytes = body_bytes(body, s.app.settings.max_body_bytes())?;
-    let (template, created) = s.app.upload_template(&bytes).await?;
+    // A raw URDF is XML (application/xml, text/xml, or a +xml type).
+    let xml = headers
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.split(';').next().unwrap_or("").trim().ends_with("xml"));
+    let (template, created) = s.app.upload_template(&bytes, xml).await?;
     let status = if created {
         StatusCode::CREATED
     } else {

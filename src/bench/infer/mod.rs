@@ -15,6 +15,7 @@ use crate::model::templates::Template;
 use crate::sim::{SimConfig, simulate};
 
 mod grpc;
+mod model;
 mod plan;
 
 #[derive(Args, Debug)]
@@ -31,6 +32,10 @@ pub struct BenchInferArgs {
     /// Skip the gRPC figures (evaluator only).
     #[arg(long)]
     pub in_process_only: bool,
+    /// Instead, Predict, Linearize and Plan of this model file (any n, m; e.g. a URDF
+    /// robot's from `graybox model --template arm.urdf`), in process.
+    #[arg(long)]
+    pub model: Option<std::path::PathBuf>,
 }
 
 /// Latency percentiles of a set of samples, in microseconds.
@@ -103,6 +108,9 @@ fn weights() -> (Mat, Mat, Mat) {
 }
 
 pub fn run(a: BenchInferArgs) -> Result<()> {
+    if let Some(path) = &a.model {
+        return model::figures(path, a.calls);
+    }
     let t = Template::DoublePendulum;
     let data = simulate(
         &t,

@@ -6,7 +6,7 @@ use serde_json::json;
 use super::{summary, time_calls};
 use crate::api::grpc::pb::{self, dynamics_client::DynamicsClient};
 use crate::control::linalg::Mat;
-use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, PlanRequest, plan};
+use crate::control::plan::{PlanRequest, plan};
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::model::file::ModelFile;
@@ -25,21 +25,16 @@ pub(super) fn true_double_pendulum() -> ModelFile {
 const Q: [f64; 4] = [1.0, 1.0, 0.1, 0.1];
 
 fn swing_up(horizon: usize) -> PlanRequest {
+    let weights = [
+        Mat::diag(&Q),
+        Mat::diag(&[1e-4; 2]),
+        Mat::diag(&Q.map(|v| 1000.0 * v)),
+    ];
+    let goal = vec![std::f64::consts::PI, 0.0, 0.0, 0.0];
     PlanRequest {
-        x0: vec![0.0; 4],
-        goal: vec![std::f64::consts::PI, 0.0, 0.0, 0.0],
-        horizon,
-        q: Mat::diag(&Q),
-        r: Mat::diag(&[1e-4; 2]),
-        qf: Mat::diag(&Q.map(|v| 1000.0 * v)),
         u_min: Some(vec![-120.0; 2]),
         u_max: Some(vec![120.0; 2]),
-        u_init: None,
-        max_iterations: DEFAULT_MAX_ITERATIONS,
-        tolerance: DEFAULT_TOLERANCE,
-        restarts: 0,
-        seed: 0,
-        time_limit: None,
+        ..PlanRequest::new(vec![0.0; 4], goal, horizon, weights)
     }
 }
 

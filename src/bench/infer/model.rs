@@ -1,0 +1,85 @@
+//! `bench infer --model FILE`: Predict, Linearize and Plan latency of any model file (a URDF
+//! robot's, a formula template's), in process. The double pendulum figures stay the
+//! reference the targets were set against; these say what a bigger model costs.
+
+use std::path::Path;
+
+use serde_json::json;
+
+use super::{summary, time_calls};
+use crate::control::linalg::Mat;
+use crate::control::plan::{PlanRequest, plan};
+use crate::error::Result;
+use crate::infer::Evaluator;
+use crate::model::file::ModelFile;
+use crate::rng::Rng;
+
+/// Plan steps: 1 s at Δt = 0.01.
+const HORIZON: usize = 100;
+
+pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
+    let eval = Evaluator::from_file(&ModelFile::load(path)?)?;
+    let (n, m) = (eval.config.n, eval.config.m);
+    let mut rng = Rng::new(0);
+    let batch = |rows: usize, width: usize, rng: &mut Rng| -> Vec<f64> {
+        (0..rows * width)
+            .map(|_| rng.uniform_in(-1.0, 1.0))
+            .collect()
+    };
+    let (xs, us) = (batch(64, 2 * n, &mut rng), batch(64, m, &mut rng));
+    let (x1, u1) = (&xs[..2 * n], &us[..m]);
+    let few = (calls / 10).max(20);
+    let about = json!({"model": path.display().to_string(), "n": n, "m": m});
+    let with = |extra: serde_json::Value| {
+        let mut v = about.clone();
+        v.as_object_mut()
+            .expect("an object")
+            .extend(extra.as_object().cloned().unwrap_or_default());
+        v
+    };
+    let figures = [
+        summary(
+            "model_predict_1",
+            time_calls(calls, || {
+                std::hint::black_box(eval.predict(x1, u1, false));
+            }),
+            with(json!({})),
+        ),
+        summary(
+            "model_predict_64",
+            time_calls(few, || {
+                std::hint::black_box(eval.predict(&xs, &us, false));
+            }),
+            with(json!({})),
+        ),
+        summary(
+            "model_linearize_1",
+            time_calls(calls, || {
+                std::hint::black_box(eval.linearize_batch(x1, u1));
+            }),
+            with(json!({})),
+        ),
+    ];
+    for f in figures {
+        println!("{f}");
+    }
+    // From rest to every coordinate 0.5 away, inputs free: a reach, not a swing-up.
+    let diag = |pos: f64, vel: f64| {
+        Mat::diag(
+            &(0..2 * n)
+                .map(|i| if i < n { pos } else { vel })
+                .collect::<Vec<_>>(),
+        )
+    };
+    let goal = (0..2 * n).map(|i| if i < n { 0.5 } else { 0.0 }).collect();
+    let weights = [diag(1.0, 0.1), Mat::diag(&vec![1e-4; m]), diag(1e3, 1e2)];
+    let req = PlanRequest::new(vec![0.0; 2 * n], goal, HORIZON, weights);
+    let p = plan(&eval, &req, &|| false)?;
+    let times = time_calls(10, || {
+        std::hint::black_box(plan(&eval, &req, &|| false).expect("plans"));
+    });
+    let extra = json!({"horizon": HORIZON, "iterations": p.iterations,
+                       "converged": p.converged, "goal_error": p.goal_error});
+    println!("{}", summary("model_plan_reach_100", times, with(extra)));
+    Ok(())
+}

@@ -1,0 +1,145 @@
+//! The rigid-body tree's M(q) and V(q) over any scalar: forward kinematics from the joint
+//! values, then M = Σ_bodies Jᵢᵀ 𝕀ᵢ Jᵢ with each body's Jacobian and spatial inertia in its
+//! own frame, and V = −Σ gᵀ(mᵢ pᵢ + Rᵢ hᵢ). Dual numbers give their q-derivatives (the
+//! Coriolis term needs ∂M/∂q), so the same code serves training, inference, linearization.
+
+use super::inertia::BodyInertia;
+use super::term::{
+    C, Mat3, Term, V, Vec3, add, constant_mat, constant_vec, cross, dot, mat_mul, mat_t_vec,
+    mat_vec, scale, sub,
+};
+use super::tree::{JointKind, Tree};
+use crate::model::scalar::Scalar;
+
+/// Each body's frame in the world: rotation, origin, and its joint's axis in world axes.
+struct Poses<S> {
+    rot: Vec<Mat3<S>>,
+    pos: Vec<Vec3<S>>,
+    axis: Vec<Vec3<S>>,
+}
+
+/// R = a aᵀ + cos q (𝟙 − a aᵀ) + sin q [a]×, the rotation by q about the unit axis a.
+fn rotation<S: Scalar>(a: &[f64; 3], q: &S) -> Mat3<S> {
+    let (c, s) = (V(q.cos()), V(q.sin()));
+    let k = [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]];
+    std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let aa = a[i] * a[j];
+            let id = if i == j { 1.0 } else { 0.0 };
+            C(aa) + c.clone() * C(id - aa) + s.clone() * C(k[i][j])
+        })
+    })
+}
+
+fn poses<S: Scalar>(tree: &Tree, q: &[S]) -> Poses<S> {
+    let n = tree.bodies.len();
+    let mut p = Poses {
+        rot: Vec::with_capacity(n),
+        pos: Vec::with_capacity(n),
+        axis: Vec::with_capacity(n),
+    };
+    for (i, b) in tree.bodies.iter().enumerate() {
+        let (joint_rot, joint_pos) = match b.parent {
+            None => (constant_mat(b.rot), constant_vec(b.pos)),
+            Some(k) => (
+                mat_mul(&p.rot[k], &constant_mat(b.rot)),
+                add(&p.pos[k], &mat_vec(&p.rot[k], &constant_vec(b.pos))),
+            ),
+        };
+        let axis = mat_vec(&joint_rot, &constant_vec(b.axis));
+        let (rot, pos) = match b.kind {
+            JointKind::Prismatic => {
+                let slide = scale(&axis, &V(q[i].clone()));
+                (joint_rot, add(&joint_pos, &slide))
+            }
+            JointKind::Revolute | JointKind::Continuous => {
+                (mat_mul(&joint_rot, &rotation(&b.axis, &q[i])), joint_pos)
+            }
+        };
+        p.rot.push(rot);
+        p.pos.push(pos);
+        p.axis.push(axis);
+    }
+    p
+}
+
+/// The bodies from `i` to the root: the joints whose motion moves body i.
+fn chain(tree: &Tree, i: usize) -> Vec<usize> {
+    let mut out = vec![i];
+    while let Some(k) = tree.bodies[*out.last().expect("non-empty")].parent {
+        out.push(k);
+    }
+    out
+}
+
+/// M(q), n×n.
+pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[BodyInertia<S>], q: &[S]) -> Vec<Vec<S>> {
+    let n = tree.bodies.len();
+    let p = poses(tree, q);
+    let mut m: Vec<Vec<Term<S>>> = vec![vec![C(0.0); n]; n];
+    for (i, body) in inertia.iter().enumerate() {
+        let joints = chain(tree, i);
+        // Body i's velocity per unit q̇_j, in its own frame: (v of its origin, ω).
+        let columns: Vec<(usize, Vec3<S>, Option<Vec3<S>>)> = joints
+            .iter()
+            .map(|&j| {
+                let z = &p.axis[j];
+                let (v, w) = match tree.bodies[j].kind {
+                    JointKind::Prismatic => (z.clone(), None),
+                    _ => (cross(z, &sub(&p.pos[i], &p.pos[j])), Some(z.clone())),
+                };
+                (
+                    j,
+                    mat_t_vec(&p.rot[i], &v),
+                    w.map(|w| mat_t_vec(&p.rot[i], &w)),
+                )
+            })
+            .collect();
+        for (a, (j, vj, wj)) in columns.iter().enumerate() {
+            for (k, vk, wk) in &columns[a..] {
+                // m vⱼ·vₖ + vⱼ·(ωₖ × h) + vₖ·(ωⱼ × h) + ωⱼᵀ Ī ωₖ
+                let mut e = body.mass.clone() * dot(vj, vk);
+                if let Some(wk) = wk {
+                    e = e + dot(vj, &cross(wk, &body.h));
+                }
+                if let Some(wj) = wj {
+                    e = e + dot(vk, &cross(wj, &body.h));
+                    if let Some(wk) = wk {
+                        e = e + dot(wj, &mat_vec(&body.inertia, wk));
+                    }
+                }
+                let (r, c) = ((*j).min(*k), (*j).max(*k));
+                m[r][c] = m[r][c].clone() + e;
+            }
+        }
+    }
+    let like = &q[0];
+    (0..n)
+        .map(|r| {
+            (0..n)
+                .map(|c| m[r.min(c)][r.max(c)].clone().value(like))
+                .collect()
+        })
+        .collect()
+}
+
+/// V(q) = −Σ gᵀ(mᵢ pᵢ + Rᵢ hᵢ).
+pub fn potential<S: Scalar>(
+    tree: &Tree,
+    inertia: &[BodyInertia<S>],
+    gravity: &[f64; 3],
+    q: &[S],
+) -> S {
+    let p = poses(tree, q);
+    let g = constant_vec::<S>(*gravity);
+    let v = inertia
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let moment = add(&scale(&p.pos[i], &b.mass), &mat_vec(&p.rot[i], &b.h));
+            -dot(&g, &moment)
+        })
+        .reduce(|a, b| a + b)
+        .expect("a tree has a body");
+    v.value(&q[0])
+}

@@ -1,0 +1,399 @@
+//! A URDF template (design.md §9): the robot's rigid-body M(q) and V(q) with each body's ten
+//! inertial parameters, and joint forces F = S u − d∘q̇ − f∘tanh(q̇/ε).
+//!
+//! Three forms of the same values:
+//! - physical (what `init`, `--set`, reports and the export use, `params()` order): per body
+//!   `<link>.mass`, `.com_x|y|z`, `.ixx|ixy|ixz|iyy|iyz|izz` (about the centre of mass,
+//!   link-frame axes); per joint `<joint>.damping`, `.friction`. The template's equations
+//!   take these.
+//! - raw (what the optimiser moves): per body θ of the log-Cholesky pseudo-inertia
+//!   (`inertia.rs`), ordered so that raw index k feeds physical index k's part (α ↔ mass,
+//!   t ↔ centre of mass, the factor's d and s ↔ the six moments); per joint d and f as they
+//!   are. Every raw vector is a physical body.
+
+use std::borrow::Cow;
+
+use serde::{Deserialize, Serialize};
+
+use super::inertia::{BodyInertia, Inertial};
+use super::rigid;
+use super::term::{C, Term, V};
+use super::tree::{JointKind, Tree};
+use crate::error::{Error, Result};
+use crate::model::scalar::Scalar;
+use crate::model::templates::{ParamInfo, Part};
+
+/// The template document (kept whole: a model file embeds it, and the export rewrites its
+/// URDF text).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UrdfDoc {
+    pub kind: String,
+    /// The robot's name when absent.
+    #[serde(default)]
+    pub name: String,
+    /// The URDF document.
+    pub urdf: String,
+    /// In the root link's frame, m/s².
+    #[serde(default = "default_gravity")]
+    pub gravity: [f64; 3],
+    /// The joints with an input, in coordinate order; absent: every movable joint.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actuated: Option<Vec<String>>,
+    /// Joints that are angles besides the `continuous` ones.
+    #[serde(default)]
+    pub periodic: Vec<String>,
+}
+
+fn default_gravity() -> [f64; 3] {
+    [0.0, 0.0, -9.81]
+}
+
+pub const KIND: &str = "urdf";
+
+/// ε of the Coulomb term tanh(q̇/ε): 0.01 rad/s or m/s, a smooth sign that is within 1% of
+/// ±1 beyond 0.03.
+pub const COULOMB_EPS: f64 = 0.01;
+
+/// Parameters per body and per joint.
+pub const PER_BODY: usize = 10;
+const PER_JOINT: usize = 2;
+
+const BODY_FIELDS: [&str; PER_BODY] = [
+    "mass", "com_x", "com_y", "com_z", "ixx", "ixy", "ixz", "iyy", "iyz", "izz",
+];
+
+/// What an identification can and cannot tell, said wherever a URDF model's values are shown.
+pub const IDENTIFIABILITY: &str = "motion data determines only combinations of the inertial \
+    parameters (the base parameters of the robot's regressor): values that move along an \
+    unidentifiable direction fit the data equally well, so read the masses, centres of mass \
+    and inertias as one consistent, physically realisable solution, not as measurements";
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct UrdfTemplate {
+    pub doc: UrdfDoc,
+    pub tree: Tree,
+    params: Vec<ParamInfo>,
+    /// The coordinate each input drives.
+    actuated: Vec<usize>,
+    periodic: Vec<bool>,
+}
+
+fn bad(field: &str, message: impl Into<String>) -> Error {
+    Error::Unprocessable {
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+impl UrdfTemplate {
+    /// A raw URDF document with every default.
+    pub fn from_urdf(urdf: &str) -> Result<Self> {
+        Self::from_doc(UrdfDoc {
+            kind: KIND.into(),
+            name: String::new(),
+            urdf: urdf.into(),
+            gravity: default_gravity(),
+            actuated: None,
+            periodic: vec![],
+        })
+    }
+
+    /// Checks a document and fills in its defaults (the name), so that the stored form is
+    /// canonical.
+    pub fn from_doc(mut doc: UrdfDoc) -> Result<Self> {
+        if doc.kind != KIND {
+            return Err(bad(
+                "kind",
+                format!("expected \"{KIND}\", got \"{}\"", doc.kind),
+            ));
+        }
+        if doc.gravity.iter().any(|g| !g.is_finite()) {
+            return Err(bad("gravity", "must be three finite numbers"));
+        }
+        let tree = Tree::parse(&doc.urdf)?;
+        if doc.name.trim().is_empty() {
+            doc.name = tree.robot.clone();
+        }
+        if doc.name.trim().is_empty() {
+            return Err(bad(
+                "name",
+                "must not be empty (the URDF's robot has no name)",
+            ));
+        }
+        let index = |field: &str, joint: &str| -> Result<usize> {
+            tree.bodies
+                .iter()
+                .position(|b| b.joint == joint)
+                .ok_or_else(|| {
+                    let known: Vec<&str> = tree.bodies.iter().map(|b| b.joint.as_str()).collect();
+                    bad(
+                        field,
+                        format!(
+                            "'{joint}' is not a movable joint of the robot; its joints are {}",
+                            known.join(", ")
+                        ),
+                    )
+                })
+        };
+        let actuated = match &doc.actuated {
+            None => (0..tree.bodies.len()).collect(),
+            Some(names) => {
+                let mut idx = names
+                    .iter()
+                    .map(|j| index("actuated", j))
+                    .collect::<Result<Vec<_>>>()?;
+                idx.sort_unstable();
+                if idx.windows(2).any(|w| w[0] == w[1]) {
+                    return Err(bad("actuated", "names a joint twice"));
+                }
+                if idx.is_empty() {
+                    return Err(bad("actuated", "must name at least one joint"));
+                }
+                idx
+            }
+        };
+        // Canonical: in coordinate order.
+        if doc.actuated.is_some() {
+            doc.actuated = Some(
+                actuated
+                    .iter()
+                    .map(|&i| tree.bodies[i].joint.clone())
+                    .collect(),
+            );
+        }
+        let mut periodic: Vec<bool> = tree
+            .bodies
+            .iter()
+            .map(|b| b.kind == JointKind::Continuous)
+            .collect();
+        for j in &doc.periodic {
+            let i = index("periodic", j)?;
+            if tree.bodies[i].kind == JointKind::Prismatic {
+                return Err(bad(
+                    "periodic",
+                    format!("joint '{j}' is prismatic: a length is not an angle"),
+                ));
+            }
+            periodic[i] = true;
+        }
+        let params = params_of(&tree);
+        Ok(Self {
+            doc,
+            tree,
+            params,
+            actuated,
+            periodic,
+        })
+    }
+
+    pub fn n(&self) -> usize {
+        self.tree.bodies.len()
+    }
+
+    pub fn m(&self) -> usize {
+        self.actuated.len()
+    }
+
+    pub fn params(&self) -> &[ParamInfo] {
+        &self.params
+    }
+
+    pub fn periodic(&self) -> Vec<bool> {
+        self.periodic.clone()
+    }
+
+    pub fn coordinates(&self) -> Vec<String> {
+        self.tree.bodies.iter().map(|b| b.joint.clone()).collect()
+    }
+
+    pub fn inputs(&self) -> Vec<String> {
+        self.actuated
+            .iter()
+            .map(|&i| self.tree.bodies[i].joint.clone())
+            .collect()
+    }
+
+    /// Physical values from raw ones (any scalar; Burn tensors in training).
+    pub fn natural<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
+        let mut out = Vec::with_capacity(raw.len());
+        for b in 0..self.n() {
+            out.extend(physical_of_theta(&raw[b * PER_BODY..(b + 1) * PER_BODY]));
+        }
+        out.extend_from_slice(&raw[self.n() * PER_BODY..]);
+        out
+    }
+
+    /// Raw values from physical ones; an error (field `init.<link>.<…>`) names a body that is
+    /// not physically realisable. A body that is only just not (a point mass, a thin rod) is
+    /// regularised as the URDF's own values are.
+    pub fn raw(&self, physical: &[f64]) -> Result<Vec<f64>> {
+        let mut out = Vec::with_capacity(physical.len());
+        for (b, body) in self.tree.bodies.iter().enumerate() {
+            let v = &physical[b * PER_BODY..(b + 1) * PER_BODY];
+            let theta = inertial_of(v).regularised().theta().map_err(|e| {
+                let why = match e {
+                    Error::Invalid { message, .. } => message,
+                    other => other.to_string(),
+                };
+                Error::invalid(
+                    format!("init.{}", body.link),
+                    format!("link '{}': <inertial> {why}", body.link),
+                )
+            })?;
+            out.extend(raw_order(&theta));
+        }
+        out.extend_from_slice(&physical[self.n() * PER_BODY..]);
+        Ok(out)
+    }
+
+    fn bodies<S: Scalar>(&self, p: &[S]) -> Vec<BodyInertia<S>> {
+        (0..self.n())
+            .map(|b| body_of_physical(&p[b * PER_BODY..(b + 1) * PER_BODY]))
+            .collect()
+    }
+
+    pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
+        rigid::mass_matrix(&self.tree, &self.bodies(p), q)
+    }
+
+    pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
+        rigid::potential(&self.tree, &self.bodies(p), &self.doc.gravity, q)
+    }
+
+    /// F = S u − d∘q̇ − f∘tanh(q̇/ε).
+    pub fn forces<S: Scalar>(&self, p: &[S], _q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        let joint = |i: usize| self.n() * PER_BODY + PER_JOINT * i;
+        (0..self.n())
+            .map(|i| {
+                let d = &p[joint(i)];
+                let f = &p[joint(i) + 1];
+                let mut out = -(d.clone() * qd[i].clone())
+                    - f.clone() * qd[i].scale(1.0 / COULOMB_EPS).tanh();
+                if let Some(a) = self.actuated.iter().position(|&k| k == i) {
+                    out = out + u[a].clone();
+                }
+                out
+            })
+            .collect()
+    }
+
+    /// The physical values as URDF elements per link and joint (for the export).
+    pub fn link_inertial(&self, physical: &[f64], body: usize) -> Inertial {
+        inertial_of(&physical[body * PER_BODY..(body + 1) * PER_BODY])
+    }
+
+    pub fn joint_dynamics(&self, physical: &[f64], body: usize) -> (f64, f64) {
+        let k = self.n() * PER_BODY + PER_JOINT * body;
+        (physical[k], physical[k + 1])
+    }
+}
+
+fn params_of(tree: &Tree) -> Vec<ParamInfo> {
+    use Part::{Forces, Mass, Potential};
+    const MV: &[Part] = &[Mass, Potential];
+    const M: &[Part] = &[Mass];
+    const F: &[Part] = &[Forces];
+    let mut out = vec![];
+    for b in &tree.bodies {
+        let i = &b.inertial;
+        let c = i.com();
+        let ic = i.inertia_at_com();
+        let values = [
+            i.mass, c[0], c[1], c[2], ic[0][0], ic[0][1], ic[0][2], ic[1][1], ic[1][2], ic[2][2],
+        ];
+        for (k, (field, v)) in BODY_FIELDS.iter().zip(values).enumerate() {
+            out.push(ParamInfo {
+                name: Cow::Owned(format!("{}.{field}", b.link)),
+                default: v,
+                positive: k == 0,
+                used_by: Cow::Borrowed(if k < 4 { MV } else { M }),
+            });
+        }
+    }
+    for b in &tree.bodies {
+        for (field, v) in [("damping", b.damping), ("friction", b.friction)] {
+            out.push(ParamInfo {
+                name: Cow::Owned(format!("{}.{field}", b.joint)),
+                default: v,
+                positive: false,
+                used_by: Cow::Borrowed(F),
+            });
+        }
+    }
+    out
+}
+
+/// (m, c, Ī_c) as a body.
+fn inertial_of(v: &[f64]) -> Inertial {
+    let ic = [[v[4], v[5], v[6]], [v[5], v[7], v[8]], [v[6], v[8], v[9]]];
+    Inertial::from_com(v[0], [v[1], v[2], v[3]], ic)
+}
+
+/// θ = (α, d₁, d₂, d₃, s₁₂, s₁₃, s₂₃, t₁, t₂, t₃) → the raw order
+/// (α, t₁, t₂, t₃, d₁, s₁₂, s₁₃, d₂, s₂₃, d₃).
+fn raw_order(t: &[f64; 10]) -> [f64; 10] {
+    [t[0], t[7], t[8], t[9], t[1], t[4], t[5], t[2], t[6], t[3]]
+}
+
+/// One body's physical values from its raw ones: m = e^{2α}, c = t, and with the factor
+/// R = [[e^d₁, s₁₂, s₁₃], [0, e^d₂, s₂₃], [0, 0, e^d₃]] the second moment about the centre of
+/// mass Σ_c = m R Rᵀ, so Ī_c = tr(Σ_c) 𝟙 − Σ_c (inertia.rs: J = U Uᵀ).
+fn physical_of_theta<S: Scalar>(r: &[S]) -> [S; PER_BODY] {
+    let [a, t1, t2, t3, d1, s12, s13, d2, s23, d3] =
+        std::array::from_fn::<_, 10, _>(|k| r[k].clone());
+    let m = (a.clone() + a).exp();
+    let rows: [[Term<S>; 3]; 3] = [
+        [V(d1.exp()), V(s12), V(s13)],
+        [C(0.0), V(d2.exp()), V(s23)],
+        [C(0.0), C(0.0), V(d3.exp())],
+    ];
+    let dot = |x: &[Term<S>; 3], y: &[Term<S>; 3]| {
+        (x[0].clone() * y[0].clone())
+            + (x[1].clone() * y[1].clone())
+            + (x[2].clone() * y[2].clone())
+    };
+    let like = &m;
+    let sigma = |i: usize, j: usize| m.clone() * dot(&rows[i], &rows[j]).value(like);
+    let (s00, s11, s22) = (sigma(0, 0), sigma(1, 1), sigma(2, 2));
+    let tr = s00.clone() + s11.clone() + s22.clone();
+    [
+        m.clone(),
+        t1,
+        t2,
+        t3,
+        tr.clone() - s00,
+        -sigma(0, 1),
+        -sigma(0, 2),
+        tr.clone() - s11,
+        -sigma(1, 2),
+        tr - s22,
+    ]
+}
+
+/// A body in the form the rigid-body terms take: h = m c, Ī_o = Ī_c + m(|c|² 𝟙 − c cᵀ).
+fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
+    let m = v[0].clone();
+    let c = [v[1].clone(), v[2].clone(), v[3].clone()];
+    let ic = [
+        [&v[4], &v[5], &v[6]],
+        [&v[5], &v[7], &v[8]],
+        [&v[6], &v[8], &v[9]],
+    ];
+    let c2 = c[0].square() + c[1].square() + c[2].square();
+    let inertia = std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let shift = if i == j {
+                c2.clone() - c[i].square()
+            } else {
+                -(c[i].clone() * c[j].clone())
+            };
+            V(ic[i][j].clone() + m.clone() * shift)
+        })
+    });
+    BodyInertia {
+        h: c.clone().map(|ci| V(m.clone() * ci)),
+        mass: V(m),
+        inertia,
+    }
+}

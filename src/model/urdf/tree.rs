@@ -1,0 +1,308 @@
+//! A URDF robot as the kinematic tree the dynamics needs: one body per movable joint (the
+//! joint's child link with every link fixed to it folded in), in depth-first order from the
+//! root with children in document order; those bodies' joints are the coordinates.
+
+use std::collections::HashMap;
+
+use super::inertia::Inertial;
+use crate::error::{Error, Result};
+
+pub type Rot = [[f64; 3]; 3];
+
+/// How a joint moves its body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum JointKind {
+    Revolute,
+    /// A revolute joint without limits: periodic by default.
+    Continuous,
+    Prismatic,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Body {
+    /// The movable joint (the coordinate's name).
+    pub joint: String,
+    pub kind: JointKind,
+    /// The link it moves (the parameters' name; fixed children are folded into it).
+    pub link: String,
+    /// The body this one hangs from (None: the fixed base).
+    pub parent: Option<usize>,
+    /// The joint frame in the parent body's frame (fixed joints on the way folded in).
+    pub rot: Rot,
+    pub pos: [f64; 3],
+    /// The joint axis (unit) in the joint frame, which is this body's frame.
+    pub axis: [f64; 3],
+    /// Everything the joint moves rigidly, in this body's frame.
+    pub inertial: Inertial,
+    /// The link's own part of `inertial` (without the links fixed to it), as the export
+    /// writes it back.
+    pub own: Inertial,
+    /// URDF `<dynamics damping friction>` (0 when absent).
+    pub damping: f64,
+    pub friction: f64,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Tree {
+    pub robot: String,
+    pub bodies: Vec<Body>,
+}
+
+fn bad(message: impl Into<String>) -> Error {
+    Error::Unprocessable {
+        field: "urdf".into(),
+        message: message.into(),
+    }
+}
+
+/// R = Rz(yaw) Ry(pitch) Rx(roll), URDF's fixed-axis roll-pitch-yaw.
+pub fn rpy(r: [f64; 3]) -> Rot {
+    let (sr, cr) = r[0].sin_cos();
+    let (sp, cp) = r[1].sin_cos();
+    let (sy, cy) = r[2].sin_cos();
+    [
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ]
+}
+
+fn mul(a: &Rot, b: &Rot) -> Rot {
+    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
+}
+
+fn apply(a: &Rot, v: &[f64; 3]) -> [f64; 3] {
+    std::array::from_fn(|i| (0..3).map(|k| a[i][k] * v[k]).sum())
+}
+
+/// A rigid transform (rotation, translation): x ↦ R x + p.
+#[derive(Clone, Copy)]
+struct Frame {
+    rot: Rot,
+    pos: [f64; 3],
+}
+
+impl Frame {
+    const IDENTITY: Frame = Frame {
+        rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        pos: [0.0; 3],
+    };
+
+    fn of(pose: &urdf_rs::Pose) -> Frame {
+        Frame {
+            rot: rpy(pose.rpy.0),
+            pos: pose.xyz.0,
+        }
+    }
+
+    fn then(&self, o: &Frame) -> Frame {
+        let p = apply(&self.rot, &o.pos);
+        Frame {
+            rot: mul(&self.rot, &o.rot),
+            pos: std::array::from_fn(|i| self.pos[i] + p[i]),
+        }
+    }
+}
+
+/// A link's own inertial parameters in its frame; an error naming it when they are not a
+/// physical body (a nearly singular one, a point mass or a thin rod, is regularised:
+/// `Inertial::regularised`).
+fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
+    let i = &link.inertial;
+    let m = i.mass.value;
+    let t = &i.inertia;
+    let values = [m, t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz];
+    if values.iter().any(|v| !v.is_finite()) || m < 0.0 {
+        return Err(bad(format!(
+            "link '{}': <inertial> needs finite values and a mass ≥ 0",
+            link.name
+        )));
+    }
+    let at_com = [
+        [t.ixx, t.ixy, t.ixz],
+        [t.ixy, t.iyy, t.iyz],
+        [t.ixz, t.iyz, t.izz],
+    ];
+    let frame = Frame::of(&i.origin);
+    let r = frame.rot;
+    // The inertia about the centre of mass, turned from the <inertial> frame to the link's.
+    let rotated: Rot = std::array::from_fn(|a| {
+        std::array::from_fn(|b| {
+            (0..3)
+                .flat_map(|k| (0..3).map(move |l| (k, l)))
+                .map(|(k, l)| r[a][k] * at_com[k][l] * r[b][l])
+                .sum()
+        })
+    });
+    let body = Inertial::from_com(m, frame.pos, rotated).regularised();
+    body.theta().map_err(|e| {
+        let why = match e {
+            Error::Invalid { message, .. } => message,
+            other => other.to_string(),
+        };
+        bad(format!("link '{}': <inertial> {why}", link.name))
+    })?;
+    Ok(body)
+}
+
+impl Tree {
+    /// The robot's tree from URDF text; errors (422, field "urdf") name the element.
+    pub fn parse(text: &str) -> Result<Tree> {
+        let robot = urdf_rs::read_from_string(text).map_err(|e| bad(format!("not a URDF: {e}")))?;
+        let mut links: HashMap<&str, &urdf_rs::Link> = HashMap::new();
+        for l in &robot.links {
+            if links.insert(l.name.as_str(), l).is_some() {
+                return Err(bad(format!("link '{}' is defined twice", l.name)));
+            }
+        }
+        let mut parent_of: HashMap<&str, &str> = HashMap::new();
+        let mut joint_names = std::collections::HashSet::new();
+        for j in &robot.joints {
+            if !joint_names.insert(j.name.as_str()) {
+                return Err(bad(format!("joint '{}' is defined twice", j.name)));
+            }
+            use urdf_rs::JointType::*;
+            match j.joint_type {
+                Revolute | Continuous | Prismatic | Fixed => {}
+                ref other => {
+                    return Err(bad(format!(
+                        "joint '{}': type {other:?} is not supported (revolute, continuous, \
+                         prismatic and fixed are)",
+                        j.name
+                    )));
+                }
+            }
+            if j.mimic.is_some() {
+                return Err(bad(format!(
+                    "joint '{}': mimic joints are not supported",
+                    j.name
+                )));
+            }
+            for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
+                if !links.contains_key(link.as_str()) {
+                    return Err(bad(format!(
+                        "joint '{}': its {role} link '{link}' does not exist",
+                        j.name
+                    )));
+                }
+            }
+            if let Some(other) = parent_of.insert(j.child.link.as_str(), j.name.as_str()) {
+                return Err(bad(format!(
+                    "link '{}' is the child of two joints, '{other}' and '{}' (a URDF is a tree)",
+                    j.child.link, j.name
+                )));
+            }
+        }
+        let roots: Vec<&str> = robot
+            .links
+            .iter()
+            .map(|l| l.name.as_str())
+            .filter(|l| !parent_of.contains_key(l))
+            .collect();
+        let root = match roots.as_slice() {
+            [one] => *one,
+            [] => return Err(bad("no root link: the joints form a loop")),
+            many => {
+                return Err(bad(format!(
+                    "more than one root link ({}): a robot is one tree",
+                    many.join(", ")
+                )));
+            }
+        };
+        let mut tree = Tree {
+            robot: robot.name.clone(),
+            bodies: vec![],
+        };
+        let mut visited = 0usize;
+        tree.visit(&robot, &links, root, None, Frame::IDENTITY, &mut visited)?;
+        if visited != robot.links.len() {
+            return Err(bad(
+                "some links are not reachable from the root: the joints form a loop",
+            ));
+        }
+        if tree.bodies.is_empty() {
+            return Err(bad(
+                "the robot has no revolute, continuous or prismatic joint",
+            ));
+        }
+        Ok(tree)
+    }
+
+    /// Depth-first from `link`, which `body` moves with `frame` from that body's frame to the
+    /// link's.
+    fn visit(
+        &mut self,
+        robot: &urdf_rs::Robot,
+        links: &HashMap<&str, &urdf_rs::Link>,
+        link: &str,
+        body: Option<usize>,
+        frame: Frame,
+        visited: &mut usize,
+    ) -> Result<()> {
+        *visited += 1;
+        let own = link_inertial(links[link])?;
+        if let Some(b) = body {
+            let moved = own.transformed(&frame.rot, &frame.pos);
+            let target = &mut self.bodies[b];
+            if target.link == link {
+                target.own = own.clone();
+            }
+            target.inertial = target.inertial.plus(&moved);
+        }
+        for j in robot.joints.iter().filter(|j| j.parent.link == link) {
+            let at = frame.then(&Frame::of(&j.origin));
+            let kind = match j.joint_type {
+                urdf_rs::JointType::Fixed => {
+                    self.visit(robot, links, &j.child.link, body, at, visited)?;
+                    continue;
+                }
+                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+                urdf_rs::JointType::Continuous => JointKind::Continuous,
+                _ => JointKind::Revolute,
+            };
+            let a = j.axis.xyz.0;
+            let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if !(norm.is_finite() && norm > 1e-9) {
+                return Err(bad(format!(
+                    "joint '{}': its axis must not be zero",
+                    j.name
+                )));
+            }
+            let (damping, friction) = j
+                .dynamics
+                .as_ref()
+                .map_or((0.0, 0.0), |d| (d.damping, d.friction));
+            // Identified values may come out slightly negative, and an exported model must
+            // read back: any finite value is taken.
+            if !(damping.is_finite() && friction.is_finite()) {
+                return Err(bad(format!(
+                    "joint '{}': <dynamics> damping and friction must be finite",
+                    j.name
+                )));
+            }
+            self.bodies.push(Body {
+                joint: j.name.clone(),
+                kind,
+                link: j.child.link.clone(),
+                parent: body,
+                rot: at.rot,
+                pos: at.pos,
+                axis: a.map(|v| v / norm),
+                inertial: Inertial::ZERO,
+                own: Inertial::ZERO,
+                damping,
+                friction,
+            });
+            let b = self.bodies.len() - 1;
+            self.visit(
+                robot,
+                links,
+                &j.child.link,
+                Some(b),
+                Frame::IDENTITY,
+                visited,
+            )?;
+        }
+        Ok(())
+    }
+}
