@@ -321,6 +321,30 @@ fn export_writes_identified_values_and_keeps_the_rest() {
     }
 }
 
+/// When training leaves a link with fixed links lighter than those links alone (arm4's hand
+/// identified at a tenth of its nominal mass, below the fixed tool's 0.3 kg), no split of the
+/// body between them is physical: the export gives the hand the whole body and the tool a
+/// massless `<inertial>` with a comment, and the document still reads back to the same model.
+#[test]
+fn export_folds_a_fixed_link_into_its_body_when_no_split_is_physical() {
+    let t = urdf_template("arm4");
+    let mut values = t.defaults();
+    let mass = t.index_of("hand.mass").unwrap();
+    values[mass] *= 0.1;
+    let file = ModelFile::from_template(&t, &values, 0.01, Integrator::Rk4).unwrap();
+    let text = file.urdf().unwrap();
+    assert!(
+        text.contains("<!-- graybox: identified as part of link 'hand' -->"),
+        "{text}"
+    );
+    let tool = &text[text.find("<link name=\"tool\"").unwrap()..];
+    assert!(tool[..tool.find("</link>").unwrap()].contains("<mass value=\"0\"/>"));
+    let back = Template::Urdf(Arc::new(UrdfTemplate::from_urdf(&text).unwrap())).defaults();
+    // The tool's massless link reads back as the regularised empty body (1e-6 kg), which
+    // the hand's written values leave room for: equal to rounding.
+    assert!(err(&back, &values) < 1e-12, "{back:?} vs {values:?}");
+}
+
 /// A model whose template is not a URDF robot has no URDF to export.
 #[test]
 fn only_urdf_models_export_urdf() {

@@ -78,7 +78,8 @@ def simulate(graybox: str, urdf: Path, truth: dict, count: int, seed: int, out: 
     setting = ",".join(f"{k}={v!r}" for k, v in truth.items())
     subprocess.run([graybox, "simulate", "--template", str(urdf), "--count", str(count),
                     "--seed", str(seed), "--q-range", "3.14", "--qdot-range", "3",
-                    "--u-std", U_STD, "--set", setting, "--out", str(out)], check=True)
+                    "--u-std", U_STD, "--set", setting, "--out", str(out)],
+                   check=True, stdout=subprocess.DEVNULL)
 
 
 def zero_acceleration_loss(data: dict) -> float:

@@ -137,10 +137,21 @@ fn inertial_xml(body: &Inertial, indent: &str, step: &str) -> String {
     )
 }
 
+/// An `<inertial>` of no mass: a link whose mass the export gives to the body it is fixed to.
+fn massless_xml(indent: &str, step: &str) -> String {
+    format!(
+        "<inertial>\n{indent}{step}<origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n\
+         {indent}{step}<mass value=\"0\"/>\n\
+         {indent}{step}<inertia ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"/>\n\
+         {indent}</inertial>"
+    )
+}
+
 /// The document with `physical` (the template's parameter order) written in. A link that has
 /// links fixed to it keeps theirs, and its own `<inertial>` becomes the identified whole less
-/// theirs; when that difference is not a physical body the export says so (the identified
-/// values are still the model's: read them from the report).
+/// theirs. When that difference is not a physical body (training moved mass the fixed links
+/// were given), the link takes the whole and the fixed links' `<inertial>` become massless,
+/// each with a comment saying where its mass went: the same model either way.
 pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
     let text = &t.doc.urdf;
     let all = elements(text)?;
@@ -161,24 +172,50 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
             e.depth == p.depth + 1 && e.tag == tag && e.open.0 > p.open.0 && e.open.1 <= close
         })
     };
+    let link_at = |name: &str| {
+        top("link", name).ok_or_else(|| Error::corrupt("urdf", format!("no link '{name}'")))
+    };
+    let step = "  ";
     // (start, end, replacement), applied from the end.
     let mut edits: Vec<(usize, usize, String)> = vec![];
     for (b, body) in t.tree.bodies.iter().enumerate() {
         let identified = t.link_inertial(physical, b);
-        let fixed_children = body.inertial.minus(&body.own);
-        let own = identified.minus(&fixed_children);
+        let mut own = identified.minus(&body.inertial.minus(&body.own));
         if own.theta().is_err() {
-            return Err(Error::FailedPrecondition(format!(
-                "link '{}': the identified body less the links fixed to it is not a physical \
-                 body, so no <inertial> for '{}' alone reproduces the model",
-                body.link, body.link
-            )));
+            // A massless link reads back as the regularised empty body: leave room for it.
+            let empty = Inertial::ZERO.regularised();
+            let massless = body
+                .fixed
+                .iter()
+                .fold(Inertial::ZERO, |sum, (_, rot, pos)| {
+                    sum.plus(&empty.transformed(rot, pos))
+                });
+            own = identified.minus(&massless);
+            if own.theta().is_err() {
+                return Err(Error::FailedPrecondition(format!(
+                    "link '{}': the identified body is not physical once the links fixed to \
+                     it are written massless",
+                    body.link
+                )));
+            }
+            for (name, _, _) in &body.fixed {
+                let link = link_at(name)?;
+                let Some(i) = child(link, "inertial") else {
+                    continue; // no <inertial> reads as massless already
+                };
+                let e = &all[i];
+                let indent = indent_at(text, e.open.0);
+                let note = format!(
+                    "<!-- graybox: identified as part of link '{}' -->\n{indent}",
+                    body.link
+                );
+                let end = e.close.map_or(e.open.1, |c| c.1);
+                edits.push((e.open.0, end, note + &massless_xml(indent, step)));
+            }
         }
-        let link = top("link", &body.link)
-            .ok_or_else(|| Error::corrupt("urdf", format!("no link '{}'", body.link)))?;
+        let link = link_at(&body.link)?;
         let l = &all[link];
         let indent = indent_at(text, l.open.0);
-        let step = "  ";
         let inner = format!("{indent}{step}");
         match (child(link, "inertial"), l.close) {
             (Some(i), _) => {

@@ -37,6 +37,8 @@ pub struct Body {
     /// The link's own part of `inertial` (without the links fixed to it), as the export
     /// writes it back.
     pub own: Inertial,
+    /// The links fixed to it, each with its frame in this body's frame.
+    pub fixed: Vec<(String, Rot, [f64; 3])>,
     /// URDF `<dynamics damping friction>` (0 when absent).
     pub damping: f64,
     pub friction: f64,
@@ -246,6 +248,8 @@ impl Tree {
             let target = &mut self.bodies[b];
             if target.link == link {
                 target.own = own.clone();
+            } else {
+                target.fixed.push((link.to_string(), frame.rot, frame.pos));
             }
             target.inertial = target.inertial.plus(&moved);
         }
@@ -290,6 +294,7 @@ impl Tree {
                 axis: a.map(|v| v / norm),
                 inertial: Inertial::ZERO,
                 own: Inertial::ZERO,
+                fixed: vec![],
                 damping,
                 friction,
             });
