@@ -56,6 +56,13 @@ const ROUTES: &[Route] = &[
         &["id"],
     ),
     Route(
+        "get",
+        "/v1/datasets/{id}/trajectories",
+        "A dataset's trajectories (index, first row, length): the boundaries of a trajectory-form upload, else the chains of rows whose next state is the next row's state exactly",
+        None,
+        &["id", "?page_size", "?page_token"],
+    ),
+    Route(
         "post",
         "/v1/jobs",
         "Submit a training job (Idempotency-Key header supported)",
@@ -92,6 +99,13 @@ const ROUTES: &[Route] = &[
         &["id"],
     ),
     Route(
+        "get",
+        "/v1/events",
+        "Server-sent events of every job: `job` (the job after each change of state, epoch or losses, and each new job), `resync` (fell behind: read the list again)",
+        None,
+        &[],
+    ),
+    Route(
         "post",
         "/v1/models",
         "Upload a model file (.gbx, as /checkpoint returns it); the same file again returns the stored model",
@@ -125,6 +139,13 @@ const ROUTES: &[Route] = &[
         "Download the identified robot as URDF (the template's document with the learned <inertial> and <dynamics>); 409 unless the model's template is a URDF robot",
         None,
         &["id"],
+    ),
+    Route(
+        "get",
+        "/v1/models/{id}/rollout",
+        "Replay trajectory `index` of a dataset with the model: from its first state with its recorded inputs, the recorded and predicted q and q̇ (T + 1 rows each) and their times",
+        None,
+        &["id", "?dataset_id", "?index"],
     ),
     Route("delete", "/v1/models/{id}", "Delete a model", None, &["id"]),
     Route(

@@ -5,6 +5,7 @@ use serde_json::Value;
 use super::App;
 use super::views::Dataset as DatasetView;
 use crate::data::Dataset;
+use crate::data::trajectories;
 use crate::error::{Error, Result};
 
 /// What a POST /v1/datasets body was, with the Δt given beside it (`?dt=`).
@@ -52,10 +53,10 @@ impl App {
     /// Validates and stores a dataset; the same arrays again return the stored one
     /// (`created = false`).
     pub async fn upload_dataset(&self, name: Option<String>, upload: Upload) -> Result<Uploaded> {
-        let (ds, body_name) = match upload {
+        let (ds, body_name, lengths) = match upload {
             Upload::Csv { text, dt } => {
                 let dt = dt.ok_or_else(|| Error::invalid("dt", "a CSV upload needs ?dt="))?;
-                (Dataset::from_csv(&text, dt)?, None)
+                (Dataset::from_csv(&text, dt)?, None, None)
             }
             Upload::Json { value, dt } => {
                 let body_name = match value.get("name") {
@@ -63,14 +64,18 @@ impl App {
                     Some(Value::String(s)) => Some(s.clone()),
                     Some(_) => return Err(Error::invalid("name", "must be a string")),
                 };
-                (Dataset::from_json_value(&value, dt)?, body_name)
+                let ds = Dataset::from_json_value(&value, dt)?;
+                (ds, body_name, trajectories::uploaded_lengths(&value))
             }
         };
         let name = name.or(body_name);
         if let Some(n) = &name {
             check_name(n)?;
         }
-        let (row, created) = self.store.insert_dataset(name.as_deref(), &ds).await?;
+        let (row, created) = self
+            .store
+            .insert_dataset(name.as_deref(), &ds, lengths.as_deref())
+            .await?;
         let dataset: DatasetView = row.into();
         let note = match (&name, &dataset.name) {
             (Some(asked), stored) if !created && stored.as_ref() != Some(asked) => Some(format!(

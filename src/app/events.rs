@@ -8,7 +8,7 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use tokio::sync::watch;
+use tokio::sync::{broadcast, watch};
 
 use super::App;
 use super::views::{Job, Metric};
@@ -30,6 +30,16 @@ pub struct Feeds {
     live: Mutex<HashMap<String, watch::Receiver<Progress>>>,
 }
 
+/// Every job's changes (GET /v1/events): one poller for all subscribers, started by the
+/// first and stopped when the last has gone.
+#[derive(Default)]
+pub struct AllJobs {
+    tx: Mutex<Option<broadcast::Sender<Job>>>,
+}
+
+/// Changes a subscriber may fall behind by before it is told to re-read the list.
+const ALL_JOBS_BACKLOG: usize = 1024;
+
 impl Feeds {
     fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, watch::Receiver<Progress>>> {
         self.live.lock().expect("feeds lock")
@@ -37,6 +47,19 @@ impl Feeds {
 }
 
 impl App {
+    /// A receiver of every job's changes: each job as it is after a change of state, epoch
+    /// or losses, and every job submitted after the call.
+    pub fn follow_all_jobs(&self) -> broadcast::Receiver<Job> {
+        let mut slot = self.all_jobs.tx.lock().expect("all-jobs lock");
+        if let Some(tx) = slot.as_ref() {
+            return tx.subscribe();
+        }
+        let (tx, rx) = broadcast::channel(ALL_JOBS_BACKLOG);
+        *slot = Some(tx.clone());
+        tokio::spawn(poll_all(self.clone(), tx));
+        rx
+    }
+
     /// A receiver of `id`'s progress, joining the job's poller or starting it.
     pub async fn follow_job(&self, id: &str) -> Result<watch::Receiver<Progress>> {
         if let Some(rx) = self
@@ -96,5 +119,51 @@ async fn poll(app: App, id: String, tx: watch::Sender<Progress>) {
         .is_some_and(|rx| rx.same_channel(&tx.subscribe()))
     {
         live.remove(&id);
+    }
+}
+
+/// Reads what changed every `POLL` and sends it; stops when nobody listens (checked under the
+/// lock subscribers take, so none joins a poller that is stopping).
+async fn poll_all(app: App, tx: broadcast::Sender<Job>) {
+    let mut after = app.store.max_job_seq().await.unwrap_or(0);
+    let mut seen: HashMap<String, Job> = HashMap::new();
+    loop {
+        tokio::time::sleep(POLL).await;
+        {
+            let mut slot = app.all_jobs.tx.lock().expect("all-jobs lock");
+            if tx.receiver_count() == 0 {
+                *slot = None;
+                return;
+            }
+        }
+        app.telemetry.job_polls.fetch_add(1, Ordering::Relaxed);
+        let rows = match app.store.watched_jobs(after).await {
+            Ok(rows) => rows,
+            Err(e) => {
+                tracing::debug!(error = %e, "reading jobs for /v1/events failed");
+                continue;
+            }
+        };
+        let mut now: HashMap<String, Job> = HashMap::new();
+        for r in rows {
+            after = after.max(r.seq);
+            let job = Job::from(r);
+            if seen.get(&job.id) != Some(&job) {
+                let _ = tx.send(job.clone());
+            }
+            now.insert(job.id.clone(), job);
+        }
+        // Jobs that were active and are no longer: read their final state.
+        for (id, before) in seen.iter().filter(|(id, _)| !now.contains_key(*id)) {
+            if let Ok(job) = app.job(id).await
+                && job != *before
+            {
+                let _ = tx.send(job);
+            }
+        }
+        seen = now
+            .into_iter()
+            .filter(|(_, j)| !j.state.is_final())
+            .collect();
     }
 }

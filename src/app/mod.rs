@@ -29,6 +29,7 @@ pub struct App {
     pub models: Arc<inference::ModelCache>,
     /// Shared progress pollers of followed jobs.
     pub feeds: Arc<events::Feeds>,
+    pub all_jobs: Arc<events::AllJobs>,
     /// Admission of heavy inference calls (see `Settings::max_heavy_calls`).
     pub heavy: Arc<inference::Heavy>,
     /// Admission of rollout chunks, a share of its own.
@@ -53,6 +54,7 @@ impl App {
             telemetry: Arc::default(),
             models: Arc::default(),
             feeds: Arc::default(),
+            all_jobs: Arc::default(),
             heavy: Arc::new(inference::Heavy::new(settings.max_heavy_calls)),
             streaming: Arc::new(inference::Heavy::streaming(settings.max_heavy_calls)),
             settings: Arc::new(settings),

@@ -3,6 +3,7 @@
 
 mod formats;
 mod sanity;
+pub mod trajectories;
 
 pub use sanity::{ACCEL_RMS_MAX, SPAN_MAX, VELOCITY_MISMATCH_MAX};
 

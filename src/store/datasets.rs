@@ -92,12 +92,15 @@ pub fn sha256(ds: &Dataset, blob: &[u8]) -> String {
 
 impl Store {
     /// Stores a dataset unless the same arrays are already stored; returns the row and whether
-    /// it was created.
+    /// it was created. `trajectories` are the lengths of an upload in trajectory form; the
+    /// same arrays uploaded flat first gain them.
     pub async fn insert_dataset(
         &self,
         name: Option<&str>,
         ds: &Dataset,
+        trajectories: Option<&[usize]>,
     ) -> Result<(DatasetRow, bool)> {
+        let lengths = trajectories.map(|t| serde_json::to_string(t).expect("lengths serialize"));
         let blob = encode(ds);
         let sha = sha256(ds, &blob);
         // Computed before the write lock is taken: the checks read every value.
@@ -108,12 +111,22 @@ impl Store {
             .fetch_optional(&mut *tx)
             .await?;
         if let Some(r) = existing {
+            if lengths.is_some() {
+                sqlx::query(
+                    "UPDATE datasets SET trajectories = ? WHERE sha256 = ? AND trajectories IS NULL",
+                )
+                .bind(&lengths)
+                .bind(&sha)
+                .execute(&mut *tx)
+                .await?;
+            }
             tx.commit().await?;
             return Ok((row(&r)?, false));
         }
         let r = sqlx::query(sql(
-            "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at, warnings)
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+            "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at, warnings,
+                                   trajectories)
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
         ))
         .bind(new_id("ds"))
         .bind(name)
@@ -125,6 +138,7 @@ impl Store {
         .bind(blob)
         .bind(now_rfc3339())
         .bind(warnings)
+        .bind(lengths)
         .fetch_one(&mut *tx)
         .await?;
         tx.commit().await?;
@@ -156,6 +170,24 @@ impl Store {
             count as usize,
         )
         .map(Some)
+    }
+
+    /// The trajectory lengths a dataset was uploaded with: None when there is no such
+    /// dataset, Some(None) when it was uploaded flat.
+    pub async fn dataset_trajectories(&self, id: &str) -> Result<Option<Option<Vec<usize>>>> {
+        let r: Option<Option<String>> =
+            sqlx::query_scalar("SELECT trajectories FROM datasets WHERE id = ?")
+                .bind(id)
+                .fetch_optional(&self.pool)
+                .await?;
+        r.map(|t| {
+            t.map(|text| {
+                serde_json::from_str(&text)
+                    .map_err(|e| Error::corrupt("dataset", format!("trajectories: {e}")))
+            })
+            .transpose()
+        })
+        .transpose()
     }
 
     /// Newest first; `before` is the `seq` of the last row of the previous page.

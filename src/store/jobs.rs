@@ -189,6 +189,26 @@ impl Store {
         rows.iter().map(row).collect()
     }
 
+    /// The newest job's `seq` (0 with none).
+    pub async fn max_job_seq(&self) -> Result<i64> {
+        let seq: Option<i64> = sqlx::query_scalar("SELECT MAX(seq) FROM jobs")
+            .fetch_one(&self.pool)
+            .await?;
+        Ok(seq.unwrap_or(0))
+    }
+
+    /// What a watcher of every job reads each poll: the jobs submitted after `after` and
+    /// every queued or running one.
+    pub async fn watched_jobs(&self, after: i64) -> Result<Vec<JobRow>> {
+        let rows = sqlx::query(sql(
+            "SELECT {COLUMNS} FROM jobs WHERE seq > ?1 OR state IN ('queued', 'running') ORDER BY seq",
+        ))
+        .bind(after)
+        .fetch_all(&self.pool)
+        .await?;
+        rows.iter().map(row).collect()
+    }
+
     /// Queued, or running with an expired lease (its worker died) → cancelled at once; running
     /// → the cancel flag, which the worker sees at its next heartbeat. A finished job is a
     /// conflict.

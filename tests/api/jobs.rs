@@ -142,6 +142,60 @@ async fn events_stream_progress_and_end() {
     app.stop().await;
 }
 
+/// One stream for every job (the dashboard's): both jobs submitted after subscribing appear,
+/// with their epochs as they train, and each reaches its final state on the stream.
+#[tokio::test]
+async fn all_jobs_stream_every_change_on_one_connection() {
+    let app = spawn_app(1).await;
+    let ds = app.upload(&dataset(64, 15)).await;
+    let mut resp = app.client.get(app.url("/v1/events")).send().await.unwrap();
+    let mut ids = vec![];
+    for epochs in [2, 3] {
+        let (_, job) = app.post("/v1/jobs", &job_body(&ds, "W-B", epochs)).await;
+        ids.push(job["id"].as_str().unwrap().to_string());
+    }
+    let mut text = String::new();
+    let mut last: std::collections::HashMap<String, Value> = Default::default();
+    let mut epochs_seen: std::collections::HashMap<String, Vec<i64>> = Default::default();
+    let read = async {
+        while let Some(chunk) = resp.chunk().await.unwrap() {
+            text.push_str(&String::from_utf8_lossy(&chunk));
+            while let Some(end) = text.find("\n\n") {
+                let event: String = text.drain(..end + 2).collect();
+                let Some(data) = event.lines().find_map(|l| l.strip_prefix("data: ")) else {
+                    continue; // keep-alive
+                };
+                assert!(event.contains("event: job"), "{event}");
+                let job: Value = serde_json::from_str(data).unwrap();
+                let id = job["id"].as_str().unwrap().to_string();
+                epochs_seen
+                    .entry(id.clone())
+                    .or_default()
+                    .push(job["epoch"].as_i64().unwrap());
+                last.insert(id, job);
+            }
+            if ids
+                .iter()
+                .all(|id| last.get(id).is_some_and(|j| j["state"] == "succeeded"))
+            {
+                return;
+            }
+        }
+    };
+    tokio::time::timeout(std::time::Duration::from_secs(120), read)
+        .await
+        .expect("both jobs succeed on the stream");
+    for id in &ids {
+        let seen = &epochs_seen[id];
+        assert!(
+            seen.windows(2).all(|w| w[0] <= w[1]),
+            "{id}: epochs {seen:?}"
+        );
+        assert_eq!(last[id]["epoch"], last[id]["epochs"], "{id}");
+    }
+    app.stop().await;
+}
+
 #[tokio::test]
 async fn idempotency_key_returns_the_same_job() {
     let app = spawn_app(0).await;

@@ -7,6 +7,7 @@ mod grpc;
 mod helpers;
 mod hostile;
 mod jobs;
+mod replay;
 
 /// The paper's double pendulum in closed form (shared with the numerics tests).
 #[path = "../common/mod.rs"]

@@ -14,6 +14,7 @@ pub fn routes() -> Router<RestState> {
     Router::new()
         .route("/v1/datasets", get(list).post(upload))
         .route("/v1/datasets/{id}", get(read).delete(remove))
+        .route("/v1/datasets/{id}/trajectories", get(trajectories))
 }
 
 /// The body's format: `content-type: text/csv` is CSV and `application/json` JSON; any other
@@ -85,4 +86,16 @@ async fn read(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<i
 async fn remove(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<StatusCode> {
     s.app.delete_dataset(&id).await?;
     Ok(StatusCode::NO_CONTENT)
+}
+
+async fn trajectories(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    p: Params,
+) -> ApiResult<impl IntoResponse> {
+    let page_size = int_param(&p, "page_size")?;
+    let token = p.get("page_token").map(String::as_str);
+    Ok(axum::Json(
+        s.app.dataset_trajectories(&id, page_size, token).await?,
+    ))
 }

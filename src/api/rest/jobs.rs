@@ -17,7 +17,7 @@ use super::{Params, RestState, int_param, json_body, page};
 use crate::app::events::Progress;
 use crate::app::jobs::{JobRequest, parse_body};
 use crate::app::views::JobState;
-use tokio::sync::watch;
+use tokio::sync::{broadcast, watch};
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -26,6 +26,25 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/jobs/{id}/cancel", post(cancel))
         .route("/v1/jobs/{id}/metrics", get(metrics))
         .route("/v1/jobs/{id}/events", get(events))
+        .route("/v1/events", get(all_events))
+}
+
+/// Server-sent events of every job: `job` with the job as it is after each change (state,
+/// epoch, losses) and for each new job; `resync` when this subscriber fell behind and should
+/// read the list again. One store poller serves every subscriber.
+async fn all_events(State(s): State<RestState>) -> impl IntoResponse {
+    let rx = s.app.follow_all_jobs();
+    let stream = futures_util::stream::unfold(rx, |mut rx| async move {
+        let event = match rx.recv().await {
+            Ok(job) => Event::default().event("job").json_data(&job).expect("json"),
+            Err(broadcast::error::RecvError::Lagged(_)) => {
+                Event::default().event("resync").data("{}")
+            }
+            Err(broadcast::error::RecvError::Closed) => return None,
+        };
+        Some((Ok::<_, Infallible>(event), rx))
+    });
+    Sse::new(stream).keep_alive(KeepAlive::default())
 }
 
 async fn submit(

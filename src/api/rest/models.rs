@@ -6,7 +6,7 @@ use axum::http::{StatusCode, header};
 use axum::response::IntoResponse;
 use axum::routing::get;
 
-use super::error::ApiResult;
+use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, body_bytes, int_param, page};
 
 pub fn routes() -> Router<RestState> {
@@ -15,6 +15,23 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/models/{id}", get(read).delete(remove))
         .route("/v1/models/{id}/checkpoint", get(checkpoint))
         .route("/v1/models/{id}/urdf", get(urdf))
+        .route("/v1/models/{id}/rollout", get(rollout))
+}
+
+/// The model's replay of a dataset's trajectory beside the recording.
+async fn rollout(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    p: Params,
+) -> ApiResult<impl IntoResponse> {
+    let dataset = p
+        .get("dataset_id")
+        .ok_or_else(|| ApiError::bad_request("dataset_id", "is required"))?;
+    let index =
+        int_param(&p, "index")?.ok_or_else(|| ApiError::bad_request("index", "is required"))?;
+    let index = usize::try_from(index)
+        .map_err(|_| ApiError::bad_request("index", format!("must be ≥ 0, got {index}")))?;
+    Ok(axum::Json(s.app.replay(&id, dataset, index).await?))
 }
 
 /// A model file (`.gbx`, the format `checkpoint` returns) stored as it is: 201, or 200 with

@@ -8,11 +8,13 @@
 mod admission;
 mod cache;
 mod plan;
+mod replay;
 mod rollout;
 
 pub use admission::Heavy;
 pub use cache::{CACHE_SWEEP, ModelCache};
 pub use plan::PlanCall;
+pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{RolloutChunk, RolloutInputs};
 
 use std::sync::Arc;

@@ -1,0 +1,197 @@
+//! A model replaying a recorded trajectory (the dashboard's "rollout vs data"): from the
+//! trajectory's first state with its recorded inputs, the model's states beside the recorded
+//! ones, T + 1 of each.
+
+use serde::Serialize;
+
+use super::Cost;
+use crate::app::App;
+use crate::data::trajectories::{self, Segment};
+use crate::error::{Error, Result};
+
+/// One trajectory's q and q̇ per time step, `[T+1][n]` each.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct Series {
+    pub q: Vec<Vec<f64>>,
+    pub qdot: Vec<Vec<f64>>,
+}
+
+/// GET /v1/models/{id}/rollout: the recorded trajectory and the model's replay of it.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct Replay {
+    pub model_id: String,
+    pub dataset_id: String,
+    pub index: usize,
+    pub dt: f64,
+    /// Seconds from the trajectory's first state, T + 1 values.
+    pub t: Vec<f64>,
+    pub recorded: Series,
+    pub predicted: Series,
+}
+
+/// A dataset's trajectories and where their boundaries come from.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct TrajectoryList {
+    /// `uploaded` (trajectory form) or `chained` (flat rows whose next state is the next
+    /// row's state exactly).
+    pub source: String,
+    pub count: usize,
+    #[schema(value_type = Vec<Object>)]
+    pub items: Vec<TrajectoryItem>,
+    pub next_page_token: Option<String>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct TrajectoryItem {
+    pub index: usize,
+    /// Its first row in the dataset.
+    pub start: usize,
+    /// Transitions (T); the trajectory has T + 1 states.
+    pub length: usize,
+}
+
+impl App {
+    /// Every trajectory of a dataset (404 when there is none).
+    async fn segments(&self, dataset_id: &str) -> Result<(Vec<Segment>, &'static str)> {
+        let not_found = || Error::NotFound(format!("dataset {dataset_id}"));
+        match self
+            .store
+            .dataset_trajectories(dataset_id)
+            .await?
+            .ok_or_else(not_found)?
+        {
+            Some(lengths) => Ok((trajectories::from_lengths(&lengths), "uploaded")),
+            None => {
+                let ds = self
+                    .store
+                    .load_dataset(dataset_id)
+                    .await?
+                    .ok_or_else(not_found)?;
+                Ok((trajectories::chains(&ds), "chained"))
+            }
+        }
+    }
+
+    /// GET /v1/datasets/{id}/trajectories: a page of them, in order.
+    pub async fn dataset_trajectories(
+        &self,
+        dataset_id: &str,
+        size: Option<i64>,
+        token: Option<&str>,
+    ) -> Result<TrajectoryList> {
+        let size = super::super::paging::size(size)? as usize;
+        let from = super::super::paging::decode("trajectories", token)?.unwrap_or(0) as usize;
+        let (all, source) = self.segments(dataset_id).await?;
+        let items: Vec<TrajectoryItem> = all
+            .iter()
+            .skip(from)
+            .take(size)
+            .map(|s| TrajectoryItem {
+                index: s.index,
+                start: s.start,
+                length: s.length,
+            })
+            .collect();
+        let next = (from + items.len() < all.len())
+            .then(|| super::super::paging::encode("trajectories", (from + items.len()) as i64));
+        Ok(TrajectoryList {
+            source: source.into(),
+            count: all.len(),
+            items,
+            next_page_token: next,
+        })
+    }
+
+    /// The model's replay of trajectory `index` of a dataset.
+    pub async fn replay(&self, model_id: &str, dataset_id: &str, index: usize) -> Result<Replay> {
+        let eval = self.evaluator(model_id).await?;
+        let (segments, _) = self.segments(dataset_id).await?;
+        let seg = *segments.get(index).ok_or_else(|| {
+            Error::invalid(
+                "index",
+                format!(
+                    "dataset {dataset_id} has {} trajectories (0-based index)",
+                    segments.len()
+                ),
+            )
+        })?;
+        let ds = self
+            .store
+            .load_dataset(dataset_id)
+            .await?
+            .ok_or_else(|| Error::NotFound(format!("dataset {dataset_id}")))?;
+        let (n, m) = (eval.config.n, eval.config.m);
+        if (ds.n, ds.m) != (n, m) {
+            return Err(Error::invalid(
+                "dataset_id",
+                format!(
+                    "dataset {dataset_id} has n = {}, m = {}; the model has n = {n}, m = {m}",
+                    ds.n, ds.m
+                ),
+            ));
+        }
+        let max = self.settings.max_rollout_steps;
+        if seg.length > max {
+            return Err(Error::ResourceExhausted(format!(
+                "trajectory {index} has {} steps, over the limit of {max} (--max-rollout-steps)",
+                seg.length
+            )));
+        }
+        let bytes = 8 * 4 * n * (seg.length + 1);
+        self.admit(
+            "index",
+            &Cost {
+                response_bytes: bytes,
+                memory_bytes: 2 * bytes,
+            },
+        )?;
+        let dt = ds.dt;
+        let replayed = self
+            .heavy
+            .run(move || replay_segment(&eval, &ds, seg))
+            .await?;
+        Ok(Replay {
+            model_id: model_id.into(),
+            dataset_id: dataset_id.into(),
+            index,
+            dt,
+            t: (0..=seg.length).map(|k| k as f64 * dt).collect(),
+            recorded: replayed.0,
+            predicted: replayed.1,
+        })
+    }
+}
+
+/// The recorded states of `seg` and the model's from its first state with its inputs.
+fn replay_segment(
+    eval: &crate::infer::Evaluator,
+    ds: &crate::data::Dataset,
+    seg: Segment,
+) -> (Series, Series) {
+    let (n, m) = (ds.n, ds.m);
+    let row = |a: &[f64], i: usize| a[i * n..(i + 1) * n].to_vec();
+    let rows = seg.start..seg.start + seg.length;
+    let mut recorded = Series {
+        q: rows.clone().map(|i| row(&ds.q, i)).collect(),
+        qdot: rows.clone().map(|i| row(&ds.qdot, i)).collect(),
+    };
+    let last = seg.start + seg.length - 1;
+    recorded.q.push(row(&ds.q_next, last));
+    recorded.qdot.push(row(&ds.qdot_next, last));
+    let x0: Vec<f64> = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
+    let mut predicted = Series {
+        q: vec![x0[..n].to_vec()],
+        qdot: vec![x0[n..].to_vec()],
+    };
+    eval.rollout(
+        &x0,
+        seg.length,
+        |t, _| ds.u[(seg.start + t) * m..(seg.start + t + 1) * m].to_vec(),
+        |x, _| {
+            predicted.q.push(x[..n].to_vec());
+            predicted.qdot.push(x[n..].to_vec());
+            true
+        },
+    );
+    (recorded, predicted)
+}
