@@ -24,6 +24,13 @@ if [ -n "$stale" ]; then
 fi
 
 if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
+  # The dashboard test drives Debian's Chromium (browsers cannot be downloaded here).
+  if ! command -v chromium > /dev/null; then
+    sudo=""
+    if [ "$(id -u)" != 0 ]; then sudo="sudo"; fi
+    $sudo apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq chromium > /dev/null
+  fi
   venv=${GRAYBOX_VENV:-.venv}
   if [ ! -x "$venv/bin/python" ]; then
     python3 -m venv "$venv"

@@ -45,6 +45,11 @@ impl Warning {
 pub struct Job {
     pub id: String,
     pub state: JobState,
+    /// The model as submitted: a paper name ("MVF"), or "custom" for a spec object.
+    pub model: String,
+    /// The training settings it runs with (epochs, batch_size, lr, …), defaults filled in.
+    #[schema(value_type = Object)]
+    pub training: serde_json::Value,
     /// Last completed epoch, counting from 1 (0 before the first).
     pub epoch: i64,
     pub epochs: i64,

@@ -5,3 +5,4 @@ pub mod grpc;
 pub mod listen;
 pub mod openapi;
 pub mod rest;
+pub mod web;

@@ -43,10 +43,17 @@ pub(super) fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
 
 pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {
     let state: String = r.try_get("state")?;
+    let request: String = r.try_get("request")?;
+    let submitted: serde_json::Value = serde_json::from_str(&request).unwrap_or_default();
     let info = Job {
         id: r.try_get("id")?,
         state: JobState::parse(&state)
             .ok_or_else(|| Error::Storage(format!("unknown job state {state}")))?,
+        model: submitted["model_name"]
+            .as_str()
+            .unwrap_or("custom")
+            .to_string(),
+        training: submitted["training"].clone(),
         epoch: r.try_get("epoch")?,
         epochs: r.try_get("epochs")?,
         checkpoint_epoch: r.try_get("checkpoint_epoch")?,
@@ -66,7 +73,7 @@ pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {
     Ok(JobRow {
         info,
         seq: r.try_get("seq")?,
-        request: r.try_get("request")?,
+        request,
         cancel_requested: r.try_get::<i64, _>("cancel_requested")? != 0,
     })
 }

@@ -8,6 +8,7 @@ mod helpers;
 mod hostile;
 mod jobs;
 mod replay;
+mod web;
 
 /// The paper's double pendulum in closed form (shared with the numerics tests).
 #[path = "../common/mod.rs"]

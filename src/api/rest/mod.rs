@@ -34,6 +34,7 @@ pub fn router(app: App) -> Router {
         .merge(models::routes())
         .merge(templates::routes())
         .merge(ops::routes())
+        .merge(crate::api::web::routes())
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "not_found", "no such route") })
         .method_not_allowed_fallback(|| async {
             ApiError::new(
@@ -53,7 +54,8 @@ async fn authorize(State(s): State<RestState>, req: Request, next: Next) -> Resp
         return next.run(req).await;
     };
     let read = matches!(*req.method(), Method::GET | Method::HEAD | Method::OPTIONS);
-    let open = matches!(req.uri().path(), "/healthz" | "/readyz");
+    let path = req.uri().path();
+    let open = matches!(path, "/healthz" | "/readyz") || crate::api::web::is_open(path);
     if open || (read && !s.app.settings.auth_reads) {
         return next.run(req).await;
     }

@@ -1,0 +1,52 @@
+//! The dashboard's files: served at `/` and `/ui/…` with their content types and without a
+//! token even when reads need one (the page must load to ask for it), while the API it reads
+//! (the event stream too) keeps needing the token.
+
+use graybox::app::settings::Settings;
+
+use crate::helpers::*;
+
+#[tokio::test]
+async fn the_page_loads_without_a_token_and_the_api_still_needs_one() {
+    let app = spawn_configured(Settings {
+        api_token: Some("s3cret".into()),
+        auth_reads: true,
+        ..test_settings()
+    })
+    .await;
+    for (path, content_type, holds) in [
+        ("/", "text/html", "<script src=\"/ui/app.js\">"),
+        ("/ui/app.js", "text/javascript", "/v1/events"),
+        ("/ui/style.css", "text/css", "--accent"),
+        ("/ui/uPlot.iife.min.js", "text/javascript", "uPlot"),
+        ("/ui/uPlot.min.css", "text/css", ".uplot"),
+        ("/favicon.ico", "image/svg+xml", "<svg"),
+    ] {
+        let r = app.client.get(app.url(path)).send().await.unwrap();
+        assert_eq!(r.status().as_u16(), 200, "{path}");
+        let ct = r.headers()["content-type"].to_str().unwrap().to_string();
+        assert!(ct.starts_with(content_type), "{path}: {ct}");
+        assert!(r.text().await.unwrap().contains(holds), "{path}");
+    }
+    for path in ["/v1/jobs", "/v1/events", "/v1/datasets/ds_x/trajectories"] {
+        let r = app.client.get(app.url(path)).send().await.unwrap();
+        assert_eq!(r.status().as_u16(), 401, "{path}");
+    }
+    let r = app
+        .client
+        .get(app.url("/v1/jobs"))
+        .header("Authorization", "Bearer s3cret")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 200);
+    // Not a way around the token: only the page's own files are open.
+    let r = app
+        .client
+        .get(app.url("/ui/../v1/jobs"))
+        .send()
+        .await
+        .unwrap();
+    assert_ne!(r.status().as_u16(), 200);
+    app.stop().await;
+}
