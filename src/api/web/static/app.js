@@ -7,7 +7,7 @@
 
 const PAGE_SIZE = 50;
 const TOKEN_KEY = "graybox-token";
-const view = document.getElementById("view");
+const root = document.getElementById("view");
 
 // ---------- the API ----------
 
@@ -223,12 +223,15 @@ async function route() {
     if (a.dataset.nav === (section || "jobs")) a.setAttribute("aria-current", "page");
     else a.removeAttribute("aria-current");
   }
-  view.replaceChildren();
+  // Each visit renders into its own element: a visit still waiting on the API when the next
+  // one starts writes into a detached element, never into the page.
+  const view = el("div");
+  root.replaceChildren(view);
   try {
-    if (!section || section === "jobs") await (arg ? jobView(arg) : jobsView());
-    else if (section === "compare") await compareView(arg.split(",").filter(Boolean));
-    else if (section === "models") await (arg ? modelView(arg) : modelsView());
-    else if (section === "datasets") await datasetsView();
+    if (!section || section === "jobs") await (arg ? jobView(view, arg) : jobsView(view));
+    else if (section === "compare") await compareView(view, arg.split(",").filter(Boolean));
+    else if (section === "models") await (arg ? modelView(view, arg) : modelsView(view));
+    else if (section === "datasets") await datasetsView(view);
     else view.append(el("h1", { text: "Not found" }), el("p", {}, el("a", { href: "#/jobs", text: "Jobs" })));
   } catch (e) {
     view.append(errorBox(e));
@@ -237,7 +240,7 @@ async function route() {
 window.addEventListener("hashchange", route);
 
 // Jobs: a page of the list, live; filter by state; select to compare.
-async function jobsView() {
+async function jobsView(view) {
   const params = new URLSearchParams(location.hash.split("?")[1] || "");
   const filter = params.get("state") || "";
   const tokens = [""];
@@ -323,7 +326,7 @@ async function jobsView() {
 }
 
 // Loss curves of one job, live; smoothing and the x-axis are the person's choice.
-async function jobView(id) {
+async function jobView(view, id) {
   let job = await api("GET", `/v1/jobs/${id}`);
   let metrics = (await api("GET", `/v1/jobs/${id}/metrics`)).items;
   const head = el("div");
@@ -382,7 +385,7 @@ async function jobView(id) {
 }
 
 // Several jobs' validation curves on one chart, and their settings side by side.
-async function compareView(ids) {
+async function compareView(view, ids) {
   view.append(el("h1", { text: `Compare ${ids.length} jobs` }));
   if (!ids.length) { view.append(el("p", { text: "Select jobs in the Jobs table first." })); return; }
   const jobs = await Promise.all(ids.map((id) => api("GET", `/v1/jobs/${id}`)));
@@ -412,7 +415,7 @@ async function compareView(ids) {
       row("duration", (j) => duration(j))))));
 }
 
-async function modelsView() {
+async function modelsView(view) {
   const data = await api("GET", `/v1/models?page_size=${PAGE_SIZE}`);
   view.append(el("h1", { text: "Models" }), el("div", { class: "table-wrap" }, el("table", { id: "models-table" },
     el("thead", {}, el("tr", {}, ["model", "name", "origin", "n", "m", "Δt", "best val loss", "created"].map((h) => el("th", { scope: "col", text: h })))),
@@ -425,7 +428,7 @@ async function modelsView() {
 }
 
 // A model: what it is, what it learned, and its replay of recorded trajectories.
-async function modelView(id) {
+async function modelView(view, id) {
   const m = await api("GET", `/v1/models/${id}`);
   const isUrdf = JSON.stringify(m.spec).includes('"kind":"urdf"');
   const notice = el("div", { role: "alert", id: "model-alert" });
@@ -452,10 +455,10 @@ async function modelView(id) {
       identifiable.length ? [el("h3", { text: "Identifiable combinations" }), el("ul", {}, identifiable.map((c) => el("li", { text: `${c.name} = ${Number(c.value).toPrecision(6)}` })))] : "",
       m.identifiability ? el("p", { class: "muted", text: m.identifiability }) : "",
     ] : ""].flat(Infinity));
-  await replayPanel(m);
+  await replayPanel(view, m);
 }
 
-async function replayPanel(m) {
+async function replayPanel(view, m) {
   const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items.filter((d) => d.n === m.n && d.m === m.m);
   const dsSelect = el("select", { id: "replay-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
   const trSelect = el("select", { id: "replay-index" });
@@ -501,7 +504,7 @@ async function replayPanel(m) {
 }
 
 // Datasets: the list and an upload form (JSON or CSV files).
-async function datasetsView() {
+async function datasetsView(view) {
   const tbody = el("tbody");
   const message = el("div", { role: "alert", id: "upload-alert" });
   const done = el("p", { "aria-live": "polite", id: "upload-status", class: "muted" });
