@@ -327,6 +327,11 @@ impl Trainer {
         self.epoch
     }
 
+    /// Seconds spent in training steps so far (validation excluded).
+    pub fn train_seconds(&self) -> f64 {
+        self.train_seconds
+    }
+
     pub fn model(&self) -> &Model {
         &self.model
     }
