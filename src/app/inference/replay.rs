@@ -6,6 +6,7 @@ use serde::Serialize;
 
 use super::Cost;
 use crate::app::App;
+use crate::data::Dataset;
 use crate::data::trajectories::{self, Segment};
 use crate::error::{Error, Result};
 
@@ -51,17 +52,19 @@ pub struct TrajectoryItem {
 }
 
 impl App {
-    /// Every trajectory of a dataset (404 when there is none).
-    async fn segments(&self, dataset_id: &str) -> Result<(Vec<Segment>, &'static str)> {
+    /// Every trajectory of a dataset (404 when there is none); `loaded` is its arrays when
+    /// the caller has them already (chains are found in them).
+    async fn segments(
+        &self,
+        dataset_id: &str,
+        loaded: Option<&Dataset>,
+    ) -> Result<(Vec<Segment>, &'static str)> {
         let not_found = || Error::NotFound(format!("dataset {dataset_id}"));
-        match self
-            .store
-            .dataset_trajectories(dataset_id)
-            .await?
-            .ok_or_else(not_found)?
-        {
-            Some(lengths) => Ok((trajectories::from_lengths(&lengths), "uploaded")),
-            None => {
+        let stored = self.store.dataset_trajectories(dataset_id).await?;
+        match (stored.ok_or_else(not_found)?, loaded) {
+            (Some(lengths), _) => Ok((trajectories::from_lengths(&lengths), "uploaded")),
+            (None, Some(ds)) => Ok((trajectories::chains(ds), "chained")),
+            (None, None) => {
                 let ds = self
                     .store
                     .load_dataset(dataset_id)
@@ -81,7 +84,7 @@ impl App {
     ) -> Result<TrajectoryList> {
         let size = super::super::paging::size(size)? as usize;
         let from = super::super::paging::decode("trajectories", token)?.unwrap_or(0) as usize;
-        let (all, source) = self.segments(dataset_id).await?;
+        let (all, source) = self.segments(dataset_id, None).await?;
         let items: Vec<TrajectoryItem> = all
             .iter()
             .skip(from)
@@ -105,7 +108,12 @@ impl App {
     /// The model's replay of trajectory `index` of a dataset.
     pub async fn replay(&self, model_id: &str, dataset_id: &str, index: usize) -> Result<Replay> {
         let eval = self.evaluator(model_id).await?;
-        let (segments, _) = self.segments(dataset_id).await?;
+        let ds = self
+            .store
+            .load_dataset(dataset_id)
+            .await?
+            .ok_or_else(|| Error::NotFound(format!("dataset {dataset_id}")))?;
+        let (segments, _) = self.segments(dataset_id, Some(&ds)).await?;
         let seg = *segments.get(index).ok_or_else(|| {
             Error::invalid(
                 "index",
@@ -115,11 +123,6 @@ impl App {
                 ),
             )
         })?;
-        let ds = self
-            .store
-            .load_dataset(dataset_id)
-            .await?
-            .ok_or_else(|| Error::NotFound(format!("dataset {dataset_id}")))?;
         let (n, m) = (eval.config.n, eval.config.m);
         if (ds.n, ds.m) != (n, m) {
             return Err(Error::invalid(
@@ -163,11 +166,7 @@ impl App {
 }
 
 /// The recorded states of `seg` and the model's from its first state with its inputs.
-fn replay_segment(
-    eval: &crate::infer::Evaluator,
-    ds: &crate::data::Dataset,
-    seg: Segment,
-) -> (Series, Series) {
+fn replay_segment(eval: &crate::infer::Evaluator, ds: &Dataset, seg: Segment) -> (Series, Series) {
     let (n, m) = (ds.n, ds.m);
     let row = |a: &[f64], i: usize| a[i * n..(i + 1) * n].to_vec();
     let rows = seg.start..seg.start + seg.length;
