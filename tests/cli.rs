@@ -320,17 +320,21 @@ fn bench_train_reports_step_throughput_and_cpu() {
         "bench",
         "train",
         "--train",
-        "64",
+        "256",
         "--val",
         "32",
         "--epochs",
         "1",
+        "--min-steps",
+        "4",
         "--models",
         "MVF",
         "--batch-sizes",
-        "32",
+        "128",
         "--time-limit",
         "0",
+        "--threads",
+        "2",
     ]);
     assert!(
         out.status.success(),
@@ -346,5 +350,9 @@ fn bench_train_reports_step_throughput_and_cpu() {
         "{line}"
     );
     assert!(f("cpu_per_wall") > 0.0, "{line}");
-    assert_eq!(line["batch_size"], 32);
+    assert_eq!(line["batch_size"], 128);
+    // Two threads split a batch of 128 into two shards; 4 steps need 2 epochs of 2 batches.
+    assert_eq!(line["threads"], 2, "{line}");
+    assert_eq!(line["shards"], 2, "{line}");
+    assert_eq!(line["epochs"], 2, "{line}");
 }

@@ -462,3 +462,71 @@ fn white_box_recovers_dynamics_and_identifiable_ratios() {
         }
     }
 }
+
+/// A batch split into shards (train/shards.rs) has the loss and gradient of the whole batch:
+/// each shard's loss is divided by the whole batch's rows and the shards' gradients summed.
+/// In f64 only the summation order differs, ~1e-16 relative per addition over a few hundred
+/// rows, so 1e-11 relative to the largest entry catches a wrong scale (×2 for 2 shards) or a
+/// dropped or doubled shard by ten orders of magnitude.
+#[test]
+fn sharded_batches_have_the_whole_batch_gradient() {
+    let dev = f64_device().autodiff();
+    let ds = simulate(
+        &Template::DoublePendulum,
+        PAPER.to_vec(),
+        &SimConfig {
+            count: 300,
+            seed: 3,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
+    let batch: Vec<usize> = (0..300).rev().collect();
+    for name in ["MVF", "naive", "MVB"] {
+        let spec = ModelSpec::named(name, Some(Template::DoublePendulum)).unwrap();
+        let cfg = TrainConfig {
+            val_fraction: 0.0,
+            ..TrainConfig::default()
+        };
+        let trainer = |threads| {
+            Trainer::new(name, spec.clone(), &[], &ds, None, cfg.clone(), &dev)
+                .unwrap()
+                .with_threads(threads)
+                .unwrap()
+        };
+        // A parameter the loss does not depend on (V's last bias: only ∂V/∂q enters) has
+        // no gradient: NaN marks it, so that a shard losing a gradient is a mismatch.
+        let host = |g: Vec<Option<Tensor<1>>>| -> Vec<f64> {
+            g.into_iter()
+                .flat_map(|g| match g {
+                    Some(g) => g.into_data().iter::<f64>().collect(),
+                    None => vec![f64::NAN],
+                })
+                .collect()
+        };
+        let (whole, g1) = trainer(1).loss_and_grads(&batch);
+        let g1 = host(g1);
+        for threads in [2, 3] {
+            let t = trainer(threads);
+            assert_eq!(t.shards(), threads);
+            let (loss, g) = t.loss_and_grads(&batch);
+            assert!(
+                (loss - whole).abs() <= 1e-12 * whole.abs(),
+                "{name}, {threads} shards: loss {loss} vs {whole}"
+            );
+            let g = host(g);
+            let missing = |g: &[f64]| g.iter().map(|v| v.is_nan()).collect::<Vec<_>>();
+            assert_eq!(missing(&g), missing(&g1), "{name}, {threads} shards");
+            let known = |g: &[f64]| {
+                g.iter()
+                    .copied()
+                    .filter(|v| !v.is_nan())
+                    .collect::<Vec<_>>()
+            };
+            assert!(
+                rel_err(&known(&g), &known(&g1)) < 1e-11,
+                "{name}, {threads} shards"
+            );
+        }
+    }
+}

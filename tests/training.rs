@@ -191,6 +191,52 @@ fn resumed_run_equals_uninterrupted_run() {
     }
 }
 
+/// Threads split each batch into shards: a run on 2 threads is the same bit for bit every
+/// time, and a checkpoint of it resumed on 1 thread keeps the 2-shard split and equals the
+/// uninterrupted run bit for bit.
+#[test]
+fn threaded_runs_repeat_and_resume_bit_equal_on_other_thread_counts() {
+    let train = data(&Template::DoublePendulum, 512, 5);
+    let cfg = TrainConfig {
+        epochs: 3,
+        batch_size: 256,
+        ..TrainConfig::default()
+    };
+    let never = AtomicBool::new(false);
+    let spec = ModelSpec::named("MVF", None).unwrap();
+    let start = |threads| {
+        Trainer::new("MVF", spec.clone(), &[], &train, None, cfg.clone(), &flex())
+            .unwrap()
+            .with_threads(threads)
+            .unwrap()
+    };
+    let mut a = start(2);
+    a.run(&never, |_, _| {}).unwrap();
+    let mut b = start(2);
+    b.run(&never, |_, _| {}).unwrap();
+    assert_eq!(a.model().params.export(), b.model().params.export());
+
+    let mut first = start(2);
+    first.run_epoch(&never).unwrap();
+    let state = TrainState::from_bytes(&first.checkpoint().to_bytes()).unwrap();
+    assert_eq!(state.shards, 2);
+    let mut resumed = Trainer::resume(state, &train, None, &flex())
+        .unwrap()
+        .with_threads(1)
+        .unwrap();
+    assert_eq!(resumed.shards(), 2, "a resumed run keeps its split");
+    resumed.run(&never, |_, _| {}).unwrap();
+    assert_eq!(a.model().params.export(), resumed.model().params.export());
+    assert_eq!(a.model_file().params, resumed.model_file().params);
+
+    // The split is what changes the numbers: one shard is another (equally valid) run.
+    let mut single = start(1);
+    single.run(&never, |_, _| {}).unwrap();
+    assert_eq!(single.shards(), 1);
+    assert_ne!(a.model().params.export(), single.model().params.export());
+    assert!(start(1).with_threads(0).is_err(), "0 threads is refused");
+}
+
 /// Model-based RL grows its data between episodes: `extend` trains on from the same
 /// parameters (the first data's loss is not reset by it), a checkpoint taken after it resumes
 /// on the grown data bit-equal to an uninterrupted run, and data of another shape is refused.

@@ -27,6 +27,10 @@ pub struct Settings {
     /// Training workers (jobs trained at once).
     #[arg(long, env = "GRAYBOX_WORKERS", default_value_t = 1)]
     pub workers: usize,
+    /// Threads each training job computes on [default: cores / workers, at least 1]. A job
+    /// keeps the split of its batches when it resumes, so its results do not depend on it.
+    #[arg(long, env = "GRAYBOX_JOB_THREADS")]
+    pub job_threads: Option<usize>,
     /// Checkpoint a running job every this many epochs.
     #[arg(long, env = "GRAYBOX_CHECKPOINT_EVERY", default_value_t = 10)]
     pub checkpoint_every: usize,
@@ -118,6 +122,7 @@ impl Settings {
             ("max-model-params", self.max_model_params),
             ("max-dof", self.max_dof),
             ("max-attempts", self.max_attempts as usize),
+            ("job-threads", self.job_threads.unwrap_or(1)),
         ];
         if let Some((flag, _)) = at_least_one.iter().find(|(_, v)| *v == 0) {
             return Err(Error::invalid(*flag, "must be at least 1"));
@@ -156,8 +161,37 @@ impl Settings {
         self.api_token.as_deref().filter(|t| !t.is_empty())
     }
 
+    /// Threads per training job: `--job-threads`, else the cores shared among the workers,
+    /// so that jobs training at once do not oversubscribe the machine.
+    pub fn job_threads(&self) -> usize {
+        self.job_threads
+            .unwrap_or_else(|| crate::train::shards::cores() / self.workers.max(1))
+            .max(1)
+    }
+
     /// Checkpoint interval in epochs (at least 1).
     pub fn checkpoint_epochs(&self) -> usize {
         self.checkpoint_every.max(1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn job_threads_share_the_cores_among_workers_unless_given() {
+        let cores = crate::train::shards::cores();
+        let s = |workers, job_threads| Settings {
+            workers,
+            job_threads,
+            ..Settings::default()
+        };
+        assert_eq!(s(1, None).job_threads(), cores);
+        assert_eq!(s(2, None).job_threads(), (cores / 2).max(1));
+        assert_eq!(s(cores + 1, None).job_threads(), 1, "never 0");
+        assert_eq!(s(4, Some(3)).job_threads(), 3);
+        let err = s(1, Some(0)).validate().unwrap_err().to_string();
+        assert!(err.contains("job-threads"), "{err}");
     }
 }

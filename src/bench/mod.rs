@@ -48,9 +48,13 @@ pub struct BenchTrainArgs {
     pub train: usize,
     #[arg(long, default_value_t = 1024)]
     pub val: usize,
-    /// Timed epochs per throughput figure (after one warm-up epoch).
+    /// Timed epochs per throughput figure (after one warm-up epoch), at least enough for
+    /// `--min-steps` training steps: at batch 4096 an epoch is one step, and three steps are
+    /// too few to average out page faults and the scheduler.
     #[arg(long, default_value_t = 3)]
     pub epochs: usize,
+    #[arg(long, default_value_t = 30)]
+    pub min_steps: usize,
     /// Models to measure, comma-separated.
     #[arg(long, default_value = "MVF,naive")]
     pub models: String,
@@ -76,6 +80,9 @@ pub struct BenchTrainArgs {
     pub backend: Backend,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Threads per training (default: every core).
+    #[arg(long, default_value_t = crate::train::shards::cores())]
+    pub threads: usize,
 }
 
 pub fn run(cmd: BenchCommand) -> Result<()> {
@@ -121,30 +128,33 @@ fn throughput(
     device: &Device,
 ) -> Result<()> {
     let spec = ModelSpec::named(model, Some(t.clone()))?;
+    let epochs = a.epochs.max(a.min_steps.div_ceil(a.train.div_ceil(bs)));
     let tc = TrainConfig {
-        epochs: a.epochs + 1,
+        epochs: epochs + 1,
         batch_size: bs,
         seed: a.seed,
         ..TrainConfig::default()
     };
     let never = AtomicBool::new(false);
-    let mut trainer = Trainer::new(model, spec, &[], train, Some(val), tc, device)?;
+    let mut trainer =
+        Trainer::new(model, spec, &[], train, Some(val), tc, device)?.with_threads(a.threads)?;
     trainer.run_epoch(&never)?; // warm-up: allocations, first-touch
     let (wall, cpu, steps) = (Instant::now(), cpu_seconds(), trainer.train_seconds());
-    for _ in 0..a.epochs {
+    for _ in 0..epochs {
         trainer.run_epoch(&never)?;
     }
     let (wall, cpu) = (wall.elapsed().as_secs_f64(), cpu_seconds() - cpu);
     let steps = trainer.train_seconds() - steps;
-    let samples = (a.epochs * a.train) as f64;
+    let samples = (epochs * a.train) as f64;
     println!(
         "{}",
         json!({"bench": "train_throughput", "model": model, "template": t.name(),
-               "batch_size": bs, "backend": a.backend,
+               "batch_size": bs, "backend": a.backend, "epochs": epochs,
                "samples_per_second": samples / steps,
                "samples_per_second_with_validation": samples / wall,
                "cpu_per_wall": cpu / wall,
-               "cores": std::thread::available_parallelism().map_or(1, usize::from),
+               "threads": a.threads, "shards": trainer.shards(),
+               "cores": crate::train::shards::cores(),
                "note": "samples_per_second: training steps only (forward, backward, Adam), as \
                         the PyTorch reference is measured; cpu_per_wall: process CPU time over \
                         wall time across the timed epochs (1.0 = one core busy)"})
@@ -181,7 +191,8 @@ fn time_to_target(
     };
     let target = 10f64.powf(a.target_log10);
     let never = AtomicBool::new(false);
-    let mut trainer = Trainer::new("MVF", spec, &[], train, Some(val), tc, device)?;
+    let mut trainer =
+        Trainer::new("MVF", spec, &[], train, Some(val), tc, device)?.with_threads(a.threads)?;
     let start = Instant::now();
     let mut reached = None;
     let mut best = f64::INFINITY;
@@ -248,6 +259,7 @@ fn bench_step(a: BenchStepArgs) -> Result<()> {
         let t1 = Instant::now();
         let grads = loss.backward();
         let t2 = Instant::now();
+        let grads = crate::train::shards::param_grads(&model.params, &grads);
         model.params = adam.step(model.params.clone(), &grads, 1e-3);
         let _ = model.params.export();
         let t3 = Instant::now();

@@ -71,6 +71,10 @@ pub struct TrainArgs {
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
     pub precision: Precision,
+    /// Threads to train on [default: every core]. Each batch is split into this many shards
+    /// (train/shards.rs): a run is reproducible for a given count.
+    #[arg(long)]
+    pub threads: Option<usize>,
     /// Write the full training report (JSON, with the per-epoch history) here; stdout gets
     /// the report without the history.
     #[arg(long)]
@@ -127,7 +131,9 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;
     let device = backend::device(a.backend, a.precision)?.autodiff();
-    let mut trainer = Trainer::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?;
+    let threads = a.threads.unwrap_or_else(crate::train::shards::cores);
+    let mut trainer = Trainer::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?
+        .with_threads(threads)?;
     let progress = Progress::new(a.epochs as u64);
     trainer.run(&AtomicBool::new(false), |m, _| progress.epoch(m))?;
     progress.finish();

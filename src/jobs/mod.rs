@@ -234,7 +234,7 @@ fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<
         .map(load)
         .transpose()?;
     let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
-    match rt.block_on(app.store.load_checkpoint(&c.job.id))? {
+    let trainer = match rt.block_on(app.store.load_checkpoint(&c.job.id))? {
         Some((epoch, _)) if epoch > c.job.epochs => Err(Error::corrupt(
             "checkpoint",
             format!(
@@ -256,7 +256,8 @@ fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<
             spec.training.clone(),
             &device,
         ),
-    }
+    }?;
+    trainer.with_threads(app.settings.job_threads())
 }
 
 /// The trained model and the job's success in one fenced transaction; None when the lease

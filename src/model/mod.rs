@@ -159,6 +159,15 @@ impl Model {
         }
     }
 
+    /// This model with other values for its parameters (same config and constants).
+    pub fn with_params(&self, params: Params) -> Self {
+        Self {
+            config: self.config.clone(),
+            params,
+            consts: self.consts.clone(),
+        }
+    }
+
     pub fn device(&self) -> Device {
         self.consts.one.device()
     }

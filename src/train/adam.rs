@@ -2,8 +2,10 @@
 //! checkpoint restores it exactly.
 
 use burn::module::{Module, ModuleMapper, Param};
-use burn::tensor::{Device, Gradients, Tensor, TensorData};
+use burn::tensor::{Device, Tensor, TensorData};
 use serde::{Deserialize, Serialize};
+
+use super::shards::ParamGrads;
 
 const BETA1: f64 = 0.9;
 const BETA2: f64 = 0.999;
@@ -24,7 +26,7 @@ pub struct AdamState {
 }
 
 struct StepMapper<'a> {
-    grads: &'a Gradients,
+    grads: &'a ParamGrads,
     moments: &'a mut Vec<Option<(Tensor<1>, Tensor<1>)>>,
     index: usize,
     lr: f64,
@@ -40,12 +42,11 @@ impl ModuleMapper for StepMapper<'_> {
         if self.moments.len() <= i {
             self.moments.resize(i + 1, None);
         }
-        let Some(grad) = tensor.grad(self.grads) else {
+        let Some(g) = self.grads.get(i).cloned().flatten() else {
             return Param::initialized(id, tensor);
         };
         let dims = tensor.dims();
         let numel: usize = dims.iter().product();
-        let g = grad.reshape([numel]);
         let (m, v) = match self.moments[i].take() {
             Some((m, v)) => (
                 m.mul_scalar(BETA1) + g.clone().mul_scalar(1.0 - BETA1),
@@ -66,8 +67,9 @@ impl ModuleMapper for StepMapper<'_> {
 }
 
 impl Adam {
-    /// One update of every parameter that has a gradient.
-    pub fn step<M: Module>(&mut self, module: M, grads: &Gradients, lr: f64) -> M {
+    /// One update of every parameter that has a gradient (`grads` in the module's visiting
+    /// order, see [`super::shards::param_grads`]).
+    pub fn step<M: Module>(&mut self, module: M, grads: &ParamGrads, lr: f64) -> M {
         self.step += 1;
         let t = self.step as i32;
         let mut mapper = StepMapper {

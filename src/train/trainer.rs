@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::adam::{Adam, AdamState};
 use super::setup::{TrainConfig, prepare, split_data};
+use super::shards::{self, ParamGrads};
 use super::warnings::{RunSummary, training_warnings, zero_acceleration_loss};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
@@ -45,6 +46,15 @@ pub struct TrainState {
     /// checkpoints of earlier versions: that check is then skipped).
     #[serde(default)]
     pub initial_physical: Option<BTreeMap<String, f64>>,
+    /// Shards per batch (train/shards.rs): the thread count the run started with. A resumed
+    /// run splits its batches the same way, whatever threads it has (1 in checkpoints of
+    /// earlier versions, which trained on one thread).
+    #[serde(default = "one")]
+    pub shards: usize,
+}
+
+fn one() -> usize {
+    1
 }
 
 impl TrainState {
@@ -96,15 +106,24 @@ impl HostData {
     }
 }
 
-/// Mean loss of `model` over `data`, in chunks, without autodiff.
-fn mean_loss(model: &Model, data: &HostData) -> f64 {
+/// Mean loss of `model` over `data`, in chunks of at most 4096 rows, each split into
+/// `shards` pieces run on `pool`, without autodiff.
+fn mean_loss(
+    model: &Model,
+    data: &HostData,
+    shards: usize,
+    pool: Option<&rayon::ThreadPool>,
+) -> f64 {
     let device = model.device();
     let idx: Vec<usize> = (0..data.count).collect();
     let total: f64 = idx
         .chunks(4096)
-        .map(|c| {
-            let (x, u, y) = data.gather(c, &device);
-            scalar(model.loss_sum(x, u, y))
+        .flat_map(|c| {
+            let pieces = shards::split(c, shards::shard_count(shards, c.len()));
+            shards::map_pieces(&pieces, pool, |p| {
+                let (x, u, y) = data.gather(p, &device);
+                scalar(model.loss_sum(x, u, y))
+            })
         })
         .sum();
     total / data.count as f64
@@ -125,7 +144,7 @@ pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
             ),
         ));
     }
-    Ok(mean_loss(&model.valid(), &HostData::new(ds)))
+    Ok(mean_loss(&model.valid(), &HostData::new(ds), 1, None))
 }
 
 pub struct Trainer {
@@ -149,6 +168,9 @@ pub struct Trainer {
     /// training), for the training checks.
     baseline: f64,
     initial_physical: Option<BTreeMap<String, f64>>,
+    /// Shards per batch (see `TrainState::shards`) and the threads that run them.
+    shards: usize,
+    pool: Option<std::sync::Arc<rayon::ThreadPool>>,
 }
 
 /// The physical values the model's white-box parts use, by name.
@@ -227,7 +249,64 @@ impl Trainer {
             samples_seen: 0,
             baseline,
             initial_physical,
+            shards: 1,
+            pool: None,
         }
+    }
+
+    /// Runs on `threads` threads (1, the default, runs on the caller's thread). A new run
+    /// splits each batch into that many shards; a resumed one keeps its checkpoint's split.
+    pub fn with_threads(mut self, threads: usize) -> Result<Self> {
+        if threads == 0 {
+            return Err(Error::invalid("threads", "must be at least 1"));
+        }
+        if self.samples_seen == 0 {
+            self.shards = threads;
+        }
+        self.pool = if threads > 1 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|i| format!("graybox-train-{i}"))
+                .build()
+                .map_err(|e| Error::Training(format!("could not start {threads} threads: {e}")))?;
+            Some(std::sync::Arc::new(pool))
+        } else {
+            None
+        };
+        Ok(self)
+    }
+
+    /// Shards per batch (what the results depend on, see `TrainState::shards`).
+    pub fn shards(&self) -> usize {
+        self.shards
+    }
+
+    /// The mean loss over the training rows `batch` and its gradient (the parameters' visiting
+    /// order), the batch split into shards as a training step splits it.
+    pub fn loss_and_grads(&self, batch: &[usize]) -> (f64, ParamGrads) {
+        let rows = batch.len() as f64;
+        let k = shards::shard_count(self.shards, batch.len());
+        let shard = |idx: &[usize], model: &Model| {
+            let (x, u, y) = self.train.gather(idx, &model.device());
+            let loss = model.loss_sum(x, u, y).div_scalar(rows);
+            let value = scalar(loss.clone());
+            let grads = loss.backward();
+            (value, shards::param_grads(&model.params, &grads))
+        };
+        if k == 1 {
+            return shard(batch, &self.model);
+        }
+        let results = shards::map_pieces(&shards::split(batch, k), self.pool.as_deref(), |idx| {
+            let model = self
+                .model
+                .with_params(shards::fresh_leaves(self.model.params.clone()));
+            shard(idx, &model)
+        });
+        let value = results.iter().map(|r| r.0).sum();
+        (
+            value,
+            shards::sum_grads(results.into_iter().map(|r| r.1).collect()),
+        )
     }
 
     /// Continues a run from a checkpoint, with the same data as the original run.
@@ -265,6 +344,7 @@ impl Trainer {
         t.train_seconds = state.train_seconds;
         t.samples_seen = state.samples_seen;
         t.initial_physical = state.initial_physical;
+        t.shards = state.shards.max(1);
         Ok(t)
     }
 
@@ -320,6 +400,7 @@ impl Trainer {
             samples_seen: self.samples_seen,
             data_fingerprint: self.fingerprint,
             initial_physical: self.initial_physical.clone(),
+            shards: self.shards,
         }
     }
 
@@ -353,7 +434,6 @@ impl Trainer {
     /// batches.
     pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
         let start = Instant::now();
-        let device = self.model.device();
         let mut order: Vec<usize> = (0..self.train.count).collect();
         self.rng.shuffle(&mut order);
         let epoch = self.epoch + 1;
@@ -362,16 +442,13 @@ impl Trainer {
             if cancel.load(Ordering::Relaxed) {
                 return Err(Error::Cancelled);
             }
-            let (x, u, y) = self.train.gather(batch, &device);
-            let loss = self.model.loss_sum(x, u, y).div_scalar(batch.len() as f64);
-            let value = scalar(loss.clone());
+            let (value, grads) = self.loss_and_grads(batch);
             if !value.is_finite() {
                 return Err(Error::Training(format!(
                     "the loss became non-finite ({value}) at epoch {epoch}, batch {b}; try a smaller learning rate"
                 )));
             }
             total += value * batch.len() as f64;
-            let grads = loss.backward();
             self.model.params = self
                 .adam
                 .step(self.model.params.clone(), &grads, self.cfg.lr);
@@ -379,7 +456,10 @@ impl Trainer {
         self.train_seconds += start.elapsed().as_secs_f64();
         self.samples_seen += self.train.count as u64;
         let train_loss = total / self.train.count as f64;
-        let val_loss = self.val.as_ref().map(|v| mean_loss(&self.model.valid(), v));
+        let val_loss = self
+            .val
+            .as_ref()
+            .map(|v| mean_loss(&self.model.valid(), v, self.shards, self.pool.as_deref()));
         if let Some(v) = val_loss.filter(|v| !v.is_finite()) {
             return Err(Error::Training(format!(
                 "the validation loss became non-finite ({v}) at epoch {epoch}"

@@ -1,0 +1,133 @@
+//! Data-parallel training steps: a batch split into shards, each shard's loss and gradient
+//! computed on its own thread with its own copy of the parameters, the gradients summed in
+//! shard order.
+//!
+//! Every op of a model, not only the large matrix products, then runs on all the threads a
+//! job is given, and the result depends only on the shard count: a run is reproducible for a
+//! given count, and a checkpoint records it so that a resumed run splits its batches the
+//! same way (and stays bit-equal) whatever threads the resuming process has.
+
+use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
+use burn::tensor::{Gradients, Tensor};
+use rayon::prelude::*;
+
+/// The gradient of each parameter tensor, flattened, in the module's visiting order (`None`:
+/// the loss does not depend on it).
+pub type ParamGrads = Vec<Option<Tensor<1>>>;
+
+/// Below this many rows a shard's per-op overhead outweighs what a second thread gains, so a
+/// batch gets fewer shards (measured with `graybox bench step`: MVF at 128 rows a shard still
+/// gains, at 32 it loses).
+pub const MIN_SHARD_ROWS: usize = 64;
+
+/// The cores this process may use: the default thread count of one training.
+pub fn cores() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
+}
+
+/// How many shards a batch of `rows` gets when a run uses `shards`.
+pub fn shard_count(shards: usize, rows: usize) -> usize {
+    shards.min(rows / MIN_SHARD_ROWS).max(1)
+}
+
+/// `items` in `k` contiguous pieces whose lengths differ by at most one.
+pub fn split<T>(items: &[T], k: usize) -> Vec<&[T]> {
+    let (base, extra) = (items.len() / k, items.len() % k);
+    let mut rest = items;
+    (0..k)
+        .map(|i| {
+            let (head, tail) = rest.split_at(base + usize::from(i < extra));
+            rest = tail;
+            head
+        })
+        .collect()
+}
+
+/// Runs `f` on every piece, on `pool` when there is one, and returns the results in piece
+/// order (so that what is summed afterwards is summed in the same order on any thread).
+pub fn map_pieces<T: Sync, R: Send>(
+    pieces: &[&[T]],
+    pool: Option<&rayon::ThreadPool>,
+    f: impl Fn(&[T]) -> R + Sync + Send,
+) -> Vec<R> {
+    match pool {
+        Some(pool) if pieces.len() > 1 => {
+            pool.install(|| pieces.par_iter().map(|p| f(p)).collect())
+        }
+        _ => pieces.iter().map(|p| f(p)).collect(),
+    }
+}
+
+/// The gradient of every parameter of `module` in `grads`.
+pub fn param_grads<M: Module>(module: &M, grads: &Gradients) -> ParamGrads {
+    struct Collect<'a> {
+        grads: &'a Gradients,
+        out: ParamGrads,
+    }
+    impl ModuleVisitor for Collect<'_> {
+        fn visit_float<const D: usize>(&mut self, param: &Param<Tensor<D>>) {
+            let t = param.val();
+            let numel = t.dims().iter().product::<usize>();
+            self.out
+                .push(t.grad(self.grads).map(|g| g.reshape([numel])));
+        }
+    }
+    let mut c = Collect { grads, out: vec![] };
+    module.visit(&mut c);
+    c.out
+}
+
+/// The sum of the shards' gradients, in shard order.
+pub fn sum_grads(shards: Vec<ParamGrads>) -> ParamGrads {
+    let mut shards = shards.into_iter();
+    let first = shards.next().unwrap_or_default();
+    shards.fold(first, |acc, g| {
+        acc.into_iter()
+            .zip(g)
+            .map(|(a, b)| match (a, b) {
+                (Some(a), Some(b)) => Some(a + b),
+                (a, b) => a.or(b),
+            })
+            .collect()
+    })
+}
+
+/// The same values as fresh autodiff leaves. Burn merges the graphs of ops that share a
+/// tracked input and runs a backward pass under its graph's lock, so shards that read the
+/// same parameter tensors would serialize; fresh leaves give each shard its own graph.
+pub fn fresh_leaves<M: Module>(module: M) -> M {
+    struct Fresh;
+    impl ModuleMapper for Fresh {
+        fn map_float<const D: usize>(&mut self, param: Param<Tensor<D>>) -> Param<Tensor<D>> {
+            let (id, tensor, _) = param.consume();
+            Param::initialized(id, Tensor::from_inner(tensor.inner()).require_grad())
+        }
+    }
+    module.map(&mut Fresh)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_covers_items_in_order_with_near_equal_pieces() {
+        let items: Vec<usize> = (0..10).collect();
+        let pieces = split(&items, 3);
+        assert_eq!(
+            pieces.iter().map(|p| p.len()).collect::<Vec<_>>(),
+            [4, 3, 3]
+        );
+        assert_eq!(pieces.concat(), items);
+        assert_eq!(split(&items, 1), vec![&items[..]]);
+    }
+
+    #[test]
+    fn small_batches_get_fewer_shards() {
+        assert_eq!(shard_count(2, 8), 1);
+        assert_eq!(shard_count(2, 127), 1);
+        assert_eq!(shard_count(2, 128), 2);
+        assert_eq!(shard_count(4, 4096), 4);
+        assert_eq!(shard_count(1, 4096), 1);
+    }
+}
