@@ -23,6 +23,7 @@ pub mod records;
 pub mod rng;
 pub mod service;
 pub mod sim;
+pub mod simd;
 pub mod store;
 pub mod train;
 

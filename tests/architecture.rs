@@ -25,7 +25,7 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         "experiment",
     ];
     match layer {
-        "error" | "rng" | "backend" | "data" | "records" => ABOVE_GROUND,
+        "error" | "rng" | "backend" | "simd" | "data" | "records" => ABOVE_GROUND,
         "model" | "infer" | "control" | "sim" => &[
             "train",
             "app",

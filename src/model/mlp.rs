@@ -184,13 +184,9 @@ impl From<Tensor<3>> for InputTangent {
     }
 }
 
-/// tanh(z) = 2σ(2z) − 1. The CPU backends compute `tanh` with libm's tanhf (through expm1f,
-/// ~20 ns an element), the largest single cost of training; the logistic function uses expf
-/// and a fused backward, and the identity is exact up to rounding.
+/// The hidden layers' activation: one fused Burn op (`backend/tanh.rs`).
 pub fn tanh<const D: usize>(z: Tensor<D>) -> Tensor<D> {
-    burn::tensor::activation::sigmoid(z.mul_scalar(2.0))
-        .mul_scalar(2.0)
-        .add_scalar(-1.0)
+    crate::backend::tanh(z)
 }
 
 /// [batch, n, a] · [a, b] → [batch, n, b]

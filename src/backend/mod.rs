@@ -1,5 +1,10 @@
-//! Backend and precision selection. Burn fixes a device's float type once per process
-//! (design.md §7), so precision is a process-level setting.
+//! Backend and precision selection, and graybox's own Burn operations (`tanh.rs`). Burn fixes
+//! a device's float type once per process (design.md §7), so precision is a process-level
+//! setting.
+
+mod tanh;
+
+pub use tanh::tanh;
 
 use burn::tensor::{Device, FloatDType};
 use serde::{Deserialize, Serialize};
