@@ -320,7 +320,7 @@ fn bench_train_reports_step_throughput_and_cpu() {
         "bench",
         "train",
         "--train",
-        "256",
+        "512",
         "--val",
         "32",
         "--epochs",
@@ -330,7 +330,7 @@ fn bench_train_reports_step_throughput_and_cpu() {
         "--models",
         "MVF",
         "--batch-sizes",
-        "128",
+        "256",
         "--time-limit",
         "0",
         "--threads",
@@ -350,8 +350,8 @@ fn bench_train_reports_step_throughput_and_cpu() {
         "{line}"
     );
     assert!(f("cpu_per_wall") > 0.0, "{line}");
-    assert_eq!(line["batch_size"], 128);
-    // Two threads split a batch of 128 into two shards; 4 steps need 2 epochs of 2 batches.
+    assert_eq!(line["batch_size"], 256);
+    // Two threads split a batch of 256 into two shards; 4 steps need 2 epochs of 2 batches.
     assert_eq!(line["threads"], 2, "{line}");
     assert_eq!(line["shards"], 2, "{line}");
     assert_eq!(line["epochs"], 2, "{line}");

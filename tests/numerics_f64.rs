@@ -475,13 +475,14 @@ fn sharded_batches_have_the_whole_batch_gradient() {
         &Template::DoublePendulum,
         PAPER.to_vec(),
         &SimConfig {
-            count: 300,
+            count: 400,
             seed: 3,
             ..SimConfig::default()
         },
     )
     .unwrap();
-    let batch: Vec<usize> = (0..300).rev().collect();
+    // 400 rows: 2 shards of 200 and 3 of 133–134 (each at least 128 rows).
+    let batch: Vec<usize> = (0..400).rev().collect();
     for name in ["MVF", "naive", "MVB"] {
         let spec = ModelSpec::named(name, Some(Template::DoublePendulum)).unwrap();
         let cfg = TrainConfig {

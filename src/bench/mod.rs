@@ -153,7 +153,8 @@ fn throughput(
                "samples_per_second": samples / steps,
                "samples_per_second_with_validation": samples / wall,
                "cpu_per_wall": cpu / wall,
-               "threads": a.threads, "shards": trainer.shards(),
+               "threads": a.threads,
+               "shards": crate::train::shards::shard_count(trainer.shards(), bs),
                "cores": crate::train::shards::cores(),
                "note": "samples_per_second: training steps only (forward, backward, Adam), as \
                         the PyTorch reference is measured; cpu_per_wall: process CPU time over \

@@ -15,10 +15,11 @@ use rayon::prelude::*;
 /// the loss does not depend on it).
 pub type ParamGrads = Vec<Option<Tensor<1>>>;
 
-/// Below this many rows a shard's per-op overhead outweighs what a second thread gains, so a
-/// batch gets fewer shards (measured with `graybox bench step`: MVF at 128 rows a shard still
-/// gains, at 32 it loses).
-pub const MIN_SHARD_ROWS: usize = 64;
+/// Below this many rows a shard's per-op overhead outweighs what another thread gains, so a
+/// batch gets fewer shards (`graybox bench train`, 2 threads against 1: MVF at batch 256, two
+/// shards of 128, 83k against 77k samples/s; at batch 128, two shards of 64, 53k against 55k
+/// while using a second core).
+pub const MIN_SHARD_ROWS: usize = 128;
 
 /// The cores this process may use: the default thread count of one training.
 pub fn cores() -> usize {
@@ -125,8 +126,8 @@ mod tests {
     #[test]
     fn small_batches_get_fewer_shards() {
         assert_eq!(shard_count(2, 8), 1);
-        assert_eq!(shard_count(2, 127), 1);
-        assert_eq!(shard_count(2, 128), 2);
+        assert_eq!(shard_count(2, 255), 1);
+        assert_eq!(shard_count(2, 256), 2);
         assert_eq!(shard_count(4, 4096), 4);
         assert_eq!(shard_count(1, 4096), 1);
     }
