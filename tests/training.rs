@@ -237,6 +237,37 @@ fn threaded_runs_repeat_and_resume_bit_equal_on_other_thread_counts() {
     assert!(start(1).with_threads(0).is_err(), "0 threads is refused");
 }
 
+/// The job budget's parameter count (what `--max-model-params` refuses on) is the count the
+/// trained model has, angles (one more network input each) and templates included.
+#[test]
+fn the_budget_counts_the_parameters_a_model_has() {
+    use burn::module::Module;
+    use graybox::train::budget::{Dims, estimate};
+    let train = data(&Template::DoublePendulum, 64, 1);
+    for name in ["MVF", "naive", "MVB", "MB", "VB", "F", "W-B"] {
+        for periodic in [vec![], vec![true, true], vec![true, false]] {
+            let spec = ModelSpec::named(name, Some(Template::DoublePendulum)).unwrap();
+            let cfg = TrainConfig {
+                periodic: periodic.clone(),
+                ..quick(1)
+            };
+            let t = Trainer::new(name, spec.clone(), &[], &train, None, cfg, &flex()).unwrap();
+            let dims = Dims {
+                n: 2,
+                m: 2,
+                angles: periodic.iter().filter(|&&a| a).count(),
+            };
+            let physical = t.model().physical_values().map_or(0, |v| v.len());
+            let est = estimate(&spec, dims, 32, 64, physical);
+            assert_eq!(
+                est.params,
+                t.model().params.num_params(),
+                "{name}, periodic {periodic:?}"
+            );
+        }
+    }
+}
+
 /// Model-based RL grows its data between episodes: `extend` trains on from the same
 /// parameters (the first data's loss is not reset by it), a checkpoint taken after it resumes
 /// on the grown data bit-equal to an uninterrupted run, and data of another shape is refused.

@@ -397,8 +397,16 @@ fn job_estimate(job: &JobSpec, data: &Dataset, val_count: usize) -> (budget::Job
         count - (count as f64 * job.training.val_fraction) as usize
     };
     let batch = job.training.batch_size.min(train.max(1));
-    let physical = job.spec.template().map_or(0, |t| t.params().len());
-    let est = budget::estimate(&job.spec, n, m, batch, count + val_count, physical);
+    // Physical parameters exist only when some part is white-box (`Model::init`).
+    let physical = match job.spec.template() {
+        Some(t) if !job.spec.white_box_parts().is_empty() => t.params().len(),
+        _ => 0,
+    };
+    // A bad `periodic` is refused by the data check; here it counts as no angles.
+    let angles = crate::train::setup::periodic(&job.spec, &job.training, n)
+        .map_or(0, |p| p.iter().filter(|&&a| a).count());
+    let dims = budget::Dims { n, m, angles };
+    let est = budget::estimate(&job.spec, dims, batch, count + val_count, physical);
     (est, batch)
 }
 

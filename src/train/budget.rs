@@ -38,13 +38,24 @@ fn mlp(d_in: usize, hidden: &[usize], d_out: usize) -> (usize, usize) {
     (params, widths.iter().sum())
 }
 
+/// The sizes a job's networks follow from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dims {
+    pub n: usize,
+    pub m: usize,
+    /// Coordinates that are angles: a network sees (sin q, cos q) for each, one input more.
+    pub angles: usize,
+}
+
 /// (params, widths × derivative blocks) per component; M's and V's networks carry their n
 /// q-derivatives (Coriolis term, ∇V), the others only values.
-fn components(spec: &ModelSpec, n: usize, m: usize, physical: usize) -> Vec<(usize, usize)> {
+fn components(spec: &ModelSpec, d: Dims, physical: usize) -> Vec<(usize, usize)> {
+    let Dims { n, m, angles } = d;
+    let q_in = n + angles;
     let tri = mass_matrix::outputs(n);
     let with_grad = |(p, w): (usize, usize)| (p, w.saturating_mul(n + 1));
     let (mass, potential, forces) = match spec {
-        ModelSpec::Naive { hidden } => return vec![mlp(2 * n + m, hidden, n)],
+        ModelSpec::Naive { hidden } => return vec![mlp(q_in + n + m, hidden, n)],
         ModelSpec::Structured {
             mass,
             potential,
@@ -53,19 +64,19 @@ fn components(spec: &ModelSpec, n: usize, m: usize, physical: usize) -> Vec<(usi
         } => (mass, potential, forces),
     };
     let mass = match mass {
-        MassSpec::Mlp { hidden } => with_grad(mlp(n, hidden, tri)),
+        MassSpec::Mlp { hidden } => with_grad(mlp(q_in, hidden, tri)),
         MassSpec::Constant => (tri, 0),
         MassSpec::Template => (0, 0),
     };
     let potential = match (potential.network(), potential) {
-        (Some(hidden), _) => with_grad(mlp(n, hidden, 1)),
+        (Some(hidden), _) => with_grad(mlp(q_in, hidden, 1)),
         (None, PotentialSpec::Quadratic) => (tri, 0),
         (None, _) => (0, 0),
     };
     let forces = match (forces.network(), forces) {
-        (Some(hidden), _) => mlp(2 * n + m, hidden, n),
+        (Some(hidden), _) => mlp(q_in + n + m, hidden, n),
         (None, ForceSpec::ControlAffine { hidden }) => {
-            let (p, w) = mlp(n, hidden, n * m);
+            let (p, w) = mlp(q_in, hidden, n * m);
             (p + n, w)
         }
         (None, ForceSpec::ConstantAffine) => (n * m + n, 0),
@@ -79,13 +90,13 @@ fn components(spec: &ModelSpec, n: usize, m: usize, physical: usize) -> Vec<(usi
 /// estimate as `usize::MAX`, never wrap.
 pub fn estimate(
     spec: &ModelSpec,
-    n: usize,
-    m: usize,
+    dims: Dims,
     batch: usize,
     samples: usize,
     physical: usize,
 ) -> JobEstimate {
-    let parts = components(spec, n, m, physical);
+    let Dims { n, m, .. } = dims;
+    let parts = components(spec, dims, physical);
     let params = parts.iter().fold(0usize, |a, p| a.saturating_add(p.0));
     let units = parts.iter().fold(0usize, |a, p| a.saturating_add(p.1));
     // The structure per sample: L and ∂L/∂q, the Coriolis products and the solve.

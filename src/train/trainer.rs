@@ -228,7 +228,8 @@ impl Trainer {
         val: Option<&Dataset>,
     ) -> Self {
         let best_params = model.params.export();
-        let baseline = zero_acceleration_loss(val.unwrap_or(train), model.config.lambda);
+        let c = &model.config;
+        let baseline = zero_acceleration_loss(val.unwrap_or(train), c.lambda, &c.periodic);
         let initial_physical = used_physical_values(&model);
         Self {
             model_name: model_name.to_string(),
@@ -375,7 +376,7 @@ impl Trainer {
         self.train = HostData::new(data);
         self.val = None;
         self.fingerprint = fingerprint(data, None);
-        self.baseline = zero_acceleration_loss(data, c.lambda);
+        self.baseline = zero_acceleration_loss(data, c.lambda, &c.periodic);
         self.best_loss = f64::INFINITY;
         self.best_params = self.model.params.export();
         self.stale_epochs = 0;

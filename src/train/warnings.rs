@@ -17,13 +17,20 @@ pub const MOVED_REL: f64 = 1e-6;
 
 /// The loss of predicting q̈ = 0 (every integrator then gives q′ = q + q̇Δt, q̇′ = q̇) on `ds`,
 /// with the model's velocity weight λ: the bar a model must clear to have learned anything.
-pub fn zero_acceleration_loss(ds: &Dataset, lambda: f64) -> f64 {
+/// An angle (`periodic[j]`) is compared as the model's loss compares it, 2(1 − cos Δ), so
+/// that wrapped data (a jump of 2π) does not make the bar too easy.
+pub fn zero_acceleration_loss(ds: &Dataset, lambda: f64, periodic: &[bool]) -> f64 {
     let mut total = 0.0;
     for (k, (&q1, &v1)) in ds.q_next.iter().zip(&ds.qdot_next).enumerate() {
         let (q, v) = (ds.q[k], ds.qdot[k]);
         let dq = q1 - (q + v * ds.dt);
         let dv = v1 - v;
-        total += dq * dq + lambda * dv * dv;
+        let position = if periodic.get(k % ds.n).copied().unwrap_or(false) {
+            2.0 * (1.0 - dq.cos())
+        } else {
+            dq * dq
+        };
+        total += position + lambda * dv * dv;
     }
     total / ds.count() as f64
 }
@@ -202,7 +209,33 @@ mod tests {
             ],
         )
         .unwrap();
-        let l = zero_acceleration_loss(&ds, 0.5);
+        let l = zero_acceleration_loss(&ds, 0.5, &[]);
         assert!((l - 0.5).abs() < 1e-12, "{l}");
+    }
+
+    #[test]
+    fn the_baseline_compares_angles_on_the_circle() {
+        // Sample 0 wraps from just below π to just above −π: Δ = −2π + 0.1 for the angle,
+        // 2(1 − cos 0.1) on the circle; sample 1 moves 0.1 off the zero-acceleration guess.
+        let ds = Dataset::new(
+            0.1,
+            1,
+            1,
+            [
+                vec![3.1, 0.0],
+                vec![0.0, 0.0],
+                vec![0.0; 2],
+                vec![3.1 + 0.1 - 2.0 * std::f64::consts::PI, 0.1],
+                vec![0.0, 0.0],
+            ],
+        )
+        .unwrap();
+        let on_circle = 2.0 * (1.0 - 0.1f64.cos());
+        let l = zero_acceleration_loss(&ds, 1.0, &[true]);
+        assert!((l - on_circle).abs() < 1e-12, "{l}");
+        assert!(
+            zero_acceleration_loss(&ds, 1.0, &[false]) > 15.0,
+            "not wrapped: ~(2π)²/2"
+        );
     }
 }
