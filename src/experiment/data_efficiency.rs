@@ -76,12 +76,8 @@ pub struct DataEfficiencyArgs {
     /// Train every size, not only up to the first that reaches 10^−2.5.
     #[arg(long)]
     pub all_sizes: bool,
-    /// A small run for tests (well under a minute).
-    #[arg(long)]
-    pub quick: bool,
-    /// Trainings at once [default: every core].
-    #[arg(long, default_value_t = 0)]
-    pub jobs: usize,
+    #[command(flatten)]
+    pub run: pool::RunArgs,
 }
 
 /// Everything that decides the results (`run.json`; a rerun must match it).
@@ -105,7 +101,7 @@ struct Settings {
 
 impl Settings {
     fn from_args(a: &DataEfficiencyArgs) -> Result<Self> {
-        let q = a.quick;
+        let q = a.run.quick;
         let models: Vec<String> = match &a.models {
             Some(m) => m
                 .split(',')
@@ -207,7 +203,7 @@ pub fn run(a: DataEfficiencyArgs) -> Result<()> {
     let progress = Progress::new(total, 0);
     let results = pool::parallel(
         &ladders,
-        pool::threads(a.jobs),
+        pool::threads(a.run.jobs),
         &progress,
         |(m, seed), status| ladder(&s, &out, m, *seed, &data[*seed as usize], &progress, status),
     );

@@ -79,12 +79,8 @@ pub struct MbrlArgs {
     /// iLQR iterations per start [default: 200; 30 with --quick].
     #[arg(long)]
     pub max_iterations: Option<usize>,
-    /// A small run for tests (well under a minute).
-    #[arg(long)]
-    pub quick: bool,
-    /// Runs at once [default: every core].
-    #[arg(long, default_value_t = 0)]
-    pub jobs: usize,
+    #[command(flatten)]
+    pub run: pool::RunArgs,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -113,7 +109,7 @@ struct Settings {
 
 impl Settings {
     fn from_args(a: &MbrlArgs) -> Result<Self> {
-        let q = a.quick;
+        let q = a.run.quick;
         let models: Vec<String> = match &a.models {
             Some(m) => m
                 .split(',')
@@ -270,7 +266,7 @@ pub fn run(a: MbrlArgs) -> Result<()> {
     let progress = Progress::new(runs.len() * s.episodes, 0);
     let results = pool::parallel(
         &runs,
-        pool::threads(a.jobs),
+        pool::threads(a.run.jobs),
         &progress,
         |(m, seed), status| run_one(&s, &out, &sys, m, *seed, &progress, status),
     );

@@ -104,6 +104,17 @@ impl Progress {
     }
 }
 
+/// The flags every experiment takes besides its own settings.
+#[derive(clap::Args, Debug, Clone, Copy)]
+pub struct RunArgs {
+    /// A small run for tests (well under a minute).
+    #[arg(long)]
+    pub quick: bool,
+    /// Trainings (model-based RL: runs) at once [default: every core].
+    #[arg(long, default_value_t = 0, hide_default_value = true)]
+    pub jobs: usize,
+}
+
 /// `work` on every item, `jobs` at a time, each worker taking the next item when it is free;
 /// results in the order of `items`.
 pub fn parallel<T: Sync, R: Send>(

@@ -58,12 +58,8 @@ pub struct RolloutArgs {
     pub epochs: Option<usize>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// A small run for tests (well under a minute).
-    #[arg(long)]
-    pub quick: bool,
-    /// Trainings at once [default: every core].
-    #[arg(long, default_value_t = 0)]
-    pub jobs: usize,
+    #[command(flatten)]
+    pub run: pool::RunArgs,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -100,7 +96,7 @@ struct Trajectory {
 }
 
 pub fn run(a: RolloutArgs) -> Result<()> {
-    let q = a.quick;
+    let q = a.run.quick;
     let s = Settings {
         system: "double_pendulum (paper values), dt 0.01, RK4; training data as in data-efficiency",
         models: MODELS,
@@ -117,28 +113,33 @@ pub fn run(a: RolloutArgs) -> Result<()> {
     };
     let out = OutDir::open(&a.out, "rollout", &s)?;
     let progress = Progress::new(MODELS.len(), 0);
-    let trained = pool::parallel(&MODELS, pool::threads(a.jobs), &progress, |m, status| {
-        if let Some(t) = out.get::<Trained>(&format!("train/{m}"))
-            && let Ok(file) = ModelFile::load(&out.path(&t.file))
-        {
-            progress.cells_done(1, &format!("{m}: trained earlier"));
-            return Ok((t, file));
-        }
-        let (t, file) = train(&s, m, &|e, best| {
-            status.show(&format!("{m}: epoch {e}/{} best val {best:.3e}", s.epochs))
-        })?;
-        file.save(&out.path(&t.file))?;
-        out.put(&format!("train/{m}"), &t)?;
-        progress.cells_done(
-            1,
-            &format!(
-                "{m}: best val {:.3e} ({:.0} s)",
-                t.best_val_loss.unwrap_or(f64::NAN),
-                t.seconds
-            ),
-        );
-        Ok((t, file))
-    });
+    let trained = pool::parallel(
+        &MODELS,
+        pool::threads(a.run.jobs),
+        &progress,
+        |m, status| {
+            if let Some(t) = out.get::<Trained>(&format!("train/{m}"))
+                && let Ok(file) = ModelFile::load(&out.path(&t.file))
+            {
+                progress.cells_done(1, &format!("{m}: trained earlier"));
+                return Ok((t, file));
+            }
+            let (t, file) = train(&s, m, &|e, best| {
+                status.show(&format!("{m}: epoch {e}/{} best val {best:.3e}", s.epochs))
+            })?;
+            file.save(&out.path(&t.file))?;
+            out.put(&format!("train/{m}"), &t)?;
+            progress.cells_done(
+                1,
+                &format!(
+                    "{m}: best val {:.3e} ({:.0} s)",
+                    t.best_val_loss.unwrap_or(f64::NAN),
+                    t.seconds
+                ),
+            );
+            Ok((t, file))
+        },
+    );
     progress.finish();
     let trained: Vec<(Trained, ModelFile)> = trained.into_iter().collect::<Result<_>>()?;
     let evaluators: Vec<Evaluator> = trained
