@@ -154,7 +154,7 @@ fn throughput(
                "samples_per_second_with_validation": samples / wall,
                "cpu_per_wall": cpu / wall,
                "threads": a.threads,
-               "shards": crate::train::shards::shard_count(trainer.shards(), bs),
+               "shards": trainer.shards_of(bs),
                "cores": crate::train::shards::cores(),
                "note": "samples_per_second: training steps only (forward, backward, Adam), as \
                         the PyTorch reference is measured; cpu_per_wall: process CPU time over \

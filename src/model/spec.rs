@@ -270,6 +270,24 @@ impl ModelSpec {
         }
     }
 
+    /// Whether some part is a network (a residual included).
+    pub fn has_network(&self) -> bool {
+        match self {
+            ModelSpec::Naive { .. } => true,
+            ModelSpec::Structured {
+                mass,
+                potential,
+                forces,
+                ..
+            } => {
+                matches!(mass, MassSpec::Mlp { .. })
+                    || potential.network().is_some()
+                    || forces.network().is_some()
+                    || matches!(forces, ForceSpec::ControlAffine { .. })
+            }
+        }
+    }
+
     pub fn template(&self) -> Option<&Template> {
         match self {
             ModelSpec::Structured { template, .. } => template.as_ref(),

@@ -115,11 +115,12 @@ fn mean_loss(
     pool: Option<&rayon::ThreadPool>,
 ) -> f64 {
     let device = model.device();
+    let min_rows = shards::min_shard_rows(&model.config.spec);
     let idx: Vec<usize> = (0..data.count).collect();
     let total: f64 = idx
         .chunks(4096)
         .flat_map(|c| {
-            let pieces = shards::split(c, shards::shard_count(shards, c.len()));
+            let pieces = shards::split(c, shards::shard_count(shards, c.len(), min_rows));
             shards::map_pieces(&pieces, pool, |p| {
                 let (x, u, y) = data.gather(p, &device);
                 scalar(model.loss_sum(x, u, y))
@@ -282,11 +283,20 @@ impl Trainer {
         self.shards
     }
 
+    /// The shards a batch of `rows` gets (fewer for small batches, see `shards::MIN_SHARD_ROWS`).
+    pub fn shards_of(&self, rows: usize) -> usize {
+        shards::shard_count(self.shards, rows, self.min_shard_rows())
+    }
+
+    fn min_shard_rows(&self) -> usize {
+        shards::min_shard_rows(&self.model.config.spec)
+    }
+
     /// The mean loss over the training rows `batch` and its gradient (the parameters' visiting
     /// order), the batch split into shards as a training step splits it.
     pub fn loss_and_grads(&self, batch: &[usize]) -> (f64, ParamGrads) {
         let rows = batch.len() as f64;
-        let k = shards::shard_count(self.shards, batch.len());
+        let k = self.shards_of(batch.len());
         let shard = |idx: &[usize], model: &Model| {
             let (x, u, y) = self.train.gather(idx, &model.device());
             let loss = model.loss_sum(x, u, y).div_scalar(rows);
