@@ -235,6 +235,7 @@ fn threaded_runs_repeat_and_resume_bit_equal_on_other_thread_counts() {
     assert_eq!(single.shards(), 1);
     assert_ne!(a.model().params.export(), single.model().params.export());
     assert!(start(1).with_threads(0).is_err(), "0 threads is refused");
+    assert!(start(1).with_threads(100_000).is_err(), "a typo is refused");
 }
 
 /// The job budget's parameter count (what `--max-model-params` refuses on) is the count the

@@ -127,6 +127,13 @@ impl Settings {
         if let Some((flag, _)) = at_least_one.iter().find(|(_, v)| *v == 0) {
             return Err(Error::invalid(*flag, "must be at least 1"));
         }
+        let most = crate::train::shards::MAX_THREADS;
+        if self.job_threads.is_some_and(|t| t > most) {
+            return Err(Error::invalid(
+                "job-threads",
+                format!("must be at most {most}"),
+            ));
+        }
         // Calls and rollout streams each get --max-heavy-calls threads; 8 spare for loads.
         if self.workers + 2 * self.max_heavy_calls + 8 > MAX_BLOCKING_THREADS {
             return Err(Error::invalid(
@@ -191,7 +198,9 @@ mod tests {
         assert_eq!(s(2, None).job_threads(), (cores / 2).max(1));
         assert_eq!(s(cores + 1, None).job_threads(), 1, "never 0");
         assert_eq!(s(4, Some(3)).job_threads(), 3);
-        let err = s(1, Some(0)).validate().unwrap_err().to_string();
-        assert!(err.contains("job-threads"), "{err}");
+        for bad in [0, crate::train::shards::MAX_THREADS + 1] {
+            let err = s(1, Some(bad)).validate().unwrap_err().to_string();
+            assert!(err.contains("job-threads"), "{err}");
+        }
     }
 }

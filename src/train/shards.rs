@@ -36,6 +36,9 @@ pub fn min_shard_rows(spec: &crate::model::spec::ModelSpec) -> usize {
     }
 }
 
+/// The most threads one training may ask for: more is a typo, not a machine.
+pub const MAX_THREADS: usize = 256;
+
 /// The cores this process may use: the default thread count of one training.
 pub fn cores() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)

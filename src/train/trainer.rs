@@ -259,8 +259,11 @@ impl Trainer {
     /// Runs on `threads` threads (1, the default, runs on the caller's thread). A new run
     /// splits each batch into that many shards; a resumed one keeps its checkpoint's split.
     pub fn with_threads(mut self, threads: usize) -> Result<Self> {
-        if threads == 0 {
-            return Err(Error::invalid("threads", "must be at least 1"));
+        if !(1..=shards::MAX_THREADS).contains(&threads) {
+            return Err(Error::invalid(
+                "threads",
+                format!("must be between 1 and {}", shards::MAX_THREADS),
+            ));
         }
         if self.samples_seen == 0 {
             self.shards = threads;
