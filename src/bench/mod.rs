@@ -53,6 +53,7 @@ pub struct BenchTrainArgs {
     /// too few to average out page faults and the scheduler.
     #[arg(long, default_value_t = 3)]
     pub epochs: usize,
+    /// The fewest timed training steps per figure (see --epochs).
     #[arg(long, default_value_t = 30)]
     pub min_steps: usize,
     /// Models to measure, comma-separated.

@@ -171,7 +171,7 @@ pub struct Trainer {
     initial_physical: Option<BTreeMap<String, f64>>,
     /// Shards per batch (see `TrainState::shards`) and the threads that run them.
     shards: usize,
-    pool: Option<std::sync::Arc<rayon::ThreadPool>>,
+    pool: Option<rayon::ThreadPool>,
 }
 
 /// The physical values the model's white-box parts use, by name.
@@ -274,7 +274,7 @@ impl Trainer {
                 .thread_name(|i| format!("graybox-train-{i}"))
                 .build()
                 .map_err(|e| Error::Training(format!("could not start {threads} threads: {e}")))?;
-            Some(std::sync::Arc::new(pool))
+            Some(pool)
         } else {
             None
         };
@@ -310,7 +310,7 @@ impl Trainer {
         if k == 1 {
             return shard(batch, &self.model);
         }
-        let results = shards::map_pieces(&shards::split(batch, k), self.pool.as_deref(), |idx| {
+        let results = shards::map_pieces(&shards::split(batch, k), self.pool.as_ref(), |idx| {
             let model = self
                 .model
                 .with_params(shards::fresh_leaves(self.model.params.clone()));
@@ -473,7 +473,7 @@ impl Trainer {
         let val_loss = self
             .val
             .as_ref()
-            .map(|v| mean_loss(&self.model.valid(), v, self.shards, self.pool.as_deref()));
+            .map(|v| mean_loss(&self.model.valid(), v, self.shards, self.pool.as_ref()));
         if let Some(v) = val_loss.filter(|v| !v.is_finite()) {
             return Err(Error::Training(format!(
                 "the validation loss became non-finite ({v}) at epoch {epoch}"
