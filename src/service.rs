@@ -1,13 +1,17 @@
 //! `graybox serve`: REST, gRPC and training workers in one process over one SQLite file.
-//! Graceful shutdown: stop claiming, let running jobs reach an epoch end, checkpoint them and
-//! give them back to the queue, then stop the listeners.
+//! Graceful shutdown: stop accepting and claiming, let running jobs reach an epoch end,
+//! checkpoint them and give them back to the queue, then stop the listeners. A shutdown has a
+//! bound (`--shutdown-grace-secs`): past it, jobs still mid-epoch go back to the queue from
+//! their last checkpoint and the process exits without waiting for its computations.
 
+use std::future::Future;
 use std::net::SocketAddr;
+use std::time::Duration;
 
 use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
-use tracing::info;
+use tracing::{info, warn};
 
 use crate::api::listen::{TlsFiles, TlsListener, acceptor};
 use crate::api::rest::router;
@@ -22,8 +26,28 @@ pub struct Running {
     pub app: App,
     stop: watch::Sender<bool>,
     workers: Vec<JoinHandle<()>>,
+    /// The workers' lease owners: a forced shutdown gives back what they hold.
+    owners: Vec<String>,
     servers: Vec<JoinHandle<Result<()>>>,
 }
+
+/// How a shutdown ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stopped {
+    /// Every worker gave its job back at an epoch end, checkpointed.
+    Clean,
+    /// The grace ran out first: `released` jobs went back to the queue from their last
+    /// checkpoint, and whatever was still computing was abandoned.
+    Forced { released: u64 },
+}
+
+/// How long the listeners may finish answering once the workers are done: an open
+/// server-sent event stream would hold a graceful HTTP shutdown forever.
+const DRAIN: Duration = Duration::from_secs(5);
+
+/// Giving held jobs back on a forced shutdown waits this long for the database at most;
+/// past it their leases expire instead (and the jobs are reclaimed then).
+const RELEASE_TIMEOUT: Duration = Duration::from_secs(5);
 
 async fn bind(addr: &str, what: &str) -> Result<TcpListener> {
     TcpListener::bind(addr)
@@ -66,10 +90,14 @@ pub async fn start(settings: Settings) -> Result<Running> {
             until_stopped(stopped.clone()),
         )),
     ];
-    let workers = (0..cfg.workers)
-        .map(|i| {
-            let owner = format!("{}-w{i}", crate::store::new_id("proc"));
-            tokio::spawn(crate::jobs::run_worker(app.clone(), owner, stopped.clone()))
+    let owners: Vec<String> = (0..cfg.workers)
+        .map(|i| format!("{}-w{i}", crate::store::new_id("proc")))
+        .collect();
+    let workers = owners
+        .iter()
+        .map(|owner| {
+            let worker = crate::jobs::run_worker(app.clone(), owner.clone(), stopped.clone());
+            tokio::spawn(worker)
         })
         .collect();
     info!(%http_addr, %grpc_addr, db = %cfg.db, workers = cfg.workers, "graybox serving");
@@ -79,6 +107,7 @@ pub async fn start(settings: Settings) -> Result<Running> {
         app,
         stop,
         workers,
+        owners,
         servers,
     })
 }
@@ -131,23 +160,67 @@ async fn sweep_model_cache(app: App, stop: impl std::future::Future<Output = ()>
 }
 
 impl Running {
-    /// Stops claiming, releases running jobs at their next epoch end (checkpointed), then
-    /// stops the listeners.
-    pub async fn shutdown(self) {
+    /// Stops accepting and claiming, releases running jobs at their next epoch end
+    /// (checkpointed), then stops the listeners; forced after `--shutdown-grace-secs`.
+    pub async fn shutdown(self) -> Stopped {
+        let grace = self.app.settings.shutdown_grace();
+        self.shutdown_by(tokio::time::sleep(grace)).await
+    }
+
+    /// [`Running::shutdown`], forced when `force` resolves first: the workers are dropped,
+    /// the jobs they hold go back to the queue at once (no new checkpoint), the listeners
+    /// stop. Computations on blocking threads are not waited for: the caller shuts its
+    /// runtime down without waiting for them (see `cli::serve`); dropping the calls' futures
+    /// there tells their solvers to stop at the next time step.
+    pub async fn shutdown_by(self, force: impl Future<Output = ()>) -> Stopped {
         let _ = self.stop.send(true);
-        for w in self.workers {
-            let _ = w.await;
-        }
-        // Open server-sent event streams would hold a graceful HTTP shutdown forever.
+        tokio::pin!(force);
+        let aborts: Vec<_> = self.workers.iter().map(JoinHandle::abort_handle).collect();
+        let workers = async {
+            for w in self.workers {
+                let _ = w.await;
+            }
+        };
+        let stopped = tokio::select! {
+            biased;
+            () = &mut force => {
+                aborts.iter().for_each(tokio::task::AbortHandle::abort);
+                let held = crate::jobs::release_held(&self.app, &self.owners);
+                let released = match tokio::time::timeout(RELEASE_TIMEOUT, held).await {
+                    Ok(Ok(n)) => n,
+                    Ok(Err(e)) => {
+                        warn!(error = %e, "giving jobs back failed; their leases will expire");
+                        0
+                    }
+                    Err(_) => {
+                        warn!("giving jobs back timed out; their leases will expire");
+                        0
+                    }
+                };
+                Stopped::Forced { released }
+            }
+            () = workers => Stopped::Clean,
+        };
+        let drain = tokio::time::sleep(DRAIN);
+        tokio::pin!(drain);
+        // `force` may be any future: never polled again once it has resolved.
+        let mut forced = stopped != Stopped::Clean;
         for s in self.servers {
             let abort = s.abort_handle();
-            if tokio::time::timeout(std::time::Duration::from_secs(5), s)
-                .await
-                .is_err()
-            {
+            if forced {
                 abort.abort();
+                continue;
+            }
+            tokio::select! {
+                _ = s => {}
+                () = &mut drain => abort.abort(),
+                () = &mut force => {
+                    forced = true;
+                    abort.abort();
+                }
             }
         }
+        stopped
     }
 }
 

@@ -206,6 +206,49 @@ fn model_writes_a_white_box_model_that_plans() {
     }
 }
 
+/// Issue 25: `plan --horizon 1000000000` aborted on allocation and `--horizon 2⁶⁴ − 1`
+/// panicked ("capacity overflow"). The command applies the service's limits: a horizon over
+/// --max-plan-horizon (10⁴ by default, as the service's) and restarts over 1000 exit 2
+/// naming them; max_iterations 0 plans no iteration.
+#[test]
+fn plan_applies_the_services_limits() {
+    let m = tmp("limits.gbx");
+    json(&graybox(&[
+        "model",
+        "--template",
+        "pendulum",
+        "--dt",
+        "0.05",
+        "--out",
+        &m,
+    ]));
+    let p = tmp("limits.json");
+    let plan = |extra: &[&str]| {
+        let mut args = vec!["plan", "--model", &m, "--x0", "0,0", "--goal", "1,0", "--out", &p];
+        args.extend_from_slice(extra);
+        graybox(&args)
+    };
+    for (extra, wanted) in [
+        (vec!["--horizon", "1000000000"], "--max-plan-horizon"),
+        (vec!["--horizon", "18446744073709551615"], "--max-plan-horizon"),
+        (vec!["--horizon", "10001"], "limit of 10000"),
+        (
+            vec!["--horizon", "100", "--max-plan-horizon", "99"],
+            "limit of 99",
+        ),
+        (vec!["--horizon", "10", "--restarts", "4294967295"], "restarts"),
+        (vec!["--horizon", "0"], "horizon"),
+    ] {
+        let out = plan(&extra);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains(wanted) && !err.contains("panicked"), "{extra:?}: {err}");
+    }
+    let summary = json(&plan(&["--horizon", "10", "--max-iterations", "0"]));
+    assert_eq!(summary["iterations"], 0, "{summary}");
+    assert_eq!(summary["converged"], false, "{summary}");
+}
+
 /// A formula template file works wherever a template name does: simulate from it, train W-B
 /// on it from other starting values, make its white-box model, plan on it; a bad file's
 /// error names the file, the field and the offset.

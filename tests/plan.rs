@@ -275,3 +275,111 @@ fn a_long_swing_up_converges_too() {
     assert!(p.goal_error < 0.01, "goal error {}", p.goal_error);
     assert_costs_never_increase(&p);
 }
+
+/// The true double pendulum, counting the time steps it is asked for.
+struct Counting {
+    eval: Evaluator,
+    steps: std::cell::Cell<usize>,
+}
+
+impl Dynamics for Counting {
+    fn nx(&self) -> usize {
+        self.eval.nx()
+    }
+    fn m(&self) -> usize {
+        self.eval.m()
+    }
+    fn step(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        self.steps.set(self.steps.get() + 1);
+        self.eval.step(x, u)
+    }
+    fn linearize(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
+        self.eval.linearize(x, u)
+    }
+}
+
+/// Issue 25: `stop` used to be polled once per iteration only, so a request with no
+/// iterations and many restarts never heard it. Now it is polled at least once per time step
+/// of every pass (rollouts, line searches, restarts), and a plan it stops ends as cancelled.
+#[test]
+fn stop_is_polled_at_every_time_step_of_every_pass() {
+    let sys = Counting {
+        eval: true_double_pendulum(),
+        steps: Default::default(),
+    };
+    for (max_iterations, restarts) in [(0, 50), (5, 2)] {
+        let req = PlanRequest {
+            max_iterations,
+            restarts,
+            ..swing_up(40)
+        };
+        sys.steps.set(0);
+        let (last, gap) = (std::cell::Cell::new(0), std::cell::Cell::new(0));
+        let record = || {
+            let steps = sys.steps.get();
+            gap.set(gap.get().max(steps - last.get()));
+            last.set(steps);
+        };
+        plan(&sys, &req, &|| {
+            record();
+            false
+        })
+        .unwrap();
+        record();
+        assert!(sys.steps.get() > 40 * restarts);
+        assert_eq!(
+            gap.get(),
+            1,
+            "{max_iterations} iterations, {restarts} restarts"
+        );
+
+        for stop_at in [1, 2, 41, 300] {
+            let polls = std::cell::Cell::new(0);
+            let stop = || {
+                polls.set(polls.get() + 1);
+                polls.get() >= stop_at
+            };
+            match plan(&sys, &req, &stop) {
+                Err(graybox::error::Error::Cancelled) => {}
+                other => panic!("stop at poll {stop_at}: {:?}", other.map(|p| p.iterations)),
+            }
+        }
+    }
+}
+
+/// No iterations: the plan is the initial guess's rollout with its gains; restarts are
+/// bounded and max_iterations 0 with restarts is the best of the random starts.
+#[test]
+fn zero_iterations_and_the_restarts_limit() {
+    let eval = true_double_pendulum();
+    let req = PlanRequest {
+        max_iterations: 0,
+        ..swing_up(30)
+    };
+    let p = plan(&eval, &req, &|| false).unwrap();
+    assert_eq!((p.iterations, p.costs.len(), p.converged), (0, 1, false));
+    assert!(p.u.iter().all(|u| *u == 0.0));
+    assert_eq!(p.gains.k.len(), 30);
+    let shot = plan(
+        &eval,
+        &PlanRequest {
+            restarts: 20,
+            ..req.clone()
+        },
+        &|| false,
+    )
+    .unwrap();
+    assert!(shot.cost <= p.cost && shot.iterations == 0);
+
+    let too_many = PlanRequest {
+        restarts: graybox::control::plan::MAX_RESTARTS + 1,
+        ..req
+    };
+    match plan(&eval, &too_many, &|| false) {
+        Err(graybox::error::Error::Invalid { field, message }) => {
+            assert_eq!(field, "restarts");
+            assert!(message.contains("1000"), "{message}");
+        }
+        other => panic!("expected restarts refused, got {:?}", other.map(|p| p.cost)),
+    }
+}

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
+use crate::control::plan::DEFAULT_MAX_PLAN_HORIZON;
 use crate::error::{Error, Result};
 
 /// Blocking threads of the service's runtime: training jobs, heavy inference calls and
@@ -37,6 +38,11 @@ pub struct Settings {
     /// A job whose worker has not heartbeated for this long is reclaimed.
     #[arg(long, env = "GRAYBOX_LEASE_SECS", default_value_t = 30)]
     pub lease_secs: u64,
+    /// Seconds from SIGTERM (or ctrl-c) until the process exits even if running jobs have not
+    /// reached an epoch end (they go back to the queue from their last checkpoint) or calls
+    /// are still computing. The default leaves room under a 30 s kill.
+    #[arg(long, env = "GRAYBOX_SHUTDOWN_GRACE_SECS", default_value_t = 20)]
+    pub shutdown_grace_secs: u64,
     /// Times a job's worker may die (lease expired) before the job fails.
     #[arg(long, env = "GRAYBOX_MAX_ATTEMPTS", default_value_t = 3)]
     pub max_attempts: u32,
@@ -47,7 +53,7 @@ pub struct Settings {
     #[arg(long, env = "GRAYBOX_MAX_ROLLOUT_STEPS", default_value_t = 100_000)]
     pub max_rollout_steps: usize,
     /// Longest gRPC Plan horizon, in steps.
-    #[arg(long, env = "GRAYBOX_MAX_PLAN_HORIZON", default_value_t = 10_000)]
+    #[arg(long, env = "GRAYBOX_MAX_PLAN_HORIZON", default_value_t = DEFAULT_MAX_PLAN_HORIZON)]
     pub max_plan_horizon: usize,
     /// Largest gRPC message, in MiB.
     #[arg(long, env = "GRAYBOX_GRPC_MAX_MESSAGE_MB", default_value_t = 64)]
@@ -107,6 +113,9 @@ impl Default for Settings {
 
 const MB: usize = 1 << 20;
 
+/// An hour: longer is no grace but a hang (and a deadline far enough away overflows a clock).
+pub const MAX_SHUTDOWN_GRACE_SECS: u64 = 3600;
+
 impl Settings {
     /// Checks the values together (each flag that counts something is at least 1; the
     /// threads the settings imply fit the runtime's cap).
@@ -126,6 +135,12 @@ impl Settings {
         ];
         if let Some((flag, _)) = at_least_one.iter().find(|(_, v)| *v == 0) {
             return Err(Error::invalid(*flag, "must be at least 1"));
+        }
+        if self.shutdown_grace_secs > MAX_SHUTDOWN_GRACE_SECS {
+            return Err(Error::invalid(
+                "shutdown-grace-secs",
+                format!("must be at most {MAX_SHUTDOWN_GRACE_SECS}"),
+            ));
         }
         let most = crate::train::shards::MAX_THREADS;
         if self.job_threads.is_some_and(|t| t > most) {
@@ -180,6 +195,11 @@ impl Settings {
     pub fn checkpoint_epochs(&self) -> usize {
         self.checkpoint_every.max(1)
     }
+
+    /// How long a signalled shutdown waits for jobs and calls before it exits anyway.
+    pub fn shutdown_grace(&self) -> std::time::Duration {
+        std::time::Duration::from_secs(self.shutdown_grace_secs)
+    }
 }
 
 #[cfg(test)]
@@ -201,6 +221,22 @@ mod tests {
         for bad in [0, crate::train::shards::MAX_THREADS + 1] {
             let err = s(1, Some(bad)).validate().unwrap_err().to_string();
             assert!(err.contains("job-threads"), "{err}");
+        }
+    }
+
+    #[test]
+    fn shutdown_grace_is_bounded() {
+        let s = |shutdown_grace_secs| Settings {
+            shutdown_grace_secs,
+            ..Settings::default()
+        };
+        assert!(Settings::default().shutdown_grace_secs < 30);
+        for ok in [0, MAX_SHUTDOWN_GRACE_SECS] {
+            s(ok).validate().unwrap();
+        }
+        for bad in [MAX_SHUTDOWN_GRACE_SECS + 1, u64::MAX] {
+            let err = s(bad).validate().unwrap_err().to_string();
+            assert!(err.contains("shutdown-grace-secs"), "{err}");
         }
     }
 }

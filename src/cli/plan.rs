@@ -8,7 +8,10 @@ use clap::Args;
 use serde_json::json;
 
 use crate::control::linalg::Mat;
-use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, PlanRequest, plan};
+use crate::control::plan::{
+    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, PlanRequest,
+    check_horizon, plan,
+};
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::model::file::{ModelFile, write_atomic};
@@ -23,9 +26,12 @@ pub struct PlanArgs {
     /// The goal state, 2n values.
     #[arg(long, allow_hyphen_values = true)]
     pub goal: String,
-    /// Steps T (the plan lasts T·Δt, Δt the model's).
+    /// Steps T (the plan lasts T·Δt, Δt the model's), at most --max-plan-horizon.
     #[arg(long)]
-    pub horizon: usize,
+    pub horizon: u64,
+    /// The longest horizon accepted (the service's limit of the same name).
+    #[arg(long, default_value_t = DEFAULT_MAX_PLAN_HORIZON)]
+    pub max_plan_horizon: usize,
     /// Lower input bounds, m values (default: unbounded).
     #[arg(long, allow_hyphen_values = true)]
     pub u_min: Option<String>,
@@ -41,8 +47,10 @@ pub struct PlanArgs {
     /// Diagonal of Q_f, 2n values (default: 1000 × Q's).
     #[arg(long)]
     pub qf_diag: Option<String>,
+    /// Extra randomised starts, at most 1000 (`control::plan::MAX_RESTARTS`).
     #[arg(long, default_value_t = 0)]
     pub restarts: usize,
+    /// 0: no iteration, the best start's rollout and its gains.
     #[arg(long, default_value_t = DEFAULT_MAX_ITERATIONS)]
     pub max_iterations: usize,
     #[arg(long, default_value_t = DEFAULT_TOLERANCE)]
@@ -95,7 +103,7 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
     Ok(PlanRequest {
         x0: values("x0", &a.x0, nx)?,
         goal: values("goal", &a.goal, nx)?,
-        horizon: a.horizon,
+        horizon: check_horizon(a.horizon, a.max_plan_horizon)?,
         q: Mat::diag(&q),
         r: Mat::diag(&r),
         qf: Mat::diag(&qf),

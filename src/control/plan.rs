@@ -22,10 +22,13 @@
 
 use std::time::Instant;
 
-pub use super::plan_request::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, PlanRequest, validate};
+pub use super::plan_request::{
+    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, MAX_RESTARTS, PlanRequest,
+    check_horizon, validate,
+};
 
-use super::boxqp::box_qp;
-use super::linalg::{Mat, cholesky_solve};
+use super::linalg::Mat;
+use super::plan_backward::Backward;
 use super::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::rng::Rng;
@@ -57,12 +60,15 @@ pub struct Plan {
 }
 
 const STEP_SIZES: usize = 10;
+/// Time steps linearized at once: enough for the evaluator's two threads to pay off (it
+/// splits from 32 rows), few enough to take milliseconds between checks of `stop`.
+const LINEARIZE_ROWS: usize = 256;
 const MU_MIN: f64 = 1e-6;
 const MU_MAX: f64 = 1e10;
 
-struct Bounds {
-    lo: Vec<f64>,
-    hi: Vec<f64>,
+pub(super) struct Bounds {
+    pub(super) lo: Vec<f64>,
+    pub(super) hi: Vec<f64>,
 }
 
 impl Bounds {
@@ -78,25 +84,27 @@ impl Bounds {
 /// (A_t, B_t) along it once computed (a rejected step reuses them; the gains of the returned
 /// plan too).
 #[derive(Clone)]
-struct Trajectory {
-    x: Vec<f64>,
-    u: Vec<f64>,
+pub(super) struct Trajectory {
+    pub(super) x: Vec<f64>,
+    pub(super) u: Vec<f64>,
     cost: f64,
     jacobians: Option<(Vec<Mat>, Vec<Mat>)>,
 }
 
 /// The planner for one request on one system.
-struct Planner<'a, D: Dynamics> {
-    sys: &'a D,
-    req: &'a PlanRequest,
-    bounds: Bounds,
+pub(super) struct Planner<'a, D: Dynamics> {
+    pub(super) sys: &'a D,
+    pub(super) req: &'a PlanRequest,
+    pub(super) bounds: Bounds,
     stop: &'a dyn Fn() -> bool,
 }
 
 /// A locally optimal plan (the best of `1 + restarts` starts), or an error naming the field
-/// of a bad request. `stop` is polled between passes: when it says so the call ends with
-/// `Error::Cancelled` (a caller's deadline or cancellation); the request's own time limit
-/// instead returns the best plan so far.
+/// of a bad request. `stop` is polled before every start, iteration and time step of a pass
+/// (an atomic load and a clock read: a step of the model costs far more), because a pass
+/// that never checked it once held its thread for billions of starts: when it says so the
+/// call ends with `Error::Cancelled` (a caller's deadline or cancellation). The request's own
+/// time limit instead returns the best plan so far.
 pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> Result<Plan> {
     validate(req, sys.nx(), sys.m())?;
     let m = sys.m();
@@ -116,6 +124,7 @@ pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> 
     let mut rng = Rng::derive(req.seed, 0x91_A2);
     let mut best: Option<(Trajectory, Vec<f64>, bool)> = None;
     for start in 0..=req.restarts {
+        p.check()?;
         let u0 = p.initial_guess(start, &mut rng);
         let (t, costs, converged) = p.optimize(u0)?;
         if best.as_ref().is_none_or(|b| t.cost < b.0.cost) {
@@ -130,6 +139,14 @@ pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> 
 }
 
 impl<D: Dynamics> Planner<'_, D> {
+    pub(super) fn check(&self) -> Result<()> {
+        if (self.stop)() {
+            Err(Error::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
+
     fn out_of_time(&self) -> bool {
         self.req.time_limit.is_some_and(|t| Instant::now() >= t)
     }
@@ -181,47 +198,57 @@ impl<D: Dynamics> Planner<'_, D> {
     }
 
     /// The open-loop rollout of `u` from x0.
-    fn rollout(&self, u: Vec<f64>) -> Trajectory {
+    fn rollout(&self, u: Vec<f64>) -> Result<Trajectory> {
         let (nx, m) = (self.sys.nx(), self.sys.m());
         let mut x = self.req.x0.clone();
         for s in 0..self.req.horizon {
+            self.check()?;
             let next = self
                 .sys
                 .step(&x[s * nx..(s + 1) * nx], &u[s * m..(s + 1) * m]);
             x.extend(next);
         }
         let cost = self.cost(&x, &u);
-        Trajectory {
+        Ok(Trajectory {
             x,
             u,
             cost,
             jacobians: None,
-        }
+        })
     }
 
-    /// A_t and B_t along `t`, computed once per trajectory.
-    fn linearized<'t>(&self, t: &'t mut Trajectory) -> &'t (Vec<Mat>, Vec<Mat>) {
-        let states = self.req.horizon * self.sys.nx();
-        t.jacobians
-            .get_or_insert_with(|| self.sys.linearize(&t.x[..states], &t.u))
+    /// A_t and B_t along `t`, computed once per trajectory, in pieces so that `stop` is
+    /// heard within one (10⁴ steps at once took ~0.6 s).
+    fn linearized<'t>(&self, t: &'t mut Trajectory) -> Result<&'t (Vec<Mat>, Vec<Mat>)> {
+        let (nx, m, horizon) = (self.sys.nx(), self.sys.m(), self.req.horizon);
+        if t.jacobians.is_none() {
+            let (mut a, mut b) = (Vec::with_capacity(horizon), Vec::with_capacity(horizon));
+            let pieces = t.x[..horizon * nx].chunks(LINEARIZE_ROWS * nx);
+            for (x, u) in pieces.zip(t.u.chunks(LINEARIZE_ROWS * m)) {
+                self.check()?;
+                let (pa, pb) = self.sys.linearize(x, u);
+                a.extend(pa);
+                b.extend(pb);
+            }
+            t.jacobians = Some((a, b));
+        }
+        Ok(t.jacobians.as_ref().expect("just computed"))
     }
 
     /// iLQR from `u0`: the trajectory, its costs and whether it converged.
     fn optimize(&self, u0: Vec<f64>) -> Result<(Trajectory, Vec<f64>, bool)> {
-        let mut cur = self.rollout(u0);
+        let mut cur = self.rollout(u0)?;
         let mut costs = vec![cur.cost];
         let mut mu = 0.0f64;
         let mut ks: Vec<Vec<f64>> = vec![vec![0.0; self.sys.m()]; self.req.horizon];
         for _ in 0..self.req.max_iterations {
-            if (self.stop)() {
-                return Err(Error::Cancelled);
-            }
+            self.check()?;
             if self.out_of_time() || !cur.cost.is_finite() {
                 return Ok((cur, costs, false));
             }
-            self.linearized(&mut cur);
+            self.linearized(&mut cur)?;
             let (a, b) = cur.jacobians.as_ref().expect("just computed");
-            let Some(back) = self.backward(&cur, a, b, mu, &ks) else {
+            let Some(back) = self.backward(&cur, a, b, mu, &ks)? else {
                 mu = (mu * 10.0).max(MU_MIN);
                 if mu > MU_MAX {
                     return Ok((cur, costs, false));
@@ -233,7 +260,7 @@ impl<D: Dynamics> Planner<'_, D> {
             if back.expected <= self.req.tolerance * cur.cost.abs().max(f64::MIN_POSITIVE) {
                 return Ok((cur, costs, true));
             }
-            match self.line_search(&cur, &back) {
+            match self.line_search(&cur, &back)? {
                 Some(next) => {
                     let decrease = (cur.cost - next.cost) / cur.cost.abs().max(f64::MIN_POSITIVE);
                     ks = back.k;
@@ -256,97 +283,15 @@ impl<D: Dynamics> Planner<'_, D> {
         Ok((cur, costs, false))
     }
 
-    /// The feedforward k_t and feedback K_t of the regularized quadratic model, or `None` when
-    /// some Q_uu is not positive definite on its free inputs.
-    fn backward(
-        &self,
-        cur: &Trajectory,
-        a: &[Mat],
-        b: &[Mat],
-        mu: f64,
-        warm: &[Vec<f64>],
-    ) -> Option<Backward> {
-        let (nx, m, t) = (self.sys.nx(), self.sys.m(), self.req.horizon);
-        let req = self.req;
-        let col = |v: Vec<f64>| Mat::new(v.len(), 1, v);
-        let scaled =
-            |w: &Mat, s: f64| Mat::new(w.rows, w.cols, w.data.iter().map(|v| v * s).collect());
-        let dx = |s: usize| -> Vec<f64> {
-            cur.x[s * nx..(s + 1) * nx]
-                .iter()
-                .zip(&req.goal)
-                .map(|(x, g)| x - g)
-                .collect()
-        };
-        let mut vx = scaled(&req.qf, 2.0).mul(&col(dx(t)));
-        let mut vxx = scaled(&req.qf, 2.0);
-        let (mut k_ff, mut k_fb) = (vec![Vec::new(); t], vec![Mat::zeros(m, nx); t]);
-        let mut expected = 0.0;
-        let mut mu_eye = Mat::zeros(m, m);
-        (0..m).for_each(|i| mu_eye.data[i * m + i] = mu);
-        for s in (0..t).rev() {
-            let u = &cur.u[s * m..(s + 1) * m];
-            let (at, bt) = (&a[s], &b[s]);
-            let qx = scaled(&req.q, 2.0).mul(&col(dx(s))).add(&at.t().mul(&vx));
-            let qu = scaled(&req.r, 2.0)
-                .mul(&col(u.to_vec()))
-                .add(&bt.t().mul(&vx));
-            let qxx = scaled(&req.q, 2.0).add(&at.t().mul(&vxx).mul(at));
-            let quu = scaled(&req.r, 2.0)
-                .add(&bt.t().mul(&vxx).mul(bt))
-                .add(&mu_eye)
-                .symmetrized();
-            let qux = bt.t().mul(&vxx).mul(at);
-            let lo: Vec<f64> = (0..m).map(|i| self.bounds.lo[i] - u[i]).collect();
-            let hi: Vec<f64> = (0..m).map(|i| self.bounds.hi[i] - u[i]).collect();
-            let qp = box_qp(&quu, &qu.data, &lo, &hi, &warm[s])?;
-            let mut kmat = Mat::zeros(m, nx);
-            let free: Vec<usize> = (0..m).filter(|&i| qp.free[i]).collect();
-            if !free.is_empty() {
-                let mut rhs = Mat::zeros(free.len(), nx);
-                for (r, &i) in free.iter().enumerate() {
-                    rhs.data[r * nx..(r + 1) * nx].copy_from_slice(&qux.data[i * nx..(i + 1) * nx]);
-                }
-                let sol = cholesky_solve(&qp.l_free, &rhs);
-                for (r, &i) in free.iter().enumerate() {
-                    for j in 0..nx {
-                        kmat.data[i * nx + j] = -sol.at(r, j);
-                    }
-                }
-            }
-            let k = col(qp.x.clone());
-            let kt = kmat.t();
-            // V_x = Q_x + Kᵀ Q_uu k + Kᵀ Q_u + Q_uxᵀ k;  V_xx likewise (Tassa 2014, eq. 11).
-            vx = qx
-                .add(&kt.mul(&quu).mul(&k))
-                .add(&kt.mul(&qu))
-                .add(&qux.t().mul(&k));
-            vxx = qxx
-                .add(&kt.mul(&quu).mul(&kmat))
-                .add(&kt.mul(&qux))
-                .add(&qux.t().mul(&kmat))
-                .symmetrized();
-            let ktqu: f64 = qp.x.iter().zip(&qu.data).map(|(a, b)| a * b).sum();
-            let kquuk: f64 = qp.x.iter().zip(&quu.mul(&k).data).map(|(a, b)| a * b).sum();
-            expected -= ktqu + 0.5 * kquuk;
-            k_ff[s] = qp.x;
-            k_fb[s] = kmat;
-        }
-        Some(Backward {
-            k: k_ff,
-            gains: k_fb,
-            expected,
-        })
-    }
-
     /// All step sizes in one batched closed-loop rollout; the cheapest that lowers the cost.
-    fn line_search(&self, cur: &Trajectory, back: &Backward) -> Option<Trajectory> {
+    fn line_search(&self, cur: &Trajectory, back: &Backward) -> Result<Option<Trajectory>> {
         let (nx, m, t) = (self.sys.nx(), self.sys.m(), self.req.horizon);
         let alphas: Vec<f64> = (0..STEP_SIZES).map(|i| 0.5f64.powi(i as i32)).collect();
         let rows = alphas.len();
         let mut xs: Vec<Vec<f64>> = vec![self.req.x0.clone(); rows];
         let mut us: Vec<Vec<f64>> = vec![Vec::with_capacity(t * m); rows];
         for s in 0..t {
+            self.check()?;
             let (mut xb, mut ub) = (Vec::with_capacity(rows * nx), Vec::with_capacity(rows * m));
             for (r, alpha) in alphas.iter().enumerate() {
                 let x = &xs[r][s * nx..(s + 1) * nx];
@@ -369,7 +314,8 @@ impl<D: Dynamics> Planner<'_, D> {
                 x.extend_from_slice(&next[r * nx..(r + 1) * nx]);
             }
         }
-        xs.into_iter()
+        Ok(xs
+            .into_iter()
             .zip(us)
             .map(|(x, u)| {
                 let cost = self.cost(&x, &u);
@@ -381,13 +327,13 @@ impl<D: Dynamics> Planner<'_, D> {
                 }
             })
             .filter(|c| c.cost < cur.cost)
-            .min_by(|a, b| a.cost.total_cmp(&b.cost))
+            .min_by(|a, b| a.cost.total_cmp(&b.cost)))
     }
 
     /// The plan to return: TVLQR gains along it with the request's weights.
     fn finish(&self, mut t: Trajectory, costs: Vec<f64>, converged: bool) -> Result<Plan> {
         let (nx, horizon) = (self.sys.nx(), self.req.horizon);
-        let (a, b) = self.linearized(&mut t);
+        let (a, b) = self.linearized(&mut t)?;
         let gains = tvlqr(a, b, &self.req.q, &self.req.r, &self.req.qf)?;
         let end = &t.x[horizon * nx..];
         let goal_error = end
@@ -407,11 +353,4 @@ impl<D: Dynamics> Planner<'_, D> {
             goal_error,
         })
     }
-}
-
-struct Backward {
-    k: Vec<Vec<f64>>,
-    gains: Vec<Mat>,
-    /// The quadratic model's decrease for a full step.
-    expected: f64,
 }

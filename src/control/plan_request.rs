@@ -8,6 +8,13 @@ use crate::error::{Error, Result};
 
 pub const DEFAULT_MAX_ITERATIONS: usize = 200;
 pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+/// Extra starts a request may ask for. Each is a whole optimisation, so the count multiplies
+/// the call's time (memory keeps one start besides the best): 2³² − 1 of them once held a
+/// permit for days. The experiments take 8; a thousand leaves room to explore.
+pub const MAX_RESTARTS: usize = 1000;
+/// The longest horizon the service (`--max-plan-horizon`) and `graybox plan` accept by
+/// default: the plan's arrays grow with it (a billion steps aborted on allocation).
+pub const DEFAULT_MAX_PLAN_HORIZON: usize = 10_000;
 
 /// What to plan. Arrays are row-major; `u_init` is `[T, m]`.
 #[derive(Debug, Clone)]
@@ -21,8 +28,10 @@ pub struct PlanRequest {
     pub u_min: Option<Vec<f64>>,
     pub u_max: Option<Vec<f64>>,
     pub u_init: Option<Vec<f64>>,
+    /// 0: no iteration; the plan is the rollout of the best start, with its gains.
     pub max_iterations: usize,
     pub tolerance: f64,
+    /// At most [`MAX_RESTARTS`].
     pub restarts: usize,
     pub seed: u64,
     /// Return the best plan so far at this instant, with `converged = false`.
@@ -49,6 +58,17 @@ impl PlanRequest {
             seed: 0,
             time_limit: None,
         }
+    }
+}
+
+/// `horizon` within `max` (the `--max-plan-horizon` limit), as a length; over it the request
+/// is refused before anything is allocated for it.
+pub fn check_horizon(horizon: u64, max: usize) -> Result<usize> {
+    match usize::try_from(horizon) {
+        Ok(h) if h <= max => Ok(h),
+        _ => Err(Error::ResourceExhausted(format!(
+            "horizon {horizon} is over the limit of {max} (--max-plan-horizon)"
+        ))),
     }
 }
 
@@ -92,10 +112,16 @@ pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
         ));
     }
     if let Some(u) = &req.u_init {
-        finite("u_init", u, req.horizon * m)?;
+        finite("u_init", u, req.horizon.saturating_mul(m))?;
     }
     if !(req.tolerance.is_finite() && req.tolerance >= 0.0) {
         return Err(Error::invalid("tolerance", "must be a finite number ≥ 0"));
+    }
+    if req.restarts > MAX_RESTARTS {
+        return Err(Error::invalid(
+            "restarts",
+            format!("must be at most {MAX_RESTARTS}, got {}", req.restarts),
+        ));
     }
     Ok(())
 }

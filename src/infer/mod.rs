@@ -204,20 +204,32 @@ fn standardize<S: Scalar>(x: &[S], mean: &[f64], std: &[f64]) -> Vec<S> {
 impl Evaluator {
     /// x' (and q̈ when asked) for `[B, 2n]` states and `[B, m]` inputs.
     pub fn predict(&self, x: &[f64], u: &[f64], want_accel: bool) -> (Vec<f64>, Option<Vec<f64>>) {
-        let parts = self.split(x, u, Pass::Step, |x, u| {
+        self.predict_until(x, u, want_accel, &|| false)
+            .expect("never stopped")
+    }
+
+    /// [`Evaluator::predict`], or `None` when `stop` says so before a chunk.
+    pub fn predict_until(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        want_accel: bool,
+        stop: &dyn Fn() -> bool,
+    ) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
+        let parts = self.split(x, u, Pass::Step, stop, |x, u| {
             if x.len() == 2 * self.config.n {
                 self.predict_cols::<f64>(x, u, want_accel)
             } else {
                 self.predict_cols::<Col>(x, u, want_accel)
             }
-        });
+        })?;
         let mut next = vec![];
         let mut acc = want_accel.then(Vec::new);
         for (x, a) in parts {
             next.extend(x);
             acc.iter_mut().zip(a).for_each(|(acc, a)| acc.extend(a));
         }
-        (next, acc)
+        Some((next, acc))
     }
 
     fn predict_cols<C: Column>(
@@ -236,20 +248,31 @@ impl Evaluator {
     /// A `[B, 2n, 2n]` and B `[B, 2n, m]` for a batch: the state's and input's coordinates
     /// are dual variables (2n + m directions, each sample its own), pushed through one step.
     pub fn linearize_batch(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        self.linearize_until(x, u, &|| false)
+            .expect("never stopped")
+    }
+
+    /// [`Evaluator::linearize_batch`], or `None` when `stop` says so before a chunk.
+    pub fn linearize_until(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        stop: &dyn Fn() -> bool,
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let parts = self.split(x, u, Pass::Linearize, |x, u| {
+        let parts = self.split(x, u, Pass::Linearize, stop, |x, u| {
             if x.len() == nx {
                 self.jacobian_rows(columns::<f64>(x, nx), columns(u, m))
             } else {
                 self.jacobian_rows(columns::<Col>(x, nx), columns(u, m))
             }
-        });
+        })?;
         let (mut a, mut b) = (Vec::with_capacity(x.len() * nx), Vec::new());
         for row in parts.concat().chunks(nx + m) {
             a.extend(&row[..nx]);
             b.extend(&row[nx..]);
         }
-        (a, b)
+        Some((a, b))
     }
 
     /// Per sample, per output coordinate, the row [∂x'_i/∂x, ∂x'_i/∂u].
@@ -277,18 +300,23 @@ impl Evaluator {
 
     /// Runs `f` over a batch in chunks whose intermediate work is bounded (see [`limits`]),
     /// each in two halves on two threads when it is large enough for the thread to pay off;
-    /// the parts in order.
+    /// the parts in order, or `None` when `stop` says so before a chunk (a 10⁶-state batch
+    /// takes seconds: a caller's deadline must not wait for all of it).
     fn split<T: Send>(
         &self,
         x: &[f64],
         u: &[f64],
         pass: Pass,
+        stop: &dyn Fn() -> bool,
         f: impl Fn(&[f64], &[f64]) -> T + Sync,
-    ) -> Vec<T> {
+    ) -> Option<Vec<T>> {
         let (nx, m) = (2 * self.config.n, self.config.m);
         let chunk = 2 * self.chunk_states(pass);
         let mut parts = Vec::new();
         for (x, u) in x.chunks(chunk * nx).zip(u.chunks(chunk * m)) {
+            if stop() {
+                return None;
+            }
             let rows = x.len() / nx;
             if rows < PARALLEL_ROWS {
                 parts.push(f(x, u));
@@ -303,14 +331,28 @@ impl Evaluator {
                 parts.push(second.join().expect("inference thread"));
             });
         }
-        parts
+        Some(parts)
     }
 
     /// TVLQR gains along a nominal `x̄ [(T+1), 2n]`, `ū [T, m]` (defects ignored).
     pub fn tvlqr(&self, xbar: &[f64], ubar: &[f64], q: &Mat, r: &Mat, qf: &Mat) -> Result<Gains> {
+        self.tvlqr_until(xbar, ubar, [q, r, qf], &|| false)
+    }
+
+    /// [`Evaluator::tvlqr`], or `Error::Cancelled` when `stop` says so before a chunk of the
+    /// linearization (most of the work).
+    pub fn tvlqr_until(
+        &self,
+        xbar: &[f64],
+        ubar: &[f64],
+        [q, r, qf]: [&Mat; 3],
+        stop: &dyn Fn() -> bool,
+    ) -> Result<Gains> {
         let (nx, m) = (2 * self.config.n, self.config.m);
         let t = ubar.len() / m;
-        let (a, b) = self.linearize_batch(&xbar[..t * nx], ubar);
+        let (a, b) = self
+            .linearize_until(&xbar[..t * nx], ubar, stop)
+            .ok_or(Error::Cancelled)?;
         finite_rows("x_bar", "linearization", &a, nx * nx)?;
         finite_rows("x_bar", "linearization", &b, nx * m)?;
         let (a, b) = self.jacobians(a, b);

@@ -78,6 +78,16 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
     }
 }
 
+/// Forced shutdown: gives back the jobs these workers still hold mid-epoch, at once and from
+/// their last checkpoint (see `Store::release_owned`); returns how many.
+pub async fn release_held(app: &App, owners: &[String]) -> Result<u64> {
+    let mut released = 0;
+    for owner in owners {
+        released += app.store.release_owned(owner).await?;
+    }
+    Ok(released)
+}
+
 fn lease_ms(app: &App) -> i64 {
     app.settings.lease_secs as i64 * 1000
 }

@@ -258,6 +258,22 @@ impl Store {
         Ok(r.rows_affected() == 1)
     }
 
+    /// Gives back every job `owner` holds, without its fence's attempt: a process exiting
+    /// before its training threads reached an epoch end (forced shutdown) cannot name their
+    /// claims, and a job whose lease merely expired would wait out the lease and count as a
+    /// dead worker. The abandoned threads' later writes fail their fence (the job is no longer
+    /// running under this owner). Returns the jobs given back.
+    pub async fn release_owned(&self, owner: &str) -> Result<u64> {
+        let r = sqlx::query(
+            "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL
+             WHERE state = 'running' AND lease_owner = ?",
+        )
+        .bind(owner)
+        .execute(&self.pool)
+        .await?;
+        Ok(r.rows_affected())
+    }
+
     pub async fn infra_failures(&self, job_id: &str) -> Result<i64> {
         Ok(
             sqlx::query_scalar("SELECT infra_failures FROM jobs WHERE id = ?")

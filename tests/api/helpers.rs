@@ -3,6 +3,7 @@
 
 use std::time::Duration;
 
+use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
 use graybox::app::Settings;
 use graybox::model::templates::Template;
 use graybox::service::{Running, start};
@@ -173,4 +174,40 @@ pub fn dataset(count: usize, seed: u64) -> Value {
 pub fn job_body(dataset_id: &str, model: &str, epochs: usize) -> Value {
     json!({"dataset_id": dataset_id, "model": model, "template": "double_pendulum",
            "training": {"epochs": epochs, "batch_size": 64}})
+}
+
+/// An array message of this shape.
+pub fn arr(shape: &[u64], data: Vec<f64>) -> Option<pb::Array> {
+    Some(pb::Array {
+        shape: shape.to_vec(),
+        data,
+    })
+}
+
+/// A model of the double pendulum trained for one epoch on 128 transitions.
+pub async fn trained(app: &TestApp, model: &str) -> String {
+    let ds = app.upload(&dataset(128, 5)).await;
+    let (_, job) = app.post("/v1/jobs", &job_body(&ds, model, 1)).await;
+    let done = app
+        .wait_job(job["id"].as_str().unwrap(), 120, final_state)
+        .await;
+    assert_eq!(done["state"], "succeeded", "{done}");
+    done["model_id"].as_str().unwrap().to_string()
+}
+
+/// A gRPC Dynamics client of the service.
+pub async fn client(app: &TestApp) -> DynamicsClient<tonic::transport::Channel> {
+    let addr = format!("http://{}", app.running.as_ref().unwrap().grpc_addr);
+    DynamicsClient::connect(addr).await.unwrap()
+}
+
+/// A Predict of `b` double-pendulum states.
+pub fn predict_req(model: &str, b: usize) -> pb::PredictRequest {
+    pb::PredictRequest {
+        id: String::new(),
+        model_id: model.into(),
+        x: arr(&[b as u64, 4], vec![0.1; 4 * b]),
+        u: arr(&[b as u64, 2], vec![1.0; 2 * b]),
+        want_accel: false,
+    }
 }

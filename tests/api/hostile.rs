@@ -4,7 +4,6 @@
 
 use std::time::Duration;
 
-use graybox::api::grpc::pb::dynamics_client::DynamicsClient;
 use graybox::api::grpc::pb::{self, rollout_request::Inputs};
 use graybox::app::{App, Settings};
 use graybox::store::{JobState, Store};
@@ -12,38 +11,8 @@ use serde_json::{Value, json};
 use tonic::Code;
 
 use crate::helpers::*;
-
-fn arr(shape: &[u64], data: Vec<f64>) -> Option<pb::Array> {
-    Some(pb::Array {
-        shape: shape.to_vec(),
-        data,
-    })
-}
-
-async fn trained(app: &TestApp, model: &str) -> String {
-    let ds = app.upload(&dataset(128, 5)).await;
-    let (_, job) = app.post("/v1/jobs", &job_body(&ds, model, 1)).await;
-    let done = app
-        .wait_job(job["id"].as_str().unwrap(), 120, final_state)
-        .await;
-    assert_eq!(done["state"], "succeeded", "{done}");
-    done["model_id"].as_str().unwrap().to_string()
-}
-
-async fn client(app: &TestApp) -> DynamicsClient<tonic::transport::Channel> {
-    let addr = format!("http://{}", app.running.as_ref().unwrap().grpc_addr);
-    DynamicsClient::connect(addr).await.unwrap()
-}
-
-fn predict_req(model: &str, b: usize) -> pb::PredictRequest {
-    pb::PredictRequest {
-        id: String::new(),
-        model_id: model.into(),
-        x: arr(&[b as u64, 4], vec![0.1; 4 * b]),
-        u: arr(&[b as u64, 2], vec![1.0; 2 * b]),
-        want_accel: false,
-    }
-}
+// These lived here; kept importable from here.
+pub(crate) use crate::helpers::{arr, client};
 
 /// Finding 1: a call whose response is over the message limit (Linearize of 10⁶ states) or
 /// whose memory is over the budget is refused before it computes; an accepted large batch
@@ -74,7 +43,11 @@ async fn oversized_calls_are_refused_before_computing() {
     );
     let x = (vec![0.0; 4 * 50_000], vec![50_000, 4]);
     let u = (vec![0.0; 2 * 50_000], vec![50_000, 2]);
-    let e = tight.predict(&model, x, u, false).await.err().unwrap();
+    let e = tight
+        .predict(&model, x, u, false, None)
+        .await
+        .err()
+        .unwrap();
     assert!(e.to_string().contains("--max-call-memory-mb"), "{e}");
 
     // 20 000 states pass the budget and come back whole, split over several chunks.
@@ -283,14 +256,18 @@ async fn deleted_models_stop_being_served() {
     let other = App::new(store, Settings::default());
     let x = || (vec![0.1; 4], vec![1, 4]);
     let u = || (vec![1.0; 2], vec![1, 2]);
-    other.predict(&model, x(), u(), false).await.unwrap();
+    other.predict(&model, x(), u(), false, None).await.unwrap();
     let del = app.client.delete(app.url(&format!("/v1/models/{model}")));
     assert!(del.send().await.unwrap().status().is_success());
     let sweep = graybox::app::inference::CACHE_SWEEP;
     tokio::time::sleep(sweep).await;
     // The service's sweep runs in its own task; this process runs its sweep as `serve` does.
     other.sweep_model_cache().await.unwrap();
-    let e = other.predict(&model, x(), u(), false).await.err().unwrap();
+    let e = other
+        .predict(&model, x(), u(), false, None)
+        .await
+        .err()
+        .unwrap();
     assert!(
         matches!(e, graybox::error::Error::NotFound(_)),
         "still served: {e}"

@@ -7,7 +7,9 @@ mod grpc;
 mod helpers;
 mod hostile;
 mod jobs;
+mod plan_stop;
 mod replay;
+mod shutdown;
 mod web;
 
 /// The paper's double pendulum in closed form (shared with the numerics tests).

@@ -7,6 +7,7 @@ import os
 import http.client
 import ipaddress
 import socket
+import sqlite3
 import ssl
 import subprocess
 import threading
@@ -458,3 +459,48 @@ def test_shapes_whose_size_overflows_are_invalid(client, models, rows):
         with pytest.raises(GrayboxError) as e:
             client._call(method, request)
         assert e.value.code == "INVALID_ARGUMENT" and field in e.value.message, (field, e.value)
+
+
+# --- g. a shutdown while calls and a job compute ----------------------------------------------
+
+def test_sigterm_exits_within_the_grace_and_gives_the_running_job_back(graybox_bin, tmp_path,
+                                                                        dp_data):
+    """Two Plans far longer than any grace (no deadline; 10⁴-step rollouts, 1000 restarts)
+    hold both heavy permits while a job trains on epochs longer than the grace. SIGTERM ends
+    the process within its bound (grace, then giving jobs back, then exit) with status 0 —
+    it once waited for the Plans forever — and the job is back in the queue, claimable at
+    once, not counted as a dead worker."""
+    grace = 2
+    data = tmp_path / "big.json"
+    subprocess.run([graybox_bin, "simulate", "--system", "double_pendulum", "--count", "20000",
+                    "--seed", "1", "--out", str(data)], check=True, capture_output=True)
+    flags = ("--workers", "1", "--shutdown-grace-secs", str(grace))
+    with serve(graybox_bin, tmp_path, *flags, name="graybox serve (shutdown)") as s:
+        model = train(s, dp_data)[1]
+        wide = {"type": "mlp", "hidden": [512, 512]}  # epochs of seconds: ~8 s here, alone
+        status, job = s.rest.post("/v1/jobs", {
+            "dataset_id": upload(s, data), "template": "double_pendulum",
+            "model": {"kind": "structured", "mass": wide, "potential": wide, "forces": wide},
+            "training": {"epochs": 1000, "batch_size": 1024, "lr": 1e-5}})
+        assert status == 201, job
+        running = s.rest.wait_job(job["id"], until=("running", "succeeded", "failed"))
+        assert running["state"] == "running", running
+        req = pb.PlanRequest(model_id=model, x0=[0.0] * 4, goal=[np.pi, 0, 0, 0],
+                             horizon=10_000, q=to_array(np.eye(4)), r=to_array(1e-4 * np.eye(2)),
+                             qf=to_array(1e3 * np.eye(4)), max_iterations=0, restarts=1000)
+        with grpc.insecure_channel(s.grpc_target) as ch:
+            plans = [pb_grpc.DynamicsStub(ch).Plan.future(req) for _ in range(2)]
+            time.sleep(1.0)
+            assert not any(p.done() for p in plans), [p.exception() for p in plans if p.done()]
+            t0 = time.monotonic()
+            s.proc.terminate()
+            code = s.proc.wait(timeout=30)
+            exited = time.monotonic() - t0
+        assert code == 0, (code, exited)
+        # The grace, then at most 5 s giving jobs back and 1 s for the runtime: the bound.
+        assert exited < grace + 6 + 1, exited
+    db = sqlite3.connect(tmp_path / "graybox.db")
+    state, owner, deaths = db.execute("SELECT state, lease_owner, worker_deaths FROM jobs "
+                                      "WHERE id = ?", (job["id"],)).fetchone()
+    db.close()
+    assert (state, owner, deaths) == ("queued", None, 0)

@@ -246,9 +246,10 @@ class Client:
         """A trajectory of `horizon` steps from x0 toward `goal` minimizing
         Σ (x_t−g)ᵀQ(x_t−g) + u_tᵀRu_t + (x_T−g)ᵀQf(x_T−g) with u_min ≤ u_t ≤ u_max (None:
         unbounded), by iLQR with input bounds on the model, and TVLQR gains along it.
-        `u_init` [T, m] is the first guess (zeros by default); `restarts` adds that many
-        randomised guesses (uniform within the bounds) and keeps the best; `time_limit_ms`
-        returns the best so far with converged = False."""
+        `u_init` [T, m] is the first guess (zeros by default); `restarts` (at most 1000) adds
+        that many randomised guesses (uniform within the bounds) and keeps the best;
+        `max_iterations=0` runs no iteration (the best guess's rollout with its gains);
+        `time_limit_ms` returns the best so far with converged = False."""
         flat = lambda v: [] if v is None else np.asarray(v, dtype=np.float64).ravel().tolist()
         req = pb.PlanRequest(
             model_id=model_id, x0=flat(x0), goal=flat(goal), horizon=horizon,

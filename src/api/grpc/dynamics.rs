@@ -54,9 +54,13 @@ impl Dynamics for DynamicsService {
         &self,
         req: Request<pb::PredictRequest>,
     ) -> Result<Response<pb::PredictResponse>, Status> {
+        let until = deadline(&req);
         let r = req.into_inner();
         let (x, u) = (take("x", r.x)?, take("u", r.u)?);
-        let p = self.app.predict(&r.model_id, x, u, r.want_accel).await?;
+        let p = self
+            .app
+            .predict(&r.model_id, x, u, r.want_accel, until)
+            .await?;
         let b = p.max_abs_z.len();
         let width = p.next.len() / b.max(1);
         let accel = p.accel.map(|a| {
@@ -112,10 +116,11 @@ impl Dynamics for DynamicsService {
         &self,
         req: Request<pb::LinearizeRequest>,
     ) -> Result<Response<pb::LinearizeResponse>, Status> {
+        let until = deadline(&req);
         let r = req.into_inner();
         let (x, u) = (take("x", r.x)?, take("u", r.u)?);
         let (nx, m) = (dim(&x.1, 1), dim(&u.1, 1));
-        let l = self.app.linearize(&r.model_id, x, u).await?;
+        let l = self.app.linearize(&r.model_id, x, u, until).await?;
         let b = l.max_abs_z.len();
         Ok(Response::new(pb::LinearizeResponse {
             id: r.id,
@@ -129,11 +134,15 @@ impl Dynamics for DynamicsService {
         &self,
         req: Request<pb::TvlqrRequest>,
     ) -> Result<Response<pb::TvlqrResponse>, Status> {
+        let until = deadline(&req);
         let r = req.into_inner();
         let (xbar, ubar) = (take("x_bar", r.x_bar)?, take("u_bar", r.u_bar)?);
         let (t, m, nx) = (dim(&ubar.1, 0), dim(&ubar.1, 1), dim(&xbar.1, 1));
         let weights = [take("q", r.q)?, take("r", r.r)?, take("qf", r.qf)?];
-        let (k, s) = self.app.tvlqr(&r.model_id, xbar, ubar, weights).await?;
+        let (k, s) = self
+            .app
+            .tvlqr(&r.model_id, xbar, ubar, weights, until)
+            .await?;
         Ok(Response::new(pb::TvlqrResponse {
             id: r.id,
             k: Some(array(&[t, m, nx], k)),

@@ -18,6 +18,8 @@ pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{RolloutChunk, RolloutInputs};
 
 use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
 
 use super::App;
 use crate::control::linalg::Mat;
@@ -111,6 +113,16 @@ pub struct Linearization {
 /// An array as a request carries it: values and shape.
 pub type Array = (Vec<f64>, Vec<u64>);
 
+/// Sets the flag when dropped: the caller went away (its future was dropped), so the
+/// computation stops at its next check.
+struct Gone(Arc<AtomicBool>);
+
+impl Drop for Gone {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Relaxed);
+    }
+}
+
 impl App {
     /// The evaluator of a model (or of the model a succeeded job produced), loaded once. A
     /// cached model answers without touching the database: a control loop calls this at
@@ -180,17 +192,47 @@ impl App {
         Ok(())
     }
 
-    /// `f` inline when the work is small (see [`INLINE_ROWS`]), else as a heavy call.
+    /// `f` inline when the work is small (see [`INLINE_ROWS`]), else as a heavy call that
+    /// stops at the deadline (see [`App::heavy_until`]).
     async fn compute<T: Send + 'static>(
         &self,
         small: bool,
-        f: impl FnOnce() -> T + Send + 'static,
+        what: &str,
+        deadline: Option<Instant>,
+        f: impl FnOnce(&dyn Fn() -> bool) -> Option<T> + Send + 'static,
     ) -> Result<T> {
         if small {
-            Ok(f())
+            f(&|| false).ok_or_else(|| Error::Internal(format!("the {what} stopped by itself")))
         } else {
-            self.heavy.run(f).await
+            self.heavy_until(what, deadline, f).await
         }
+    }
+
+    /// `f` as a heavy call, given a `stop` that turns true at the caller's deadline or when
+    /// the caller goes away; `f` returns `None` when it stopped. A computation that never
+    /// asked once held its permit long after its caller had given up, so every loop a request
+    /// drives polls it. The answer leaves at the deadline, not at `f`'s next check.
+    async fn heavy_until<T: Send + 'static>(
+        &self,
+        what: &str,
+        deadline: Option<Instant>,
+        f: impl FnOnce(&dyn Fn() -> bool) -> Option<T> + Send + 'static,
+    ) -> Result<T> {
+        let gone = Arc::new(AtomicBool::new(false));
+        let _guard = Gone(gone.clone());
+        let work = self.heavy.run(move || {
+            let stop =
+                || gone.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d);
+            f(&stop)
+        });
+        let passed = || Error::DeadlineExceeded(format!("the {what} passed its deadline"));
+        let done = match deadline {
+            Some(d) => tokio::time::timeout_at(d.into(), work)
+                .await
+                .map_err(|_| passed())??,
+            None => work.await?,
+        };
+        done.ok_or_else(passed)
     }
 
     /// x' (and q̈ when asked) for a batch.
@@ -200,6 +242,7 @@ impl App {
         x: (Vec<f64>, Vec<u64>),
         u: (Vec<f64>, Vec<u64>),
         want_accel: bool,
+        deadline: Option<Instant>,
     ) -> Result<Prediction> {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, (&x.0, &x.1), (&u.0, &u.1))?;
@@ -215,14 +258,14 @@ impl App {
         )?;
         let (x, u) = (x.0, u.0);
         let out = self
-            .compute(b <= INLINE_ROWS, move || {
-                let (next, accel) = eval.predict(&x, &u, want_accel);
+            .compute(b <= INLINE_ROWS, "prediction", deadline, move |stop| {
+                let (next, accel) = eval.predict_until(&x, &u, want_accel, stop)?;
                 let max_abs_z = eval.max_abs_z(&x, &u);
-                Prediction {
+                Some(Prediction {
                     next,
                     accel,
                     max_abs_z,
-                }
+                })
             })
             .await?;
         finite_rows("x", "next state", &out.next, nx)?;
@@ -235,6 +278,7 @@ impl App {
         id: &str,
         x: (Vec<f64>, Vec<u64>),
         u: (Vec<f64>, Vec<u64>),
+        deadline: Option<Instant>,
     ) -> Result<Linearization> {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, (&x.0, &x.1), (&u.0, &u.1))?;
@@ -252,13 +296,13 @@ impl App {
         )?;
         let (x, u) = (x.0, u.0);
         let out = self
-            .compute(b == 1, move || {
-                let (a, bm) = eval.linearize_batch(&x, &u);
-                Linearization {
+            .compute(b == 1, "linearization", deadline, move |stop| {
+                let (a, bm) = eval.linearize_until(&x, &u, stop)?;
+                Some(Linearization {
                     a,
                     b: bm,
                     max_abs_z: eval.max_abs_z(&x, &u),
-                }
+                })
             })
             .await?;
         finite_rows("x", "linearization", &out.a, nx * nx)?;
@@ -273,6 +317,7 @@ impl App {
         xbar: (Vec<f64>, Vec<u64>),
         ubar: (Vec<f64>, Vec<u64>),
         weights: [(Vec<f64>, Vec<u64>); 3],
+        deadline: Option<Instant>,
     ) -> Result<(Vec<f64>, Vec<f64>)> {
         let eval = self.evaluator(id).await?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
@@ -308,14 +353,16 @@ impl App {
                 memory_bytes: 8 * t * (4 * jac + 3 * gains) + work,
             },
         )?;
-        self.heavy
-            .run(move || {
-                let g = eval.tvlqr(&xbar.0, &ubar.0, &qm, &rm, &qfm)?;
-                Ok((
+        self.heavy_until("tvlqr", deadline, move |stop| {
+            match eval.tvlqr_until(&xbar.0, &ubar.0, [&qm, &rm, &qfm], stop) {
+                Err(Error::Cancelled) => None,
+                Err(e) => Some(Err(e)),
+                Ok(g) => Some(Ok((
                     g.k.into_iter().flat_map(|k| k.data).collect(),
                     g.s.into_iter().flat_map(|s| s.data).collect(),
-                ))
-            })
-            .await?
+                ))),
+            }
+        })
+        .await?
     }
 }

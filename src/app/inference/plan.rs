@@ -2,13 +2,13 @@
 //! the model and the limits, then solved as heavy work that stops at the caller's deadline or
 //! when the caller goes away.
 
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use super::{Array, Cost, rows, square};
 use crate::app::App;
-use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, Plan, PlanRequest, plan};
+use crate::control::plan::{
+    DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, Plan, PlanRequest, check_horizon, plan,
+};
 use crate::error::{Error, Result};
 use crate::infer::limits::Pass;
 
@@ -33,16 +33,6 @@ pub struct PlanCall {
     pub time_limit_ms: u64,
 }
 
-/// Sets the flag when dropped: the caller went away (its future was dropped), so the solver
-/// stops at its next check.
-struct Gone(Arc<AtomicBool>);
-
-impl Drop for Gone {
-    fn drop(&mut self) {
-        self.0.store(true, Ordering::Relaxed);
-    }
-}
-
 impl App {
     /// A plan from x0 toward the goal on the model, with TVLQR gains along it.
     pub async fn plan(&self, id: &str, call: PlanCall, deadline: Option<Instant>) -> Result<Plan> {
@@ -52,8 +42,10 @@ impl App {
         crate::control::plan::validate(&req, nx, m)?;
         let t = req.horizon;
         // Jacobians, the backward pass's matrices and gains, the line search's ten
-        // trajectories, the returned plan and its message.
-        let per_step = 8 * (4 * (nx * nx + nx * m) + 10 * (nx + m) + 2 * m * nx);
+        // trajectories, the best start's, the returned plan and its message. Restarts add
+        // time, not memory (one start is kept besides the current one); the time is the
+        // deadline's to bound, which the solver checks at every time step.
+        let per_step = 8 * (4 * (nx * nx + nx * m) + 11 * (nx + m) + 2 * m * nx);
         let iterations = req.max_iterations + 1;
         self.admit(
             "horizon",
@@ -64,38 +56,19 @@ impl App {
                         * eval.work_bytes_per_state(Pass::Linearize),
             },
         )?;
-        let gone = Arc::new(AtomicBool::new(false));
-        let _guard = Gone(gone.clone());
-        let work = self.heavy.run(move || {
-            let stop =
-                || gone.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d);
-            plan(eval.as_ref(), &req, &stop)
-        });
-        let passed = || Error::DeadlineExceeded("the plan passed its deadline".into());
-        // The answer leaves at the deadline, not at the solver's next check (one iteration of a
-        // long horizon takes tens of milliseconds); `_guard` stops the solver when this returns.
-        let result = match deadline {
-            Some(d) => tokio::time::timeout_at(d.into(), work)
-                .await
-                .map_err(|_| passed())??,
-            None => work.await?,
-        };
-        result.map_err(|e| match e {
-            Error::Cancelled => passed(),
-            other => other,
+        // The solver polls `stop` at every time step of every pass (`control::plan`).
+        self.heavy_until("plan", deadline, move |stop| {
+            match plan(eval.as_ref(), &req, stop) {
+                Err(Error::Cancelled) => None,
+                done => Some(done),
+            }
         })
+        .await?
     }
 
     /// The call's arrays checked against the model's dimensions and the service's limits.
     fn plan_request(&self, c: PlanCall, nx: usize, m: usize) -> Result<PlanRequest> {
-        let max = self.settings.max_plan_horizon;
-        let horizon = usize::try_from(c.horizon).unwrap_or(usize::MAX);
-        if horizon > max {
-            return Err(Error::ResourceExhausted(format!(
-                "horizon {} is over the limit of {max} (--max-plan-horizon)",
-                c.horizon
-            )));
-        }
+        let horizon = check_horizon(c.horizon, self.settings.max_plan_horizon)?;
         let bound = |name: &str, v: Vec<f64>| -> Result<Option<Vec<f64>>> {
             match v.len() {
                 0 => Ok(None),

@@ -1,0 +1,180 @@
+//! Issue 25: a Plan that never stopped. With no iterations (where the solver used to check
+//! the caller's deadline) and 2³² − 1 restarts, two such calls held both heavy permits for
+//! good: every later Predict or Plan was DEADLINE_EXCEEDED. Restarts are bounded now and
+//! every pass checks the deadline at each time step; large Predict, Linearize and Tvlqr
+//! calls check it between chunks.
+
+use std::time::Duration;
+
+use graybox::api::grpc::pb;
+use graybox::control::plan::MAX_RESTARTS;
+use tonic::Code;
+
+use crate::helpers::*;
+
+fn eye(n: usize, s: f64) -> Option<pb::Array> {
+    let mut d = vec![0.0; n * n];
+    (0..n).for_each(|i| d[i * n + i] = s);
+    arr(&[n as u64, n as u64], d)
+}
+
+fn plan_req(model: &str, horizon: u64, max_iterations: u32, restarts: u32) -> pb::PlanRequest {
+    pb::PlanRequest {
+        id: String::new(),
+        model_id: model.into(),
+        x0: vec![0.0; 4],
+        goal: vec![std::f64::consts::PI, 0.0, 0.0, 0.0],
+        horizon,
+        q: eye(4, 1.0),
+        r: eye(2, 1e-4),
+        qf: eye(4, 1000.0),
+        u_min: vec![-120.0; 2],
+        u_max: vec![120.0; 2],
+        u_init: None,
+        max_iterations: Some(max_iterations),
+        tolerance: None,
+        restarts,
+        seed: 0,
+        time_limit_ms: 0,
+    }
+}
+
+fn within<T>(message: T, secs: u64) -> tonic::Request<T> {
+    let mut r = tonic::Request::new(message);
+    r.set_timeout(Duration::from_secs(secs));
+    r
+}
+
+/// Two of `req` at once, each with a 2 s deadline: their codes.
+async fn twice(app: &TestApp, req: pb::PlanRequest) -> Vec<Code> {
+    let calls = (0..2).map(|_| {
+        let req = req.clone();
+        async move {
+            let mut c = client(app).await;
+            c.plan(within(req, 2)).await.map(|_| ()).unwrap_err().code()
+        }
+    });
+    futures_util::future::join_all(calls).await
+}
+
+/// Small calls right after: each within its 2 s deadline, so no permit is still held.
+async fn small_calls_succeed(app: &TestApp, model: &str) {
+    let mut c = client(app).await;
+    let p = c.predict(within(predict_req(model, 64), 2)).await;
+    assert!(p.is_ok(), "a 64-row Predict afterwards: {p:?}");
+    let lin = pb::LinearizeRequest {
+        id: String::new(),
+        model_id: model.into(),
+        x: arr(&[64, 4], vec![0.1; 256]),
+        u: arr(&[64, 2], vec![1.0; 128]),
+    };
+    let l = c.linearize(within(lin, 2)).await;
+    assert!(l.is_ok(), "a 64-row Linearize afterwards: {l:?}");
+    let p = c.plan(within(plan_req(model, 10, 20, 0), 2)).await;
+    assert!(p.is_ok(), "a 10-step Plan afterwards: {p:?}");
+}
+
+#[tokio::test]
+async fn plans_without_iterations_or_with_many_restarts_end_at_their_deadline() {
+    let app = spawn_app(1).await;
+    let model = trained(&app, "MVF").await;
+
+    // The issue's call: refused before it computes, naming the field and its limit.
+    let mut c = client(&app).await;
+    let e = c
+        .plan(within(plan_req(&model, 100, 0, u32::MAX), 2))
+        .await
+        .unwrap_err();
+    assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
+    assert!(
+        e.message().contains("restarts") && e.message().contains(&MAX_RESTARTS.to_string()),
+        "{e:?}"
+    );
+    let codes = twice(&app, plan_req(&model, 100, 0, u32::MAX)).await;
+    assert_eq!(codes, [Code::InvalidArgument; 2]);
+    small_calls_succeed(&app, &model).await;
+
+    // Within the limits but far longer than the deadline (a thousand 10⁴-step rollouts; and
+    // iLQR passes over 10⁴ steps): the deadline ends them and frees their permits.
+    for iterations in [0, 200] {
+        let codes = twice(&app, plan_req(&model, 10_000, iterations, 1000)).await;
+        assert_eq!(
+            codes,
+            [Code::DeadlineExceeded; 2],
+            "{iterations} iterations"
+        );
+        small_calls_succeed(&app, &model).await;
+    }
+    app.stop().await;
+}
+
+/// Batches that take seconds (10⁶ states ≈ 12 s here, a 10⁵-step Tvlqr ≈ 7 s), two at once
+/// with a 2 s deadline: they give up at their next chunk after it instead of holding both
+/// permits to the end.
+#[tokio::test]
+async fn large_batches_past_their_deadline_free_their_permits() {
+    let app = spawn_app(1).await;
+    let model = trained(&app, "MVF").await;
+    let (b, t) = (1_000_000u64, 100_000u64);
+    let lin = pb::LinearizeRequest {
+        id: String::new(),
+        model_id: model.clone(),
+        x: arr(&[b / 4, 4], vec![0.1; b as usize]),
+        u: arr(&[b / 4, 2], vec![1.0; b as usize / 2]),
+    };
+    let tv = pb::TvlqrRequest {
+        id: String::new(),
+        model_id: model.clone(),
+        x_bar: arr(&[t + 1, 4], vec![0.0; 4 * (t as usize + 1)]),
+        u_bar: arr(&[t, 2], vec![0.0; 2 * t as usize]),
+        q: eye(4, 1.0),
+        r: eye(2, 1.0),
+        qf: eye(4, 1.0),
+    };
+    for call in ["predict", "linearize", "tvlqr"] {
+        let calls = (0..2).map(|_| {
+            let (app, model, lin, tv) = (&app, &model, lin.clone(), tv.clone());
+            async move {
+                let mut c = client(app).await;
+                let r = match call {
+                    "predict" => c
+                        .predict(within(predict_req(model, b as usize), 2))
+                        .await
+                        .map(|_| ()),
+                    "linearize" => c.linearize(within(lin, 2)).await.map(|_| ()),
+                    _ => c.tvlqr(within(tv, 2)).await.map(|_| ()),
+                };
+                r.unwrap_err().code()
+            }
+        });
+        for code in futures_util::future::join_all(calls).await {
+            // DEADLINE_EXCEEDED, or tonic's CANCELLED when its timer fires first (the handler's
+            // clock starts after a 48 MB request is decoded).
+            assert!(
+                matches!(code, Code::DeadlineExceeded | Code::Cancelled),
+                "{call}: {code:?}"
+            );
+        }
+        small_calls_succeed(&app, &model).await;
+    }
+    app.stop().await;
+}
+
+/// `max_iterations = 0` is honoured: the initial guess's rollout with its gains.
+#[tokio::test]
+async fn zero_iterations_return_the_initial_guess_with_its_gains() {
+    let app = spawn_app(1).await;
+    let model = trained(&app, "MVF").await;
+    let mut c = client(&app).await;
+    let p = c
+        .plan(within(plan_req(&model, 20, 0, 0), 30))
+        .await
+        .unwrap()
+        .into_inner();
+    assert_eq!((p.iterations, p.costs.len(), p.converged), (0, 1, false));
+    assert_eq!(p.costs[0], p.cost);
+    assert!(p.u.unwrap().data.iter().all(|u| *u == 0.0));
+    assert_eq!(p.k.unwrap().shape, vec![20, 2, 4]);
+    assert_eq!(p.x.unwrap().shape, vec![21, 4]);
+    app.stop().await;
+}

@@ -1,0 +1,62 @@
+//! Issue 25: a shutdown that cannot wait for an epoch end. Past its grace (here: at once) the
+//! jobs still held go back to the queue immediately, from their last checkpoint: not after
+//! their lease expires, and not counted as a dead worker. The process-level bound (SIGTERM
+//! with Plans and training running) is in tests/python/test_hostile.py.
+
+use graybox::app::Settings;
+use graybox::service::Stopped;
+use graybox::store::JobState;
+use serde_json::json;
+
+use crate::helpers::*;
+
+#[tokio::test]
+async fn a_forced_shutdown_gives_held_jobs_back_at_once() {
+    // A lease far longer than the test: only an explicit release makes the job claimable.
+    let mut app = spawn_configured(Settings {
+        workers: 1,
+        lease_secs: 600,
+        ..test_settings()
+    })
+    .await;
+    let ds = app.upload(&dataset(1024, 3)).await;
+    let body = json!({"dataset_id": ds, "model": "MVF", "template": "double_pendulum",
+                      "training": {"epochs": 100_000, "batch_size": 1024}});
+    let (status, job) = app.post("/v1/jobs", &body).await;
+    assert_eq!(status, 201, "{job}");
+    let id = job["id"].as_str().unwrap().to_string();
+    let running = app
+        .wait_job(&id, 120, |j| {
+            j["state"] == "running" && j["epoch"].as_i64() >= Some(1)
+        })
+        .await;
+
+    let stopped = app
+        .running
+        .take()
+        .unwrap()
+        .shutdown_by(std::future::ready(()))
+        .await;
+    assert!(matches!(stopped, Stopped::Forced { .. }), "{stopped:?}");
+
+    let store = app.open_store().await;
+    let row = store.get_job(&id).await.unwrap().unwrap();
+    assert_eq!(row.state, JobState::Queued, "{row:?}");
+    let again = store
+        .claim_job("another-process", 60_000, 3)
+        .await
+        .unwrap()
+        .expect("claimable at once, long before the lease would expire");
+    assert_eq!(again.job.id, id);
+    assert_eq!(again.attempt, running["attempt"].as_i64().unwrap() + 1);
+    let deaths: i64 = sqlx::query_scalar("SELECT worker_deaths FROM jobs WHERE id = ?")
+        .bind(&id)
+        .fetch_one(&sqlx::SqlitePool::connect(&db_url(&app)).await.unwrap())
+        .await
+        .unwrap();
+    assert_eq!(deaths, 0, "a release is not a dead worker");
+}
+
+fn db_url(app: &TestApp) -> String {
+    format!("sqlite://{}", app._dir.path().join("test.db").display())
+}
