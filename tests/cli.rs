@@ -2,6 +2,9 @@
 
 use std::process::{Command, Output};
 
+#[path = "cli/formula_limits.rs"]
+mod formula_limits;
+
 fn graybox(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_graybox"))
         .args(args)
@@ -224,25 +227,36 @@ fn plan_applies_the_services_limits() {
     ]));
     let p = tmp("limits.json");
     let plan = |extra: &[&str]| {
-        let mut args = vec!["plan", "--model", &m, "--x0", "0,0", "--goal", "1,0", "--out", &p];
+        let mut args = vec![
+            "plan", "--model", &m, "--x0", "0,0", "--goal", "1,0", "--out", &p,
+        ];
         args.extend_from_slice(extra);
         graybox(&args)
     };
     for (extra, wanted) in [
         (vec!["--horizon", "1000000000"], "--max-plan-horizon"),
-        (vec!["--horizon", "18446744073709551615"], "--max-plan-horizon"),
+        (
+            vec!["--horizon", "18446744073709551615"],
+            "--max-plan-horizon",
+        ),
         (vec!["--horizon", "10001"], "limit of 10000"),
         (
             vec!["--horizon", "100", "--max-plan-horizon", "99"],
             "limit of 99",
         ),
-        (vec!["--horizon", "10", "--restarts", "4294967295"], "restarts"),
+        (
+            vec!["--horizon", "10", "--restarts", "4294967295"],
+            "restarts",
+        ),
         (vec!["--horizon", "0"], "horizon"),
     ] {
         let out = plan(&extra);
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
-        assert!(err.contains(wanted) && !err.contains("panicked"), "{extra:?}: {err}");
+        assert!(
+            err.contains(wanted) && !err.contains("panicked"),
+            "{extra:?}: {err}"
+        );
     }
     let summary = json(&plan(&["--horizon", "10", "--max-iterations", "0"]));
     assert_eq!(summary["iterations"], 0, "{summary}");

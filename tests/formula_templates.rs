@@ -21,6 +21,11 @@ use graybox::sim::{SimConfig, simulate};
 use graybox::train::{TrainConfig, Trainer};
 use serde_json::{Value, json};
 
+#[path = "formula/limits.rs"]
+mod limits;
+#[path = "formula/recursive.rs"]
+mod recursive;
+
 /// A document of `examples/templates/` (the ones the README points to).
 fn example(name: &str) -> Value {
     let path = format!(

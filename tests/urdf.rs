@@ -32,7 +32,7 @@ fn fixture(name: &str) -> (Tree, Value) {
     let urdf = std::fs::read_to_string(format!("{dir}/{name}.urdf")).unwrap();
     let json = std::fs::read_to_string(format!("{dir}/{name}.json")).unwrap();
     (
-        Tree::parse(&urdf).unwrap(),
+        Tree::parse(&urdf, graybox::model::templates::MAX_DOF).unwrap(),
         serde_json::from_str(&json).unwrap(),
     )
 }
@@ -215,7 +215,9 @@ fn double_pendulum_urdf_is_the_builtin_template() {
         _ => unreachable!(),
     };
     doc.gravity = [0.0, 0.0, -10.0];
-    let urdf = Template::Urdf(Arc::new(UrdfTemplate::from_doc(doc).unwrap()));
+    let urdf = Template::Urdf(Arc::new(
+        UrdfTemplate::from_doc(doc, graybox::model::templates::MAX_DOF).unwrap(),
+    ));
     let (a, b) = (
         evaluator(&builtin, &builtin.defaults()),
         evaluator(&urdf, &urdf.defaults()),

@@ -58,64 +58,16 @@ impl JobSpec {
     }
 }
 
-/// serde's messages with the Rust type names said in words (`expected usize` → `expected a
-/// whole number ≥ 0`), so that an error names what to send, not how it is stored.
-fn in_words(message: &str) -> String {
-    const WORDS: [(&str, &str); 8] = [
-        ("expected usize", "expected a whole number ≥ 0"),
-        ("expected u64", "expected a whole number ≥ 0"),
-        ("expected u32", "expected a whole number ≥ 0"),
-        ("expected i64", "expected a whole number"),
-        ("expected f64", "expected a number"),
-        ("expected f32", "expected a number"),
-        ("expected a sequence", "expected a list"),
-        ("expected a map", "expected an object"),
-    ];
-    let mut out = message.to_string();
-    for (rust, words) in WORDS {
-        out = out.replace(rust, words);
-    }
-    // "expected struct TrainConfig" names a Rust type: an object is what to send.
-    if let Some(at) = out.find("expected struct ") {
-        let rest = &out[at + "expected struct ".len()..];
-        let name_len = rest
-            .find(|c: char| !c.is_alphanumeric() && c != '_')
-            .unwrap_or(rest.len());
-        out = format!("{}expected an object{}", &out[..at], &rest[name_len..]);
-    }
-    out
-}
-
-/// Parses a JSON body into `T`, naming the field at fault in the error.
-pub fn parse_body<T: serde::de::DeserializeOwned>(value: Value) -> Result<T> {
-    serde_path_to_error::deserialize(value).map_err(|e| {
-        let path = e.path().to_string();
-        let message = in_words(&e.into_inner().to_string());
-        // serde reports a missing field at its parent: name the field itself.
-        let missing = message
-            .strip_prefix("missing field `")
-            .and_then(|m| m.split('`').next());
-        let root = !path.chars().any(|c| c.is_alphanumeric());
-        let field = match (root, missing) {
-            (true, Some(m)) => m.to_string(),
-            (false, Some(m)) => format!("{path}.{m}"),
-            (true, None) => "body".to_string(),
-            (false, None) => path,
-        };
-        Error::Unprocessable { field, message }
-    })
-}
-
 /// A request's template document (errors name `template.<field>`).
-fn parse_template(t: &Value) -> Result<Template> {
-    Template::from_document(t).map_err(|e| match e {
+fn parse_template(t: &Value, max_dof: usize) -> Result<Template> {
+    Template::from_document_within(t, max_dof).map_err(|e| match e {
         Error::Unprocessable { field, message } => Error::Unprocessable {
             field: if field == "template" {
                 field
             } else {
                 format!("template.{field}")
             },
-            message: in_words(&message),
+            message: super::requests::in_words(&message),
         },
         other => other,
     })
@@ -164,15 +116,17 @@ impl App {
     }
 
     /// A request's template and, when it names a stored one, that template's id.
-    async fn request_template(&self, t: &Value) -> Result<(Template, Option<String>)> {
+    async fn request_template(&self, t: Value) -> Result<(Template, Option<String>)> {
         let Value::String(name) = t else {
-            return Ok((parse_template(t)?, None));
+            let max_dof = self.settings.max_dof;
+            let parsed = super::templates::off_executor(move || parse_template(&t, max_dof));
+            return Ok((parsed.await?, None));
         };
-        if let Some(builtin) = Template::from_name(name) {
+        if let Some(builtin) = Template::from_name(&name) {
             return Ok((builtin, None));
         }
-        match self.stored_template(name).await? {
-            Some(stored) => Ok((stored, Some(name.clone()))),
+        match self.stored_template(&name).await? {
+            Some(stored) => Ok((stored, Some(name))),
             None => Err(Error::Unprocessable {
                 field: "template".into(),
                 message: format!(
@@ -193,7 +147,7 @@ impl App {
         }
         training.periodic = req.periodic.unwrap_or_default();
         training.validate().map_err(Error::unprocessable)?;
-        let (template, template_id) = match &req.template {
+        let (template, template_id) = match req.template {
             None => (None, None),
             Some(t) => {
                 let (t, id) = self.request_template(t).await?;
@@ -408,43 +362,4 @@ fn job_estimate(job: &JobSpec, data: &Dataset, val_count: usize) -> (budget::Job
     let dims = budget::Dims { n, m, angles };
     let est = budget::estimate(&job.spec, dims, batch, count + val_count, physical);
     (est, batch)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn body_errors_name_the_field() {
-        let field = |v: Value| match parse_body::<JobRequest>(v) {
-            Err(Error::Unprocessable { field, .. }) => field,
-            other => panic!("{other:?}"),
-        };
-        assert_eq!(field(serde_json::json!({"model": "MVF"})), "dataset_id");
-        assert_eq!(
-            field(
-                serde_json::json!({"dataset_id": "d", "model": "MVF", "training": {"epochs": "x"}})
-            ),
-            "training.epochs"
-        );
-    }
-
-    #[test]
-    fn body_errors_say_types_in_words() {
-        let message = |v: Value| match parse_body::<JobRequest>(v) {
-            Err(Error::Unprocessable { message, .. }) => message,
-            other => panic!("{other:?}"),
-        };
-        let m = message(serde_json::json!({"dataset_id": "d", "model": "MVF",
-                                           "training": {"epochs": "x"}}));
-        assert!(m.contains("a whole number"), "{m}");
-        let m = message(serde_json::json!({"dataset_id": "d", "model": "MVF",
-                                           "training": {"lr": "fast"}}));
-        assert!(m.contains("expected a number"), "{m}");
-        let m = message(serde_json::json!({"dataset_id": "d", "model": "MVF", "training": 3}));
-        assert!(m.contains("expected an object"), "{m}");
-        for rust in ["usize", "f64", "struct", "TrainConfig"] {
-            assert!(!m.contains(rust), "{m}");
-        }
-    }
 }

@@ -6,9 +6,11 @@ pub mod events;
 pub mod inference;
 pub mod jobs;
 pub mod models;
+pub mod requests;
 pub mod settings;
 pub mod telemetry;
 pub mod templates;
+pub mod uploads;
 pub mod views;
 
 use std::sync::Arc;

@@ -55,12 +55,18 @@ impl App {
         name: Option<String>,
         bytes: Vec<u8>,
     ) -> Result<(Model, bool)> {
-        let bad = |e: Error| Error::Unprocessable {
-            field: "body".into(),
-            message: format!("not a usable model file: {e}"),
-        };
-        let file = ModelFile::from_bytes(&bytes).map_err(bad)?;
-        check_model_file(&file, self.settings.max_dof).map_err(bad)?;
+        let max_dof = self.settings.max_dof;
+        // Reading checks an embedded template as an upload would: off the async executor.
+        let (file, bytes) = super::templates::off_executor(move || {
+            let bad = |e: Error| Error::Unprocessable {
+                field: "body".into(),
+                message: format!("not a usable model file: {e}"),
+            };
+            let file = ModelFile::from_bytes(&bytes).map_err(bad)?;
+            check_model_file(&file, max_dof).map_err(bad)?;
+            Ok((file, bytes))
+        })
+        .await?;
         if let Some(n) = &name {
             super::datasets::check_name(n)?;
         }

@@ -46,9 +46,19 @@ pub struct Settings {
     /// Times a job's worker may die (lease expired) before the job fails.
     #[arg(long, env = "GRAYBOX_MAX_ATTEMPTS", default_value_t = 3)]
     pub max_attempts: u32,
-    /// Largest accepted request body, in MiB.
-    #[arg(long, env = "GRAYBOX_MAX_BODY_MB", default_value_t = 256)]
+    /// Largest dataset upload (JSON or CSV), in MiB.
+    #[arg(long, env = "GRAYBOX_MAX_BODY_MB", default_value_t = 128)]
     pub max_body_mb: usize,
+    /// Largest model file upload (POST /v1/models), in MiB.
+    #[arg(long, env = "GRAYBOX_MAX_MODEL_MB", default_value_t = 64)]
+    pub max_model_mb: usize,
+    /// Largest template document, or job request embedding one, in MiB.
+    #[arg(long, env = "GRAYBOX_MAX_TEMPLATE_MB", default_value_t = 8)]
+    pub max_template_mb: usize,
+    /// Memory all request bodies in flight may take while read and parsed, in MiB (each
+    /// reserves its size times its kind's measured cost; past it: 503 with Retry-After).
+    #[arg(long, env = "GRAYBOX_MAX_INFLIGHT_BODY_MB", default_value_t = 1024)]
+    pub max_inflight_body_mb: usize,
     /// Longest gRPC Rollout (and Tvlqr horizon), in steps.
     #[arg(long, env = "GRAYBOX_MAX_ROLLOUT_STEPS", default_value_t = 100_000)]
     pub max_rollout_steps: usize,
@@ -123,6 +133,9 @@ impl Settings {
         let at_least_one = [
             ("lease-secs", self.lease_secs as usize),
             ("max-body-mb", self.max_body_mb),
+            ("max-model-mb", self.max_model_mb),
+            ("max-template-mb", self.max_template_mb),
+            ("max-inflight-body-mb", self.max_inflight_body_mb),
             ("grpc-max-message-mb", self.grpc_max_message_mb),
             ("grpc-max-streams", self.grpc_max_streams as usize),
             ("max-call-memory-mb", self.max_call_memory_mb),
@@ -140,6 +153,28 @@ impl Settings {
             return Err(Error::invalid(
                 "shutdown-grace-secs",
                 format!("must be at most {MAX_SHUTDOWN_GRACE_SECS}"),
+            ));
+        }
+        // Every body must fit the budget alone, or it could never be admitted.
+        let budget = self.max_inflight_body_bytes();
+        if let Some(kind) = super::uploads::BodyKind::ALL
+            .into_iter()
+            .find(|k| k.max_cost(self) > budget)
+        {
+            return Err(Error::invalid(
+                "max-inflight-body-mb",
+                format!(
+                    "must be at least {} MiB: a {kind:?} body at its limit takes that much \
+                     while it is parsed",
+                    kind.max_cost(self).div_ceil(MB)
+                ),
+            ));
+        }
+        let dof = crate::model::templates::MAX_DOF;
+        if self.max_dof > dof {
+            return Err(Error::invalid(
+                "max-dof",
+                format!("must be at most {dof} (the most a template document may have)"),
             ));
         }
         let most = crate::train::shards::MAX_THREADS;
@@ -164,6 +199,18 @@ impl Settings {
 
     pub fn max_body_bytes(&self) -> usize {
         self.max_body_mb.saturating_mul(MB)
+    }
+
+    pub fn max_model_bytes(&self) -> usize {
+        self.max_model_mb.saturating_mul(MB)
+    }
+
+    pub fn max_template_bytes(&self) -> usize {
+        self.max_template_mb.saturating_mul(MB)
+    }
+
+    pub fn max_inflight_body_bytes(&self) -> usize {
+        self.max_inflight_body_mb.saturating_mul(MB)
     }
 
     pub fn grpc_max_message_bytes(&self) -> usize {

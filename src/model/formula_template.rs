@@ -7,11 +7,9 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use super::dual::Dual;
-use super::dynamics::cholesky;
-use super::formula::{Expr, Names, Symbol, parse, reserved};
+use super::formula::{Budget, Expr, Names, Symbol, parse_within, reserved};
 use super::scalar::Scalar;
-use super::templates::{ParamInfo, Part};
+use super::templates::{MAX_DOF, ParamInfo, Part};
 use crate::error::{Error, Result};
 use crate::rng::Rng;
 
@@ -74,8 +72,8 @@ fn identifier(name: &str) -> bool {
 const CHECK_POINTS: usize = 16;
 
 impl FormulaTemplate {
-    /// Reads and checks a template document; errors name the field, and for an expression
-    /// the character offset in it.
+    /// Reads and checks a template document of at most [`MAX_DOF`] coordinates; errors name
+    /// the field, and for an expression the character offset in it.
     pub fn parse(json: &str) -> Result<Self> {
         let de = &mut serde_json::Deserializer::from_str(json);
         let doc: FormulaDoc = serde_path_to_error::deserialize(de).map_err(|e| {
@@ -88,10 +86,12 @@ impl FormulaTemplate {
             };
             bad(field, e.into_inner())
         })?;
-        Self::from_doc(doc)
+        Self::from_doc(doc, MAX_DOF)
     }
 
-    pub fn from_doc(doc: FormulaDoc) -> Result<Self> {
+    /// Checks a document, cheapest checks first: its sizes (at most `max_dof` coordinates,
+    /// its expressions within the document's node budget) before anything evaluates them.
+    pub fn from_doc(doc: FormulaDoc, max_dof: usize) -> Result<Self> {
         if doc.kind != "formula" {
             return Err(bad(
                 "kind",
@@ -101,8 +101,14 @@ impl FormulaTemplate {
         if doc.name.trim().is_empty() {
             return Err(bad("name", "must not be empty"));
         }
-        let names = check_names(&doc)?;
         let n = doc.coordinates.len();
+        if n > max_dof {
+            return Err(bad(
+                "coordinates",
+                format!("{n} coordinates; this service takes at most {max_dof} (--max-dof)"),
+            ));
+        }
+        let names = check_names(&doc)?;
         if !doc.periodic.is_empty() && doc.periodic.len() != n {
             return Err(bad(
                 "periodic",
@@ -133,6 +139,7 @@ impl FormulaTemplate {
                 ),
             ));
         }
+        let budget = &mut Budget::document();
         let mut mass = vec![];
         for (i, row) in doc.mass.iter().enumerate() {
             if row.len() != n {
@@ -144,11 +151,14 @@ impl FormulaTemplate {
             let row = row
                 .iter()
                 .enumerate()
-                .map(|(j, text)| expression(&format!("mass[{i}][{j}]"), text, &names, true))
+                .map(|(j, text)| {
+                    let field = format!("mass[{i}][{j}]");
+                    expression(&field, text, &names, true, budget)
+                })
                 .collect::<Result<Vec<_>>>()?;
             mass.push(row);
         }
-        let potential = expression("potential", &doc.potential, &names, true)?;
+        let potential = expression("potential", &doc.potential, &names, true, budget)?;
         if doc.forces.len() != n {
             return Err(bad(
                 "forces",
@@ -162,7 +172,7 @@ impl FormulaTemplate {
             .forces
             .iter()
             .enumerate()
-            .map(|(i, text)| expression(&format!("forces[{i}]"), text, &names, false))
+            .map(|(i, text)| expression(&format!("forces[{i}]"), text, &names, false, budget))
             .collect::<Result<Vec<_>>>()?;
         let params = param_infos(&doc, &mass, &potential, &forces);
         let t = Self {
@@ -193,6 +203,15 @@ impl FormulaTemplate {
     /// The parameters in training order, with the parts that use them.
     pub fn params(&self) -> &[ParamInfo] {
         &self.params
+    }
+
+    /// The length of a part's programs: what evaluating the part costs per sample.
+    pub fn nodes(&self, part: Part) -> usize {
+        match part {
+            Part::Mass => self.mass.iter().flatten().map(|e| e.ops().len()).sum(),
+            Part::Potential => self.potential.ops().len(),
+            Part::Forces => self.forces.iter().map(|e| e.ops().len()).sum(),
+        }
     }
 
     /// The document's parameter values, in training order.
@@ -281,17 +300,28 @@ fn asymmetry(m: &[Vec<f64>]) -> Option<(usize, usize)> {
         })
 }
 
-/// Finite with a Cholesky factor whose diagonal is positive.
+/// Finite with a Cholesky factor whose diagonal is positive (plain f64: this runs on every
+/// upload, and n³ dual numbers made a large document cost minutes).
 fn positive_definite(m: &[Vec<f64>]) -> bool {
     if m.iter().flatten().any(|v| !v.is_finite()) {
         return false;
     }
-    let md: Vec<Vec<Dual<f64>>> = m
-        .iter()
-        .map(|r| r.iter().map(|&v| Dual::constant(v)).collect())
-        .collect();
-    let l = cholesky(&md);
-    (0..m.len()).all(|i| l.get(i, i).v > 0.0)
+    let n = m.len();
+    let mut l = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        for j in 0..=i {
+            let s = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
+            if i == j {
+                if !(s.is_finite() && s > 0.0) {
+                    return false;
+                }
+                l[i][i] = s.sqrt();
+            } else {
+                l[i][j] = s / l[j][j];
+            }
+        }
+    }
+    true
 }
 
 /// Each parameter with the parts whose expressions name it.
@@ -388,8 +418,14 @@ fn check_names(doc: &FormulaDoc) -> Result<Names> {
 }
 
 /// Parses one expression; `configuration` ones (M, V) may use only q and parameters.
-fn expression(field: &str, text: &str, names: &Names, configuration: bool) -> Result<Expr> {
-    let e = parse(text, names).map_err(|e| bad(field, format!("{e} in \"{text}\"")))?;
+fn expression(
+    field: &str,
+    text: &str,
+    names: &Names,
+    configuration: bool,
+    budget: &mut Budget,
+) -> Result<Expr> {
+    let e = parse_within(text, names, budget).map_err(|e| bad(field, quoted(e, text)))?;
     if configuration
         && let Some((s, at)) = e
             .symbols()
@@ -409,9 +445,21 @@ fn expression(field: &str, text: &str, names: &Names, configuration: bool) -> Re
         return Err(bad(
             field,
             format!(
-                "{what} '{name}' at offset {at} in \"{text}\": {field} may use only coordinates and parameters"
+                "{what} '{name}' at offset {at}: {field} may use only coordinates and parameters"
             ),
         ));
     }
     Ok(e)
+}
+
+/// A parse error with the expression it is in, cut to a window around the error when the
+/// expression is long (the error's offset still counts from its start).
+fn quoted(e: super::formula::ParseError, text: &str) -> String {
+    const WINDOW: usize = 60;
+    if text.chars().count() <= 2 * WINDOW {
+        return format!("{e} in \"{text}\"");
+    }
+    let from = e.offset.saturating_sub(WINDOW);
+    let part: String = text.chars().skip(from).take(2 * WINDOW).collect();
+    format!("{e} in \"…{part}…\" (from offset {from})")
 }

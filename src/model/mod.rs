@@ -2,6 +2,7 @@
 //! q̈ = M⁻¹(F − c − ∂V/∂q), one-step prediction by an integrator, and the loss.
 
 pub mod assembly;
+pub mod documents;
 pub mod dual;
 pub mod dynamics;
 pub mod file;

@@ -13,8 +13,11 @@ pub struct TemplateRow {
     pub name: String,
     pub n: i64,
     pub m: i64,
-    /// The canonical JSON document (sorted keys, no spaces).
-    pub document: String,
+    /// The canonical JSON document (sorted keys, no spaces); lists leave it out when the row
+    /// has its summary.
+    pub document: Option<String>,
+    /// What a list shows of the template (JSON); None for rows stored before summaries.
+    pub summary: Option<String>,
     pub sha256: String,
     pub created_at: String,
     pub seq: i64,
@@ -27,9 +30,14 @@ pub struct NewTemplate<'a> {
     pub n: i64,
     pub m: i64,
     pub document: &'a str,
+    pub summary: &'a str,
 }
 
-const COLUMNS: &str = "seq, id, kind, name, n, m, document, sha256, created_at";
+const COLUMNS: &str = "seq, id, kind, name, n, m, document, summary, sha256, created_at";
+
+/// A list's columns: the document only where no summary stands for it.
+const LIST_COLUMNS: &str = "seq, id, kind, name, n, m, summary, sha256, created_at, \
+     CASE WHEN summary IS NULL THEN document END AS document";
 
 fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::with_columns(s, COLUMNS)
@@ -44,6 +52,7 @@ fn row(r: &SqliteRow) -> Result<TemplateRow> {
         n: r.try_get("n")?,
         m: r.try_get("m")?,
         document: r.try_get("document")?,
+        summary: r.try_get("summary")?,
         sha256: r.try_get("sha256")?,
         created_at: r.try_get("created_at")?,
     })
@@ -64,8 +73,8 @@ impl Store {
             return Ok((row(&r)?, false));
         }
         let r = sqlx::query(sql(
-            "INSERT INTO templates (id, kind, name, n, m, document, sha256, created_at)
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
+            "INSERT INTO templates (id, kind, name, n, m, document, summary, sha256, created_at)
+             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
         ))
         .bind(new_id("tpl"))
         .bind(t.kind)
@@ -73,6 +82,7 @@ impl Store {
         .bind(t.n)
         .bind(t.m)
         .bind(t.document)
+        .bind(t.summary)
         .bind(&sha)
         .bind(now_rfc3339())
         .fetch_one(&mut *tx)
@@ -95,8 +105,9 @@ impl Store {
         before: Option<i64>,
         limit: i64,
     ) -> Result<Vec<TemplateRow>> {
-        let rows = sqlx::query(sql(
+        let rows = sqlx::query(super::with_columns(
             "SELECT {COLUMNS} FROM templates WHERE seq < ? ORDER BY seq DESC LIMIT ?",
+            LIST_COLUMNS,
         ))
         .bind(before.unwrap_or(i64::MAX))
         .bind(limit)

@@ -4,6 +4,7 @@
 
 use crate::model::mass_matrix;
 use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
+use crate::model::templates::Part;
 
 /// The largest blob SQLite stores (SQLITE_MAX_LENGTH, 10⁹ bytes by default), less a margin
 /// for the row around it.
@@ -98,7 +99,15 @@ pub fn estimate(
     let Dims { n, m, .. } = dims;
     let parts = components(spec, dims, physical);
     let params = parts.iter().fold(0usize, |a, p| a.saturating_add(p.0));
-    let units = parts.iter().fold(0usize, |a, p| a.saturating_add(p.1));
+    // A formula template's programs run on every sample: M's and V's with their n
+    // q-derivatives (dual numbers), F's on values.
+    let formula = spec.template().map_or(0, |t| {
+        spec.white_box_parts().into_iter().fold(0usize, |a, part| {
+            let blocks = if part == Part::Forces { 1 } else { n + 1 };
+            a.saturating_add(t.nodes(part).saturating_mul(blocks))
+        })
+    });
+    let units = parts.iter().fold(formula, |a, p| a.saturating_add(p.1));
     // The structure per sample: L and ∂L/∂q, the Coriolis products and the solve.
     let structure = n.saturating_pow(3).saturating_add(8 * n * n + n * m);
     let per_sample = units

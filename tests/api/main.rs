@@ -3,6 +3,7 @@
 mod crash;
 mod datasets;
 mod errors;
+mod formula_limits;
 mod grpc;
 mod helpers;
 mod hostile;
@@ -10,6 +11,7 @@ mod jobs;
 mod plan_stop;
 mod replay;
 mod shutdown;
+mod uploads;
 mod web;
 
 /// The paper's double pendulum in closed form (shared with the numerics tests).

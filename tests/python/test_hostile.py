@@ -3,6 +3,7 @@ nothing), calls too large to answer, streams nobody reads, inputs far outside th
 data and shapes that overflow. The tests needing special flags start their own server."""
 
 import datetime
+import json
 import os
 import http.client
 import ipaddress
@@ -504,3 +505,122 @@ def test_sigterm_exits_within_the_grace_and_gives_the_running_job_back(graybox_b
                                       "WHERE id = ?", (job["id"],)).fetchone()
     db.close()
     assert (state, owner, deaths) == ("queued", None, 0)
+
+
+# --- Inputs that used to abort the whole process (recursion on the input) -----------------
+
+def long_pendulum(terms: int) -> dict:
+    """A pendulum whose potential is −m g l cos θ as a flat sum of `terms` equal parts."""
+    part = f"{1.0 / terms!r}*m*g*l*cos(theta)"
+    return {"kind": "formula", "name": f"long{terms}", "coordinates": ["theta"],
+            "inputs": ["u"],
+            "parameters": {"m": {"value": 1.0, "positive": True},
+                           "l": {"value": 1.0, "positive": True},
+                           "g": {"value": 9.81, "positive": True}},
+            "mass": [["m*l^2"]], "potential": " ".join([f"-{part}"] * terms),
+            "forces": ["u"]}
+
+
+def test_formula_models_that_used_to_abort_the_process_are_served(graybox_bin, tmp_path):
+    """A model whose potential is a flat sum of 300 or 3000 terms (its first Linearize, or
+    Predict, used to overflow a thread's stack and abort the process, again after every
+    restart) answers; nested documents are 422s; the process is alive throughout."""
+    with serve(graybox_bin, tmp_path) as s:
+        with Client(s.grpc_target, timeout=120) as c:
+            for terms in (300, 3000):
+                doc = tmp_path / f"long{terms}.json"
+                doc.write_text(json.dumps(long_pendulum(terms)))
+                model = tmp_path / f"long{terms}.gbx"
+                subprocess.run([graybox_bin, "model", "--template", str(doc), "--dt", "0.05",
+                                "--out", str(model)], check=True, capture_output=True)
+                status, m = s.rest.post("/v1/models", raw=model.read_bytes())
+                assert status == 201, m
+                a, b = c.linearize(m["id"], [0.3, -0.1], [0.5])
+                assert np.all(np.isfinite(a)) and np.all(np.isfinite(b))
+                x_next = c.predict(m["id"], np.full((64, 2), 0.2), np.full((64, 1), 0.1))
+                assert np.all(np.isfinite(x_next))
+        for nested in ("(" * 2000 + "theta" + ")" * 2000, "sin(" * 2000 + "theta" + ")" * 2000,
+                       "-" * 2000 + "theta"):
+            status, body = s.rest.post("/v1/templates", {**long_pendulum(1), "potential": nested})
+            assert status == 422 and body["error"]["field"] == "potential", body
+            assert "more than 256 levels" in body["error"]["message"], body
+        assert s.proc.poll() is None, "the server died"
+        assert s.rest.get("/healthz")[0] == 200
+
+
+# --- Request bodies in flight share one memory budget -------------------------------------
+
+def upload_100_continue(port: int, path: str, body: bytes, content_type: str) -> tuple[int, dict]:
+    """POST with `Expect: 100-continue`: the body goes only when the server asks for it, so
+    an upload refused before it is read costs neither side its bytes. (status, headers)."""
+    with socket.create_connection(("127.0.0.1", port), timeout=120) as s:
+        s.sendall((f"POST {path} HTTP/1.1\r\nhost: x\r\ncontent-type: {content_type}\r\n"
+                   f"content-length: {len(body)}\r\nexpect: 100-continue\r\n\r\n").encode())
+        f = s.makefile("rb")
+        status = int(f.readline().split()[1])
+        if status == 100:
+            f.readline()  # the blank line after "100 Continue"
+            s.sendall(body)
+            status = int(f.readline().split()[1])
+        headers = {}
+        for line in iter(f.readline, b"\r\n"):
+            k, _, v = line.decode().partition(":")
+            headers[k.strip().lower()] = v.strip()
+        return status, headers
+
+
+def dataset_bodies(mb: int) -> tuple[bytes, bytes]:
+    """A double-pendulum-shaped dataset of about `mb` MB as JSON and as CSV (random values:
+    the budget does not care whether they are physical)."""
+    rng = np.random.default_rng(0)
+    rows = mb * 2**20 // 190
+    a = rng.uniform(-3, 3, size=(rows, 10))
+    cols = {"q": a[:, 0:2], "qdot": a[:, 2:4], "u": a[:, 4:6], "q_next": a[:, 6:8],
+            "qdot_next": a[:, 8:10]}
+    js = json.dumps({"dt": 0.01, **{k: v.tolist() for k, v in cols.items()}}).encode()
+    head = "q0,q1,qdot0,qdot1,u0,u1,q_next0,q_next1,qdot_next0,qdot_next1\n"
+    body = "\n".join(",".join(repr(float(v)) for v in r) for r in a)
+    return js, (head + body + "\n").encode()
+
+
+def test_concurrent_uploads_stay_within_the_body_budget(graybox_bin, tmp_path):
+    """20 concurrent 100 MB dataset uploads (JSON, then CSV), 20 model files and 20 template
+    documents at their size limits, and 10 concurrent template lists: each upload is stored
+    or refused with 503 and Retry-After before its body is read, and the process's peak RSS
+    stays under 1 GB (before the budget, 50 concurrent 200 MB uploads passed 3 GB)."""
+    with serve(graybox_bin, tmp_path, "--workers", "0") as s:
+        model = tmp_path / "dp.gbx"
+        subprocess.run([graybox_bin, "model", "--template", "double_pendulum", "--dt", "0.01",
+                        "--out", str(model)], check=True, capture_output=True)
+        gbx = model.read_bytes()
+        # Valid documents padded with whitespace to their kinds' limits (64 MB, 8 MB).
+        big_model = gbx[:-1] + b" " * (64 * 2**20 - len(gbx) - 1) + gbx[-1:]
+        doc = json.dumps(long_pendulum(300)).encode()
+        big_template = doc[:-1] + b" " * (8 * 2**20 - len(doc) - 1) + doc[-1:]
+        js, csv = dataset_bodies(100)
+        rounds = [("/v1/datasets", js, "application/json"),
+                  ("/v1/datasets?dt=0.01", csv, "text/csv"),
+                  ("/v1/models", big_model, "application/octet-stream"),
+                  ("/v1/templates", big_template, "application/json")]
+        for path, body, ct in rounds:
+            results = []
+            threads = [threading.Thread(target=lambda: results.append(
+                upload_100_continue(s.http_port, path, body, ct))) for _ in range(20)]
+            for t in threads:
+                t.start()
+            for t in threads:
+                t.join()
+            statuses = sorted(r[0] for r in results)
+            assert set(statuses) <= {200, 201, 503}, (path, statuses)
+            assert statuses[0] in (200, 201), (path, statuses)
+            assert all("retry-after" in h for st, h in results if st == 503), results
+            print(f"{path}: {statuses.count(503)} of 20 refused; peak RSS "
+                  f"{s.status('VmHWM') // 1024} MB")
+        lists = [threading.Thread(target=lambda: s.rest.get("/v1/templates")) for _ in range(10)]
+        for t in lists:
+            t.start()
+        for t in lists:
+            t.join()
+        peak = s.status("VmHWM") // 1024
+        assert peak < 1024, f"peak RSS {peak} MB"
+        assert s.proc.poll() is None

@@ -9,6 +9,7 @@ use axum::routing::get;
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, body_bytes, float_param, int_param, json_body, page};
 use crate::app::datasets::Upload;
+use crate::app::uploads::BodyKind;
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -42,11 +43,11 @@ async fn upload(
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> ApiResult<impl IntoResponse> {
-    let limit = s.app.settings.max_body_bytes();
+    let limit = s.limit(BodyKind::Dataset);
     let dt = float_param(&params, "dt")?;
     let bytes = body_bytes(body, limit)?;
     let upload = if is_csv(&headers, &bytes) {
-        let text = String::from_utf8(bytes.to_vec())
+        let text = String::from_utf8(Vec::from(bytes))
             .map_err(|_| ApiError::bad_request("body", "CSV must be UTF-8"))?;
         Upload::Csv { text, dt }
     } else {

@@ -15,7 +15,9 @@ use serde_json::json;
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, int_param, json_body, page};
 use crate::app::events::Progress;
-use crate::app::jobs::{JobRequest, parse_body};
+use crate::app::jobs::JobRequest;
+use crate::app::requests::parse_body;
+use crate::app::uploads::BodyKind;
 use crate::app::views::JobState;
 use tokio::sync::{broadcast, watch};
 
@@ -67,7 +69,7 @@ async fn submit(
             )
         }
     };
-    let req: JobRequest = parse_body(json_body(body, s.app.settings.max_body_bytes())?)?;
+    let req: JobRequest = parse_body(json_body(body, s.limit(BodyKind::Template))?)?;
     let (job, created) = s.app.submit_job(req, key).await?;
     Ok((
         if created {

@@ -1,5 +1,6 @@
 //! The REST API (axum): routers per resource, one error shape, auth, request metrics.
 
+mod admission;
 mod datasets;
 pub mod error;
 mod jobs;
@@ -8,6 +9,7 @@ mod ops;
 mod templates;
 
 use std::collections::HashMap;
+use std::sync::Arc;
 use std::time::Instant;
 
 use axum::Router;
@@ -17,22 +19,38 @@ use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 
 use crate::app::App;
+use crate::app::uploads::BodyKind;
 use error::{ApiError, ApiResult};
 
 #[derive(Clone)]
 pub struct RestState {
     pub app: App,
+    /// Memory for request bodies being read and parsed (`admission.rs`).
+    bodies: Arc<admission::BodyBudget>,
+}
+
+impl RestState {
+    /// The largest body a route of `kind` takes.
+    fn limit(&self, kind: BodyKind) -> usize {
+        kind.limit(&self.app.settings)
+    }
 }
 
 /// The whole REST router; tests call it with `oneshot` or over a socket.
 pub fn router(app: App) -> Router {
-    let limit = app.settings.max_body_bytes();
-    let state = RestState { app };
+    let bodies = Arc::new(admission::BodyBudget::new(
+        app.settings.max_inflight_body_bytes(),
+    ));
+    let state = RestState { app, bodies };
+    // Each route group reads bodies up to its kind's limit; the rest take small ones.
+    let limited = |routes: Router<RestState>, kind: BodyKind| {
+        routes.layer(DefaultBodyLimit::max(state.limit(kind)))
+    };
     Router::new()
-        .merge(datasets::routes())
-        .merge(jobs::routes())
-        .merge(models::routes())
-        .merge(templates::routes())
+        .merge(limited(datasets::routes(), BodyKind::Dataset))
+        .merge(limited(jobs::routes(), BodyKind::Template))
+        .merge(limited(models::routes(), BodyKind::Model))
+        .merge(limited(templates::routes(), BodyKind::Template))
         .merge(ops::routes())
         .merge(crate::api::web::routes())
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "not_found", "no such route") })
@@ -43,9 +61,13 @@ pub fn router(app: App) -> Router {
                 "method not allowed on this route",
             )
         })
+        .layer(middleware::from_fn_with_state(
+            state.clone(),
+            admission::admit_body,
+        ))
         .layer(middleware::from_fn_with_state(state.clone(), authorize))
         .layer(middleware::from_fn_with_state(state.clone(), record))
-        .layer(DefaultBodyLimit::max(limit))
+        .layer(DefaultBodyLimit::max(admission::SMALL_BODY_LIMIT))
         .with_state(state)
 }
 

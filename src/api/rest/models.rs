@@ -8,6 +8,7 @@ use axum::routing::get;
 
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, body_bytes, int_param, page};
+use crate::app::uploads::BodyKind;
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -41,11 +42,11 @@ async fn upload(
     p: Params,
     body: Result<Bytes, BytesRejection>,
 ) -> ApiResult<impl IntoResponse> {
-    let limit = s.app.settings.max_body_bytes();
+    let limit = s.limit(BodyKind::Model);
     let bytes = body_bytes(body, limit)?;
     let (model, created) = s
         .app
-        .upload_model(p.get("name").cloned(), bytes.to_vec())
+        .upload_model(p.get("name").cloned(), Vec::from(bytes))
         .await?;
     let status = if created {
         StatusCode::CREATED

@@ -8,6 +8,7 @@ use axum::routing::get;
 
 use super::error::ApiResult;
 use super::{Params, RestState, body_bytes, int_param, page};
+use crate::app::uploads::BodyKind;
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -22,13 +23,13 @@ async fn upload(
     headers: HeaderMap,
     body: Result<Bytes, BytesRejection>,
 ) -> ApiResult<impl IntoResponse> {
-    let bytes = body_bytes(body, s.app.settings.max_body_bytes())?;
+    let bytes = body_bytes(body, s.limit(BodyKind::Template))?;
     // A raw URDF is XML (application/xml, text/xml, or a +xml type).
     let xml = headers
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.split(';').next().unwrap_or("").trim().ends_with("xml"));
-    let (template, created) = s.app.upload_template(&bytes, xml).await?;
+    let (template, created) = s.app.upload_template(bytes, xml).await?;
     let status = if created {
         StatusCode::CREATED
     } else {

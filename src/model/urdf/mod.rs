@@ -5,6 +5,7 @@ pub mod inertia;
 pub mod rigid;
 pub mod term;
 pub mod tree;
+pub mod xml;
 
 pub use inertia::{BodyInertia, Inertial, body_inertia};
 pub use tree::{Body, JointKind, Tree};

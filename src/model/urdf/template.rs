@@ -89,19 +89,27 @@ fn bad(field: &str, message: impl Into<String>) -> Error {
 impl UrdfTemplate {
     /// A raw URDF document with every default.
     pub fn from_urdf(urdf: &str) -> Result<Self> {
-        Self::from_doc(UrdfDoc {
-            kind: KIND.into(),
-            name: String::new(),
-            urdf: urdf.into(),
-            gravity: default_gravity(),
-            actuated: None,
-            periodic: vec![],
-        })
+        Self::from_urdf_within(urdf, crate::model::templates::MAX_DOF)
     }
 
-    /// Checks a document and fills in its defaults (the name), so that the stored form is
-    /// canonical.
-    pub fn from_doc(mut doc: UrdfDoc) -> Result<Self> {
+    /// `from_urdf` for a service that takes at most `max_dof` coordinates.
+    pub fn from_urdf_within(urdf: &str, max_dof: usize) -> Result<Self> {
+        Self::from_doc(
+            UrdfDoc {
+                kind: KIND.into(),
+                name: String::new(),
+                urdf: urdf.into(),
+                gravity: default_gravity(),
+                actuated: None,
+                periodic: vec![],
+            },
+            max_dof,
+        )
+    }
+
+    /// Checks a document (a robot of at most `max_dof` movable joints) and fills in its
+    /// defaults (the name), so that the stored form is canonical.
+    pub fn from_doc(mut doc: UrdfDoc, max_dof: usize) -> Result<Self> {
         if doc.kind != KIND {
             return Err(bad(
                 "kind",
@@ -111,7 +119,7 @@ impl UrdfTemplate {
         if doc.gravity.iter().any(|g| !g.is_finite()) {
             return Err(bad("gravity", "must be three finite numbers"));
         }
-        let tree = Tree::parse(&doc.urdf)?;
+        let tree = Tree::parse(&doc.urdf, max_dof)?;
         if doc.name.trim().is_empty() {
             doc.name = tree.robot.clone();
         }

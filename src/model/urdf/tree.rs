@@ -148,8 +148,10 @@ fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
 }
 
 impl Tree {
-    /// The robot's tree from URDF text; errors (422, field "urdf") name the element.
-    pub fn parse(text: &str) -> Result<Tree> {
+    /// The robot's tree from URDF text with at most `max_dof` movable joints; errors (422,
+    /// field "urdf") name the element.
+    pub fn parse(text: &str, max_dof: usize) -> Result<Tree> {
+        super::xml::precheck(text, max_dof)?;
         let robot = urdf_rs::read_from_string(text).map_err(|e| bad(format!("not a URDF: {e}")))?;
         let mut links: HashMap<&str, &urdf_rs::Link> = HashMap::new();
         for l in &robot.links {
@@ -215,8 +217,7 @@ impl Tree {
             robot: robot.name.clone(),
             bodies: vec![],
         };
-        let mut visited = 0usize;
-        tree.visit(&robot, &links, root, None, Frame::IDENTITY, &mut visited)?;
+        let visited = tree.walk(&robot, &links, root)?;
         if visited != robot.links.len() {
             return Err(bad(
                 "some links are not reachable from the root: the joints form a loop",
@@ -230,84 +231,106 @@ impl Tree {
         Ok(tree)
     }
 
-    /// Depth-first from `link`, which `body` moves with `frame` from that body's frame to the
-    /// link's.
-    fn visit(
+    /// Depth-first from the root, children in document order, on a stack of its own (a
+    /// chain of thousands of links is a legal robot); the links visited.
+    fn walk(
         &mut self,
         robot: &urdf_rs::Robot,
         links: &HashMap<&str, &urdf_rs::Link>,
-        link: &str,
-        body: Option<usize>,
-        frame: Frame,
-        visited: &mut usize,
-    ) -> Result<()> {
-        *visited += 1;
-        let own = link_inertial(links[link])?;
+        root: &str,
+    ) -> Result<usize> {
+        let mut children: HashMap<&str, Vec<&urdf_rs::Joint>> = HashMap::new();
+        for j in &robot.joints {
+            children.entry(j.parent.link.as_str()).or_default().push(j);
+        }
+        // A link to visit, with the body that moves it and the frame from that body's frame
+        // to the link's; or a movable joint whose body is made when its turn comes, so that
+        // bodies are numbered in depth-first order.
+        enum Next<'r> {
+            Link(&'r str, Option<usize>, Frame),
+            Joint(&'r urdf_rs::Joint, Option<usize>, Frame),
+        }
+        let mut stack = vec![Next::Link(root, None, Frame::IDENTITY)];
+        let mut visited = 0usize;
+        while let Some(next) = stack.pop() {
+            let (link, body, frame) = match next {
+                Next::Link(link, body, frame) => (link, body, frame),
+                Next::Joint(j, parent, at) => {
+                    self.bodies.push(movable_body(j, parent, at)?);
+                    let b = self.bodies.len() - 1;
+                    (j.child.link.as_str(), Some(b), Frame::IDENTITY)
+                }
+            };
+            visited += 1;
+            self.fold(links[link], body, &frame)?;
+            for j in children.get(link).into_iter().flatten().rev() {
+                let at = frame.then(&Frame::of(&j.origin));
+                stack.push(match j.joint_type {
+                    urdf_rs::JointType::Fixed => Next::Link(&j.child.link, body, at),
+                    _ => Next::Joint(j, body, at),
+                });
+            }
+        }
+        Ok(visited)
+    }
+
+    /// Adds `link`'s inertia to the body that moves it (seen from that body's frame).
+    fn fold(&mut self, link: &urdf_rs::Link, body: Option<usize>, frame: &Frame) -> Result<()> {
+        let own = link_inertial(link)?;
         if let Some(b) = body {
             let moved = own.transformed(&frame.rot, &frame.pos);
             let target = &mut self.bodies[b];
-            if target.link == link {
+            if target.link == link.name {
                 target.own = own.clone();
             } else {
-                target.fixed.push((link.to_string(), frame.rot, frame.pos));
+                target.fixed.push((link.name.clone(), frame.rot, frame.pos));
             }
             target.inertial = target.inertial.plus(&moved);
         }
-        for j in robot.joints.iter().filter(|j| j.parent.link == link) {
-            let at = frame.then(&Frame::of(&j.origin));
-            let kind = match j.joint_type {
-                urdf_rs::JointType::Fixed => {
-                    self.visit(robot, links, &j.child.link, body, at, visited)?;
-                    continue;
-                }
-                urdf_rs::JointType::Prismatic => JointKind::Prismatic,
-                urdf_rs::JointType::Continuous => JointKind::Continuous,
-                _ => JointKind::Revolute,
-            };
-            let a = j.axis.xyz.0;
-            let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
-            if !(norm.is_finite() && norm > 1e-9) {
-                return Err(bad(format!(
-                    "joint '{}': its axis must not be zero",
-                    j.name
-                )));
-            }
-            let (damping, friction) = j
-                .dynamics
-                .as_ref()
-                .map_or((0.0, 0.0), |d| (d.damping, d.friction));
-            // Identified values may come out slightly negative, and an exported model must
-            // read back: any finite value is taken.
-            if !(damping.is_finite() && friction.is_finite()) {
-                return Err(bad(format!(
-                    "joint '{}': <dynamics> damping and friction must be finite",
-                    j.name
-                )));
-            }
-            self.bodies.push(Body {
-                joint: j.name.clone(),
-                kind,
-                link: j.child.link.clone(),
-                parent: body,
-                rot: at.rot,
-                pos: at.pos,
-                axis: a.map(|v| v / norm),
-                inertial: Inertial::ZERO,
-                own: Inertial::ZERO,
-                fixed: vec![],
-                damping,
-                friction,
-            });
-            let b = self.bodies.len() - 1;
-            self.visit(
-                robot,
-                links,
-                &j.child.link,
-                Some(b),
-                Frame::IDENTITY,
-                visited,
-            )?;
-        }
         Ok(())
     }
+}
+
+/// The body a movable joint moves, with no inertia yet; `at` is the joint frame in the
+/// parent body's frame.
+fn movable_body(j: &urdf_rs::Joint, parent: Option<usize>, at: Frame) -> Result<Body> {
+    let kind = match j.joint_type {
+        urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+        urdf_rs::JointType::Continuous => JointKind::Continuous,
+        _ => JointKind::Revolute,
+    };
+    let a = j.axis.xyz.0;
+    let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
+    if !(norm.is_finite() && norm > 1e-9) {
+        return Err(bad(format!(
+            "joint '{}': its axis must not be zero",
+            j.name
+        )));
+    }
+    let (damping, friction) = j
+        .dynamics
+        .as_ref()
+        .map_or((0.0, 0.0), |d| (d.damping, d.friction));
+    // Identified values may come out slightly negative, and an exported model must read
+    // back: any finite value is taken.
+    if !(damping.is_finite() && friction.is_finite()) {
+        return Err(bad(format!(
+            "joint '{}': <dynamics> damping and friction must be finite",
+            j.name
+        )));
+    }
+    Ok(Body {
+        joint: j.name.clone(),
+        kind,
+        link: j.child.link.clone(),
+        parent,
+        rot: at.rot,
+        pos: at.pos,
+        axis: a.map(|v| v / norm),
+        inertial: Inertial::ZERO,
+        own: Inertial::ZERO,
+        fixed: vec![],
+        damping,
+        friction,
+    })
 }
