@@ -13,8 +13,9 @@ use tokio::sync::watch;
 use tokio::task::JoinHandle;
 use tracing::{info, warn};
 
-use crate::api::listen::{TlsFiles, TlsListener, acceptor};
+use crate::api::listen::{TlsListener, acceptor};
 use crate::api::rest::router;
+use crate::api::tls::TlsFiles;
 use crate::app::{App, Settings};
 use crate::error::{Error, Result};
 use crate::store::Store;
@@ -59,18 +60,20 @@ async fn bind(addr: &str, what: &str) -> Result<TcpListener> {
 pub async fn start(settings: Settings) -> Result<Running> {
     settings.validate()?;
     let cfg = settings.clone();
+    // Before the database and the ports: a bad file stops the start-up with nothing opened.
+    let identity = cfg
+        .tls_cert
+        .clone()
+        .zip(cfg.tls_key.clone())
+        .map(|(cert, key)| TlsFiles { cert, key }.load())
+        .transpose()?;
     let store = Store::open(&cfg.db).await?;
     let app = App::new(store, settings);
     let http = bind(&cfg.http, "http").await?;
     let grpc = bind(&cfg.grpc, "grpc").await?;
     let (http_addr, grpc_addr) = (http.local_addr()?, grpc.local_addr()?);
     let (stop, stopped) = watch::channel(false);
-    let files = cfg
-        .tls_cert
-        .clone()
-        .zip(cfg.tls_key.clone())
-        .map(|(cert, key)| TlsFiles { cert, key });
-    let tls = |alpn: &[&[u8]]| files.as_ref().map(|f| acceptor(f, alpn)).transpose();
+    let tls = |alpn: &[&[u8]]| identity.as_ref().map(|i| acceptor(i, alpn)).transpose();
     let servers = vec![
         tokio::spawn(serve_rest(
             app.clone(),

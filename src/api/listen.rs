@@ -1,20 +1,19 @@
 //! Accepting connections for REST and gRPC: plain TCP, or TLS (rustls) when the service has
-//! a certificate. Each TLS handshake runs in its own task under a timeout, so a client that
-//! connects and never finishes its handshake cannot hold up the connections behind it.
+//! a certificate (its files read by `tls.rs`). Each TLS handshake runs in its own task under
+//! a timeout, so a client that connects and never finishes its handshake cannot hold up the
+//! connections behind it.
 
 use std::net::SocketAddr;
-use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use rustls_pki_types::pem::PemObject;
-use rustls_pki_types::{CertificateDer, PrivateKeyDer};
 use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::mpsc;
 use tokio_rustls::TlsAcceptor;
 use tokio_rustls::server::TlsStream;
 use tracing::debug;
 
+use super::tls::TlsIdentity;
 use crate::error::{Error, Result};
 
 /// A handshake not done by then is dropped.
@@ -23,38 +22,14 @@ pub const HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(10);
 /// Handshaken connections waiting for the server to take them.
 const PENDING: usize = 64;
 
-/// The certificate chain and private key files (PEM) the service presents.
-#[derive(Debug, Clone)]
-pub struct TlsFiles {
-    pub cert: std::path::PathBuf,
-    pub key: std::path::PathBuf,
-}
-
-/// The certificate chain in a PEM file (at least one certificate).
-pub fn certificates(path: &Path) -> Result<Vec<CertificateDer<'static>>> {
-    let certs = CertificateDer::pem_file_iter(path)
-        .and_then(|it| it.collect::<std::result::Result<Vec<_>, _>>())
-        .map_err(|e| Error::invalid("tls_cert", format!("cannot read {}: {e}", path.display())))?;
-    if certs.is_empty() {
-        return Err(Error::invalid("tls_cert", "the file has no certificate"));
-    }
-    Ok(certs)
-}
-
-/// A TLS acceptor for `files`, offering the ALPN protocols given (gRPC needs "h2").
-pub fn acceptor(files: &TlsFiles, alpn: &[&[u8]]) -> Result<TlsAcceptor> {
-    let bad = |field: &str, path: &Path, e: &dyn std::fmt::Display| {
-        Error::invalid(field, format!("cannot read {}: {e}", path.display()))
-    };
-    let certs = certificates(&files.cert)?;
-    let key =
-        PrivateKeyDer::from_pem_file(&files.key).map_err(|e| bad("tls_key", &files.key, &e))?;
+/// A TLS acceptor presenting `identity`, offering the ALPN protocols given (gRPC needs "h2").
+pub fn acceptor(identity: &TlsIdentity, alpn: &[&[u8]]) -> Result<TlsAcceptor> {
     let provider = Arc::new(tokio_rustls::rustls::crypto::ring::default_provider());
     let mut config = tokio_rustls::rustls::ServerConfig::builder_with_provider(provider)
         .with_safe_default_protocol_versions()
         .map_err(|e| Error::Internal(format!("TLS setup: {e}")))?
         .with_no_client_auth()
-        .with_single_cert(certs, key)
+        .with_single_cert(identity.certs.clone(), identity.key.clone_key())
         .map_err(|e| Error::invalid("tls_key", format!("does not fit the certificate: {e}")))?;
     config.alpn_protocols = alpn.iter().map(|p| p.to_vec()).collect();
     Ok(TlsAcceptor::from(Arc::new(config)))

@@ -19,7 +19,7 @@ use tokio_rustls::rustls::crypto::{self, CryptoProvider};
 use tokio_rustls::rustls::pki_types::{CertificateDer, ServerName, UnixTime};
 use tokio_rustls::rustls::{self, ClientConfig, DigitallySignedStruct, SignatureScheme};
 
-use crate::api::listen::certificates;
+use crate::api::tls::certificates;
 use crate::error::{Error, Result};
 
 #[derive(Args, Debug)]

@@ -11,6 +11,7 @@ mod jobs;
 mod plan_stop;
 mod replay;
 mod shutdown;
+mod tls;
 mod uploads;
 mod web;
 

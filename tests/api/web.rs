@@ -50,3 +50,37 @@ async fn the_page_loads_without_a_token_and_the_api_still_needs_one() {
     assert_ne!(r.status().as_u16(), 200);
     app.stop().await;
 }
+
+/// Every answer of the REST port carries the page's policy and the two headers that keep a
+/// browser from sniffing or framing it: the page and its files, the API, and the errors of
+/// the layers in front of the handlers (401) and of the router (404).
+#[tokio::test]
+async fn every_answer_carries_the_security_headers() {
+    let app = spawn_configured(Settings {
+        api_token: Some("s3cret".into()),
+        ..test_settings()
+    })
+    .await;
+    let policy = graybox::api::web::CONTENT_SECURITY_POLICY;
+    assert!(policy.contains("default-src 'self'") && policy.contains("frame-ancestors 'none'"));
+    for (method, path, status) in [
+        ("GET", "/", 200),
+        ("GET", "/ui/app.js", 200),
+        ("GET", "/v1/jobs", 200),
+        ("GET", "/healthz", 200),
+        ("POST", "/v1/jobs", 401),
+        ("GET", "/v2/nothing", 404),
+    ] {
+        let req = match method {
+            "POST" => app.client.post(app.url(path)).body("{}"),
+            _ => app.client.get(app.url(path)),
+        };
+        let r = req.send().await.unwrap();
+        assert_eq!(r.status().as_u16(), status, "{method} {path}");
+        let h = r.headers();
+        assert_eq!(h["content-security-policy"], policy, "{method} {path}");
+        assert_eq!(h["x-content-type-options"], "nosniff", "{method} {path}");
+        assert_eq!(h["x-frame-options"], "DENY", "{method} {path}");
+    }
+    app.stop().await;
+}

@@ -2,12 +2,14 @@
 fresh service. Two jobs submitted while the page is open appear and finish without a reload;
 a job's chart has a point per epoch; the compare view draws both; a model replays a recorded
 trajectory; the upload form adds a dataset and shows the API's error for a bad one. Charts
-are read through their `data-series` attribute, not their pixels."""
+are read through their `data-series` attribute, not their pixels. Throughout, the page runs
+under the service's Content-Security-Policy without a single violation."""
 
 import json
 import os
 import shutil
 import subprocess
+import urllib.request
 
 import numpy as np
 import pytest
@@ -23,6 +25,25 @@ playwright = pytest.importorskip("playwright.sync_api")
 
 def series(page, selector):
     return json.loads(page.get_attribute(selector, "data-series"))
+
+
+def watch_csp(page) -> list:
+    """The Content-Security-Policy violations of every document the page loads, as
+    "directive blocked-uri source:line" (reported to Python, so a reload loses none)."""
+    seen = []
+    page.expose_function("__reportCspViolation", lambda v: seen.append(v))
+    page.add_init_script("""
+        document.addEventListener("securitypolicyviolation", (e) => window.__reportCspViolation(
+            `${e.violatedDirective} ${e.blockedURI} ${e.sourceFile}:${e.lineNumber}`));
+    """)
+    return seen
+
+
+def assert_secure_headers(headers: dict, what: str):
+    assert "default-src 'self'" in headers.get("content-security-policy", ""), (what, headers)
+    assert "frame-ancestors 'none'" in headers["content-security-policy"], (what, headers)
+    assert headers.get("x-content-type-options") == "nosniff", (what, headers)
+    assert headers.get("x-frame-options") == "DENY", (what, headers)
 
 
 @pytest.fixture(scope="module")
@@ -74,9 +95,11 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     page_errors, console_errors = [], []
     page.on("pageerror", lambda e: page_errors.append(str(e)))
     page.on("console", lambda m: console_errors.append(m.text) if m.type == "error" else None)
+    violations = watch_csp(page)
 
     # Jobs submitted while the page is open appear and finish without a reload.
-    page.goto(base + "/")
+    assert_secure_headers(page.goto(base + "/").headers, "the page")
+    assert_secure_headers(page.request.get(base + "/v1/jobs").headers, "the API")
     page.wait_for_selector("#jobs-table")
     jobs = {}
     for model, epochs in EPOCHS.items():
@@ -135,6 +158,11 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
                         np.array(replay["series"]["predicted"])))
     assert gap < 0.1, gap
     assert page.locator("#physical-table tbody tr").count() == 9  # m1 m2 l1 l2 g b1 b2 eta1 eta2
+    # The download button saves the model file through a blob: link.
+    with page.expect_download() as download:
+        page.click("text=Download model (.gbx)")
+    with urllib.request.urlopen(base + f'/v1/models/{job["model_id"]}/checkpoint') as r:
+        assert open(download.value.path(), "rb").read() == r.read()
     page.screenshot(path=str(tmp_path / "model.png"), full_page=True)
 
     # The upload form adds a dataset; a bad file shows the API's message.
@@ -171,6 +199,15 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     # The one expected failure: the bad upload's 400.
     unexpected = [m for m in console_errors if "400" not in m]
     assert unexpected == [] and len(console_errors) <= 1, console_errors
+    assert violations == [], violations
+    # The watch sees a violation when there is one: an inline style attribute is refused.
+    page.evaluate("""document.body.insertAdjacentHTML("beforeend",
+                                                       '<p style="color: red">x</p>')""")
+    for _ in range(50):  # the event is queued as a task, then reported to Python
+        if violations:
+            break
+        page.wait_for_timeout(100)
+    assert len(violations) == 1 and violations[0].startswith("style-src"), violations
 
 
 def test_dashboard_with_a_token(tmp_path_factory, graybox_bin, browser):
@@ -183,6 +220,7 @@ def test_dashboard_with_a_token(tmp_path_factory, graybox_bin, browser):
         page = browser.new_page(viewport={"width": 1280, "height": 900})
         page_errors = []
         page.on("pageerror", lambda e: page_errors.append(str(e)))
+        violations = watch_csp(page)
         page.goto(s.rest.base + "/")
         page.wait_for_selector("#token-dialog[open]")
         page.fill("#token-input", "wrong")
@@ -205,3 +243,4 @@ def test_dashboard_with_a_token(tmp_path_factory, graybox_bin, browser):
         page.wait_for_selector(f'tr[data-job="{job["id"]}"][data-state="succeeded"]',
                                timeout=120_000)
         assert page_errors == [], page_errors
+        assert violations == [], violations

@@ -624,3 +624,71 @@ def test_concurrent_uploads_stay_within_the_body_budget(graybox_bin, tmp_path):
         peak = s.status("VmHWM") // 1024
         assert peak < 1024, f"peak RSS {peak} MB"
         assert s.proc.poll() is None
+
+
+# --- TLS files: read with a bound; an expired certificate is said at start-up ---------------
+
+def certificate(tmp_path, not_before, not_after):
+    """A self-signed certificate for 127.0.0.1 valid from `not_before` to `not_after`, and its
+    key (PEM files)."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "localhost")])
+    cert = (x509.CertificateBuilder()
+            .subject_name(name).issuer_name(name).public_key(key.public_key())
+            .serial_number(x509.random_serial_number())
+            .not_valid_before(not_before).not_valid_after(not_after)
+            .add_extension(x509.SubjectAlternativeName([
+                x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
+            .sign(key, hashes.SHA256()))
+    cert_path, key_path = tmp_path / "cert.pem", tmp_path / "key.pem"
+    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    key_path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
+                                           serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
+    return cert_path, key_path
+
+
+def test_tls_files_over_the_limit_stop_the_start_up(graybox_bin, tmp_path):
+    """`--tls-cert /dev/zero` used to be read until memory ran out: now the start-up stops at
+    once, naming the flag and the 1 MiB limit, before the database is created."""
+    from conftest import server_env
+
+    good_cert, _ = self_signed(tmp_path)
+    for cert, key, flag in (("/dev/zero", "/dev/zero", "--tls-cert"),
+                            (str(good_cert), "/dev/zero", "--tls-key")):
+        start = time.monotonic()
+        run = subprocess.run([graybox_bin, "serve", "--http", "127.0.0.1:0", "--grpc",
+                              "127.0.0.1:0", "--db", str(tmp_path / "never.db"),
+                              "--tls-cert", cert, "--tls-key", key],
+                             capture_output=True, text=True, timeout=30, env=server_env())
+        took = time.monotonic() - start
+        assert run.returncode != 0, run
+        assert flag in run.stderr and "limit of 1 MiB" in run.stderr, run.stderr
+        assert took < 5, took
+        assert not (tmp_path / "never.db").exists()
+
+
+def test_an_expired_certificate_is_warned_about_at_start_up(graybox_bin, tmp_path):
+    """The service still starts (a certificate may be replaced while it runs), but its log
+    says the certificate expired, and when."""
+    utc = datetime.timezone.utc
+    cert, key = certificate(tmp_path, datetime.datetime(2020, 1, 2, 3, 4, 5, tzinfo=utc),
+                            datetime.datetime(2021, 6, 7, 8, 9, 10, tzinfo=utc))
+    ctx = ssl.create_default_context()
+    ctx.check_hostname, ctx.verify_mode = False, ssl.CERT_NONE  # it is expired, after all
+    with serve(graybox_bin, tmp_path, "--workers", "0", "--tls-cert", str(cert),
+               "--tls-key", str(key), name="graybox serve (expired certificate)",
+               context=ctx) as s:
+        log = s.log.read_text()
+        assert "WARN" in log and "expired at 2021-06-07T08:09:10Z" in log, log
+        # Clients that check certificates refuse it: why the warning matters.
+        strict = ssl.create_default_context(cafile=str(cert))
+        with pytest.raises(urllib.error.URLError) as e:
+            urllib.request.urlopen(f"https://127.0.0.1:{s.http_port}/healthz", context=strict,
+                                   timeout=10).close()
+        assert "expired" in str(e.value.reason), e.value

@@ -4,12 +4,14 @@
 use tonic::Status;
 
 use super::pb;
+use crate::api::echo::{MESSAGE_LIMIT, bounded};
 use crate::app::views::Model;
 use crate::error::Error;
 
 impl From<Error> for Status {
     fn from(e: Error) -> Self {
-        let msg = e.to_string();
+        // The message quotes the field and what the caller sent: bounded like REST's.
+        let msg = bounded(e.to_string(), MESSAGE_LIMIT);
         match e {
             Error::Invalid { .. } | Error::Unprocessable { .. } => Status::invalid_argument(msg),
             Error::NotFound(_) => Status::not_found(msg),

@@ -1,10 +1,12 @@
-//! One error body for every 4xx/5xx: `{"error": {"code", "message", "field"?}}`.
+//! One error body for every 4xx/5xx: `{"error": {"code", "message", "field"?}}`, its
+//! message and field cut to a bound (`api/echo.rs`).
 
 use axum::Json;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use serde_json::json;
 
+use crate::api::echo::{FIELD_LIMIT, MESSAGE_LIMIT, bounded};
 use crate::error::Error;
 
 /// An error as the REST API reports it.
@@ -94,9 +96,10 @@ impl From<Error> for ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        let mut err = json!({"code": self.code, "message": self.message});
+        let message = bounded(self.message, MESSAGE_LIMIT);
+        let mut err = json!({"code": self.code, "message": message});
         if let Some(f) = self.field {
-            err["field"] = json!(f);
+            err["field"] = json!(bounded(f, FIELD_LIMIT));
         }
         (self.status, Json(json!({ "error": err }))).into_response()
     }

@@ -1,4 +1,5 @@
-//! The REST API (axum): routers per resource, one error shape, auth, request metrics.
+//! The REST API (axum): routers per resource, one error shape, auth, request metrics, the
+//! browser's security headers (`web/mod.rs`) on every answer.
 
 mod admission;
 mod datasets;
@@ -67,6 +68,8 @@ pub fn router(app: App) -> Router {
         ))
         .layer(middleware::from_fn_with_state(state.clone(), authorize))
         .layer(middleware::from_fn_with_state(state.clone(), record))
+        // Outermost, so that the answers of the layers inside (401, 413, 503) carry them too.
+        .layer(middleware::map_response(crate::api::web::security_headers))
         .layer(DefaultBodyLimit::max(admission::SMALL_BODY_LIMIT))
         .with_state(state)
 }
