@@ -255,6 +255,121 @@ fn physical_values_round_trip_through_raw() {
     }
 }
 
+/// Values as training might leave them: 30% heavier bodies, shifted centres of mass, new
+/// damping and friction (each joint's its own, so that values on the wrong joint show).
+fn identified(t: &Template) -> Vec<f64> {
+    let mut values = t.defaults();
+    for (k, p) in t.params().iter().enumerate() {
+        let field = p.name.rsplit('.').next().unwrap();
+        values[k] = match field {
+            "mass" => values[k] * 1.3,
+            "com_x" | "com_y" | "com_z" => values[k] + 0.01,
+            "damping" => 0.2 + k as f64 * 1e-2,
+            "friction" => 0.05 + k as f64 * 1e-3,
+            _ => values[k] * 1.1,
+        };
+    }
+    values
+}
+
+/// arm4 with `edit` applied to its document.
+fn arm4_with(edit: impl FnOnce(String) -> String) -> Template {
+    let path = format!(
+        "{}/tests/fixtures/urdf/arm4.urdf",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = edit(std::fs::read_to_string(path).unwrap());
+    Template::Urdf(Arc::new(UrdfTemplate::from_urdf(&text).unwrap()))
+}
+
+/// The export of `t` at `values`, read back by the URDF reader: every parameter, found by its
+/// link's or joint's name, has the value the model has (1e-12 of max(1, |value|)).
+fn export_reads_back(t: &Template, values: &[f64]) -> String {
+    let file = ModelFile::from_template(t, values, 0.01, Integrator::Rk4).unwrap();
+    let text = file.urdf().unwrap_or_else(|e| panic!("no export: {e}"));
+    let again = UrdfTemplate::from_urdf(&text)
+        .unwrap_or_else(|e| panic!("the export does not read back: {e}\n{text}"));
+    let back: std::collections::HashMap<&str, f64> = again
+        .params()
+        .iter()
+        .map(|p| (p.name.as_ref(), p.default))
+        .collect();
+    let model = file.physical_values().unwrap();
+    assert_eq!(back.len(), model.len(), "{text}");
+    for (p, v) in t.params().iter().zip(&model) {
+        let b = back
+            .get(p.name.as_ref())
+            .unwrap_or_else(|| panic!("the export has no {}:\n{text}", p.name));
+        assert!(
+            (b - v).abs() <= 1e-12 * v.abs().max(1.0),
+            "{}: the export says {b}, the model has {v}\n{text}",
+            p.name
+        );
+    }
+    text
+}
+
+/// Names with entities (a link `a&amp;b`, a joint `yaw <1>`) are the unescaped names the
+/// reader gives the template; the export finds their elements and writes their values.
+#[test]
+fn export_finds_links_and_joints_named_with_entities() {
+    let t = arm4_with(|s| {
+        s.replace("\"upper\"", "\"a&amp;b\"")
+            .replace("\"shoulder_yaw\"", "\"yaw &lt;1&gt;\"")
+    });
+    assert!(t.index_of("a&b.mass").is_some() && t.index_of("yaw <1>.damping").is_some());
+    let text = export_reads_back(&t, &identified(&t));
+    assert!(text.contains("<link name=\"a&amp;b\">"), "{text}");
+}
+
+/// A link named with `--` whose fixed link is written massless (the hand lighter than its
+/// tool): the note saying where the tool's mass went is a well-formed comment, and the
+/// export reads back to the model's values.
+#[test]
+fn export_of_a_link_named_with_double_hyphens_is_well_formed() {
+    let t = arm4_with(|s| s.replace("\"hand\"", "\"hand--x-\""));
+    let mut values = identified(&t);
+    values[t.index_of("hand--x-.mass").unwrap()] *= 0.1;
+    let text = export_reads_back(&t, &values);
+    let mut reader = quick_xml::Reader::from_str(&text);
+    reader.config_mut().check_comments = true;
+    let mut comments = 0;
+    loop {
+        match reader.read_event() {
+            Ok(quick_xml::events::Event::Eof) => break,
+            Ok(quick_xml::events::Event::Comment(c)) => {
+                comments += String::from_utf8_lossy(&c).contains("graybox") as usize;
+            }
+            Ok(_) => {}
+            Err(e) => panic!("not well-formed: {e}\n{text}"),
+        }
+    }
+    assert_eq!(comments, 1, "{text}");
+}
+
+/// A start tag whose other attribute's value looks like a name (`foo=" name='upper'"`) is
+/// the link its `name` attribute names: upper's values go to upper, the decoy keeps its own.
+#[test]
+fn export_reads_the_name_attribute_not_text_that_looks_like_one() {
+    let decoy = r#"<link foo=" name='upper'" name="decoy">
+    <inertial>
+      <origin xyz="0 0 0" rpy="0 0 0"/>
+      <mass value="0.7"/>
+      <inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>
+    </inertial>
+  </link>
+  <joint name="decoy_mount" type="fixed">
+    <parent link="base_link"/>
+    <child link="decoy"/>
+  </joint>
+  <joint name="shoulder_yaw""#;
+    let t = arm4_with(|s| s.replacen(r#"<joint name="shoulder_yaw""#, decoy, 1));
+    let text = export_reads_back(&t, &identified(&t));
+    let at = text.find("name=\"decoy\">").unwrap();
+    let kept = &text[at..at + text[at..].find("</link>").unwrap()];
+    assert!(kept.contains("<mass value=\"0.7\"/>"), "{text}");
+}
+
 /// The export writes the identified values into the original document: it parses back to
 /// the same values (1e-12; numbers are written in shortest round-trip form, so only the
 /// θ-free arithmetic of folding fixed links rounds), and every line that is not an
@@ -266,18 +381,7 @@ fn export_writes_identified_values_and_keeps_the_rest() {
         let Template::Urdf(u) = &t else {
             unreachable!()
         };
-        let mut values = t.defaults();
-        for (k, p) in t.params().iter().enumerate() {
-            // 30% heavier bodies, shifted centres of mass, new damping and friction.
-            let field = p.name.rsplit('.').next().unwrap();
-            values[k] = match field {
-                "mass" => values[k] * 1.3,
-                "com_x" | "com_y" | "com_z" => values[k] + 0.01,
-                "damping" => 0.2,
-                "friction" => 0.05 + k as f64 * 1e-3,
-                _ => values[k] * 1.1,
-            };
-        }
+        let values = identified(&t);
         let file = ModelFile::from_template(&t, &values, 0.01, Integrator::Rk4).unwrap();
         let text = file.urdf().unwrap();
         let again = UrdfTemplate::from_urdf(&text).unwrap();

@@ -6,8 +6,10 @@ use super::App;
 use super::views::{Dataset, Model};
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
+use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
 use crate::store::{JobState, ModelRow, NewModel};
+use crate::train::budget;
 
 impl App {
     async fn model_row(&self, id: &str) -> Result<ModelRow> {
@@ -48,14 +50,14 @@ impl App {
     }
 
     /// Stores a model file as it is (POST /v1/models): checked as the evaluator will read
-    /// it, identified by its bytes (the same file again returns the stored model,
-    /// `created = false`). A bad file is a 422 naming what is wrong.
+    /// it and against the service's limits, identified by its bytes (the same file again
+    /// returns the stored model, `created = false`). A bad file is a 422 naming what is wrong.
     pub async fn upload_model(
         &self,
         name: Option<String>,
         bytes: Vec<u8>,
     ) -> Result<(Model, bool)> {
-        let max_dof = self.settings.max_dof;
+        let (max_dof, max_params) = (self.settings.max_dof, self.settings.max_model_params);
         // Reading checks an embedded template as an upload would: off the async executor.
         let (file, bytes) = super::templates::off_executor(move || {
             let bad = |e: Error| Error::Unprocessable {
@@ -63,7 +65,7 @@ impl App {
                 message: format!("not a usable model file: {e}"),
             };
             let file = ModelFile::from_bytes(&bytes).map_err(bad)?;
-            check_model_file(&file, max_dof).map_err(bad)?;
+            check_model_file(&file, max_dof, max_params).map_err(bad)?;
             Ok((file, bytes))
         })
         .await?;
@@ -109,10 +111,11 @@ impl App {
     }
 
     /// The identified robot of a URDF model (GET /v1/models/{id}/urdf): its template's
-    /// document with the learned inertial and joint values written in.
+    /// document with the learned inertial and joint values written in. Reading the file
+    /// parses its robot, and the export reads its result back: off the async executor.
     pub async fn model_urdf(&self, id: &str) -> Result<String> {
         let bytes = self.model_file(id).await?;
-        ModelFile::from_bytes(&bytes)?.urdf()
+        super::templates::off_executor(move || ModelFile::from_bytes(&bytes)?.urdf()).await
     }
 
     pub async fn list_models(
@@ -141,8 +144,10 @@ impl App {
 }
 
 /// A model file the service can serve: a valid spec for its dimensions, finite scalings and
-/// values, a Δt in range, and every value its spec needs (what `Evaluator::from_file` reads).
-fn check_model_file(file: &ModelFile, max_dof: usize) -> Result<()> {
+/// values, a Δt in range, at most `max_params` trainable parameters (`--max-model-params`, as
+/// for a job), and every value its spec needs in the shape the spec gives it (what
+/// `Evaluator::from_file` reads).
+fn check_model_file(file: &ModelFile, max_dof: usize, max_params: usize) -> Result<()> {
     let c = &file.config;
     c.spec.validate()?;
     if c.n == 0 || c.m == 0 || c.n > max_dof {
@@ -184,6 +189,34 @@ fn check_model_file(file: &ModelFile, max_dof: usize) -> Result<()> {
             "needs n values per coordinate statistic (m per input one), standard deviations > 0",
         ));
     }
+    // Counted from the spec, before the evaluator copies the weights; the evaluator then
+    // holds the file to the spec, so this is the file's count too.
+    let params = trainable_params(c);
+    if params > max_params {
+        return Err(Error::invalid(
+            "config.spec",
+            format!(
+                "the model has {params} trainable parameters, over the limit of {max_params} \
+                 (--max-model-params)"
+            ),
+        ));
+    }
     Evaluator::from_file(file)?; // every value the spec needs, each of its shape
     Ok(())
+}
+
+/// Trainable parameters of a model of this configuration, counted as a job's are
+/// (`train::budget`): its networks' and other learned values, and its template's physical
+/// values when some part is white-box.
+fn trainable_params(c: &ModelConfig) -> usize {
+    let physical = match c.spec.template() {
+        Some(t) if !c.spec.white_box_parts().is_empty() => t.params().len(),
+        _ => 0,
+    };
+    let dims = budget::Dims {
+        n: c.n,
+        m: c.m,
+        angles: c.q_inputs() - c.n,
+    };
+    budget::estimate(&c.spec, dims, 0, 0, physical).params
 }

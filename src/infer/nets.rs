@@ -31,8 +31,18 @@ impl Mlp64 {
             ) else {
                 break;
             };
-            let (d_in, d_out) = (w.shape[0], w.shape[1]);
-            if b.values.len() != d_out || w.values.len() != d_in * d_out {
+            // A file's shape is input: one that is not two numbers, or whose product
+            // overflows, is corrupt rather than a panic or a wrapped size.
+            let &[d_in, d_out] = w.shape.as_slice() else {
+                return Err(Error::corrupt(
+                    "model file",
+                    format!(
+                        "{prefix} layer {i}'s weight has shape {:?}, not two numbers",
+                        w.shape
+                    ),
+                ));
+            };
+            if b.values.len() != d_out || d_in.checked_mul(d_out) != Some(w.values.len()) {
                 return Err(Error::corrupt(
                     "model file",
                     format!("{prefix} layer {i} has inconsistent shapes"),

@@ -97,17 +97,40 @@ struct Arrays<'a> {
 }
 
 impl Arrays<'_> {
-    /// A network from `d_in` inputs to `d_out` outputs, its layers chained.
-    fn net(&self, name: &str, d_in: usize, d_out: usize) -> Result<Mlp64> {
+    /// A network from `d_in` inputs through the spec's `hidden` widths to `d_out` outputs:
+    /// every layer the shape the spec gives it, so that the file is the model its spec
+    /// describes (and that listings, costs and limits read from the spec are the file's).
+    fn net(&self, name: &str, d_in: usize, hidden: &[usize], d_out: usize) -> Result<Mlp64> {
         let net = Mlp64::from_arrays(&self.by_name, name)?.ok_or_else(|| missing(name))?;
-        let widths: Vec<(usize, usize)> = net.layers.iter().map(|l| (l.0, l.1)).collect();
-        let chained = widths.windows(2).all(|w| w[0].1 == w[1].0);
-        let ends = (widths[0].0, widths[widths.len() - 1].1);
-        if !chained || ends != (d_in, d_out) {
-            return Err(Error::corrupt(
+        let widths: Vec<usize> = std::iter::once(d_in)
+            .chain(hidden.iter().copied())
+            .chain(std::iter::once(d_out))
+            .collect();
+        let spec = widths
+            .iter()
+            .map(usize::to_string)
+            .collect::<Vec<_>>()
+            .join(" → ");
+        let corrupt = |what: String| {
+            Error::corrupt(
                 "model file",
-                format!("{name}'s layers {widths:?} do not map {d_in} inputs to {d_out} outputs"),
-            ));
+                format!("{name}: {what}; its spec's widths {spec} need that"),
+            )
+        };
+        if net.layers.len() != widths.len() - 1 {
+            return Err(corrupt(format!(
+                "has {} layers where the spec has {}",
+                net.layers.len(),
+                widths.len() - 1
+            )));
+        }
+        for (i, (layer, w)) in net.layers.iter().zip(widths.windows(2)).enumerate() {
+            if (layer.0, layer.1) != (w[0], w[1]) {
+                return Err(corrupt(format!(
+                    "layer {i}'s weight is {}×{}, expected {}×{}",
+                    layer.0, layer.1, w[0], w[1]
+                )));
+            }
         }
         Ok(net)
     }
@@ -143,15 +166,17 @@ impl Weights {
             m,
             q_in: file.config.q_inputs(),
         };
-        let ModelSpec::Structured {
-            mass,
-            potential,
-            forces,
-            template,
-        } = &file.config.spec
-        else {
-            let full = file.config.full_inputs();
-            return Ok(Weights::Naive(arrays.net(names::NAIVE, full, n)?));
+        let (mass, potential, forces, template) = match &file.config.spec {
+            ModelSpec::Naive { hidden } => {
+                let full = file.config.full_inputs();
+                return Ok(Weights::Naive(arrays.net(names::NAIVE, full, hidden, n)?));
+            }
+            ModelSpec::Structured {
+                mass,
+                potential,
+                forces,
+                template,
+            } => (mass, potential, forces, template),
         };
         let physical = match template
             .as_ref()
@@ -188,17 +213,18 @@ impl Weights {
 fn mass_weights(a: &Arrays, spec: &MassSpec) -> Result<Option<Mass>> {
     let tri = a.n * (a.n + 1) / 2;
     Ok(match spec {
-        MassSpec::Mlp { .. } => Some(Mass::Net(a.net(names::MASS_NET, a.q_in, tri)?)),
+        MassSpec::Mlp { hidden } => Some(Mass::Net(a.net(names::MASS_NET, a.q_in, hidden, tri)?)),
         MassSpec::Constant => Some(Mass::Constant(a.values(names::MASS_CONST, tri)?)),
         MassSpec::Template => None,
     })
 }
 
 fn potential_weights(a: &Arrays, spec: &PotentialSpec) -> Result<Option<Potential>> {
-    if spec.network().is_some() {
+    if let Some(hidden) = spec.network() {
         return Ok(Some(Potential::Net(a.net(
             names::POTENTIAL_NET,
             a.q_in,
+            hidden,
             1,
         )?)));
     }
@@ -212,16 +238,17 @@ fn potential_weights(a: &Arrays, spec: &PotentialSpec) -> Result<Option<Potentia
 
 fn force_weights(a: &Arrays, spec: &ForceSpec) -> Result<Option<Forces>> {
     let (n, m) = (a.n, a.m);
-    if spec.network().is_some() {
+    if let Some(hidden) = spec.network() {
         return Ok(Some(Forces::Net(a.net(
             names::FORCE_NET,
             a.q_in + n + m,
+            hidden,
             n,
         )?)));
     }
     Ok(match spec {
-        ForceSpec::ControlAffine { .. } => Some(Forces::ControlAffine {
-            b_net: a.net(names::B_NET, a.q_in, n * m)?,
+        ForceSpec::ControlAffine { hidden } => Some(Forces::ControlAffine {
+            b_net: a.net(names::B_NET, a.q_in, hidden, n * m)?,
             eta: a.values(names::ETA, n)?,
         }),
         ForceSpec::ConstantAffine => Some(Forces::ConstantAffine {

@@ -8,6 +8,7 @@ mod grpc;
 mod helpers;
 mod hostile;
 mod jobs;
+mod model_uploads;
 mod plan_stop;
 mod replay;
 mod shutdown;

@@ -1,16 +1,24 @@
 //! The identified robot as URDF: the template's own document with each moving link's
 //! `<inertial>` and each movable joint's `<dynamics>` rewritten, and every other byte
 //! (visuals, collisions, comments, formatting) as it was. A text edit, not a re-serialisation:
-//! no XML writer keeps comments and layout.
+//! no XML writer keeps comments and layout. Elements are found by an XML reader and every
+//! export is read back by the URDF reader before anyone gets it.
+
+use std::collections::HashMap;
+
+use quick_xml::Reader;
+use quick_xml::events::Event;
 
 use super::inertia::Inertial;
-use super::template::UrdfTemplate;
+use super::template::{UrdfDoc, UrdfTemplate};
+use super::xml::line_col;
 use crate::error::{Error, Result};
 
 /// An element of the document: its name, the `name` attribute, and byte spans.
 #[derive(Debug, Clone)]
 struct Element {
     tag: String,
+    /// Unescaped, as the URDF reader gives the template its names.
     name: Option<String>,
     /// The start tag `<tag …>` (or the whole `<tag …/>`).
     open: (usize, usize),
@@ -19,101 +27,65 @@ struct Element {
     depth: usize,
 }
 
-/// Every element of `text` in document order (comments, processing instructions, CDATA and
-/// declarations skipped).
+/// Every element of `text` in document order, located by an XML reader (the one `xml.rs`
+/// bounds the document with), so that quoting, entities and markup that only looks like a
+/// tag are read as the URDF reader reads them.
 fn elements(text: &str) -> Result<Vec<Element>> {
-    let b = text.as_bytes();
-    let corrupt = |why: &str| Error::corrupt("urdf", why.to_string());
+    let corrupt = |why: String| Error::corrupt("urdf", why);
+    let mut reader = Reader::from_str(text);
     let mut out: Vec<Element> = vec![];
     let mut open: Vec<usize> = vec![];
-    let mut i = 0;
-    while let Some(k) = text[i..].find('<') {
-        let start = i + k;
-        let rest = &text[start..];
-        let skip_to = |end: &str| {
-            rest.find(end)
-                .map(|e| start + e + end.len())
-                .ok_or_else(|| corrupt("unterminated markup"))
+    loop {
+        let start = reader.buffer_position() as usize;
+        let event = reader.read_event().map_err(|e| {
+            let at = line_col(text, reader.error_position() as usize);
+            corrupt(format!("not XML: {e} at {at}"))
+        })?;
+        let end = reader.buffer_position() as usize;
+        let (s, opens) = match event {
+            Event::Start(s) => (s, true),
+            Event::Empty(s) => (s, false),
+            Event::End(_) => {
+                let e = open
+                    .pop()
+                    .ok_or_else(|| corrupt("unbalanced end tag".into()))?;
+                out[e].close = Some((start, end));
+                continue;
+            }
+            Event::Eof => break,
+            _ => continue,
         };
-        if rest.starts_with("<!--") {
-            i = skip_to("-->")?;
-            continue;
+        // The spans are what the edits replace: a position that is not a tag's would cut
+        // the document anywhere.
+        if !(text
+            .get(start..end)
+            .is_some_and(|t| t.starts_with('<') && t.ends_with('>')))
+        {
+            return Err(Error::Internal(format!(
+                "URDF export: the XML reader's position {start}..{end} is not a tag"
+            )));
         }
-        if rest.starts_with("<![CDATA[") {
-            i = skip_to("]]>")?;
-            continue;
+        let name = match s.try_get_attribute("name") {
+            Ok(Some(a)) => Some(
+                a.decode_and_unescape_value(reader.decoder())
+                    .map_err(|e| corrupt(format!("a name at {}: {e}", line_col(text, start))))?
+                    .into_owned(),
+            ),
+            Ok(None) => None,
+            Err(e) => return Err(corrupt(format!("{e} at {}", line_col(text, start)))),
+        };
+        out.push(Element {
+            tag: String::from_utf8_lossy(s.name().as_ref()).into_owned(),
+            name,
+            open: (start, end),
+            close: None,
+            depth: open.len(),
+        });
+        if opens {
+            open.push(out.len() - 1);
         }
-        if rest.starts_with("<?") {
-            i = skip_to("?>")?;
-            continue;
-        }
-        if rest.starts_with("<!") {
-            i = skip_to(">")?;
-            continue;
-        }
-        // A tag: to the first '>' outside quotes.
-        let mut j = start + 1;
-        let mut quote = None;
-        while j < b.len() {
-            match (quote, b[j]) {
-                (None, b'"' | b'\'') => quote = Some(b[j]),
-                (Some(q), c) if c == q => quote = None,
-                (None, b'>') => break,
-                _ => {}
-            }
-            j += 1;
-        }
-        if j >= b.len() {
-            return Err(corrupt("unterminated tag"));
-        }
-        let end = j + 1;
-        let inner = &text[start + 1..j];
-        if let Some(tag) = inner.strip_prefix('/') {
-            let tag = tag.trim();
-            let e = open.pop().ok_or_else(|| corrupt("unbalanced end tag"))?;
-            if out[e].tag != tag {
-                return Err(corrupt("mismatched end tag"));
-            }
-            out[e].close = Some((start, end));
-        } else {
-            let empty = inner.ends_with('/');
-            let body = inner.trim_end_matches('/');
-            let tag: String = body.chars().take_while(|c| !c.is_whitespace()).collect();
-            out.push(Element {
-                name: attribute(body, "name"),
-                tag,
-                open: (start, end),
-                close: None,
-                depth: open.len(),
-            });
-            if !empty {
-                open.push(out.len() - 1);
-            }
-        }
-        i = end;
     }
     Ok(out)
-}
-
-/// The value of attribute `key` in a start tag's text.
-fn attribute(tag: &str, key: &str) -> Option<String> {
-    let mut rest = tag;
-    while let Some(k) = rest.find(key) {
-        let before = rest[..k].chars().last();
-        let after = rest[k + key.len()..].trim_start();
-        if before.is_some_and(char::is_whitespace)
-            && let Some(v) = after.strip_prefix('=')
-        {
-            let v = v.trim_start();
-            let q = v.chars().next()?;
-            if q == '"' || q == '\'' {
-                let v = &v[1..];
-                return v.find(q).map(|e| v[..e].to_string());
-            }
-        }
-        rest = &rest[k + key.len()..];
-    }
-    None
 }
 
 /// The indentation of the line `at` is on.
@@ -123,35 +95,71 @@ fn indent_at(text: &str, at: usize) -> &str {
     &text[line..line + ws]
 }
 
-/// The body's values as an `<inertial>` element: the centre of mass as the origin, the
-/// inertia about it in the link's axes, every number in Rust's shortest round-trip form.
-fn inertial_xml(body: &Inertial, indent: &str, step: &str) -> String {
-    let c = body.com();
-    let i = body.inertia_at_com();
-    format!(
-        "<inertial>\n{indent}{step}<origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n\
-         {indent}{step}<mass value=\"{}\"/>\n\
-         {indent}{step}<inertia ixx=\"{}\" ixy=\"{}\" ixz=\"{}\" iyy=\"{}\" iyz=\"{}\" izz=\"{}\"/>\n\
-         {indent}</inertial>",
-        c[0], c[1], c[2], body.mass, i[0][0], i[0][1], i[0][2], i[1][1], i[1][2], i[2][2]
-    )
+/// What an `<inertial>` says: mass, centre of mass (its origin, no rotation), and the moments
+/// ixx, ixy, ixz, iyy, iyz, izz about the centre of mass in the link's axes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Written {
+    mass: f64,
+    com: [f64; 3],
+    moments: [f64; 6],
 }
 
-/// An `<inertial>` of no mass: a link whose mass the export gives to the body it is fixed to.
-fn massless_xml(indent: &str, step: &str) -> String {
-    format!(
-        "<inertial>\n{indent}{step}<origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>\n\
-         {indent}{step}<mass value=\"0\"/>\n\
-         {indent}{step}<inertia ixx=\"0\" ixy=\"0\" ixz=\"0\" iyy=\"0\" iyz=\"0\" izz=\"0\"/>\n\
-         {indent}</inertial>"
-    )
+impl Written {
+    const MASSLESS: Written = Written {
+        mass: 0.0,
+        com: [0.0; 3],
+        moments: [0.0; 6],
+    };
+
+    fn of(body: &Inertial) -> Written {
+        let i = body.inertia_at_com();
+        Written {
+            mass: body.mass,
+            com: body.com(),
+            moments: [i[0][0], i[0][1], i[0][2], i[1][1], i[1][2], i[2][2]],
+        }
+    }
+
+    /// Origin xyz and rpy, mass, moments: what the URDF reader gives for it.
+    fn values(&self) -> [f64; 13] {
+        let mut v = [0.0; 13];
+        v[..3].copy_from_slice(&self.com);
+        v[6] = self.mass;
+        v[7..].copy_from_slice(&self.moments);
+        v
+    }
+
+    /// The element, every number in Rust's shortest round-trip form (so the reader gives
+    /// back these exact values).
+    fn xml(&self, indent: &str, step: &str) -> String {
+        let (c, i) = (self.com, self.moments);
+        format!(
+            "<inertial>\n{indent}{step}<origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n\
+             {indent}{step}<mass value=\"{}\"/>\n\
+             {indent}{step}<inertia ixx=\"{}\" ixy=\"{}\" ixz=\"{}\" iyy=\"{}\" iyz=\"{}\" izz=\"{}\"/>\n\
+             {indent}</inertial>",
+            c[0], c[1], c[2], self.mass, i[0], i[1], i[2], i[3], i[4], i[5]
+        )
+    }
+}
+
+/// `text` fit for an XML comment, which may not hold `--` (a link named `a--b` would end the
+/// comment early or make the document not XML). The note around it never ends in `-`.
+fn in_comment(text: &str) -> String {
+    let mut out = text.to_string();
+    while out.contains("--") {
+        out = out.replace("--", "- -");
+    }
+    out
 }
 
 /// The document with `physical` (the template's parameter order) written in. A link that has
 /// links fixed to it keeps theirs, and its own `<inertial>` becomes the identified whole less
 /// theirs. When that difference is not a physical body (training moved mass the fixed links
 /// were given), the link takes the whole and the fixed links' `<inertial>` become massless,
-/// each with a comment saying where its mass went: the same model either way.
+/// each with a comment saying where its mass went: the same model either way. The result is
+/// read back before it is returned (`check_read_back`): a document that would not give these
+/// values on these links is an internal error, never a file.
 pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
     let text = &t.doc.urdf;
     let all = elements(text)?;
@@ -178,6 +186,8 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
     let step = "  ";
     // (start, end, replacement), applied from the end.
     let mut edits: Vec<(usize, usize, String)> = vec![];
+    let mut links: HashMap<String, Written> = HashMap::new();
+    let mut joints: HashMap<String, (f64, f64)> = HashMap::new();
     for (b, body) in t.tree.bodies.iter().enumerate() {
         let identified = t.link_inertial(physical, b);
         let mut own = identified.minus(&body.inertial.minus(&body.own));
@@ -207,12 +217,15 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
                 let indent = indent_at(text, e.open.0);
                 let note = format!(
                     "<!-- graybox: identified as part of link '{}' -->\n{indent}",
-                    body.link
+                    in_comment(&body.link)
                 );
                 let end = e.close.map_or(e.open.1, |c| c.1);
-                edits.push((e.open.0, end, note + &massless_xml(indent, step)));
+                edits.push((e.open.0, end, note + &Written::MASSLESS.xml(indent, step)));
+                links.insert(name.clone(), Written::MASSLESS);
             }
         }
+        let own = Written::of(&own);
+        links.insert(body.link.clone(), own);
         let link = link_at(&body.link)?;
         let l = &all[link];
         let indent = indent_at(text, l.open.0);
@@ -221,34 +234,28 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
             (Some(i), _) => {
                 let e = &all[i];
                 let end = e.close.map_or(e.open.1, |c| c.1);
-                edits.push((e.open.0, end, inertial_xml(&own, &inner, step)));
+                edits.push((e.open.0, end, own.xml(&inner, step)));
             }
             (None, Some(_)) => {
                 let at = l.open.1;
-                edits.push((
-                    at,
-                    at,
-                    format!("\n{inner}{}", inertial_xml(&own, &inner, step)),
-                ));
+                edits.push((at, at, format!("\n{inner}{}", own.xml(&inner, step))));
             }
             (None, None) => {
                 // <link name="x"/> → <link name="x"> <inertial>…</inertial> </link>
                 let tag = &text[l.open.0..l.open.1];
-                let opened = format!(
-                    "{}>",
-                    tag.trim_end_matches('>').trim_end_matches('/').trim_end()
-                );
+                let attributes = tag.strip_suffix("/>").unwrap_or(tag).trim_end();
                 edits.push((
                     l.open.0,
                     l.open.1,
                     format!(
-                        "{opened}\n{inner}{}\n{indent}</link>",
-                        inertial_xml(&own, &inner, step)
+                        "{attributes}>\n{inner}{}\n{indent}</link>",
+                        own.xml(&inner, step)
                     ),
                 ));
             }
         }
         let (damping, friction) = t.joint_dynamics(physical, b);
+        joints.insert(body.joint.clone(), (damping, friction));
         let joint = top("joint", &body.joint)
             .ok_or_else(|| Error::corrupt("urdf", format!("no joint '{}'", body.joint)))?;
         let dynamics = format!("<dynamics damping=\"{damping}\" friction=\"{friction}\"/>");
@@ -278,17 +285,102 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
     for (start, end, with) in edits {
         out.replace_range(start..end, &with);
     }
+    check_read_back(t, &out, &links, &joints)?;
     Ok(out)
+}
+
+/// The export as the URDF reader reads it: the same robot (a template with the same
+/// coordinates and parameters), each link and joint the export wrote with exactly the values
+/// written (numbers round-trip), and every other link and joint as the original document
+/// has it. An edit in the wrong place, or markup that is not well-formed, fails here.
+fn check_read_back(
+    t: &UrdfTemplate,
+    out: &str,
+    links: &HashMap<String, Written>,
+    joints: &HashMap<String, (f64, f64)>,
+) -> Result<()> {
+    let wrong = |why: String| {
+        Error::Internal(format!(
+            "the URDF export of this model does not read back as the model ({why}); \
+             no document is given rather than a wrong one"
+        ))
+    };
+    let doc = UrdfDoc {
+        urdf: out.to_string(),
+        ..t.doc.clone()
+    };
+    let again = UrdfTemplate::from_doc(doc, t.n()).map_err(|e| wrong(e.to_string()))?;
+    let names = |u: &UrdfTemplate| -> Vec<String> {
+        u.params().iter().map(|p| p.name.to_string()).collect()
+    };
+    if again.coordinates() != t.coordinates() || names(&again) != names(t) {
+        return Err(wrong("its joints or links differ".into()));
+    }
+    let read = |s: &str| urdf_rs::read_from_string(s).map_err(|e| wrong(e.to_string()));
+    let (before, after) = (read(&t.doc.urdf)?, read(out)?);
+    let element_names = |r: &urdf_rs::Robot| {
+        let links = r.links.iter().map(|l| &l.name);
+        links
+            .chain(r.joints.iter().map(|j| &j.name))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    if element_names(&before) != element_names(&after) {
+        return Err(wrong("its links or joints differ".into()));
+    }
+    // Bit for bit: the written numbers round-trip, and the others are the same text.
+    let bits = |v: [f64; 13]| v.map(f64::to_bits);
+    for (was, link) in before.links.iter().zip(&after.links) {
+        let want = links
+            .get(&link.name)
+            .map_or_else(|| read_values(&was.inertial), Written::values);
+        if bits(want) != bits(read_values(&link.inertial)) {
+            return Err(wrong(format!(
+                "link '{}' reads back with other values",
+                link.name
+            )));
+        }
+    }
+    for (was, joint) in before.joints.iter().zip(&after.joints) {
+        let got = joint.dynamics.as_ref().map(|d| (d.damping, d.friction));
+        let want = joints
+            .get(&joint.name)
+            .copied()
+            .or_else(|| was.dynamics.as_ref().map(|d| (d.damping, d.friction)));
+        let bits = |d: Option<(f64, f64)>| d.map(|(a, b)| (a.to_bits(), b.to_bits()));
+        if bits(got) != bits(want) {
+            return Err(wrong(format!(
+                "joint '{}' reads back with other values",
+                joint.name
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// An `<inertial>` as [`Written::values`] orders it.
+fn read_values(i: &urdf_rs::Inertial) -> [f64; 13] {
+    let (o, t) = (&i.origin, &i.inertia);
+    let mut v = [0.0; 13];
+    v[..3].copy_from_slice(&o.xyz.0);
+    v[3..6].copy_from_slice(&o.rpy.0);
+    v[6] = i.mass.value;
+    v[7..].copy_from_slice(&[t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz]);
+    v
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    /// Names are the `name` attributes, unescaped; markup in comments and attribute values
+    /// is not an element.
     #[test]
     fn elements_skip_comments_and_read_names() {
         let doc = "<?xml version=\"1.0\"?>\n<robot name=\"r\"><!-- <link name=\"no\"/> -->\
-                   <link name='a' ><visual/></link><joint name=\"j\" type=\"fixed\"></joint></robot>";
+                   <link name='a' ><visual/></link><joint name=\"j\" type=\"fixed\"></joint>\
+                   <link foo=\" name='l1'\" name=\"decoy\"/><link name=\"a&amp;b\"/>\
+                   <link myname=\"x\"/></robot>";
         let e = elements(doc).unwrap();
         let names: Vec<(&str, Option<&str>, usize)> = e
             .iter()
@@ -300,17 +392,52 @@ mod tests {
                 ("robot", Some("r"), 0),
                 ("link", Some("a"), 1),
                 ("visual", None, 2),
-                ("joint", Some("j"), 1)
+                ("joint", Some("j"), 1),
+                ("link", Some("decoy"), 1),
+                ("link", Some("a&b"), 1),
+                ("link", None, 1)
             ]
         );
     }
 
+    /// Values claimed for a link the document does not have them on, or a document that is
+    /// not XML, are refused as an internal error.
     #[test]
-    fn attribute_needs_a_whole_key() {
-        assert_eq!(
-            attribute("joint type=\"x\" name=\"j\"", "name"),
-            Some("j".into())
+    fn a_document_that_does_not_read_back_is_refused() {
+        let doc = r#"<robot name="r"><link name="base"/>
+            <joint name="j" type="continuous"><parent link="base"/><child link="l"/>
+            <axis xyz="0 0 1"/></joint>
+            <link name="l"><inertial><mass value="1"/>
+            <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+            </robot>"#;
+        let t = UrdfTemplate::from_urdf(doc).unwrap();
+        let physical: Vec<f64> = t.params().iter().map(|p| p.default).collect();
+        let good = export(&t, &physical).unwrap();
+        let none = HashMap::new();
+        let heavier = Written {
+            mass: 2.0,
+            ..Written::MASSLESS
+        };
+        let links = HashMap::from([("l".to_string(), heavier)]);
+        let refused = |r: Result<()>, what: &str| match r {
+            Err(Error::Internal(m)) => assert!(m.contains(what), "{m}"),
+            other => panic!("expected an internal error, got {other:?}"),
+        };
+        refused(
+            check_read_back(&t, doc, &links, &HashMap::new()),
+            "link 'l'",
         );
-        assert_eq!(attribute("link myname=\"x\"", "name"), None);
+        let joints = HashMap::from([("j".to_string(), (0.5, 0.0))]);
+        refused(check_read_back(&t, &good, &none, &joints), "joint 'j'");
+        let broken = good.replace("</robot>", "<!-- a--b --></robot>");
+        refused(
+            check_read_back(&t, &broken, &none, &HashMap::new()),
+            "comment",
+        );
+    }
+
+    #[test]
+    fn comments_never_hold_two_hyphens() {
+        assert_eq!(in_comment("a--b---c-"), "a- -b- - -c-");
     }
 }
