@@ -104,6 +104,13 @@ pub mod paging {
         seq.parse::<i64>().map(Some).map_err(|_| bad())
     }
 
+    /// The token for the next page when rows remain after `items` (a page may end before
+    /// its count at the store's byte limit).
+    pub fn after<T>(kind: &str, items: &[T], more: bool, seq: impl Fn(&T) -> i64) -> Option<String> {
+        more.then(|| items.last().map(|x| encode(kind, seq(x))))
+            .flatten()
+    }
+
     /// The token for the next page, when this page was full.
     pub fn next<T>(kind: &str, items: &[T], size: i64, seq: impl Fn(&T) -> i64) -> Option<String> {
         (items.len() as i64 == size)

@@ -125,8 +125,8 @@ impl App {
     ) -> Result<(Vec<Model>, Option<String>)> {
         let size = super::paging::size(size)?;
         let before = super::paging::decode("models", token)?;
-        let items = self.store.list_models(before, size).await?;
-        let next = super::paging::next("models", &items, size, |m| m.seq);
+        let (items, more) = self.store.list_models(before, size).await?;
+        let next = super::paging::after("models", &items, more, |m| m.seq);
         Ok((items.into_iter().map(Model::from).collect(), next))
     }
 

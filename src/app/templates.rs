@@ -178,8 +178,8 @@ impl App {
     ) -> Result<(Vec<TemplateView>, Option<String>)> {
         let size = super::paging::size(size)?;
         let before = super::paging::decode("templates", token)?;
-        let rows = self.store.list_templates(before, size).await?;
-        let next = super::paging::next("templates", &rows, size, |t| t.seq);
+        let (rows, more) = self.store.list_templates(before, size).await?;
+        let next = super::paging::after("templates", &rows, more, |t| t.seq);
         let items = off_executor(move || {
             rows.into_iter()
                 .map(|r| TemplateView::of(r, false))

@@ -68,6 +68,39 @@ fn with_columns(sql: &'static str, columns: &'static str) -> sqlx::AssertSqlSafe
     sqlx::AssertSqlSafe(sql.replace("{COLUMNS}", columns))
 }
 
+/// Bytes a page of a list may carry: rows whose documents are large (a model's spec embeds
+/// its template, up to `--max-template-mb`) fill a page before its count does.
+pub const PAGE_BYTES: i64 = 8 << 20;
+
+/// How many of the next `limit` rows of `table` (newest first, `seq < before`) fit in
+/// [`PAGE_BYTES`] by the byte length `size` (an SQL expression) of each, at least one; and
+/// whether rows remain after them. Reads only the lengths.
+async fn fitting(
+    pool: &sqlx::SqlitePool,
+    table: &'static str,
+    size: &'static str,
+    before: i64,
+    limit: i64,
+) -> Result<(i64, bool)> {
+    let sql = format!("SELECT {size} FROM {table} WHERE seq < ? ORDER BY seq DESC LIMIT ?");
+    let sizes: Vec<i64> = sqlx::query_scalar(sqlx::AssertSqlSafe(sql))
+        .bind(before)
+        .bind(limit)
+        .fetch_all(pool)
+        .await?;
+    let mut total = 0i64;
+    let mut fit = 0i64;
+    for s in &sizes {
+        if fit > 0 && total.saturating_add(*s) > PAGE_BYTES {
+            break;
+        }
+        total = total.saturating_add(*s);
+        fit += 1;
+    }
+    let more = (fit as usize) < sizes.len() || sizes.len() as i64 == limit;
+    Ok((fit, more))
+}
+
 /// A row's `warnings` column (a JSON array).
 fn warnings(r: &sqlx::sqlite::SqliteRow) -> Result<Vec<crate::records::Warning>> {
     use sqlx::Row;

@@ -171,15 +171,24 @@ impl Store {
     }
 
     /// Newest first.
-    pub async fn list_models(&self, before: Option<i64>, limit: i64) -> Result<Vec<ModelRow>> {
+    /// Newest first, at most `limit` rows and [`super::PAGE_BYTES`] of specs and reports;
+    /// whether more rows follow.
+    pub async fn list_models(
+        &self,
+        before: Option<i64>,
+        limit: i64,
+    ) -> Result<(Vec<ModelRow>, bool)> {
+        let before = before.unwrap_or(i64::MAX);
+        let size = "length(spec) + coalesce(length(report), 0)";
+        let (fit, more) = super::fitting(&self.pool, "models", size, before, limit).await?;
         let rows = sqlx::query(sql(
             "SELECT {COLUMNS} FROM models WHERE seq < ? ORDER BY seq DESC LIMIT ?",
         ))
-        .bind(before.unwrap_or(i64::MAX))
-        .bind(limit)
+        .bind(before)
+        .bind(fit)
         .fetch_all(&self.pool)
         .await?;
-        rows.iter().map(row).collect()
+        Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
     }
 
     /// Which of `ids` are still stored.

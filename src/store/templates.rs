@@ -99,21 +99,26 @@ impl Store {
         r.as_ref().map(row).transpose()
     }
 
-    /// Newest first; `before` is the `seq` of the last row of the previous page.
+    /// Newest first, at most `limit` rows and [`super::PAGE_BYTES`] of summaries (documents
+    /// for rows without one); `before` is the `seq` of the last row of the previous page;
+    /// whether more rows follow.
     pub async fn list_templates(
         &self,
         before: Option<i64>,
         limit: i64,
-    ) -> Result<Vec<TemplateRow>> {
+    ) -> Result<(Vec<TemplateRow>, bool)> {
+        let before = before.unwrap_or(i64::MAX);
+        let size = "coalesce(length(summary), length(document))";
+        let (fit, more) = super::fitting(&self.pool, "templates", size, before, limit).await?;
         let rows = sqlx::query(super::with_columns(
             "SELECT {COLUMNS} FROM templates WHERE seq < ? ORDER BY seq DESC LIMIT ?",
             LIST_COLUMNS,
         ))
-        .bind(before.unwrap_or(i64::MAX))
-        .bind(limit)
+        .bind(before)
+        .bind(fit)
         .fetch_all(&self.pool)
         .await?;
-        rows.iter().map(row).collect()
+        Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
     }
 
     /// Deletes a template unless a queued or running job uses it.

@@ -8,6 +8,30 @@ use tokio::net::TcpStream;
 
 use crate::helpers::*;
 
+/// A `len`-byte dataset upload of spaces (a 400 once read), sent until `done` says its status
+/// is the one awaited (for up to 2 s); that response.
+async fn upload_until(
+    app: &TestApp,
+    len: usize,
+    done: impl Fn(u16) -> bool,
+) -> Option<reqwest::Response> {
+    for _ in 0..100 {
+        let r = app
+            .client
+            .post(app.url("/v1/datasets"))
+            .header("content-type", "application/json")
+            .body(vec![b' '; len])
+            .send()
+            .await
+            .unwrap();
+        if done(r.status().as_u16()) {
+            return Some(r);
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
+    None
+}
+
 /// An upload that declares `len` bytes and sends only its first few: it holds its share of
 /// the budget until the connection closes.
 async fn stalled_upload(app: &TestApp, path: &str, len: usize) -> TcpStream {
@@ -39,24 +63,9 @@ async fn bodies_past_the_budget_are_refused_before_they_are_read() {
     );
     let app = spawn_configured(settings).await;
     let held = stalled_upload(&app, "/v1/datasets", dataset).await;
-    // The stalled upload is admitted once the server reads its head: wait until a second
-    // one is refused.
-    let mut refused = None;
-    for _ in 0..100 {
-        let r = app
-            .client
-            .post(app.url("/v1/datasets"))
-            .header("content-type", "application/json")
-            .body(vec![b' '; dataset])
-            .send()
-            .await
-            .unwrap();
-        if r.status() == 503 {
-            refused = Some(r);
-            break;
-        }
-        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
-    }
+    // The stalled upload is admitted once the server reads its head: a second one is
+    // refused from then on.
+    let refused = upload_until(&app, dataset, |status| status == 503).await;
     let r = refused.expect("a second upload past the budget is refused");
     assert!(r.headers().get("retry-after").is_some(), "{r:?}");
     let body: serde_json::Value = r.json().await.unwrap();
@@ -84,22 +93,8 @@ async fn bodies_past_the_budget_are_refused_before_they_are_read() {
     // The stalled upload goes away: its share comes back and the next upload is read (a
     // 400 for its malformed body, not a 503).
     drop(held);
-    let mut status = 503;
-    for _ in 0..100 {
-        let r = app
-            .client
-            .post(app.url("/v1/datasets"))
-            .header("content-type", "application/json")
-            .body(vec![b' '; dataset])
-            .send()
-            .await
-            .unwrap();
-        status = r.status().as_u16();
-        if status != 503 {
-            break;
-        }
-        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
-    }
+    let r = upload_until(&app, dataset, |status| status != 503).await;
+    let status = r.expect("the budget comes back").status();
     assert_eq!(status, 400);
 }
 
@@ -115,4 +110,32 @@ fn a_budget_smaller_than_one_body_is_refused_at_start() {
         err.contains("max-inflight-body-mb") && err.contains("600"),
         "{err}"
     );
+}
+
+/// A list page ends at its byte limit before its count: three templates with ~3.5 MB
+/// summaries (60 000 parameters each) come two to the first page of ten, with a token for
+/// the third.
+#[tokio::test]
+async fn list_pages_end_at_their_byte_limit() {
+    let app = spawn_app(0).await;
+    for k in 0..3 {
+        let parameters: serde_json::Map<String, serde_json::Value> = (0..60_000)
+            .map(|i| (format!("p{k}_{i}"), serde_json::json!({"value": 1.0})))
+            .collect();
+        let doc = serde_json::json!({
+            "kind": "formula", "name": format!("many{k}"), "coordinates": ["x"],
+            "parameters": parameters, "mass": [["1"]], "potential": "0", "forces": ["0"],
+        });
+        let (status, body) = app.post("/v1/templates", &doc).await;
+        assert_eq!(status, 201, "{}", &body.to_string()[..200.min(body.to_string().len())]);
+    }
+    let (status, page) = app.get("/v1/templates?page_size=10").await;
+    assert_eq!(status, 200);
+    assert_eq!(page["items"].as_array().unwrap().len(), 2);
+    let token = page["next_page_token"].as_str().expect("a token for the rest");
+    let (_, rest) = app
+        .get(&format!("/v1/templates?page_size=10&page_token={token}"))
+        .await;
+    assert_eq!(rest["items"].as_array().unwrap().len(), 1);
+    assert!(rest["next_page_token"].is_null(), "{}", rest["next_page_token"]);
 }
