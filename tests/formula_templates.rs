@@ -378,3 +378,112 @@ fn formula_white_box_trains_like_the_builtin_and_its_file_stands_alone() {
         e2.predict(&x, &[3.0, -2.0], true)
     );
 }
+
+/// A one-coordinate document (θ, an input u) with these parameters and potential.
+fn fixed_pendulum(parameters: Value, potential: &str) -> Template {
+    let doc = json!({
+        "kind": "formula", "name": "fixed", "coordinates": ["th"], "inputs": ["u"],
+        "parameters": parameters, "mass": [["1"]], "potential": potential, "forces": ["u"]
+    });
+    Template::Formula(Arc::new(template(&doc)))
+}
+
+/// Issue 26: W-B on a template with nothing to train (no parameter, or none that a white-box
+/// part uses) passed every check and then panicked in the backward pass ("Tensor::backward
+/// requires a tracked autodiff tensor"); the trainer returns an error naming the template. A
+/// network part has something to train whatever the template.
+#[test]
+fn a_white_box_model_with_nothing_to_train_is_an_error_not_a_panic() {
+    let pendulum = Template::Pendulum;
+    let data = simulate(
+        &pendulum,
+        pendulum.defaults(),
+        &SimConfig {
+            count: 16,
+            seed: 3,
+            ..SimConfig::default()
+        },
+    )
+    .unwrap();
+    let cfg = TrainConfig {
+        epochs: 1,
+        batch_size: 8,
+        val_fraction: 0.0,
+        ..TrainConfig::default()
+    };
+    let train = |model: &str, t: &Template| {
+        let spec = ModelSpec::named(model, Some(t.clone())).unwrap();
+        Trainer::new(model, spec, &[], &data, None, cfg.clone(), &flex())
+            .and_then(|mut tr| tr.run(&AtomicBool::new(false), |_, _| {}))
+    };
+    for t in [
+        fixed_pendulum(json!({}), "-10*cos(th)"),
+        fixed_pendulum(json!({"k": {"value": 2.0}}), "-10*cos(th)"),
+        // Used, but only where training never differentiates (V enters as ∂V/∂q): found by
+        // the trainer at its first step rather than at submission.
+        fixed_pendulum(json!({"k": {"value": 2.0}}), "k - 10*cos(th)"),
+    ] {
+        match train("W-B", &t) {
+            Err(Error::Invalid { field, message }) => {
+                assert_eq!(field, "template", "{message}");
+                assert!(message.contains("no trainable parameter"), "{message}");
+            }
+            other => panic!("expected a refusal, got {other:?}"),
+        }
+        train("MVF", &t).unwrap();
+    }
+}
+
+/// Issue 26: a document's values and names follow the rules of a job's `init` and of every
+/// name. Values of 1e7, 1e300 (any parameter) or 1e-320 (a positive one) passed and then failed
+/// at the first epoch with a non-finite loss; names of 20 000 characters or with NUL, ESC or
+/// a right-to-left override were stored. The bounds themselves are accepted.
+#[test]
+fn document_values_and_names_follow_the_one_rule() {
+    let refused = |doc: Value| match FormulaTemplate::parse(&doc.to_string()) {
+        Err(Error::Unprocessable { field, message }) => (field, message),
+        other => panic!("expected a 422, got {other:?}"),
+    };
+    let set = |path: &str, v: Value| {
+        let mut d = cartpole();
+        *d.pointer_mut(path).unwrap() = v;
+        d
+    };
+    for (path, v, needle) in [
+        ("/parameters/g/value", 1e7, "≤ 1e6"),
+        ("/parameters/b/value", -1e300, "≤ 1e6"),
+        ("/parameters/mc/value", 1e-320, "at least 1e-6"),
+        ("/parameters/l/value", 5e-7, "at least 1e-6"),
+    ] {
+        let (field, message) = refused(set(path, json!(v)));
+        let name = path.split('/').nth(2).unwrap();
+        assert_eq!(field, format!("parameters.{name}.value"), "{message}");
+        assert!(message.contains(needle), "{v}: {message}");
+    }
+    for name in [
+        "x".repeat(20_000),
+        "a\0b".into(),
+        "a\u{1b}[31m".into(),
+        "ab\u{202E}cd".into(),
+    ] {
+        let (field, message) = refused(set("/name", json!(name)));
+        assert_eq!(field, "name", "{message}");
+    }
+    // A parameter's name is an identifier, and no longer than any other name.
+    let mut long = cartpole();
+    let p = long["parameters"].as_object_mut().unwrap();
+    p.insert("k".repeat(201), json!({"value": 1.0}));
+    let (field, message) = refused(long);
+    assert_eq!(field, "parameters", "{message}");
+    assert!(
+        message.contains("200 characters") && message.len() < 300,
+        "{message}"
+    );
+
+    let mut edge = set("/parameters/g/value", json!(1e6));
+    edge["parameters"]["mc"]["value"] = json!(1e-6);
+    edge["parameters"]["b"]["value"] = json!(-1e6);
+    edge["parameters"]["eta_x"]["value"] = json!(1e-300);
+    edge["name"] = json!("é".repeat(200));
+    template(&edge);
+}

@@ -383,3 +383,84 @@ fn zero_iterations_and_the_restarts_limit() {
         other => panic!("expected restarts refused, got {:?}", other.map(|p| p.cost)),
     }
 }
+
+/// x′ = 10¹⁰⁰ x + u on the first coordinate: finite Jacobians, states that overflow f64 at
+/// step 4 from x0 = (1, 0).
+struct Exploding;
+
+impl Dynamics for Exploding {
+    fn nx(&self) -> usize {
+        2
+    }
+    fn m(&self) -> usize {
+        1
+    }
+    fn step(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        x.chunks(2)
+            .zip(u)
+            .flat_map(|(x, u)| [1e100 * x[0] + u, x[1]])
+            .collect()
+    }
+    fn linearize(&self, x: &[f64], _u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
+        let t = x.len() / 2;
+        let a = Mat::new(2, 2, vec![1e100, 0.0, 0.0, 1.0]);
+        let b = Mat::new(2, 1, vec![1.0, 0.0]);
+        (vec![a; t], vec![b; t])
+    }
+}
+
+fn refused(result: graybox::error::Result<Plan>) -> (String, String) {
+    match result {
+        Err(graybox::error::Error::Invalid { field, message }) => (field, message),
+        other => panic!("expected a refusal, got {:?}", other.map(|p| p.cost)),
+    }
+}
+
+/// Issue 26: a trajectory that went non-finite used to be blamed on R ("R + BᵀSB lost
+/// positive definiteness"); the error names x0 and the step where the state overflowed.
+#[test]
+fn a_diverging_plan_names_the_step_where_the_state_went_non_finite() {
+    let req = PlanRequest {
+        restarts: 2,
+        ..PlanRequest::new(
+            vec![1.0, 0.0],
+            vec![0.0; 2],
+            6,
+            [diag(&[1.0, 1.0]), diag(&[1.0]), diag(&[1.0, 1.0])],
+        )
+    };
+    let (field, message) = refused(plan(&Exploding, &req, &|| false));
+    assert_eq!(field, "x0", "{message}");
+    assert!(message.contains("step 4"), "{message}");
+    assert!(!message.contains("R + B"), "{message}");
+}
+
+/// Issue 26: x0 = (10³⁰⁰, 0, 0, 0) returned OK with cost = inf (the states stay finite, the
+/// cost overflows); a plan whose cost is not finite is refused, naming x0.
+#[test]
+fn a_plan_whose_cost_overflows_is_refused() {
+    let eval = true_double_pendulum();
+    let mut req = swing_up(10);
+    req.x0[0] = 1e300;
+    let (field, message) = refused(plan(&eval, &req, &|| false));
+    assert_eq!(field, "x0", "{message}");
+    assert!(message.contains("cost"), "{message}");
+}
+
+/// Issue 26: at a state that stays finite, gains that overflow along an unstable
+/// linearization blamed R too; the error names the horizon.
+#[test]
+fn gains_that_overflow_name_the_horizon_not_r() {
+    let req = PlanRequest {
+        max_iterations: 0,
+        ..PlanRequest::new(
+            vec![0.0; 2],
+            vec![0.0; 2],
+            6,
+            [diag(&[1.0, 1.0]), diag(&[1.0]), diag(&[1.0, 1.0])],
+        )
+    };
+    let (field, message) = refused(plan(&Exploding, &req, &|| false));
+    assert_eq!(field, "horizon", "{message}");
+    assert!(message.contains("overflows"), "{message}");
+}

@@ -578,3 +578,97 @@ fn white_box_urdf_identifies_the_true_arm() {
         "worst M {worst:?}; identified {init:?}"
     );
 }
+
+/// arm4's document with `edit` applied, read: its error's field and message.
+fn arm4_refused(edit: impl FnOnce(String) -> String) -> (String, String) {
+    let path = format!(
+        "{}/tests/fixtures/urdf/arm4.urdf",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let text = edit(std::fs::read_to_string(path).unwrap());
+    match UrdfTemplate::from_urdf(&text) {
+        Err(graybox::error::Error::Unprocessable { field, message }) => (field, message),
+        other => panic!("expected a 422, got {:?}", other.map(|t| t.doc.name)),
+    }
+}
+
+/// Issue 26: a URDF's values are bounded like every physical value (|v| ≤ 1e6) and its names
+/// follow the rule of every name. A mass of 1e308 or a damping of 1e7 passed and then failed at
+/// the first epoch with a non-finite loss; a robot named with a right-to-left override was
+/// stored. Small values stay accepted: real robots carry 1e-9 dummy inertias.
+#[test]
+fn urdf_values_and_names_follow_the_one_rule() {
+    let cases: [(&str, &str, &str); 6] = [
+        (
+            r#"<mass value="2.0"/>"#,
+            r#"<mass value="1e308"/>"#,
+            "link 'upper'",
+        ),
+        (
+            r#"ixx="0.030" ixy="0.002""#,
+            r#"ixx="2e6" ixy="0.002""#,
+            "link 'upper'",
+        ),
+        (
+            r#"<dynamics damping="0.1" friction="0.05"/>"#,
+            r#"<dynamics damping="0.1" friction="-1e7"/>"#,
+            "joint 'shoulder_yaw'",
+        ),
+        (
+            r#"<origin xyz="0.01 0.02 0.1" rpy="0.1 -0.2 0.3"/>"#,
+            r#"<origin xyz="0.01 1e300 0.1" rpy="0.1 -0.2 0.3"/>"#,
+            "link 'upper'",
+        ),
+        (
+            r#"<origin xyz="0.02 -0.01 0.15" rpy="0 0 0.3"/>"#,
+            r#"<origin xyz="0.02 -0.01 NaN" rpy="0 0 0.3"/>"#,
+            "joint 'shoulder_yaw'",
+        ),
+        (
+            r#"<robot name="arm4">"#,
+            "<robot name=\"arm\u{202E}4\">",
+            "robot",
+        ),
+    ];
+    for (from, to, needle) in cases {
+        let (field, message) = arm4_refused(|t| {
+            assert!(t.contains(from), "{from}");
+            t.replacen(from, to, 1)
+        });
+        assert_eq!(field, "urdf", "{message}");
+        assert!(message.contains(needle), "{to}: {message}");
+        assert!(!message.contains('\u{202E}'), "{message}");
+    }
+    let (_, message) =
+        arm4_refused(|t| t.replace("\"upper\"", &format!("\"{}\"", "u".repeat(20_000))));
+    assert!(
+        message.contains("200 characters") && message.len() < 300,
+        "{message}"
+    );
+
+    // 1e-9 and 2e-6 inertias are taken (regularised as before); so is 1e6 exactly.
+    arm4_with(|t| {
+        t.replacen(
+            r#"ixx="0.001" ixy="0.0001" ixz="0" iyy="0.003" iyz="-0.0002" izz="0.0028""#,
+            r#"ixx="1e-9" ixy="0" ixz="0" iyy="1e-9" iyz="0" izz="1e-9""#,
+            1,
+        )
+        .replacen(
+            r#"ixx="0.004" ixy="-0.0005" ixz="0.0008" iyy="0.018" iyz="0.0002" izz="0.017""#,
+            r#"ixx="2e-6" ixy="0" ixz="0" iyy="2e-6" iyz="0" izz="2e-6""#,
+            1,
+        )
+        .replacen(r#"<mass value="5.0"/>"#, r#"<mass value="1e6"/>"#, 1)
+    });
+    let mut doc = match urdf_template("arm4") {
+        Template::Urdf(u) => u.doc.clone(),
+        _ => unreachable!(),
+    };
+    doc.gravity = [0.0, 0.0, -1e7];
+    let err = UrdfTemplate::from_doc(doc.clone(), 64).unwrap_err();
+    assert!(err.to_string().starts_with("gravity"), "{err}");
+    doc.gravity = [0.0, 0.0, -9.81];
+    doc.name = "a\0b".into();
+    let err = UrdfTemplate::from_doc(doc, 64).unwrap_err();
+    assert!(err.to_string().starts_with("name"), "{err}");
+}

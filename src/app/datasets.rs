@@ -7,6 +7,7 @@ use super::views::Dataset as DatasetView;
 use crate::data::Dataset;
 use crate::data::trajectories;
 use crate::error::{Error, Result};
+use crate::records::check_name;
 
 /// What a POST /v1/datasets body was, with the Δt given beside it (`?dt=`).
 pub enum Upload {
@@ -23,30 +24,6 @@ pub struct Uploaded {
     pub created: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
-}
-
-/// Names are shown to people in listings and logs: at most 200 characters (not bytes), and
-/// no control characters (NUL, newlines) or bidirectional overrides, which can make a name
-/// display as something it is not.
-pub fn check_name(name: &str) -> Result<()> {
-    const MAX: usize = 200;
-    if name.chars().count() > MAX {
-        return Err(Error::invalid(
-            "name",
-            format!("must be at most {MAX} characters"),
-        ));
-    }
-    let bidi = |c: char| matches!(c, '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}');
-    if let Some(c) = name.chars().find(|&c| c.is_control() || bidi(c)) {
-        return Err(Error::invalid(
-            "name",
-            format!(
-                "must not contain control or bidirectional-override characters (found U+{:04X})",
-                c as u32
-            ),
-        ));
-    }
-    Ok(())
 }
 
 impl App {

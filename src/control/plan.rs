@@ -135,6 +135,11 @@ pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> 
         }
     }
     let (t, costs, converged) = best.expect("at least one start");
+    if !t.cost.is_finite() {
+        // Every start's cost is +∞ (a finite one would have been kept). Returned, it read as
+        // a plan, or its gains overflowed and the error blamed R.
+        return Err(p.not_finite(&t));
+    }
     p.finish(t, costs, converged)
 }
 
@@ -177,24 +182,95 @@ impl<D: Dynamics> Planner<'_, D> {
         u
     }
 
-    fn cost(&self, x: &[f64], u: &[f64]) -> f64 {
-        let (nx, m, t) = (self.sys.nx(), self.sys.m(), self.req.horizon);
-        let quad = |w: &Mat, v: &[f64], offset: Option<&[f64]>| -> f64 {
-            let d: Vec<f64> = match offset {
-                Some(g) => v.iter().zip(g).map(|(a, b)| a - b).collect(),
-                None => v.to_vec(),
-            };
-            let wd = w.mul(&Mat::new(d.len(), 1, d.clone()));
-            d.iter().zip(&wd.data).map(|(a, b)| a * b).sum()
+    /// (x_s − g)ᵀ W (x_s − g), W = Q before the horizon and Q_f at it.
+    fn state_cost(&self, x: &[f64], s: usize) -> f64 {
+        let nx = self.sys.nx();
+        let w = if s == self.req.horizon {
+            &self.req.qf
+        } else {
+            &self.req.q
         };
-        let g = &self.req.goal[..];
-        let mut j = 0.0;
-        for s in 0..t {
-            j += quad(&self.req.q, &x[s * nx..(s + 1) * nx], Some(g));
-            j += quad(&self.req.r, &u[s * m..(s + 1) * m], None);
-        }
-        j += quad(&self.req.qf, &x[t * nx..(t + 1) * nx], Some(g));
+        let d: Vec<f64> = x[s * nx..(s + 1) * nx]
+            .iter()
+            .zip(&self.req.goal)
+            .map(|(a, b)| a - b)
+            .collect();
+        quadratic(w, d)
+    }
+
+    /// u_sᵀ R u_s.
+    fn input_cost(&self, u: &[f64], s: usize) -> f64 {
+        let m = self.sys.m();
+        quadratic(&self.req.r, u[s * m..(s + 1) * m].to_vec())
+    }
+
+    fn cost(&self, x: &[f64], u: &[f64]) -> f64 {
+        let t = self.req.horizon;
+        let j = (0..t)
+            .map(|s| self.state_cost(x, s) + self.input_cost(u, s))
+            .sum::<f64>()
+            + self.state_cost(x, t);
         if j.is_finite() { j } else { f64::INFINITY }
+    }
+
+    /// What made `t`'s cost non-finite: its first state that is not finite (the model
+    /// diverged), else its first cost term that overflowed.
+    fn not_finite(&self, t: &Trajectory) -> Error {
+        let (nx, horizon) = (self.sys.nx(), self.req.horizon);
+        let starts = match self.req.restarts {
+            0 => "the initial guess".to_string(),
+            r => format!("the initial guess and all {r} restarts"),
+        };
+        let first_bad =
+            t.x.chunks(nx)
+                .enumerate()
+                .find_map(|(s, x)| x.iter().position(|v| !v.is_finite()).map(|i| (s, i)));
+        if let Some((s, i)) = first_bad {
+            // The coordinate that went non-finite was often ordinary a step before: show the
+            // one that was growing.
+            let before = &t.x[(s - 1) * nx..s * nx];
+            let (j, big) = before.iter().enumerate().fold((0, 0.0f64), |m, (j, v)| {
+                if v.abs() > m.1.abs() { (j, *v) } else { m }
+            });
+            return Error::invalid(
+                "x0",
+                format!(
+                    "the model's state went non-finite at step {s} of {horizon} (x_{s}[{i}] = {}; \
+                     the step before, its largest entry was x_{}[{j}] = {big:e}): from x0 the \
+                     model diverges under {starts}. Try a shorter horizon, bounds on u, or an \
+                     x0 within the data's range",
+                    t.x[s * nx + i],
+                    s - 1
+                ),
+            );
+        }
+        let input = (0..horizon).find(|&s| !self.input_cost(&t.u, s).is_finite());
+        let state = (0..=horizon).find(|&s| !self.state_cost(&t.x, s).is_finite());
+        match (state, input) {
+            (Some(s), i) if i.is_none_or(|i| s <= i) => Error::invalid(
+                "x0",
+                format!(
+                    "the plan's cost is not finite: (x_{s} − goal)ᵀ{}(x_{s} − goal) overflows f64 \
+                     (x0 differs from the goal by up to {:e}); states this far from the goal \
+                     cannot be weighed",
+                    if s == horizon { "Q_f" } else { "Q" },
+                    self.req
+                        .x0
+                        .iter()
+                        .zip(&self.req.goal)
+                        .fold(0.0f64, |m, (x, g)| m.max((x - g).abs()))
+                ),
+            ),
+            (_, Some(s)) => Error::invalid(
+                "u_init",
+                format!("the plan's cost is not finite: u_{s}ᵀR u_{s} overflows f64"),
+            ),
+            // The terms are finite but their sum is not.
+            _ => Error::invalid(
+                "x0",
+                "the plan's cost is not finite: its sum overflows f64; x0 is too far from the goal",
+            ),
+        }
     }
 
     /// The open-loop rollout of `u` from x0.
@@ -334,6 +410,17 @@ impl<D: Dynamics> Planner<'_, D> {
     fn finish(&self, mut t: Trajectory, costs: Vec<f64>, converged: bool) -> Result<Plan> {
         let (nx, horizon) = (self.sys.nx(), self.req.horizon);
         let (a, b) = self.linearized(&mut t)?;
+        let bad = |m: &Mat| m.data.iter().any(|v| !v.is_finite());
+        if let Some(s) = (0..horizon).find(|&s| bad(&a[s]) || bad(&b[s])) {
+            return Err(Error::invalid(
+                "x0",
+                format!(
+                    "the model's Jacobians are not finite at step {s} of the plan from x0 \
+                     (x_{s} = {:?}): no gains exist along it",
+                    &t.x[s * nx..(s + 1) * nx]
+                ),
+            ));
+        }
         let gains = tvlqr(a, b, &self.req.q, &self.req.r, &self.req.qf)?;
         let end = &t.x[horizon * nx..];
         let goal_error = end
@@ -353,4 +440,10 @@ impl<D: Dynamics> Planner<'_, D> {
             goal_error,
         })
     }
+}
+
+/// dᵀ W d.
+fn quadratic(w: &Mat, d: Vec<f64>) -> f64 {
+    let wd = w.mul(&Mat::new(d.len(), 1, d.clone()));
+    d.iter().zip(&wd.data).map(|(a, b)| a * b).sum()
 }

@@ -85,6 +85,18 @@ pub fn tvlqr(a: &[Mat], b: &[Mat], q: &Mat, r: &Mat, qf: &Mat) -> Result<Gains> 
         let sb = next.mul(bt); // S B, nx × m
         let btsb = bt.t().mul(&sb); // Bᵀ S B
         let h = r.add(&btsb).symmetrized();
+        if h.data.iter().any(|v| !v.is_finite()) {
+            // Not R's fault: S grows like ‖A‖²ᵏ back from the end where A is unstable.
+            return Err(Error::invalid(
+                "horizon",
+                format!(
+                    "the cost-to-go S_{} overflows f64 ({} steps before the end): the \
+                     linearization is too unstable for this horizon; shorten it or scale Q_f down",
+                    t + 1,
+                    a.len() - t - 1
+                ),
+            ));
+        }
         let l = h
             .cholesky()
             .ok_or_else(|| Error::invalid("R", "R + BᵀSB lost positive definiteness"))?;

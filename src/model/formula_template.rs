@@ -7,7 +7,8 @@ use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
-use super::formula::{Budget, Expr, Names, Symbol, parse_within, reserved};
+use super::formula::{Budget, Expr, Names, Symbol, parse_within};
+use super::formula_rules::{asymmetry, check_name, check_names, check_values, positive_definite};
 use super::scalar::Scalar;
 use super::templates::{MAX_DOF, ParamInfo, Part};
 use crate::error::{Error, Result};
@@ -53,18 +54,11 @@ pub struct FormulaTemplate {
     forces: Vec<Expr>,
 }
 
-fn bad(field: impl Into<String>, message: impl std::fmt::Display) -> Error {
+pub(super) fn bad(field: impl Into<String>, message: impl std::fmt::Display) -> Error {
     Error::Unprocessable {
         field: field.into(),
         message: message.to_string(),
     }
-}
-
-fn identifier(name: &str) -> bool {
-    let mut c = name.chars();
-    c.next()
-        .is_some_and(|f| f.is_ascii_alphabetic() || f == '_')
-        && c.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
 /// Points at which M is checked for symmetry and positive definiteness: q uniform in
@@ -98,9 +92,7 @@ impl FormulaTemplate {
                 format!("expected \"formula\", got \"{}\"", doc.kind),
             ));
         }
-        if doc.name.trim().is_empty() {
-            return Err(bad("name", "must not be empty"));
-        }
+        check_name(&doc.name)?;
         let n = doc.coordinates.len();
         if n > max_dof {
             return Err(bad(
@@ -118,18 +110,7 @@ impl FormulaTemplate {
                 ),
             ));
         }
-        for (name, p) in &doc.parameters {
-            let field = format!("parameters.{name}.value");
-            if !p.value.is_finite() {
-                return Err(bad(field, "must be a finite number"));
-            }
-            if p.positive && p.value <= 0.0 {
-                return Err(bad(
-                    field,
-                    format!("must be > 0 for a positive parameter, got {}", p.value),
-                ));
-            }
-        }
+        check_values(&doc)?;
         if doc.mass.len() != n {
             return Err(bad(
                 "mass",
@@ -290,40 +271,6 @@ impl FormulaTemplate {
     }
 }
 
-/// The first (i, j), j < i, where M differs from Mᵀ beyond rounding.
-fn asymmetry(m: &[Vec<f64>]) -> Option<(usize, usize)> {
-    (0..m.len())
-        .flat_map(|i| (0..i).map(move |j| (i, j)))
-        .find(|&(i, j)| {
-            let (a, b) = (m[i][j], m[j][i]);
-            (a - b).abs() > 1e-9 * a.abs().max(b.abs())
-        })
-}
-
-/// Finite with a Cholesky factor whose diagonal is positive (plain f64: this runs on every
-/// upload, and n³ dual numbers made a large document cost minutes).
-fn positive_definite(m: &[Vec<f64>]) -> bool {
-    if m.iter().flatten().any(|v| !v.is_finite()) {
-        return false;
-    }
-    let n = m.len();
-    let mut l = vec![vec![0.0; n]; n];
-    for i in 0..n {
-        for j in 0..=i {
-            let s = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                if !(s.is_finite() && s > 0.0) {
-                    return false;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    true
-}
-
 /// Each parameter with the parts whose expressions name it.
 fn param_infos(
     doc: &FormulaDoc,
@@ -358,63 +305,6 @@ fn param_infos(
             }
         })
         .collect()
-}
-
-/// Names are identifiers, unique across coordinates, velocities, inputs and parameters, and
-/// not a function or `pi`.
-fn check_names(doc: &FormulaDoc) -> Result<Names> {
-    if doc.coordinates.is_empty() {
-        return Err(bad("coordinates", "name at least one coordinate"));
-    }
-    let mut seen: BTreeMap<String, String> = BTreeMap::new();
-    let groups = [
-        ("coordinates", doc.coordinates.clone()),
-        ("inputs", doc.inputs.clone()),
-        ("parameters", doc.parameters.keys().cloned().collect()),
-    ];
-    for (group, names) in &groups {
-        for (i, name) in names.iter().enumerate() {
-            let field = if *group == "parameters" {
-                format!("parameters.{name}")
-            } else {
-                format!("{group}[{i}]")
-            };
-            if !identifier(name) {
-                return Err(bad(
-                    field,
-                    format!(
-                        "'{name}' is not a name (letters, digits, _; not starting with a digit)"
-                    ),
-                ));
-            }
-            if reserved(name) {
-                return Err(bad(
-                    field,
-                    format!(
-                        "'{name}' is a function or constant of the expressions; choose another name"
-                    ),
-                ));
-            }
-            let mut claim = |n: String, owner: String| -> Result<()> {
-                if let Some(other) = seen.insert(n.clone(), owner) {
-                    return Err(bad(
-                        field.clone(),
-                        format!("'{n}' is already the name of {other}"),
-                    ));
-                }
-                Ok(())
-            };
-            claim(name.clone(), field.clone())?;
-            if *group == "coordinates" {
-                claim(format!("{name}_dot"), format!("the velocity of {field}"))?;
-            }
-        }
-    }
-    Ok(Names {
-        coordinates: doc.coordinates.clone(),
-        inputs: doc.inputs.clone(),
-        parameters: doc.parameters.keys().cloned().collect(),
-    })
 }
 
 /// Parses one expression; `configuration` ones (M, V) may use only q and parameters.

@@ -7,6 +7,7 @@ pub mod dual;
 pub mod dynamics;
 pub mod file;
 pub mod formula;
+mod formula_rules;
 pub mod formula_template;
 mod init;
 pub mod integrator;

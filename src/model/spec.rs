@@ -270,6 +270,57 @@ impl ModelSpec {
         }
     }
 
+    /// Training needs something to move: a network or a learned constant in some part, or a
+    /// template parameter that a white-box part uses. Without one the loss is a constant,
+    /// and its backward pass panicked ("requires a tracked autodiff tensor").
+    pub fn check_trainable(&self) -> Result<()> {
+        let ModelSpec::Structured {
+            mass,
+            potential,
+            forces,
+            template: Some(t),
+        } = self
+        else {
+            // Naive is a network; a white-box part without a template is refused elsewhere.
+            return Ok(());
+        };
+        let learned = self.has_network()
+            || *mass == MassSpec::Constant
+            || *potential == PotentialSpec::Quadratic
+            || *forces == ForceSpec::ConstantAffine;
+        let parts = self.white_box_parts();
+        let used = t
+            .params()
+            .iter()
+            .any(|p| p.used_by.iter().any(|u| parts.contains(u)));
+        if learned || used {
+            return Ok(());
+        }
+        let names: Vec<&str> = t
+            .params()
+            .iter()
+            .map(|p| p.name.as_ref())
+            .take(10)
+            .collect();
+        let why = match t.params().len() {
+            0 => "has no parameters".to_string(),
+            k => format!(
+                "has {k} ({}{}) that none of the white-box parts uses",
+                names.join(", "),
+                if k > names.len() { ", …" } else { "" }
+            ),
+        };
+        Err(Error::invalid(
+            "template",
+            format!(
+                "no trainable parameter: the model has no network or learned constant, and \
+                 template '{}' {why}; give it a parameter they use, or choose a model with a \
+                 network (e.g. \"MVF\")",
+                t.name()
+            ),
+        ))
+    }
+
     /// Whether some part is a network (a residual included).
     pub fn has_network(&self) -> bool {
         match self {

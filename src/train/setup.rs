@@ -9,7 +9,7 @@ use crate::model::ModelConfig;
 use crate::model::integrator::Integrator;
 use crate::model::scaling::Scaling;
 use crate::model::spec::ModelSpec;
-use crate::model::templates::Part;
+use crate::model::templates::{Part, physical_problem};
 use crate::sim::unknown_param;
 
 /// Training hyper-parameters; every field has the CLI's default.
@@ -105,10 +105,6 @@ pub(super) fn split_data(
     Ok((data.clone(), None))
 }
 
-/// Largest |initial value| of a physical parameter: SI values of real mechanisms are far
-/// below it, and larger ones (1e308 was accepted once) overflow the first epoch's dynamics.
-pub const PHYSICAL_MAX: f64 = 1e6;
-
 /// Template parameter values from name=value pairs over the defaults.
 pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<Vec<f64>>> {
     let Some(t) = spec.template() else {
@@ -125,17 +121,8 @@ pub fn physical_init(spec: &ModelSpec, init: &[(String, f64)]) -> Result<Option<
         let i = t
             .index_of(name)
             .ok_or_else(|| unknown_param(t, name, &format!("init.{name}")))?;
-        if !(v.is_finite() && v.abs() <= PHYSICAL_MAX) {
-            return Err(Error::invalid(
-                format!("init.{name}"),
-                format!("must be a number with |value| ≤ {PHYSICAL_MAX:e}, got {v}"),
-            ));
-        }
-        if t.params()[i].positive && *v > 0.0 && *v < 1.0 / PHYSICAL_MAX {
-            return Err(Error::invalid(
-                format!("init.{name}"),
-                format!("must be at least {:e}, got {v}", 1.0 / PHYSICAL_MAX),
-            ));
+        if let Some(m) = physical_problem(*v, t.params()[i].positive) {
+            return Err(Error::invalid(format!("init.{name}"), m));
         }
         values[i] = *v;
     }
@@ -180,6 +167,7 @@ pub fn prepare(
 ) -> Result<Prepared> {
     cfg.validate()?;
     spec.validate()?;
+    spec.check_trainable()?;
     spec.check_dims(data.n, data.m)?;
     let physical = physical_init(spec, init)?;
     let (train_ds, val_ds) = split_data(data, val, cfg)?;

@@ -11,6 +11,8 @@ use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
 use burn::tensor::{Gradients, Tensor};
 use rayon::prelude::*;
 
+use crate::error::{Error, Result};
+
 /// The gradient of each parameter tensor, flattened, in the module's visiting order (`None`:
 /// the loss does not depend on it).
 pub type ParamGrads = Vec<Option<Tensor<1>>>;
@@ -94,6 +96,38 @@ pub fn param_grads<M: Module>(module: &M, grads: &Gradients) -> ParamGrads {
     let mut c = Collect { grads, out: vec![] };
     module.visit(&mut c);
     c.out
+}
+
+/// `loss`'s gradient for every parameter of `module`, all `None` when the loss depends on
+/// none of them: Burn's backward pass panics on such a loss, and a template parameter that
+/// enters V only as a constant passes `ModelSpec::check_trainable` yet makes one.
+pub fn gradients<M: Module>(module: &M, loss: &Tensor<1>) -> ParamGrads {
+    if loss.is_tracked() {
+        return param_grads(module, &loss.backward());
+    }
+    struct Untouched(ParamGrads);
+    impl ModuleVisitor for Untouched {
+        fn visit_float<const D: usize>(&mut self, _: &Param<Tensor<D>>) {
+            self.0.push(None);
+        }
+    }
+    let mut none = Untouched(vec![]);
+    module.visit(&mut none);
+    none.0
+}
+
+/// A step's gradient must move something, else training would "succeed" having learned
+/// nothing.
+pub fn check_learns(grads: &ParamGrads) -> Result<()> {
+    if grads.iter().any(Option::is_some) {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "template",
+        "no trainable parameter: the loss depends on none of the model's values (a template \
+         parameter that enters V only as a constant term has no gradient); give the template a \
+         parameter that M, ∂V/∂q or F depends on, or choose a model with a network",
+    ))
 }
 
 /// The sum of the shards' gradients, in shard order.

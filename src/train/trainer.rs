@@ -304,8 +304,7 @@ impl Trainer {
             let (x, u, y) = self.train.gather(idx, &model.device());
             let loss = model.loss_sum(x, u, y).div_scalar(rows);
             let value = scalar(loss.clone());
-            let grads = loss.backward();
-            (value, shards::param_grads(&model.params, &grads))
+            (value, shards::gradients(&model.params, &loss))
         };
         if k == 1 {
             return shard(batch, &self.model);
@@ -457,6 +456,7 @@ impl Trainer {
                 return Err(Error::Cancelled);
             }
             let (value, grads) = self.loss_and_grads(batch);
+            shards::check_learns(&grads)?;
             if !value.is_finite() {
                 return Err(Error::Training(format!(
                     "the loss became non-finite ({value}) at epoch {epoch}, batch {b}; try a smaller learning rate"

@@ -14,6 +14,7 @@ mod replay;
 mod shutdown;
 mod tls;
 mod uploads;
+mod values;
 mod web;
 
 /// The paper's double pendulum in closed form (shared with the numerics tests).

@@ -21,7 +21,8 @@ use super::term::{C, Term, V};
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::model::scalar::Scalar;
-use crate::model::templates::{ParamInfo, Part};
+use crate::model::templates::{ParamInfo, Part, physical_problem};
+use crate::records::name_problem;
 
 /// The template document (kept whole: a model file embeds it, and the export rewrites its
 /// URDF text).
@@ -116,9 +117,13 @@ impl UrdfTemplate {
                 format!("expected \"{KIND}\", got \"{}\"", doc.kind),
             ));
         }
-        if doc.gravity.iter().any(|g| !g.is_finite()) {
-            return Err(bad("gravity", "must be three finite numbers"));
+        if let Some(m) = doc.gravity.iter().find_map(|&g| physical_problem(g, false)) {
+            return Err(bad("gravity", format!("each component {m}")));
         }
+        if let Some(m) = name_problem(&doc.name) {
+            return Err(bad("name", m));
+        }
+        // The robot's name, when it is taken, passed the same rule in `Tree::parse`.
         let tree = Tree::parse(&doc.urdf, max_dof)?;
         if doc.name.trim().is_empty() {
             doc.name = tree.robot.clone();

@@ -6,6 +6,8 @@ use std::collections::HashMap;
 
 use super::inertia::Inertial;
 use crate::error::{Error, Result};
+use crate::model::templates::physical_problem;
+use crate::records::{name_problem, quoted_name};
 
 pub type Rot = [[f64; 3]; 3];
 
@@ -106,6 +108,29 @@ impl Frame {
     }
 }
 
+/// Every physical value of a document within the one bound (`templates::physical_problem`;
+/// no lower one: a URDF's tiny inertias are regularised, `Inertial::regularised`).
+fn within(at: &str, what: &str, v: f64) -> Result<()> {
+    physical_problem(v, false).map_or(Ok(()), |m| Err(bad(format!("{at} {what} {m}"))))
+}
+
+fn pose_within(at: &str, pose: &urdf_rs::Pose) -> Result<()> {
+    for (k, v) in pose.xyz.0.iter().enumerate() {
+        within(at, &format!("<origin> xyz[{k}]"), *v)?;
+    }
+    for (k, v) in pose.rpy.0.iter().enumerate() {
+        within(at, &format!("<origin> rpy[{k}]"), *v)?;
+    }
+    Ok(())
+}
+
+/// Link, joint and robot names follow the rule of every name (`records::name_problem`).
+fn named(what: &str, name: &str) -> Result<()> {
+    name_problem(name).map_or(Ok(()), |m| {
+        Err(bad(format!("{what} '{}': its name {m}", quoted_name(name))))
+    })
+}
+
 /// A link's own inertial parameters in its frame; an error naming it when they are not a
 /// physical body (a nearly singular one, a point mass or a thin rod, is regularised:
 /// `Inertial::regularised`).
@@ -113,12 +138,22 @@ fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
     let i = &link.inertial;
     let m = i.mass.value;
     let t = &i.inertia;
-    let values = [m, t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz];
-    if values.iter().any(|v| !v.is_finite()) || m < 0.0 {
-        return Err(bad(format!(
-            "link '{}': <inertial> needs finite values and a mass ≥ 0",
-            link.name
-        )));
+    let values = [
+        ("mass", m),
+        ("ixx", t.ixx),
+        ("ixy", t.ixy),
+        ("ixz", t.ixz),
+        ("iyy", t.iyy),
+        ("iyz", t.iyz),
+        ("izz", t.izz),
+    ];
+    let at = format!("link '{}': <inertial>", link.name);
+    for (what, v) in values {
+        within(&at, what, v)?;
+    }
+    pose_within(&at, &i.origin)?;
+    if m < 0.0 {
+        return Err(bad(format!("{at} needs a mass ≥ 0")));
     }
     let at_com = [
         [t.ixx, t.ixy, t.ixz],
@@ -154,7 +189,9 @@ impl Tree {
         super::xml::precheck(text, max_dof)?;
         let robot = urdf_rs::read_from_string(text).map_err(|e| bad(format!("not a URDF: {e}")))?;
         let mut links: HashMap<&str, &urdf_rs::Link> = HashMap::new();
+        named("robot", &robot.name)?;
         for l in &robot.links {
+            named("link", &l.name)?;
             if links.insert(l.name.as_str(), l).is_some() {
                 return Err(bad(format!("link '{}' is defined twice", l.name)));
             }
@@ -162,6 +199,8 @@ impl Tree {
         let mut parent_of: HashMap<&str, &str> = HashMap::new();
         let mut joint_names = std::collections::HashSet::new();
         for j in &robot.joints {
+            named("joint", &j.name)?;
+            pose_within(&format!("joint '{}':", j.name), &j.origin)?;
             if !joint_names.insert(j.name.as_str()) {
                 return Err(bad(format!("joint '{}' is defined twice", j.name)));
             }
@@ -312,13 +351,10 @@ fn movable_body(j: &urdf_rs::Joint, parent: Option<usize>, at: Frame) -> Result<
         .as_ref()
         .map_or((0.0, 0.0), |d| (d.damping, d.friction));
     // Identified values may come out slightly negative, and an exported model must read
-    // back: any finite value is taken.
-    if !(damping.is_finite() && friction.is_finite()) {
-        return Err(bad(format!(
-            "joint '{}': <dynamics> damping and friction must be finite",
-            j.name
-        )));
-    }
+    // back: any value within the bound is taken.
+    let joint = format!("joint '{}':", j.name);
+    within(&joint, "<dynamics> damping", damping)?;
+    within(&joint, "<dynamics> friction", friction)?;
     Ok(Body {
         joint: j.name.clone(),
         kind,
