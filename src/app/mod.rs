@@ -106,7 +106,12 @@ pub mod paging {
 
     /// The token for the next page when rows remain after `items` (a page may end before
     /// its count at the store's byte limit).
-    pub fn after<T>(kind: &str, items: &[T], more: bool, seq: impl Fn(&T) -> i64) -> Option<String> {
+    pub fn after<T>(
+        kind: &str,
+        items: &[T],
+        more: bool,
+        seq: impl Fn(&T) -> i64,
+    ) -> Option<String> {
         more.then(|| items.last().map(|x| encode(kind, seq(x))))
             .flatten()
     }

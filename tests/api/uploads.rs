@@ -127,15 +127,26 @@ async fn list_pages_end_at_their_byte_limit() {
             "parameters": parameters, "mass": [["1"]], "potential": "0", "forces": ["0"],
         });
         let (status, body) = app.post("/v1/templates", &doc).await;
-        assert_eq!(status, 201, "{}", &body.to_string()[..200.min(body.to_string().len())]);
+        assert_eq!(
+            status,
+            201,
+            "{}",
+            &body.to_string()[..200.min(body.to_string().len())]
+        );
     }
     let (status, page) = app.get("/v1/templates?page_size=10").await;
     assert_eq!(status, 200);
     assert_eq!(page["items"].as_array().unwrap().len(), 2);
-    let token = page["next_page_token"].as_str().expect("a token for the rest");
+    let token = page["next_page_token"]
+        .as_str()
+        .expect("a token for the rest");
     let (_, rest) = app
         .get(&format!("/v1/templates?page_size=10&page_token={token}"))
         .await;
     assert_eq!(rest["items"].as_array().unwrap().len(), 1);
-    assert!(rest["next_page_token"].is_null(), "{}", rest["next_page_token"]);
+    assert!(
+        rest["next_page_token"].is_null(),
+        "{}",
+        rest["next_page_token"]
+    );
 }
