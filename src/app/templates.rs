@@ -101,26 +101,14 @@ impl TemplateView {
 }
 
 /// A template document from a request body: JSON of either kind, or a raw URDF (XML, every
-/// default) when the content type says XML or the body is one; errors name the field (under
-/// `prefix`, "" for a document of its own) and, for an expression, the character offset.
-pub fn parse_document(body: &str, xml: bool, prefix: &str, max_dof: usize) -> Result<Template> {
-    let xml = xml || body.trim_start().starts_with('<');
-    let t = if xml {
+/// default) when the content type says XML or the body is one; errors name the field and,
+/// for an expression, the character offset.
+fn parse_document(body: &str, xml: bool, max_dof: usize) -> Result<Template> {
+    if xml || body.trim_start().starts_with('<') {
         UrdfTemplate::from_urdf_within(body, max_dof).map(|u| Template::Urdf(Arc::new(u)))
     } else {
         Template::from_json_within(body, max_dof)
-    };
-    t.map_err(|e| match e {
-        Error::Unprocessable { field, message } => Error::Unprocessable {
-            field: match (prefix, field.as_str()) {
-                ("", _) => field,
-                (p, "template") => p.to_string(),
-                (p, f) => format!("{p}.{f}"),
-            },
-            message,
-        },
-        other => other,
-    })
+    }
 }
 
 impl App {
@@ -140,7 +128,7 @@ impl App {
                 field: "template".into(),
                 message: format!("not UTF-8: {e}"),
             })?;
-            let t = parse_document(text, xml, "", max_dof)?;
+            let t = parse_document(text, xml, max_dof)?;
             let document = serde_json::to_string(&t).expect("template documents serialize");
             let summary = serde_json::to_string(&Summary::of(&t)).expect("summaries serialize");
             Ok((t, document, summary))

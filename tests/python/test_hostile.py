@@ -138,10 +138,21 @@ def test_dynamics_calls_need_the_token_health_and_reflection_do_not(token_server
 
 # --- b. TLS --------------------------------------------------------------------------------
 
+def write_pem(cert, key, tmp_path):
+    """The certificate and its key as PEM files in `tmp_path`: (cert path, key path)."""
+    from cryptography.hazmat.primitives import serialization
+    cert_path, key_path = tmp_path / "cert.pem", tmp_path / "key.pem"
+    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    key_path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
+                                           serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
+    return cert_path, key_path
+
+
 def self_signed(tmp_path):
     """A self-signed certificate for localhost and 127.0.0.1 and its key (PEM files)."""
     from cryptography import x509
-    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives import hashes
     from cryptography.hazmat.primitives.asymmetric import ec
     from cryptography.x509.oid import NameOID
 
@@ -158,12 +169,7 @@ def self_signed(tmp_path):
                 critical=False)
             .add_extension(x509.BasicConstraints(ca=False, path_length=None), critical=True)
             .sign(key, hashes.SHA256()))
-    cert_path, key_path = tmp_path / "cert.pem", tmp_path / "key.pem"
-    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    key_path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
-                                           serialization.PrivateFormat.PKCS8,
-                                           serialization.NoEncryption()))
-    return cert_path, key_path
+    return write_pem(cert, key, tmp_path)
 
 
 @pytest.fixture
@@ -632,7 +638,7 @@ def certificate(tmp_path, not_before, not_after):
     """A self-signed certificate for 127.0.0.1 valid from `not_before` to `not_after`, and its
     key (PEM files)."""
     from cryptography import x509
-    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives import hashes
     from cryptography.hazmat.primitives.asymmetric import ec
     from cryptography.x509.oid import NameOID
 
@@ -645,12 +651,7 @@ def certificate(tmp_path, not_before, not_after):
             .add_extension(x509.SubjectAlternativeName([
                 x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
             .sign(key, hashes.SHA256()))
-    cert_path, key_path = tmp_path / "cert.pem", tmp_path / "key.pem"
-    cert_path.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    key_path.write_bytes(key.private_bytes(serialization.Encoding.PEM,
-                                           serialization.PrivateFormat.PKCS8,
-                                           serialization.NoEncryption()))
-    return cert_path, key_path
+    return write_pem(cert, key, tmp_path)
 
 
 def test_tls_files_over_the_limit_stop_the_start_up(graybox_bin, tmp_path):
