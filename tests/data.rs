@@ -2,7 +2,7 @@
 
 use graybox::data::Dataset;
 use graybox::error::Error;
-use graybox::model::templates::Template;
+use graybox::physics::templates::Template;
 use graybox::sim::{SimConfig, simulate};
 
 fn field_of(err: Error) -> String {

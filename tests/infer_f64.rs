@@ -9,8 +9,8 @@ use graybox::backend::{Backend, Precision, device};
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
 use graybox::model::spec::{ModelSpec, NAMED};
-use graybox::model::templates::Template;
 use graybox::model::{Model, ModelConfig};
+use graybox::physics::templates::Template;
 
 fn f64_device() -> Device {
     device(Backend::Flex, Precision::F64).expect("f64 device")
@@ -44,7 +44,7 @@ fn cases() -> Vec<Case> {
     let dir = format!("{}/tests/fixtures/urdf", env!("CARGO_MANIFEST_DIR"));
     let arm = std::fs::read_to_string(format!("{dir}/arm4.urdf")).unwrap();
     let arm = Template::Urdf(std::sync::Arc::new(
-        graybox::model::urdf::UrdfTemplate::from_urdf(&arm).unwrap(),
+        graybox::physics::urdf::UrdfTemplate::from_urdf(&arm).unwrap(),
     ));
     v.push((
         "W-B/urdf arm4".into(),

@@ -7,14 +7,15 @@ use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::{Device, Gradients, Tensor};
 use common::*;
 use graybox::backend::{Backend, Precision, device};
-use graybox::model::dynamics::TemplateSystem;
-use graybox::model::integrator::Integrator;
 use graybox::model::mlp::Mlp;
 use graybox::model::params_io::import;
 use graybox::model::spec::ModelSpec;
-use graybox::model::templates::Template;
-use graybox::model::{Model, mass_matrix};
+use graybox::model::{Model, dual_columns};
+use graybox::physics::integrator::Integrator;
+use graybox::physics::mass_matrix;
+use graybox::physics::templates::Template;
 use graybox::rng::Rng;
+use graybox::sim::TemplateSystem;
 use graybox::sim::{SimConfig, simulate, true_step};
 use graybox::train::{TrainConfig, Trainer};
 
@@ -55,7 +56,7 @@ fn mass_network_jacobian_matches_finite_differences() {
         let l_at = |q: &[Vec<f64>]| {
             let x = tensor(q, &dev).mul_scalar(1.0 / sigma);
             let (y, j) = net.forward_jacobian(x, dx_dq.clone());
-            mass_matrix::factor_from_outputs(mass_matrix::dual_columns(y, j), n)
+            mass_matrix::factor_from_outputs(dual_columns(y, j), n)
         };
         let l = l_at(&q);
         for k in 0..n {

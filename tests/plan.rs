@@ -8,11 +8,11 @@ use graybox::control::linalg::Mat;
 use graybox::control::plan::{Dynamics, Plan, PlanRequest, plan};
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
-use graybox::model::integrator::Integrator;
-use graybox::model::scaling::Scaling;
 use graybox::model::spec::ModelSpec;
-use graybox::model::templates::Template;
 use graybox::model::{Model, ModelConfig};
+use graybox::physics::integrator::Integrator;
+use graybox::physics::scaling::Scaling;
+use graybox::physics::templates::Template;
 
 use common::{PAPER, double_pendulum_accel, gauss_solve};
 

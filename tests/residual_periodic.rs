@@ -9,9 +9,9 @@ use std::sync::atomic::AtomicBool;
 
 use graybox::backend::{Backend, Precision};
 use graybox::data::Dataset;
-use graybox::model::formula_template::FormulaTemplate;
 use graybox::model::spec::ModelSpec;
-use graybox::model::templates::Template;
+use graybox::physics::formula_template::FormulaTemplate;
+use graybox::physics::templates::Template;
 use graybox::sim::{SimConfig, simulate};
 use graybox::train::{TrainConfig, Trainer};
 use serde_json::json;

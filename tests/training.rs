@@ -11,7 +11,7 @@ use graybox::data::Dataset;
 use graybox::error::Error;
 use graybox::model::file::ModelFile;
 use graybox::model::spec::{ModelSpec, NAMED};
-use graybox::model::templates::Template;
+use graybox::physics::templates::Template;
 use graybox::sim::{SimConfig, simulate};
 use graybox::train::trainer::evaluate;
 use graybox::train::{TrainConfig, TrainState, Trainer};

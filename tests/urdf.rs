@@ -9,18 +9,18 @@ use std::sync::Arc;
 use graybox::backend::{Backend, Precision};
 use graybox::data::Dataset;
 use graybox::infer::Evaluator;
-use graybox::model::dual::Dual;
-use graybox::model::dynamics::TemplateSystem;
 use graybox::model::file::ModelFile;
-use graybox::model::integrator::Integrator;
-use graybox::model::scalar::Scalar;
 use graybox::model::spec::ModelSpec;
-use graybox::model::templates::Template;
-use graybox::model::urdf::UrdfTemplate;
-use graybox::model::urdf::inertia::Inertial;
-use graybox::model::urdf::term::Term;
-use graybox::model::urdf::{Tree, body_inertia, rigid};
+use graybox::physics::dual::Dual;
+use graybox::physics::integrator::Integrator;
+use graybox::physics::scalar::Scalar;
+use graybox::physics::templates::Template;
+use graybox::physics::urdf::UrdfTemplate;
+use graybox::physics::urdf::inertia::Inertial;
+use graybox::physics::urdf::term::Term;
+use graybox::physics::urdf::{Tree, body_inertia, rigid};
 use graybox::rng::Rng;
+use graybox::sim::TemplateSystem;
 use graybox::sim::true_step;
 use graybox::train::warnings::zero_acceleration_loss;
 use graybox::train::{TrainConfig, Trainer};
@@ -32,7 +32,7 @@ fn fixture(name: &str) -> (Tree, Value) {
     let urdf = std::fs::read_to_string(format!("{dir}/{name}.urdf")).unwrap();
     let json = std::fs::read_to_string(format!("{dir}/{name}.json")).unwrap();
     (
-        Tree::parse(&urdf, graybox::model::templates::MAX_DOF).unwrap(),
+        Tree::parse(&urdf, graybox::physics::MAX_DOF).unwrap(),
         serde_json::from_str(&json).unwrap(),
     )
 }
@@ -55,7 +55,7 @@ fn err(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Each body's inertia as the trainable form gives it: URDF values → θ → (m, h, Ī).
-fn inertias<S: Scalar>(tree: &Tree, like: &S) -> Vec<graybox::model::urdf::BodyInertia<S>> {
+fn inertias<S: Scalar>(tree: &Tree, like: &S) -> Vec<graybox::physics::urdf::BodyInertia<S>> {
     tree.bodies
         .iter()
         .map(|b| {
@@ -216,7 +216,7 @@ fn double_pendulum_urdf_is_the_builtin_template() {
     };
     doc.gravity = [0.0, 0.0, -10.0];
     let urdf = Template::Urdf(Arc::new(
-        UrdfTemplate::from_doc(doc, graybox::model::templates::MAX_DOF).unwrap(),
+        UrdfTemplate::from_doc(doc, graybox::physics::MAX_DOF).unwrap(),
     ));
     let (a, b) = (
         evaluator(&builtin, &builtin.defaults()),

@@ -1,7 +1,7 @@
 //! Job submission: the whole request is validated here, at submission, so that a job that
 //! cannot train never enters the queue.
 
-use crate::model::templates::Template;
+use crate::physics::templates::Template;
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};

@@ -170,7 +170,7 @@ impl Settings {
                 ),
             ));
         }
-        let dof = crate::model::templates::MAX_DOF;
+        let dof = crate::physics::MAX_DOF;
         if self.max_dof > dof {
             return Err(Error::invalid(
                 "max-dof",

@@ -8,8 +8,8 @@ use serde_json::{Value, json};
 
 use super::App;
 use crate::error::{Error, Result};
-use crate::model::templates::Template;
-use crate::model::urdf::UrdfTemplate;
+use crate::physics::templates::Template;
+use crate::physics::urdf::UrdfTemplate;
 use crate::store::{NewTemplate, TemplateRow};
 
 /// A stored template as REST serves it.

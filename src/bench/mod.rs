@@ -14,7 +14,7 @@ use crate::backend::{self, Backend, Precision};
 use crate::data::Dataset;
 use crate::error::Result;
 use crate::model::spec::ModelSpec;
-use crate::model::templates::Template;
+use crate::physics::templates::Template;
 use crate::sim::{SimConfig, simulate};
 use crate::train::{TrainConfig, Trainer};
 

@@ -22,8 +22,8 @@ pub use simulate::SimulateArgs;
 pub use train::TrainArgs;
 
 use crate::error::{Error, Result};
-use crate::model::templates::Template;
-use crate::model::urdf::UrdfTemplate;
+use crate::physics::templates::Template;
+use crate::physics::urdf::UrdfTemplate;
 
 /// A `--template` argument: a built-in template's name, a template document's JSON file (a
 /// path ending in .json) or a URDF file (.urdf, every default); a bad document's error names

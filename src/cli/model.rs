@@ -8,7 +8,7 @@ use serde_json::json;
 
 use crate::error::Result;
 use crate::model::file::ModelFile;
-use crate::model::integrator::Integrator;
+use crate::physics::integrator::Integrator;
 use crate::sim::parse_assignments;
 
 #[derive(Args, Debug)]

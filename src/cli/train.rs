@@ -12,8 +12,8 @@ use crate::backend::{self, Backend, Precision};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::file::write_atomic;
-use crate::model::integrator::Integrator;
 use crate::model::spec::ModelSpec;
+use crate::physics::integrator::Integrator;
 use crate::sim::parse_pairs;
 use crate::train::{TrainConfig, Trainer};
 

@@ -17,7 +17,7 @@ use crate::backend::{self, Backend, Precision};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::spec::ModelSpec;
-use crate::model::templates::Template;
+use crate::physics::templates::Template;
 use crate::rng::Rng;
 use crate::train::{TrainConfig, Trainer};
 

@@ -27,9 +27,9 @@ use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::model::file::{ModelFile, write_atomic};
-use crate::model::integrator::Integrator;
 use crate::model::spec::ModelSpec;
-use crate::model::templates::Template;
+use crate::physics::integrator::Integrator;
+use crate::physics::templates::Template;
 use crate::rng::Rng;
 use crate::train::{TrainConfig, TrainState, Trainer};
 

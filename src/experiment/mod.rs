@@ -14,7 +14,7 @@ use clap::Subcommand;
 
 use crate::data::Dataset;
 use crate::error::Result;
-use crate::model::templates::Template;
+use crate::physics::templates::Template;
 use crate::rng::Rng;
 use crate::sim::{SimConfig, simulate};
 

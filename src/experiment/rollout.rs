@@ -16,12 +16,12 @@ use super::{csv_line, median, paper_double_pendulum};
 use crate::backend::{self, Backend, Precision};
 use crate::error::Result;
 use crate::infer::Evaluator;
-use crate::model::dynamics::TemplateSystem;
 use crate::model::file::ModelFile;
-use crate::model::integrator::Integrator;
 use crate::model::spec::ModelSpec;
-use crate::model::templates::Template;
+use crate::physics::integrator::Integrator;
+use crate::physics::templates::Template;
 use crate::rng::Rng;
+use crate::sim::TemplateSystem;
 use crate::sim::true_step;
 use crate::train::{TrainConfig, Trainer};
 

@@ -11,8 +11,8 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use super::jet::Jet;
-use crate::model::dual::Dual;
-use crate::model::scalar::Scalar;
+use crate::physics::dual::Dual;
+use crate::physics::scalar::Scalar;
 
 /// One coordinate of every sample in a batch.
 #[derive(Debug, Clone, PartialEq)]

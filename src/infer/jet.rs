@@ -276,8 +276,8 @@ mod tests {
 
     #[test]
     fn jet_tanh_matches_nested_duals() {
-        use crate::model::dual::Dual;
-        use crate::model::scalar::Scalar;
+        use crate::physics::dual::Dual;
+        use crate::physics::scalar::Scalar;
         // z(q, ε) = a + b q + c ε + d q ε at one unit: the jet's blocks vs Dual<Dual<f64>>.
         let (a, b, c, d) = (0.3, -0.7, 1.1, 0.4);
         let mut jet = Jet::zeros(1, 1, 1, 1);

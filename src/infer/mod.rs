@@ -24,12 +24,13 @@ use crate::control::plan::Dynamics;
 use crate::control::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
-use crate::model::assembly::Structure;
-use crate::model::dual::Dual;
-use crate::model::dynamics::acceleration;
 use crate::model::file::ModelFile;
-use crate::model::scalar::Scalar;
-use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
+use crate::model::spec::ModelSpec;
+use crate::physics::assembly::Structure;
+use crate::physics::dual::Dual;
+use crate::physics::dynamics::acceleration;
+use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
+use crate::physics::scalar::Scalar;
 
 /// A structured spec's three parts.
 type Parts<'a> = (&'a MassSpec, &'a PotentialSpec, &'a ForceSpec);

@@ -6,11 +6,11 @@ use std::collections::HashMap;
 use super::col::Lanes;
 use super::jet::Jet;
 use crate::error::{Error, Result};
-use crate::model::assembly::{Inputs, Networks};
-use crate::model::dual::Dual;
 use crate::model::params_io::NamedArray;
-use crate::model::scalar::Scalar;
-use crate::model::scaling::Scaling;
+use crate::physics::assembly::{Inputs, Networks};
+use crate::physics::dual::Dual;
+use crate::physics::scalar::Scalar;
+use crate::physics::scaling::Scaling;
 
 /// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
 #[derive(Debug, Clone)]

@@ -6,11 +6,12 @@ use std::collections::HashMap;
 
 use super::Mlp64;
 use crate::error::{Error, Result};
-use crate::model::assembly::Values;
 use crate::model::file::ModelFile;
 use crate::model::params::names;
 use crate::model::params_io::NamedArray;
-use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
+use crate::model::spec::ModelSpec;
+use crate::physics::assembly::Values;
+use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 
 #[derive(Debug, Clone)]
 pub(super) enum Weights {

@@ -7,15 +7,15 @@ use std::path::Path;
 
 use std::collections::BTreeMap;
 
-use super::integrator::Integrator;
 use super::params::names;
 use super::report::TrainReport;
-use super::scaling::Scaling;
 use super::spec::ModelSpec;
-use super::templates::Template;
 use crate::error::{Error, Result};
 use crate::model::params_io::{NamedArray, import};
 use crate::model::{Model, ModelConfig, raw_physical};
+use crate::physics::integrator::Integrator;
+use crate::physics::scaling::Scaling;
+use crate::physics::templates::Template;
 use burn::tensor::Device;
 
 /// The format of files whose template is a built-in one (older graybox versions read them).
@@ -175,7 +175,7 @@ impl ModelFile {
             ));
         };
         let physical = self.physical_values().expect("a template model");
-        crate::model::urdf::export::export(u, &physical)
+        crate::physics::urdf::export::export(u, &physical)
     }
 
     /// The model on `device` with these parameters.

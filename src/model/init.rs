@@ -3,12 +3,12 @@
 
 use burn::tensor::Device;
 
-use super::mass_matrix;
 use super::mlp::{Mlp, param};
 use super::params::{
     ConstantAffine, ControlAffine, ForceParams, MassParams, PotentialParams, Values,
 };
-use super::spec::{ForceSpec, MassSpec, PotentialSpec};
+use crate::physics::mass_matrix;
+use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 use crate::rng::Rng;
 
 fn zeros(len: usize, device: &Device) -> Values {

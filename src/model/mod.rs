@@ -1,48 +1,37 @@
 //! The structured Lagrangian model (design.md §2) on Burn: parameters, the dynamics
 //! q̈ = M⁻¹(F − c − ∂V/∂q), one-step prediction by an integrator, and the loss.
 
-pub mod assembly;
-pub mod documents;
-pub mod dual;
-pub mod dynamics;
 pub mod file;
-pub mod formula;
-mod formula_rules;
-pub mod formula_template;
 mod init;
-pub mod integrator;
-pub mod mass_matrix;
 pub mod mlp;
 pub mod params;
 pub mod params_io;
 pub mod report;
-pub mod scalar;
-pub mod scaling;
+mod scaling;
 pub mod spec;
 mod spec_json;
-pub mod templates;
 mod tensors;
-pub mod urdf;
 
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
+use crate::physics::assembly::{Structure, Values};
+use crate::physics::dual::Dual;
+use crate::physics::dynamics::{Tri, acceleration};
+use crate::physics::integrator::Integrator;
+use crate::physics::params::Part;
+use crate::physics::parts::PotentialSpec;
+use crate::physics::scaling::Scaling;
+use crate::physics::templates::Template;
 use crate::rng::Rng;
-use assembly::{Structure, Values};
-use tensors::{BurnNets, Consts, LazyColumns};
-
-use dual::Dual;
-use dynamics::{Tri, acceleration};
-use integrator::Integrator;
 use mlp::{Mlp, param};
 pub use params::Params;
 use params::{Components, ForceParams, MassParams, PotentialParams, Values as Trainable};
-use scaling::Scaling;
-use spec::{ModelSpec, PotentialSpec};
-use templates::{Part, Template};
-pub use tensors::columns;
+use spec::ModelSpec;
+use tensors::{BurnNets, Consts, LazyColumns};
+pub use tensors::{columns, dual_columns};
 
 /// Everything that defines a model apart from its trainable values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -307,7 +296,7 @@ impl Model {
                 Some(MassParams::Net(net)) => {
                     let (x, dx_dq) = with_tangent();
                     let (y, jac) = net.forward_jacobian(x, dx_dq);
-                    Some(mass_matrix::dual_columns(y, jac))
+                    Some(tensors::dual_columns(y, jac))
                 }
                 _ => None,
             },

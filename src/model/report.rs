@@ -5,7 +5,8 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 use crate::model::spec::ModelSpec;
-use crate::model::templates::{Part, Template};
+use crate::physics::params::Part;
+use crate::physics::templates::Template;
 use crate::records::Warning;
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

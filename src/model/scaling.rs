@@ -1,30 +1,9 @@
-//! Input and output scalings from dataset statistics, stored with the model.
-//!
-//! With u ~ N(0, 120²) the generalized forces are O(100): unscaled networks barely train
-//! (design.md §7). Network inputs are standardized, and network outputs are multiplied by the
-//! scale their physical quantity has in the data. M's scale is free (identifiability), so a
-//! learned M starts near the identity and forces are scaled like accelerations; with an analytic
-//! M the force scale is the spread of M(q)q̈ over the data at the initial parameters.
+//! Scalings from a dataset's statistics (the `Scaling` type and how the assembly reads it
+//! are in `physics::scaling`).
 
-use serde::{Deserialize, Serialize};
-
-use super::templates::Template;
 use crate::data::Dataset;
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Scaling {
-    pub q_mean: Vec<f64>,
-    pub q_std: Vec<f64>,
-    pub qdot_mean: Vec<f64>,
-    pub qdot_std: Vec<f64>,
-    pub u_mean: Vec<f64>,
-    pub u_std: Vec<f64>,
-    /// Statistics of the finite-difference accelerations (q̇' − q̇)/Δt.
-    pub acc_mean: Vec<f64>,
-    pub acc_std: Vec<f64>,
-    /// Typical size of each generalized force.
-    pub force_scale: Vec<f64>,
-}
+use crate::physics::scaling::Scaling;
+use crate::physics::templates::Template;
 
 /// Mean and standard deviation of each column; a (near-)constant column gets std 1 so that
 /// standardizing it cannot divide by ~0.
@@ -54,38 +33,6 @@ fn column_stats(a: &[f64], width: usize) -> (Vec<f64>, Vec<f64>) {
 }
 
 impl Scaling {
-    /// Every statistic is a finite number.
-    pub fn is_finite(&self) -> bool {
-        [
-            &self.q_mean,
-            &self.q_std,
-            &self.qdot_mean,
-            &self.qdot_std,
-            &self.u_mean,
-            &self.u_std,
-            &self.acc_mean,
-            &self.acc_std,
-            &self.force_scale,
-        ]
-        .iter()
-        .all(|v| v.iter().all(|x| x.is_finite()))
-    }
-
-    /// Identity scalings (used where no data is at hand, e.g. in unit tests).
-    pub fn identity(n: usize, m: usize) -> Self {
-        Self {
-            q_mean: vec![0.0; n],
-            q_std: vec![1.0; n],
-            qdot_mean: vec![0.0; n],
-            qdot_std: vec![1.0; n],
-            u_mean: vec![0.0; m],
-            u_std: vec![1.0; m],
-            acc_mean: vec![0.0; n],
-            acc_std: vec![1.0; n],
-            force_scale: vec![1.0; n],
-        }
-    }
-
     /// `mass` gives the analytic M at the initial physical parameters when M is white-box.
     pub fn from_data(ds: &Dataset, mass: Option<(&Template, &[f64])>) -> Self {
         let (n, m) = (ds.n, ds.m);
@@ -126,23 +73,5 @@ impl Scaling {
             acc_std,
             force_scale,
         }
-    }
-
-    pub fn mean_force_scale(&self) -> f64 {
-        self.force_scale.iter().sum::<f64>() / self.force_scale.len() as f64
-    }
-
-    pub fn mean_q_std(&self) -> f64 {
-        self.q_std.iter().sum::<f64>() / self.q_std.len() as f64
-    }
-
-    /// Scale of a learned quadratic potential's K: K q is O(force) when q is O(σ_q).
-    pub fn quadratic_scale(&self) -> f64 {
-        self.mean_force_scale() / self.mean_q_std()
-    }
-
-    /// Output scale of a potential network: ∂V/∂q should be O(force) when q moves by O(σ_q).
-    pub fn potential_scale(&self) -> f64 {
-        self.mean_force_scale() * self.mean_q_std()
     }
 }

@@ -4,8 +4,8 @@
 
 use serde_json::{Map, Value};
 
-use super::templates::Template;
 use crate::error::{Error, Result};
+use crate::physics::templates::Template;
 
 /// Each part's `type`s, as errors and the README name them.
 const MASS_TYPES: &[&str] = &["mlp", "template", "constant"];

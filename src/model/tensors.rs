@@ -1,12 +1,14 @@
 //! The Burn side of a model: constant tensors derived from its config, and a batch's tensors
-//! as the columns the assembly ([`super::assembly`]) reads.
+//! as the columns the assembly ([`crate::physics::assembly`]) reads.
 
 use burn::tensor::{Device, Tensor, TensorData};
 
 use super::ModelConfig;
-use super::assembly;
-use super::dual::Dual;
 use super::mlp::InputTangent;
+use crate::physics::assembly;
+use crate::physics::dual::Dual;
+use crate::physics::integrator::StateVec;
+use crate::physics::scalar::Scalar;
 
 /// Constant tensors derived from the config, built once per device.
 #[derive(Debug, Clone)]
@@ -223,4 +225,69 @@ impl assembly::Coef<Tensor<2>> for Tensor<2> {
 pub fn columns(x: &Tensor<2>) -> Vec<Tensor<2>> {
     let k = x.dims()[1];
     (0..k).map(|j| x.clone().narrow(1, j, 1)).collect()
+}
+
+/// Splits a network's output y `[batch, k]` and Jacobian J `[batch, n, k]` into k dual
+/// columns `[batch, 1]` with tangents ∂y_j/∂q_i.
+pub fn dual_columns(y: Tensor<2>, jac: Tensor<3>) -> Vec<Dual<Tensor<2>>> {
+    let [batch, n, k] = jac.dims();
+    let jflat = jac.reshape([batch, n * k]);
+    (0..k)
+        .map(|j| {
+            let d = (0..n).map(|i| Some(jflat.clone().narrow(1, i * k + j, 1)));
+            Dual::new(y.clone().narrow(1, j, 1), d)
+        })
+        .collect()
+}
+
+/// A Burn float tensor used as a scalar column: `[batch, 1]` for per-sample values, `[1, 1]`
+/// for parameters (broadcast against the batch).
+impl Scalar for Tensor<2> {
+    fn cos(&self) -> Self {
+        self.clone().cos()
+    }
+    fn sin(&self) -> Self {
+        self.clone().sin()
+    }
+    fn sqrt(&self) -> Self {
+        self.clone().sqrt()
+    }
+    fn exp(&self) -> Self {
+        self.clone().exp()
+    }
+    fn ln(&self) -> Self {
+        self.clone().log()
+    }
+    fn atan2(&self, x: &Self) -> Self {
+        self.clone().atan2(x.clone())
+    }
+    fn sigmoid(&self) -> Self {
+        burn::tensor::activation::sigmoid(self.clone())
+    }
+    fn softplus(&self) -> Self {
+        // The same overflow-free form as the f64 impl, so both paths agree to rounding
+        // (Burn's own softplus switches to the identity above a threshold).
+        self.clone().clamp_min(0.0) + self.clone().abs().neg().exp().log1p()
+    }
+    fn scale(&self, c: f64) -> Self {
+        self.clone().mul_scalar(c)
+    }
+    fn shift(&self, c: f64) -> Self {
+        self.clone().add_scalar(c)
+    }
+    fn square(&self) -> Self {
+        self.clone().square()
+    }
+    fn tanh(&self) -> Self {
+        super::mlp::tanh(self.clone())
+    }
+    fn lift(&self, c: f64) -> Self {
+        self.full_like(c)
+    }
+}
+
+impl StateVec for Tensor<2> {
+    fn axpy(&self, a: f64, x: &Self) -> Self {
+        self.clone() + x.clone().mul_scalar(a)
+    }
 }

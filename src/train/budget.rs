@@ -2,9 +2,10 @@
 //! the service refuses a job over its limits at submission instead of discovering it at
 //! 12 GB in epoch 0.
 
-use crate::model::mass_matrix;
-use crate::model::spec::{ForceSpec, MassSpec, ModelSpec, PotentialSpec};
-use crate::model::templates::Part;
+use crate::model::spec::ModelSpec;
+use crate::physics::mass_matrix;
+use crate::physics::params::Part;
+use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 
 /// The largest blob SQLite stores (SQLITE_MAX_LENGTH, 10⁹ bytes by default), less a margin
 /// for the row around it.

@@ -6,10 +6,10 @@ use serde::{Deserialize, Serialize};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
-use crate::model::integrator::Integrator;
-use crate::model::scaling::Scaling;
 use crate::model::spec::ModelSpec;
-use crate::model::templates::{Part, physical_problem};
+use crate::physics::integrator::Integrator;
+use crate::physics::params::{Part, physical_problem};
+use crate::physics::scaling::Scaling;
 use crate::sim::unknown_param;
 
 /// Training hyper-parameters; every field has the CLI's default.

@@ -190,7 +190,7 @@ mod tests {
     #[test]
     fn models_without_a_network_shard_only_large_batches() {
         use crate::model::spec::ModelSpec;
-        use crate::model::templates::Template;
+        use crate::physics::templates::Template;
         let named = |n| ModelSpec::named(n, Some(Template::DoublePendulum)).unwrap();
         for n in ["MVF", "naive", "B", "F", "V", "M"] {
             assert_eq!(min_shard_rows(&named(n)), MIN_SHARD_ROWS, "{n}");

@@ -6,10 +6,10 @@ use std::time::{Duration, Instant};
 
 use graybox::api::grpc::pb;
 use graybox::model::file::ModelFile;
-use graybox::model::formula::{MAX_DEPTH, MAX_NODES};
-use graybox::model::integrator::Integrator;
-use graybox::model::templates::Template;
-use graybox::model::urdf::xml;
+use graybox::physics::formula::{MAX_DEPTH, MAX_NODES};
+use graybox::physics::integrator::Integrator;
+use graybox::physics::templates::Template;
+use graybox::physics::urdf::xml;
 use graybox::sim::{SimConfig, simulate};
 use serde_json::{Value, json};
 
@@ -81,7 +81,7 @@ async fn post_raw(app: &TestApp, path: &str, body: Vec<u8>) -> (u16, Value) {
 async fn hostile_expressions_are_refused_on_every_entry_point() {
     let app = spawn_app(0).await;
     let good = Template::Formula(std::sync::Arc::new(
-        graybox::model::formula_template::FormulaTemplate::parse(
+        graybox::physics::formula_template::FormulaTemplate::parse(
             &pendulum("-m*g*l*cos(theta)").to_string(),
         )
         .unwrap(),

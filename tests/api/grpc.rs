@@ -344,8 +344,8 @@ async fn dynamics_rpcs_against_independent_references() {
 async fn uploaded_models_are_served_like_trained_ones() {
     use graybox::infer::Evaluator;
     use graybox::model::file::ModelFile;
-    use graybox::model::integrator::Integrator;
-    use graybox::model::templates::Template;
+    use graybox::physics::integrator::Integrator;
+    use graybox::physics::templates::Template;
 
     let app = spawn_app(0).await;
     let t = Template::DoublePendulum;

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
 use graybox::app::Settings;
-use graybox::model::templates::Template;
+use graybox::physics::templates::Template;
 use graybox::service::{Running, start};
 use graybox::sim::{SimConfig, simulate};
 use serde_json::{Value, json};

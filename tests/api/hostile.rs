@@ -409,8 +409,8 @@ fn model_files_with_non_finite_numbers_are_not_written() {
     use graybox::model::ModelConfig;
     use graybox::model::file::ModelFile;
     use graybox::model::params_io::NamedArray;
-    use graybox::model::scaling::Scaling;
     use graybox::model::spec::ModelSpec;
+    use graybox::physics::scaling::Scaling;
     let config = ModelConfig {
         spec: ModelSpec::named("naive", None).unwrap(),
         n: 1,

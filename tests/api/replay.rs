@@ -2,10 +2,10 @@
 //! boundaries kept from trajectory-form uploads, chains found in flat ones, and the true
 //! pendulum's replay equal to the recording.
 
-use graybox::model::dynamics::TemplateSystem;
 use graybox::model::file::ModelFile;
-use graybox::model::integrator::Integrator;
-use graybox::model::templates::Template;
+use graybox::physics::integrator::Integrator;
+use graybox::physics::templates::Template;
+use graybox::sim::TemplateSystem;
 use graybox::sim::true_step;
 use serde_json::{Value, json};
 

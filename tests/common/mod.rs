@@ -2,12 +2,12 @@
 #![allow(dead_code)]
 
 use burn::tensor::{Device, Tensor, TensorData};
-use graybox::model::integrator::Integrator;
 use graybox::model::params_io::import;
-use graybox::model::scaling::Scaling;
 use graybox::model::spec::ModelSpec;
-use graybox::model::templates::Template;
 use graybox::model::{Model, ModelConfig};
+use graybox::physics::integrator::Integrator;
+use graybox::physics::scaling::Scaling;
+use graybox::physics::templates::Template;
 use graybox::rng::Rng;
 
 pub fn tensor(rows: &[Vec<f64>], device: &Device) -> Tensor<2> {

@@ -6,10 +6,10 @@ use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
 use graybox::infer::Evaluator;
-use graybox::model::formula::{MAX_DEPTH, MAX_NODES, Names, Symbol, parse};
-use graybox::model::formula_template::FormulaTemplate;
 use graybox::model::spec::ModelSpec;
-use graybox::model::templates::Template;
+use graybox::physics::formula::{MAX_DEPTH, MAX_NODES, Names, Symbol, parse};
+use graybox::physics::formula_template::FormulaTemplate;
+use graybox::physics::templates::Template;
 use graybox::rng::Rng;
 use graybox::sim::{SimConfig, simulate};
 use graybox::train::{TrainConfig, Trainer};

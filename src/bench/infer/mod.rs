@@ -11,7 +11,7 @@ use serde_json::{Value, json};
 use crate::control::linalg::Mat;
 use crate::error::Result;
 use crate::infer::Evaluator;
-use crate::model::templates::Template;
+use crate::physics::templates::Template;
 use crate::sim::{SimConfig, simulate};
 
 mod grpc;

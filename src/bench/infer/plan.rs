@@ -10,8 +10,8 @@ use crate::control::plan::{PlanRequest, plan};
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::model::file::ModelFile;
-use crate::model::integrator::Integrator;
-use crate::model::templates::Template;
+use crate::physics::integrator::Integrator;
+use crate::physics::templates::Template;
 
 pub(super) const HORIZONS: [usize; 2] = [21, 200];
 const CALLS: usize = 10;

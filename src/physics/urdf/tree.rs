@@ -6,7 +6,7 @@ use std::collections::HashMap;
 
 use super::inertia::Inertial;
 use crate::error::{Error, Result};
-use crate::model::templates::physical_problem;
+use crate::physics::params::physical_problem;
 use crate::records::{name_problem, quoted_name};
 
 pub type Rot = [[f64; 3]; 3];

@@ -20,8 +20,8 @@ use super::rigid;
 use super::term::{C, Term, V};
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
-use crate::model::scalar::Scalar;
-use crate::model::templates::{ParamInfo, Part, physical_problem};
+use crate::physics::params::{ParamInfo, Part, physical_problem};
+use crate::physics::scalar::Scalar;
 use crate::records::name_problem;
 
 /// The template document (kept whole: a model file embeds it, and the export rewrites its
@@ -90,7 +90,7 @@ fn bad(field: &str, message: impl Into<String>) -> Error {
 impl UrdfTemplate {
     /// A raw URDF document with every default.
     pub fn from_urdf(urdf: &str) -> Result<Self> {
-        Self::from_urdf_within(urdf, crate::model::templates::MAX_DOF)
+        Self::from_urdf_within(urdf, crate::physics::MAX_DOF)
     }
 
     /// `from_urdf` for a service that takes at most `max_dof` coordinates.

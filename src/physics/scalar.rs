@@ -7,7 +7,6 @@
 //! - [`Dual`](super::dual::Dual) numbers over either, which give the input derivatives
 //!   ∂/∂q in forward mode (Burn has no double-backward, design.md §2).
 
-use burn::tensor::Tensor;
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 pub trait Scalar:
@@ -79,51 +78,5 @@ impl Scalar for f64 {
     }
     fn lift(&self, c: f64) -> Self {
         c
-    }
-}
-
-/// A Burn float tensor used as a scalar column: `[batch, 1]` for per-sample values, `[1, 1]`
-/// for parameters (broadcast against the batch).
-impl Scalar for Tensor<2> {
-    fn cos(&self) -> Self {
-        self.clone().cos()
-    }
-    fn sin(&self) -> Self {
-        self.clone().sin()
-    }
-    fn sqrt(&self) -> Self {
-        self.clone().sqrt()
-    }
-    fn exp(&self) -> Self {
-        self.clone().exp()
-    }
-    fn ln(&self) -> Self {
-        self.clone().log()
-    }
-    fn atan2(&self, x: &Self) -> Self {
-        self.clone().atan2(x.clone())
-    }
-    fn sigmoid(&self) -> Self {
-        burn::tensor::activation::sigmoid(self.clone())
-    }
-    fn softplus(&self) -> Self {
-        // The same overflow-free form as the f64 impl, so both paths agree to rounding
-        // (Burn's own softplus switches to the identity above a threshold).
-        self.clone().clamp_min(0.0) + self.clone().abs().neg().exp().log1p()
-    }
-    fn scale(&self, c: f64) -> Self {
-        self.clone().mul_scalar(c)
-    }
-    fn shift(&self, c: f64) -> Self {
-        self.clone().add_scalar(c)
-    }
-    fn square(&self) -> Self {
-        self.clone().square()
-    }
-    fn tanh(&self) -> Self {
-        super::mlp::tanh(self.clone())
-    }
-    fn lift(&self, c: f64) -> Self {
-        self.full_like(c)
     }
 }

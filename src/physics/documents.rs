@@ -5,8 +5,9 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use super::MAX_DOF;
 use super::formula_template::{FormulaDoc, FormulaTemplate};
-use super::templates::Template;
+use super::templates::{DOCUMENT_KINDS, Template};
 use super::urdf::template::{KIND as URDF, UrdfDoc, UrdfTemplate};
 use crate::error::{Error, Result};
 
@@ -29,14 +30,6 @@ impl<'de> Deserialize<'de> for Template {
         .map_err(serde::de::Error::custom)
     }
 }
-
-/// The most coordinates a template document may have, whatever the service's `--max-dof`
-/// (which may only be lower): documents are read inside model files and job specs too, and
-/// their checks grow as n³.
-pub const MAX_DOF: usize = 256;
-
-/// The kinds of template document.
-pub const DOCUMENT_KINDS: [&str; 2] = ["formula", URDF];
 
 /// A document's fields from JSON; errors name the field ("template" for the whole).
 fn document<T: serde::de::DeserializeOwned>(v: &serde_json::Value) -> Result<T> {

@@ -1,6 +1,5 @@
 //! One-step integrators for ẋ = g(x, u) with u held constant over Δt (paper appendix B).
 
-use burn::tensor::Tensor;
 use serde::{Deserialize, Serialize};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -73,11 +72,5 @@ impl<S: super::scalar::Scalar> StateVec for Vec<S> {
             .zip(x)
             .map(|(s, x)| s.clone() + x.scale(a))
             .collect()
-    }
-}
-
-impl StateVec for Tensor<2> {
-    fn axpy(&self, a: f64, x: &Self) -> Self {
-        self.clone() + x.clone().mul_scalar(a)
     }
 }

@@ -9,7 +9,7 @@ use super::term::{
     mat_vec, scale, sub,
 };
 use super::tree::{JointKind, Tree};
-use crate::model::scalar::Scalar;
+use crate::physics::scalar::Scalar;
 
 /// Each body's frame in the world: rotation, origin, and its joint's axis in world axes.
 struct Poses<S> {

@@ -1,5 +1,5 @@
 use super::*;
-use crate::model::dual::Dual;
+use crate::physics::dual::Dual;
 
 fn names() -> Names {
     Names {

@@ -5,7 +5,7 @@
 
 use std::ops::{Add, Mul, Neg, Sub};
 
-use crate::model::scalar::Scalar;
+use crate::physics::scalar::Scalar;
 
 #[derive(Debug, Clone)]
 pub enum Term<S> {

@@ -3,45 +3,20 @@
 //! the document is read and then evaluated over [`Scalar`] like the built-in templates.
 
 use std::borrow::Cow;
-use std::collections::BTreeMap;
 
-use serde::{Deserialize, Serialize};
+mod doc;
+mod rules;
 
+use doc::bad;
+pub use doc::{FormulaDoc, ParamDoc};
+use rules::{asymmetry, check_name, check_names, check_values, positive_definite};
+
+use super::MAX_DOF;
 use super::formula::{Budget, Expr, Names, Symbol, parse_within};
-use super::formula_rules::{asymmetry, check_name, check_names, check_values, positive_definite};
+use super::params::{ParamInfo, Part};
 use super::scalar::Scalar;
-use super::templates::{MAX_DOF, ParamInfo, Part};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::rng::Rng;
-
-/// A formula template as its JSON document (kept whole: a model file embeds it).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct FormulaDoc {
-    pub kind: String,
-    pub name: String,
-    pub coordinates: Vec<String>,
-    /// Empty: no coordinate is an angle.
-    #[serde(default)]
-    pub periodic: Vec<bool>,
-    #[serde(default)]
-    pub inputs: Vec<String>,
-    /// By name; trained in this (alphabetical) order.
-    #[serde(default)]
-    pub parameters: BTreeMap<String, ParamDoc>,
-    pub mass: Vec<Vec<String>>,
-    pub potential: String,
-    pub forces: Vec<String>,
-}
-
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ParamDoc {
-    pub value: f64,
-    /// Trained in log space (masses, lengths): it cannot turn negative.
-    #[serde(default)]
-    pub positive: bool,
-}
 
 /// A checked formula template with its expressions parsed.
 #[derive(Debug, Clone, PartialEq)]
@@ -52,13 +27,6 @@ pub struct FormulaTemplate {
     mass: Vec<Vec<Expr>>,
     potential: Expr,
     forces: Vec<Expr>,
-}
-
-pub(super) fn bad(field: impl Into<String>, message: impl std::fmt::Display) -> Error {
-    Error::Unprocessable {
-        field: field.into(),
-        message: message.to_string(),
-    }
 }
 
 /// Points at which M is checked for symmetry and positive definiteness: q uniform in

@@ -11,7 +11,7 @@
 
 use super::term::{C, Mat3, Term, V, Vec3};
 use crate::error::{Error, Result};
-use crate::model::scalar::Scalar;
+use crate::physics::scalar::Scalar;
 
 /// A body's inertial parameters in its own frame: m, h = m c, and Ī about the frame's origin.
 #[derive(Debug, Clone, PartialEq)]

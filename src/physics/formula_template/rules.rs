@@ -3,10 +3,10 @@
 
 use std::collections::BTreeMap;
 
-use super::formula::{Names, reserved};
-use super::formula_template::{FormulaDoc, bad};
-use super::templates::physical_problem;
+use super::doc::{FormulaDoc, bad};
 use crate::error::Result;
+use crate::physics::formula::{Names, reserved};
+use crate::physics::params::physical_problem;
 use crate::records::{NAME_MAX, name_problem, quoted_name};
 
 /// The template's name follows the rule of every name (`records::name_problem`).

@@ -9,9 +9,9 @@ use super::dual::Dual;
 use super::dynamics::{Tri, cholesky};
 use super::mass_matrix::factor_from_outputs;
 use super::scalar::Scalar;
-use super::scaling::Scaling;
-use super::spec::{ForceSpec, MassSpec, PotentialSpec};
 use super::templates::Template;
+use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
+use crate::physics::scaling::Scaling;
 
 /// The networks' outputs for a batch, read by index; each is asked for only when the spec
 /// has that network.

@@ -10,7 +10,6 @@
 
 use super::dual::Dual;
 use super::scalar::Scalar;
-use super::templates::Template;
 
 /// A lower-triangular n×n matrix stored row by row: (0,0), (1,0), (1,1), (2,0), …
 /// This is also the order of a mass network's off-diagonal outputs (see `mass_matrix`).
@@ -207,44 +206,4 @@ pub fn white_box_acceleration(
         .map(|k| v.tangent(k).copied().unwrap_or(0.0))
         .collect();
     acceleration(&cholesky(&mass(&qv)), Some(grad_v), forces, qd)
-}
-
-/// The analytic system of a template at physical parameter values `p`, in f64: the "true"
-/// system for simulation and the reference for tests.
-pub struct TemplateSystem {
-    pub template: Template,
-    pub params: Vec<f64>,
-}
-
-impl TemplateSystem {
-    pub fn new(template: Template, params: Vec<f64>) -> Self {
-        Self { template, params }
-    }
-
-    pub fn mass_factor(&self, q: &[f64]) -> Tri<Dual<f64>> {
-        let p = constants(&self.params);
-        cholesky(&self.template.mass(&p, &dual_vars(q, &1.0)))
-    }
-
-    pub fn acceleration(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
-        let p = constants(&self.params);
-        white_box_acceleration(
-            |q| self.template.mass(&p, q),
-            |q| self.template.potential(&p, q),
-            self.template.forces(&self.params, q, qd, u),
-            q,
-            qd,
-        )
-    }
-
-    /// Kinetic and potential energy (T, V).
-    pub fn energy(&self, q: &[f64], qd: &[f64]) -> (f64, f64) {
-        let m = self.template.mass(&self.params, q);
-        let t = 0.5
-            * (0..q.len())
-                .flat_map(|i| (0..q.len()).map(move |j| (i, j)))
-                .map(|(i, j)| qd[i] * m[i][j] * qd[j])
-                .sum::<f64>();
-        (t, self.template.potential(&self.params, q))
-    }
 }

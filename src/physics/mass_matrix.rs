@@ -1,8 +1,6 @@
 //! M(q) = L(q) L(q)ᵀ in its three forms: a Cholesky MLP, a learned constant, the template's
 //! analytic M factored per sample. Each yields L with its q-derivatives as dual numbers.
 
-use burn::tensor::Tensor;
-
 use super::dual::Dual;
 use super::dynamics::Tri;
 use super::scalar::Scalar;
@@ -36,17 +34,4 @@ pub fn factor_from_outputs<S: Scalar>(raw: Vec<Dual<S>>, n: usize) -> Tri<Dual<S
     }
     assert_eq!(entries.len(), outputs(n), "n(n+1)/2 outputs for L");
     Tri { n, entries }
-}
-
-/// Splits a network's output y `[batch, k]` and Jacobian J `[batch, n, k]` into k dual
-/// columns `[batch, 1]` with tangents ∂y_j/∂q_i.
-pub fn dual_columns(y: Tensor<2>, jac: Tensor<3>) -> Vec<Dual<Tensor<2>>> {
-    let [batch, n, k] = jac.dims();
-    let jflat = jac.reshape([batch, n * k]);
-    (0..k)
-        .map(|j| {
-            let d = (0..n).map(|i| Some(jflat.clone().narrow(1, i * k + j, 1)));
-            Dual::new(y.clone().narrow(1, j, 1), d)
-        })
-        .collect()
 }

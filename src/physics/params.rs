@@ -1,0 +1,57 @@
+//! A template's parameters: what each is ([`ParamInfo`]), which part of the manipulator
+//! equation uses it ([`Part`]), and which values are physical, one rule for every place a
+//! value enters (built-in and formula templates, URDF robots, a job's `init`).
+
+use std::borrow::Cow;
+
+/// Which white-box component a parameter or an identifiable combination belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Part {
+    Mass,
+    Potential,
+    Forces,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamInfo {
+    pub name: Cow<'static, str>,
+    pub default: f64,
+    /// Trained in log space so that the optimizer cannot make it negative.
+    pub positive: bool,
+    pub used_by: Cow<'static, [Part]>,
+}
+
+/// Largest |value| of a physical parameter wherever it enters (a template document, a job's
+/// `init`): SI values of real mechanisms are far below it, and larger ones (a mass of 1e308, a
+/// parameter of 1e7) passed submission and then overflowed the first epoch's dynamics.
+pub const PHYSICAL_MAX: f64 = 1e6;
+
+/// Smallest value of a formula or built-in template's positive parameter: it is trained as
+/// its logarithm, and M⁻¹ of a mass of 1e-320 overflows. URDF inertias have floors of their
+/// own instead (`urdf::inertia`): real robots carry 1e-9 dummy inertias.
+pub const POSITIVE_MIN: f64 = 1e-6;
+
+/// What is wrong with `v` as a physical value (`positive`: a positive parameter's), if
+/// anything.
+pub fn physical_problem(v: f64, positive: bool) -> Option<String> {
+    // Display writes 1e300 with all its digits.
+    let got = if v == 0.0 || (1e-4..1e7).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    };
+    if !(v.is_finite() && v.abs() <= PHYSICAL_MAX) {
+        return Some(format!(
+            "must be a number with |value| ≤ {PHYSICAL_MAX:e}, got {got}"
+        ));
+    }
+    if positive && v <= 0.0 {
+        return Some(format!("must be > 0 for a positive parameter, got {got}"));
+    }
+    if positive && v < POSITIVE_MIN {
+        return Some(format!(
+            "must be at least {POSITIVE_MIN:e} for a positive parameter, got {got}"
+        ));
+    }
+    None
+}
