@@ -19,6 +19,7 @@ pub mod experiment;
 pub mod infer;
 pub mod jobs;
 pub mod model;
+pub mod names;
 pub mod physics;
 pub mod records;
 pub mod rng;

@@ -7,7 +7,7 @@ use super::views::Dataset as DatasetView;
 use crate::data::Dataset;
 use crate::data::trajectories;
 use crate::error::{Error, Result};
-use crate::records::check_name;
+use crate::names::check_name;
 
 /// What a POST /v1/datasets body was, with the Δt given beside it (`?dt=`).
 pub enum Upload {

@@ -70,7 +70,7 @@ impl App {
         })
         .await?;
         if let Some(n) = &name {
-            crate::records::check_name(n)?;
+            crate::names::check_name(n)?;
         }
         let name = name
             .or_else(|| file.report.as_ref().map(|r| r.model.clone()))
@@ -82,7 +82,7 @@ impl App {
                 }
                 .into()
             });
-        crate::records::check_name_at("report.model", &name)?;
+        crate::names::check_name_at("report.model", &name)?;
         let report = match (&file.report, &file.made) {
             (Some(r), _) => serde_json::to_string(r).expect("json"),
             (None, Some(made)) => json!({ "made": made }).to_string(),

@@ -4,7 +4,6 @@
 pub mod boxqp;
 pub mod linalg;
 pub mod plan;
-mod plan_backward;
 mod plan_request;
 pub mod policy;
 pub mod tvlqr;

@@ -5,11 +5,11 @@ use std::collections::BTreeMap;
 
 use super::doc::{FormulaDoc, bad};
 use crate::error::Result;
+use crate::names::{NAME_MAX, name_problem, quoted_name};
 use crate::physics::formula::{Names, reserved};
 use crate::physics::params::physical_problem;
-use crate::records::{NAME_MAX, name_problem, quoted_name};
 
-/// The template's name follows the rule of every name (`records::name_problem`).
+/// The template's name follows the rule of every name (`names::name_problem`).
 pub(super) fn check_name(name: &str) -> Result<()> {
     if name.trim().is_empty() {
         return Err(bad("name", "must not be empty"));

@@ -20,9 +20,9 @@ use super::rigid;
 use super::term::{C, Term, V};
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
+use crate::names::name_problem;
 use crate::physics::params::{ParamInfo, Part, physical_problem};
 use crate::physics::scalar::Scalar;
-use crate::records::name_problem;
 
 /// The template document (kept whole: a model file embeds it, and the export rewrites its
 /// URDF text).

@@ -6,8 +6,8 @@ use std::collections::HashMap;
 
 use super::inertia::Inertial;
 use crate::error::{Error, Result};
+use crate::names::{name_problem, quoted_name};
 use crate::physics::params::physical_problem;
-use crate::records::{name_problem, quoted_name};
 
 pub type Rot = [[f64; 3]; 3];
 
@@ -124,7 +124,7 @@ fn pose_within(at: &str, pose: &urdf_rs::Pose) -> Result<()> {
     Ok(())
 }
 
-/// Link, joint and robot names follow the rule of every name (`records::name_problem`).
+/// Link, joint and robot names follow the rule of every name (`names::name_problem`).
 fn named(what: &str, name: &str) -> Result<()> {
     name_problem(name).map_or(Ok(()), |m| {
         Err(bad(format!("{what} '{}': its name {m}", quoted_name(name))))

@@ -1,9 +1,9 @@
 //! iLQR's backward pass (`control::plan`): the Riccati recursion on the quadratic model of the
 //! cost-to-go, each step's inputs a box QP, with the Levenberg–Marquardt term μI on Q_uu.
 
-use super::boxqp::box_qp;
-use super::linalg::{Mat, cholesky_solve};
-use super::plan::{Dynamics, Planner, Trajectory};
+use super::{Dynamics, Planner, Trajectory};
+use crate::control::boxqp::box_qp;
+use crate::control::linalg::{Mat, cholesky_solve};
 use crate::error::Result;
 
 /// Feedforward k_t and feedback K_t of a step, and what a full step should gain.

@@ -20,6 +20,8 @@
 //! step sizes α = 1, ½, …, 2⁻⁹ in one batched rollout and keeps the cheapest one that lowers
 //! J; a trial whose rollout goes non-finite costs +∞ and is never chosen.
 
+mod backward;
+
 use std::time::Instant;
 
 pub use super::plan_request::{
@@ -28,10 +30,10 @@ pub use super::plan_request::{
 };
 
 use super::linalg::Mat;
-use super::plan_backward::Backward;
 use super::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::rng::Rng;
+use backward::Backward;
 
 /// The system a plan is made for: its one-step map on a batch of rows, and the map's
 /// Jacobians along a trajectory.
