@@ -1,7 +1,13 @@
 //! The layers of ARCHITECTURE.md, enforced: reads every file under `src/` and fails on a
 //! dependency that points up, naming file and line. It sees `use crate::x`, grouped
 //! `use crate::{x, y::z}`, paths written inline without a `use` (`crate::store::JobState`),
-//! and `super::` paths that climb out of a layer.
+//! and `super::` paths that climb out of a layer. It also fails on a circle of modules inside
+//! a layer (`cycles.rs`) and on a source file over 450 lines (`sizes.rs`).
+
+#[path = "architecture/cycles.rs"]
+mod cycles;
+#[path = "architecture/sizes.rs"]
+mod sizes;
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -10,6 +16,7 @@ use std::path::{Path, PathBuf};
 /// experiment, and the crate root) may import anything.
 fn forbidden(layer: &str) -> &'static [&'static str] {
     const ABOVE_GROUND: &[&str] = &[
+        "physics",
         "model",
         "infer",
         "control",
@@ -25,7 +32,28 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         "experiment",
     ];
     match layer {
-        "error" | "rng" | "backend" | "simd" | "data" | "records" => ABOVE_GROUND,
+        "error" | "rng" | "names" | "backend" | "simd" | "data" | "records" => ABOVE_GROUND,
+        // The mechanics stand on `error`, `rng` and `names` alone: no Burn (`backend`, and the
+        // `burn` crate, checked by `physics_is_free_of_burn`), no dataset, no record.
+        "physics" => &[
+            "backend",
+            "simd",
+            "data",
+            "records",
+            "model",
+            "infer",
+            "control",
+            "sim",
+            "train",
+            "store",
+            "app",
+            "jobs",
+            "api",
+            "cli",
+            "service",
+            "bench",
+            "experiment",
+        ],
         "model" | "infer" | "control" | "sim" => &[
             "train",
             "app",
@@ -211,6 +239,46 @@ fn no_dependency_points_up() {
         "{} forbidden dependencies (see ARCHITECTURE.md):\n{}",
         v.len(),
         v.join("\n")
+    );
+}
+
+#[test]
+fn physics_is_free_of_burn() {
+    let physics = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/physics");
+    let mut files = vec![];
+    collect(&physics, &mut files);
+    let burn: Vec<String> = files
+        .iter()
+        .flat_map(|f| {
+            let text = std::fs::read_to_string(f).unwrap();
+            let hits: Vec<String> = text
+                .lines()
+                .enumerate()
+                .filter(|(_, l)| code(l).contains("burn::"))
+                .map(|(n, l)| format!("{}:{}: {}", f.display(), n + 1, l.trim()))
+                .collect();
+            hits
+        })
+        .collect();
+    assert!(burn.is_empty(), "physics/ uses Burn:\n{}", burn.join("\n"));
+}
+
+#[test]
+fn no_circle_of_modules_inside_a_layer() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let c = cycles::circles(&src);
+    assert!(c.is_empty(), "{} circles:\n{}", c.len(), c.join("\n"));
+}
+
+#[test]
+fn no_source_file_is_over_the_limit() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let long = sizes::too_long(&src);
+    assert!(
+        long.is_empty(),
+        "split these by concern (or, if generated or table-like, list them in \
+         sizes::ALLOWED with the reason):\n{}",
+        long.join("\n")
     );
 }
 
