@@ -1,4 +1,4 @@
-//! Formula templates (design.md §9) against independent references: the built-in templates'
+//! Formula templates (docs/robots.md#formula-templates) against independent references: the built-in templates'
 //! equations written as formulas give the same M, V, F and q̈ in f64; a mechanism no built-in
 //! covers (a Furuta pendulum) conserves energy unforced; bad documents are refused naming the
 //! field and the offset.

@@ -1,4 +1,4 @@
-//! Numerical checks in f64 against independent references (design.md §2). Burn fixes the float
+//! Numerical checks in f64 against independent references (docs/dynamics.md#forward-mode-input-derivatives). Burn fixes the float
 //! type per process, so every test in this binary runs in f64.
 
 mod common;

@@ -1,4 +1,4 @@
-//! Learned residuals on white-box parts and periodic coordinates (issue 14, §3–4), trained:
+//! Learned residuals on white-box parts and periodic coordinates, trained:
 //! a residual closes the gap a missing term leaves in a white-box model, and wrapped angles
 //! train as well as unwrapped ones once the coordinates are marked periodic. Each run has a
 //! fixed seed and a stated number of epochs; the comparisons are between runs of this test.

@@ -1,4 +1,4 @@
-//! URDF robots (design.md §9) against Pinocchio: M(q), g(q) = ∂V/∂q and C(q, q̇)q̇ of the
+//! URDF robots (docs/robots.md#mass-matrix-and-potential) against Pinocchio: M(q), g(q) = ∂V/∂q and C(q, q̇)q̇ of the
 //! rigid-body tree equal Pinocchio's at 50 random states of each test robot (fixtures written
 //! by scripts/urdf_fixtures.py), and the inertia map θ ↔ (m, c, Ī) is a bijection onto
 //! physical bodies.

@@ -1,5 +1,5 @@
 //! Backend and precision selection, and graybox's own Burn operations (`tanh.rs`). Burn fixes
-//! a device's float type once per process (design.md §7), so precision is a process-level
+//! a device's float type once per process (docs/training.md#precision), so precision is a process-level
 //! setting.
 
 mod tanh;
@@ -43,7 +43,8 @@ impl Precision {
 pub fn device(backend: Backend, precision: Precision) -> Result<Device> {
     let mut device = match backend {
         Backend::Flex => Device::flex(),
-        #[allow(deprecated)] // selectable on purpose (design.md §7); flex is the default
+        #[allow(deprecated)]
+        // selectable on purpose (docs/training.md#why-ndarray-stays-selectable); flex is the default
         Backend::Ndarray => Device::ndarray(),
     };
     if device.configure(precision.dtype()).is_err()

@@ -8,7 +8,7 @@
 //! with the vectorised kernels, NdArray with Burn's own ops, and Autodiff over either with the
 //! backward pass written out.
 
-// NdArray is deprecated upstream and selectable here on purpose (design.md §7).
+// NdArray is deprecated upstream and selectable here on purpose (docs/training.md#why-ndarray-stays-selectable).
 #![allow(deprecated)]
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;

@@ -1,4 +1,4 @@
-//! Control from trained models (design.md §2, §8): finite-horizon TVLQR in f64, the feedback
+//! Control from trained models (docs/control.md): finite-horizon TVLQR in f64, the feedback
 //! policy it defines, and trajectory optimisation (iLQR with control bounds).
 
 pub mod boxqp;

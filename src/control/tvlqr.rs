@@ -1,4 +1,4 @@
-//! Finite-horizon, time-varying LQR (design.md §2):
+//! Finite-horizon, time-varying LQR (docs/control.md#tvlqr):
 //!
 //! ```text
 //! minimize Σ_{t<T} (δx_tᵀ Q δx_t + δu_tᵀ R δu_t) + δx_Tᵀ Q_f δx_T   (no ½)

@@ -1,4 +1,4 @@
-//! Training workers over the persistent queue (design.md §4): claim a job, hold its lease
+//! Training workers over the persistent queue (docs/storage.md#leases-and-heartbeats): claim a job, hold its lease
 //! with heartbeats, train on a blocking thread, record each epoch, checkpoint at epoch ends,
 //! and end the job (or give it back on shutdown). Every write is fenced by (job, attempt).
 

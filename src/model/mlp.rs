@@ -1,5 +1,5 @@
 //! Multi-layer perceptron with tanh hidden layers and a linear output, plus its input
-//! Jacobian in forward mode (design.md §2).
+//! Jacobian in forward mode (docs/dynamics.md#forward-mode-input-derivatives).
 //!
 //! Weights are stored `[in, out]` (Burn's `Linear` layout) and biases `[1, out]`, so every
 //! parameter is rank 2 and the optimizer and checkpoint code handle one tensor kind.

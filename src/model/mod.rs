@@ -1,4 +1,4 @@
-//! The structured Lagrangian model (design.md §2) on Burn: parameters, the dynamics
+//! The structured Lagrangian model (docs/dynamics.md) on Burn: parameters, the dynamics
 //! q̈ = M⁻¹(F − c − ∂V/∂q), one-step prediction by an integrator, and the loss.
 
 pub mod file;

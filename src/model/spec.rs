@@ -1,4 +1,4 @@
-//! Model specifications: which form each component takes (design.md §2 and the paper's
+//! Model specifications: which form each component takes (docs/dynamics.md#state-and-components and the paper's
 //! table of parameterizations), as JSON through serde or by the paper's names.
 
 use serde::{Deserialize, Serialize};

@@ -1,4 +1,4 @@
-//! The manipulator equation, generic over the scalar type (design.md §2):
+//! The manipulator equation, generic over the scalar type (docs/dynamics.md#manipulator-equation):
 //!
 //! ```text
 //! M(q) q̈ = F(q, q̇, u) − c(q, q̇) − ∂V/∂q,   M = L Lᵀ
@@ -107,6 +107,7 @@ fn tri_t_mul<S: Scalar>(l: &Tri<S>, v: &[S]) -> Vec<S> {
 /// The Coriolis/centrifugal term c(q, q̇) = Ṁ q̇ − ∂/∂q (½ q̇ᵀ M q̇) (paper appendix A) from L and
 /// ∂L/∂q_k. With w = Lᵀq̇ and L̇ = Σ_k ∂_kL q̇_k:
 ///   Ṁ q̇ = L̇ w + L (L̇ᵀ q̇),   ∂_i (½ q̇ᵀMq̇) = w · (∂_iL)ᵀ q̇.
+/// (docs/dynamics.md#coriolis-term derives it.)
 pub fn coriolis<S: Scalar>(l: &Tri<Dual<S>>, qd: &[S]) -> Vec<S> {
     let n = l.n;
     let values = l.map(|e| e.v.clone());

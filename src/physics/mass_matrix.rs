@@ -1,5 +1,6 @@
 //! M(q) = L(q) L(q)ᵀ in its three forms: a Cholesky MLP, a learned constant, the template's
-//! analytic M factored per sample. Each yields L with its q-derivatives as dual numbers.
+//! analytic M factored per sample. Each yields L with its q-derivatives as dual numbers
+//! (docs/dynamics.md#cholesky-parameterization).
 
 use super::dual::Dual;
 use super::dynamics::Tri;

@@ -5,7 +5,7 @@
 //! - `f64` (simulation, reference checks, the f64 inference path),
 //! - Burn column tensors `[batch, 1]` (training, where autodiff differentiates w.r.t. θ),
 //! - [`Dual`](super::dual::Dual) numbers over either, which give the input derivatives
-//!   ∂/∂q in forward mode (Burn has no double-backward, design.md §2).
+//!   ∂/∂q in forward mode (Burn has no double-backward, docs/dynamics.md#forward-mode-input-derivatives).
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 

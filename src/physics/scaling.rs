@@ -1,7 +1,7 @@
 //! Input and output scalings from dataset statistics, stored with the model.
 //!
 //! With u ~ N(0, 120²) the generalized forces are O(100): unscaled networks barely train
-//! (design.md §7). Network inputs are standardized, and network outputs are multiplied by the
+//! (docs/training.md#input-and-output-scalings). Network inputs are standardized, and network outputs are multiplied by the
 //! scale their physical quantity has in the data. M's scale is free (identifiability), so a
 //! learned M starts near the identity and forces are scaled like accelerations; with an analytic
 //! M the force scale is the spread of M(q)q̈ over the data at the initial parameters.

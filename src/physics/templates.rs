@@ -29,7 +29,7 @@ pub enum Template {
 /// Evaluates a combination given a lookup of parameter values by name.
 pub type CombinationFn = fn(&dyn Fn(&str) -> f64) -> f64;
 
-/// A combination of parameters that the data can pin down (design.md §2, Identifiability),
+/// A combination of parameters that the data can pin down (docs/dynamics.md#identifiability),
 /// meaningful when every part in `needs` is white-box.
 pub struct Combination {
     pub name: &'static str,

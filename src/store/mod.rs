@@ -1,4 +1,4 @@
-//! All SQL (design.md §4): SQLite in WAL mode with synchronous=FULL, a busy timeout, and
+//! All SQL (docs/storage.md#sqlite-settings): SQLite in WAL mode with synchronous=FULL, a busy timeout, and
 //! `BEGIN IMMEDIATE` for every write transaction, so that concurrent writers queue on the lock
 //! instead of failing with SQLITE_BUSY. Queries are checked at run time (no offline data).
 

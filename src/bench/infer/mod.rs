@@ -1,5 +1,5 @@
 //! `graybox bench infer`: inference latency for controllers on the double pendulum MVF 3×32
-//! (issue 4's targets) and Plan swing-ups. In process (the evaluator alone) and as gRPC round trips on loopback
+//! and Plan swing-ups. In process (the evaluator alone) and as gRPC round trips on loopback
 //! against a real service: idle, then with concurrent clients while a training job runs.
 
 use std::sync::Arc;

@@ -1,5 +1,5 @@
 //! iLQR's backward pass (`control::plan`): the Riccati recursion on the quadratic model of the
-//! cost-to-go, each step's inputs a box QP, with the Levenberg–Marquardt term μI on Q_uu.
+//! cost-to-go, each step's inputs a box QP, with the Levenberg–Marquardt term μI on Q_uu (docs/control.md#backward-pass).
 
 use super::{Dynamics, Planner, Trajectory};
 use crate::control::boxqp::box_qp;

@@ -1,4 +1,4 @@
-//! Trajectory optimisation on a model's discrete one-step map (design.md §8):
+//! Trajectory optimisation on a model's discrete one-step map (docs/control.md#trajectory-optimisation):
 //!
 //! ```text
 //! minimize J = Σ_{t<T} (x_t − g)ᵀQ(x_t − g) + u_tᵀR u_t + (x_T − g)ᵀQ_f(x_T − g)   (no ½)

@@ -1,4 +1,4 @@
-//! Expressions of formula templates (design.md §9): parsed once into a flat postfix program,
+//! Expressions of formula templates (docs/robots.md#formula-templates): parsed once into a flat postfix program,
 //! evaluated over [`Scalar`], so that training (Burn columns), the f64 evaluator and dual
 //! numbers (∂/∂q, linearization) all run the same formula and no symbolic differentiation is
 //! needed.

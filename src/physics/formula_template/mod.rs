@@ -1,4 +1,4 @@
-//! Formula templates (design.md §9): a mechanism's M(q), V(q) and F(q, q̇, u) written as
+//! Formula templates (docs/robots.md#formula-templates): a mechanism's M(q), V(q) and F(q, q̇, u) written as
 //! expressions over named coordinates, velocities, inputs and parameters, checked once when
 //! the document is read and then evaluated over [`Scalar`] like the built-in templates.
 

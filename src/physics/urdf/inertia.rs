@@ -1,4 +1,4 @@
-//! Physically consistent inertial parameters (design.md §9; Wensing, Kim & Slotine 2017;
+//! Physically consistent inertial parameters (docs/robots.md#physically-consistent-inertia; Wensing, Kim & Slotine 2017;
 //! Rucker & Wensing 2022). A body's mass m, first moment h = m c and rotational inertia Ī
 //! about its frame's origin form the pseudo-inertia J = [[Σ, h], [hᵀ, m]] with
 //! Σ = ½ tr(Ī) 𝟙 − Ī; the body is physically realisable exactly when J ≻ 0. Training moves

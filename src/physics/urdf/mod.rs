@@ -1,4 +1,4 @@
-//! Robots from URDF (design.md §9): the rigid-body tree's M(q) and V(q) with trainable,
+//! Robots from URDF (docs/robots.md#urdf-robots): the rigid-body tree's M(q) and V(q) with trainable,
 //! physically consistent inertial parameters.
 
 pub mod inertia;

@@ -1,4 +1,4 @@
-//! A URDF template (design.md §9): the robot's rigid-body M(q) and V(q) with each body's ten
+//! A URDF template (docs/robots.md#urdf-robots): the robot's rigid-body M(q) and V(q) with each body's ten
 //! inertial parameters, and joint forces F = S u − d∘q̇ − f∘tanh(q̇/ε).
 //!
 //! Three forms of the same values:
