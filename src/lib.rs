@@ -2,8 +2,9 @@
 //! transition data and served to controllers.
 //!
 //! Layers (ARCHITECTURE.md, enforced by tests/architecture.rs), bottom up: `error`, `rng`,
-//! `backend`, `data` (the dataset type), `records` (what the store keeps); the math in
-//! `model` (components, dynamics, the model file), `infer` (f64 evaluation), `control`
+//! `names`, `backend`, `data` (the dataset type), `records` (what the store keeps); the
+//! mechanics in `physics` (dynamics, templates, URDF robots; no Burn); the math in `model`
+//! (the trainable model on Burn, its spec and file), `infer` (f64 evaluation), `control`
 //! (TVLQR) and `sim`; `train` (the training loop); `store` (SQLite); `app` (the one core);
 //! `jobs` (the worker); `api` (REST, gRPC); and at the top `cli`, `service`, `bench`, `experiment`.
 

@@ -2,7 +2,8 @@
 //! Newton (Bertsekas 1982; the solver of Tassa, Mansard & Todorov 2014 for control-limited
 //! DDP): Newton steps on the free variables, a projected Armijo line search, and the clamped
 //! set updated from the gradient's sign at the bounds. For the handful of inputs a robot has
-//! it ends in a few iterations; unbounded, it is one Newton step (exact). The math: docs/control.md#box-constrained-qp.
+//! it ends in a few iterations; unbounded, it is one Newton step (exact). The math:
+//! docs/control.md#box-constrained-qp.
 
 use super::linalg::{Mat, cholesky_solve};
 
