@@ -1,0 +1,177 @@
+//! The true system and what runs on it: the random first episode, TVLQR tracking of a plan,
+//! the noisy exploration, the transitions they yield and the score of an evaluation. The
+//! reference (the plan on the true model) and every episode go through this same code, so
+//! that their scores compare.
+
+use super::{DT, EXPLORATION_STD, HORIZON, Reference, STATE_BOUND, Settings, U_MAX};
+use crate::control::plan::{Plan, plan};
+use crate::control::policy::Policy;
+use crate::control::tvlqr::Gains;
+use crate::data::Dataset;
+use crate::error::Result;
+use crate::infer::Evaluator;
+use crate::model::file::ModelFile;
+use crate::physics::integrator::Integrator;
+use crate::physics::templates::Template;
+use crate::rng::Rng;
+
+/// The system: the true double pendulum at Δt = 0.1.
+pub(super) fn system() -> Result<Evaluator> {
+    let t = Template::DoublePendulum;
+    Evaluator::from_file(&ModelFile::from_template(
+        &t,
+        &t.defaults(),
+        DT,
+        Integrator::Rk4,
+    )?)
+}
+
+pub(super) fn reference(s: &Settings, sys: &Evaluator) -> Result<Reference> {
+    let p = plan(sys, &s.request(0), &|| false)?;
+    let states = track(sys, &p.x, &p.u, &p.gains);
+    Ok(Reference {
+        score: score(&states),
+        plan_cost: p.cost,
+        converged: p.converged,
+    })
+}
+
+/// The first episode, the same for every model of a seed: u ~ N(0, 120²) clipped to ±120.
+pub(super) fn random_episode(sys: &Evaluator, seed: u64) -> Dataset {
+    random_inputs(sys, &mut Rng::derive(seed, 0x0000_5EED))
+}
+
+pub(super) fn random_inputs(sys: &Evaluator, rng: &mut Rng) -> Dataset {
+    let u: Vec<f64> = (0..2 * HORIZON)
+        .map(|_| (U_MAX * rng.normal()).clamp(-U_MAX, U_MAX))
+        .collect();
+    let mut x = vec![0.0; 4];
+    let mut states = x.clone();
+    for t in 0..HORIZON {
+        x = sys.step(&x, &u[2 * t..2 * t + 2]);
+        states.extend_from_slice(&x);
+    }
+    transitions(&states, &u)
+}
+
+/// The exploration episode: the plan with N(0, 0.25²) added to every nominal state and input,
+/// tracked on the system with TVLQR gains of the learned model along the noisy nominal.
+pub(super) fn explore(
+    sys: &Evaluator,
+    learned: &Evaluator,
+    s: &Settings,
+    p: &Plan,
+    rng: &mut Rng,
+) -> Dataset {
+    let mut noise = |v: &[f64]| -> Vec<f64> {
+        v.iter()
+            .map(|x| x + EXPLORATION_STD * rng.normal())
+            .collect()
+    };
+    let xbar = noise(&p.x);
+    let ubar = noise(&p.u);
+    let [q, r, qf] = s.weights();
+    // A noisy nominal can leave the region where the model is finite; the plan's own gains
+    // then still track it.
+    let gains = learned
+        .tvlqr(&xbar, &ubar, &q, &r, &qf)
+        .unwrap_or_else(|_| p.gains.clone());
+    let states = track(sys, &xbar, &ubar, &gains);
+    let inputs = applied_inputs(&states, &xbar, &ubar, &gains);
+    transitions(&states, &inputs)
+}
+
+fn policy(xbar: &[f64], ubar: &[f64], gains: &Gains) -> Policy {
+    Policy {
+        xbar: xbar.to_vec(),
+        ubar: ubar.to_vec(),
+        k: gains
+            .k
+            .iter()
+            .flat_map(|k| k.data.iter().copied())
+            .collect(),
+        nx: 4,
+        m: 2,
+    }
+}
+
+fn clip(u: Vec<f64>) -> Vec<f64> {
+    u.into_iter().map(|v| v.clamp(-U_MAX, U_MAX)).collect()
+}
+
+/// States `[T+1, 4]` of the system under u_t = clip(ū_t − K_t (x_t − x̄_t)) from rest.
+pub(super) fn track(sys: &Evaluator, xbar: &[f64], ubar: &[f64], gains: &Gains) -> Vec<f64> {
+    let pol = policy(xbar, ubar, gains);
+    let mut states = vec![0.0; 4];
+    sys.rollout(
+        &[0.0; 4],
+        HORIZON,
+        |t, x| clip(pol.input(t, x)),
+        |x, _| {
+            states.extend_from_slice(x);
+            true
+        },
+    );
+    states
+}
+
+/// The inputs `track` applied along `states`.
+fn applied_inputs(states: &[f64], xbar: &[f64], ubar: &[f64], gains: &Gains) -> Vec<f64> {
+    let pol = policy(xbar, ubar, gains);
+    (0..HORIZON)
+        .flat_map(|t| clip(pol.input(t, &states[4 * t..4 * t + 4])))
+        .collect()
+}
+
+/// Transitions of a trajectory, up to its first state outside `STATE_BOUND` (or not finite).
+fn transitions(states: &[f64], u: &[f64]) -> Dataset {
+    let mut a: [Vec<f64>; 5] = Default::default();
+    for t in 0..HORIZON {
+        let (x, y) = (&states[4 * t..4 * t + 4], &states[4 * t + 4..4 * t + 8]);
+        let sane = y.iter().all(|v| v.abs() <= STATE_BOUND)
+            && u[2 * t..2 * t + 2].iter().all(|v| v.is_finite());
+        if !sane {
+            break;
+        }
+        a[0].extend_from_slice(&x[..2]);
+        a[1].extend_from_slice(&x[2..]);
+        a[2].extend_from_slice(&u[2 * t..2 * t + 2]);
+        a[3].extend_from_slice(&y[..2]);
+        a[4].extend_from_slice(&y[2..]);
+    }
+    let [q, qdot, u, q_next, qdot_next] = a;
+    Dataset {
+        dt: DT,
+        n: 2,
+        m: 2,
+        q,
+        qdot,
+        u,
+        q_next,
+        qdot_next,
+    }
+}
+
+/// Mean distance of the end effector p = (l1 sin q1 + l2 sin(q1+q2), −l1 cos q1 − l2 cos(q1+q2))
+/// to the upright point (0, l1 + l2) over the states (docs/control.md#upright-score); ∞ if a state is not finite.
+pub(super) fn score(states: &[f64]) -> f64 {
+    let t = Template::DoublePendulum;
+    let v = t.defaults();
+    let l = |name: &str| v[t.index_of(name).expect("double pendulum lengths")];
+    let (l1, l2) = (l("l1"), l("l2"));
+    let d: Vec<f64> = states
+        .chunks(4)
+        .map(|x| {
+            let (q1, q2) = (x[0], x[1]);
+            let px = l1 * q1.sin() + l2 * (q1 + q2).sin();
+            let py = -l1 * q1.cos() - l2 * (q1 + q2).cos();
+            (px * px + (py - l1 - l2).powi(2)).sqrt()
+        })
+        .collect();
+    let mean = d.iter().sum::<f64>() / d.len() as f64;
+    if mean.is_finite() {
+        mean
+    } else {
+        f64::INFINITY
+    }
+}

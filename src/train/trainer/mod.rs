@@ -1,0 +1,284 @@
+//! The training loop (docs/training.md#training-loop): mean one-step prediction loss, Adam, per-epoch
+//! validation, early stopping that keeps the best-validation parameters, and checkpoints at
+//! epoch boundaries from which a resumed run equals an uninterrupted one.
+
+mod loss;
+mod report;
+mod state;
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use burn::tensor::Device;
+
+use super::adam::Adam;
+use super::setup::{TrainConfig, prepare};
+use super::shards;
+use super::warnings::zero_acceleration_loss;
+use crate::data::Dataset;
+use crate::error::{Error, Result};
+use crate::model::Model;
+use crate::model::params_io::NamedArray;
+use crate::model::report::EpochMetrics;
+use crate::model::spec::ModelSpec;
+use crate::rng::Rng;
+
+pub use loss::evaluate;
+use loss::{HostData, mean_loss};
+use report::used_physical_values;
+pub use state::TrainState;
+use state::fingerprint;
+
+pub struct Trainer {
+    model_name: String,
+    model: Model,
+    adam: Adam,
+    cfg: TrainConfig,
+    rng: Rng,
+    epoch: usize,
+    train: HostData,
+    val: Option<HostData>,
+    best_epoch: usize,
+    best_loss: f64,
+    best_params: Vec<NamedArray>,
+    history: Vec<EpochMetrics>,
+    stale_epochs: usize,
+    train_seconds: f64,
+    samples_seen: u64,
+    fingerprint: u64,
+    /// The zero-acceleration loss on the set that picks the best epoch (validation, else
+    /// training), for the training checks.
+    baseline: f64,
+    initial_physical: Option<BTreeMap<String, f64>>,
+    /// Shards per batch (see `TrainState::shards`) and the threads that run them.
+    shards: usize,
+    pool: Option<rayon::ThreadPool>,
+}
+
+impl Trainer {
+    /// A new run. Without `val`, `cfg.val_fraction` of `data` is held out (seeded).
+    /// `device` must be an autodiff device.
+    pub fn new(
+        model_name: &str,
+        spec: ModelSpec,
+        init: &[(String, f64)],
+        data: &Dataset,
+        val: Option<&Dataset>,
+        cfg: TrainConfig,
+        device: &Device,
+    ) -> Result<Self> {
+        let (config, physical, train_ds, val_ds) = prepare(&spec, init, data, val, &cfg)?;
+        let model = Model::init(config, physical, cfg.seed, device)?;
+        Ok(Self::start(
+            model_name,
+            model,
+            cfg,
+            &train_ds,
+            val_ds.as_ref(),
+        ))
+    }
+
+    fn start(
+        model_name: &str,
+        model: Model,
+        cfg: TrainConfig,
+        train: &Dataset,
+        val: Option<&Dataset>,
+    ) -> Self {
+        let best_params = model.params.export();
+        let c = &model.config;
+        let baseline = zero_acceleration_loss(val.unwrap_or(train), c.lambda, &c.periodic);
+        let initial_physical = used_physical_values(&model);
+        Self {
+            model_name: model_name.to_string(),
+            model,
+            adam: Adam::default(),
+            rng: Rng::derive(cfg.seed, 0x05_40F),
+            cfg,
+            epoch: 0,
+            fingerprint: fingerprint(train, val),
+            train: HostData::new(train),
+            val: val.map(HostData::new),
+            best_epoch: 0,
+            best_loss: f64::INFINITY,
+            best_params,
+            history: vec![],
+            stale_epochs: 0,
+            train_seconds: 0.0,
+            samples_seen: 0,
+            baseline,
+            initial_physical,
+            shards: 1,
+            pool: None,
+        }
+    }
+
+    /// Runs on `threads` threads (1, the default, runs on the caller's thread). A new run
+    /// splits each batch into that many shards; a resumed one keeps its checkpoint's split.
+    pub fn with_threads(mut self, threads: usize) -> Result<Self> {
+        if !(1..=shards::MAX_THREADS).contains(&threads) {
+            return Err(Error::invalid(
+                "threads",
+                format!("must be between 1 and {}", shards::MAX_THREADS),
+            ));
+        }
+        if self.samples_seen == 0 {
+            self.shards = threads;
+        }
+        self.pool = if threads > 1 {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .thread_name(|i| format!("graybox-train-{i}"))
+                .build()
+                .map_err(|e| Error::Training(format!("could not start {threads} threads: {e}")))?;
+            Some(pool)
+        } else {
+            None
+        };
+        Ok(self)
+    }
+
+    /// Shards per batch (what the results depend on, see `TrainState::shards`).
+    pub fn shards(&self) -> usize {
+        self.shards
+    }
+
+    /// The shards a batch of `rows` gets (fewer for small batches, see `shards::MIN_SHARD_ROWS`).
+    pub fn shards_of(&self, rows: usize) -> usize {
+        shards::shard_count(self.shards, rows, self.min_shard_rows())
+    }
+
+    fn min_shard_rows(&self) -> usize {
+        shards::min_shard_rows(&self.model.config.spec)
+    }
+
+    /// Goes on training the same model on `data` (no validation set) for `epochs` more
+    /// epochs in batches of `batch_size`: the parameters, Adam's moments and the shuffling RNG
+    /// carry on, the scalings stay those of the first data, and the best-epoch tracking starts
+    /// over (losses on other data do not compare). Model-based RL grows its dataset this way
+    /// after every episode; a checkpoint taken afterwards resumes with `data`.
+    pub fn extend(&mut self, data: &Dataset, epochs: usize, batch_size: usize) -> Result<()> {
+        let c = &self.model.config;
+        if (data.n, data.m) != (c.n, c.m) || data.dt != c.dt {
+            return Err(Error::invalid(
+                "data",
+                format!(
+                    "has n = {}, m = {}, dt = {} but the model has n = {}, m = {}, dt = {}",
+                    data.n, data.m, data.dt, c.n, c.m, c.dt
+                ),
+            ));
+        }
+        let cfg = TrainConfig {
+            epochs: self.epoch + epochs,
+            batch_size,
+            val_fraction: 0.0,
+            ..self.cfg.clone()
+        };
+        cfg.validate()?;
+        self.cfg = cfg;
+        self.train = HostData::new(data);
+        self.val = None;
+        self.fingerprint = fingerprint(data, None);
+        self.baseline = zero_acceleration_loss(data, c.lambda, &c.periodic);
+        self.best_loss = f64::INFINITY;
+        self.best_params = self.model.params.export();
+        self.stale_epochs = 0;
+        Ok(())
+    }
+
+    pub fn epoch(&self) -> usize {
+        self.epoch
+    }
+
+    /// Seconds spent in training steps so far (validation excluded).
+    pub fn train_seconds(&self) -> f64 {
+        self.train_seconds
+    }
+
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// The best validation loss so far (`None` without a validation set or before epoch 1).
+    pub fn best_val_loss(&self) -> Option<f64> {
+        (self.val.is_some() && self.epoch > 0).then_some(self.best_loss)
+    }
+
+    pub fn stopped_early(&self) -> bool {
+        self.cfg.patience.is_some_and(|p| self.stale_epochs >= p)
+    }
+
+    pub fn finished(&self) -> bool {
+        self.epoch >= self.cfg.epochs || self.stopped_early()
+    }
+
+    /// One pass over the shuffled training data, then validation. `cancel` is checked between
+    /// batches.
+    pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
+        let start = Instant::now();
+        let mut order: Vec<usize> = (0..self.train.count).collect();
+        self.rng.shuffle(&mut order);
+        let epoch = self.epoch + 1;
+        let mut total = 0.0;
+        for (b, batch) in order.chunks(self.cfg.batch_size).enumerate() {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Cancelled);
+            }
+            let (value, grads) = self.loss_and_grads(batch);
+            shards::check_learns(&grads)?;
+            if !value.is_finite() {
+                return Err(Error::Training(format!(
+                    "the loss became non-finite ({value}) at epoch {epoch}, batch {b}; try a smaller learning rate"
+                )));
+            }
+            total += value * batch.len() as f64;
+            self.model.params = self
+                .adam
+                .step(self.model.params.clone(), &grads, self.cfg.lr);
+        }
+        self.train_seconds += start.elapsed().as_secs_f64();
+        self.samples_seen += self.train.count as u64;
+        let train_loss = total / self.train.count as f64;
+        let val_loss = self
+            .val
+            .as_ref()
+            .map(|v| mean_loss(&self.model.valid(), v, self.shards, self.pool.as_ref()));
+        if let Some(v) = val_loss.filter(|v| !v.is_finite()) {
+            return Err(Error::Training(format!(
+                "the validation loss became non-finite ({v}) at epoch {epoch}"
+            )));
+        }
+        self.epoch = epoch;
+        let criterion = val_loss.unwrap_or(train_loss);
+        if criterion < self.best_loss {
+            self.best_loss = criterion;
+            self.best_epoch = epoch;
+            self.best_params = self.model.params.export();
+            self.stale_epochs = 0;
+        } else {
+            self.stale_epochs += 1;
+        }
+        let metrics = EpochMetrics {
+            epoch,
+            train_loss,
+            val_loss,
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        self.history.push(metrics);
+        Ok(metrics)
+    }
+
+    /// Runs to the end, calling `on_epoch` after each epoch.
+    pub fn run(
+        &mut self,
+        cancel: &AtomicBool,
+        mut on_epoch: impl FnMut(&EpochMetrics, &Trainer),
+    ) -> Result<()> {
+        while !self.finished() {
+            let m = self.run_epoch(cancel)?;
+            on_epoch(&m, self);
+        }
+        Ok(())
+    }
+}

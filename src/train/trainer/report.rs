@@ -1,0 +1,97 @@
+//! What a run reports: the training report (losses, best epoch, the physical values and
+//! their identifiability, the training checks) and the model file of the best parameters.
+//! Both only read the trainer, so they can be taken at any point of a run.
+
+use std::collections::BTreeMap;
+
+use super::Trainer;
+use crate::model::Model;
+use crate::model::file::ModelFile;
+use crate::model::params_io::import;
+use crate::model::report::{TrainReport, identifiable, used_physical};
+use crate::train::warnings::{RunSummary, training_warnings};
+
+/// The physical values the model's white-box parts use, by name.
+pub(super) fn used_physical_values(model: &Model) -> Option<BTreeMap<String, f64>> {
+    let t = model.config.template()?;
+    Some(used_physical(
+        t,
+        &model.white_box_parts(),
+        &model.physical_values()?,
+    ))
+}
+
+impl Trainer {
+    /// The report for the run so far.
+    pub fn report(&self) -> TrainReport {
+        let last = self.history.last();
+        let seconds: f64 = self.history.iter().map(|h| h.seconds).sum();
+        let parts = self.model.white_box_parts();
+        let best = Model::from_parts(
+            self.model.config.clone(),
+            import(
+                self.model.params.clone(),
+                &self.best_params,
+                &self.model.device(),
+            )
+            .expect("same structure"),
+            &self.model.device(),
+        );
+        let (physical_parameters, ident) =
+            match (self.model.config.template(), best.physical_values()) {
+                (Some(t), Some(values)) => (
+                    used_physical(t, &parts, &values),
+                    identifiable(t, &parts, &values),
+                ),
+                _ => Default::default(),
+            };
+        TrainReport {
+            model: self.model_name.clone(),
+            spec: self.model.config.spec.clone(),
+            epochs: self.epoch,
+            train_loss: last.map_or(f64::NAN, |h| h.train_loss),
+            val_loss: last.and_then(|h| h.val_loss),
+            best_epoch: self.best_epoch,
+            best_val_loss: self.best_val_loss(),
+            stopped_early: self.stopped_early(),
+            seconds,
+            samples_per_second: if self.train_seconds > 0.0 {
+                self.samples_seen as f64 / self.train_seconds
+            } else {
+                0.0
+            },
+            physical_parameters,
+            identifiable: ident,
+            identifiability: self
+                .model
+                .config
+                .template()
+                .filter(|_| !self.model.white_box_parts().is_empty())
+                .and_then(|t| t.identifiability_note())
+                .map(str::to_string),
+            history: self.history.clone(),
+            warnings: self.warnings(),
+        }
+    }
+
+    /// The training checks on the run so far.
+    fn warnings(&self) -> Vec<crate::records::Warning> {
+        let physical = used_physical_values(&self.model).unwrap_or_default();
+        training_warnings(&RunSummary {
+            history: &self.history,
+            best_loss: self.best_loss,
+            baseline: self.baseline,
+            initial_physical: self.initial_physical.as_ref(),
+            physical: &physical,
+        })
+    }
+
+    /// The best parameters as a model file, with the report.
+    pub fn model_file(&self) -> ModelFile {
+        ModelFile::new(
+            self.model.config.clone(),
+            self.best_params.clone(),
+            Some(self.report()),
+        )
+    }
+}
