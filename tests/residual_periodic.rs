@@ -9,10 +9,14 @@ use std::sync::atomic::AtomicBool;
 
 use graybox::backend::{Backend, Precision};
 use graybox::data::Dataset;
+use graybox::model::file::ModelFile;
 use graybox::model::spec::ModelSpec;
 use graybox::physics::formula_template::FormulaTemplate;
+use graybox::physics::integrator::Integrator;
 use graybox::physics::templates::Template;
-use graybox::sim::{SimConfig, simulate};
+use graybox::physics::urdf::UrdfTemplate;
+use graybox::sim::{SimConfig, TemplateSystem, simulate, true_step};
+use graybox::train::trainer::evaluate;
 use graybox::train::{TrainConfig, Trainer};
 use serde_json::json;
 
@@ -207,4 +211,57 @@ fn wrapped_angles_train_as_well_as_unwrapped_ones_when_periodic() {
         periodic <= 1.2 * unwrapped,
         "periodic on wrapped {periodic:e} vs unwrapped {unwrapped:e}"
     );
+}
+
+/// `graybox model` of a template with angles (a URDF's continuous joints) keeps them
+/// periodic: its file used to say none, so a transition whose q₁ wraps from π − ε to −π + ε
+/// cost (2π)² instead of what the same transition costs unwrapped (rounding only: the model
+/// is the true system, so both losses are the integrator's agreement with itself, ~1e-12).
+#[test]
+fn a_template_model_keeps_its_angles_periodic() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/urdf/double_pendulum.urdf"
+    );
+    let t = Template::Urdf(Arc::new(
+        UrdfTemplate::from_urdf(&std::fs::read_to_string(path).unwrap()).unwrap(),
+    ));
+    let (dt, values) = (0.01, t.defaults());
+    let made = ModelFile::from_template(&t, &values, dt, Integrator::Rk4).unwrap();
+    let file = ModelFile::from_bytes(&made.to_bytes().unwrap()).unwrap();
+    assert_eq!(file.config.periodic, [true, true]);
+
+    // q₁ just below π moving up: the next q₁ is just above π, which a logger writes as −π + ε.
+    let x = [PI - 0.005, 0.3, 2.0, -1.0];
+    let u = [0.0, 0.0];
+    let next = true_step(
+        &TemplateSystem::new(t.clone(), values),
+        &x,
+        &u,
+        dt,
+        Integrator::Rk4,
+    );
+    assert!(next[0] > PI, "the step crosses π: {next:?}");
+    let row = |q1_next: f64| {
+        Dataset::new(
+            dt,
+            2,
+            2,
+            [
+                x[..2].to_vec(),
+                x[2..].to_vec(),
+                u.to_vec(),
+                vec![q1_next, next[1]],
+                next[2..].to_vec(),
+            ],
+        )
+        .unwrap()
+    };
+    let model = file.model(&flex()).unwrap();
+    let unwrapped = evaluate(&model, &row(next[0])).unwrap();
+    let wrapped = evaluate(&model, &row(next[0] - 2.0 * PI)).unwrap();
+    // f32 evaluation of the true system's own step: both are rounding-sized; unwrapped as an
+    // ordinary coordinate the wrapped row would cost (2π)² ≈ 39.
+    assert!(unwrapped < 1e-6, "{unwrapped}");
+    assert!(wrapped < 1e-6, "wrapped across π: {wrapped}");
 }
