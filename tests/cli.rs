@@ -413,3 +413,41 @@ fn bench_train_reports_step_throughput_and_cpu() {
     assert_eq!(line["shards"], 2, "{line}");
     assert_eq!(line["epochs"], 2, "{line}");
 }
+
+/// `inspect` names a template model's coordinates and inputs in the model's order (on a
+/// branching robot it need not be Pinocchio's, so a user needs it to map rows to joints), with
+/// its angles, and `train --help` names URDF among the template kinds.
+#[test]
+fn inspect_names_a_robots_coordinates_in_order() {
+    let dir = env!("CARGO_MANIFEST_DIR");
+    let urdf = format!("{dir}/tests/fixtures/urdf/tree.urdf");
+    let fixture: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(format!("{dir}/tests/fixtures/urdf/tree.json")).unwrap(),
+    )
+    .unwrap();
+    let m = tmp("tree.gbx");
+    json(&graybox(&[
+        "model",
+        "--template",
+        &urdf,
+        "--dt",
+        "0.01",
+        "--out",
+        &m,
+    ]));
+    let info = json(&graybox(&["inspect", "--model", &m]));
+    assert_eq!(info["coordinates"], fixture["coordinates"], "{info}");
+    assert_eq!(
+        info["inputs"], fixture["coordinates"],
+        "one input per joint: {info}"
+    );
+    assert_eq!(
+        info["periodic"],
+        serde_json::json!([false, false, false, true])
+    );
+    let help = Command::new(env!("CARGO_BIN_EXE_graybox"))
+        .args(["train", "--help"])
+        .output()
+        .unwrap();
+    assert!(String::from_utf8_lossy(&help.stdout).contains("URDF"));
+}

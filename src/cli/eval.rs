@@ -60,6 +60,11 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
         let values = file.model(&device)?.physical_values().unwrap_or_default();
         let parts = c.spec.white_box_parts();
         out["template"] = json!(t.name());
+        // In the model's order, which is not Pinocchio's on a branching robot: how a user
+        // maps the rows of q, q̇ and u to joints.
+        out["coordinates"] = json!(t.coordinates());
+        out["inputs"] = json!(t.inputs());
+        out["periodic"] = json!(c.periodic);
         out["physical_parameters"] = json!(used_physical(t, &parts, &values));
         out["identifiable"] = json!(identifiable(t, &parts, &values));
     }
