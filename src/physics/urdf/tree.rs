@@ -313,19 +313,22 @@ impl Tree {
         Ok(visited)
     }
 
-    /// Adds `link`'s inertia to the body that moves it (seen from that body's frame).
+    /// Adds `link`'s inertia to the body that moves it (seen from that body's frame). The
+    /// root and the links welded to it never move, so their inertia never enters the
+    /// dynamics and is not read: quadruped files carry dummy, unphysical values there.
     fn fold(&mut self, link: &urdf_rs::Link, body: Option<usize>, frame: &Frame) -> Result<()> {
+        let Some(b) = body else {
+            return Ok(());
+        };
         let own = link_inertial(link)?;
-        if let Some(b) = body {
-            let moved = own.transformed(&frame.rot, &frame.pos);
-            let target = &mut self.bodies[b];
-            if target.link == link.name {
-                target.own = own.clone();
-            } else {
-                target.fixed.push((link.name.clone(), frame.rot, frame.pos));
-            }
-            target.inertial = target.inertial.plus(&moved);
+        let moved = own.transformed(&frame.rot, &frame.pos);
+        let target = &mut self.bodies[b];
+        if target.link == link.name {
+            target.own = own.clone();
+        } else {
+            target.fixed.push((link.name.clone(), frame.rot, frame.pos));
         }
+        target.inertial = target.inertial.plus(&moved);
         Ok(())
     }
 }
