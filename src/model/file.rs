@@ -81,7 +81,6 @@ impl ModelFile {
         let raw = raw_physical(t, values)?;
         // Continuous joints and a formula's angles stay angles: a row that wraps across π must
         // cost its true difference, not (2π)². None marked is stored empty, as training does.
-        let angles = t.periodic();
         let config = ModelConfig {
             spec: ModelSpec::named("W-B", Some(t.clone()))?,
             n: t.n(),
@@ -90,11 +89,7 @@ impl ModelFile {
             integrator,
             lambda: 1.0,
             scaling: Scaling::identity(t.n(), t.m()),
-            periodic: if angles.contains(&true) {
-                angles
-            } else {
-                vec![]
-            },
+            periodic: ModelConfig::stored_periodic(t.periodic()),
         };
         let params = vec![NamedArray {
             name: names::PHYSICAL.to_string(),

@@ -72,6 +72,15 @@ impl ModelConfig {
         self.spec.template()
     }
 
+    /// `periodic` as a file stores it: none marked is empty, as in every file before the field.
+    pub fn stored_periodic(angles: Vec<bool>) -> Vec<bool> {
+        if angles.contains(&true) {
+            angles
+        } else {
+            vec![]
+        }
+    }
+
     /// Whether coordinate k is an angle.
     pub fn is_periodic(&self, k: usize) -> bool {
         self.periodic.get(k).copied().unwrap_or(false)

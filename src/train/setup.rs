@@ -204,5 +204,5 @@ pub fn periodic(spec: &ModelSpec, cfg: &TrainConfig, n: usize) -> Result<Vec<boo
             ),
         ));
     }
-    Ok(if given.contains(&true) { given } else { vec![] })
+    Ok(ModelConfig::stored_periodic(given))
 }
