@@ -5,7 +5,8 @@ with Pinocchio as the reference (read by tests/urdf.rs).
 For each URDF and 50 random states (q, q̇): M(q) (`crba`, which fills the upper triangle
 only: symmetrised here), g(q) = ∂V/∂q (`computeGeneralizedGravity`) and C(q, q̇)q̇
 (`nonLinearEffects` − g), in graybox's coordinate order: the movable joints depth-first from
-the root, children in document order. Pinocchio orders siblings by name and gives a
+the root, children in document order (mimic joints, which follow another joint, are not
+coordinates: Pinocchio is built with its mimic support). Pinocchio orders siblings by name and gives a
 continuous joint two position coordinates (cos θ, sin θ) and one velocity, so coordinates are
 mapped by joint name (`getJointId`, `idx_q`, `idx_v`). Gravity is each file's (below).
 
@@ -29,7 +30,11 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parents[1]
 DIR = ROOT / "tests" / "fixtures" / "urdf"
 GRAVITY = {"arm4": [0.0, 0.0, -9.81], "tree": [0.3, -0.2, -9.81]}
+# Real robots' files (robots/README.md says where each comes from), fewer states: they are
+# larger, and their joints are what is new, not the draws.
+ROBOTS = ["ur5", "panda", "solo12", "kinova"]
 STATES = 50
+ROBOT_STATES = 20
 
 
 def coordinates(urdf: str) -> list[tuple[str, str]]:
@@ -45,7 +50,8 @@ def coordinates(urdf: str) -> list[tuple[str, str]]:
     def visit(link):
         for j in joints:
             if j.find("parent").get("link") == link:
-                if j.get("type") != "fixed":
+                # A mimic joint follows another: not a coordinate.
+                if j.get("type") != "fixed" and j.find("mimic") is None:
                     out.append((j.get("name"), j.get("type")))
                 visit(j.find("child").get("link"))
 
@@ -65,18 +71,28 @@ def pin_state(model, coords, q, qd):
     return qp, vp
 
 
+def potential(model, data, qp):
+    """−Σ mᵢ gᵀ cᵢ over the bodies, from Pinocchio's placements (its `computePotentialEnergy`
+    does not take mimic joints)."""
+    pin.forwardKinematics(model, data, qp)
+    return -sum(model.inertias[i].mass * model.gravity.linear @ data.oMi[i].act(model.inertias[i].lever)
+                for i in range(1, model.njoints))
+
+
 def main():
     rng = np.random.default_rng(20261124)
-    for name, gravity in GRAVITY.items():
+    cases = [(name, gravity, STATES) for name, gravity in GRAVITY.items()]
+    cases += [(f"robots/{r}", [0.0, 0.0, -9.81], ROBOT_STATES) for r in ROBOTS]
+    for name, gravity, count in cases:
         urdf = (DIR / f"{name}.urdf").read_text()
-        model = pin.buildModelFromXML(urdf)
+        model = pin.buildModelFromXML(urdf, mimic=True)
         model.gravity.linear = np.array(gravity)
         data = model.createData()
         coords = coordinates(urdf)
         assert len(coords) == model.nv
         order = [model.joints[model.getJointId(n)].idx_v for n, _ in coords]
         states = []
-        for _ in range(STATES):
+        for _ in range(count):
             q = rng.uniform(-np.pi, np.pi, len(coords))
             q = np.array([qi * 0.1 if k == "prismatic" else qi for qi, (_, k) in zip(q, coords)])
             qd = rng.uniform(-2.0, 2.0, len(coords))
@@ -98,15 +114,15 @@ def main():
             fd = []
             for k in range(len(coords)):
                 e = np.zeros(len(coords)); e[k] = h
-                vp_, vm_ = (pin.computePotentialEnergy(model, data, pin_state(model, coords, q + s * e, qd)[0])
+                vp_, vm_ = (potential(model, data, pin_state(model, coords, q + s * e, qd)[0])
                             for s in (1, -1))
                 fd.append((vp_ - vm_) / (2 * h))
             assert np.allclose(fd, G, atol=1e-6 * max(1.0, np.abs(G).max())), (fd, G)
             states.append({"q": list(q), "qd": list(qd), "M": M.tolist(), "g": list(G), "c": list(C)})
-        out = {"urdf": f"{name}.urdf", "gravity": gravity, "coordinates": [n for n, _ in coords],
+        out = {"urdf": f"{Path(name).name}.urdf", "gravity": gravity, "coordinates": [n for n, _ in coords],
                "pinocchio": pin.__version__, "states": states}
         (DIR / f"{name}.json").write_text(json.dumps(out, indent=1) + "\n")
-        print(f"wrote {name}.json: {len(coords)} coordinates, {STATES} states")
+        print(f"wrote {name}.json: {len(coords)} coordinates, {count} states")
 
 
 if __name__ == "__main__":

@@ -6,7 +6,12 @@ use std::sync::Arc;
 use graybox::physics::templates::Template;
 use graybox::physics::urdf::UrdfTemplate;
 
-fn fixture(name: &str) -> String {
+#[path = "urdf_files/mimic.rs"]
+mod mimic;
+#[path = "urdf_files/reader.rs"]
+mod reader;
+
+pub fn fixture(name: &str) -> String {
     let path = format!(
         "{}/tests/fixtures/urdf/{name}.urdf",
         env!("CARGO_MANIFEST_DIR")
@@ -14,7 +19,7 @@ fn fixture(name: &str) -> String {
     std::fs::read_to_string(path).unwrap()
 }
 
-fn template(text: &str) -> Template {
+pub fn template(text: &str) -> Template {
     Template::Urdf(Arc::new(UrdfTemplate::from_urdf(text).unwrap()))
 }
 
@@ -42,4 +47,74 @@ fn a_dummy_inertia_on_the_root_link_is_ignored() {
     let bad = plain.replacen(r#"izz="0.0001""#, r#"izz="100""#, 1);
     let err = UrdfTemplate::from_urdf(&bad).unwrap_err().to_string();
     assert!(err.contains("rod1"), "{err}");
+}
+
+/// HyQ's feet are welded to the lower legs with a dummy inertia (1e-6 kg, every moment 1e-6:
+/// not a physical body by itself) and the file was refused naming `lf_foot`. Only the whole
+/// body a joint moves has to be physical: the leg absorbs the foot, and the body's values are
+/// the file's sum (the rod's mass plus the foot's 1e-6 kg).
+#[test]
+fn a_dummy_inertia_on_a_welded_link_is_absorbed_by_its_body() {
+    let plain = fixture("double_pendulum");
+    let foot = plain.replace(
+        "</robot>",
+        r#"<joint name="ankle" type="fixed"><parent link="rod2"/><child link="foot"/>
+             <origin xyz="0 0 -1"/></joint>
+           <link name="foot"><inertial><mass value="1e-6"/>
+             <inertia ixx="1e-6" ixy="1e-6" ixz="1e-6" iyy="1e-6" iyz="1e-6" izz="1e-6"/>
+           </inertial></link></robot>"#,
+    );
+    let (a, b) = (template(&plain), template(&foot));
+    let mass = a.index_of("rod2.mass").unwrap();
+    assert_eq!(b.defaults()[mass], a.defaults()[mass] + 1e-6);
+}
+
+/// What does not enter the dynamics never refuses a file: icub's empty `<texture/>`, a
+/// `<limit>` without `velocity`, Gazebo and transmission elements, an unknown element. The
+/// robot is the same as without them.
+#[test]
+fn elements_outside_the_dynamics_are_ignored() {
+    let plain = fixture("double_pendulum");
+    let decorated = plain
+        .replace(
+            r#"<link name="world"/>"#,
+            r#"<link name="world"><visual><geometry><box size="1 1 1"/></geometry>
+                 <material name="m"><texture/><color rgba="0 0 0 1"/></material></visual>
+               </link>
+               <gazebo reference="rod1"><mu1>0.2</mu1></gazebo>
+               <transmission name="t"><joint name="q1"/><actuator name="m1"/></transmission>"#,
+        )
+        .replacen(
+            r#"<dynamics damping="0.5"/>"#,
+            r#"<dynamics damping="0.5"/><limit effort="10"/><safety_controller/><anything/>"#,
+            1,
+        );
+    let (a, b) = (template(&plain), template(&decorated));
+    assert_eq!(a.defaults(), b.defaults());
+    assert_eq!(a.coordinates(), b.coordinates());
+}
+
+/// Errors name the element and the line: a joint whose link is missing, a file without links
+/// (it used to say "the joints form a loop"), a non-number.
+#[test]
+fn errors_name_the_element_and_its_line() {
+    let plain = fixture("double_pendulum");
+    let cases = [
+        (
+            plain.replace(r#"<child link="rod2"/>"#, r#"<child link="rod3"/>"#),
+            "joint 'q2' (line 23): its child link 'rod3' does not exist",
+        ),
+        (
+            r#"<robot name="r"><!-- nothing --></robot>"#.to_string(),
+            "the robot has no <link>",
+        ),
+        (
+            plain.replacen(r#"<mass value="10"/>"#, r#"<mass value="ten"/>"#, 1),
+            "<mass> of link 'rod1' (line 16): value=\"ten\" is not a number",
+        ),
+    ];
+    for (doc, want) in cases {
+        let e = UrdfTemplate::from_urdf(&doc).unwrap_err().to_string();
+        assert!(e.contains(want), "{e}");
+    }
 }

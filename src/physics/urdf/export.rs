@@ -10,6 +10,7 @@ use quick_xml::Reader;
 use quick_xml::events::Event;
 
 use super::inertia::Inertial;
+use super::read;
 use super::template::{UrdfDoc, UrdfTemplate};
 use super::xml::line_col;
 use crate::error::{Error, Result};
@@ -192,15 +193,8 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
         let identified = t.link_inertial(physical, b);
         let mut own = identified.minus(&body.inertial.minus(&body.own));
         if own.theta().is_err() {
-            // A massless link reads back as the regularised empty body: leave room for it.
-            let empty = Inertial::ZERO.regularised();
-            let massless = body
-                .fixed
-                .iter()
-                .fold(Inertial::ZERO, |sum, (_, rot, pos)| {
-                    sum.plus(&empty.transformed(rot, pos))
-                });
-            own = identified.minus(&massless);
+            // The fixed links written massless, the link takes the whole.
+            own = identified;
             if own.theta().is_err() {
                 return Err(Error::FailedPrecondition(format!(
                     "link '{}': the identified body is not physical once the links fixed to \
@@ -309,16 +303,17 @@ fn check_read_back(
         urdf: out.to_string(),
         ..t.doc.clone()
     };
-    let again = UrdfTemplate::from_doc(doc, t.n()).map_err(|e| wrong(e.to_string()))?;
+    let again =
+        UrdfTemplate::from_doc(doc, t.tree.bodies.len()).map_err(|e| wrong(e.to_string()))?;
     let names = |u: &UrdfTemplate| -> Vec<String> {
         u.params().iter().map(|p| p.name.to_string()).collect()
     };
     if again.coordinates() != t.coordinates() || names(&again) != names(t) {
         return Err(wrong("its joints or links differ".into()));
     }
-    let read = |s: &str| urdf_rs::read_from_string(s).map_err(|e| wrong(e.to_string()));
+    let read = |s: &str| read::read(s).map_err(|e| wrong(e.to_string()));
     let (before, after) = (read(&t.doc.urdf)?, read(out)?);
-    let element_names = |r: &urdf_rs::Robot| {
+    let element_names = |r: &read::Robot| {
         let links = r.links.iter().map(|l| &l.name);
         links
             .chain(r.joints.iter().map(|j| &j.name))
@@ -333,8 +328,8 @@ fn check_read_back(
     for (was, link) in before.links.iter().zip(&after.links) {
         let want = links
             .get(&link.name)
-            .map_or_else(|| read_values(&was.inertial), Written::values);
-        if bits(want) != bits(read_values(&link.inertial)) {
+            .map_or_else(|| read_values(was), Written::values);
+        if bits(want) != bits(read_values(link)) {
             return Err(wrong(format!(
                 "link '{}' reads back with other values",
                 link.name
@@ -342,11 +337,8 @@ fn check_read_back(
         }
     }
     for (was, joint) in before.joints.iter().zip(&after.joints) {
-        let got = joint.dynamics.as_ref().map(|d| (d.damping, d.friction));
-        let want = joints
-            .get(&joint.name)
-            .copied()
-            .or_else(|| was.dynamics.as_ref().map(|d| (d.damping, d.friction)));
+        let got = joint.dynamics;
+        let want = joints.get(&joint.name).copied().or(was.dynamics);
         let bits = |d: Option<(f64, f64)>| d.map(|(a, b)| (a.to_bits(), b.to_bits()));
         if bits(got) != bits(want) {
             return Err(wrong(format!(
@@ -358,14 +350,14 @@ fn check_read_back(
     Ok(())
 }
 
-/// An `<inertial>` as [`Written::values`] orders it.
-fn read_values(i: &urdf_rs::Inertial) -> [f64; 13] {
-    let (o, t) = (&i.origin, &i.inertia);
+/// A link's `<inertial>` as [`Written::values`] orders it (zeros without one).
+fn read_values(link: &read::Link) -> [f64; 13] {
+    let i = link.inertial.clone().unwrap_or_default();
     let mut v = [0.0; 13];
-    v[..3].copy_from_slice(&o.xyz.0);
-    v[3..6].copy_from_slice(&o.rpy.0);
-    v[6] = i.mass.value;
-    v[7..].copy_from_slice(&[t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz]);
+    v[..3].copy_from_slice(&i.origin.xyz);
+    v[3..6].copy_from_slice(&i.origin.rpy);
+    v[6] = i.mass;
+    v[7..].copy_from_slice(&i.inertia);
     v
 }
 
@@ -429,10 +421,10 @@ mod tests {
         );
         let joints = HashMap::from([("j".to_string(), (0.5, 0.0))]);
         refused(check_read_back(&t, &good, &none, &joints), "joint 'j'");
-        let broken = good.replace("</robot>", "<!-- a--b --></robot>");
+        let broken = good.replace("</robot>", "</link></robot>");
         refused(
             check_read_back(&t, &broken, &none, &HashMap::new()),
-            "comment",
+            "not XML",
         );
     }
 

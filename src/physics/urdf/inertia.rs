@@ -97,10 +97,16 @@ impl Inertial {
 
     /// This body seen from a frame in which its frame sits at `pos` with orientation `rot`.
     pub fn transformed(&self, rot: &[[f64; 3]; 3], pos: &[f64; 3]) -> Inertial {
-        let c = self.com();
+        // A massless link has no centre of mass; its moments (if any) do not move with it.
+        let massless = self.mass == 0.0;
+        let c = if massless { [0.0; 3] } else { self.com() };
         let c_new: [f64; 3] =
             std::array::from_fn(|i| pos[i] + (0..3).map(|k| rot[i][k] * c[k]).sum::<f64>());
-        let ic = self.inertia_at_com();
+        let ic = if massless {
+            self.inertia
+        } else {
+            self.inertia_at_com()
+        };
         // R Ī_c Rᵀ
         let rotated = std::array::from_fn(|i| {
             std::array::from_fn(|j| {

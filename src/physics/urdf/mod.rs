@@ -1,7 +1,9 @@
 //! Robots from URDF (docs/robots.md#urdf-robots): the rigid-body tree's M(q) and V(q) with trainable,
 //! physically consistent inertial parameters.
 
+pub mod frame;
 pub mod inertia;
+pub mod read;
 pub mod rigid;
 pub mod term;
 pub mod tree;

@@ -8,7 +8,7 @@ use super::term::{
     C, Mat3, Term, V, Vec3, add, constant_mat, constant_vec, cross, dot, mat_mul, mat_t_vec,
     mat_vec, scale, sub,
 };
-use super::tree::{JointKind, Tree};
+use super::tree::{Body, JointKind, Tree};
 use crate::physics::scalar::Scalar;
 
 /// Each body's frame in the world: rotation, origin, and its joint's axis in world axes.
@@ -31,6 +31,17 @@ fn rotation<S: Scalar>(a: &[f64; 3], q: &S) -> Mat3<S> {
     })
 }
 
+/// Body i's joint value from the coordinates: its own, or the one a mimic joint follows.
+fn joint_value<S: Scalar>(b: &Body, q: &[S]) -> S {
+    let d = b.drive;
+    let x = &q[d.coordinate];
+    if (d.multiplier, d.offset) == (1.0, 0.0) {
+        x.clone()
+    } else {
+        x.scale(d.multiplier).shift(d.offset)
+    }
+}
+
 fn poses<S: Scalar>(tree: &Tree, q: &[S]) -> Poses<S> {
     let n = tree.bodies.len();
     let mut p = Poses {
@@ -38,7 +49,7 @@ fn poses<S: Scalar>(tree: &Tree, q: &[S]) -> Poses<S> {
         pos: Vec::with_capacity(n),
         axis: Vec::with_capacity(n),
     };
-    for (i, b) in tree.bodies.iter().enumerate() {
+    for b in &tree.bodies {
         let (joint_rot, joint_pos) = match b.parent {
             None => (constant_mat(b.rot), constant_vec(b.pos)),
             Some(k) => (
@@ -47,13 +58,14 @@ fn poses<S: Scalar>(tree: &Tree, q: &[S]) -> Poses<S> {
             ),
         };
         let axis = mat_vec(&joint_rot, &constant_vec(b.axis));
+        let qi = joint_value(b, q);
         let (rot, pos) = match b.kind {
             JointKind::Prismatic => {
-                let slide = scale(&axis, &V(q[i].clone()));
+                let slide = scale(&axis, &V(qi));
                 (joint_rot, add(&joint_pos, &slide))
             }
             JointKind::Revolute | JointKind::Continuous => {
-                (mat_mul(&joint_rot, &rotation(&b.axis, &q[i])), joint_pos)
+                (mat_mul(&joint_rot, &rotation(&b.axis, &qi)), joint_pos)
             }
         };
         p.rot.push(rot);
@@ -72,9 +84,10 @@ fn chain(tree: &Tree, i: usize) -> Vec<usize> {
     out
 }
 
-/// M(q), n×n.
+/// M(q), n×n over the coordinates: with G = ∂(joint values)/∂q (one entry per joint, its
+/// mimic multiplier), M = Gᵀ M_joints G.
 pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[BodyInertia<S>], q: &[S]) -> Vec<Vec<S>> {
-    let n = tree.bodies.len();
+    let n = tree.coordinates.len();
     let p = poses(tree, q);
     let mut m: Vec<Vec<Term<S>>> = vec![vec![C(0.0); n]; n];
     for (i, body) in inertia.iter().enumerate() {
@@ -108,7 +121,15 @@ pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[BodyInertia<S>], q: &[S]) 
                         e = e + dot(wj, &mat_vec(&body.inertia, wk));
                     }
                 }
-                let (r, c) = ((*j).min(*k), (*j).max(*k));
+                let (dj, dk) = (tree.bodies[*j].drive, tree.bodies[*k].drive);
+                let (cj, ck) = (dj.coordinate, dk.coordinate);
+                // Joints j ≠ k of one coordinate: both (j, k) and (k, j) land on its diagonal.
+                let twice = if j != k && cj == ck { 2.0 } else { 1.0 };
+                let g = dj.multiplier * dk.multiplier * twice;
+                if g != 1.0 {
+                    e = e * C(g);
+                }
+                let (r, c) = (cj.min(ck), cj.max(ck));
                 m[r][c] = m[r][c].clone() + e;
             }
         }

@@ -134,12 +134,29 @@ impl UrdfTemplate {
                 "must not be empty (the URDF's robot has no name)",
             ));
         }
+        // The body of each coordinate, and the coordinate a joint's name names.
+        let body = |i: usize| &tree.bodies[tree.coordinates[i]];
         let index = |field: &str, joint: &str| -> Result<usize> {
-            tree.bodies
+            if let Some(m) = tree
+                .bodies
                 .iter()
-                .position(|b| b.joint == joint)
+                .find(|b| b.joint == joint)
+                .and_then(|b| b.mimic.as_ref())
+            {
+                return Err(bad(
+                    field,
+                    format!(
+                        "'{joint}' is a mimic joint (it follows '{}'), not a coordinate",
+                        m.joint
+                    ),
+                ));
+            }
+            (0..tree.coordinates.len())
+                .find(|&i| body(i).joint == joint)
                 .ok_or_else(|| {
-                    let known: Vec<&str> = tree.bodies.iter().map(|b| b.joint.as_str()).collect();
+                    let known: Vec<&str> = (0..tree.coordinates.len())
+                        .map(|i| body(i).joint.as_str())
+                        .collect();
                     bad(
                         field,
                         format!(
@@ -150,7 +167,7 @@ impl UrdfTemplate {
                 })
         };
         let actuated = match &doc.actuated {
-            None => (0..tree.bodies.len()).collect(),
+            None => (0..tree.coordinates.len()).collect(),
             Some(names) => {
                 let mut idx = names
                     .iter()
@@ -168,21 +185,14 @@ impl UrdfTemplate {
         };
         // Canonical: in coordinate order.
         if doc.actuated.is_some() {
-            doc.actuated = Some(
-                actuated
-                    .iter()
-                    .map(|&i| tree.bodies[i].joint.clone())
-                    .collect(),
-            );
+            doc.actuated = Some(actuated.iter().map(|&i| body(i).joint.clone()).collect());
         }
-        let mut periodic: Vec<bool> = tree
-            .bodies
-            .iter()
-            .map(|b| b.kind == JointKind::Continuous)
+        let mut periodic: Vec<bool> = (0..tree.coordinates.len())
+            .map(|i| body(i).kind == JointKind::Continuous)
             .collect();
         for j in &doc.periodic {
             let i = index("periodic", j)?;
-            if tree.bodies[i].kind == JointKind::Prismatic {
+            if body(i).kind == JointKind::Prismatic {
                 return Err(bad(
                     "periodic",
                     format!("joint '{j}' is prismatic: a length is not an angle"),
@@ -200,7 +210,13 @@ impl UrdfTemplate {
         })
     }
 
+    /// Coordinates.
     pub fn n(&self) -> usize {
+        self.tree.coordinates.len()
+    }
+
+    /// Moving bodies: the coordinates' and the mimic joints'.
+    fn nb(&self) -> usize {
         self.tree.bodies.len()
     }
 
@@ -217,23 +233,25 @@ impl UrdfTemplate {
     }
 
     pub fn coordinates(&self) -> Vec<String> {
-        self.tree.bodies.iter().map(|b| b.joint.clone()).collect()
+        (self.tree.coordinates.iter())
+            .map(|&b| self.tree.bodies[b].joint.clone())
+            .collect()
     }
 
     pub fn inputs(&self) -> Vec<String> {
         self.actuated
             .iter()
-            .map(|&i| self.tree.bodies[i].joint.clone())
+            .map(|&i| self.tree.bodies[self.tree.coordinates[i]].joint.clone())
             .collect()
     }
 
     /// Physical values from raw ones (any scalar; Burn tensors in training).
     pub fn natural<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
         let mut out = Vec::with_capacity(raw.len());
-        for b in 0..self.n() {
+        for b in 0..self.nb() {
             out.extend(physical_of_theta(&raw[b * PER_BODY..(b + 1) * PER_BODY]));
         }
-        out.extend_from_slice(&raw[self.n() * PER_BODY..]);
+        out.extend_from_slice(&raw[self.nb() * PER_BODY..]);
         out
     }
 
@@ -256,12 +274,12 @@ impl UrdfTemplate {
             })?;
             out.extend(raw_order(&theta));
         }
-        out.extend_from_slice(&physical[self.n() * PER_BODY..]);
+        out.extend_from_slice(&physical[self.nb() * PER_BODY..]);
         Ok(out)
     }
 
     fn bodies<S: Scalar>(&self, p: &[S]) -> Vec<BodyInertia<S>> {
-        (0..self.n())
+        (0..self.nb())
             .map(|b| body_of_physical(&p[b * PER_BODY..(b + 1) * PER_BODY]))
             .collect()
     }
@@ -274,20 +292,34 @@ impl UrdfTemplate {
         rigid::potential(&self.tree, &self.bodies(p), &self.doc.gravity, q)
     }
 
-    /// F = S u − d∘q̇ − f∘tanh(q̇/ε).
+    /// F = S u − d∘q̇ − f∘tanh(q̇/ε), per joint; a mimic joint's force enters the coordinate
+    /// it follows times its multiplier, and moves at the multiplier times its velocity.
     pub fn forces<S: Scalar>(&self, p: &[S], _q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
-        let joint = |i: usize| self.n() * PER_BODY + PER_JOINT * i;
-        (0..self.n())
-            .map(|i| {
-                let d = &p[joint(i)];
-                let f = &p[joint(i) + 1];
-                let mut out = -(d.clone() * qd[i].clone())
-                    - f.clone() * qd[i].scale(1.0 / COULOMB_EPS).tanh();
-                if let Some(a) = self.actuated.iter().position(|&k| k == i) {
-                    out = out + u[a].clone();
-                }
-                out
-            })
+        let mut out: Vec<Option<S>> = vec![None; self.n()];
+        for (i, b) in self.tree.bodies.iter().enumerate() {
+            let k = self.nb() * PER_BODY + PER_JOINT * i;
+            let (d, f) = (&p[k], &p[k + 1]);
+            let c = b.drive.coordinate;
+            let g = b.drive.multiplier;
+            let v = if g == 1.0 {
+                qd[c].clone()
+            } else {
+                qd[c].scale(g)
+            };
+            let mut e = -(d.clone() * v.clone()) - f.clone() * v.scale(1.0 / COULOMB_EPS).tanh();
+            if g != 1.0 {
+                e = e.scale(g);
+            }
+            out[c] = Some(match out[c].take() {
+                Some(sum) => sum + e,
+                None => e,
+            });
+        }
+        for (a, &c) in self.actuated.iter().enumerate() {
+            out[c] = out[c].take().map(|f| f + u[a].clone());
+        }
+        out.into_iter()
+            .map(|f| f.expect("every coordinate has its own joint"))
             .collect()
     }
 
@@ -297,7 +329,7 @@ impl UrdfTemplate {
     }
 
     pub fn joint_dynamics(&self, physical: &[f64], body: usize) -> (f64, f64) {
-        let k = self.n() * PER_BODY + PER_JOINT * body;
+        let k = self.nb() * PER_BODY + PER_JOINT * body;
         (physical[k], physical[k + 1])
     }
 }

@@ -1,15 +1,18 @@
 //! A URDF robot as the kinematic tree the dynamics needs: one body per movable joint (the
 //! joint's child link with every link fixed to it folded in), in depth-first order from the
-//! root with children in document order; those bodies' joints are the coordinates.
+//! root with children in document order. The bodies' joints are the coordinates, but for mimic
+//! joints, which follow another joint's value.
 
 use std::collections::HashMap;
 
 use super::inertia::Inertial;
+use super::read::{self, JointType, Mimic, Pose};
 use crate::error::{Error, Result};
 use crate::names::{name_problem, quoted_name};
 use crate::physics::params::physical_problem;
 
-pub type Rot = [[f64; 3]; 3];
+use super::frame::Frame;
+pub use super::frame::{Rot, rpy};
 
 /// How a joint moves its body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -18,6 +21,18 @@ pub enum JointKind {
     /// A revolute joint without limits: periodic by default.
     Continuous,
     Prismatic,
+}
+
+/// How a body's joint value follows the coordinates: multiplier · q[coordinate] + offset. A
+/// coordinate's own joint has (1, 0); a mimic joint follows the joint it mimics (through any
+/// chain of mimics), so it is not a coordinate, its velocity and acceleration are the
+/// multiplier's times the coordinate's, and its forces enter that coordinate times the
+/// multiplier (the chain rule, as Pinocchio's mimic joints have it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drive {
+    pub coordinate: usize,
+    pub multiplier: f64,
+    pub offset: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -44,12 +59,17 @@ pub struct Body {
     /// URDF `<dynamics damping friction>` (0 when absent).
     pub damping: f64,
     pub friction: f64,
+    /// The joint it mimics, as the URDF says.
+    pub mimic: Option<Mimic>,
+    pub drive: Drive,
 }
 
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tree {
     pub robot: String,
     pub bodies: Vec<Body>,
+    /// The body of each coordinate: every body whose joint is not a mimic joint.
+    pub coordinates: Vec<usize>,
 }
 
 fn bad(message: impl Into<String>) -> Error {
@@ -59,66 +79,17 @@ fn bad(message: impl Into<String>) -> Error {
     }
 }
 
-/// R = Rz(yaw) Ry(pitch) Rx(roll), URDF's fixed-axis roll-pitch-yaw.
-pub fn rpy(r: [f64; 3]) -> Rot {
-    let (sr, cr) = r[0].sin_cos();
-    let (sp, cp) = r[1].sin_cos();
-    let (sy, cy) = r[2].sin_cos();
-    [
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ]
-}
-
-fn mul(a: &Rot, b: &Rot) -> Rot {
-    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
-}
-
-fn apply(a: &Rot, v: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| (0..3).map(|k| a[i][k] * v[k]).sum())
-}
-
-/// A rigid transform (rotation, translation): x ↦ R x + p.
-#[derive(Clone, Copy)]
-struct Frame {
-    rot: Rot,
-    pos: [f64; 3],
-}
-
-impl Frame {
-    const IDENTITY: Frame = Frame {
-        rot: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
-        pos: [0.0; 3],
-    };
-
-    fn of(pose: &urdf_rs::Pose) -> Frame {
-        Frame {
-            rot: rpy(pose.rpy.0),
-            pos: pose.xyz.0,
-        }
-    }
-
-    fn then(&self, o: &Frame) -> Frame {
-        let p = apply(&self.rot, &o.pos);
-        Frame {
-            rot: mul(&self.rot, &o.rot),
-            pos: std::array::from_fn(|i| self.pos[i] + p[i]),
-        }
-    }
-}
-
 /// Every physical value of a document within the one bound (`templates::physical_problem`;
 /// no lower one: a URDF's tiny inertias are regularised, `Inertial::regularised`).
 fn within(at: &str, what: &str, v: f64) -> Result<()> {
     physical_problem(v, false).map_or(Ok(()), |m| Err(bad(format!("{at} {what} {m}"))))
 }
 
-fn pose_within(at: &str, pose: &urdf_rs::Pose) -> Result<()> {
-    for (k, v) in pose.xyz.0.iter().enumerate() {
+fn pose_within(at: &str, pose: &Pose) -> Result<()> {
+    for (k, v) in pose.xyz.iter().enumerate() {
         within(at, &format!("<origin> xyz[{k}]"), *v)?;
     }
-    for (k, v) in pose.rpy.0.iter().enumerate() {
+    for (k, v) in pose.rpy.iter().enumerate() {
         within(at, &format!("<origin> rpy[{k}]"), *v)?;
     }
     Ok(())
@@ -131,23 +102,22 @@ fn named(what: &str, name: &str) -> Result<()> {
     })
 }
 
-/// A link's own inertial parameters in its frame; an error naming it when they are not a
-/// physical body (a nearly singular one, a point mass or a thin rod, is regularised:
-/// `Inertial::regularised`).
-fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
-    let i = &link.inertial;
-    let m = i.mass.value;
-    let t = &i.inertia;
+/// A link's own inertial parameters in its frame, as the file has them (within the bounds of
+/// every value; whether they are a physical body is asked of the whole body it belongs to).
+fn link_inertial(link: &read::Link) -> Result<Inertial> {
+    let i = link.inertial.clone().unwrap_or_default();
+    let m = i.mass;
+    let [ixx, ixy, ixz, iyy, iyz, izz] = i.inertia;
     let values = [
         ("mass", m),
-        ("ixx", t.ixx),
-        ("ixy", t.ixy),
-        ("ixz", t.ixz),
-        ("iyy", t.iyy),
-        ("iyz", t.iyz),
-        ("izz", t.izz),
+        ("ixx", ixx),
+        ("ixy", ixy),
+        ("ixz", ixz),
+        ("iyy", iyy),
+        ("iyz", iyz),
+        ("izz", izz),
     ];
-    let at = format!("link '{}': <inertial>", link.name);
+    let at = format!("{}: <inertial>", link.label());
     for (what, v) in values {
         within(&at, what, v)?;
     }
@@ -155,11 +125,7 @@ fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
     if m < 0.0 {
         return Err(bad(format!("{at} needs a mass ≥ 0")));
     }
-    let at_com = [
-        [t.ixx, t.ixy, t.ixz],
-        [t.ixy, t.iyy, t.iyz],
-        [t.ixz, t.iyz, t.izz],
-    ];
+    let at_com = [[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]];
     let frame = Frame::of(&i.origin);
     let r = frame.rot;
     // The inertia about the centre of mass, turned from the <inertial> frame to the link's.
@@ -171,71 +137,60 @@ fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
                 .sum()
         })
     });
-    let body = Inertial::from_com(m, frame.pos, rotated).regularised();
-    body.theta().map_err(|e| {
+    Ok(Inertial::from_com(m, frame.pos, rotated))
+}
+
+/// Whether a body can be trained: physical once regularised (a nearly singular one, a point
+/// mass or a link without mass: `Inertial::regularised`), or an error naming its link and the
+/// links fixed to it. Only the whole body is asked: a link welded to it may carry a dummy
+/// value (a massless foot's) that the whole absorbs. The body keeps the file's values.
+fn physical_body(b: &Body, links: &HashMap<&str, &read::Link>) -> Result<()> {
+    b.inertial.regularised().theta().map_err(|e| {
         let why = match e {
             Error::Invalid { message, .. } => message,
             other => other.to_string(),
         };
-        bad(format!("link '{}': <inertial> {why}", link.name))
+        let fixed: Vec<String> = b
+            .fixed
+            .iter()
+            .map(|(l, ..)| links[l.as_str()].label())
+            .collect();
+        let with = match fixed.as_slice() {
+            [] => String::new(),
+            some => format!(" with the links fixed to it ({})", some.join(", ")),
+        };
+        bad(format!(
+            "{}{with}: <inertial> {why}",
+            links[b.link.as_str()].label()
+        ))
     })?;
-    Ok(body)
+    Ok(())
 }
 
 impl Tree {
     /// The robot's tree from URDF text with at most `max_dof` movable joints; errors (422,
-    /// field "urdf") name the element.
+    /// field "urdf") name the element and its line.
     pub fn parse(text: &str, max_dof: usize) -> Result<Tree> {
         super::xml::precheck(text, max_dof)?;
-        let robot = urdf_rs::read_from_string(text).map_err(|e| bad(format!("not a URDF: {e}")))?;
-        let mut links: HashMap<&str, &urdf_rs::Link> = HashMap::new();
-        named("robot", &robot.name)?;
+        let robot = read::read(text)?;
+        if !robot.name.is_empty() {
+            named("robot", &robot.name)?;
+        }
+        if robot.links.is_empty() {
+            return Err(bad("the robot has no <link>"));
+        }
+        let mut links: HashMap<&str, &read::Link> = HashMap::new();
         for l in &robot.links {
             named("link", &l.name)?;
-            if links.insert(l.name.as_str(), l).is_some() {
-                return Err(bad(format!("link '{}' is defined twice", l.name)));
-            }
-        }
-        let mut parent_of: HashMap<&str, &str> = HashMap::new();
-        let mut joint_names = std::collections::HashSet::new();
-        for j in &robot.joints {
-            named("joint", &j.name)?;
-            pose_within(&format!("joint '{}':", j.name), &j.origin)?;
-            if !joint_names.insert(j.name.as_str()) {
-                return Err(bad(format!("joint '{}' is defined twice", j.name)));
-            }
-            use urdf_rs::JointType::*;
-            match j.joint_type {
-                Revolute | Continuous | Prismatic | Fixed => {}
-                ref other => {
-                    return Err(bad(format!(
-                        "joint '{}': type {other:?} is not supported (revolute, continuous, \
-                         prismatic and fixed are)",
-                        j.name
-                    )));
-                }
-            }
-            if j.mimic.is_some() {
+            if let Some(first) = links.insert(l.name.as_str(), l) {
                 return Err(bad(format!(
-                    "joint '{}': mimic joints are not supported",
-                    j.name
-                )));
-            }
-            for (role, link) in [("parent", &j.parent.link), ("child", &j.child.link)] {
-                if !links.contains_key(link.as_str()) {
-                    return Err(bad(format!(
-                        "joint '{}': its {role} link '{link}' does not exist",
-                        j.name
-                    )));
-                }
-            }
-            if let Some(other) = parent_of.insert(j.child.link.as_str(), j.name.as_str()) {
-                return Err(bad(format!(
-                    "link '{}' is the child of two joints, '{other}' and '{}' (a URDF is a tree)",
-                    j.child.link, j.name
+                    "{} is defined twice (first at line {})",
+                    l.label(),
+                    first.line
                 )));
             }
         }
+        let parent_of = check_joints(&robot, &links)?;
         let roots: Vec<&str> = robot
             .links
             .iter()
@@ -255,6 +210,7 @@ impl Tree {
         let mut tree = Tree {
             robot: robot.name.clone(),
             bodies: vec![],
+            coordinates: vec![],
         };
         let visited = tree.walk(&robot, &links, root)?;
         if visited != robot.links.len() {
@@ -267,6 +223,10 @@ impl Tree {
                 "the robot has no revolute, continuous or prismatic joint",
             ));
         }
+        for b in &tree.bodies {
+            physical_body(b, &links)?;
+        }
+        tree.drives(&robot)?;
         Ok(tree)
     }
 
@@ -274,20 +234,20 @@ impl Tree {
     /// chain of thousands of links is a legal robot); the links visited.
     fn walk(
         &mut self,
-        robot: &urdf_rs::Robot,
-        links: &HashMap<&str, &urdf_rs::Link>,
+        robot: &read::Robot,
+        links: &HashMap<&str, &read::Link>,
         root: &str,
     ) -> Result<usize> {
-        let mut children: HashMap<&str, Vec<&urdf_rs::Joint>> = HashMap::new();
+        let mut children: HashMap<&str, Vec<&read::Joint>> = HashMap::new();
         for j in &robot.joints {
-            children.entry(j.parent.link.as_str()).or_default().push(j);
+            children.entry(j.parent.as_str()).or_default().push(j);
         }
         // A link to visit, with the body that moves it and the frame from that body's frame
         // to the link's; or a movable joint whose body is made when its turn comes, so that
         // bodies are numbered in depth-first order.
         enum Next<'r> {
             Link(&'r str, Option<usize>, Frame),
-            Joint(&'r urdf_rs::Joint, Option<usize>, Frame),
+            Joint(&'r read::Joint, Option<usize>, Frame),
         }
         let mut stack = vec![Next::Link(root, None, Frame::IDENTITY)];
         let mut visited = 0usize;
@@ -297,15 +257,15 @@ impl Tree {
                 Next::Joint(j, parent, at) => {
                     self.bodies.push(movable_body(j, parent, at)?);
                     let b = self.bodies.len() - 1;
-                    (j.child.link.as_str(), Some(b), Frame::IDENTITY)
+                    (j.child.as_str(), Some(b), Frame::IDENTITY)
                 }
             };
             visited += 1;
             self.fold(links[link], body, &frame)?;
             for j in children.get(link).into_iter().flatten().rev() {
                 let at = frame.then(&Frame::of(&j.origin));
-                stack.push(match j.joint_type {
-                    urdf_rs::JointType::Fixed => Next::Link(&j.child.link, body, at),
+                stack.push(match j.kind {
+                    JointType::Fixed => Next::Link(&j.child, body, at),
                     _ => Next::Joint(j, body, at),
                 });
             }
@@ -316,7 +276,7 @@ impl Tree {
     /// Adds `link`'s inertia to the body that moves it (seen from that body's frame). The
     /// root and the links welded to it never move, so their inertia never enters the
     /// dynamics and is not read: quadruped files carry dummy, unphysical values there.
-    fn fold(&mut self, link: &urdf_rs::Link, body: Option<usize>, frame: &Frame) -> Result<()> {
+    fn fold(&mut self, link: &read::Link, body: Option<usize>, frame: &Frame) -> Result<()> {
         let Some(b) = body else {
             return Ok(());
         };
@@ -331,37 +291,130 @@ impl Tree {
         target.inertial = target.inertial.plus(&moved);
         Ok(())
     }
+
+    /// Numbers the coordinates (the bodies whose joint is not a mimic joint, in body order)
+    /// and resolves each mimic joint to the coordinate it follows, through chains of mimics.
+    fn drives(&mut self, robot: &read::Robot) -> Result<()> {
+        let body_of: HashMap<String, usize> = (self.bodies.iter().enumerate())
+            .map(|(i, b)| (b.joint.clone(), i))
+            .collect();
+        let line_of: HashMap<&str, usize> = (robot.joints.iter())
+            .map(|j| (j.name.as_str(), j.line))
+            .collect();
+        for (i, b) in self.bodies.iter_mut().enumerate() {
+            if b.mimic.is_none() {
+                b.drive.coordinate = self.coordinates.len();
+                self.coordinates.push(i);
+            }
+        }
+        for i in 0..self.bodies.len() {
+            let (mut at, mut multiplier, mut offset) = (i, 1.0, 0.0);
+            // A chain of mimics visits each body at most once; more steps are a circle.
+            for _ in 0..=self.bodies.len() {
+                let Some(m) = &self.bodies[at].mimic else {
+                    break;
+                };
+                let label = format!(
+                    "joint '{}' (line {})",
+                    self.bodies[at].joint,
+                    line_of[self.bodies[at].joint.as_str()]
+                );
+                let Some(&next) = body_of.get(&m.joint) else {
+                    return Err(bad(format!(
+                        "{label}: <mimic joint=\"{}\">: the robot has no revolute, \
+                         continuous or prismatic joint of that name",
+                        m.joint
+                    )));
+                };
+                (multiplier, offset) = (multiplier * m.multiplier, multiplier * m.offset + offset);
+                at = next;
+            }
+            if self.bodies[at].mimic.is_some() {
+                return Err(bad(format!(
+                    "joint '{}': its <mimic> joints form a circle",
+                    self.bodies[i].joint
+                )));
+            }
+            self.bodies[i].drive = Drive {
+                coordinate: self.bodies[at].drive.coordinate,
+                multiplier,
+                offset,
+            };
+        }
+        Ok(())
+    }
+}
+
+/// Joint names and types, their links, one parent per link; the joint each child link hangs
+/// from.
+fn check_joints<'r>(
+    robot: &'r read::Robot,
+    links: &HashMap<&str, &read::Link>,
+) -> Result<HashMap<&'r str, &'r read::Joint>> {
+    let mut parent_of: HashMap<&str, &read::Joint> = HashMap::new();
+    let mut joints: HashMap<&str, usize> = HashMap::new();
+    for j in &robot.joints {
+        named("joint", &j.name)?;
+        let label = j.label();
+        pose_within(&format!("{label}:"), &j.origin)?;
+        if let Some(first) = joints.insert(j.name.as_str(), j.line) {
+            return Err(bad(format!(
+                "{label} is defined twice (first at line {first})"
+            )));
+        }
+        if matches!(j.kind, JointType::Floating | JointType::Planar) {
+            return Err(bad(format!(
+                "{label}: type {:?} is not supported (revolute, continuous, prismatic and \
+                 fixed are)",
+                j.kind
+            )));
+        }
+        for (role, link) in [("parent", &j.parent), ("child", &j.child)] {
+            if !links.contains_key(link.as_str()) {
+                return Err(bad(format!(
+                    "{label}: its {role} link '{link}' does not exist"
+                )));
+            }
+        }
+        if let Some(other) = parent_of.insert(j.child.as_str(), j) {
+            return Err(bad(format!(
+                "link '{}' is the child of two joints, {} and {label} (a URDF is a tree)",
+                j.child,
+                other.label()
+            )));
+        }
+    }
+    Ok(parent_of)
 }
 
 /// The body a movable joint moves, with no inertia yet; `at` is the joint frame in the
 /// parent body's frame.
-fn movable_body(j: &urdf_rs::Joint, parent: Option<usize>, at: Frame) -> Result<Body> {
-    let kind = match j.joint_type {
-        urdf_rs::JointType::Prismatic => JointKind::Prismatic,
-        urdf_rs::JointType::Continuous => JointKind::Continuous,
+fn movable_body(j: &read::Joint, parent: Option<usize>, at: Frame) -> Result<Body> {
+    let kind = match j.kind {
+        JointType::Prismatic => JointKind::Prismatic,
+        JointType::Continuous => JointKind::Continuous,
         _ => JointKind::Revolute,
     };
-    let a = j.axis.xyz.0;
+    let label = j.label();
+    let a = j.axis;
     let norm = a.iter().map(|v| v * v).sum::<f64>().sqrt();
     if !(norm.is_finite() && norm > 1e-9) {
-        return Err(bad(format!(
-            "joint '{}': its axis must not be zero",
-            j.name
-        )));
+        return Err(bad(format!("{label}: its axis must not be zero")));
     }
-    let (damping, friction) = j
-        .dynamics
-        .as_ref()
-        .map_or((0.0, 0.0), |d| (d.damping, d.friction));
+    let (damping, friction) = j.dynamics.unwrap_or((0.0, 0.0));
     // Identified values may come out slightly negative, and an exported model must read
     // back: any value within the bound is taken.
-    let joint = format!("joint '{}':", j.name);
+    let joint = format!("{label}:");
     within(&joint, "<dynamics> damping", damping)?;
     within(&joint, "<dynamics> friction", friction)?;
+    if let Some(m) = &j.mimic {
+        within(&joint, "<mimic> multiplier", m.multiplier)?;
+        within(&joint, "<mimic> offset", m.offset)?;
+    }
     Ok(Body {
         joint: j.name.clone(),
         kind,
-        link: j.child.link.clone(),
+        link: j.child.clone(),
         parent,
         rot: at.rot,
         pos: at.pos,
@@ -371,5 +424,11 @@ fn movable_body(j: &urdf_rs::Joint, parent: Option<usize>, at: Frame) -> Result<
         fixed: vec![],
         damping,
         friction,
+        mimic: j.mimic.clone(),
+        drive: Drive {
+            coordinate: 0,
+            multiplier: 1.0,
+            offset: 0.0,
+        },
     })
 }
