@@ -172,7 +172,7 @@ def variant(old, new, count=1):
 
 BAD = [
     # (URDF text, words the message must hold)
-    ("<robot name='x'><link name='a'>", "not a URDF"),
+    ("<robot name='x'><link name='a'>", "not XML: the document ends inside <link>"),
     (variant('type="continuous"', 'type="floating"'), "joint 'shoulder'"),
     (variant('type="continuous"', 'type="planar"'), "joint 'shoulder'"),
     (variant('type="continuous"', 'type="banana"'), "not a URDF"),
@@ -183,8 +183,8 @@ BAD = [
     (variant('<mass value="1"/>', '<mass value="-1"/>'), "link 'upper'"),
     (variant('ixx="0.0833"', 'ixx="5"'), "link 'upper'"),
     (variant('<axis xyz="0 1 0"/>', '<axis xyz="0 0 0"/>'), "joint 'shoulder'"),
-    (variant('<child link="lower"/>', '<child link="lower"/><mimic joint="shoulder"/>'),
-     "joint 'elbow'"),
+    (variant('<child link="lower"/>', '<child link="lower"/><mimic joint="wrist"/>'),
+     "joint 'elbow' (line 19)"),
     (variant('<link name="world"/>', '<link name="world"/><link name="world"/>'),
      "link 'world'"),
     (variant('type="continuous"', 'type="fixed"', 2), "no revolute"),

@@ -192,7 +192,15 @@ pub fn read(text: &str) -> Result<Robot> {
                 )?;
                 continue;
             }
-            Event::Eof => break,
+            Event::Eof => {
+                if let Some(open) = path.last() {
+                    return Err(bad(format!(
+                        "not XML: the document ends inside <{}>",
+                        String::from_utf8_lossy(open)
+                    )));
+                }
+                break;
+            }
             _ => continue,
         };
         let line = line_of(text, offset);
