@@ -112,6 +112,18 @@ fn errors_name_the_element_and_its_line() {
             plain.replacen(r#"<mass value="10"/>"#, r#"<mass value="ten"/>"#, 1),
             "<mass> of link 'rod1' (line 16): value=\"ten\" is not a number",
         ),
+        (
+            plain.replace(
+                r#"<link name="world"/>"#,
+                r#"<link name="world"/><link name="b"/>"#,
+            ),
+            "more than one root link (link 'world' (line 8), link 'b' (line 8))",
+        ),
+        (
+            plain.replace(r#"<parent link="world"/>"#, r#"<parent link="rod2"/>"#),
+            "link 'rod1' (line 16), link 'rod2' (line 30) … are not reachable from the root \
+             link 'world'",
+        ),
     ];
     for (doc, want) in cases {
         let e = UrdfTemplate::from_urdf(&doc).unwrap_err().to_string();

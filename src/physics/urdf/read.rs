@@ -72,6 +72,8 @@ pub struct Joint {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Robot {
     pub name: String,
+    /// The line of `<robot>`.
+    pub line: usize,
     pub links: Vec<Link>,
     pub joints: Vec<Joint>,
 }
@@ -224,6 +226,7 @@ pub fn read(text: &str) -> Result<Robot> {
             (0, _, b"robot") => {
                 robot = Some(Robot {
                     name: tag.text("name")?.unwrap_or_default(),
+                    line,
                     ..Robot::default()
                 });
             }

@@ -3,7 +3,7 @@
 //! root with children in document order. The bodies' joints are the coordinates, but for mimic
 //! joints, which follow another joint's value.
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 use super::inertia::Inertial;
 use super::read::{self, JointType, Mimic, Pose};
@@ -96,9 +96,12 @@ fn pose_within(at: &str, pose: &Pose) -> Result<()> {
 }
 
 /// Link, joint and robot names follow the rule of every name (`names::name_problem`).
-fn named(what: &str, name: &str) -> Result<()> {
+fn named(what: &str, name: &str, line: usize) -> Result<()> {
     name_problem(name).map_or(Ok(()), |m| {
-        Err(bad(format!("{what} '{}': its name {m}", quoted_name(name))))
+        Err(bad(format!(
+            "{what} '{}' (line {line}): its name {m}",
+            quoted_name(name)
+        )))
     })
 }
 
@@ -174,14 +177,14 @@ impl Tree {
         super::xml::precheck(text, max_dof)?;
         let robot = read::read(text)?;
         if !robot.name.is_empty() {
-            named("robot", &robot.name)?;
+            named("robot", &robot.name, robot.line)?;
         }
         if robot.links.is_empty() {
             return Err(bad("the robot has no <link>"));
         }
         let mut links: HashMap<&str, &read::Link> = HashMap::new();
         for l in &robot.links {
-            named("link", &l.name)?;
+            named("link", &l.name, l.line)?;
             if let Some(first) = links.insert(l.name.as_str(), l) {
                 return Err(bad(format!(
                     "{} is defined twice (first at line {})",
@@ -199,11 +202,20 @@ impl Tree {
             .collect();
         let root = match roots.as_slice() {
             [one] => *one,
-            [] => return Err(bad("no root link: the joints form a loop")),
+            [] => {
+                let j = parent_of[robot.links[0].name.as_str()];
+                return Err(bad(format!(
+                    "no root link: every link is a joint's child, so the joints form a loop \
+                     (link '{}' is the child of {}, …)",
+                    j.child,
+                    j.label()
+                )));
+            }
             many => {
+                let named: Vec<String> = many.iter().map(|l| links[l].label()).collect();
                 return Err(bad(format!(
                     "more than one root link ({}): a robot is one tree",
-                    many.join(", ")
+                    named.join(", ")
                 )));
             }
         };
@@ -213,10 +225,16 @@ impl Tree {
             coordinates: vec![],
         };
         let visited = tree.walk(&robot, &links, root)?;
-        if visited != robot.links.len() {
-            return Err(bad(
-                "some links are not reachable from the root: the joints form a loop",
-            ));
+        if visited.len() != robot.links.len() {
+            let apart: Vec<String> = (robot.links.iter())
+                .filter(|l| !visited.contains(l.name.as_str()))
+                .take(3)
+                .map(read::Link::label)
+                .collect();
+            return Err(bad(format!(
+                "{} … are not reachable from the root link '{root}': their joints form a loop",
+                apart.join(", ")
+            )));
         }
         if tree.bodies.is_empty() {
             return Err(bad(
@@ -232,12 +250,12 @@ impl Tree {
 
     /// Depth-first from the root, children in document order, on a stack of its own (a
     /// chain of thousands of links is a legal robot); the links visited.
-    fn walk(
+    fn walk<'r>(
         &mut self,
-        robot: &read::Robot,
+        robot: &'r read::Robot,
         links: &HashMap<&str, &read::Link>,
-        root: &str,
-    ) -> Result<usize> {
+        root: &'r str,
+    ) -> Result<HashSet<&'r str>> {
         let mut children: HashMap<&str, Vec<&read::Joint>> = HashMap::new();
         for j in &robot.joints {
             children.entry(j.parent.as_str()).or_default().push(j);
@@ -250,7 +268,7 @@ impl Tree {
             Joint(&'r read::Joint, Option<usize>, Frame),
         }
         let mut stack = vec![Next::Link(root, None, Frame::IDENTITY)];
-        let mut visited = 0usize;
+        let mut visited = HashSet::new();
         while let Some(next) = stack.pop() {
             let (link, body, frame) = match next {
                 Next::Link(link, body, frame) => (link, body, frame),
@@ -260,7 +278,7 @@ impl Tree {
                     (j.child.as_str(), Some(b), Frame::IDENTITY)
                 }
             };
-            visited += 1;
+            visited.insert(link);
             self.fold(links[link], body, &frame)?;
             for j in children.get(link).into_iter().flatten().rev() {
                 let at = frame.then(&Frame::of(&j.origin));
@@ -354,7 +372,7 @@ fn check_joints<'r>(
     let mut parent_of: HashMap<&str, &read::Joint> = HashMap::new();
     let mut joints: HashMap<&str, usize> = HashMap::new();
     for j in &robot.joints {
-        named("joint", &j.name)?;
+        named("joint", &j.name, j.line)?;
         let label = j.label();
         pose_within(&format!("{label}:"), &j.origin)?;
         if let Some(first) = joints.insert(j.name.as_str(), j.line) {
