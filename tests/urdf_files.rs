@@ -6,7 +6,7 @@ use std::sync::Arc;
 use graybox::physics::templates::Template;
 use graybox::physics::urdf::UrdfTemplate;
 
-fn fixture(name: &str) -> String {
+pub(crate) fn fixture(name: &str) -> String {
     let path = format!(
         "{}/tests/fixtures/urdf/{name}.urdf",
         env!("CARGO_MANIFEST_DIR")
@@ -14,7 +14,7 @@ fn fixture(name: &str) -> String {
     std::fs::read_to_string(path).unwrap()
 }
 
-fn template(text: &str) -> Template {
+pub(crate) fn template(text: &str) -> Template {
     Template::Urdf(Arc::new(UrdfTemplate::from_urdf(text).unwrap()))
 }
 
@@ -43,3 +43,6 @@ fn a_dummy_inertia_on_the_root_link_is_ignored() {
     let err = UrdfTemplate::from_urdf(&bad).unwrap_err().to_string();
     assert!(err.contains("rod1"), "{err}");
 }
+
+#[path = "urdf_files/bounds.rs"]
+mod bounds;

@@ -177,6 +177,18 @@ impl ModelFile {
             ));
         };
         let physical = self.physical_values().expect("a template model");
+        // Files trained before damping and friction were kept ≥ 0 can hold negative ones,
+        // which the URDF reader refuses (and Pinocchio's, for friction): no file rather than
+        // a silently different robot.
+        for (info, v) in u.params().iter().zip(&physical) {
+            if let Some(why) = info.below_min(*v) {
+                return Err(Error::FailedPrecondition(format!(
+                    "{} {why}: this model was trained by a graybox that did not keep it \
+                     there; train it again to export it",
+                    info.name
+                )));
+            }
+        }
         crate::physics::urdf::export::export(u, &physical)
     }
 

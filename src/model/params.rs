@@ -9,7 +9,7 @@
 //! releases' fields, which checkpoints' optimizer state follows.
 
 use burn::module::{Module, Param};
-use burn::tensor::Tensor;
+use burn::tensor::{Tensor, TensorData};
 
 use super::mlp::Mlp;
 use super::params_io::{NamedArray, export_as};
@@ -134,6 +134,35 @@ impl Params {
             out.extend(export_as(names::PHYSICAL, p));
         }
         out
+    }
+}
+
+impl Params {
+    /// These values with the template's raw physical values put back onto `lower` (one per
+    /// parameter, −∞ for none; `physics::params::lower_bounds`): the projection of projected
+    /// gradient descent, after every optimizer step (docs/robots.md#joint-forces).
+    pub fn projected(self, lower: &[f64]) -> Self {
+        let Params::Structured(mut c) = self else {
+            return self;
+        };
+        if let Some(p) = c.physical.take() {
+            let (id, t, _) = p.consume();
+            let (autodiff, grad) = (t.is_autodiff(), t.is_require_grad());
+            let inner = t.inner();
+            let bound = Tensor::from_data(
+                TensorData::new(lower.to_vec(), inner.dims()),
+                &inner.device(),
+            );
+            let mut t = inner.max_pair(bound);
+            if autodiff {
+                t = Tensor::from_inner(t);
+            }
+            if grad {
+                t = t.require_grad();
+            }
+            c.physical = Some(Param::initialized(id, t));
+        }
+        Params::Structured(c)
     }
 }
 

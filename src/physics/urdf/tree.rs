@@ -353,8 +353,7 @@ fn movable_body(j: &urdf_rs::Joint, parent: Option<usize>, at: Frame) -> Result<
         .dynamics
         .as_ref()
         .map_or((0.0, 0.0), |d| (d.damping, d.friction));
-    // Identified values may come out slightly negative, and an exported model must read
-    // back: any value within the bound is taken.
+    // Bounded here; their sign is the template's rule (`UrdfTemplate::from_doc`).
     let joint = format!("joint '{}':", j.name);
     within(&joint, "<dynamics> damping", damping)?;
     within(&joint, "<dynamics> friction", friction)?;
