@@ -46,3 +46,6 @@ fn a_dummy_inertia_on_the_root_link_is_ignored() {
 
 #[path = "urdf_files/bounds.rs"]
 mod bounds;
+
+#[path = "urdf_files/exact.rs"]
+mod exact;

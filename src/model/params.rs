@@ -27,6 +27,10 @@ pub mod names {
     pub const B_CONST: &str = "b_const";
     pub const ETA: &str = "eta";
     pub const PHYSICAL: &str = "physical";
+    /// The template's physical values as they are, for a model that trains nothing
+    /// (`ModelFile::from_template`): a URDF's massless link or point mass stays what the
+    /// file says, where the trainable form needs floors.
+    pub const PHYSICAL_VALUES: &str = "physical_values";
 }
 
 /// A rank-2 trainable tensor.
@@ -49,6 +53,9 @@ pub struct Components {
     /// The template's physical parameters, positive ones as logarithms, `[1, k]`; present
     /// when some part is white-box.
     pub physical: Option<Values>,
+    /// `physical` holds the physical values themselves, not their trainable form: a model
+    /// made from a template's equations, never trained (`names::PHYSICAL_VALUES`).
+    pub physical_as_is: bool,
 }
 
 #[derive(Module, Debug)]
@@ -131,7 +138,12 @@ impl Params {
             None => {}
         }
         if let Some(p) = &c.physical {
-            out.extend(export_as(names::PHYSICAL, p));
+            let name = if c.physical_as_is {
+                names::PHYSICAL_VALUES
+            } else {
+                names::PHYSICAL
+            };
+            out.extend(export_as(name, p));
         }
         out
     }

@@ -75,6 +75,7 @@ fn the_projection_clamps_only_bounded_values_below_their_bound() {
         potential: None,
         forces: None,
         physical: Some(param(vec![-0.25; k], [1, k], &device)),
+        physical_as_is: false,
     });
     let c = params.projected(&lower);
     let p = c.components().unwrap().physical.as_ref().unwrap().val();

@@ -109,7 +109,7 @@ impl Frame {
 }
 
 /// Every physical value of a document within the one bound (`templates::physical_problem`;
-/// no lower one: a URDF's tiny inertias are regularised, `Inertial::regularised`).
+/// no lower one: a URDF's tiny inertias are taken, `link_inertial`).
 fn within(at: &str, what: &str, v: f64) -> Result<()> {
     physical_problem(v, false).map_or(Ok(()), |m| Err(bad(format!("{at} {what} {m}"))))
 }
@@ -131,9 +131,10 @@ fn named(what: &str, name: &str) -> Result<()> {
     })
 }
 
-/// A link's own inertial parameters in its frame; an error naming it when they are not a
-/// physical body (a nearly singular one, a point mass or a thin rod, is regularised:
-/// `Inertial::regularised`).
+/// A link's own inertial parameters in its frame, as the file gives them; an error naming it
+/// when they are not a physical body. A nearly singular one (no `<inertial>`, a point mass, a
+/// thin rod) is taken as it is: only the trainable form needs the floors
+/// (`Inertial::regularised`, `UrdfTemplate::raw`).
 fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
     let i = &link.inertial;
     let m = i.mass.value;
@@ -171,8 +172,8 @@ fn link_inertial(link: &urdf_rs::Link) -> Result<Inertial> {
                 .sum()
         })
     });
-    let body = Inertial::from_com(m, frame.pos, rotated).regularised();
-    body.theta().map_err(|e| {
+    let body = Inertial::from_com(m, frame.pos, rotated);
+    body.regularised().theta().map_err(|e| {
         let why = match e {
             Error::Invalid { message, .. } => message,
             other => other.to_string(),
