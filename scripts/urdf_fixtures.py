@@ -29,7 +29,9 @@ import pinocchio as pin
 
 ROOT = Path(__file__).resolve().parents[1]
 DIR = ROOT / "tests" / "fixtures" / "urdf"
-GRAVITY = {"arm4": [0.0, 0.0, -9.81], "tree": [0.3, -0.2, -9.81]}
+# point_masses has links without mass (a massless gimbal, a link without <inertial>, point
+# masses): tests/urdf_files/exact.rs holds it at rest with these g(q).
+GRAVITY = {"arm4": [0.0, 0.0, -9.81], "tree": [0.3, -0.2, -9.81], "point_masses": [0.0, 0.0, -9.81]}
 # Real robots' files (robots/README.md says where each comes from), fewer states: they are
 # larger, and their joints are what is new, not the draws.
 ROBOTS = ["ur5", "panda", "solo12", "kinova"]

@@ -162,6 +162,10 @@ pub fn parse_assignments(template: &Template, text: Option<&str>, field: &str) -
             field: f.replacen("init", field, 1),
             message,
         },
+        Error::Unprocessable { field: f, message } => Error::Unprocessable {
+            field: f.replacen("init", field, 1),
+            message,
+        },
         other => other,
     })?;
     Ok(values)

@@ -456,7 +456,8 @@ fn export_folds_a_fixed_link_into_its_body_when_no_split_is_physical() {
     let tool = &text[text.find("<link name=\"tool\"").unwrap()..];
     assert!(tool[..tool.find("</link>").unwrap()].contains("<mass value=\"0\"/>"));
     let back = Template::Urdf(Arc::new(UrdfTemplate::from_urdf(&text).unwrap())).defaults();
-    // The tool's massless link adds nothing to the hand's written values: equal to rounding.
+    // The tool's massless link reads back massless: the hand's written values are the
+    // whole, equal to rounding.
     assert!(err(&back, &values) < 1e-12, "{back:?} vs {values:?}");
 }
 

@@ -6,12 +6,16 @@ use std::sync::Arc;
 use graybox::physics::templates::Template;
 use graybox::physics::urdf::UrdfTemplate;
 
+#[path = "urdf_files/bounds.rs"]
+mod bounds;
+#[path = "urdf_files/exact.rs"]
+mod exact;
 #[path = "urdf_files/mimic.rs"]
 mod mimic;
 #[path = "urdf_files/reader.rs"]
 mod reader;
 
-pub fn fixture(name: &str) -> String {
+pub(crate) fn fixture(name: &str) -> String {
     let path = format!(
         "{}/tests/fixtures/urdf/{name}.urdf",
         env!("CARGO_MANIFEST_DIR")
@@ -19,7 +23,7 @@ pub fn fixture(name: &str) -> String {
     std::fs::read_to_string(path).unwrap()
 }
 
-pub fn template(text: &str) -> Template {
+pub(crate) fn template(text: &str) -> Template {
     Template::Urdf(Arc::new(UrdfTemplate::from_urdf(text).unwrap()))
 }
 

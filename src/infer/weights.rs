@@ -183,6 +183,10 @@ impl Weights {
             .as_ref()
             .filter(|_| !file.config.spec.white_box_parts().is_empty())
         {
+            // A model that trains nothing keeps the values as they are (`ModelFile::from_template`).
+            Some(t) if arrays.by_name.contains_key(names::PHYSICAL_VALUES) => {
+                Some(arrays.values(names::PHYSICAL_VALUES, t.params().len())?)
+            }
             Some(t) => Some(t.natural(&arrays.values(names::PHYSICAL, t.params().len())?)),
             None => None,
         };

@@ -11,6 +11,7 @@ use super::params::names;
 use super::report::TrainReport;
 use super::spec::ModelSpec;
 use crate::error::{Error, Result};
+use crate::model::params::Params;
 use crate::model::params_io::{NamedArray, import};
 use crate::model::{Model, ModelConfig, raw_physical};
 use crate::physics::integrator::Integrator;
@@ -64,7 +65,9 @@ impl ModelFile {
 
     /// The white-box model of a template with the given physical values: "the true system"
     /// as a model, with no data and no training. Its scalings are the identity (a template's
-    /// equations read no network and no data statistics).
+    /// equations read no network and no data statistics). Nothing trains, so the values are
+    /// stored as they are (`names::PHYSICAL_VALUES`), not in the trainable form: a URDF's
+    /// massless link or point mass is the file's exactly, without the floors training needs.
     pub fn from_template(
         t: &Template,
         values: &[f64],
@@ -78,7 +81,8 @@ impl ModelFile {
                 format!("must be a number of seconds in [{lo:e}, {hi}], got {dt}"),
             ));
         }
-        let raw = raw_physical(t, values)?;
+        // Values the trainable form refuses (a body that is not physical) are refused here too.
+        raw_physical(t, values)?;
         // Continuous joints and a formula's angles stay angles: a row that wraps across π must
         // cost its true difference, not (2π)². None marked is stored empty, as training does.
         let config = ModelConfig {
@@ -92,9 +96,9 @@ impl ModelFile {
             periodic: ModelConfig::stored_periodic(t.periodic()),
         };
         let params = vec![NamedArray {
-            name: names::PHYSICAL.to_string(),
-            shape: vec![1, raw.len()],
-            values: raw,
+            name: names::PHYSICAL_VALUES.to_string(),
+            shape: vec![1, values.len()],
+            values: values.to_vec(),
         }];
         let mut file = Self::new(config, params, None);
         file.made = Some(Made {
@@ -160,11 +164,13 @@ impl ModelFile {
     /// white-box); None without a template.
     pub fn physical_values(&self) -> Option<Vec<f64>> {
         let t = self.config.template()?;
+        let array = |name: &str| self.params.iter().find(|a| a.name == name);
         Some(
-            self.params
-                .iter()
-                .find(|a| a.name == crate::model::params::names::PHYSICAL)
-                .map_or_else(|| t.defaults(), |a| t.natural(&a.values)),
+            match (array(names::PHYSICAL_VALUES), array(names::PHYSICAL)) {
+                (Some(a), _) => a.values.clone(),
+                (None, Some(a)) => t.natural(&a.values),
+                (None, None) => t.defaults(),
+            },
         )
     }
 
@@ -177,13 +183,28 @@ impl ModelFile {
             ));
         };
         let physical = self.physical_values().expect("a template model");
+        // Files trained before damping and friction were kept ≥ 0 can hold negative ones,
+        // which the URDF reader refuses (and Pinocchio's, for friction): no file rather than
+        // a silently different robot.
+        for (info, v) in u.params().iter().zip(&physical) {
+            if let Some(why) = info.below_min(*v) {
+                return Err(Error::FailedPrecondition(format!(
+                    "{} {why}: this model was trained by a graybox that did not keep it \
+                     there; train it again to export it",
+                    info.name
+                )));
+            }
+        }
         crate::physics::urdf::export::export(u, &physical)
     }
 
     /// The model on `device` with these parameters.
     pub fn model(&self, device: &Device) -> Result<Model> {
         let skeleton = Model::init(self.config.clone(), None, 0, device)?;
-        let params = import(skeleton.params, &self.params, device)?;
+        let mut params = import(skeleton.params, &self.params, device)?;
+        if let Params::Structured(c) = &mut params {
+            c.physical_as_is = self.params.iter().any(|a| a.name == names::PHYSICAL_VALUES);
+        }
         Ok(Model::from_parts(self.config.clone(), params, device))
     }
 }

@@ -144,6 +144,7 @@ impl Model {
                     potential,
                     forces,
                     physical,
+                    physical_as_is: false,
                 })
             }
         };
@@ -204,25 +205,32 @@ impl Model {
                 }
             })
             .collect();
+        if self.components().physical_as_is {
+            return raw;
+        }
         t.natural(&raw)
     }
 
     /// Learned physical values by name (host f64), for reports.
     pub fn physical_values(&self) -> Option<Vec<(String, f64)>> {
         let t = self.config.template()?;
-        let raw: Vec<f64> = self
-            .params
-            .components()?
+        let c = self.params.components()?;
+        let raw: Vec<f64> = c
             .physical
             .as_ref()?
             .val()
             .into_data()
             .iter::<f64>()
             .collect();
+        let values = if c.physical_as_is {
+            raw
+        } else {
+            t.natural(&raw)
+        };
         Some(
             t.params()
                 .iter()
-                .zip(t.natural(&raw))
+                .zip(values)
                 .map(|(info, v)| (info.name.to_string(), v))
                 .collect(),
         )

@@ -9,7 +9,7 @@
 //! releases' fields, which checkpoints' optimizer state follows.
 
 use burn::module::{Module, Param};
-use burn::tensor::Tensor;
+use burn::tensor::{Tensor, TensorData};
 
 use super::mlp::Mlp;
 use super::params_io::{NamedArray, export_as};
@@ -27,6 +27,10 @@ pub mod names {
     pub const B_CONST: &str = "b_const";
     pub const ETA: &str = "eta";
     pub const PHYSICAL: &str = "physical";
+    /// The template's physical values as they are, for a model that trains nothing
+    /// (`ModelFile::from_template`): a URDF's massless link or point mass stays what the
+    /// file says, where the trainable form needs floors.
+    pub const PHYSICAL_VALUES: &str = "physical_values";
 }
 
 /// A rank-2 trainable tensor.
@@ -49,6 +53,9 @@ pub struct Components {
     /// The template's physical parameters, positive ones as logarithms, `[1, k]`; present
     /// when some part is white-box.
     pub physical: Option<Values>,
+    /// `physical` holds the physical values themselves, not their trainable form: a model
+    /// made from a template's equations, never trained (`names::PHYSICAL_VALUES`).
+    pub physical_as_is: bool,
 }
 
 #[derive(Module, Debug)]
@@ -131,9 +138,43 @@ impl Params {
             None => {}
         }
         if let Some(p) = &c.physical {
-            out.extend(export_as(names::PHYSICAL, p));
+            let name = if c.physical_as_is {
+                names::PHYSICAL_VALUES
+            } else {
+                names::PHYSICAL
+            };
+            out.extend(export_as(name, p));
         }
         out
+    }
+}
+
+impl Params {
+    /// These values with the template's raw physical values put back onto `lower` (one per
+    /// parameter, −∞ for none; `physics::params::lower_bounds`): the projection of projected
+    /// gradient descent, after every optimizer step (docs/robots.md#joint-forces).
+    pub fn projected(self, lower: &[f64]) -> Self {
+        let Params::Structured(mut c) = self else {
+            return self;
+        };
+        if let Some(p) = c.physical.take() {
+            let (id, t, _) = p.consume();
+            let (autodiff, grad) = (t.is_autodiff(), t.is_require_grad());
+            let inner = t.inner();
+            let bound = Tensor::from_data(
+                TensorData::new(lower.to_vec(), inner.dims()),
+                &inner.device(),
+            );
+            let mut t = inner.max_pair(bound);
+            if autodiff {
+                t = Tensor::from_inner(t);
+            }
+            if grad {
+                t = t.require_grad();
+            }
+            c.physical = Some(Param::initialized(id, t));
+        }
+        Params::Structured(c)
     }
 }
 

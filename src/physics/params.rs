@@ -18,7 +18,32 @@ pub struct ParamInfo {
     pub default: f64,
     /// Trained in log space so that the optimizer cannot make it negative.
     pub positive: bool,
+    /// The smallest physical value it may take (None: no bound). Such a parameter is trained
+    /// as itself and put back onto the bound after every optimizer step (projected gradient,
+    /// `lower_bounds`): unlike a logarithm it can start at, and rest on, the bound. Only for
+    /// a parameter whose raw value is its physical value (not `positive`, not a URDF body's).
+    pub min: Option<f64>,
     pub used_by: Cow<'static, [Part]>,
+}
+
+impl ParamInfo {
+    /// What is wrong with `v` given this parameter's bound, if anything.
+    pub fn below_min(&self, v: f64) -> Option<String> {
+        let min = self.min?;
+        (v < min).then(|| format!("must be ≥ {min}, got {v}"))
+    }
+}
+
+/// Each raw parameter's lower bound (−∞ where there is none), in parameter order; None when
+/// no parameter has one. Training projects onto them after every step: the physical optimum
+/// under the bound is reached by clamping the raw value (equal to the physical one).
+pub fn lower_bounds(params: &[ParamInfo]) -> Option<Vec<f64>> {
+    params.iter().any(|p| p.min.is_some()).then(|| {
+        params
+            .iter()
+            .map(|p| p.min.unwrap_or(f64::NEG_INFINITY))
+            .collect()
+    })
 }
 
 /// Largest |value| of a physical parameter wherever it enters (a template document, a job's

@@ -49,6 +49,7 @@ const fn p(
         name: Cow::Borrowed(name),
         default,
         positive,
+        min: None,
         used_by: Cow::Borrowed(used_by),
     }
 }
@@ -181,20 +182,24 @@ impl Template {
         }
     }
 
-    /// Raw values from physical ones (`natural`'s inverse); an error names `init.<name>`.
+    /// Raw values from physical ones (`natural`'s inverse); an error names `init.<name>`
+    /// (422 for a value below its parameter's bound).
     pub fn raw(&self, values: &[f64]) -> Result<Vec<f64>> {
         for (info, &v) in self.params().iter().zip(values) {
+            let field = || format!("init.{}", info.name);
             if !v.is_finite() {
-                return Err(Error::invalid(
-                    format!("init.{}", info.name),
-                    "must be finite",
-                ));
+                return Err(Error::invalid(field(), "must be finite"));
             }
-            if info.positive && v <= 0.0 {
-                return Err(Error::invalid(
-                    format!("init.{}", info.name),
-                    format!("must be > 0, got {v}"),
-                ));
+            if let Some(message) = info.below_min(v) {
+                return Err(Error::Unprocessable {
+                    field: field(),
+                    message,
+                });
+            }
+            // A URDF body's mass has its own rule (`UrdfTemplate::raw`): a massless link is a
+            // body the file may have.
+            if info.positive && v <= 0.0 && !matches!(self, Template::Urdf(_)) {
+                return Err(Error::invalid(field(), format!("must be > 0, got {v}")));
             }
         }
         match self {

@@ -415,7 +415,7 @@ async fn uploaded_models_are_served_like_trained_ones() {
         (
             String::from_utf8(bytes.clone())
                 .unwrap()
-                .replace("\"physical\"", "\"physics\"")
+                .replace("\"physical_values\"", "\"physics\"")
                 .into_bytes(),
             "physical",
         ),

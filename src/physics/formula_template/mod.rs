@@ -269,6 +269,7 @@ fn param_infos(
                 name: Cow::Owned(name.clone()),
                 default: p.value,
                 positive: p.positive,
+                min: None,
                 used_by: Cow::Owned(used_by),
             }
         })

@@ -191,11 +191,13 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
     let mut joints: HashMap<String, (f64, f64)> = HashMap::new();
     for (b, body) in t.tree.bodies.iter().enumerate() {
         let identified = t.link_inertial(physical, b);
+        // What the reader takes (`tree::link_inertial`): a physical body, or one only just not.
+        let readable = |i: &Inertial| i.regularised().theta().is_ok();
         let mut own = identified.minus(&body.inertial.minus(&body.own));
-        if own.theta().is_err() {
-            // The fixed links written massless, the link takes the whole.
-            own = identified;
-            if own.theta().is_err() {
+        if !readable(&own) {
+            // The fixed links written massless read back massless: the link takes the whole.
+            own = identified.clone();
+            if !readable(&own) {
                 return Err(Error::FailedPrecondition(format!(
                     "link '{}': the identified body is not physical once the links fixed to \
                      it are written massless",

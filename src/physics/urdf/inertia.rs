@@ -19,6 +19,11 @@ pub struct Inertial {
     pub mass: f64,
     pub h: [f64; 3],
     pub inertia: [[f64; 3]; 3],
+    /// The centre of mass and the inertia about it as given (URDF's form), when the body was
+    /// made from them: `com` and `inertia_at_com` return them as they are, where h/m and the
+    /// parallel-axis difference would round (m c / m ≠ c for one (m, c) in ten), so that a
+    /// file's values come back exactly (docs/robots.md#physically-consistent-inertia).
+    at_com: Option<([f64; 3], [[f64; 3]; 3])>,
 }
 
 /// The same over any scalar (the trainable form's image).
@@ -39,16 +44,26 @@ impl Inertial {
         mass: 0.0,
         h: [0.0; 3],
         inertia: [[0.0; 3]; 3],
+        at_com: None,
     };
+
+    /// No mass and no inertia at all (a link without `<inertial>`).
+    pub fn is_nothing(&self) -> bool {
+        self.mass == 0.0 && self.h == [0.0; 3] && self.inertia.iter().flatten().all(|&v| v == 0.0)
+    }
 
     /// This body less `o` (both in this frame).
     pub fn minus(&self, o: &Inertial) -> Inertial {
+        if o.is_nothing() {
+            return self.clone();
+        }
         Inertial {
             mass: self.mass - o.mass,
             h: std::array::from_fn(|i| self.h[i] - o.h[i]),
             inertia: std::array::from_fn(|i| {
                 std::array::from_fn(|j| self.inertia[i][j] - o.inertia[i][j])
             }),
+            at_com: None,
         }
     }
 
@@ -65,16 +80,27 @@ impl Inertial {
             mass,
             h: c.map(|v| mass * v),
             inertia,
+            at_com: Some((c, i_com)),
         }
     }
 
-    /// The centre of mass.
+    /// The centre of mass; the origin for a massless body, which has none (URDF files write
+    /// their massless links so).
     pub fn com(&self) -> [f64; 3] {
+        if let Some((c, _)) = self.at_com {
+            return c;
+        }
+        if self.mass == 0.0 {
+            return [0.0; 3];
+        }
         self.h.map(|v| v / self.mass)
     }
 
     /// The inertia about the centre of mass.
     pub fn inertia_at_com(&self) -> [[f64; 3]; 3] {
+        if let Some((_, i)) = self.at_com {
+            return i;
+        }
         let c = self.com();
         let c2 = c.iter().map(|v| v * v).sum::<f64>();
         std::array::from_fn(|i| {
@@ -86,12 +112,19 @@ impl Inertial {
 
     /// Two bodies rigidly joined (both in this frame).
     pub fn plus(&self, o: &Inertial) -> Inertial {
+        if self.is_nothing() {
+            return o.clone();
+        }
+        if o.is_nothing() {
+            return self.clone();
+        }
         Inertial {
             mass: self.mass + o.mass,
             h: std::array::from_fn(|i| self.h[i] + o.h[i]),
             inertia: std::array::from_fn(|i| {
                 std::array::from_fn(|j| self.inertia[i][j] + o.inertia[i][j])
             }),
+            at_com: None,
         }
     }
 
@@ -169,6 +202,7 @@ impl Inertial {
             mass: f(&b.mass),
             h: b.h.each_ref().map(f),
             inertia: b.inertia.each_ref().map(|r| r.each_ref().map(f)),
+            at_com: None,
         }
     }
 
@@ -178,6 +212,9 @@ impl Inertial {
     /// every direction. A body that is clearly not physical is left as it is (and `theta`
     /// refuses it).
     pub fn regularised(&self) -> Inertial {
+        if self.mass < 0.0 {
+            return self.clone();
+        }
         let mass = self.mass.max(MIN_MASS);
         let c = if self.mass > 0.0 {
             self.com()

@@ -200,6 +200,21 @@ impl UrdfTemplate {
             }
             periodic[i] = true;
         }
+        // A negative damping or friction gives the robot energy (and Pinocchio's reader
+        // refuses a negative friction): refused, not clamped, which would be another robot.
+        for b in &tree.bodies {
+            for (what, v) in [("damping", b.damping), ("friction", b.friction)] {
+                if v < 0.0 {
+                    return Err(bad(
+                        "urdf",
+                        format!(
+                            "joint '{}': <dynamics> {what} must be ≥ 0, got {v}",
+                            b.joint
+                        ),
+                    ));
+                }
+            }
+        }
         let params = params_of(&tree);
         Ok(Self {
             doc,
@@ -262,6 +277,12 @@ impl UrdfTemplate {
         let mut out = Vec::with_capacity(physical.len());
         for (b, body) in self.tree.bodies.iter().enumerate() {
             let v = &physical[b * PER_BODY..(b + 1) * PER_BODY];
+            if v[0] < 0.0 {
+                return Err(Error::invalid(
+                    format!("init.{}.mass", body.link),
+                    format!("must be ≥ 0, got {}", v[0]),
+                ));
+            }
             let theta = inertial_of(v).regularised().theta().map_err(|e| {
                 let why = match e {
                     Error::Invalid { message, .. } => message,
@@ -352,6 +373,7 @@ fn params_of(tree: &Tree) -> Vec<ParamInfo> {
                 name: Cow::Owned(format!("{}.{field}", b.link)),
                 default: v,
                 positive: k == 0,
+                min: None,
                 used_by: Cow::Borrowed(if k < 4 { MV } else { M }),
             });
         }
@@ -362,6 +384,9 @@ fn params_of(tree: &Tree) -> Vec<ParamInfo> {
                 name: Cow::Owned(format!("{}.{field}", b.joint)),
                 default: v,
                 positive: false,
+                // Trained as themselves and kept ≥ 0 by projection: both often start at
+                // exactly 0, where a logarithm cannot start and a square has no gradient.
+                min: Some(0.0),
                 used_by: Cow::Borrowed(F),
             });
         }

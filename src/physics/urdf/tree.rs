@@ -80,7 +80,7 @@ fn bad(message: impl Into<String>) -> Error {
 }
 
 /// Every physical value of a document within the one bound (`templates::physical_problem`;
-/// no lower one: a URDF's tiny inertias are regularised, `Inertial::regularised`).
+/// no lower one: a URDF's tiny inertias are taken, `link_inertial`).
 fn within(at: &str, what: &str, v: f64) -> Result<()> {
     physical_problem(v, false).map_or(Ok(()), |m| Err(bad(format!("{at} {what} {m}"))))
 }
@@ -420,8 +420,7 @@ fn movable_body(j: &read::Joint, parent: Option<usize>, at: Frame) -> Result<Bod
         return Err(bad(format!("{label}: its axis must not be zero")));
     }
     let (damping, friction) = j.dynamics.unwrap_or((0.0, 0.0));
-    // Identified values may come out slightly negative, and an exported model must read
-    // back: any value within the bound is taken.
+    // Bounded here; their sign is the template's rule (`UrdfTemplate::from_doc`).
     let joint = format!("{label}:");
     within(&joint, "<dynamics> damping", damping)?;
     within(&joint, "<dynamics> friction", friction)?;

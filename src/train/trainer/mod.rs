@@ -22,6 +22,7 @@ use crate::model::Model;
 use crate::model::params_io::NamedArray;
 use crate::model::report::EpochMetrics;
 use crate::model::spec::ModelSpec;
+use crate::physics::params::lower_bounds;
 use crate::rng::Rng;
 
 pub use loss::evaluate;
@@ -54,6 +55,8 @@ pub struct Trainer {
     /// Shards per batch (see `TrainState::shards`) and the threads that run them.
     shards: usize,
     pool: Option<rayon::ThreadPool>,
+    /// The physical parameters' lower bounds, kept after every step (`Params::projected`).
+    lower: Option<Vec<f64>>,
 }
 
 impl Trainer {
@@ -90,6 +93,10 @@ impl Trainer {
         let c = &model.config;
         let baseline = zero_acceleration_loss(val.unwrap_or(train), c.lambda, &c.periodic);
         let initial_physical = used_physical_values(&model);
+        let lower = model
+            .config
+            .template()
+            .and_then(|t| lower_bounds(t.params()));
         Self {
             model_name: model_name.to_string(),
             model,
@@ -111,6 +118,7 @@ impl Trainer {
             initial_physical,
             shards: 1,
             pool: None,
+            lower,
         }
     }
 
@@ -236,6 +244,9 @@ impl Trainer {
             self.model.params = self
                 .adam
                 .step(self.model.params.clone(), &grads, self.cfg.lr);
+            if let Some(lower) = &self.lower {
+                self.model.params = self.model.params.clone().projected(lower);
+            }
         }
         self.train_seconds += start.elapsed().as_secs_f64();
         self.samples_seen += self.train.count as u64;
