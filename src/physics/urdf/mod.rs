@@ -3,6 +3,8 @@
 
 pub mod frame;
 pub mod inertia;
+mod mimic;
+pub mod parameters;
 pub mod read;
 pub mod rigid;
 pub mod term;
