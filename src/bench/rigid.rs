@@ -15,7 +15,8 @@ use crate::error::{Error, Result};
 use crate::physics::dynamics::{constants, white_box_acceleration};
 use crate::physics::urdf::UrdfTemplate;
 use crate::physics::urdf::featherstone::{
-    Model, aba, bias, crba, crba_forward, forward_dynamics, forward_dynamics_derivatives,
+    Model, aba, bias, crba, crba_forward, dual_derivatives, forward_dynamics,
+    forward_dynamics_derivatives,
 };
 use crate::rng::Rng;
 
@@ -111,9 +112,13 @@ pub fn run(a: BenchRigidArgs) -> Result<()> {
     figure("rnea_bias_f64", n, calls, |k| {
         black_box(bias(&model, &states[k][0], &states[k][1]));
     });
-    figure("forward_dynamics_dual_dq_dqd", n, calls.div_ceil(10), |k| {
+    figure("forward_dynamics_jet_dq_dqd", n, calls, |k| {
         let [q, qd, tau] = &states[k];
         black_box(forward_dynamics_derivatives(&model, q, qd, tau));
+    });
+    figure("forward_dynamics_dual_dq_dqd", n, calls.div_ceil(10), |k| {
+        let [q, qd, tau] = &states[k];
+        black_box(dual_derivatives(&model, q, qd, tau));
     });
     Ok(())
 }

@@ -14,7 +14,10 @@ pub mod aba;
 pub mod rnea;
 pub mod spatial;
 
-pub use aba::{aba, crba_forward, forward_dynamics, forward_dynamics_derivatives};
+pub use aba::{
+    Derivatives, aba, crba_forward, dual_derivatives, forward_dynamics,
+    forward_dynamics_derivatives,
+};
 pub use rnea::{bias, coriolis, crba, gravity_torques, inverse_dynamics};
 
 use super::inertia::Inertial;
