@@ -9,8 +9,8 @@ use std::f64::consts::PI;
 use graybox::physics::dual::Dual;
 use graybox::physics::scalar::Scalar;
 use graybox::physics::urdf::featherstone::{
-    Model, aba, bias, coriolis, crba, crba_forward, dual_derivatives, forward_dynamics,
-    forward_dynamics_derivatives, gravity_torques, inverse_dynamics,
+    Model, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
+    forward_dynamics, forward_dynamics_derivatives, gravity_torques, inverse_dynamics,
 };
 use graybox::physics::urdf::inertia::Inertial;
 use graybox::physics::urdf::term::Term;
@@ -220,11 +220,13 @@ fn recursive_algorithms_agree_with_the_jacobian_form() {
     }
 }
 
-/// ∂q̈/∂q and ∂q̈/∂q̇ from forward dynamics over dual numbers against central differences of
-/// the f64 forward dynamics, h = 1e-5: truncation h²/6·|q̈'''| ~ 1e-10 and rounding
-/// ε|q̈|·κ/h ~ 1e-16·10²·10⁴/1e-5 = 1e-5 at worst (κ: M's condition), so the bound is 1e-4 of
-/// max(1, |∂q̈|); a wrong term shows at O(1). Dual numbers are exact to rounding, so the ABA
-/// and CRBA + Cholesky routes agree to 1e-8, and fixed-size jets (`Jet`) and `Dual` to 1e-10.
+/// ∂q̈/∂q and ∂q̈/∂q̇ (`forward_dynamics_derivatives`: −M⁻¹ ∂ID over dual numbers) against
+/// central differences of the f64 forward dynamics, h = 1e-5: truncation h²/6·|q̈'''| ~ 1e-10
+/// and rounding ε|q̈|·κ/h ~ 1e-16·10²·10⁴/1e-5 = 1e-5 at worst (κ: M's condition), so the
+/// bound is 1e-4 of max(1, |∂q̈|) (measured: 3e-7); a wrong term shows at O(1). Dual numbers
+/// are exact to rounding, so the other routes agree much closer: forward dynamics over `Dual`
+/// (ABA, or CRBA + Cholesky) to 1e-9 (rounding amplified by M's condition), over `Jet` and
+/// over `Dual` (the same operations) to 1e-10.
 #[test]
 fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
     let mut rng = Rng::new(9);
@@ -236,14 +238,24 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
             let tau = random(&mut rng, n, 5.0);
             let (qdd, dq, dqd) = forward_dynamics_derivatives(&model, &q, &qd, &tau);
             assert!(err(&qdd, &forward_dynamics(&model, &q, &qd, &tau)) < 1e-12);
-            // The fixed-size jets and the sparse dual numbers: the same arithmetic to rounding.
+            // −M⁻¹ ∂ID, and forward dynamics itself over jets and over `Dual`: the same
+            // derivatives by different arithmetic, to rounding amplified by M's condition.
             let (_, dq2, dqd2) = dual_derivatives(&model, &q, &qd, &tau);
             assert!(
-                err(&flat(&dq), &flat(&dq2)) < 1e-10,
+                err(&flat(&dq), &flat(&dq2)) < 1e-9,
+                "{name}: ∂ID vs duals, ∂q"
+            );
+            assert!(
+                err(&flat(&dqd), &flat(&dqd2)) < 1e-9,
+                "{name}: ∂ID vs duals, ∂q̇"
+            );
+            let (_, dq3, dqd3) = fd_over_jets::<64>(&model, &q, &qd, &tau);
+            assert!(
+                err(&flat(&dq3), &flat(&dq2)) < 1e-10,
                 "{name}: jets vs duals, ∂q"
             );
             assert!(
-                err(&flat(&dqd), &flat(&dqd2)) < 1e-10,
+                err(&flat(&dqd3), &flat(&dqd2)) < 1e-10,
                 "{name}: jets vs duals, ∂q̇"
             );
             let h = 1e-5;

@@ -1,8 +1,8 @@
 //! `graybox bench rigid --urdf FILE`: microseconds per call of a URDF robot's dynamics in
 //! f64, the template path that serves today (M and V over dual numbers, then the Coriolis
 //! term from ∂L/∂q and a Cholesky solve: `dynamics::white_box_acceleration`) against the
-//! recursive algorithms (`urdf::featherstone`): ABA, CRBA + Cholesky, and forward dynamics
-//! over dual numbers with ∂q̈/∂q and ∂q̈/∂q̇ (what Linearize needs).
+//! recursive algorithms (`urdf::featherstone`): ABA, CRBA + Cholesky, and ∂q̈/∂q, ∂q̈/∂q̇ (what
+//! Linearize needs) by −M⁻¹ ∂ID over jets, by forward dynamics over jets and over `Dual`.
 
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -15,7 +15,7 @@ use crate::error::{Error, Result};
 use crate::physics::dynamics::{constants, white_box_acceleration};
 use crate::physics::urdf::UrdfTemplate;
 use crate::physics::urdf::featherstone::{
-    Model, aba, bias, crba, crba_forward, dual_derivatives, forward_dynamics,
+    Model, aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets, forward_dynamics,
     forward_dynamics_derivatives,
 };
 use crate::rng::Rng;
@@ -112,11 +112,17 @@ pub fn run(a: BenchRigidArgs) -> Result<()> {
     figure("rnea_bias_f64", n, calls, |k| {
         black_box(bias(&model, &states[k][0], &states[k][1]));
     });
-    figure("forward_dynamics_jet_dq_dqd", n, calls, |k| {
+    figure("fd_derivatives_by_rnea_jets", n, calls, |k| {
         let [q, qd, tau] = &states[k];
         black_box(forward_dynamics_derivatives(&model, q, qd, tau));
     });
-    figure("forward_dynamics_dual_dq_dqd", n, calls.div_ceil(10), |k| {
+    if 2 * n <= 16 {
+        figure("fd_derivatives_fd_over_jets16", n, calls, |k| {
+            let [q, qd, tau] = &states[k];
+            black_box(fd_over_jets::<16>(&model, q, qd, tau));
+        });
+    }
+    figure("fd_derivatives_fd_over_dual", n, calls.div_ceil(10), |k| {
         let [q, qd, tau] = &states[k];
         black_box(dual_derivatives(&model, q, qd, tau));
     });

@@ -1,14 +1,12 @@
 //! Forward dynamics q̈ = FD(q, q̇, τ): the articulated-body algorithm (Featherstone 2008,
 //! Table 7.1) for a tree without mimic joints, and M q̈ = τ − (C q̇ + g) by CRBA, RNEA and a
 //! Cholesky solve for any tree (a mimic joint is not a degree of freedom of its own, which
-//! ABA's per-joint recursion assumes). Over dual numbers either gives ∂q̈/∂q, ∂q̈/∂q̇ exactly.
+//! ABA's per-joint recursion assumes).
 
 use super::Model;
 use super::rnea::{bias, crba};
 use super::spatial::{Force, Inertia, Motion, Xform};
-use crate::physics::dual::Dual;
 use crate::physics::dynamics::{cholesky, solve_llt};
-use crate::physics::jet::Jet;
 use crate::physics::scalar::Scalar;
 
 /// q̈ by the articulated-body algorithm; τ on the coordinates. Panics on a tree with mimic
@@ -96,66 +94,4 @@ pub fn forward_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) 
     } else {
         aba(model, q, qd, tau)
     }
-}
-
-/// q̈ with ∂q̈/∂q and ∂q̈/∂q̇ (n×n each, row i is q̈ᵢ's gradient).
-pub type Derivatives = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
-
-/// q̈, ∂q̈/∂q and ∂q̈/∂q̇ by forward dynamics over dual numbers with 2n directions (q then q̇):
-/// fixed-size `Jet`s up to n = 32 (no allocation; padded to 8, 16, 32 or 64 directions),
-/// `Dual` beyond. ∂q̈/∂τ is M⁻¹.
-pub fn forward_dynamics_derivatives(
-    model: &Model,
-    q: &[f64],
-    qd: &[f64],
-    tau: &[f64],
-) -> Derivatives {
-    match 2 * q.len() {
-        0..=8 => jet_derivatives::<8>(model, q, qd, tau),
-        9..=16 => jet_derivatives::<16>(model, q, qd, tau),
-        17..=32 => jet_derivatives::<32>(model, q, qd, tau),
-        33..=64 => jet_derivatives::<64>(model, q, qd, tau),
-        _ => dual_derivatives(model, q, qd, tau),
-    }
-}
-
-fn jet_derivatives<const N: usize>(
-    model: &Model,
-    q: &[f64],
-    qd: &[f64],
-    tau: &[f64],
-) -> Derivatives {
-    let n = q.len();
-    let qv: Vec<Jet<N>> = (0..n).map(|k| Jet::variable(q[k], k)).collect();
-    let qdv: Vec<Jet<N>> = (0..n).map(|k| Jet::variable(qd[k], n + k)).collect();
-    let tv: Vec<Jet<N>> = tau.iter().map(|&t| Jet::constant(t)).collect();
-    let out = forward_dynamics(model, &qv, &qdv, &tv);
-    (
-        out.iter().map(|x| x.v).collect(),
-        out.iter().map(|x| x.d[..n].to_vec()).collect(),
-        out.iter().map(|x| x.d[n..2 * n].to_vec()).collect(),
-    )
-}
-
-/// The same over `Dual` (sparse optional tangents; on the heap beyond eight directions).
-pub fn dual_derivatives(model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) -> Derivatives {
-    let n = q.len();
-    let qv: Vec<Dual<f64>> = (0..n)
-        .map(|k| Dual::variable(q[k], k, 2 * n, 1.0))
-        .collect();
-    let qdv: Vec<Dual<f64>> = (0..n)
-        .map(|k| Dual::variable(qd[k], n + k, 2 * n, 1.0))
-        .collect();
-    let tv: Vec<Dual<f64>> = tau.iter().map(|&t| Dual::constant(t)).collect();
-    let out = forward_dynamics(model, &qv, &qdv, &tv);
-    let d = |x: &Dual<f64>, k: usize| x.tangent(k).copied().unwrap_or(0.0);
-    (
-        out.iter().map(|x| x.v).collect(),
-        out.iter()
-            .map(|x| (0..n).map(|k| d(x, k)).collect())
-            .collect(),
-        out.iter()
-            .map(|x| (0..n).map(|k| d(x, n + k)).collect())
-            .collect(),
-    )
 }

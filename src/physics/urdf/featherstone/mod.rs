@@ -2,7 +2,7 @@
 //! Featherstone, "Rigid Body Dynamics Algorithms", 2008): the recursive Newton–Euler
 //! algorithm for inverse dynamics, gravity and Coriolis torques (`rnea`), the composite
 //! rigid-body algorithm for M(q) (`crba`), and the articulated-body algorithm for forward
-//! dynamics (`aba`). Each is O(n) or O(n·depth) per state, generic over `Scalar` (f64 for
+//! dynamics (`aba`), and the derivatives of forward dynamics (`derivatives`). Each is O(n) or O(n·depth) per state, generic over `Scalar` (f64 for
 //! speed, dual numbers for exact derivatives), with the joints' constant frames precomputed
 //! once in a [`Model`].
 //!
@@ -11,13 +11,12 @@
 //! Gᵀ τ_joints, and M = Gᵀ M_joints G.
 
 pub mod aba;
+pub mod derivatives;
 pub mod rnea;
 pub mod spatial;
 
-pub use aba::{
-    Derivatives, aba, crba_forward, dual_derivatives, forward_dynamics,
-    forward_dynamics_derivatives,
-};
+pub use aba::{aba, crba_forward, forward_dynamics};
+pub use derivatives::{Derivatives, dual_derivatives, fd_over_jets, forward_dynamics_derivatives};
 pub use rnea::{bias, coriolis, crba, gravity_torques, inverse_dynamics};
 
 use super::inertia::Inertial;
