@@ -298,3 +298,76 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
         }
     }
 }
+
+/// A chain and a branch with two mimic joints that have offsets and carry bodies of their own:
+/// j3 (revolute, about x) follows j1 times −1.5 plus 0.2 and carries a prismatic j4; j5
+/// (prismatic, on the base) follows j2 times 0.7 minus 0.05.
+fn mimic_robot() -> Tree {
+    let link = |name: &str| {
+        format!(
+            r#"<link name="{name}"><inertial><origin xyz="0.05 0 0.1"/><mass value="1"/>
+            <inertia ixx="0.1" ixy="0" ixz="0" iyy="0.1" iyz="0" izz="0.1"/></inertial></link>"#
+        )
+    };
+    let joint = |name: &str, kind: &str, parent: &str, child: &str, extra: &str| {
+        format!(
+            r#"<joint name="{name}" type="{kind}"><parent link="{parent}"/><child link="{child}"/>
+            <origin xyz="0.1 0.2 0.3" rpy="0.3 -0.2 0.5"/>{extra}</joint>"#
+        )
+    };
+    let urdf = [
+        r#"<robot name="mimics"><link name="base"/>"#.to_string(),
+        link("l1"),
+        link("l2"),
+        link("l3"),
+        link("l4"),
+        link("l5"),
+        joint("j1", "revolute", "base", "l1", r#"<axis xyz="0 0 1"/>"#),
+        joint("j2", "revolute", "l1", "l2", r#"<axis xyz="0 1 0"/>"#),
+        joint(
+            "j3",
+            "revolute",
+            "l2",
+            "l3",
+            r#"<axis xyz="1 0 0"/><mimic joint="j1" multiplier="-1.5" offset="0.2"/>"#,
+        ),
+        joint("j4", "prismatic", "l3", "l4", r#"<axis xyz="0 1 1"/>"#),
+        joint(
+            "j5",
+            "prismatic",
+            "base",
+            "l5",
+            r#"<axis xyz="1 0 0"/><mimic joint="j2" multiplier="0.7" offset="-0.05"/>"#,
+        ),
+        "</robot>".to_string(),
+    ]
+    .concat();
+    Tree::parse(&urdf, graybox::physics::MAX_DOF).unwrap()
+}
+
+/// On the mimic robot, with random inertias, CRBA and RNEA (contracted with G) equal
+/// `urdf::rigid`'s M, ∂V/∂q and Coriolis term to 1e-9 of max(1, |ref|), and forward dynamics
+/// (CRBA + Cholesky) inverts them (tolerances as above).
+#[test]
+fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
+    let tree = mimic_robot();
+    assert_eq!(tree.coordinates.len(), 3);
+    let g = [0.3, -1.0, -9.81];
+    let mut rng = Rng::new(13);
+    for _ in 0..20 {
+        let inertias: Vec<Inertial> = (tree.bodies.iter())
+            .map(|_| Inertial::from_theta(&std::array::from_fn(|_| rng.normal())))
+            .collect();
+        let model = Model::with_inertias(&tree, &inertias, g);
+        assert!(model.mimic);
+        let q: Vec<f64> = (0..3).map(|_| rng.uniform_in(-PI, PI)).collect();
+        let qd = random(&mut rng, 3, 2.0);
+        let (m, gv, c) = rigid_terms(&tree, &inertias, &g, &q, &qd);
+        assert!(err(&flat(&crba(&model, &q)), &m) < 1e-9, "M");
+        assert!(err(&gravity_torques(&model, &q), &gv) < 1e-9, "g");
+        assert!(err(&coriolis(&model, &q, &qd), &c) < 1e-9, "C q̇");
+        let tau = random(&mut rng, 3, 10.0);
+        let qdd = forward_dynamics(&model, &q, &qd, &tau);
+        assert!(residual(&model, &q, &qd, &tau, &qdd) < 1e-10);
+    }
+}
