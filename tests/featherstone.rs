@@ -371,3 +371,48 @@ fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
         assert!(residual(&model, &q, &qd, &tau, &qdd) < 1e-10);
     }
 }
+
+/// `graybox bench rigid` on the Panda (a mimic joint: no ABA figure) prints the agreement of
+/// the two paths' q̈ and a positive µs per call for each figure, one JSON line each.
+#[test]
+fn bench_rigid_prints_agreement_and_figures() {
+    let urdf = format!(
+        "{}/tests/fixtures/urdf/robots/panda.urdf",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_graybox"))
+        .args(["bench", "rigid", "--urdf", &urdf, "--calls", "20"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<Value> = (out.stdout.split(|&b| b == b'\n'))
+        .filter(|l| !l.is_empty())
+        .map(|l| serde_json::from_slice(l).unwrap())
+        .collect();
+    assert_eq!(lines[0]["bench"], "rigid_agreement");
+    assert_eq!(lines[0]["mimic"], true);
+    assert!(
+        lines[0]["max_rel_diff_qdd"].as_f64().unwrap() < 1e-12,
+        "{}",
+        lines[0]
+    );
+    let names: Vec<&str> = lines[1..]
+        .iter()
+        .map(|l| l["bench"].as_str().unwrap())
+        .collect();
+    assert!(!names.contains(&"aba_f64"), "{names:?}");
+    for name in [
+        "template_white_box_acceleration_f64",
+        "crba_cholesky_f64",
+        "fd_derivatives_by_rnea_jets",
+    ] {
+        assert!(names.contains(&name), "{name} in {names:?}");
+    }
+    for l in &lines[1..] {
+        assert!(l["p50_us"].as_f64().unwrap() > 0.0, "{l}");
+    }
+}
