@@ -50,13 +50,18 @@ fn gravity(fx: &Value) -> [f64; 3] {
     [g[0], g[1], g[2]]
 }
 
-/// max |a − b| / max(1, max |b|).
+/// The larger of two errors, NaN if either is (`f64::max` would drop a NaN and pass).
+fn worse(m: f64, d: f64) -> f64 {
+    if d > m || d.is_nan() { d } else { m }
+}
+
+/// max |a − b| / max(1, max |b|); NaN if any entry is.
 fn err(a: &[f64], b: &[f64]) -> f64 {
     assert_eq!(a.len(), b.len());
     let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));
     a.iter()
         .zip(b)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()))
+        .fold(0.0f64, |m, (x, y)| worse(m, (x - y).abs()))
         / scale
 }
 
@@ -127,7 +132,7 @@ fn residual(model: &Model, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f
         let mq: f64 = (0..q.len()).map(|j| m[i][j] * qdd[j]).sum();
         let size: f64 = (0..q.len()).map(|j| (m[i][j] * qdd[j]).abs()).sum();
         scale = scale.max(size).max(tau[i].abs()).max(b[i].abs());
-        worst = worst.max((mq + b[i] - tau[i]).abs());
+        worst = worse(worst, (mq + b[i] - tau[i]).abs());
     }
     worst / scale
 }

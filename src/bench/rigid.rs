@@ -84,7 +84,11 @@ pub fn run(a: BenchRigidArgs) -> Result<()> {
     let worst = states.iter().fold(0.0f64, |w, s| {
         let (x, y) = (existing(s), forward_dynamics(&model, &s[0], &s[1], &s[2]));
         let scale = y.iter().fold(1.0f64, |m, v| m.max(v.abs()));
-        (x.iter().zip(&y)).fold(w, |w, (x, y)| w.max((x - y).abs() / scale))
+        // A NaN must show, not be dropped by `f64::max`.
+        (x.iter().zip(&y)).fold(w, |w, (x, y)| {
+            let d = (x - y).abs() / scale;
+            if d > w || d.is_nan() { d } else { w }
+        })
     });
     println!(
         "{}",
