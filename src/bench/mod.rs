@@ -1,6 +1,7 @@
 //! `graybox bench …`: the figures the issues ask for, printed as JSON lines on stdout.
 
 mod infer;
+mod rigid;
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -28,6 +29,8 @@ pub enum BenchCommand {
     /// Inference latency for controllers (double pendulum MVF 3×32): in process and as gRPC
     /// round trips on loopback, idle and with 64 concurrent clients while a job trains.
     Infer(infer::BenchInferArgs),
+    /// µs per call of a URDF robot's dynamics: the template path vs the recursive algorithms.
+    Rigid(rigid::BenchRigidArgs),
 }
 
 #[derive(Args, Debug)]
@@ -91,6 +94,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Train(a) => bench_train(a),
         BenchCommand::Step(a) => bench_step(a),
         BenchCommand::Infer(a) => infer::run(a),
+        BenchCommand::Rigid(a) => rigid::run(a),
     }
 }
 

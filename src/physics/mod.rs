@@ -13,6 +13,7 @@ pub mod dynamics;
 pub mod formula;
 pub mod formula_template;
 pub mod integrator;
+pub mod jet;
 pub mod mass_matrix;
 pub mod params;
 pub mod parts;

@@ -16,3 +16,4 @@ pub use tree::{Body, JointKind, Tree};
 pub mod template;
 pub use template::{UrdfDoc, UrdfTemplate};
 pub mod export;
+pub mod featherstone;

@@ -1,0 +1,134 @@
+//! `graybox bench rigid --urdf FILE`: microseconds per call of a URDF robot's dynamics in
+//! f64, the template path that serves today (M and V over dual numbers, then the Coriolis
+//! term from ∂L/∂q and a Cholesky solve: `dynamics::white_box_acceleration`) against the
+//! recursive algorithms (`urdf::featherstone`): ABA, CRBA + Cholesky, and ∂q̈/∂q, ∂q̈/∂q̇ (what
+//! Linearize needs) by −M⁻¹ ∂ID over jets, by forward dynamics over jets and over `Dual`.
+
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use clap::Args;
+use serde_json::json;
+
+use crate::error::{Error, Result};
+use crate::physics::dynamics::{constants, white_box_acceleration};
+use crate::physics::urdf::UrdfTemplate;
+use crate::physics::urdf::featherstone::{
+    Model, aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets, forward_dynamics,
+    forward_dynamics_derivatives,
+};
+use crate::rng::Rng;
+
+#[derive(Args, Debug)]
+pub struct BenchRigidArgs {
+    /// The robot's URDF file (e.g. tests/fixtures/urdf/robots/ur5.urdf).
+    #[arg(long)]
+    pub urdf: PathBuf,
+    /// Timed calls per figure (after a tenth as many for warm-up).
+    #[arg(long, default_value_t = 20_000)]
+    pub calls: usize,
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+/// States the calls cycle through, so no figure is of one state's cached branch pattern.
+const STATES: usize = 64;
+
+/// Mean and median µs per call of `f` over `calls` calls (state k mod `STATES`).
+fn figure(name: &str, n: usize, calls: usize, mut f: impl FnMut(usize)) {
+    for k in 0..calls.div_ceil(10) {
+        f(k % STATES);
+    }
+    let mut us: Vec<f64> = (0..calls)
+        .map(|k| {
+            let t = Instant::now();
+            f(k % STATES);
+            t.elapsed().as_secs_f64() * 1e6
+        })
+        .collect();
+    us.sort_by(f64::total_cmp);
+    let mean = us.iter().sum::<f64>() / us.len() as f64;
+    println!(
+        "{}",
+        json!({"bench": name, "n": n, "calls": calls, "mean_us": mean,
+               "p50_us": us[us.len() / 2], "p99_us": us[(us.len() - 1) * 99 / 100]})
+    );
+}
+
+pub fn run(a: BenchRigidArgs) -> Result<()> {
+    let text = std::fs::read_to_string(&a.urdf)
+        .map_err(|e| Error::invalid("urdf", format!("{}: {e}", a.urdf.display())))?;
+    let t = UrdfTemplate::from_urdf(&text)?;
+    let n = t.n();
+    let model = Model::new(&t.tree, t.doc.gravity);
+    let p: Vec<f64> = t.params().iter().map(|p| p.default).collect();
+    let pd = constants(&p);
+    let mut rng = Rng::new(a.seed);
+    let mut draw = |s: f64| -> Vec<f64> { (0..n).map(|_| s * rng.normal()).collect() };
+    let states: Vec<[Vec<f64>; 3]> = (0..STATES)
+        .map(|_| [draw(1.5), draw(1.0), draw(5.0)])
+        .collect();
+    // The existing path: M(q), V(q) of the template over dual numbers, then the manipulator
+    // equation (what `sim` and the f64 evaluator do for a white-box robot).
+    let existing = |[q, qd, tau]: &[Vec<f64>; 3]| {
+        white_box_acceleration(
+            |q| t.mass(&pd, q),
+            |q| t.potential(&pd, q),
+            tau.clone(),
+            q,
+            qd,
+        )
+    };
+    // Both compute the same q̈ (to rounding): say how close, so a figure is of a right answer.
+    let worst = states.iter().fold(0.0f64, |w, s| {
+        let (x, y) = (existing(s), forward_dynamics(&model, &s[0], &s[1], &s[2]));
+        let scale = y.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+        // A NaN must show, not be dropped by `f64::max`.
+        (x.iter().zip(&y)).fold(w, |w, (x, y)| {
+            let d = (x - y).abs() / scale;
+            if d > w || d.is_nan() { d } else { w }
+        })
+    });
+    println!(
+        "{}",
+        json!({"bench": "rigid_agreement", "robot": t.doc.name, "n": n,
+               "bodies": model.joints.len(), "mimic": model.mimic,
+               "max_rel_diff_qdd": worst})
+    );
+    let calls = a.calls;
+    figure("template_white_box_acceleration_f64", n, calls, |k| {
+        black_box(existing(&states[k]));
+    });
+    if !model.mimic {
+        figure("aba_f64", n, calls, |k| {
+            let [q, qd, tau] = &states[k];
+            black_box(aba(&model, q, qd, tau));
+        });
+    }
+    figure("crba_cholesky_f64", n, calls, |k| {
+        let [q, qd, tau] = &states[k];
+        black_box(crba_forward(&model, q, qd, tau));
+    });
+    figure("crba_f64", n, calls, |k| {
+        black_box(crba(&model, &states[k][0]));
+    });
+    figure("rnea_bias_f64", n, calls, |k| {
+        black_box(bias(&model, &states[k][0], &states[k][1]));
+    });
+    figure("fd_derivatives_by_rnea_jets", n, calls, |k| {
+        let [q, qd, tau] = &states[k];
+        black_box(forward_dynamics_derivatives(&model, q, qd, tau));
+    });
+    if 2 * n <= 16 {
+        figure("fd_derivatives_fd_over_jets16", n, calls, |k| {
+            let [q, qd, tau] = &states[k];
+            black_box(fd_over_jets::<16>(&model, q, qd, tau));
+        });
+    }
+    figure("fd_derivatives_fd_over_dual", n, calls.div_ceil(10), |k| {
+        let [q, qd, tau] = &states[k];
+        black_box(dual_derivatives(&model, q, qd, tau));
+    });
+    Ok(())
+}
