@@ -45,8 +45,12 @@ fn floats(v: &Value) -> Vec<f64> {
         .collect()
 }
 
-/// max |a − b| / max(1, max |b|).
+/// max |a − b| / max(1, max |b|); infinite when any value is not finite (`f64::max` would
+/// drop a NaN and pass it).
 fn err(a: &[f64], b: &[f64]) -> f64 {
+    if a.iter().chain(b).any(|x| !x.is_finite()) {
+        return f64::INFINITY;
+    }
     let scale = b.iter().fold(1.0f64, |m, x| m.max(x.abs()));
     a.iter()
         .zip(b)
