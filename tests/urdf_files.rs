@@ -49,3 +49,6 @@ mod bounds;
 
 #[path = "urdf_files/exact.rs"]
 mod exact;
+
+#[path = "urdf_files/coulomb.rs"]
+mod coulomb;

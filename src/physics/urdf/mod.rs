@@ -1,6 +1,7 @@
 //! Robots from URDF (docs/robots.md#urdf-robots): the rigid-body tree's M(q) and V(q) with trainable,
 //! physically consistent inertial parameters.
 
+mod body;
 pub mod inertia;
 pub mod rigid;
 pub mod term;

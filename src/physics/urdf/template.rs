@@ -15,13 +15,13 @@ use std::borrow::Cow;
 
 use serde::{Deserialize, Serialize};
 
+use super::body::{body_of_physical, inertial_of, physical_of_theta, raw_order};
 use super::inertia::{BodyInertia, Inertial};
 use super::rigid;
-use super::term::{C, Term, V};
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::names::name_problem;
-use crate::physics::params::{ParamInfo, Part, physical_problem};
+use crate::physics::params::{PHYSICAL_MAX, POSITIVE_MIN, ParamInfo, Part, physical_problem};
 use crate::physics::scalar::Scalar;
 
 /// The template document (kept whole: a model file embeds it, and the export rewrites its
@@ -44,20 +44,36 @@ pub struct UrdfDoc {
     /// Joints that are angles besides the `continuous` ones.
     #[serde(default)]
     pub periodic: Vec<String>,
+    /// ε of the Coulomb term tanh(q̇/ε), rad/s or m/s: a larger one is a smoother friction
+    /// that an explicit integrator can step (`physics::stiffness`). Absent: `COULOMB_EPS`, as
+    /// every document before the option meant (and then not written).
+    #[serde(
+        default = "default_coulomb_eps",
+        skip_serializing_if = "is_default_eps"
+    )]
+    pub coulomb_eps: f64,
 }
 
 fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -9.81]
 }
 
+fn default_coulomb_eps() -> f64 {
+    COULOMB_EPS
+}
+
+fn is_default_eps(eps: &f64) -> bool {
+    *eps == COULOMB_EPS
+}
+
 pub const KIND: &str = "urdf";
 
-/// ε of the Coulomb term tanh(q̇/ε): 0.01 rad/s or m/s, a smooth sign that is within 1% of
-/// ±1 beyond 0.03.
+/// The default ε of the Coulomb term tanh(q̇/ε) (`UrdfDoc::coulomb_eps`): 0.01 rad/s or m/s,
+/// a smooth sign that is within 1% of ±1 beyond 0.03.
 pub const COULOMB_EPS: f64 = 0.01;
 
 /// Parameters per body and per joint.
-pub const PER_BODY: usize = 10;
+pub use super::body::PER_BODY;
 const PER_JOINT: usize = 2;
 
 const BODY_FIELDS: [&str; PER_BODY] = [
@@ -103,6 +119,7 @@ impl UrdfTemplate {
                 gravity: default_gravity(),
                 actuated: None,
                 periodic: vec![],
+                coulomb_eps: COULOMB_EPS,
             },
             max_dof,
         )
@@ -119,6 +136,17 @@ impl UrdfTemplate {
         }
         if let Some(m) = doc.gravity.iter().find_map(|&g| physical_problem(g, false)) {
             return Err(bad("gravity", format!("each component {m}")));
+        }
+        // 1/ε scales q̇ in f32 training too: no smaller ε than a positive parameter's.
+        let eps = doc.coulomb_eps;
+        if !(eps.is_finite() && (POSITIVE_MIN..=PHYSICAL_MAX).contains(&eps)) {
+            return Err(bad(
+                "coulomb_eps",
+                format!(
+                    "must be a velocity in [{POSITIVE_MIN:e}, {PHYSICAL_MAX:e}] (rad/s or m/s, \
+                     the scale of the Coulomb term tanh(q̇/ε)), got {eps}"
+                ),
+            ));
         }
         if let Some(m) = name_problem(&doc.name) {
             return Err(bad("name", m));
@@ -298,12 +326,13 @@ impl UrdfTemplate {
     /// F = S u − d∘q̇ − f∘tanh(q̇/ε).
     pub fn forces<S: Scalar>(&self, p: &[S], _q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
         let joint = |i: usize| self.n() * PER_BODY + PER_JOINT * i;
+        let per_eps = 1.0 / self.doc.coulomb_eps;
         (0..self.n())
             .map(|i| {
                 let d = &p[joint(i)];
                 let f = &p[joint(i) + 1];
-                let mut out = -(d.clone() * qd[i].clone())
-                    - f.clone() * qd[i].scale(1.0 / COULOMB_EPS).tanh();
+                let mut out =
+                    -(d.clone() * qd[i].clone()) - f.clone() * qd[i].scale(per_eps).tanh();
                 if let Some(a) = self.actuated.iter().position(|&k| k == i) {
                     out = out + u[a].clone();
                 }
@@ -360,78 +389,4 @@ fn params_of(tree: &Tree) -> Vec<ParamInfo> {
         }
     }
     out
-}
-
-/// (m, c, Ī_c) as a body.
-fn inertial_of(v: &[f64]) -> Inertial {
-    let ic = [[v[4], v[5], v[6]], [v[5], v[7], v[8]], [v[6], v[8], v[9]]];
-    Inertial::from_com(v[0], [v[1], v[2], v[3]], ic)
-}
-
-/// θ = (α, d₁, d₂, d₃, s₁₂, s₁₃, s₂₃, t₁, t₂, t₃) → the raw order
-/// (α, t₁, t₂, t₃, d₁, s₁₂, s₁₃, d₂, s₂₃, d₃).
-fn raw_order(t: &[f64; 10]) -> [f64; 10] {
-    [t[0], t[7], t[8], t[9], t[1], t[4], t[5], t[2], t[6], t[3]]
-}
-
-/// One body's physical values from its raw ones: m = e^{2α}, c = t, and with the factor
-/// R = [[e^d₁, s₁₂, s₁₃], [0, e^d₂, s₂₃], [0, 0, e^d₃]] the second moment about the centre of
-/// mass Σ_c = m R Rᵀ, so Ī_c = tr(Σ_c) 𝟙 − Σ_c (inertia.rs: J = U Uᵀ).
-fn physical_of_theta<S: Scalar>(r: &[S]) -> [S; PER_BODY] {
-    let [a, t1, t2, t3, d1, s12, s13, d2, s23, d3] =
-        std::array::from_fn::<_, 10, _>(|k| r[k].clone());
-    let m = (a.clone() + a).exp();
-    let rows: [[Term<S>; 3]; 3] = [
-        [V(d1.exp()), V(s12), V(s13)],
-        [C(0.0), V(d2.exp()), V(s23)],
-        [C(0.0), C(0.0), V(d3.exp())],
-    ];
-    let dot = |x: &[Term<S>; 3], y: &[Term<S>; 3]| {
-        (x[0].clone() * y[0].clone())
-            + (x[1].clone() * y[1].clone())
-            + (x[2].clone() * y[2].clone())
-    };
-    let like = &m;
-    let sigma = |i: usize, j: usize| m.clone() * dot(&rows[i], &rows[j]).value(like);
-    let (s00, s11, s22) = (sigma(0, 0), sigma(1, 1), sigma(2, 2));
-    let tr = s00.clone() + s11.clone() + s22.clone();
-    [
-        m.clone(),
-        t1,
-        t2,
-        t3,
-        tr.clone() - s00,
-        -sigma(0, 1),
-        -sigma(0, 2),
-        tr.clone() - s11,
-        -sigma(1, 2),
-        tr - s22,
-    ]
-}
-
-/// A body in the form the rigid-body terms take: h = m c, Ī_o = Ī_c + m(|c|² 𝟙 − c cᵀ).
-fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
-    let m = v[0].clone();
-    let c = [v[1].clone(), v[2].clone(), v[3].clone()];
-    let ic = [
-        [&v[4], &v[5], &v[6]],
-        [&v[5], &v[7], &v[8]],
-        [&v[6], &v[8], &v[9]],
-    ];
-    let c2 = c[0].square() + c[1].square() + c[2].square();
-    let inertia = std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
-            let shift = if i == j {
-                c2.clone() - c[i].square()
-            } else {
-                -(c[i].clone() * c[j].clone())
-            };
-            V(ic[i][j].clone() + m.clone() * shift)
-        })
-    });
-    BodyInertia {
-        h: c.clone().map(|ci| V(m.clone() * ci)),
-        mass: V(m),
-        inertia,
-    }
 }
