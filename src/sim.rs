@@ -6,8 +6,31 @@ use crate::error::{Error, Result};
 use crate::physics::dual::Dual;
 use crate::physics::dynamics::{Tri, cholesky, constants, dual_vars, white_box_acceleration};
 use crate::physics::integrator::Integrator;
+use crate::physics::stiffness;
 use crate::physics::templates::Template;
+use crate::records::Warning;
 use crate::rng::Rng;
+
+/// The code of the warning that a template's forces are too stiff for the step.
+pub const STIFF_FORCES: &str = "stiff_forces";
+
+/// `physics::stiffness::warning` of a template at values `p`, step `dt` and `integrator`
+/// (looked at q = 0 and at `configurations`) as a warning.
+pub fn stiffness_warning(
+    t: &Template,
+    p: &[f64],
+    dt: f64,
+    integrator: Integrator,
+    configurations: &[Vec<f64>],
+) -> Option<Warning> {
+    stiffness::warning(t, p, dt, integrator, configurations)
+        .map(|m| Warning::new(STIFF_FORCES, None, m))
+}
+
+/// The first `k` configurations q of a dataset, where a check looks besides q = 0.
+pub fn configurations(ds: &Dataset, k: usize) -> Vec<Vec<f64>> {
+    ds.q.chunks(ds.n).take(k).map(<[f64]>::to_vec).collect()
+}
 
 /// The analytic system of a template at physical parameter values `p`, in f64: the "true"
 /// system for simulation and the reference for tests.

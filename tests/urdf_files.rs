@@ -8,6 +8,8 @@ use graybox::physics::urdf::UrdfTemplate;
 
 #[path = "urdf_files/bounds.rs"]
 mod bounds;
+#[path = "urdf_files/coulomb.rs"]
+mod coulomb;
 #[path = "urdf_files/exact.rs"]
 mod exact;
 #[path = "urdf_files/mimic.rs"]

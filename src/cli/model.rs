@@ -36,12 +36,17 @@ pub(super) fn model(a: ModelArgs) -> Result<()> {
     let integrator = Integrator::parse(&a.integrator)?;
     let file = ModelFile::from_template(&t, &values, a.dt, integrator)?;
     file.save(&a.out)?;
-    println!(
-        "{}",
-        json!({"out": a.out, "template": t.name(), "n": file.config.n, "m": file.config.m,
-               "dt": a.dt, "integrator": a.integrator,
-               "physical_parameters": file.made.as_ref().map(|m| &m.physical_parameters)})
-    );
+    let warnings: Vec<_> = file.stiffness_warning(&[]).into_iter().collect();
+    for w in &warnings {
+        eprintln!("warning: {}", w.message);
+    }
+    let mut out = json!({"out": a.out, "template": t.name(), "n": file.config.n,
+        "m": file.config.m, "dt": a.dt, "integrator": a.integrator,
+        "physical_parameters": file.made.as_ref().map(|m| &m.physical_parameters)});
+    if !warnings.is_empty() {
+        out["warnings"] = json!(warnings);
+    }
+    println!("{out}");
     Ok(())
 }
 

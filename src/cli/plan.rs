@@ -121,9 +121,15 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
 }
 
 pub(super) fn run(a: PlanArgs) -> Result<()> {
-    let eval = Evaluator::from_file(&ModelFile::load(&a.model)?)?;
+    let file = ModelFile::load(&a.model)?;
+    let eval = Evaluator::from_file(&file)?;
     let (nx, m) = (2 * eval.config.n, eval.config.m);
     let req = request(&a, nx, m)?;
+    // Looked at the start's and the goal's configurations besides q = 0.
+    let q = |x: &[f64]| x[..eval.config.n].to_vec();
+    if let Some(w) = file.stiffness_warning(&[q(&req.x0), q(&req.goal)]) {
+        eprintln!("warning: {}", w.message);
+    }
     let started = Instant::now();
     let p = plan(&eval, &req, &|| false)?;
     let seconds = started.elapsed().as_secs_f64();

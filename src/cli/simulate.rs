@@ -7,6 +7,7 @@ use serde_json::json;
 
 use crate::error::{Error, Result};
 use crate::model::file::write_atomic;
+use crate::physics::integrator::Integrator;
 use crate::sim::{self, SimConfig, parse_assignments};
 
 #[derive(Args, Debug)]
@@ -61,11 +62,25 @@ pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
         u_std: stds.first().copied().unwrap_or(f64::NAN),
         u_stds: if stds.len() > 1 { stds } else { vec![] },
     };
-    let ds = sim::simulate(&t, params, &cfg)?;
+    let ds = sim::simulate(&t, params.clone(), &cfg)?;
+    // After the data: the check looks at its first states too.
+    let warnings: Vec<_> = sim::stiffness_warning(
+        &t,
+        &params,
+        a.dt,
+        Integrator::Rk4,
+        &sim::configurations(&ds, 8),
+    )
+    .into_iter()
+    .collect();
+    for w in &warnings {
+        eprintln!("warning: {}", w.message);
+    }
     write_atomic(&a.out, ds.to_json().as_bytes())?;
-    println!(
-        "{}",
-        json!({"out": a.out, "system": t.name(), "count": ds.count(), "n": ds.n, "m": ds.m, "dt": ds.dt})
-    );
+    let mut out = json!({"out": a.out, "system": t.name(), "count": ds.count(), "n": ds.n, "m": ds.m, "dt": ds.dt});
+    if !warnings.is_empty() {
+        out["warnings"] = json!(warnings);
+    }
+    println!("{out}");
     Ok(())
 }

@@ -134,6 +134,9 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
     let threads = a.threads.unwrap_or_else(crate::train::shards::cores);
     let mut trainer = Trainer::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?
         .with_threads(threads)?;
+    if let Some(w) = trainer.stiffness_warning() {
+        eprintln!("warning: {}", w.message);
+    }
     let progress = Progress::new(a.epochs as u64);
     trainer.run(&AtomicBool::new(false), |m, _| progress.epoch(m))?;
     progress.finish();

@@ -194,6 +194,11 @@ async fn end_with_error(app: &App, claimed: &Claimed, e: Error) -> Result<Outcom
 fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outcome> {
     let spec = JobSpec::from_json(&c.job.request)?;
     let mut trainer = build_trainer(app, c, &spec, rt)?;
+    if trainer.epoch() == 0
+        && let Some(w) = trainer.stiffness_warning()
+    {
+        warn!(job = %c.job.id, code = %w.code, "{}", w.message);
+    }
     let every = app.settings.checkpoint_epochs();
     let mut checkpointed = trainer.epoch();
     let lost = || {

@@ -15,8 +15,10 @@ use crate::model::params::Params;
 use crate::model::params_io::{NamedArray, import};
 use crate::model::{Model, ModelConfig, raw_physical};
 use crate::physics::integrator::Integrator;
+use crate::physics::params::Part;
 use crate::physics::scaling::Scaling;
 use crate::physics::templates::Template;
+use crate::records::Warning;
 use burn::tensor::Device;
 
 /// The format of files whose template is a built-in one (older graybox versions read them).
@@ -174,6 +176,12 @@ impl ModelFile {
         )
     }
 
+    /// Whether this model's template forces are too stiff for its step (`sim::stiffness_warning`,
+    /// at q = 0 and `configurations`).
+    pub fn stiffness_warning(&self, configurations: &[Vec<f64>]) -> Option<Warning> {
+        stiffness_of(&self.config, &self.physical_values()?, configurations)
+    }
+
     /// The identified robot as URDF (`urdf::export`): a model whose template is not a URDF
     /// robot has none (failed precondition).
     pub fn urdf(&self) -> Result<String> {
@@ -207,6 +215,20 @@ impl ModelFile {
         }
         Ok(Model::from_parts(self.config.clone(), params, device))
     }
+}
+
+/// The stiffness warning of a model with this configuration at these physical values: only
+/// when its forces are the template's (a network's stiffness is not the template's to judge).
+pub fn stiffness_of(
+    config: &ModelConfig,
+    physical: &[f64],
+    configurations: &[Vec<f64>],
+) -> Option<Warning> {
+    let t = config.template()?;
+    if !config.spec.white_box_parts().contains(&Part::Forces) {
+        return None;
+    }
+    crate::sim::stiffness_warning(t, physical, config.dt, config.integrator, configurations)
 }
 
 /// Write to a temporary file beside the target, fsync, rename over the target: a crash leaves

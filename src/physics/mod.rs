@@ -19,6 +19,7 @@ pub mod params;
 pub mod parts;
 pub mod scalar;
 pub mod scaling;
+pub mod stiffness;
 pub mod templates;
 pub mod urdf;
 

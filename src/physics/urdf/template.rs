@@ -21,7 +21,7 @@ use super::rigid;
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::names::name_problem;
-use crate::physics::params::{ParamInfo, physical_problem};
+use crate::physics::params::{PHYSICAL_MAX, POSITIVE_MIN, ParamInfo, physical_problem};
 use crate::physics::scalar::Scalar;
 
 /// The template document (kept whole: a model file embeds it, and the export rewrites its
@@ -44,16 +44,32 @@ pub struct UrdfDoc {
     /// Joints that are angles besides the `continuous` ones.
     #[serde(default)]
     pub periodic: Vec<String>,
+    /// ε of the Coulomb term tanh(q̇/ε), rad/s or m/s: a larger one is a smoother friction
+    /// that an explicit integrator can step (`physics::stiffness`). Absent: `COULOMB_EPS`, as
+    /// every document before the option meant (and then not written).
+    #[serde(
+        default = "default_coulomb_eps",
+        skip_serializing_if = "is_default_eps"
+    )]
+    pub coulomb_eps: f64,
 }
 
 fn default_gravity() -> [f64; 3] {
     [0.0, 0.0, -9.81]
 }
 
+fn default_coulomb_eps() -> f64 {
+    COULOMB_EPS
+}
+
+fn is_default_eps(eps: &f64) -> bool {
+    *eps == COULOMB_EPS
+}
+
 pub const KIND: &str = "urdf";
 
-/// ε of the Coulomb term tanh(q̇/ε): 0.01 rad/s or m/s, a smooth sign that is within 1% of
-/// ±1 beyond 0.03.
+/// The default ε of the Coulomb term tanh(q̇/ε) (`UrdfDoc::coulomb_eps`): 0.01 rad/s or m/s,
+/// a smooth sign that is within 1% of ±1 beyond 0.03.
 pub const COULOMB_EPS: f64 = 0.01;
 
 /// What an identification can and cannot tell, said wherever a URDF model's values are shown.
@@ -95,6 +111,7 @@ impl UrdfTemplate {
                 gravity: default_gravity(),
                 actuated: None,
                 periodic: vec![],
+                coulomb_eps: COULOMB_EPS,
             },
             max_dof,
         )
@@ -111,6 +128,17 @@ impl UrdfTemplate {
         }
         if let Some(m) = doc.gravity.iter().find_map(|&g| physical_problem(g, false)) {
             return Err(bad("gravity", format!("each component {m}")));
+        }
+        // 1/ε scales q̇ in f32 training too: no smaller ε than a positive parameter's.
+        let eps = doc.coulomb_eps;
+        if !(eps.is_finite() && (POSITIVE_MIN..=PHYSICAL_MAX).contains(&eps)) {
+            return Err(bad(
+                "coulomb_eps",
+                format!(
+                    "must be a velocity in [{POSITIVE_MIN:e}, {PHYSICAL_MAX:e}] (rad/s or m/s, \
+                     the scale of the Coulomb term tanh(q̇/ε)), got {eps}"
+                ),
+            ));
         }
         if let Some(m) = name_problem(&doc.name) {
             return Err(bad("name", m));
@@ -309,6 +337,7 @@ impl UrdfTemplate {
     /// it follows times its multiplier, and moves at the multiplier times its velocity.
     pub fn forces<S: Scalar>(&self, p: &[S], _q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
         let mut out: Vec<Option<S>> = vec![None; self.n()];
+        let per_eps = 1.0 / self.doc.coulomb_eps;
         for (i, b) in self.tree.bodies.iter().enumerate() {
             let k = self.nb() * PER_BODY + PER_JOINT * i;
             let (d, f) = (&p[k], &p[k + 1]);
@@ -319,7 +348,7 @@ impl UrdfTemplate {
             } else {
                 qd[c].scale(g)
             };
-            let mut e = -(d.clone() * v.clone()) - f.clone() * v.scale(1.0 / COULOMB_EPS).tanh();
+            let mut e = -(d.clone() * v.clone()) - f.clone() * v.scale(per_eps).tanh();
             if g != 1.0 {
                 e = e.scale(g);
             }

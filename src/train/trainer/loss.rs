@@ -34,6 +34,16 @@ impl HostData {
         }
     }
 
+    /// The first `k` rows' q.
+    pub(super) fn configurations(&self, k: usize) -> Vec<Vec<f64>> {
+        let n = self.n2 / 2;
+        self.x
+            .chunks(self.n2)
+            .take(k)
+            .map(|x| x[..n].to_vec())
+            .collect()
+    }
+
     fn gather(&self, idx: &[usize], device: &Device) -> (Tensor<2>, Tensor<2>, Tensor<2>) {
         let take = |a: &[f64], w: usize| -> Tensor<2> {
             let v: Vec<f64> = idx

@@ -6,9 +6,10 @@ use std::collections::BTreeMap;
 
 use super::Trainer;
 use crate::model::Model;
-use crate::model::file::ModelFile;
+use crate::model::file::{ModelFile, stiffness_of};
 use crate::model::params_io::import;
 use crate::model::report::{TrainReport, identifiable, used_physical};
+use crate::records::Warning;
 use crate::train::warnings::{RunSummary, training_warnings};
 
 /// The physical values the model's white-box parts use, by name.
@@ -37,14 +38,16 @@ impl Trainer {
             .expect("same structure"),
             &self.model.device(),
         );
-        let (physical_parameters, ident) =
-            match (self.model.config.template(), best.physical_values()) {
-                (Some(t), Some(values)) => (
-                    used_physical(t, &parts, &values),
-                    identifiable(t, &parts, &values),
-                ),
-                _ => Default::default(),
-            };
+        let best_values = best.physical_values();
+        let (physical_parameters, ident) = match (self.model.config.template(), &best_values) {
+            (Some(t), Some(values)) => (
+                used_physical(t, &parts, values),
+                identifiable(t, &parts, values),
+            ),
+            _ => Default::default(),
+        };
+        let mut warnings = self.warnings();
+        warnings.extend(best_values.and_then(|v| self.stiffness_at(&v)));
         TrainReport {
             model: self.model_name.clone(),
             spec: self.model.config.spec.clone(),
@@ -70,12 +73,25 @@ impl Trainer {
                 .and_then(|t| t.identifiability_note())
                 .map(str::to_string),
             history: self.history.clone(),
-            warnings: self.warnings(),
+            warnings,
         }
     }
 
+    /// Whether the model's template forces, at its values now, are too stiff for its step
+    /// (docs/robots.md#joint-forces): the CLI and the worker say so when a run starts, and
+    /// the report at the values it ends with.
+    pub fn stiffness_warning(&self) -> Option<Warning> {
+        self.stiffness_at(&self.model.physical_values()?)
+    }
+
+    /// At q = 0 and the first few states of the training data.
+    fn stiffness_at(&self, values: &[(String, f64)]) -> Option<Warning> {
+        let values: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
+        stiffness_of(&self.model.config, &values, &self.train.configurations(8))
+    }
+
     /// The training checks on the run so far.
-    fn warnings(&self) -> Vec<crate::records::Warning> {
+    fn warnings(&self) -> Vec<Warning> {
         let physical = used_physical_values(&self.model).unwrap_or_default();
         training_warnings(&RunSummary {
             history: &self.history,
