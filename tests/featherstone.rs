@@ -7,16 +7,17 @@
 use std::f64::consts::PI;
 
 use graybox::physics::dual::Dual;
-use graybox::physics::scalar::Scalar;
+use graybox::physics::urdf::Tree;
 use graybox::physics::urdf::featherstone::{
     Model, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
     forward_dynamics, forward_dynamics_derivatives, gravity_torques, inverse_dynamics,
 };
 use graybox::physics::urdf::inertia::Inertial;
-use graybox::physics::urdf::term::Term;
-use graybox::physics::urdf::{Tree, body_inertia, rigid};
 use graybox::rng::Rng;
 use serde_json::Value;
+
+mod common;
+use common::urdf::{fixture, floats, rigid_terms};
 
 const FIXTURES: [&str; 6] = [
     "arm4",
@@ -26,24 +27,6 @@ const FIXTURES: [&str; 6] = [
     "robots/solo12",
     "robots/kinova",
 ];
-
-fn fixture(name: &str) -> (Tree, Value) {
-    let dir = format!("{}/tests/fixtures/urdf", env!("CARGO_MANIFEST_DIR"));
-    let urdf = std::fs::read_to_string(format!("{dir}/{name}.urdf")).unwrap();
-    let json = std::fs::read_to_string(format!("{dir}/{name}.json")).unwrap();
-    (
-        Tree::parse(&urdf, graybox::physics::MAX_DOF).unwrap(),
-        serde_json::from_str(&json).unwrap(),
-    )
-}
-
-fn floats(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
-}
 
 fn gravity(fx: &Value) -> [f64; 3] {
     let g = floats(&fx["gravity"]);
@@ -161,39 +144,6 @@ fn forward_dynamics_inverts_inverse_dynamics() {
             }
         }
     }
-}
-
-/// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) of `urdf::rigid` over
-/// dual numbers, for `inertias`.
-fn rigid_terms(
-    tree: &Tree,
-    inertias: &[Inertial],
-    gravity: &[f64; 3],
-    q: &[f64],
-    qd: &[f64],
-) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let n = q.len();
-    let qv: Vec<Dual<f64>> = (0..n).map(|k| Dual::variable(q[k], k, n, 1.0)).collect();
-    let bodies: Vec<_> = inertias
-        .iter()
-        .map(|i| body_inertia(&i.theta().unwrap().map(|t| Term::V(qv[0].lift(t)))))
-        .collect();
-    let m = rigid::mass_matrix(tree, &bodies, &qv);
-    let v = rigid::potential(tree, &bodies, gravity, &qv);
-    let d = |x: &Dual<f64>, k: usize| x.tangent(k).copied().unwrap_or(0.0);
-    let g = (0..n).map(|k| d(&v, k)).collect();
-    let c = (0..n)
-        .map(|i| {
-            let mut s = 0.0;
-            for j in 0..n {
-                for k in 0..n {
-                    s += (d(&m[i][j], k) - 0.5 * d(&m[j][k], i)) * qd[j] * qd[k];
-                }
-            }
-            s
-        })
-        .collect();
-    (m.iter().flatten().map(|x| x.v).collect(), g, c)
 }
 
 /// For random physical inertias (θ ~ N(0, 1) per body: masses e^{2α} from 0.1 to 10, centres

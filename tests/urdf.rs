@@ -15,35 +15,18 @@ use graybox::physics::dual::Dual;
 use graybox::physics::integrator::Integrator;
 use graybox::physics::scalar::Scalar;
 use graybox::physics::templates::Template;
+use graybox::physics::urdf::Tree;
 use graybox::physics::urdf::UrdfTemplate;
 use graybox::physics::urdf::inertia::Inertial;
-use graybox::physics::urdf::term::Term;
-use graybox::physics::urdf::{Tree, body_inertia, rigid};
 use graybox::rng::Rng;
 use graybox::sim::TemplateSystem;
 use graybox::sim::true_step;
 use graybox::train::warnings::zero_acceleration_loss;
 use graybox::train::{TrainConfig, Trainer};
-use serde_json::Value;
+
+mod common;
+use common::urdf::{fixture, floats, rigid_terms};
 use std::sync::atomic::AtomicBool;
-
-fn fixture(name: &str) -> (Tree, Value) {
-    let dir = format!("{}/tests/fixtures/urdf", env!("CARGO_MANIFEST_DIR"));
-    let urdf = std::fs::read_to_string(format!("{dir}/{name}.urdf")).unwrap();
-    let json = std::fs::read_to_string(format!("{dir}/{name}.json")).unwrap();
-    (
-        Tree::parse(&urdf, graybox::physics::MAX_DOF).unwrap(),
-        serde_json::from_str(&json).unwrap(),
-    )
-}
-
-fn floats(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
-}
 
 /// max |a − b| / max(1, max |b|); infinite when any value is not finite (`f64::max` would
 /// drop a NaN and pass it).
@@ -58,40 +41,10 @@ fn err(a: &[f64], b: &[f64]) -> f64 {
         / scale
 }
 
-/// Each body's inertia as the trainable form gives it: URDF values → θ → (m, h, Ī).
-fn inertias<S: Scalar>(tree: &Tree, like: &S) -> Vec<graybox::physics::urdf::BodyInertia<S>> {
-    tree.bodies
-        .iter()
-        .map(|b| {
-            let theta = b.inertial.theta().unwrap();
-            body_inertia(&theta.map(|t| Term::V(like.lift(t))))
-        })
-        .collect()
-}
-
-/// M, g and C q̇ at (q, q̇): g from the dual numbers of V, C q̇ = Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ
-/// from those of M.
+/// M, g and C q̇ at (q, q̇) of `urdf::rigid` with the tree's own inertias, through θ.
 fn terms(tree: &Tree, gravity: &[f64; 3], q: &[f64], qd: &[f64]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let n = q.len();
-    let qv: Vec<Dual<f64>> = (0..n).map(|k| Dual::variable(q[k], k, n, 1.0)).collect();
-    let inertia = inertias(tree, &qv[0]);
-    let m = rigid::mass_matrix(tree, &inertia, &qv);
-    let v = rigid::potential(tree, &inertia, gravity, &qv);
-    let d = |x: &Dual<f64>, k: usize| x.tangent(k).copied().unwrap_or(0.0);
-    let g = (0..n).map(|k| d(&v, k)).collect();
-    let c = (0..n)
-        .map(|i| {
-            let mut s = 0.0;
-            for j in 0..n {
-                for k in 0..n {
-                    s += (d(&m[i][j], k) - 0.5 * d(&m[j][k], i)) * qd[j] * qd[k];
-                }
-            }
-            s
-        })
-        .collect();
-    let flat = m.iter().flatten().map(|x| x.v).collect();
-    (flat, g, c)
+    let inertias: Vec<Inertial> = tree.bodies.iter().map(|b| b.inertial.clone()).collect();
+    rigid_terms(tree, &inertias, gravity, q, qd)
 }
 
 /// Pinocchio's `crba` (symmetrised), `computeGeneralizedGravity` and `nonLinearEffects` − g

@@ -1,6 +1,8 @@
 //! Helpers shared by the integration tests.
 #![allow(dead_code)]
 
+pub mod urdf;
+
 use burn::tensor::{Device, Tensor, TensorData};
 use graybox::model::params_io::import;
 use graybox::model::spec::ModelSpec;

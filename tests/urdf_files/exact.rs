@@ -11,22 +11,9 @@ use graybox::physics::templates::Template;
 use graybox::sim::TemplateSystem;
 use serde_json::Value;
 
+use crate::common::urdf::{fixture_path, floats};
+
 use super::{fixture, template};
-
-fn fixture_path(name: &str, ext: &str) -> String {
-    format!(
-        "{}/tests/fixtures/urdf/{name}.{ext}",
-        env!("CARGO_MANIFEST_DIR")
-    )
-}
-
-fn floats(v: &Value) -> Vec<f64> {
-    v.as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect()
-}
 
 /// `graybox model --template <file>.urdf`: the file written, and what stdout says.
 fn graybox_model(name: &str) -> (ModelFile, Value) {

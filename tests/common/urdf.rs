@@ -1,0 +1,69 @@
+//! The URDF fixtures (tests/fixtures/urdf: robots and the Pinocchio values written beside them
+//! by scripts/urdf_fixtures.py), read one way by every test binary that compares with them.
+
+use graybox::physics::dual::Dual;
+use graybox::physics::scalar::Scalar;
+use graybox::physics::urdf::inertia::Inertial;
+use graybox::physics::urdf::term::Term;
+use graybox::physics::urdf::{Tree, body_inertia, rigid};
+use serde_json::Value;
+
+/// The path of fixture `name` (e.g. "arm4", "robots/panda") with extension `ext`.
+pub fn fixture_path(name: &str, ext: &str) -> String {
+    format!(
+        "{}/tests/fixtures/urdf/{name}.{ext}",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// A robot's tree and its Pinocchio fixture.
+pub fn fixture(name: &str) -> (Tree, Value) {
+    let urdf = std::fs::read_to_string(fixture_path(name, "urdf")).unwrap();
+    let json = std::fs::read_to_string(fixture_path(name, "json")).unwrap();
+    (
+        Tree::parse(&urdf, graybox::physics::MAX_DOF).unwrap(),
+        serde_json::from_str(&json).unwrap(),
+    )
+}
+
+/// A JSON array of numbers.
+pub fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+/// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) of `urdf::rigid` over
+/// dual numbers, for `inertias`.
+pub fn rigid_terms(
+    tree: &Tree,
+    inertias: &[Inertial],
+    gravity: &[f64; 3],
+    q: &[f64],
+    qd: &[f64],
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let n = q.len();
+    let qv: Vec<Dual<f64>> = (0..n).map(|k| Dual::variable(q[k], k, n, 1.0)).collect();
+    let bodies: Vec<_> = inertias
+        .iter()
+        .map(|i| body_inertia(&i.theta().unwrap().map(|t| Term::V(qv[0].lift(t)))))
+        .collect();
+    let m = rigid::mass_matrix(tree, &bodies, &qv);
+    let v = rigid::potential(tree, &bodies, gravity, &qv);
+    let d = |x: &Dual<f64>, k: usize| x.tangent(k).copied().unwrap_or(0.0);
+    let g = (0..n).map(|k| d(&v, k)).collect();
+    let c = (0..n)
+        .map(|i| {
+            let mut s = 0.0;
+            for j in 0..n {
+                for k in 0..n {
+                    s += (d(&m[i][j], k) - 0.5 * d(&m[j][k], i)) * qd[j] * qd[k];
+                }
+            }
+            s
+        })
+        .collect();
+    (m.iter().flatten().map(|x| x.v).collect(), g, c)
+}
