@@ -45,12 +45,12 @@ pub struct Stiffness {
     pub q: Vec<f64>,
     /// The coordinate with the largest rate on its own there, D_ii (M⁻¹)_ii.
     pub coordinate: usize,
-    /// For a URDF robot, the smallest `coulomb_eps` that makes λ_max Δt ≤ the limit at every
-    /// configuration; None for other templates, without friction, or when the damping alone
-    /// is too stiff.
+    /// For a URDF robot past the limit, the smallest `coulomb_eps` that makes λ_max Δt ≤ the
+    /// limit at every configuration; None otherwise: within the limit, not a URDF, without
+    /// friction, or when the damping alone is too stiff.
     pub eps: Option<f64>,
-    /// For a URDF robot, the shortest time constant of the forces but the Coulomb friction's
-    /// (its damping's): no ε lengthens it.
+    /// For a URDF robot past the limit, the shortest time constant of the forces but the
+    /// Coulomb friction's (its damping's), where it is past: no ε lengthens it.
     pub tau_without_coulomb: Option<f64>,
 }
 
@@ -83,7 +83,7 @@ pub fn stiffness(
         )),
         _ => None,
     };
-    let (mut eps, mut fastest_rest) = (0.0f64, 0.0f64);
+    let (mut eps, mut fastest_rest, mut curable) = (0.0f64, 0.0f64, true);
     let qs = std::iter::once(&zero).chain(configurations.iter().filter(|q| q.len() == n));
     for q in qs {
         let mass = t.mass(p, q);
@@ -97,7 +97,8 @@ pub fn stiffness(
             out.q = q.clone();
             out.coordinate = (0..n).fold(0, |b, i| if own(i) > own(b) { i } else { b });
         }
-        if let Some((f, now)) = &coulomb {
+        // Where the step is within the limit any larger ε keeps it there (D only shrinks).
+        if let Some((f, now)) = coulomb.as_ref().filter(|_| rate * dt > limit) {
             // λ_max(R + C/ε) ≤ λ_max(R) + λ_max(C)/ε (Rayleigh quotients add), with C the
             // Coulomb part at ε = 1 and R the rest: ε ≥ λ_C Δt / (limit − λ_R Δt) is enough.
             let c: Vec<Vec<f64>> = diagonal(f);
@@ -111,13 +112,15 @@ pub fn stiffness(
             fastest_rest = fastest_rest.max(lr);
             if lr * dt < limit && lc > 0.0 {
                 eps = eps.max(lc * dt / (limit - lr * dt));
+            } else {
+                curable = false;
             }
         }
     }
-    if coulomb.is_some() {
+    if coulomb.is_some() && fastest_rest > 0.0 {
         out.tau_without_coulomb = Some(1.0 / fastest_rest);
-        out.eps = (fastest_rest * dt < limit && eps > 0.0).then_some(eps);
     }
+    out.eps = (curable && eps > 0.0).then_some(eps);
     out
 }
 
