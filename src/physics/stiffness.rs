@@ -230,6 +230,16 @@ fn symmetric(d: &[Vec<f64>]) -> Vec<Vec<f64>> {
 
 /// Lower-triangular L with M = L Lᵀ; None unless M is positive definite.
 fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    factor(m).ok()
+}
+
+/// The first coordinate whose pivot fails when M is factored (M is not positive definite
+/// there: a joint that moves no mass has a zero row), if any.
+pub fn singular_coordinate(m: &[Vec<f64>]) -> Option<usize> {
+    factor(m).err()
+}
+
+fn factor(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, usize> {
     let n = m.len();
     let mut l = vec![vec![0.0; n]; n];
     for i in 0..n {
@@ -238,7 +248,7 @@ fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
             if i == j {
                 // NaN fails `s > 0.0` too.
                 if !(s > 0.0 && s.is_finite()) {
-                    return None;
+                    return Err(i);
                 }
                 l[i][i] = s.sqrt();
             } else {
@@ -246,7 +256,7 @@ fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
             }
         }
     }
-    Some(l)
+    Ok(l)
 }
 
 /// L⁻¹ b.
