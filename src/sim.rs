@@ -191,6 +191,25 @@ pub fn parse_assignments(template: &Template, text: Option<&str>, field: &str) -
         },
         other => other,
     })?;
+    // A URDF's bodies are taken as the file has them, so a joint that moves only massless
+    // links has no dynamics (a zero row of M, as Pinocchio's): said here, not as NaN in every
+    // result. (A formula's M may be singular at a point of its own, as spherical coordinates'.)
+    let q = vec![0.0; template.n()];
+    let urdf = matches!(template, Template::Urdf(_));
+    if let Some(i) = urdf
+        .then(|| stiffness::singular_coordinate(&template.mass(&values, &q)))
+        .flatten()
+    {
+        return Err(Error::Unprocessable {
+            field: "template".into(),
+            message: format!(
+                "M(q) is singular at q = 0 from coordinate '{}' on: a joint that moves no mass \
+                 (a link without <inertial> and nothing with mass beyond it) has no dynamics; \
+                 give it mass or make the joint fixed",
+                template.coordinates()[i]
+            ),
+        });
+    }
     Ok(values)
 }
 

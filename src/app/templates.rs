@@ -63,7 +63,14 @@ impl Summary {
             parameters: t
                 .params()
                 .iter()
-                .map(|p| json!({"name": p.name, "value": p.default, "positive": p.positive}))
+                .map(|p| {
+                    let mut v = json!({"name": p.name, "value": p.default, "positive": p.positive});
+                    // A bounded parameter (a URDF joint's damping and friction) says its bound.
+                    if let Some(min) = p.min {
+                        v["min"] = json!(min);
+                    }
+                    v
+                })
                 .collect(),
             identifiability: t.identifiability_note().map(str::to_string),
         }

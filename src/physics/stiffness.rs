@@ -11,9 +11,10 @@
 //! 1 there, so a mode at the edge no longer decays at all); R(−2) = 1/3. Euler's and midpoint's
 //! edge is 2; R(−1) = 0 and ½. Past the limit a Coulomb friction chatters around q̇ = 0 by up to
 //! f (M⁻¹)ᵢᵢ Δt per step (tanh saturates, so it need not diverge), and a stiff damping diverges.
-//! The recommended ε puts λ_max Δt at the limit: measured against Pinocchio with the sharp law
-//! at a fine step it is the more accurate side of the trade between chatter and a smoother law
-//! (bench-results/2026-11-26-coulomb-stiffness.md).
+//! The recommended ε puts λ_max Δt at the limit: measured on a UR5 against Pinocchio with the
+//! sharp law at a fine step, it is closer to that law than ε = 0.01 is (which chatters), in one
+//! step and over a coast to rest, and steps its own law to a fifth of the chatter; what it
+//! loses is sticking (bench-results/2026-11-26-coulomb-stiffness.md).
 
 use super::dual::Dual;
 use super::dynamics::{constants, dual_vars};
@@ -45,12 +46,12 @@ pub struct Stiffness {
     pub q: Vec<f64>,
     /// The coordinate with the largest rate on its own there, D_ii (M⁻¹)_ii.
     pub coordinate: usize,
-    /// For a URDF robot, the smallest `coulomb_eps` that makes λ_max Δt ≤ the limit at every
-    /// configuration; None for other templates, without friction, or when the damping alone
-    /// is too stiff.
+    /// For a URDF robot past the limit, the smallest `coulomb_eps` that makes λ_max Δt ≤ the
+    /// limit at every configuration; None otherwise: within the limit, not a URDF, without
+    /// friction, or when the damping alone is too stiff.
     pub eps: Option<f64>,
-    /// For a URDF robot, the shortest time constant of the forces but the Coulomb friction's
-    /// (its damping's): no ε lengthens it.
+    /// For a URDF robot past the limit, the shortest time constant of the forces but the
+    /// Coulomb friction's (its damping's), where it is past: no ε lengthens it.
     pub tau_without_coulomb: Option<f64>,
 }
 
@@ -83,7 +84,7 @@ pub fn stiffness(
         )),
         _ => None,
     };
-    let (mut eps, mut fastest_rest) = (0.0f64, 0.0f64);
+    let (mut eps, mut fastest_rest, mut curable) = (0.0f64, 0.0f64, true);
     let qs = std::iter::once(&zero).chain(configurations.iter().filter(|q| q.len() == n));
     for q in qs {
         let mass = t.mass(p, q);
@@ -97,7 +98,8 @@ pub fn stiffness(
             out.q = q.clone();
             out.coordinate = (0..n).fold(0, |b, i| if own(i) > own(b) { i } else { b });
         }
-        if let Some((f, now)) = &coulomb {
+        // Where the step is within the limit any larger ε keeps it there (D only shrinks).
+        if let Some((f, now)) = coulomb.as_ref().filter(|_| rate * dt > limit) {
             // λ_max(R + C/ε) ≤ λ_max(R) + λ_max(C)/ε (Rayleigh quotients add), with C the
             // Coulomb part at ε = 1 and R the rest: ε ≥ λ_C Δt / (limit − λ_R Δt) is enough.
             let c: Vec<Vec<f64>> = diagonal(f);
@@ -111,13 +113,15 @@ pub fn stiffness(
             fastest_rest = fastest_rest.max(lr);
             if lr * dt < limit && lc > 0.0 {
                 eps = eps.max(lc * dt / (limit - lr * dt));
+            } else {
+                curable = false;
             }
         }
     }
-    if coulomb.is_some() {
+    if coulomb.is_some() && fastest_rest > 0.0 {
         out.tau_without_coulomb = Some(1.0 / fastest_rest);
-        out.eps = (fastest_rest * dt < limit && eps > 0.0).then_some(eps);
     }
+    out.eps = (curable && eps > 0.0).then_some(eps);
     out
 }
 
@@ -227,6 +231,16 @@ fn symmetric(d: &[Vec<f64>]) -> Vec<Vec<f64>> {
 
 /// Lower-triangular L with M = L Lᵀ; None unless M is positive definite.
 fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    factor(m).ok()
+}
+
+/// The first coordinate whose pivot fails when M is factored (M is not positive definite
+/// there: a joint that moves no mass has a zero row), if any.
+pub fn singular_coordinate(m: &[Vec<f64>]) -> Option<usize> {
+    factor(m).err()
+}
+
+fn factor(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, usize> {
     let n = m.len();
     let mut l = vec![vec![0.0; n]; n];
     for i in 0..n {
@@ -235,7 +249,7 @@ fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
             if i == j {
                 // NaN fails `s > 0.0` too.
                 if !(s > 0.0 && s.is_finite()) {
-                    return None;
+                    return Err(i);
                 }
                 l[i][i] = s.sqrt();
             } else {
@@ -243,7 +257,7 @@ fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
             }
         }
     }
-    Some(l)
+    Ok(l)
 }
 
 /// L⁻¹ b.

@@ -101,6 +101,31 @@ async fn names_and_values_follow_one_rule_wherever_they_enter() {
     let damped = urdf(|t| t.replacen("damping=\"0.5\"", "damping=\"1e7\"", 1));
     let (status, body) = app.post("/v1/jobs", &job(damped)).await;
     assert_refused(status, &body, "template.urdf", "joint 'q1'");
+    // Damping and friction are ≥ 0 (issue 28): in the file, in `init`, and said in the
+    // template's parameters.
+    let giving = urdf(|t| t.replacen("damping=\"0.5\"", "damping=\"-0.5\"", 1));
+    let (status, body) = app.post("/v1/jobs", &job(giving)).await;
+    assert_refused(status, &body, "template.urdf", "joint 'q1'");
+    let mut negative = job(urdf(|t| t));
+    negative["init"] = json!({"q2.friction": -0.1});
+    let (status, body) = app.post("/v1/jobs", &negative).await;
+    assert_refused(status, &body, "init.q2.friction", "≥ 0");
+    let (status, body) = app.post("/v1/templates", &urdf(|t| t)).await;
+    assert_eq!(status, 201, "{body}");
+    let bounds: Vec<(&str, &Value)> = body["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| (p["name"].as_str().unwrap(), &p["min"]))
+        .collect();
+    for (name, min) in bounds {
+        let bounded = name.ends_with(".damping") || name.ends_with(".friction");
+        assert_eq!(
+            *min,
+            if bounded { json!(0.0) } else { Value::Null },
+            "{name}"
+        );
+    }
     app.stop().await;
 }
 

@@ -160,3 +160,32 @@ fn graybox_model_of_a_plain_robot_is_its_defaults() {
     let t: Template = template(&fixture("arm4"));
     assert_eq!(file.physical_values().unwrap(), t.defaults());
 }
+
+/// Taken as it is, a joint that moves only a massless link has no dynamics (M has a zero row,
+/// and Pinocchio's ABA gives NaN): `graybox model` and `simulate` say so naming the joint,
+/// where they used to write NaN or fail on it later.
+#[test]
+fn a_joint_that_moves_no_mass_is_named() {
+    let leaf = fixture("double_pendulum").replace(
+        "</robot>",
+        r#"<joint name="tip_joint" type="revolute"><origin xyz="0 0 -1"/>
+           <parent link="rod2"/><child link="tip"/><axis xyz="0 1 0"/>
+           <limit lower="-1" upper="1" effort="1" velocity="1"/></joint>
+           <link name="tip"/></robot>"#,
+    );
+    let t = template(&leaf);
+    match graybox::sim::parse_assignments(&t, None, "set") {
+        Err(graybox::error::Error::Unprocessable { field, message }) => {
+            assert_eq!(field, "template");
+            assert!(message.contains("'tip_joint'"), "{message}");
+        }
+        other => panic!("expected a 422, got {other:?}"),
+    }
+    // With mass on the link the robot is fine.
+    let massive = leaf.replace(
+        r#"<link name="tip"/>"#,
+        r#"<link name="tip"><inertial><origin xyz="0 0 -0.1"/><mass value="0.1"/>
+           <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>"#,
+    );
+    graybox::sim::parse_assignments(&template(&massive), None, "set").unwrap();
+}
