@@ -165,16 +165,10 @@ struct Partial {
     has_child: bool,
 }
 
-/// The robot in `text` (bounded beforehand by `xml::precheck`).
+/// The st.robot in `text` (bounded beforehand by `xml::precheck`).
 pub fn read(text: &str) -> Result<Robot> {
     let mut reader = Reader::from_str(text);
-    let mut robot: Option<Robot> = None;
-    // The names of the open elements, the root first.
-    let mut path: Vec<Vec<u8>> = vec![];
-    let mut link: Option<Link> = None;
-    let mut joint: Option<Partial> = None;
-    // Whether the open link's first <inertial> is being read, and whether it was.
-    let (mut in_inertial, mut had_inertial) = (false, false);
+    let mut st = Reading::default();
     loop {
         let offset = reader.buffer_position() as usize;
         let event = reader.read_event().map_err(|e| {
@@ -185,17 +179,11 @@ pub fn read(text: &str) -> Result<Robot> {
             Event::Start(s) => (s, true),
             Event::Empty(s) => (s, false),
             Event::End(_) => {
-                close(
-                    &mut path,
-                    &mut robot,
-                    &mut link,
-                    &mut joint,
-                    &mut in_inertial,
-                )?;
+                st.close()?;
                 continue;
             }
             Event::Eof => {
-                if let Some(open) = path.last() {
+                if let Some(open) = st.path.last() {
                     return Err(bad(format!(
                         "not XML: the document ends inside <{}>",
                         String::from_utf8_lossy(open)
@@ -209,22 +197,22 @@ pub fn read(text: &str) -> Result<Robot> {
         let name = start.name().as_ref().to_vec();
         let element = String::from_utf8_lossy(&name).into_owned();
         let tag = Tag {
-            at: match (&link, &joint) {
+            at: match (&st.link, &st.joint) {
                 (Some(l), _) => format!("<{element}> of {}", l.label()),
                 (_, Some(j)) => format!("<{element}> of {}", j.joint.label()),
                 _ => format!("<{element}> at line {line}"),
             },
             start,
         };
-        let parent: Option<&[u8]> = path.last().map(|p| p.as_slice());
-        match (path.len(), parent, name.as_slice()) {
-            (0, _, _) if robot.is_some() => {
+        let parent: Option<&[u8]> = st.path.last().map(|p| p.as_slice());
+        match (st.path.len(), parent, name.as_slice()) {
+            (0, _, _) if st.robot.is_some() => {
                 return Err(bad(format!(
-                    "a second root element <{element}> at line {line}: a URDF is one <robot>"
+                    "a second root element <{element}> at line {line}: a URDF is one <st.robot>"
                 )));
             }
             (0, _, b"robot") => {
-                robot = Some(Robot {
+                st.robot = Some(Robot {
                     name: tag.text("name")?.unwrap_or_default(),
                     line,
                     ..Robot::default()
@@ -232,52 +220,47 @@ pub fn read(text: &str) -> Result<Robot> {
             }
             (0, _, _) => {
                 return Err(bad(format!(
-                    "the document's root element is <{element}> at line {line}; a URDF's is <robot>"
+                    "the document's root element is <{element}> at line {line}; a URDF's is <st.robot>"
                 )));
             }
             (1, _, b"link") => {
-                (in_inertial, had_inertial) = (false, false);
-                link = Some(Link {
+                (st.in_inertial, st.had_inertial) = (false, false);
+                st.link = Some(Link {
                     name: named(&tag, "link", line)?,
                     line,
                     inertial: None,
                 });
             }
-            (1, _, b"joint") => joint = Some(start_joint(&tag, line)?),
-            (2, Some(b"link"), b"inertial") if !had_inertial => {
-                (in_inertial, had_inertial) = (opens, true);
-                if let Some(l) = link.as_mut() {
+            (1, _, b"joint") => st.joint = Some(start_joint(&tag, line)?),
+            (2, Some(b"link"), b"inertial") if !st.had_inertial => {
+                (st.in_inertial, st.had_inertial) = (opens, true);
+                if let Some(l) = st.link.as_mut() {
                     l.inertial = Some(Inertial::default());
                 }
             }
-            (3, Some(b"inertial"), _) if in_inertial => {
-                let i = link.as_mut().and_then(|l| l.inertial.as_mut());
+            (3, Some(b"inertial"), _) if st.in_inertial => {
+                let i = st.link.as_mut().and_then(|l| l.inertial.as_mut());
                 if let Some(i) = i {
                     inertial_part(i, &tag, &name)?;
                 }
             }
             (2, Some(b"joint"), _) => {
-                if let Some(j) = joint.as_mut() {
+                if let Some(j) = st.joint.as_mut() {
                     joint_part(j, &tag, &name)?;
                 }
             }
             _ => {}
         }
         if opens {
-            path.push(name);
-        } else if path.len() == 1 {
-            // `<link name="x"/>` and `<joint …/>` end where they start.
-            path.push(name);
-            close(
-                &mut path,
-                &mut robot,
-                &mut link,
-                &mut joint,
-                &mut in_inertial,
-            )?;
+            st.path.push(name);
+        } else if st.path.len() == 1 {
+            // `<st.link name="x"/>` and `<st.joint …/>` end where they start.
+            st.path.push(name);
+            st.close()?;
         }
     }
-    robot.ok_or_else(|| bad("the document has no <robot> element"))
+    st.robot
+        .ok_or_else(|| bad("the document has no <st.robot> element"))
 }
 
 fn named(tag: &Tag, what: &str, line: usize) -> Result<String> {
@@ -360,39 +343,48 @@ fn joint_part(p: &mut Partial, tag: &Tag, name: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// An element ends: a finished link or joint joins the robot.
-fn close(
-    path: &mut Vec<Vec<u8>>,
-    robot: &mut Option<Robot>,
-    link: &mut Option<Link>,
-    joint: &mut Option<Partial>,
-    in_inertial: &mut bool,
-) -> Result<()> {
-    let depth = path.len();
-    let Some(name) = path.pop() else {
-        return Ok(());
-    };
-    match (depth, name.as_slice()) {
-        (3, b"inertial") => *in_inertial = false,
-        (2, b"link") => {
-            if let (Some(r), Some(l)) = (robot.as_mut(), link.take()) {
-                r.links.push(l);
-            }
-        }
-        (2, b"joint") => {
-            if let (Some(r), Some(p)) = (robot.as_mut(), joint.take()) {
-                for (has, what) in [(p.has_parent, "parent"), (p.has_child, "child")] {
-                    if !has {
-                        return Err(bad(format!(
-                            "{} has no <{what} link=\"…\"/>",
-                            p.joint.label()
-                        )));
-                    }
+/// What `read` holds while it reads.
+#[derive(Default)]
+struct Reading {
+    robot: Option<Robot>,
+    /// The names of the open elements, the root first.
+    path: Vec<Vec<u8>>,
+    link: Option<Link>,
+    joint: Option<Partial>,
+    /// Whether the open link's first <inertial> is being read, and whether it was.
+    in_inertial: bool,
+    had_inertial: bool,
+}
+
+impl Reading {
+    /// An element ends: a finished link or joint joins the robot.
+    fn close(&mut self) -> Result<()> {
+        let depth = self.path.len();
+        let Some(name) = self.path.pop() else {
+            return Ok(());
+        };
+        match (depth, name.as_slice()) {
+            (3, b"inertial") => self.in_inertial = false,
+            (2, b"link") => {
+                if let (Some(r), Some(l)) = (self.robot.as_mut(), self.link.take()) {
+                    r.links.push(l);
                 }
-                r.joints.push(p.joint);
             }
+            (2, b"joint") => {
+                if let (Some(r), Some(p)) = (self.robot.as_mut(), self.joint.take()) {
+                    for (has, what) in [(p.has_parent, "parent"), (p.has_child, "child")] {
+                        if !has {
+                            return Err(bad(format!(
+                                "{} has no <{what} link=\"…\"/>",
+                                p.joint.label()
+                            )));
+                        }
+                    }
+                    r.joints.push(p.joint);
+                }
+            }
+            _ => {}
         }
-        _ => {}
+        Ok(())
     }
-    Ok(())
 }
