@@ -208,3 +208,25 @@ pub fn white_box_acceleration(
         .collect();
     acceleration(&cholesky(&mass(&qv)), Some(grad_v), forces, qd)
 }
+
+/// The lower-triangular L with M = L Lᵀ of a plain f64 matrix (its lower triangle read), or the
+/// first row whose pivot is not positive and finite (M is not positive definite there).
+pub fn cholesky_f64(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, usize> {
+    let n = m.len();
+    let mut l = vec![vec![0.0; n]; n];
+    for i in 0..n {
+        for j in 0..=i {
+            let s = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
+            if i == j {
+                // NaN fails `s > 0.0` too.
+                if !(s > 0.0 && s.is_finite()) {
+                    return Err(i);
+                }
+                l[i][i] = s.sqrt();
+            } else {
+                l[i][j] = s / l[j][j];
+            }
+        }
+    }
+    Ok(l)
+}

@@ -17,7 +17,7 @@
 //! loses is sticking (bench-results/2026-11-26-coulomb-stiffness.md).
 
 use super::dual::Dual;
-use super::dynamics::{constants, dual_vars};
+use super::dynamics::{cholesky_f64, constants, dual_vars};
 use super::integrator::Integrator;
 use super::templates::Template;
 
@@ -231,33 +231,13 @@ fn symmetric(d: &[Vec<f64>]) -> Vec<Vec<f64>> {
 
 /// Lower-triangular L with M = L Lᵀ; None unless M is positive definite.
 fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
-    factor(m).ok()
+    cholesky_f64(m).ok()
 }
 
 /// The first coordinate whose pivot fails when M is factored (M is not positive definite
 /// there: a joint that moves no mass has a zero row), if any.
 pub fn singular_coordinate(m: &[Vec<f64>]) -> Option<usize> {
-    factor(m).err()
-}
-
-fn factor(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, usize> {
-    let n = m.len();
-    let mut l = vec![vec![0.0; n]; n];
-    for i in 0..n {
-        for j in 0..=i {
-            let s = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                // NaN fails `s > 0.0` too.
-                if !(s > 0.0 && s.is_finite()) {
-                    return Err(i);
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    Ok(l)
+    cholesky_f64(m).err()
 }
 
 /// L⁻¹ b.

@@ -1,6 +1,7 @@
 //! The rules a formula template document's names and values follow (checked when it is read,
 //! before its expressions are), and the checks of its M at the document's values.
 
+use crate::physics::dynamics::cholesky_f64;
 use std::collections::BTreeMap;
 
 use super::doc::{FormulaDoc, bad};
@@ -110,20 +111,5 @@ pub(super) fn positive_definite(m: &[Vec<f64>]) -> bool {
     if m.iter().flatten().any(|v| !v.is_finite()) {
         return false;
     }
-    let n = m.len();
-    let mut l = vec![vec![0.0; n]; n];
-    for i in 0..n {
-        for j in 0..=i {
-            let s = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                if !(s.is_finite() && s > 0.0) {
-                    return false;
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    true
+    cholesky_f64(m).is_ok()
 }
