@@ -17,7 +17,7 @@ use graybox::rng::Rng;
 use serde_json::Value;
 
 mod common;
-use common::urdf::{fixture, floats, rigid_terms};
+use common::urdf::{fixture, flat_matrix, floats, rigid_terms};
 
 const FIXTURES: [&str; 6] = [
     "arm4",
@@ -70,12 +70,7 @@ fn crba_and_rnea_equal_pinocchio() {
         let model = Model::new(&tree, gravity(&fx));
         for (s, (q, qd, st)) in states(&fx).enumerate() {
             let m = flat(&crba(&model, &q));
-            let m_ref: Vec<f64> = st["M"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .flat_map(floats)
-                .collect();
+            let m_ref: Vec<f64> = flat_matrix(&st["M"]);
             assert!(err(&m, &m_ref) < 1e-9, "{name} {s}: M {m:?} vs {m_ref:?}");
             let g = gravity_torques(&model, &q);
             let g_ref = floats(&st["g"]);

@@ -25,7 +25,7 @@ use graybox::train::warnings::zero_acceleration_loss;
 use graybox::train::{TrainConfig, Trainer};
 
 mod common;
-use common::urdf::{fixture, floats, rigid_terms};
+use common::urdf::{fixture, flat_matrix, floats, rigid_terms};
 use std::sync::atomic::AtomicBool;
 
 /// max |a − b| / max(1, max |b|); infinite when any value is not finite (`f64::max` would
@@ -77,12 +77,7 @@ fn rigid_body_terms_equal_pinocchio() {
         for (s, state) in fx["states"].as_array().unwrap().iter().enumerate() {
             let (q, qd) = (floats(&state["q"]), floats(&state["qd"]));
             let (m, grav, c) = terms(&tree, &gravity, &q, &qd);
-            let m_ref: Vec<f64> = state["M"]
-                .as_array()
-                .unwrap()
-                .iter()
-                .flat_map(floats)
-                .collect();
+            let m_ref: Vec<f64> = flat_matrix(&state["M"]);
             assert!(
                 err(&m, &m_ref) < 1e-9,
                 "{name} state {s}: M {m:?} vs {m_ref:?}"

@@ -26,6 +26,11 @@ pub fn fixture(name: &str) -> (Tree, Value) {
     )
 }
 
+/// A JSON matrix (an array of rows of numbers), row after row.
+pub fn flat_matrix(v: &Value) -> Vec<f64> {
+    v.as_array().unwrap().iter().flat_map(floats).collect()
+}
+
 /// A JSON array of numbers.
 pub fn floats(v: &Value) -> Vec<f64> {
     v.as_array()

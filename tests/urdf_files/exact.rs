@@ -11,7 +11,7 @@ use graybox::physics::templates::Template;
 use graybox::sim::TemplateSystem;
 use serde_json::Value;
 
-use crate::common::urdf::{fixture_path, floats};
+use crate::common::urdf::{fixture_path, flat_matrix, floats};
 
 use super::{fixture, template};
 
@@ -134,12 +134,7 @@ fn graybox_model_holds_massless_links_at_rest_at_pinocchio_gravity_torque() {
         worst_floored = qdd.iter().fold(worst_floored, |w, a| w.max(a.abs()));
         // M(q) is Pinocchio's too (`crba`), to rounding.
         let m: Vec<f64> = t.mass(&values, &q).into_iter().flatten().collect();
-        let m_ref: Vec<f64> = state["M"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .flat_map(floats)
-            .collect();
+        let m_ref: Vec<f64> = flat_matrix(&state["M"]);
         for (a, b) in m.iter().zip(&m_ref) {
             assert!((a - b).abs() < 1e-12, "M {m:?} vs {m_ref:?}");
         }
