@@ -17,6 +17,8 @@ use graybox::rng::Rng;
 use serde_json::Value;
 
 mod common;
+#[path = "featherstone/evaluator.rs"]
+mod evaluator;
 use common::urdf::{fixture, flat_matrix, floats, rigid_terms};
 
 const FIXTURES: [&str; 6] = [

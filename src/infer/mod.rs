@@ -9,6 +9,7 @@ pub mod col;
 pub mod jet;
 pub mod limits;
 mod nets;
+mod rigid;
 mod weights;
 
 use jet::Jet;
@@ -31,6 +32,7 @@ use crate::physics::dual::Dual;
 use crate::physics::dynamics::acceleration;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 use crate::physics::scalar::Scalar;
+use crate::physics::urdf::featherstone::{self, forward_dynamics};
 
 /// A structured spec's three parts.
 type Parts<'a> = (&'a MassSpec, &'a PotentialSpec, &'a ForceSpec);
@@ -44,13 +46,17 @@ const PARALLEL_ROWS: usize = 32;
 pub struct Evaluator {
     pub config: ModelConfig,
     weights: Weights,
+    /// A URDF model's robot for the recursive algorithms (`rigid`), at its physical values.
+    recursive: Option<featherstone::Model>,
 }
 
 impl Evaluator {
     pub fn from_file(file: &ModelFile) -> Result<Self> {
+        let weights = Weights::from_file(file)?;
         Ok(Self {
+            recursive: rigid::recursive_model(&file.config, &weights),
             config: file.config.clone(),
-            weights: Weights::from_file(file)?,
+            weights,
         })
     }
 
@@ -58,6 +64,16 @@ impl Evaluator {
     /// batch. The networks run once over the batch (matrix products), then the structure
     /// (Cholesky factor, Coriolis term, solve) once on their output columns.
     pub fn accel<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C]) -> Vec<C> {
+        self.evaluate(q, qd, u, false)
+    }
+
+    /// τ = F − ∂V′/∂q of a model on the recursive algorithms (`rigid`), for a batch.
+    fn torques<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C]) -> Vec<C> {
+        self.evaluate(q, qd, u, true)
+    }
+
+    /// q̈, or (`torques`, for a model on the recursive algorithms) the τ it would take.
+    fn evaluate<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C], torques: bool) -> Vec<C> {
         let sc = &self.config.scaling;
         let outer = q
             .iter()
@@ -96,7 +112,7 @@ impl Evaluator {
                     }
                 };
                 let nets = networks(w, q_jet, full);
-                self.structure((mass, potential, forces), w, &nets, (q, qd, u))
+                self.structure((mass, potential, forces), w, &nets, (q, qd, u), torques)
             }
             (_, Weights::Naive(net)) => {
                 let out = net.jet(&full());
@@ -113,13 +129,15 @@ impl Evaluator {
     }
 
     /// q̈ from the networks' outputs: the structure assembled from the spec (the same
-    /// generic code the Burn path trains with), then the manipulator equation.
+    /// generic code the Burn path trains with), then the manipulator equation, or forward
+    /// dynamics by the recursive algorithms with τ from the structure (`torques`: τ only).
     fn structure<S: Lanes>(
         &self,
         (mass, potential, forces): Parts,
         w: &Components,
         nets: &NetOutputs,
         (q, qd, u): (&[S], &[S], &[S]),
+        torques: bool,
     ) -> Vec<S> {
         let structure = Structure {
             mass,
@@ -131,7 +149,16 @@ impl Evaluator {
             n: q.len(),
             m: u.len(),
         };
-        let t = structure.terms(&JetNets::new(nets), &Columns { q, qd, u });
+        let (nets, x) = (JetNets::new(nets), Columns { q, qd, u });
+        if let Some(model) = &self.recursive {
+            let tau = structure.rigid_torques(&nets, &x);
+            return if torques {
+                tau
+            } else {
+                forward_dynamics(model, q, qd, &tau)
+            };
+        }
+        let t = structure.terms(&nets, &x);
         acceleration(&t.l, t.grad_v, t.forces, qd)
     }
 
@@ -218,7 +245,9 @@ impl Evaluator {
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
         let parts = self.split(x, u, Pass::Step, stop, |x, u| {
-            if x.len() == 2 * self.config.n {
+            if self.recursive.is_some() {
+                self.predict_each(x, u, want_accel)
+            } else if x.len() == 2 * self.config.n {
                 self.predict_cols::<f64>(x, u, want_accel)
             } else {
                 self.predict_cols::<Col>(x, u, want_accel)
@@ -262,7 +291,14 @@ impl Evaluator {
     ) -> Option<(Vec<f64>, Vec<f64>)> {
         let (nx, m) = (2 * self.config.n, self.config.m);
         let parts = self.split(x, u, Pass::Linearize, stop, |x, u| {
-            if x.len() == nx {
+            let recursive = (self.recursive.as_ref()).and_then(|model| {
+                let rows = x.chunks(nx).zip(u.chunks(m));
+                rows.map(|(x, u)| self.recursive_jacobian(model, x, u))
+                    .collect::<Option<Vec<_>>>()
+            });
+            if let Some(rows) = recursive {
+                rows.concat()
+            } else if x.len() == nx {
                 self.jacobian_rows(columns::<f64>(x, nx), columns(u, m))
             } else {
                 self.jacobian_rows(columns::<Col>(x, nx), columns(u, m))

@@ -177,11 +177,7 @@ impl<'a, P> Structure<'a, P> {
         P: Coef<S>,
     {
         let (n, s) = (self.n, self.scaling);
-        let network = || {
-            (0..n)
-                .map(|k| nets.potential_grad(k).scale(s.potential_scale()))
-                .collect::<Vec<_>>()
-        };
+        let network = || self.potential_network_grad(nets);
         match self.potential {
             PotentialSpec::Zero => None,
             PotentialSpec::Mlp { .. } => Some(network()),
@@ -211,6 +207,36 @@ impl<'a, P> Structure<'a, P> {
                     Some(_) => grad.zip(network()).map(|(t, r)| t + r).collect(),
                 })
             }
+        }
+    }
+
+    /// ∂V/∂q of the potential's network (in the data's units).
+    fn potential_network_grad<S: Scalar>(&self, nets: &impl Networks<S>) -> Vec<S> {
+        let scale = self.scaling.potential_scale();
+        (0..self.n)
+            .map(|k| nets.potential_grad(k).scale(scale))
+            .collect()
+    }
+
+    /// τ = F − ∂V′/∂q: what a rigid-body algorithm that supplies M, the Coriolis term and
+    /// gravity itself (the template's V) takes as joint forces; V′ is the rest of V (a
+    /// template's residual network, or a whole potential that is not the template's, whose
+    /// algorithm then runs without gravity: `gravity_in_template`).
+    pub fn rigid_torques<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Vec<S>
+    where
+        P: Coef<S>,
+    {
+        let f = self.generalized_forces(nets, x);
+        let rest = match self.potential {
+            PotentialSpec::Template { residual: None } => None,
+            PotentialSpec::Template { residual: Some(_) } => {
+                Some(self.potential_network_grad(nets))
+            }
+            _ => self.potential_grad(nets, x),
+        };
+        match rest {
+            None => f,
+            Some(g) => f.into_iter().zip(g).map(|(f, g)| f - g).collect(),
         }
     }
 

@@ -13,6 +13,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::featherstone;
 use super::inertia::{BodyInertia, Inertial};
 use super::parameters::{
     PER_BODY, PER_JOINT, body_of_physical, inertial_of, params_of, physical_of_theta, raw_order,
@@ -363,6 +364,17 @@ impl UrdfTemplate {
         out.into_iter()
             .map(|f| f.expect("every coordinate has its own joint"))
             .collect()
+    }
+
+    /// The robot at these physical values as the recursive algorithms take it
+    /// (`featherstone`); gravity only when the model's V is this template's (otherwise the
+    /// model's own V stands in for it).
+    pub fn recursive_model(&self, physical: &[f64], gravity: bool) -> featherstone::Model {
+        let bodies: Vec<Inertial> = (0..self.nb())
+            .map(|b| self.link_inertial(physical, b))
+            .collect();
+        let g = if gravity { self.doc.gravity } else { [0.0; 3] };
+        featherstone::Model::with_inertias(&self.tree, &bodies, g)
     }
 
     /// The physical values as URDF elements per link and joint (for the export).

@@ -28,14 +28,7 @@ pub fn forward_dynamics_derivatives(
 ) -> Derivatives {
     let n = q.len();
     let qdd = forward_dynamics(model, q, qd, tau);
-    // Row i: ∂τᵢ/∂x_k for the 2n directions x = (q, q̇).
-    let partials = match 2 * n {
-        0..=8 => id_over_jets::<8>(model, q, qd, &qdd),
-        9..=16 => id_over_jets::<16>(model, q, qd, &qdd),
-        17..=32 => id_over_jets::<32>(model, q, qd, &qdd),
-        33..=64 => id_over_jets::<64>(model, q, qd, &qdd),
-        _ => id_over_duals(model, q, qd, &qdd),
-    };
+    let partials = id_partials(model, q, qd, &qdd);
     let l = cholesky(&crba(model, q));
     let mut dq = vec![vec![0.0; n]; n];
     let mut dqd = vec![vec![0.0; n]; n];
@@ -51,6 +44,17 @@ pub fn forward_dynamics_derivatives(
         }
     }
     (qdd, dq, dqd)
+}
+
+/// ∂ID/∂(q, q̇) at (q, q̇, q̈): row i is ∂τᵢ/∂x_k for the 2n directions x = (q, q̇).
+pub fn id_partials(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
+    match 2 * q.len() {
+        0..=8 => id_over_jets::<8>(model, q, qd, qdd),
+        9..=16 => id_over_jets::<16>(model, q, qd, qdd),
+        17..=32 => id_over_jets::<32>(model, q, qd, qdd),
+        33..=64 => id_over_jets::<64>(model, q, qd, qdd),
+        _ => id_over_duals(model, q, qd, qdd),
+    }
 }
 
 fn id_over_jets<const N: usize>(

@@ -16,7 +16,9 @@ pub mod rnea;
 pub mod spatial;
 
 pub use aba::{aba, crba_forward, forward_dynamics};
-pub use derivatives::{Derivatives, dual_derivatives, fd_over_jets, forward_dynamics_derivatives};
+pub use derivatives::{
+    Derivatives, dual_derivatives, fd_over_jets, forward_dynamics_derivatives, id_partials,
+};
 pub use rnea::{bias, coriolis, crba, gravity_torques, inverse_dynamics};
 
 use super::inertia::Inertial;

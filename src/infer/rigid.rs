@@ -1,0 +1,152 @@
+//! URDF models on the recursive rigid-body algorithms (docs/robots.md#recursive-algorithms):
+//! when M is a URDF template's, q̈ = FD(q, q̇, τ) by the articulated-body algorithm (CRBA and
+//! a Cholesky solve with mimic joints) at the model's physical values, with τ = F − ∂V′/∂q
+//! from the assembly (forces, residual networks, a potential that is not the template's).
+//! O(n) per state where the template's M(q) and V(q) over dual numbers grow steeply with n.
+//!
+//! A step's Jacobian runs the integrator on fixed-size jets over (x, u) and takes each stage's
+//! q̈ with its derivatives by the implicit function theorem (Carpentier & Mansard, RSS 2018):
+//! ID(q, q̇, q̈) = τ(q, q̇, u) gives ∂q̈/∂z = M⁻¹ (∂τ/∂z − ∂ID/∂z) at q̈ = FD(q, q̇, τ), with
+//! ∂ID/∂(q, q̇) from RNEA over jets and ∂τ/∂z from the assembly over dual numbers.
+
+use super::Evaluator;
+use super::weights::Weights;
+use crate::model::ModelConfig;
+use crate::model::spec::ModelSpec;
+use crate::physics::dual::Dual;
+use crate::physics::dynamics::{Tri, cholesky, solve_llt};
+use crate::physics::jet::Jet;
+use crate::physics::parts::{MassSpec, PotentialSpec};
+use crate::physics::templates::Template;
+use crate::physics::urdf::featherstone::{Model, crba, forward_dynamics, id_partials};
+
+/// The robot as the recursive algorithms take it, for a structured model whose M is a URDF
+/// template's; gravity is in it when V is the template's too.
+pub(super) fn recursive_model(config: &ModelConfig, weights: &Weights) -> Option<Model> {
+    let ModelSpec::Structured {
+        mass: MassSpec::Template,
+        potential,
+        ..
+    } = &config.spec
+    else {
+        return None;
+    };
+    let (Some(Template::Urdf(t)), Weights::Structured(w)) = (config.template(), weights) else {
+        return None;
+    };
+    let gravity = matches!(potential, PotentialSpec::Template { .. });
+    Some(t.recursive_model(w.physical.as_deref()?, gravity))
+}
+
+impl Evaluator {
+    /// The same model evaluated by the template's M(q) and V(q) assembly instead of the
+    /// recursive algorithms: the reference they are tested against, and the figure a
+    /// benchmark compares them with.
+    pub fn assembled(mut self) -> Self {
+        self.recursive = None;
+        self
+    }
+
+    /// Whether q̈ comes from the recursive algorithms.
+    pub fn is_recursive(&self) -> bool {
+        self.recursive.is_some()
+    }
+
+    /// `predict_cols` state by state in f64: O(n) work each, where batch columns would
+    /// allocate a column for every operation of the recursion (64 UR5 states: 0.9 ms as
+    /// columns).
+    pub(super) fn predict_each(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        want_accel: bool,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let mut next = Vec::with_capacity(x.len());
+        let mut acc = want_accel.then(|| Vec::with_capacity(x.len() / 2));
+        for (x, u) in x.chunks(nx).zip(u.chunks(m)) {
+            let (x, a) = self.predict_cols::<f64>(x, u, want_accel);
+            next.extend(x);
+            acc.iter_mut().zip(a).for_each(|(acc, a)| acc.extend(a));
+        }
+        (next, acc)
+    }
+
+    /// Per output coordinate of one state's step, the row [∂x'_i/∂x, ∂x'_i/∂u] (as
+    /// `jacobian_rows`); `None` beyond 64 directions (then dual numbers do it).
+    pub(super) fn recursive_jacobian(
+        &self,
+        model: &Model,
+        x: &[f64],
+        u: &[f64],
+    ) -> Option<Vec<f64>> {
+        Some(match x.len() + u.len() {
+            0..=8 => self.step_jacobian::<8>(model, x, u),
+            9..=16 => self.step_jacobian::<16>(model, x, u),
+            17..=32 => self.step_jacobian::<32>(model, x, u),
+            33..=64 => self.step_jacobian::<64>(model, x, u),
+            _ => return None,
+        })
+    }
+
+    fn step_jacobian<const N: usize>(&self, model: &Model, x: &[f64], u: &[f64]) -> Vec<f64> {
+        let (n, dirs) = (self.config.n, x.len() + u.len());
+        let xj: Vec<Jet<N>> = (x.iter().enumerate())
+            .map(|(k, &v)| Jet::variable(v, k))
+            .collect();
+        let uj: Vec<Jet<N>> = (u.iter().enumerate())
+            .map(|(k, &v)| Jet::variable(v, x.len() + k))
+            .collect();
+        let y = self
+            .config
+            .integrator
+            .step(&xj, self.config.dt, |x: &Vec<Jet<N>>| {
+                let (q, qd) = x.split_at(n);
+                let mut dx = qd.to_vec();
+                dx.extend(self.stage(model, q, qd, &uj));
+                dx
+            });
+        y.iter().flat_map(|y| y.d[..dirs].to_vec()).collect()
+    }
+
+    /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u).
+    fn stage<const N: usize>(
+        &self,
+        model: &Model,
+        q: &[Jet<N>],
+        qd: &[Jet<N>],
+        u: &[Jet<N>],
+    ) -> Vec<Jet<N>> {
+        let value = |x: &[Jet<N>]| x.iter().map(|j| j.v).collect::<Vec<f64>>();
+        let (qv, qdv, uv) = (value(q), value(qd), value(u));
+        let (n, dirs) = (qv.len(), 2 * qv.len() + uv.len());
+        let var = |x: &[f64], from: usize| -> Vec<Dual<f64>> {
+            (x.iter().enumerate())
+                .map(|(k, &v)| Dual::variable(v, from + k, dirs, 1.0))
+                .collect()
+        };
+        let tau = self.torques(&var(&qv, 0), &var(&qdv, n), &var(&uv, 2 * n));
+        let tau_v: Vec<f64> = tau.iter().map(|t| t.v).collect();
+        let qdd = forward_dynamics(model, &qv, &qdv, &tau_v);
+        let id = id_partials(model, &qv, &qdv, &qdd);
+        let inputs: Vec<&Jet<N>> = q.iter().chain(qd).chain(u).collect();
+        // (∂τ/∂z − ∂ID/∂z) dz for each row, then one solve with M = L Lᵀ for all directions.
+        let rhs = (0..n)
+            .map(|i| {
+                let mut d = [0.0; N];
+                for (z, dz) in inputs.iter().enumerate() {
+                    let dtau = tau[i].tangent(z).copied().unwrap_or(0.0);
+                    let g = dtau - if z < 2 * n { id[i][z] } else { 0.0 };
+                    if g != 0.0 {
+                        d.iter_mut().zip(&dz.d).for_each(|(d, t)| *d += g * t);
+                    }
+                }
+                Jet { v: 0.0, d }
+            })
+            .collect();
+        let l: Tri<Jet<N>> = cholesky(&crba(model, &qv)).map(|&v| Jet::constant(v));
+        (qdd.into_iter().zip(solve_llt(&l, rhs)))
+            .map(|(v, t)| Jet { v, d: t.d })
+            .collect()
+    }
+}
