@@ -34,7 +34,7 @@ DIR = ROOT / "tests" / "fixtures" / "urdf"
 GRAVITY = {"arm4": [0.0, 0.0, -9.81], "tree": [0.3, -0.2, -9.81], "point_masses": [0.0, 0.0, -9.81]}
 # Real robots' files (robots/README.md says where each comes from), fewer states: they are
 # larger, and their joints are what is new, not the draws.
-ROBOTS = ["ur5", "panda", "solo12", "kinova"]
+ROBOTS = ["ur5", "panda", "solo12", "kinova", "iiwa"]
 STATES = 50
 ROBOT_STATES = 20
 

@@ -21,13 +21,14 @@ mod common;
 mod evaluator;
 use common::urdf::{fixture, flat_matrix, floats, rigid_terms};
 
-const FIXTURES: [&str; 6] = [
+const FIXTURES: [&str; 7] = [
     "arm4",
     "tree",
     "robots/ur5",
     "robots/panda",
     "robots/solo12",
     "robots/kinova",
+    "robots/iiwa",
 ];
 
 fn gravity(fx: &Value) -> [f64; 3] {

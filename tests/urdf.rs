@@ -53,12 +53,14 @@ fn terms(tree: &Tree, gravity: &[f64; 3], q: &[f64], qd: &[f64]) -> (Vec<f64>, V
 #[test]
 fn rigid_body_terms_equal_pinocchio() {
     // Test robots written here, then real robots' files as they are published (UR5; the Panda
-    // with its mimic finger; Solo 12, a branching tree; a Kinova arm with continuous joints).
+    // with its mimic finger; Solo 12, a branching tree; a Kinova arm with continuous joints;
+    // pybullet's KUKA iiwa).
     let robots = [
         "robots/ur5",
         "robots/panda",
         "robots/solo12",
         "robots/kinova",
+        "robots/iiwa",
     ];
     for name in ["arm4", "tree"].into_iter().chain(robots) {
         let (tree, fx) = fixture(name);

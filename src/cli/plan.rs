@@ -32,10 +32,12 @@ pub struct PlanArgs {
     /// The longest horizon accepted (the service's limit of the same name).
     #[arg(long, default_value_t = DEFAULT_MAX_PLAN_HORIZON)]
     pub max_plan_horizon: usize,
-    /// Lower input bounds, m values (default: unbounded).
+    /// Lower input bounds, m values (default, with no --u-max either: −effort for a URDF
+    /// joint with a `<limit effort>`, else unbounded).
     #[arg(long, allow_hyphen_values = true)]
     pub u_min: Option<String>,
-    /// Upper input bounds, m values (default: unbounded).
+    /// Upper input bounds, m values (default, with no --u-min either: the URDF's effort limit,
+    /// else unbounded).
     #[arg(long, allow_hyphen_values = true)]
     pub u_max: Option<String>,
     /// Diagonal of Q, 2n values (default: 1 for each q, 0.1 for each q̇).
@@ -124,7 +126,7 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
     let file = ModelFile::load(&a.model)?;
     let eval = Evaluator::from_file(&file)?;
     let (nx, m) = (2 * eval.config.n, eval.config.m);
-    let req = request(&a, nx, m)?;
+    let req = request(&a, nx, m)?.with_effort_limits(&eval.effort_limits());
     // Looked at the start's and the goal's configurations besides q = 0.
     let q = |x: &[f64]| x[..eval.config.n].to_vec();
     if let Some(w) = file.stiffness_warning(&[q(&req.x0), q(&req.goal)]) {
@@ -139,7 +141,7 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
     let out = json!({
         "x": rows(&p.x, nx), "u": rows(&p.u, m), "K": k, "cost": p.cost, "costs": p.costs,
         "iterations": p.iterations, "converged": p.converged, "goal_error": p.goal_error,
-        "dt": eval.config.dt,
+        "dt": eval.config.dt, "u_min": req.u_min, "u_max": req.u_max, "seconds": seconds,
     });
     write_atomic(
         &a.out,

@@ -61,6 +61,22 @@ impl PlanRequest {
     }
 }
 
+impl PlanRequest {
+    /// With no bound given on either side, the robot's: |u_k| ≤ effort_k where its actuator
+    /// has a limit (a URDF's `<limit effort>`), unbounded where not. A bound given is the
+    /// caller's choice and stands alone.
+    pub fn with_effort_limits(mut self, effort: &[Option<f64>]) -> Self {
+        if self.u_min.is_none() && self.u_max.is_none() && effort.iter().any(Option::is_some) {
+            let hi: Vec<f64> = (effort.iter())
+                .map(|e| e.unwrap_or(f64::INFINITY))
+                .collect();
+            self.u_min = Some(hi.iter().map(|h| -h).collect());
+            self.u_max = Some(hi);
+        }
+        self
+    }
+}
+
 /// `horizon` within `max` (the `--max-plan-horizon` limit), as a length; over it the request
 /// is refused before anything is allocated for it.
 pub fn check_horizon(horizon: u64, max: usize) -> Result<usize> {

@@ -47,6 +47,14 @@ impl Evaluator {
         self
     }
 
+    /// Each input's most force or torque where the model says (a URDF's `<limit effort>`).
+    pub fn effort_limits(&self) -> Vec<Option<f64>> {
+        match self.config.template() {
+            Some(Template::Urdf(t)) => t.effort_limits(),
+            _ => vec![None; self.config.m],
+        }
+    }
+
     /// Whether q̈ comes from the recursive algorithms.
     pub fn is_recursive(&self) -> bool {
         self.recursive.is_some()

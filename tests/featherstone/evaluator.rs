@@ -78,6 +78,7 @@ fn white_box_robots_equal_the_assembly() {
         ("robots/panda", 3),
         ("robots/solo12", 2),
         ("robots/kinova", 2),
+        ("robots/iiwa", 2),
         ("arm4", 6),
         ("tree", 6),
     ] {

@@ -24,7 +24,7 @@ def run(server, *args):
     return r.stdout
 
 
-@pytest.mark.parametrize("robot", ["ur5", "panda", "solo12", "kinova"])
+@pytest.mark.parametrize("robot", ["ur5", "panda", "solo12", "kinova", "iiwa"])
 def test_a_real_robots_export_loads_in_pinocchio_and_is_what_graybox_serves(server, robot):
     urdf = ROBOTS / f"{robot}.urdf"
     gbx, out = server.tmp / f"{robot}.gbx", server.tmp / f"{robot}-export.urdf"
@@ -53,8 +53,9 @@ def test_a_real_robots_export_loads_in_pinocchio_and_is_what_graybox_serves(serv
         x_next, accel = c.predict(model["id"], x, u, want_accel=True)
     for k in range(len(x)):
         want = ref.accel(x[k, :n], x[k, n:], u[k])
-        # Both are f64 evaluations of the same equations by different algorithms (dual numbers
-        # of an assembled M and V here, recursive algorithms there): they agree to rounding,
+        # Both are f64 evaluations of the same equations by different algorithms (ABA, or CRBA
+        # and a Cholesky solve with mimic joints, in graybox; `crba` and `nonLinearEffects`
+        # with numpy's solve in the reference): they agree to rounding,
         # ~1e-12 of the largest term for light wrist links; 1e-8 still catches a wrong mass,
         # frame, sign or friction term (each ≥ 1e-3 relative here).
         scale = max(1.0, np.abs(want).max())

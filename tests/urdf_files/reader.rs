@@ -102,3 +102,51 @@ fn errors_name_the_element_and_the_line() {
         assert!(m.contains(want), "{doc}: {m}");
     }
 }
+
+/// `<limit effort>` is read (a planner's input bound) and checked: absent is none, 0 is none
+/// (files write it for joints without an actuator), a negative or non-numeric one is refused
+/// naming the joint and its line.
+#[test]
+fn effort_limits_are_read_and_checked() {
+    let doc = |limit: &str| {
+        format!(
+            r#"<robot name="r"><link name="base"/>
+  <joint name="a" type="revolute"><parent link="base"/><child link="l1"/>{limit}</joint>
+  <link name="l1"><inertial><mass value="1"/>
+    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+  <joint name="b" type="revolute"><parent link="l1"/><child link="l2"/>
+    <limit effort="28" velocity="3"/></joint>
+  <link name="l2"><inertial><mass value="1"/>
+    <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
+</robot>"#
+        )
+    };
+    let efforts = |limit: &str| {
+        let t =
+            graybox::physics::urdf::UrdfTemplate::from_urdf(&doc(limit)).map_err(|e| e.to_string());
+        t.map(|t| t.effort_limits())
+    };
+    assert_eq!(efforts(""), Ok(vec![None, Some(28.0)]));
+    assert_eq!(
+        efforts(r#"<limit lower="-1" upper="1"/>"#),
+        Ok(vec![None, Some(28.0)])
+    );
+    assert_eq!(
+        efforts(r#"<limit effort="0"/>"#),
+        Ok(vec![None, Some(28.0)])
+    );
+    assert_eq!(
+        efforts(r#"<limit effort="150"/>"#),
+        Ok(vec![Some(150.0), Some(28.0)])
+    );
+    let negative = efforts(r#"<limit effort="-5"/>"#).unwrap_err();
+    assert!(
+        negative.contains("joint 'a' (line 2)") && negative.contains("effort"),
+        "{negative}"
+    );
+    let text = efforts(r#"<limit effort="lots"/>"#).unwrap_err();
+    assert!(
+        text.contains("effort=\"lots\" is not a number") && text.contains("line 2"),
+        "{text}"
+    );
+}

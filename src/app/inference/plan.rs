@@ -21,7 +21,7 @@ pub struct PlanCall {
     pub q: Array,
     pub r: Array,
     pub qf: Array,
-    /// Empty: unbounded.
+    /// Empty (both): the model's effort limits (a URDF's), else unbounded.
     pub u_min: Vec<f64>,
     pub u_max: Vec<f64>,
     pub u_init: Option<Array>,
@@ -38,7 +38,9 @@ impl App {
     pub async fn plan(&self, id: &str, call: PlanCall, deadline: Option<Instant>) -> Result<Plan> {
         let eval = self.evaluator(id).await?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
-        let req = self.plan_request(call, nx, m)?;
+        let req = self
+            .plan_request(call, nx, m)?
+            .with_effort_limits(&eval.effort_limits());
         crate::control::plan::validate(&req, nx, m)?;
         let t = req.horizon;
         // Jacobians, the backward pass's matrices and gains, the line search's ten

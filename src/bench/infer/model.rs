@@ -1,5 +1,6 @@
-//! `bench infer --model FILE`: Predict, Linearize and Plan latency of any model file (a URDF
-//! robot's, a formula template's), in process. The double pendulum figures stay the
+//! `bench infer --model FILE`: Predict (1 and 1024 states), Rollout (500 steps), Linearize
+//! and Plan latency of any model file (a URDF robot's, a formula template's), in process; for
+//! a URDF model also Predict and Linearize on the template's assembly, the path it replaced. The double pendulum figures stay the
 //! reference the targets were set against; these say what a bigger model costs.
 
 use std::path::Path;
@@ -16,6 +17,9 @@ use crate::rng::Rng;
 
 /// Plan steps: 1 s at Δt = 0.01.
 const HORIZON: usize = 100;
+/// States in a batch Predict, and steps of a rollout (under a constant input).
+const BATCH: usize = 1024;
+const ROLLOUT: usize = 500;
 
 pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
     let eval = Evaluator::from_file(&ModelFile::load(path)?)?;
@@ -26,10 +30,11 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
             .map(|_| rng.uniform_in(-1.0, 1.0))
             .collect()
     };
-    let (xs, us) = (batch(64, 2 * n, &mut rng), batch(64, m, &mut rng));
+    let (xs, us) = (batch(BATCH, 2 * n, &mut rng), batch(BATCH, m, &mut rng));
     let (x1, u1) = (&xs[..2 * n], &us[..m]);
     let few = (calls / 10).max(20);
-    let about = json!({"model": path.display().to_string(), "n": n, "m": m});
+    let about = json!({"model": path.display().to_string(), "n": n, "m": m,
+                       "recursive": eval.is_recursive()});
     let with = |extra: serde_json::Value| {
         let mut v = about.clone();
         v.as_object_mut()
@@ -37,33 +42,56 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
             .extend(extra.as_object().cloned().unwrap_or_default());
         v
     };
-    let figures = [
-        summary(
-            "model_predict_1",
-            time_calls(calls, || {
-                std::hint::black_box(eval.predict(x1, u1, false));
-            }),
-            with(json!({})),
-        ),
-        summary(
-            "model_predict_64",
+    let print = |name: &str, times: Vec<f64>| println!("{}", summary(name, times, with(json!({}))));
+    print(
+        "model_predict_1",
+        time_calls(calls, || {
+            std::hint::black_box(eval.predict(x1, u1, false));
+        }),
+    );
+    print(
+        "model_predict_1024",
+        time_calls(few, || {
+            std::hint::black_box(eval.predict(&xs, &us, false));
+        }),
+    );
+    print(
+        "model_rollout_500",
+        time_calls(few, || {
+            eval.rollout(
+                x1,
+                ROLLOUT,
+                |_, _| u1.to_vec(),
+                |x, _| {
+                    std::hint::black_box(x);
+                    true
+                },
+            );
+        }),
+    );
+    print(
+        "model_linearize_1",
+        time_calls(calls, || {
+            std::hint::black_box(eval.linearize_batch(x1, u1));
+        }),
+    );
+    if eval.is_recursive() {
+        // The same model on the template's assembly: what a URDF model cost before.
+        let assembled = eval.clone().assembled();
+        print(
+            "model_predict_1_assembled",
             time_calls(few, || {
-                std::hint::black_box(eval.predict(&xs, &us, false));
+                std::hint::black_box(assembled.predict(x1, u1, false));
             }),
-            with(json!({})),
-        ),
-        summary(
-            "model_linearize_1",
-            time_calls(calls, || {
-                std::hint::black_box(eval.linearize_batch(x1, u1));
+        );
+        print(
+            "model_linearize_1_assembled",
+            time_calls(few.min(50), || {
+                std::hint::black_box(assembled.linearize_batch(x1, u1));
             }),
-            with(json!({})),
-        ),
-    ];
-    for f in figures {
-        println!("{f}");
+        );
     }
-    // From rest to every coordinate 0.5 away, inputs free: a reach, not a swing-up.
+    // From rest to every coordinate 0.5 away within the model's effort limits: a reach.
     let diag = |pos: f64, vel: f64| {
         Mat::diag(
             &(0..2 * n)
@@ -73,7 +101,8 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
     };
     let goal = (0..2 * n).map(|i| if i < n { 0.5 } else { 0.0 }).collect();
     let weights = [diag(1.0, 0.1), Mat::diag(&vec![1e-4; m]), diag(1e3, 1e2)];
-    let req = PlanRequest::new(vec![0.0; 2 * n], goal, HORIZON, weights);
+    let req = PlanRequest::new(vec![0.0; 2 * n], goal, HORIZON, weights)
+        .with_effort_limits(&eval.effort_limits());
     let p = plan(&eval, &req, &|| false)?;
     let times = time_calls(10, || {
         std::hint::black_box(plan(&eval, &req, &|| false).expect("plans"));

@@ -1,7 +1,8 @@
 //! The URDF reader: the elements the dynamics needs (each link's `<inertial>`; each joint's
-//! type, frame, links, axis, `<dynamics>` and `<mimic>`), read in one iterative pass over the
-//! XML. Everything else (visuals, collisions, materials, `<gazebo>`, `<transmission>`, limits,
-//! elements a simulator added) does not affect the dynamics and is not read, so a file the ROS
+//! type, frame, links, axis, `<dynamics>`, `<mimic>` and `<limit>`'s effort, a planner's input
+//! bound), read in one iterative pass over the XML. Everything else (visuals, collisions,
+//! materials, `<gazebo>`, `<transmission>`, position and velocity limits, elements a simulator
+//! added) does not affect the dynamics and is not read, so a file the ROS
 //! parser takes is taken here. Errors name the element and its line.
 
 use quick_xml::Reader;
@@ -67,6 +68,8 @@ pub struct Joint {
     /// `<dynamics damping friction>`; None when absent.
     pub dynamics: Option<(f64, f64)>,
     pub mimic: Option<Mimic>,
+    /// `<limit effort>` (N·m or N); None when absent.
+    pub effort: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -297,6 +300,7 @@ fn start_joint(tag: &Tag, line: usize) -> Result<Partial> {
             axis: [1.0, 0.0, 0.0],
             dynamics: None,
             mimic: None,
+            effort: None,
         },
         has_parent: false,
         has_child: false,
@@ -331,6 +335,8 @@ fn joint_part(p: &mut Partial, tag: &Tag, name: &[u8]) -> Result<()> {
                 tag.number("friction", Some(0.0))?,
             ));
         }
+        // Only the effort: a planner's input bounds (`UrdfTemplate::effort_limits`).
+        b"limit" if tag.text("effort")?.is_some() => j.effort = Some(tag.number("effort", None)?),
         b"mimic" => {
             j.mimic = Some(Mimic {
                 joint: tag.required("joint")?,

@@ -281,6 +281,13 @@ impl UrdfTemplate {
             .collect()
     }
 
+    /// Each input's `<limit effort>` (its joint's; None where the file gives none, or 0).
+    pub fn effort_limits(&self) -> Vec<Option<f64>> {
+        (self.actuated.iter())
+            .map(|&i| self.tree.bodies[self.tree.coordinates[i]].effort)
+            .collect()
+    }
+
     /// Physical values from raw ones (any scalar; Burn tensors in training).
     pub fn natural<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
         let mut out = Vec::with_capacity(raw.len());

@@ -62,6 +62,8 @@ pub struct Body {
     /// The joint it mimics, as the URDF says.
     pub mimic: Option<Mimic>,
     pub drive: Drive,
+    /// URDF `<limit effort>` when positive: the most the joint's actuator exerts.
+    pub effort: Option<f64>,
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -372,6 +374,11 @@ fn movable_body(j: &read::Joint, parent: Option<usize>, at: Frame) -> Result<Bod
     let joint = format!("{label}:");
     within(&joint, "<dynamics> damping", damping)?;
     within(&joint, "<dynamics> friction", friction)?;
+    if let Some(e) = j.effort.filter(|e| !(e.is_finite() && *e >= 0.0)) {
+        return Err(bad(format!(
+            "{joint} <limit> effort must be a finite value ≥ 0, got {e}"
+        )));
+    }
     if let Some(m) = &j.mimic {
         within(&joint, "<mimic> multiplier", m.multiplier)?;
         within(&joint, "<mimic> offset", m.offset)?;
@@ -395,5 +402,6 @@ fn movable_body(j: &read::Joint, parent: Option<usize>, at: Frame) -> Result<Bod
             multiplier: 1.0,
             offset: 0.0,
         },
+        effort: j.effort.filter(|&e| e > 0.0),
     })
 }
