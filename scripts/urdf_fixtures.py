@@ -8,11 +8,13 @@ only: symmetrised here), g(q) = ∂V/∂q (`computeGeneralizedGravity`) and C(q,
 the root, children in document order (mimic joints, which follow another joint, are not
 coordinates: Pinocchio is built with its mimic support). Pinocchio orders siblings by name and gives a
 continuous joint two position coordinates (cos θ, sin θ) and one velocity, so coordinates are
-mapped by joint name (`getJointId`, `idx_q`, `idx_v`). Gravity is each file's (below).
+mapped by joint name (`getJointId`, `idx_q`, `idx_v`). Gravity is each file's (below). Each
+state also has the kinetic energy T (from the bodies' velocities) and the potential energy V
+(Σ −m g·c from the bodies' placements; `computePotentialEnergy` refuses mimic joints).
 
 Every value is checked by a second method before it is written: M against the kinetic energy
 ½ q̇ᵀMq̇ from Pinocchio's body velocities (`forwardKinematics` with q̇, Σ ½ vᵀ𝕀v), and g
-against central differences of Pinocchio's potential energy (`computePotentialEnergy`).
+against central differences of that potential energy.
 
 Floats are written with repr, so the f64 values round-trip. Deterministic (fixed seed). Run
 with Pinocchio installed (`pip install pin==4.1.0 numpy==2.4.6`):
@@ -120,7 +122,8 @@ def main():
                             for s in (1, -1))
                 fd.append((vp_ - vm_) / (2 * h))
             assert np.allclose(fd, G, atol=1e-6 * max(1.0, np.abs(G).max())), (fd, G)
-            states.append({"q": list(q), "qd": list(qd), "M": M.tolist(), "g": list(G), "c": list(C)})
+            states.append({"q": list(q), "qd": list(qd), "M": M.tolist(), "g": list(G), "c": list(C),
+                           "T": ke, "V": potential(model, data, qp)})
         out = {"urdf": f"{Path(name).name}.urdf", "gravity": gravity, "coordinates": [n for n, _ in coords],
                "pinocchio": pin.__version__, "states": states}
         (DIR / f"{name}.json").write_text(json.dumps(out, indent=1) + "\n")

@@ -7,10 +7,12 @@
 use std::f64::consts::PI;
 
 use graybox::physics::dual::Dual;
+use graybox::physics::jet::Jet;
 use graybox::physics::urdf::Tree;
 use graybox::physics::urdf::featherstone::{
     Model, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
     forward_dynamics, forward_dynamics_derivatives, gravity_torques, inverse_dynamics,
+    kinetic_energy, potential_energy,
 };
 use graybox::physics::urdf::inertia::Inertial;
 use graybox::rng::Rng;
@@ -122,6 +124,34 @@ fn residual(model: &Model, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f
 /// M q̈ + C q̇ + g = τ to 1e-10 of the terms' size (f64 rounding through O(n) recursions
 /// is ~1e-14 of it); without mimic joints ABA and CRBA + Cholesky agree to 1e-8 of
 /// max(1, |q̈|) (the two differ by rounding amplified by M's condition, ≤ 1e4 here).
+/// The kinetic energy (Σ ½ vᵢ·Iᵢvᵢ over the recursion's body velocities) and the potential
+/// energy (Σ −m g·c over the composed placements) equal Pinocchio's at every fixture state,
+/// to 1e-9 of max(1, |ref|) (rounding is ~1e-15; a wrong frame, first moment or sign moves
+/// them by ≥ 1e-4 here), and ∂V/∂q over jets is RNEA's gravity torque.
+#[test]
+fn energies_equal_pinocchio() {
+    for name in FIXTURES {
+        let (tree, fx) = fixture(name);
+        let model = Model::new(&tree, gravity(&fx));
+        for (s, (q, qd, st)) in states(&fx).enumerate() {
+            let t = kinetic_energy(&model, &q, &qd);
+            let t_ref = st["T"].as_f64().unwrap();
+            assert!(err(&[t], &[t_ref]) < 1e-9, "{name} {s}: T {t} vs {t_ref}");
+            let v = potential_energy(&model, &q);
+            let v_ref = st["V"].as_f64().unwrap();
+            assert!(err(&[v], &[v_ref]) < 1e-9, "{name} {s}: V {v} vs {v_ref}");
+            if q.len() <= 16 {
+                let qj: Vec<Jet<16>> = (q.iter().enumerate())
+                    .map(|(k, &x)| Jet::variable(x, k))
+                    .collect();
+                let dv = potential_energy(&model, &qj).d[..q.len()].to_vec();
+                let g = gravity_torques(&model, &q);
+                assert!(err(&dv, &g) < 1e-9, "{name} {s}: ∂V/∂q {dv:?} vs g {g:?}");
+            }
+        }
+    }
+}
+
 #[test]
 fn forward_dynamics_inverts_inverse_dynamics() {
     let mut rng = Rng::new(3);

@@ -1,10 +1,11 @@
 //! Recursive rigid-body algorithms over the URDF tree (docs/robots.md#recursive-algorithms;
 //! Featherstone, "Rigid Body Dynamics Algorithms", 2008): the recursive Newton–Euler
 //! algorithm for inverse dynamics, gravity and Coriolis torques (`rnea`), the composite
-//! rigid-body algorithm for M(q) (`crba`), and the articulated-body algorithm for forward
-//! dynamics (`aba`), and the derivatives of forward dynamics (`derivatives`). Each is O(n) or O(n·depth) per state, generic over `Scalar` (f64 for
+//! rigid-body algorithm for M(q) (`crba`), the articulated-body algorithm for forward dynamics
+//! (`aba`), the derivatives of forward dynamics (`derivatives`), and the kinetic and potential
+//! energies (`energy`). Each is O(n) or O(n·depth) per state, generic over `Scalar` (f64 for
 //! speed, dual numbers for exact derivatives), with the joints' constant frames precomputed
-//! once in a [`Model`].
+//! once in a [`Model`]. The f64 evaluator runs them for URDF models (`infer::rigid`).
 //!
 //! Mimic joints (`tree::Drive`): joint values are G q + offset with G = ∂(joint values)/∂q,
 //! so joint velocities and accelerations are G q̇ and G q̈, forces on the coordinates are
@@ -12,6 +13,7 @@
 
 pub mod aba;
 pub mod derivatives;
+pub mod energy;
 pub mod rnea;
 pub mod spatial;
 
@@ -19,6 +21,7 @@ pub use aba::{aba, crba_forward, forward_dynamics};
 pub use derivatives::{
     Derivatives, dual_derivatives, fd_over_jets, forward_dynamics_derivatives, id_partials,
 };
+pub use energy::{kinetic_energy, potential_energy};
 pub use rnea::{bias, coriolis, crba, gravity_torques, inverse_dynamics};
 
 use super::inertia::Inertial;
