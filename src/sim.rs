@@ -8,6 +8,7 @@ use crate::physics::dynamics::{Tri, cholesky, constants, dual_vars, white_box_ac
 use crate::physics::integrator::Integrator;
 use crate::physics::stiffness;
 use crate::physics::templates::Template;
+use crate::physics::urdf::featherstone;
 use crate::records::Warning;
 use crate::rng::Rng;
 
@@ -37,11 +38,21 @@ pub fn configurations(ds: &Dataset, k: usize) -> Vec<Vec<f64>> {
 pub struct TemplateSystem {
     pub template: Template,
     pub params: Vec<f64>,
+    /// A URDF robot for the recursive algorithms (docs/robots.md#recursive-algorithms).
+    recursive: Option<featherstone::Model>,
 }
 
 impl TemplateSystem {
     pub fn new(template: Template, params: Vec<f64>) -> Self {
-        Self { template, params }
+        let recursive = match &template {
+            Template::Urdf(t) => Some(t.recursive_model(&params, true)),
+            _ => None,
+        };
+        Self {
+            template,
+            params,
+            recursive,
+        }
     }
 
     pub fn mass_factor(&self, q: &[f64]) -> Tri<Dual<f64>> {
@@ -50,11 +61,15 @@ impl TemplateSystem {
     }
 
     pub fn acceleration(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
+        let tau = self.template.forces(&self.params, q, qd, u);
+        if let Some(model) = &self.recursive {
+            return featherstone::forward_dynamics(model, q, qd, &tau);
+        }
         let p = constants(&self.params);
         white_box_acceleration(
             |q| self.template.mass(&p, q),
             |q| self.template.potential(&p, q),
-            self.template.forces(&self.params, q, qd, u),
+            tau,
             q,
             qd,
         )
@@ -62,6 +77,12 @@ impl TemplateSystem {
 
     /// Kinetic and potential energy (T, V).
     pub fn energy(&self, q: &[f64], qd: &[f64]) -> (f64, f64) {
+        if let Some(model) = &self.recursive {
+            return (
+                featherstone::kinetic_energy(model, q, qd),
+                featherstone::potential_energy(model, q),
+            );
+        }
         let m = self.template.mass(&self.params, q);
         let t = 0.5
             * (0..q.len())

@@ -207,3 +207,41 @@ fn recursive_jacobians_equal_central_differences() {
         }
     }
 }
+
+/// The true system of a URDF template (`sim::TemplateSystem`, what `simulate` steps) runs the
+/// recursive algorithms too: its q̈ equals the assembled model's and its energies the
+/// template's M and V (½ q̇ᵀMq̇, V(q)), to 1e-9 of max(1, |ref|) as above.
+#[test]
+fn the_true_system_of_a_urdf_template_is_recursive() {
+    use graybox::sim::TemplateSystem;
+    for name in ["robots/panda", "robots/iiwa"] {
+        let t = template(name);
+        let file = ModelFile::from_template(&t, &t.defaults(), 0.01, Integrator::Rk4).unwrap();
+        let reference = reloaded(&file).assembled();
+        let sys = TemplateSystem::new(t.clone(), t.defaults());
+        let (n, m) = (t.n(), t.m());
+        let mut rng = Rng::new(13);
+        for s in 0..3 {
+            let mut draw = |k: usize| {
+                (0..k)
+                    .map(|_| rng.uniform_in(-2.0, 2.0))
+                    .collect::<Vec<_>>()
+            };
+            let (q, qd, u) = (draw(n), draw(n), draw(m));
+            let (a, a_ref) = (sys.acceleration(&q, &qd, &u), reference.accel(&q, &qd, &u));
+            assert!(err(&a, &a_ref) < 1e-9, "{name} {s}: q̈ {a:?} vs {a_ref:?}");
+            let p = t.defaults();
+            let mass = t.mass(&p, &q);
+            let kinetic: f64 = (0..n)
+                .map(|i| {
+                    (0..n)
+                        .map(|j| 0.5 * qd[i] * mass[i][j] * qd[j])
+                        .sum::<f64>()
+                })
+                .sum();
+            let (k, v) = sys.energy(&q, &qd);
+            let v_ref = t.potential(&p, &q);
+            assert!(err(&[k, v], &[kinetic, v_ref]) < 1e-9, "{name} {s}: T, V");
+        }
+    }
+}
