@@ -77,12 +77,25 @@ pub fn identifiable(t: &Template, parts: &[Part], values: &[(String, f64)]) -> V
             .find(|(n, _)| n == name)
             .map_or(f64::NAN, |(_, v)| *v)
     };
-    t.combinations()
+    let mut out: Vec<Identified> = t
+        .combinations()
         .iter()
         .filter(|c| c.needs.iter().all(|p| parts.contains(p)))
         .map(|c| Identified {
             name: c.name.to_string(),
             value: (c.eval)(&lookup),
         })
-        .collect()
+        .collect();
+    // A robot's are computed from its kinematics: its base parameters.
+    if let Template::Urdf(u) = t
+        && parts.contains(&Part::Mass)
+    {
+        let physical: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
+        let gravity = parts.contains(&Part::Potential);
+        out.extend(
+            (u.base_parameters(&physical, gravity).into_iter())
+                .map(|(name, value)| Identified { name, value }),
+        );
+    }
+    out
 }

@@ -384,6 +384,39 @@ impl UrdfTemplate {
         featherstone::Model::with_inertias(&self.tree, &bodies, g)
     }
 
+    /// The base parameters at these physical values (docs/robots.md#base-parameters): each a
+    /// combination of the standard parameters `<link>.mass`, `<link>.mx|my|mz` (m c) and
+    /// `<link>.Ixx|Ixy|Ixz|Iyy|Iyz|Izz` (about the link frame's origin), named by its formula,
+    /// with its value. `gravity`: whether V is the template's (else the data sees no weight).
+    pub fn base_parameters(&self, physical: &[f64], gravity: bool) -> Vec<(String, f64)> {
+        use featherstone::regressor::{NAMES, PER_BODY as STANDARD, standard_parameters};
+        let model = self.recursive_model(physical, gravity);
+        let pi = standard_parameters(&model);
+        let name = |k: usize| {
+            let link = &self.tree.bodies[k / STANDARD].link;
+            format!("{link}.{}", NAMES[k % STANDARD])
+        };
+        featherstone::base::base_parameters(&model)
+            .into_iter()
+            .map(|b| {
+                let mut text = String::new();
+                for &(k, c) in &b.terms {
+                    // Six significant digits: link lengths and their squares, not rounding.
+                    let c: f64 = format!("{c:.5e}").parse().expect("a number");
+                    let sign = if c < 0.0 { " − " } else { " + " };
+                    if !text.is_empty() || c < 0.0 {
+                        text.push_str(if text.is_empty() { "−" } else { sign });
+                    }
+                    if c.abs() != 1.0 {
+                        text.push_str(&format!("{}·", c.abs()));
+                    }
+                    text.push_str(&name(k));
+                }
+                (text, b.value(&pi))
+            })
+            .collect()
+    }
+
     /// The physical values as URDF elements per link and joint (for the export).
     pub fn link_inertial(&self, physical: &[f64], body: usize) -> Inertial {
         inertial_of(&physical[body * PER_BODY..(body + 1) * PER_BODY])

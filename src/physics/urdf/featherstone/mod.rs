@@ -12,8 +12,10 @@
 //! Gᵀ τ_joints, and M = Gᵀ M_joints G.
 
 pub mod aba;
+pub mod base;
 pub mod derivatives;
 pub mod energy;
+pub mod regressor;
 pub mod rnea;
 pub mod spatial;
 
