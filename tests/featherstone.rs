@@ -18,6 +18,8 @@ use graybox::physics::urdf::inertia::Inertial;
 use graybox::rng::Rng;
 use serde_json::Value;
 
+#[path = "featherstone/adjoint.rs"]
+mod adjoint;
 #[path = "featherstone/base.rs"]
 mod base;
 mod common;

@@ -14,6 +14,7 @@ use serde_json::json;
 use crate::error::{Error, Result};
 use crate::physics::dynamics::{constants, white_box_acceleration};
 use crate::physics::urdf::UrdfTemplate;
+use crate::physics::urdf::featherstone::adjoint::{forward_dynamics_adjoint, parameter_gradient};
 use crate::physics::urdf::featherstone::{
     Model, aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets, forward_dynamics,
     forward_dynamics_derivatives,
@@ -129,6 +130,16 @@ pub fn run(a: BenchRigidArgs) -> Result<()> {
     figure("fd_derivatives_fd_over_dual", n, calls.div_ceil(10), |k| {
         let [q, qd, tau] = &states[k];
         black_box(dual_derivatives(&model, q, qd, tau));
+    });
+    // A training step's backward pass per state and integrator stage (ḡ = τ's values: any
+    // vector does).
+    figure("fd_adjoint_q_qd_tau_pi", n, calls, |k| {
+        let [q, qd, tau] = &states[k];
+        black_box(forward_dynamics_adjoint(&model, q, qd, tau, tau));
+    });
+    figure("parameter_gradient_only", n, calls, |k| {
+        let [q, qd, tau] = &states[k];
+        black_box(parameter_gradient(&model, q, qd, qd, tau));
     });
     Ok(())
 }

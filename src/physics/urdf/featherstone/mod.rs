@@ -12,6 +12,7 @@
 //! Gᵀ τ_joints, and M = Gᵀ M_joints G.
 
 pub mod aba;
+pub mod adjoint;
 pub mod base;
 pub mod derivatives;
 pub mod energy;
