@@ -10,11 +10,7 @@ use graybox::physics::urdf::featherstone::{Model, forward_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
-use super::{FIXTURES, err, gravity};
-
-fn draw(rng: &mut Rng, k: usize, r: f64) -> Vec<f64> {
-    (0..k).map(|_| rng.uniform_in(-r, r)).collect()
-}
+use super::{FIXTURES, err, gravity, random};
 
 /// Yᵀλ by the O(n) recursion equals the regressor's columns times λ at random states and λ,
 /// to 1e-9 of max(1, |ref|) (the same products summed in another order).
@@ -27,10 +23,10 @@ fn the_parameter_gradient_is_the_regressor_transposed() {
         let n = model.n;
         for s in 0..3 {
             let (q, qd, qdd, l) = (
-                draw(&mut rng, n, 1.5),
-                draw(&mut rng, n, 1.5),
-                draw(&mut rng, n, 1.5),
-                draw(&mut rng, n, 1.0),
+                random(&mut rng, n, 1.5),
+                random(&mut rng, n, 1.5),
+                random(&mut rng, n, 1.5),
+                random(&mut rng, n, 1.0),
             );
             let y = regressor(&model, &q, &qd, &qdd);
             let want: Vec<f64> = (0..y[0].len())
@@ -55,10 +51,10 @@ fn the_adjoint_is_central_differences() {
         let model = Model::new(&tree, gravity(&fx));
         let n = model.n;
         let (q, qd, tau, g) = (
-            draw(&mut rng, n, 1.5),
-            draw(&mut rng, n, 1.5),
-            draw(&mut rng, n, 2.0),
-            draw(&mut rng, n, 1.0),
+            random(&mut rng, n, 1.5),
+            random(&mut rng, n, 1.5),
+            random(&mut rng, n, 2.0),
+            random(&mut rng, n, 1.0),
         );
         let adj = forward_dynamics_adjoint(&model, &q, &qd, &tau, &g);
         let loss = |m: &Model, q: &[f64], qd: &[f64], tau: &[f64]| -> f64 {

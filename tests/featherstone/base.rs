@@ -11,11 +11,7 @@ use graybox::physics::urdf::featherstone::{Model, inverse_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
-use super::{FIXTURES, err, gravity};
-
-fn draw(rng: &mut Rng, k: usize) -> Vec<f64> {
-    (0..k).map(|_| rng.uniform_in(-1.5, 1.5)).collect()
-}
+use super::{FIXTURES, err, gravity, random};
 
 fn times(y: &[Vec<f64>], pi: &[f64]) -> Vec<f64> {
     y.iter()
@@ -35,11 +31,15 @@ fn the_regressor_times_the_parameters_is_inverse_dynamics() {
         let own = standard_parameters(&model);
         let n = model.n;
         for s in 0..3 {
-            let (q, qd, qdd) = (draw(&mut rng, n), draw(&mut rng, n), draw(&mut rng, n));
+            let (q, qd, qdd) = (
+                random(&mut rng, n, 1.0),
+                random(&mut rng, n, 1.0),
+                random(&mut rng, n, 1.0),
+            );
             let y = regressor(&model, &q, &qd, &qdd);
             let tau = inverse_dynamics(&model, &q, &qd, &qdd);
             assert!(err(&times(&y, &own), &tau) < 1e-9, "{name} {s}: own π");
-            let pi = draw(&mut rng, own.len());
+            let pi = random(&mut rng, own.len(), 1.0);
             let other = inverse_dynamics(&with_parameters(&model, &pi), &q, &qd, &qdd);
             assert!(err(&times(&y, &pi), &other) < 1e-9, "{name} {s}: random π");
         }
@@ -62,11 +62,15 @@ fn base_parameters_reproduce_every_torque() {
             "{name}: {}",
             base.len()
         );
-        let pi = draw(&mut rng, cols);
+        let pi = random(&mut rng, cols, 1.0);
         let beta: Vec<f64> = base.iter().map(|b| b.value(&pi)).collect();
         let n = model.n;
         for s in 0..3 {
-            let (q, qd, qdd) = (draw(&mut rng, n), draw(&mut rng, n), draw(&mut rng, n));
+            let (q, qd, qdd) = (
+                random(&mut rng, n, 1.0),
+                random(&mut rng, n, 1.0),
+                random(&mut rng, n, 1.0),
+            );
             let y = regressor(&model, &q, &qd, &qdd);
             let independent: Vec<Vec<f64>> = y
                 .iter()
