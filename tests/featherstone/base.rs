@@ -152,3 +152,26 @@ fn a_reports_base_parameters_read_as_their_formulas() {
         );
     }
 }
+
+/// Past `BASE_PARAMETERS_MAX_BODIES` moving bodies a report lists no base parameters (their
+/// QR grows as bodies³) rather than spending minutes on them.
+#[test]
+fn a_robot_past_the_limit_lists_no_base_parameters() {
+    use graybox::physics::urdf::UrdfTemplate;
+    use graybox::physics::urdf::template::BASE_PARAMETERS_MAX_BODIES;
+    let bodies = BASE_PARAMETERS_MAX_BODIES + 1;
+    let mut urdf = String::from(r#"<robot name="chain"><link name="l0"/>"#);
+    for i in 1..=bodies {
+        urdf += &format!(
+            r#"<joint name="j{i}" type="revolute"><parent link="l{}"/><child link="l{i}"/>
+  <origin xyz="0 0 0.1"/><axis xyz="0 1 0"/></joint>
+<link name="l{i}"><inertial><mass value="1"/>
+  <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial></link>"#,
+            i - 1
+        );
+    }
+    urdf += "</robot>";
+    let t = UrdfTemplate::from_urdf(&urdf).unwrap();
+    let physical: Vec<f64> = t.params().iter().map(|p| p.default).collect();
+    assert!(t.base_parameters(&physical, true).is_empty());
+}
