@@ -193,6 +193,14 @@ impl<S: Scalar> Force<S> {
             f: add(&self.f, &o.f),
         }
     }
+
+    /// c f.
+    pub fn scale(&self, c: f64) -> Self {
+        Self {
+            n: self.n.clone().map(|x| x.scale(c)),
+            f: self.f.clone().map(|x| x.scale(c)),
+        }
+    }
 }
 
 /// The parent-to-child Plücker transform of a joint at its value.
