@@ -108,6 +108,19 @@ fn random(rng: &mut Rng, n: usize, scale: f64) -> Vec<f64> {
     (0..n).map(|_| scale * rng.normal()).collect()
 }
 
+/// Every fixture robot's model, with its name.
+fn models() -> impl Iterator<Item = (&'static str, Model)> {
+    FIXTURES.into_iter().map(|name| {
+        let (tree, fx) = fixture(name);
+        (name, Model::new(&tree, gravity(&fx)))
+    })
+}
+
+/// A random (q, q̇, q̈) of n coordinates each.
+fn random_state(rng: &mut Rng, n: usize, scale: f64) -> [Vec<f64>; 3] {
+    std::array::from_fn(|_| random(rng, n, scale))
+}
+
 /// ‖M q̈ + C q̇ + g − τ‖∞ relative to the size of the terms summed (max(1, |τ|, Σⱼ|Mᵢⱼ q̈ⱼ|)):
 /// a backward-stable solve leaves a residual of a few ε of that whatever M's condition.
 fn residual(model: &Model, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f64 {

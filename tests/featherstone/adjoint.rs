@@ -10,28 +10,27 @@ use graybox::physics::urdf::featherstone::{Model, forward_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
-use super::{FIXTURES, err, gravity, random};
+use super::{err, gravity, models, random, random_state};
+
+/// Aᵀλ for the rows of A.
+fn transposed_times(a: &[Vec<f64>], l: &[f64]) -> Vec<f64> {
+    (0..a[0].len())
+        .map(|k| a.iter().zip(l).map(|(row, l)| row[k] * l).sum())
+        .collect()
+}
 
 /// Yᵀλ by the O(n) recursion equals the regressor's columns times λ at random states and λ,
 /// to 1e-9 of max(1, |ref|) (the same products summed in another order).
 #[test]
 fn the_parameter_gradient_is_the_regressor_transposed() {
     let mut rng = Rng::new(29);
-    for name in FIXTURES {
-        let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+    for (name, model) in models() {
         let n = model.n;
         for s in 0..3 {
-            let (q, qd, qdd, l) = (
-                random(&mut rng, n, 1.5),
-                random(&mut rng, n, 1.5),
-                random(&mut rng, n, 1.5),
-                random(&mut rng, n, 1.0),
-            );
+            let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
+            let l = random(&mut rng, n, 1.0);
             let y = regressor(&model, &q, &qd, &qdd);
-            let want: Vec<f64> = (0..y[0].len())
-                .map(|k| (0..n).map(|i| y[i][k] * l[i]).sum())
-                .collect();
+            let want = transposed_times(&y, &l);
             let got = parameter_gradient(&model, &q, &qd, &qdd, &l);
             assert!(err(&got, &want) < 1e-9, "{name} {s}: {got:?} vs {want:?}");
         }
@@ -112,21 +111,13 @@ fn the_reverse_pass_is_the_jets_transposed() {
     use graybox::physics::urdf::featherstone::adjoint::id_gradient;
     use graybox::physics::urdf::featherstone::id_partials;
     let mut rng = Rng::new(37);
-    for name in FIXTURES {
-        let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+    for (name, model) in models() {
         let n = model.n;
         for s in 0..3 {
-            let (q, qd, qdd, l) = (
-                random(&mut rng, n, 1.5),
-                random(&mut rng, n, 1.5),
-                random(&mut rng, n, 1.5),
-                random(&mut rng, n, 1.0),
-            );
+            let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
+            let l = random(&mut rng, n, 1.0);
             let id = id_partials(&model, &q, &qd, &qdd);
-            let want: Vec<f64> = (0..2 * n)
-                .map(|k| (0..n).map(|i| id[i][k] * l[i]).sum())
-                .collect();
+            let want = transposed_times(&id, &l);
             let (dq, dqd) = id_gradient(&model, &q, &qd, &qdd, &l);
             let got = [dq, dqd].concat();
             assert!(err(&got, &want) < 1e-9, "{name} {s}: {got:?} vs {want:?}");

@@ -10,8 +10,7 @@ use graybox::physics::urdf::featherstone::regressor::{
 use graybox::physics::urdf::featherstone::{Model, inverse_dynamics};
 use graybox::rng::Rng;
 
-use super::common::urdf::fixture;
-use super::{FIXTURES, err, gravity, random};
+use super::{err, models, random, random_state};
 
 fn times(y: &[Vec<f64>], pi: &[f64]) -> Vec<f64> {
     y.iter()
@@ -25,17 +24,11 @@ fn times(y: &[Vec<f64>], pi: &[f64]) -> Vec<f64> {
 #[test]
 fn the_regressor_times_the_parameters_is_inverse_dynamics() {
     let mut rng = Rng::new(17);
-    for name in FIXTURES {
-        let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+    for (name, model) in models() {
         let own = standard_parameters(&model);
         let n = model.n;
         for s in 0..3 {
-            let (q, qd, qdd) = (
-                random(&mut rng, n, 1.0),
-                random(&mut rng, n, 1.0),
-                random(&mut rng, n, 1.0),
-            );
+            let [q, qd, qdd] = random_state(&mut rng, n, 1.0);
             let y = regressor(&model, &q, &qd, &qdd);
             let tau = inverse_dynamics(&model, &q, &qd, &qdd);
             assert!(err(&times(&y, &own), &tau) < 1e-9, "{name} {s}: own π");
@@ -52,9 +45,7 @@ fn the_regressor_times_the_parameters_is_inverse_dynamics() {
 #[test]
 fn base_parameters_reproduce_every_torque() {
     let mut rng = Rng::new(23);
-    for name in FIXTURES {
-        let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+    for (name, model) in models() {
         let base = base_parameters(&model);
         let cols = PER_BODY * model.joints.len();
         assert!(
@@ -66,11 +57,7 @@ fn base_parameters_reproduce_every_torque() {
         let beta: Vec<f64> = base.iter().map(|b| b.value(&pi)).collect();
         let n = model.n;
         for s in 0..3 {
-            let (q, qd, qdd) = (
-                random(&mut rng, n, 1.0),
-                random(&mut rng, n, 1.0),
-                random(&mut rng, n, 1.0),
-            );
+            let [q, qd, qdd] = random_state(&mut rng, n, 1.0);
             let y = regressor(&model, &q, &qd, &qdd);
             let independent: Vec<Vec<f64>> = y
                 .iter()
