@@ -1,9 +1,12 @@
-//! Backend and precision selection, and graybox's own Burn operations (`tanh.rs`). Burn fixes
+//! Backend and precision selection, and graybox's own Burn operations (`tanh.rs`, and
+//! `rows.rs` for a host function of each row with its vector–Jacobian product). Burn fixes
 //! a device's float type once per process (docs/training.md#precision), so precision is a process-level
 //! setting.
 
+mod rows;
 mod tanh;
 
+pub use rows::{RowFn, RowFunction, row_map};
 pub use tanh::tanh;
 
 use burn::tensor::{Device, FloatDType};

@@ -12,29 +12,19 @@
 use super::Evaluator;
 use super::weights::Weights;
 use crate::model::ModelConfig;
-use crate::model::spec::ModelSpec;
 use crate::physics::dual::Dual;
 use crate::physics::dynamics::{Tri, cholesky, solve_llt};
 use crate::physics::jet::Jet;
-use crate::physics::parts::{MassSpec, PotentialSpec};
 use crate::physics::templates::Template;
 use crate::physics::urdf::featherstone::{Model, crba, forward_dynamics, id_partials};
 
 /// The robot as the recursive algorithms take it, for a structured model whose M is a URDF
 /// template's; gravity is in it when V is the template's too.
 pub(super) fn recursive_model(config: &ModelConfig, weights: &Weights) -> Option<Model> {
-    let ModelSpec::Structured {
-        mass: MassSpec::Template,
-        potential,
-        ..
-    } = &config.spec
-    else {
+    let (t, gravity) = config.spec.recursive()?;
+    let Weights::Structured(w) = weights else {
         return None;
     };
-    let (Some(Template::Urdf(t)), Weights::Structured(w)) = (config.template(), weights) else {
-        return None;
-    };
-    let gravity = matches!(potential, PotentialSpec::Template { .. });
     Some(t.recursive_model(w.physical.as_deref()?, gravity))
 }
 

@@ -7,6 +7,7 @@ pub mod mlp;
 pub mod params;
 pub mod params_io;
 pub mod report;
+mod rigid;
 mod scaling;
 pub mod spec;
 mod spec_json;
@@ -243,6 +244,9 @@ impl Model {
             let input = c.full_input(&q, &qd, &u);
             return net.forward(input) * c.acc_std.clone() + c.acc_mean.clone();
         }
+        if let Some(fd) = &self.consts.rigid {
+            return self.rigid_accel(fd, q, qd, u);
+        }
         let qd_cols = columns(&qd);
         let p = self.parts(q, qd, u);
         Tensor::cat(acceleration(&p.l, p.grad_v, p.forces, &qd_cols), 1)
@@ -252,6 +256,25 @@ impl Model {
     /// the networks run here on whole tensors, the structure is the one assembly
     /// ([`assembly`]) inference runs too.
     pub fn parts(&self, q: Tensor<2>, qd: Tensor<2>, u: Tensor<2>) -> Parts {
+        self.assemble(q, qd, u, |structure, nets, inputs| {
+            let t = structure.terms(nets, inputs);
+            Parts {
+                l: t.l,
+                grad_v: t.grad_v,
+                forces: t.forces,
+            }
+        })
+    }
+
+    /// `f` of a structured model's assembly on a batch: its structure with the values it
+    /// reads, its networks' outputs, and the batch's columns.
+    fn assemble<R>(
+        &self,
+        q: Tensor<2>,
+        qd: Tensor<2>,
+        u: Tensor<2>,
+        f: impl FnOnce(&Structure<'_, Tensor<2>>, &BurnNets, &LazyColumns<'_>) -> R,
+    ) -> R {
         let c = &self.consts;
         let ModelSpec::Structured {
             mass,
@@ -292,12 +315,7 @@ impl Model {
             m: self.config.m,
         };
         let inputs = LazyColumns::new(&q, &qd, &u, &c.one);
-        let t = structure.terms(&nets, &inputs);
-        Parts {
-            l: t.l,
-            grad_v: t.grad_v,
-            forces: t.forces,
-        }
+        f(&structure, &nets, &inputs)
     }
 
     /// The structured model's networks on a batch, as columns (M's and V's with their

@@ -9,6 +9,7 @@ use crate::error::{Error, Result};
 use crate::physics::params::Part;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec, structured_hidden};
 use crate::physics::templates::Template;
+use crate::physics::urdf::UrdfTemplate;
 
 pub const NAIVE_HIDDEN: [usize; 3] = [64, 64, 64];
 
@@ -223,6 +224,22 @@ impl ModelSpec {
                     || matches!(forces, ForceSpec::ControlAffine { .. })
             }
         }
+    }
+
+    /// The URDF template whose recursive algorithms give this model's q̈ (its M is the
+    /// template's), and whether they include gravity (its V is the template's too; otherwise
+    /// the model's own V stands in for it).
+    pub fn recursive(&self) -> Option<(&UrdfTemplate, bool)> {
+        let ModelSpec::Structured {
+            mass: MassSpec::Template,
+            potential,
+            template: Some(Template::Urdf(t)),
+            ..
+        } = self
+        else {
+            return None;
+        };
+        Some((t, matches!(potential, PotentialSpec::Template { .. })))
     }
 
     pub fn template(&self) -> Option<&Template> {

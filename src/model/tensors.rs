@@ -5,6 +5,7 @@ use burn::tensor::{Device, Tensor, TensorData};
 
 use super::ModelConfig;
 use super::mlp::InputTangent;
+use crate::backend::RowFn;
 use crate::physics::assembly;
 use crate::physics::dual::Dual;
 use crate::physics::integrator::StateVec;
@@ -24,6 +25,8 @@ pub(super) struct Consts {
     pub(super) loss_w: Tensor<2>,     // [1, 2n] = [1…1, λ…λ]
     /// Present when some coordinate is an angle.
     pub(super) periodic: Option<Periodic>,
+    /// Forward dynamics by the recursive algorithms, when M is a URDF template's.
+    pub(super) rigid: Option<RowFn>,
 }
 
 /// What angles need: their networks' inputs are (sin q, cos q), their loss 2(1 − cos Δ).
@@ -82,6 +85,7 @@ impl Consts {
                     device,
                 ),
             }),
+            rigid: super::rigid::ForwardDynamics::of(c),
         }
     }
 

@@ -29,9 +29,11 @@ pub const MIN_SHARD_ROWS: usize = 128;
 /// two shards 142k against 192k samples/s on one; batch 4096 1.33M against 0.83M).
 pub const MIN_SHARD_ROWS_WITHOUT_NETWORK: usize = 2048;
 
-/// The fewest rows a shard of `spec`'s model gets.
+/// The fewest rows a shard of `spec`'s model gets: a model with a network, or a robot's on
+/// the recursive algorithms (one op of ~40 µs per UR5 row), has per-row work enough for
+/// [`MIN_SHARD_ROWS`].
 pub fn min_shard_rows(spec: &crate::model::spec::ModelSpec) -> usize {
-    if spec.has_network() {
+    if spec.has_network() || spec.recursive().is_some() {
         MIN_SHARD_ROWS
     } else {
         MIN_SHARD_ROWS_WITHOUT_NETWORK
@@ -188,7 +190,7 @@ mod tests {
     }
 
     #[test]
-    fn models_without_a_network_shard_only_large_batches() {
+    fn models_without_per_row_work_shard_only_large_batches() {
         use crate::model::spec::ModelSpec;
         use crate::physics::templates::Template;
         let named = |n| ModelSpec::named(n, Some(Template::DoublePendulum)).unwrap();
@@ -199,5 +201,11 @@ mod tests {
             min_shard_rows(&named("W-B")),
             MIN_SHARD_ROWS_WITHOUT_NETWORK
         );
+        // A robot's W-B runs the recursive algorithms: per-row work enough to shard.
+        let urdf = include_str!("../../tests/fixtures/urdf/double_pendulum.urdf");
+        let robot = crate::physics::urdf::UrdfTemplate::from_urdf(urdf).unwrap();
+        let robot = Template::Urdf(std::sync::Arc::new(robot));
+        let spec = ModelSpec::named("W-B", Some(robot)).unwrap();
+        assert_eq!(min_shard_rows(&spec), MIN_SHARD_ROWS);
     }
 }

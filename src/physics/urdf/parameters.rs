@@ -130,3 +130,24 @@ pub(super) fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
         inertia,
     }
 }
+
+/// One body's standard parameters as the recursive algorithms take them
+/// (`featherstone::regressor`: m, m c, Ī about the link origin) from its physical values.
+pub fn standard_of_physical<S: Scalar>(v: &[S]) -> [S; PER_BODY] {
+    let b = body_of_physical(v);
+    let like = &v[0];
+    let [hx, hy, hz] = b.h;
+    let i = |r: usize, c: usize| b.inertia[r][c].clone().value(like);
+    [
+        b.mass.value(like),
+        hx.value(like),
+        hy.value(like),
+        hz.value(like),
+        i(0, 0),
+        i(0, 1),
+        i(0, 2),
+        i(1, 1),
+        i(1, 2),
+        i(2, 2),
+    ]
+}

@@ -17,6 +17,7 @@ use super::featherstone;
 use super::inertia::{BodyInertia, Inertial};
 use super::parameters::{
     PER_BODY, PER_JOINT, body_of_physical, inertial_of, params_of, physical_of_theta, raw_order,
+    standard_of_physical,
 };
 use super::rigid;
 use super::tree::{JointKind, Tree};
@@ -423,6 +424,14 @@ impl UrdfTemplate {
                 }
                 (text, b.value(&pi))
             })
+            .collect()
+    }
+
+    /// π, every body's standard parameters (`featherstone::regressor`'s order), from physical
+    /// values (any scalar: Burn tensors in training).
+    pub fn standard_parameters<S: Scalar>(&self, physical: &[S]) -> Vec<S> {
+        (physical.chunks(PER_BODY).take(self.nb()))
+            .flat_map(standard_of_physical)
             .collect()
     }
 

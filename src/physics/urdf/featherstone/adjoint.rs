@@ -193,6 +193,12 @@ pub fn forward_dynamics_adjoint(
     gbar: &[f64],
 ) -> Adjoint {
     let qdd = forward_dynamics(model, q, qd, tau);
+    adjoint_at(model, q, qd, qdd, gbar)
+}
+
+/// The vector–Jacobian product at a q̈ that forward dynamics already gave (a training step's
+/// forward pass), without computing it again.
+pub fn adjoint_at(model: &Model, q: &[f64], qd: &[f64], qdd: Vec<f64>, gbar: &[f64]) -> Adjoint {
     let lambda = solve_llt(&cholesky(&crba(model, q)), gbar.to_vec());
     let (dq, dqd) = id_gradient(model, q, qd, &qdd, &lambda);
     let minus = |g: Vec<f64>| g.into_iter().map(|g| -g).collect();
