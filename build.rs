@@ -10,25 +10,5 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .file_descriptor_set_path(out.join("graybox_descriptor.bin"))
         .compile_protos(&["proto/graybox/v1/dynamics.proto"], &["proto"])?;
     println!("cargo:rerun-if-changed=proto");
-    commit();
     Ok(())
-}
-
-/// The commit the binary is built from, as `GRAYBOX_COMMIT` ("unknown" outside a git
-/// checkout, e.g. a Docker build context), for the experiments' run.json.
-fn commit() {
-    let out = std::process::Command::new("git")
-        .args(["rev-parse", "HEAD"])
-        .output();
-    let commit = match out {
-        Ok(o) if o.status.success() => String::from_utf8_lossy(&o.stdout).trim().to_string(),
-        _ => "unknown".to_string(),
-    };
-    println!("cargo:rustc-env=GRAYBOX_COMMIT={commit}");
-    // A new commit moves HEAD's branch ref (or HEAD itself when detached).
-    for path in [".git/HEAD", ".git/refs/heads", ".git/packed-refs"] {
-        if std::path::Path::new(path).exists() {
-            println!("cargo:rerun-if-changed={path}");
-        }
-    }
 }

@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# Before/after benchmarks in one sitting: `graybox bench train --time-limit 0` and `graybox
-# bench infer` of each binary, alternated round by round so that drift of the machine (heat,
+# Before/after benchmarks in one sitting: `bench train --time-limit 0` and `bench infer` of
+# each lab binary (graybox-lab; a build from before the lab was its own crate: graybox), alternated round by round so that drift of the machine (heat,
 # other load) falls on all of them alike; then `bench step` under callgrind (instruction
 # counts, which do not drift). Resumable: a run whose output file exists is skipped, so an
 # interrupted sitting continues where it stopped. Prints the medians table at the end.
 #
 #   scripts/bench_compare.sh OUT_DIR ROUNDS NAME=BINARY [NAME=BINARY ...]
-#   e.g. scripts/bench_compare.sh /tmp/cmp 3 before=/tmp/graybox-before after=target/release/graybox
+#   e.g. scripts/bench_compare.sh /tmp/cmp 3 before=/tmp/lab-before after=target/release/graybox-lab
 set -euo pipefail
 out=$1 rounds=$2
 shift 2

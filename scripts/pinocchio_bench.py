@@ -1,4 +1,4 @@
-"""Pinocchio's figures beside `graybox bench infer --model` (run both in one sitting; the
+"""Pinocchio's figures beside `graybox-lab bench infer --model` (run both in one sitting; the
 figures in README and bench-results were measured so):
 
     /path/to/venv-with-pin/bin/python scripts/pinocchio_bench.py tests/fixtures/urdf/robots/ur5.urdf ...

@@ -5,23 +5,27 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-cargo test --release --locked "$@"
+cargo test --workspace --release --locked "$@"
 
-# The README's run command must reuse this build: with the dev-dependencies' features declared
-# on the normal ones (Cargo.toml), a plain release build now compiles nothing.
-stale=$(cargo build --release --locked --message-format=json 2>/dev/null | python3 -c '
+# The README's run command must reuse this build: with the dev-dependencies' and the lab's
+# features declared on the service's normal dependencies (Cargo.toml), neither a plain release
+# build of the workspace nor `cargo run`'s build of the service alone compiles anything.
+for build in "--workspace" "-p graybox"; do
+  # shellcheck disable=SC2086 # the words of $build are separate arguments
+  stale=$(cargo build $build --release --locked --message-format=json 2>/dev/null | python3 -c '
 import json, sys
 for line in sys.stdin:
     m = json.loads(line)
     if m.get("reason") == "compiler-artifact" and not m["fresh"]:
         print(m["package_id"].rsplit("#", 1)[-1], m["target"]["name"])
 ')
-if [ -n "$stale" ]; then
-  echo "error: after the tests, cargo build --release recompiled (features differ between" >&2
-  echo "the test and the plain build; declare them on the normal dependencies):" >&2
-  echo "$stale" >&2
-  exit 1
-fi
+  if [ -n "$stale" ]; then
+    echo "error: after the tests, cargo build $build --release recompiled (features differ" >&2
+    echo "between the builds; declare them on the service's normal dependencies):" >&2
+    echo "$stale" >&2
+    exit 1
+  fi
+done
 
 if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
   # The dashboard test drives Debian's Chromium (browsers cannot be downloaded here).
@@ -37,5 +41,6 @@ if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
   fi
   "$venv/bin/pip" install --quiet --disable-pip-version-check -r tests/python/requirements.txt
   "$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/python
-  GRAYBOX_BIN="$PWD/target/release/graybox" "$venv/bin/python" -m pytest -q tests/python
+  GRAYBOX_BIN="$PWD/target/release/graybox" GRAYBOX_LAB_BIN="$PWD/target/release/graybox-lab" \
+    "$venv/bin/python" -m pytest -q tests/python
 fi

@@ -3,11 +3,14 @@
 # `bench infer --model` (the recursive path, and the template assembly it replaced, printed
 # beside), the UR5 reach plan as `graybox plan` reports it, and Pinocchio's figures from
 # scripts/pinocchio_bench.py. Usage:
-#   scripts/urdf_speed.sh PYTHON_WITH_PIN [GRAYBOX]
-# (PYTHON_WITH_PIN: a Python with `pin` installed; GRAYBOX: target/release/graybox.)
+#   scripts/urdf_speed.sh PYTHON_WITH_PIN [BUILD_DIR]
+# (PYTHON_WITH_PIN: a Python with `pin` installed; BUILD_DIR: where graybox and graybox-lab
+# are, target/release.)
 set -euo pipefail
 py=${1:?a python with pin installed}
-gb=${2:-target/release/graybox}
+bin=${2:-target/release}
+gb=$bin/graybox
+lab=$bin/graybox-lab
 dir=$(mktemp -d)
 trap 'rm -rf "$dir"' EXIT
 robots=tests/fixtures/urdf/robots
@@ -16,7 +19,7 @@ for r in ur5 iiwa; do
   # names 3.5e-3 s): its model steps 0.003 s, which changes no cost per call.
   dt=0.01; [ "$r" = iiwa ] && dt=0.003
   "$gb" model --template "$robots/$r.urdf" --dt "$dt" --out "$dir/$r.gbx" > /dev/null 2>&1
-  "$gb" bench infer --model "$dir/$r.gbx"
+  "$lab" bench infer --model "$dir/$r.gbx"
 done
 # The reach: q = 0 at rest to (0.5, −1, 1, 0, 0.5, 0) at rest, T = 100, Δt = 0.01,
 # Q = diag(1, 0.1), R = 1e-4 I, Q_f = 1000 Q (graybox plan's defaults), u within the URDF's

@@ -6,17 +6,16 @@
 //! mechanics in `physics` (dynamics, templates, URDF robots; no Burn); the math in `model`
 //! (the trainable model on Burn, its spec and file), `infer` (f64 evaluation), `control`
 //! (TVLQR) and `sim`; `train` (the training loop); `store` (SQLite); `app` (the one core);
-//! `jobs` (the worker); `api` (REST, gRPC); and at the top `cli`, `service`, `bench`, `experiment`.
+//! `jobs` (the worker); `api` (REST, gRPC); and at the top `cli` and `service`. The benchmarks
+//! and the paper's experiments are the lab, a crate of their own (`lab/`, `graybox-lab`).
 
 pub mod api;
 pub mod app;
 pub mod backend;
-pub mod bench;
 pub mod cli;
 pub mod control;
 pub mod data;
 pub mod error;
-pub mod experiment;
 pub mod infer;
 pub mod jobs;
 pub mod model;

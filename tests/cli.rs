@@ -368,52 +368,6 @@ fn formula_template_files_simulate_train_and_plan() {
     );
 }
 
-/// `bench train` prints one JSON line per model and batch size with the step-only
-/// throughput, the throughput with validation (never higher: it adds work to the same
-/// samples), and the CPU a timed epoch used per second of wall time.
-#[test]
-fn bench_train_reports_step_throughput_and_cpu() {
-    let out = graybox(&[
-        "bench",
-        "train",
-        "--train",
-        "512",
-        "--val",
-        "32",
-        "--epochs",
-        "1",
-        "--min-steps",
-        "4",
-        "--models",
-        "MVF",
-        "--batch-sizes",
-        "256",
-        "--time-limit",
-        "0",
-        "--threads",
-        "2",
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let line: serde_json::Value =
-        serde_json::from_slice(out.stdout.split(|&b| b == b'\n').next().unwrap()).unwrap();
-    let f = |k: &str| line[k].as_f64().unwrap_or_else(|| panic!("{k} in {line}"));
-    assert!(f("samples_per_second") > 0.0);
-    assert!(
-        f("samples_per_second_with_validation") <= f("samples_per_second"),
-        "{line}"
-    );
-    assert!(f("cpu_per_wall") > 0.0, "{line}");
-    assert_eq!(line["batch_size"], 256);
-    // Two threads split a batch of 256 into two shards; 4 steps need 2 epochs of 2 batches.
-    assert_eq!(line["threads"], 2, "{line}");
-    assert_eq!(line["shards"], 2, "{line}");
-    assert_eq!(line["epochs"], 2, "{line}");
-}
-
 /// `inspect` names a template model's coordinates and inputs in the model's order (on a
 /// branching robot it need not be Pinocchio's, so a user needs it to map rows to joints), with
 /// its angles, and `train --help` names URDF among the template kinds.

@@ -81,16 +81,18 @@ pub enum Command {
     Serve(ServeArgs),
     /// Exit 0 if the service on this machine is ready (for container health checks).
     Health(HealthArgs),
-    /// Benchmarks (figures for the issues' targets).
-    #[command(subcommand)]
-    Bench(crate::bench::BenchCommand),
-    /// The paper's experiments, each writing tables, plots and run.json to --out (resumable).
-    #[command(subcommand)]
-    Experiment(crate::experiment::ExperimentCommand),
 }
 
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
+    init_tracing();
+    // A container health check reads 1 as unhealthy (2 is reserved there).
+    let health = matches!(cli.command, Command::Health(_));
+    exit_code(run(cli.command), health)
+}
+
+/// Logs to stderr, filtered by RUST_LOG (default: warnings, and graybox's info).
+pub fn init_tracing() {
     tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
         // Colour only on a terminal: logs redirected to files stay plain text.
@@ -100,32 +102,33 @@ pub fn main() -> ExitCode {
                 .unwrap_or_else(|_| "warn,graybox=info".into()),
         )
         .init();
-    // A container health check reads 1 as unhealthy (2 is reserved there).
-    let health = matches!(cli.command, Command::Health(_));
-    match run(cli.command) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            if health {
-                return ExitCode::FAILURE;
-            }
-            ExitCode::from(match e {
-                Error::Invalid { .. }
-                | Error::Unprocessable { .. }
-                | Error::NotFound(_)
-                | Error::Conflict(_)
-                | Error::FailedPrecondition(_)
-                | Error::ResourceExhausted(_)
-                | Error::Corrupt { .. } => 2,
-                Error::Training(_)
-                | Error::Cancelled
-                | Error::Io(_)
-                | Error::Storage(_)
-                | Error::DeadlineExceeded(_)
-                | Error::Internal(_) => 1,
-            })
-        }
+}
+
+/// A command's exit status: 0, 2 for what the input got wrong, 1 for the rest (`health`:
+/// 1 for any error).
+pub fn exit_code(result: Result<()>, health: bool) -> ExitCode {
+    let Err(e) = result else {
+        return ExitCode::SUCCESS;
+    };
+    eprintln!("error: {e}");
+    if health {
+        return ExitCode::FAILURE;
     }
+    ExitCode::from(match e {
+        Error::Invalid { .. }
+        | Error::Unprocessable { .. }
+        | Error::NotFound(_)
+        | Error::Conflict(_)
+        | Error::FailedPrecondition(_)
+        | Error::ResourceExhausted(_)
+        | Error::Corrupt { .. } => 2,
+        Error::Training(_)
+        | Error::Cancelled
+        | Error::Io(_)
+        | Error::Storage(_)
+        | Error::DeadlineExceeded(_)
+        | Error::Internal(_) => 1,
+    })
 }
 
 pub fn run(command: Command) -> Result<()> {
@@ -139,7 +142,5 @@ pub fn run(command: Command) -> Result<()> {
         Command::Plan(a) => plan::run(a),
         Command::Serve(a) => serve::serve(a),
         Command::Health(a) => health::health(a),
-        Command::Bench(b) => crate::bench::run(b),
-        Command::Experiment(e) => crate::experiment::run(e),
     }
 }

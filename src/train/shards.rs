@@ -18,7 +18,7 @@ use crate::error::{Error, Result};
 pub type ParamGrads = Vec<Option<Tensor<1>>>;
 
 /// Below this many rows a shard's per-op overhead outweighs what another thread gains, so a
-/// batch gets fewer shards (`graybox bench train`, 2 threads against 1: MVF at batch 256, two
+/// batch gets fewer shards (`graybox-lab bench train`, 2 threads against 1: MVF at batch 256, two
 /// shards of 128, 83k against 77k samples/s; at batch 128, two shards of 64, 53k against 55k
 /// while using a second core).
 pub const MIN_SHARD_ROWS: usize = 128;

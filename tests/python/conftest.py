@@ -168,6 +168,17 @@ def graybox_bin() -> str:
     return binary
 
 
+@pytest.fixture(scope="session")
+def lab_bin(graybox_bin) -> str:
+    """The lab's binary (benchmarks, experiments): $GRAYBOX_LAB_BIN, else graybox-lab beside
+    $GRAYBOX_BIN, where one cargo build puts it."""
+    binary = os.environ.get("GRAYBOX_LAB_BIN") or str(Path(graybox_bin).with_name("graybox-lab"))
+    if not os.access(binary, os.X_OK):
+        pytest.fail(f"{binary} is not an executable file: build the workspace "
+                    "(cargo build --release) or set GRAYBOX_LAB_BIN", pytrace=False)
+    return binary
+
+
 @contextlib.contextmanager
 def serve(binary: str, tmp: Path, *flags: str, name: str = "graybox serve",
           token: str | None = None, context: ssl.SSLContext | None = None) -> Iterator[Serving]:

@@ -1,4 +1,4 @@
-"""`graybox experiment … --quick`: the files are written, the tables are well formed, the PNGs
+"""`graybox-lab experiment … --quick`: the files are written, the tables are well formed, the PNGs
 decode and show their series, a rerun with the same --out resumes instead of recomputing, a
 run cut short continues with only its missing cells, and other settings in the same --out are
 refused. No test here asserts a research outcome: the quick runs are far too small for one."""
@@ -59,9 +59,9 @@ def share_of(png: Path, rgb: tuple[int, int, int], tol: int = 12) -> float:
 
 
 @pytest.mark.parametrize("name", EXPERIMENTS)
-def test_quick_run_writes_its_results_and_a_rerun_resumes(graybox_bin, tmp_path, name):
+def test_quick_run_writes_its_results_and_a_rerun_resumes(lab_bin, tmp_path, name):
     out = tmp_path / name
-    experiment(graybox_bin, name, "--quick", "--out", str(out))
+    experiment(lab_bin, name, "--quick", "--out", str(out))
     png, colour = EXPERIMENTS[name]
     for f in ["results.md", "results.csv", "run.json", "cells.jsonl", png]:
         assert (out / f).is_file(), f
@@ -92,7 +92,7 @@ def test_quick_run_writes_its_results_and_a_rerun_resumes(graybox_bin, tmp_path,
     assert share_of(out / png, colour) > 0.0005, f"no {colour} series in {png}"
 
     cells = (out / "cells.jsonl").read_bytes()
-    again = experiment(graybox_bin, name, "--quick", "--out", str(out))
+    again = experiment(lab_bin, name, "--quick", "--out", str(out))
     assert (out / "cells.jsonl").read_bytes() == cells, "the rerun recomputed finished cells"
     assert "earlier" in again.stderr
     assert (out / "results.md").read_text() == md
@@ -100,14 +100,14 @@ def test_quick_run_writes_its_results_and_a_rerun_resumes(graybox_bin, tmp_path,
     assert rerun["invocations"] == 2 and rerun["started"] == run["started"]
 
 
-def test_a_run_cut_short_recomputes_only_its_missing_cells(graybox_bin, tmp_path):
+def test_a_run_cut_short_recomputes_only_its_missing_cells(lab_bin, tmp_path):
     out = tmp_path / "de"
-    experiment(graybox_bin, "data-efficiency", "--quick", "--out", str(out))
+    experiment(lab_bin, "data-efficiency", "--quick", "--out", str(out))
     md = (out / "results.md").read_text()
     lines = (out / "cells.jsonl").read_bytes().splitlines(keepends=True)
     # Killed while writing: the last cell lost, and half a line of the next one.
     (out / "cells.jsonl").write_bytes(b"".join(lines[:-1]) + lines[-1][:17])
-    again = experiment(graybox_bin, "data-efficiency", "--quick", "--out", str(out))
+    again = experiment(lab_bin, "data-efficiency", "--quick", "--out", str(out))
     now = (out / "cells.jsonl").read_bytes().splitlines(keepends=True)
     assert len(now) == len(lines), again.stderr
     assert all(line.endswith(b"\n") for line in now)
@@ -116,20 +116,20 @@ def test_a_run_cut_short_recomputes_only_its_missing_cells(graybox_bin, tmp_path
     assert (out / "results.md").read_text() == md
 
 
-def test_other_settings_in_the_same_out_are_refused(graybox_bin, tmp_path):
+def test_other_settings_in_the_same_out_are_refused(lab_bin, tmp_path):
     out = tmp_path / "de"
-    experiment(graybox_bin, "data-efficiency", "--quick", "--out", str(out))
-    p = experiment(graybox_bin, "data-efficiency", "--quick", "--seeds", "1", "--out", str(out),
+    experiment(lab_bin, "data-efficiency", "--quick", "--out", str(out))
+    p = experiment(lab_bin, "data-efficiency", "--quick", "--seeds", "1", "--out", str(out),
                    ok=False)
     assert p.returncode == 2 and "seeds" in p.stderr and "--out" in p.stderr, p.stderr
-    p = experiment(graybox_bin, "rollout", "--quick", "--out", str(out), ok=False)
+    p = experiment(lab_bin, "rollout", "--quick", "--out", str(out), ok=False)
     assert p.returncode == 2 and "data-efficiency" in p.stderr, p.stderr
 
 
-def test_bad_arguments_name_the_field(graybox_bin, tmp_path):
-    p = experiment(graybox_bin, "data-efficiency", "--quick", "--models", "W-B,XYZ",
+def test_bad_arguments_name_the_field(lab_bin, tmp_path):
+    p = experiment(lab_bin, "data-efficiency", "--quick", "--models", "W-B,XYZ",
                    "--out", str(tmp_path / "x"), ok=False)
     assert p.returncode == 2 and "models" in p.stderr and "XYZ" in p.stderr, p.stderr
-    p = experiment(graybox_bin, "mbrl", "--quick", "--seeds", "0", "--out",
+    p = experiment(lab_bin, "mbrl", "--quick", "--seeds", "0", "--out",
                    str(tmp_path / "y"), ok=False)
     assert p.returncode == 2 and "seeds" in p.stderr, p.stderr

@@ -4,16 +4,16 @@
 //! that their scores compare.
 
 use super::{DT, EXPLORATION_STD, HORIZON, Reference, STATE_BOUND, Settings, U_MAX};
-use crate::control::plan::{Plan, plan};
-use crate::control::policy::Policy;
-use crate::control::tvlqr::Gains;
-use crate::data::Dataset;
-use crate::error::Result;
-use crate::infer::Evaluator;
-use crate::model::file::ModelFile;
-use crate::physics::integrator::Integrator;
-use crate::physics::templates::Template;
-use crate::rng::Rng;
+use graybox::control::plan::{Plan, plan};
+use graybox::control::policy::Policy;
+use graybox::control::tvlqr::Gains;
+use graybox::data::Dataset;
+use graybox::error::Result;
+use graybox::infer::Evaluator;
+use graybox::model::file::ModelFile;
+use graybox::physics::integrator::Integrator;
+use graybox::physics::templates::Template;
+use graybox::rng::Rng;
 
 /// The system: the true double pendulum at Δt = 0.1.
 pub(super) fn system() -> Result<Evaluator> {

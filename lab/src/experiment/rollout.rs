@@ -1,4 +1,4 @@
-//! `graybox experiment rollout`: the paper's §V-C. MVF and naive trained on the same data
+//! `graybox-lab experiment rollout`: the paper's §V-C. MVF and naive trained on the same data
 //! predict 5-second trajectories open loop from the true system's initial states and inputs.
 
 use std::path::PathBuf;
@@ -13,17 +13,17 @@ use super::out::OutDir;
 use super::plot::{self, COLORS};
 use super::pool::{self, Progress};
 use super::{csv_line, median, paper_double_pendulum};
-use crate::backend::{self, Backend, Precision};
-use crate::error::Result;
-use crate::infer::Evaluator;
-use crate::model::file::ModelFile;
-use crate::model::spec::ModelSpec;
-use crate::physics::integrator::Integrator;
-use crate::physics::templates::Template;
-use crate::rng::Rng;
-use crate::sim::TemplateSystem;
-use crate::sim::true_step;
-use crate::train::{TrainConfig, Trainer};
+use graybox::backend::{self, Backend, Precision};
+use graybox::error::Result;
+use graybox::infer::Evaluator;
+use graybox::model::file::ModelFile;
+use graybox::model::spec::ModelSpec;
+use graybox::physics::integrator::Integrator;
+use graybox::physics::templates::Template;
+use graybox::rng::Rng;
+use graybox::sim::TemplateSystem;
+use graybox::sim::true_step;
+use graybox::train::{TrainConfig, Trainer};
 
 const MODELS: [&str; 2] = ["MVF", "naive"];
 const DT: f64 = 0.01;

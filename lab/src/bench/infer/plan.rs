@@ -4,14 +4,14 @@
 use serde_json::json;
 
 use super::{summary, time_calls};
-use crate::api::grpc::pb::{self, dynamics_client::DynamicsClient};
-use crate::control::linalg::Mat;
-use crate::control::plan::{PlanRequest, plan};
-use crate::error::{Error, Result};
-use crate::infer::Evaluator;
-use crate::model::file::ModelFile;
-use crate::physics::integrator::Integrator;
-use crate::physics::templates::Template;
+use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
+use graybox::control::linalg::Mat;
+use graybox::control::plan::{PlanRequest, plan};
+use graybox::error::{Error, Result};
+use graybox::infer::Evaluator;
+use graybox::model::file::ModelFile;
+use graybox::physics::integrator::Integrator;
+use graybox::physics::templates::Template;
 
 pub(super) const HORIZONS: [usize; 2] = [21, 200];
 const CALLS: usize = 10;

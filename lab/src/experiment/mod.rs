@@ -1,4 +1,4 @@
-//! `graybox experiment …`: the paper's experiments (§V, appendix C), one command each. Every
+//! `graybox-lab experiment …`: the paper's experiments (§V, appendix C), one command each. Every
 //! experiment writes `results.md`, `results.csv`, PNG plots and `run.json` to `--out`, trains
 //! independent cells on all cores, and saves each finished cell as it completes, so that the
 //! same command run again continues where it stopped (`out.rs`).
@@ -12,11 +12,11 @@ mod rollout;
 
 use clap::Subcommand;
 
-use crate::data::Dataset;
-use crate::error::Result;
-use crate::physics::templates::Template;
-use crate::rng::Rng;
-use crate::sim::{SimConfig, simulate};
+use graybox::data::Dataset;
+use graybox::error::Result;
+use graybox::physics::templates::Template;
+use graybox::rng::Rng;
+use graybox::sim::{SimConfig, simulate};
 
 pub use data_efficiency::DataEfficiencyArgs;
 pub use mbrl::MbrlArgs;

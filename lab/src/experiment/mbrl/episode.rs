@@ -10,18 +10,18 @@ use serde::{Deserialize, Serialize};
 
 use super::system::{explore, random_episode, random_inputs, score, track};
 use super::{DT, Episode, HORIZON, Settings};
-use crate::backend::{self, Backend, Precision};
-use crate::control::plan::plan;
-use crate::data::Dataset;
-use crate::error::{Error, Result};
 use crate::experiment::out::OutDir;
 use crate::experiment::pool::{Progress, Status};
-use crate::infer::Evaluator;
-use crate::model::file::write_atomic;
-use crate::model::spec::ModelSpec;
-use crate::physics::templates::Template;
-use crate::rng::Rng;
-use crate::train::{TrainConfig, TrainState, Trainer};
+use graybox::backend::{self, Backend, Precision};
+use graybox::control::plan::plan;
+use graybox::data::Dataset;
+use graybox::error::{Error, Result};
+use graybox::infer::Evaluator;
+use graybox::model::file::write_atomic;
+use graybox::model::spec::ModelSpec;
+use graybox::physics::templates::Template;
+use graybox::rng::Rng;
+use graybox::train::{TrainConfig, TrainState, Trainer};
 
 /// What a run needs to continue after its last finished episode.
 #[derive(Serialize, Deserialize)]

@@ -1,4 +1,4 @@
-//! `graybox experiment mbrl`: the paper's §V-D. Model-based RL of the double pendulum's
+//! `graybox-lab experiment mbrl`: the paper's §V-D. Model-based RL of the double pendulum's
 //! swing-up: plan on the learned model (`control::plan`), track the plan with TVLQR on the
 //! system, add the episode to the data, train on, repeat.
 //!
@@ -17,11 +17,11 @@ use serde::{Deserialize, Serialize};
 
 use super::out::OutDir;
 use super::pool::{self, Progress};
-use crate::control::linalg::Mat;
-use crate::control::plan::PlanRequest;
-use crate::error::{Error, Result};
-use crate::model::spec::ModelSpec;
-use crate::physics::templates::Template;
+use graybox::control::linalg::Mat;
+use graybox::control::plan::PlanRequest;
+use graybox::error::{Error, Result};
+use graybox::model::spec::ModelSpec;
+use graybox::physics::templates::Template;
 
 use episode::run_one;
 use report::report;

@@ -8,12 +8,12 @@ use std::path::Path;
 use serde_json::json;
 
 use super::{summary, time_calls};
-use crate::control::linalg::Mat;
-use crate::control::plan::{PlanRequest, plan};
-use crate::error::Result;
-use crate::infer::Evaluator;
-use crate::model::file::ModelFile;
-use crate::rng::Rng;
+use graybox::control::linalg::Mat;
+use graybox::control::plan::{PlanRequest, plan};
+use graybox::error::Result;
+use graybox::infer::Evaluator;
+use graybox::model::file::ModelFile;
+use graybox::rng::Rng;
 
 /// Plan steps: 1 s at Δt = 0.01.
 const HORIZON: usize = 100;

@@ -5,10 +5,10 @@
 use plotters::prelude::*;
 
 use super::{DT, Episode, HORIZON, QF_SCALE, R, Reference, SOLVED, Settings, U_MAX};
-use crate::error::Result;
 use crate::experiment::csv_line;
 use crate::experiment::out::OutDir;
 use crate::experiment::plot::{self, COLORS};
+use graybox::error::Result;
 
 pub(super) fn report(
     s: &Settings,

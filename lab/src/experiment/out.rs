@@ -13,8 +13,8 @@ use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::error::{Error, Result};
-use crate::model::file::write_atomic;
+use graybox::error::{Error, Result};
+use graybox::model::file::write_atomic;
 
 const CELLS: &str = "cells.jsonl";
 const RUN: &str = "run.json";

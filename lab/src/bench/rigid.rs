@@ -1,4 +1,4 @@
-//! `graybox bench rigid --urdf FILE`: microseconds per call of a URDF robot's dynamics in
+//! `graybox-lab bench rigid --urdf FILE`: microseconds per call of a URDF robot's dynamics in
 //! f64, the template path that serves today (M and V over dual numbers, then the Coriolis
 //! term from ∂L/∂q and a Cholesky solve: `dynamics::white_box_acceleration`) against the
 //! recursive algorithms (`urdf::featherstone`): ABA, CRBA + Cholesky, and ∂q̈/∂q, ∂q̈/∂q̇ (what
@@ -11,15 +11,15 @@ use std::time::Instant;
 use clap::Args;
 use serde_json::json;
 
-use crate::error::{Error, Result};
-use crate::physics::dynamics::{constants, white_box_acceleration};
-use crate::physics::urdf::UrdfTemplate;
-use crate::physics::urdf::featherstone::adjoint::{forward_dynamics_adjoint, parameter_gradient};
-use crate::physics::urdf::featherstone::{
+use graybox::error::{Error, Result};
+use graybox::physics::dynamics::{constants, white_box_acceleration};
+use graybox::physics::urdf::UrdfTemplate;
+use graybox::physics::urdf::featherstone::adjoint::{forward_dynamics_adjoint, parameter_gradient};
+use graybox::physics::urdf::featherstone::{
     Model, aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets, forward_dynamics,
     forward_dynamics_derivatives,
 };
-use crate::rng::Rng;
+use graybox::rng::Rng;
 
 #[derive(Args, Debug)]
 pub struct BenchRigidArgs {

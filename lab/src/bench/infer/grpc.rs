@@ -1,4 +1,4 @@
-//! The gRPC half of `graybox bench infer`: round trips on loopback against a real service,
+//! The gRPC half of `graybox-lab bench infer`: round trips on loopback against a real service,
 //! one client at a time, then many while a training job runs.
 
 use std::time::{Duration, Instant};
@@ -6,14 +6,14 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 
 use super::{BATCH, BenchInferArgs, HORIZON, Problem, ROLLOUT, summary, weights};
-use crate::api::grpc::pb::{self, dynamics_client::DynamicsClient};
-use crate::app::datasets::Upload;
-use crate::app::jobs::JobRequest;
-use crate::app::views::Job;
-use crate::app::views::JobState;
-use crate::app::{App, Settings};
-use crate::error::{Error, Result};
-use crate::service::start;
+use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
+use graybox::app::datasets::Upload;
+use graybox::app::jobs::JobRequest;
+use graybox::app::views::Job;
+use graybox::app::views::JobState;
+use graybox::app::{App, Settings};
+use graybox::error::{Error, Result};
+use graybox::service::start;
 
 fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
     Some(pb::Array {
@@ -48,11 +48,11 @@ macro_rules! unary {
 
 pub(super) async fn over_grpc(
     a: &BenchInferArgs,
-    data: &crate::data::Dataset,
+    data: &graybox::data::Dataset,
     p: &Problem,
 ) -> Result<()> {
     let db = TempDb(
-        std::env::temp_dir().join(format!("graybox-bench-{}.db", crate::store::new_id("b"))),
+        std::env::temp_dir().join(format!("graybox-bench-{}.db", graybox::store::new_id("b"))),
     );
     let running = start(Settings {
         http: "127.0.0.1:0".into(),
@@ -293,10 +293,10 @@ where
 }
 
 async fn wait_for(
-    app: &crate::app::App,
+    app: &graybox::app::App,
     job: &str,
     ok: impl Fn(JobState) -> bool,
-) -> Result<crate::app::views::Job> {
+) -> Result<graybox::app::views::Job> {
     loop {
         let j = app.job(job).await?;
         if ok(j.state) {

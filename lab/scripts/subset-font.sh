@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Regenerates assets/fonts/DejaVuSans-subset.ttf, the font the experiment plots are drawn
+# Regenerates lab/assets/fonts/DejaVuSans-subset.ttf, the font the experiment plots are drawn
 # with (compiled into the binary, so a machine without fonts draws the same PNGs): DejaVu
 # Sans (Debian's fonts-dejavu-core) cut to printable ASCII and the few symbols the plots use.
 set -euo pipefail

@@ -1,4 +1,4 @@
-//! `graybox bench infer`: inference latency for controllers on the double pendulum MVF 3×32
+//! `graybox-lab bench infer`: inference latency for controllers on the double pendulum MVF 3×32
 //! and Plan swing-ups. In process (the evaluator alone) and as gRPC round trips on loopback
 //! against a real service: idle, then with concurrent clients while a training job runs.
 
@@ -8,11 +8,11 @@ use std::time::Instant;
 use clap::Args;
 use serde_json::{Value, json};
 
-use crate::control::linalg::Mat;
-use crate::error::Result;
-use crate::infer::Evaluator;
-use crate::physics::templates::Template;
-use crate::sim::{SimConfig, simulate};
+use graybox::control::linalg::Mat;
+use graybox::error::Result;
+use graybox::infer::Evaluator;
+use graybox::physics::templates::Template;
+use graybox::sim::{SimConfig, simulate};
 
 mod grpc;
 mod model;
@@ -80,7 +80,7 @@ const BATCH: usize = 1024;
 const ROLLOUT: usize = 500;
 const HORIZON: usize = 200;
 
-fn problem(data: &crate::data::Dataset) -> Problem {
+fn problem(data: &graybox::data::Dataset) -> Problem {
     let (x, _) = data.states();
     let u500: Vec<f64> = (0..ROLLOUT)
         .flat_map(|t| [5.0 * (t as f64 * 0.05).sin(), -3.0])
@@ -135,10 +135,10 @@ pub fn run(a: BenchInferArgs) -> Result<()> {
 }
 
 /// An MVF model after one epoch (the weights' values do not change the work done).
-fn trained_mvf(data: &crate::data::Dataset) -> Result<Evaluator> {
-    use crate::backend::{self, Backend, Precision};
-    use crate::model::spec::ModelSpec;
-    use crate::train::{TrainConfig, Trainer};
+fn trained_mvf(data: &graybox::data::Dataset) -> Result<Evaluator> {
+    use graybox::backend::{self, Backend, Precision};
+    use graybox::model::spec::ModelSpec;
+    use graybox::train::{TrainConfig, Trainer};
     let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
     let spec = ModelSpec::named("MVF", Some(Template::DoublePendulum))?;
     let tc = TrainConfig {

@@ -7,14 +7,14 @@ use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use super::{Cell, MAX_BATCH, SeedData, Settings};
-use crate::backend::{self, Backend, Precision};
-use crate::error::Result;
 use crate::experiment::out::OutDir;
 use crate::experiment::pool::{Progress, Status};
-use crate::model::spec::ModelSpec;
-use crate::physics::templates::Template;
-use crate::rng::Rng;
-use crate::train::{TrainConfig, Trainer};
+use graybox::backend::{self, Backend, Precision};
+use graybox::error::Result;
+use graybox::model::spec::ModelSpec;
+use graybox::physics::templates::Template;
+use graybox::rng::Rng;
+use graybox::train::{TrainConfig, Trainer};
 
 /// A model and seed over growing sizes, until one reaches the strict threshold (every size
 /// with `all_sizes`). Finished cells come from the directory.

@@ -5,10 +5,10 @@
 use plotters::prelude::*;
 
 use super::{Cell, PAPER, Settings};
-use crate::error::Result;
 use crate::experiment::out::OutDir;
 use crate::experiment::plot::{self, COLORS, GRAY};
 use crate::experiment::{csv_line, median};
+use graybox::error::Result;
 
 /// The smallest size at which `model`/`seed` reaches `threshold`.
 fn smallest(cells: &[Cell], model: &str, seed: u64, threshold: f64) -> Option<usize> {

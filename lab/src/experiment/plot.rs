@@ -7,7 +7,7 @@ use std::sync::Once;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::error::{Error, Result};
+use graybox::error::{Error, Result};
 
 /// DejaVu Sans cut to the characters the plots use (`scripts/subset-font.sh`).
 static FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans-subset.ttf");

@@ -1,4 +1,4 @@
-//! `graybox experiment data-efficiency`: the paper's §V-B. For each model and seed, the
+//! `graybox-lab experiment data-efficiency`: the paper's §V-B. For each model and seed, the
 //! smallest training set (8, 16, … samples) whose best validation loss reaches 10^−2.5.
 
 mod report;
@@ -12,10 +12,10 @@ use serde::{Deserialize, Serialize};
 use super::out::OutDir;
 use super::paper_double_pendulum;
 use super::pool::{self, Progress};
-use crate::data::Dataset;
-use crate::error::{Error, Result};
-use crate::model::spec::ModelSpec;
-use crate::physics::templates::Template;
+use graybox::data::Dataset;
+use graybox::error::{Error, Result};
+use graybox::model::spec::ModelSpec;
+use graybox::physics::templates::Template;
 
 use report::report;
 use sweep::ladder;

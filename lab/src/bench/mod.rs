@@ -1,4 +1,4 @@
-//! `graybox bench …`: the figures the issues ask for, printed as JSON lines on stdout.
+//! `graybox-lab bench …`: the figures the issues ask for, printed as JSON lines on stdout.
 
 mod infer;
 mod rigid;
@@ -11,13 +11,13 @@ use serde_json::json;
 
 use burn::tensor::Device;
 
-use crate::backend::{self, Backend, Precision};
-use crate::data::Dataset;
-use crate::error::Result;
-use crate::model::spec::ModelSpec;
-use crate::physics::templates::Template;
-use crate::sim::{SimConfig, simulate};
-use crate::train::{TrainConfig, Trainer};
+use graybox::backend::{self, Backend, Precision};
+use graybox::data::Dataset;
+use graybox::error::Result;
+use graybox::model::spec::ModelSpec;
+use graybox::physics::templates::Template;
+use graybox::sim::{SimConfig, simulate};
+use graybox::train::{TrainConfig, Trainer};
 
 #[derive(Subcommand, Debug)]
 pub enum BenchCommand {
@@ -85,7 +85,7 @@ pub struct BenchTrainArgs {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Threads per training (default: every core).
-    #[arg(long, default_value_t = crate::train::shards::cores())]
+    #[arg(long, default_value_t = graybox::train::shards::cores())]
     pub threads: usize,
 }
 
@@ -99,7 +99,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
 }
 
 fn bench_train(a: BenchTrainArgs) -> Result<()> {
-    let t = crate::cli::template_arg(&a.template)?;
+    let t = graybox::cli::template_arg(&a.template)?;
     let cfg = |count, seed| SimConfig {
         count,
         seed,
@@ -160,7 +160,7 @@ fn throughput(
                "cpu_per_wall": cpu / wall,
                "threads": a.threads,
                "shards": trainer.shards_of(bs),
-               "cores": crate::train::shards::cores(),
+               "cores": graybox::train::shards::cores(),
                "note": "samples_per_second: training steps only (forward, backward, Adam), as \
                         the PyTorch reference is measured; cpu_per_wall: process CPU time over \
                         wall time across the timed epochs (1.0 = one core busy)"})
@@ -223,8 +223,8 @@ fn time_to_target(
 }
 
 fn bench_step(a: BenchStepArgs) -> Result<()> {
-    use crate::train::adam::Adam;
     use burn::tensor::{Tensor, TensorData};
+    use graybox::train::adam::Adam;
     let t = Template::DoublePendulum;
     let data = simulate(
         &t,
@@ -265,7 +265,7 @@ fn bench_step(a: BenchStepArgs) -> Result<()> {
         let t1 = Instant::now();
         let grads = loss.backward();
         let t2 = Instant::now();
-        let grads = crate::train::shards::param_grads(&model.params, &grads);
+        let grads = graybox::train::shards::param_grads(&model.params, &grads);
         model.params = adam.step(model.params.clone(), &grads, 1e-3);
         let _ = model.params.export();
         let t3 = Instant::now();

@@ -1,0 +1,100 @@
+//! The benchmarks print what the issues ask for, one JSON line per figure.
+
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn lab(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_graybox-lab"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// `bench train` prints one JSON line per model and batch size with the step-only
+/// throughput, the throughput with validation (never higher: it adds work to the same
+/// samples), and the CPU a timed epoch used per second of wall time.
+#[test]
+fn bench_train_reports_step_throughput_and_cpu() {
+    let out = lab(&[
+        "bench",
+        "train",
+        "--train",
+        "512",
+        "--val",
+        "32",
+        "--epochs",
+        "1",
+        "--min-steps",
+        "4",
+        "--models",
+        "MVF",
+        "--batch-sizes",
+        "256",
+        "--time-limit",
+        "0",
+        "--threads",
+        "2",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line: serde_json::Value =
+        serde_json::from_slice(out.stdout.split(|&b| b == b'\n').next().unwrap()).unwrap();
+    let f = |k: &str| line[k].as_f64().unwrap_or_else(|| panic!("{k} in {line}"));
+    assert!(f("samples_per_second") > 0.0);
+    assert!(
+        f("samples_per_second_with_validation") <= f("samples_per_second"),
+        "{line}"
+    );
+    assert!(f("cpu_per_wall") > 0.0, "{line}");
+    assert_eq!(line["batch_size"], 256);
+    // Two threads split a batch of 256 into two shards; 4 steps need 2 epochs of 2 batches.
+    assert_eq!(line["threads"], 2, "{line}");
+    assert_eq!(line["shards"], 2, "{line}");
+    assert_eq!(line["epochs"], 2, "{line}");
+}
+
+/// `graybox-lab bench rigid` on the Panda (a mimic joint: no ABA figure) prints the agreement of
+/// the two paths' q̈ and a positive µs per call for each figure, one JSON line each.
+#[test]
+fn bench_rigid_prints_agreement_and_figures() {
+    let urdf = format!(
+        "{}/../tests/fixtures/urdf/robots/panda.urdf",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let out = lab(&["bench", "rigid", "--urdf", &urdf, "--calls", "20"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<Value> = (out.stdout.split(|&b| b == b'\n'))
+        .filter(|l| !l.is_empty())
+        .map(|l| serde_json::from_slice(l).unwrap())
+        .collect();
+    assert_eq!(lines[0]["bench"], "rigid_agreement");
+    assert_eq!(lines[0]["mimic"], true);
+    assert!(
+        lines[0]["max_rel_diff_qdd"].as_f64().unwrap() < 1e-12,
+        "{}",
+        lines[0]
+    );
+    let names: Vec<&str> = lines[1..]
+        .iter()
+        .map(|l| l["bench"].as_str().unwrap())
+        .collect();
+    assert!(!names.contains(&"aba_f64"), "{names:?}");
+    for name in [
+        "template_white_box_acceleration_f64",
+        "crba_cholesky_f64",
+        "fd_derivatives_by_rnea_jets",
+    ] {
+        assert!(names.contains(&name), "{name} in {names:?}");
+    }
+    for l in &lines[1..] {
+        assert!(l["p50_us"].as_f64().unwrap() > 0.0, "{l}");
+    }
+}
