@@ -6,7 +6,7 @@
 //! mechanics in `physics` (dynamics, templates, URDF robots; no Burn); the math in `model`
 //! (the trainable model on Burn, its spec and file), `infer` (f64 evaluation), `control`
 //! (TVLQR) and `sim`; `train` (the training loop); `store` (SQLite); `app` (the one core);
-//! `jobs` (the worker); `api` (REST, gRPC); and at the top `cli` and `service`. The benchmarks
+//! `worker` (training jobs from the queue); `api` (REST, gRPC); and at the top `cli` and `service`. The benchmarks
 //! and the paper's experiments are the lab, a crate of their own (`lab/`, `graybox-lab`).
 
 pub mod api;
@@ -17,7 +17,6 @@ pub mod control;
 pub mod data;
 pub mod error;
 pub mod infer;
-pub mod jobs;
 pub mod model;
 pub mod names;
 pub mod physics;
@@ -28,5 +27,6 @@ pub mod sim;
 pub mod simd;
 pub mod store;
 pub mod train;
+pub mod worker;
 
 pub use error::{Error, Result};

@@ -99,7 +99,7 @@ pub async fn start(settings: Settings) -> Result<Running> {
     let workers = owners
         .iter()
         .map(|owner| {
-            let worker = crate::jobs::run_worker(app.clone(), owner.clone(), stopped.clone());
+            let worker = crate::worker::run_worker(app.clone(), owner.clone(), stopped.clone());
             tokio::spawn(worker)
         })
         .collect();
@@ -188,7 +188,7 @@ impl Running {
             biased;
             () = &mut force => {
                 aborts.iter().for_each(tokio::task::AbortHandle::abort);
-                let held = crate::jobs::release_held(&self.app, &self.owners);
+                let held = crate::worker::release_held(&self.app, &self.owners);
                 let released = match tokio::time::timeout(RELEASE_TIMEOUT, held).await {
                     Ok(Ok(n)) => n,
                     Ok(Err(e)) => {

@@ -27,19 +27,19 @@ fn may_import(layer: &str, dep: &str) -> bool {
 /// library makes public.
 fn forbidden(layer: &str) -> &'static [&'static str] {
     const ABOVE_GROUND: &[&str] = &[
-        "physics", "model", "infer", "control", "sim", "train", "store", "app", "jobs", "api",
+        "physics", "model", "infer", "control", "sim", "train", "store", "app", "worker", "api",
         "cli", "service",
     ];
     match layer {
         "error" | "rng" | "names" | "backend" | "simd" | "data" | "records" => ABOVE_GROUND,
         "model" | "infer" | "control" | "sim" => {
-            &["train", "app", "store", "jobs", "api", "cli", "service"]
+            &["train", "app", "store", "worker", "api", "cli", "service"]
         }
-        "train" => &["app", "store", "jobs", "api", "cli", "service"],
-        "store" => &["app", "jobs", "api", "cli", "service"],
-        "app" => &["jobs", "api", "cli", "service"],
-        "jobs" => &["api", "cli"],
-        "api" => &["store", "jobs"],
+        "train" => &["app", "store", "worker", "api", "cli", "service"],
+        "store" => &["app", "worker", "api", "cli", "service"],
+        "app" => &["worker", "api", "cli", "service"],
+        "worker" => &["api", "cli"],
+        "api" => &["store", "worker"],
         _ => &[],
     }
 }
@@ -279,9 +279,9 @@ mod checker {
         assert_eq!(
             deps(
                 "api/rest/jobs.rs",
-                "use super::super::super::jobs::run_worker;"
+                "use super::super::super::worker::run_worker;"
             ),
-            ["jobs"]
+            ["worker"]
         );
         assert_eq!(
             deps("sim.rs", "use super::{cli, model::Model};"),
