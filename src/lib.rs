@@ -2,7 +2,7 @@
 //! transition data and served to controllers.
 //!
 //! Layers (ARCHITECTURE.md, enforced by tests/architecture.rs), bottom up: `error`, `rng`,
-//! `names`, `backend`, `data` (the dataset type), `records` (what the store keeps); the
+//! `names`, `array` (shaped f64 data), `backend`, `data` (the dataset type), `records` (what the store keeps); the
 //! mechanics in `physics` (dynamics, templates, URDF robots; no Burn); the math in `model`
 //! (the trainable model on Burn, its spec and file), `infer` (f64 evaluation), `control`
 //! (TVLQR) and `sim`; `train` (the training loop); `store` (SQLite); `app` (the one core);
@@ -11,6 +11,7 @@
 
 pub mod api;
 pub mod app;
+pub mod array;
 pub mod backend;
 pub mod cli;
 pub mod control;

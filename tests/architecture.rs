@@ -31,7 +31,9 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         "cli", "service",
     ];
     match layer {
-        "error" | "rng" | "names" | "backend" | "simd" | "data" | "records" => ABOVE_GROUND,
+        "error" | "rng" | "names" | "array" | "backend" | "simd" | "data" | "records" => {
+            ABOVE_GROUND
+        }
         "model" | "infer" | "control" | "sim" => {
             &["train", "app", "store", "worker", "api", "cli", "service"]
         }

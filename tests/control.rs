@@ -287,3 +287,31 @@ fn golden_long_constant_horizon_converges_to_python_control_dlqr() {
         "K0 vs dlqr {ek:e}, S0 vs dlqr {es:e}"
     );
 }
+
+/// A request's array is read only as the shape it claims, and every claim is checked: a shape
+/// of the wrong rank or count (one whose product wraps around to the count included) or a
+/// non-finite value names the field; a stack keeps the matrices' order.
+#[test]
+fn arrays_become_matrices_only_when_their_shape_holds() {
+    use graybox::array::Array;
+    let field = |a: Array| match Mat::from_array("Q", a) {
+        Err(Error::Invalid { field, .. }) => field,
+        other => panic!("expected an invalid-argument error, got {other:?}"),
+    };
+    let a = |shape: Vec<u64>, data: Vec<f64>| Array { data, shape };
+    assert_eq!(field(a(vec![4], vec![0.0; 4])), "Q");
+    assert_eq!(field(a(vec![1, 2, 2], vec![0.0; 4])), "Q");
+    assert_eq!(field(a(vec![2, 3], vec![0.0; 4])), "Q");
+    assert_eq!(field(a(vec![0, 0], vec![])), "Q");
+    // 2⁶³ + 1 rows of 2: the product wraps to 2 in 64 bits.
+    assert_eq!(field(a(vec![(1 << 63) + 1, 2], vec![0.0; 2])), "Q");
+    assert_eq!(field(a(vec![1, 2], vec![0.0, f64::INFINITY])), "Q");
+    let m = Mat::from_array("Q", a(vec![2, 3], (0..6).map(f64::from).collect())).unwrap();
+    assert_eq!((m.rows, m.cols, m.at(1, 0)), (2, 3, 3.0));
+
+    let twice = Mat::new(2, 3, m.data.iter().map(|v| 2.0 * v).collect());
+    let stacked = Mat::stack(vec![m.clone(), twice.clone()]);
+    assert_eq!(stacked.shape, vec![2, 2, 3]);
+    assert_eq!(&stacked.data[..6], &m.data[..]);
+    assert_eq!(&stacked.data[6..], &twice.data[..]);
+}

@@ -262,7 +262,12 @@ fn bad_requests_name_their_field() {
     assert_eq!(field(&|r| r.q.data[0] = -1.0), "Q");
     assert_eq!(field(&|r| r.r.data[3] = 0.0), "R");
     assert_eq!(field(&|r| r.u_min = Some(vec![200.0, 0.0])), "u_min");
-    assert_eq!(field(&|r| r.u_init = Some(vec![0.0; 3])), "u_init");
+    assert_eq!(field(&|r| r.u_init = Some(Mat::zeros(1, 3))), "u_init");
+    // The right number of values in the wrong shape is refused too (not read as [T, m]).
+    assert_eq!(field(&|r| r.u_init = Some(Mat::zeros(2, 5))), "u_init");
+    let mut nan = Mat::zeros(5, 2);
+    nan.data[3] = f64::NAN;
+    assert_eq!(field(&|r| r.u_init = Some(nan.clone())), "u_init");
 }
 
 /// A long horizon of an unstable system (20 s of the double pendulum): the backward pass's

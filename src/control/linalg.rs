@@ -1,6 +1,9 @@
 //! Small dense row-major f64 matrices for control (n ≤ a few dozen): products, transposes,
 //! Cholesky factorization and solves. Nothing forms an inverse.
 
+use crate::array::Array;
+use crate::error::{Error, Result};
+
 /// A row-major matrix.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Mat {
@@ -17,6 +20,30 @@ impl Mat {
             "matrix data does not fit its shape"
         );
         Self { rows, cols, data }
+    }
+
+    /// A `[rows ≥ 1, cols]` array of finite values as a matrix; `field` names it in errors.
+    pub fn from_array(field: &str, a: Array) -> Result<Self> {
+        if a.shape.len() != 2 {
+            return Err(Error::invalid(
+                field,
+                format!("shape must be [rows, cols], got {:?}", a.shape),
+            ));
+        }
+        let cols = a.dim(1);
+        let rows = a.rows(field, cols)?;
+        Ok(Self::new(rows, cols, a.data))
+    }
+
+    /// The matrices' values one after another, with the shape `[count, rows, cols]` (every
+    /// matrix `rows × cols`; `[0, 0, 0]` when there are none).
+    pub fn stack(mats: Vec<Mat>) -> Array {
+        let (rows, cols) = mats.first().map_or((0, 0), |m| (m.rows, m.cols));
+        let count = mats.len();
+        Array::new(
+            &[count, rows, cols],
+            mats.into_iter().flat_map(|m| m.data).collect(),
+        )
     }
 
     pub fn zeros(rows: usize, cols: usize) -> Self {

@@ -16,7 +16,8 @@ pub const MAX_RESTARTS: usize = 1000;
 /// default: the plan's arrays grow with it (a billion steps aborted on allocation).
 pub const DEFAULT_MAX_PLAN_HORIZON: usize = 10_000;
 
-/// What to plan. Arrays are row-major; `u_init` is `[T, m]`.
+/// What to plan: the one request type that `graybox plan`, the gRPC `Plan` call and the lab
+/// build. Arrays are row-major; `u_init` is `[T, m]`.
 #[derive(Debug, Clone)]
 pub struct PlanRequest {
     pub x0: Vec<f64>,
@@ -27,7 +28,7 @@ pub struct PlanRequest {
     pub qf: Mat,
     pub u_min: Option<Vec<f64>>,
     pub u_max: Option<Vec<f64>>,
-    pub u_init: Option<Vec<f64>>,
+    pub u_init: Option<Mat>,
     /// 0: no iteration; the plan is the rollout of the best start, with its gains.
     pub max_iterations: usize,
     pub tolerance: f64,
@@ -128,7 +129,16 @@ pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
         ));
     }
     if let Some(u) = &req.u_init {
-        finite("u_init", u, req.horizon.saturating_mul(m))?;
+        if u.rows != req.horizon || u.cols != m {
+            return Err(Error::invalid(
+                "u_init",
+                format!(
+                    "needs [{}, {m}] (the horizon, m), got [{}, {}]",
+                    req.horizon, u.rows, u.cols
+                ),
+            ));
+        }
+        finite("u_init", &u.data, req.horizon.saturating_mul(m))?;
     }
     if !(req.tolerance.is_finite() && req.tolerance >= 0.0) {
         return Err(Error::invalid("tolerance", "must be a finite number ≥ 0"));

@@ -6,6 +6,7 @@ use std::time::Duration;
 
 use graybox::api::grpc::pb::{self, rollout_request::Inputs};
 use graybox::app::{App, Settings};
+use graybox::array::Array;
 use graybox::store::{JobState, Store};
 use serde_json::{Value, json};
 use tonic::Code;
@@ -41,8 +42,8 @@ async fn oversized_calls_are_refused_before_computing() {
             ..Settings::default()
         },
     );
-    let x = (vec![0.0; 4 * 50_000], vec![50_000, 4]);
-    let u = (vec![0.0; 2 * 50_000], vec![50_000, 2]);
+    let x = Array::new(&[50_000, 4], vec![0.0; 4 * 50_000]);
+    let u = Array::new(&[50_000, 2], vec![0.0; 2 * 50_000]);
     let e = tight
         .predict(&model, x, u, false, None)
         .await
@@ -254,8 +255,8 @@ async fn deleted_models_stop_being_served() {
     // A second process (its own App and cache) over the same database.
     let model = trained(&app, "W-B").await;
     let other = App::new(store, Settings::default());
-    let x = || (vec![0.1; 4], vec![1, 4]);
-    let u = || (vec![1.0; 2], vec![1, 2]);
+    let x = || Array::new(&[1, 4], vec![0.1; 4]);
+    let u = || Array::new(&[1, 2], vec![1.0; 2]);
     other.predict(&model, x(), u(), false, None).await.unwrap();
     let del = app.client.delete(app.url(&format!("/v1/models/{model}")));
     assert!(del.send().await.unwrap().status().is_success());

@@ -1,11 +1,16 @@
 //! Domain ↔ protobuf conversions and the error → status mapping (exhaustive: a new error
 //! variant must decide its code here).
 
+use std::time::{Duration, Instant};
+
 use tonic::Status;
 
 use super::pb;
 use crate::api::echo::{MESSAGE_LIMIT, bounded};
 use crate::app::views::Model;
+use crate::array::Array;
+use crate::control::linalg::Mat;
+use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, PlanRequest};
 use crate::error::Error;
 
 impl From<Error> for Status {
@@ -27,17 +32,62 @@ impl From<Error> for Status {
     }
 }
 
-pub fn array(shape: &[usize], data: Vec<f64>) -> pb::Array {
-    pb::Array {
-        shape: shape.iter().map(|&s| s as u64).collect(),
-        data,
+impl From<Array> for pb::Array {
+    fn from(a: Array) -> Self {
+        pb::Array {
+            shape: a.shape,
+            data: a.data,
+        }
     }
 }
 
-/// The array's values and shape, or an INVALID_ARGUMENT naming the missing field.
-pub fn take(field: &str, a: Option<pb::Array>) -> Result<(Vec<f64>, Vec<u64>), Status> {
-    a.map(|a| (a.data, a.shape))
+impl From<pb::Array> for Array {
+    fn from(a: pb::Array) -> Self {
+        Array {
+            shape: a.shape,
+            data: a.data,
+        }
+    }
+}
+
+/// The array, or an INVALID_ARGUMENT naming the missing field.
+pub fn take(field: &str, a: Option<pb::Array>) -> Result<Array, Status> {
+    a.map(Array::from)
         .ok_or_else(|| Status::invalid_argument(format!("{field}: is required")))
+}
+
+/// A Plan call as the core's request: absent options take the planner's defaults, an empty
+/// bound is none (the model's effort limits then apply), and the core checks the rest
+/// against the model and the limits.
+pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
+    // The message's field for a missing array, the math's name for a bad one (as TVLQR's).
+    let matrix = |field: &str, name: &str, a: Option<pb::Array>| -> Result<Mat, Status> {
+        Ok(Mat::from_array(name, take(field, a)?)?)
+    };
+    let bound = |v: Vec<f64>| (!v.is_empty()).then_some(v);
+    Ok(PlanRequest {
+        x0: r.x0,
+        goal: r.goal,
+        // Beyond usize: over any horizon limit, which the core's check names.
+        horizon: usize::try_from(r.horizon).unwrap_or(usize::MAX),
+        q: matrix("q", "Q", r.q)?,
+        r: matrix("r", "R", r.r)?,
+        qf: matrix("qf", "Qf", r.qf)?,
+        u_min: bound(r.u_min),
+        u_max: bound(r.u_max),
+        u_init: (r.u_init)
+            .map(|a| matrix("u_init", "u_init", Some(a)))
+            .transpose()?,
+        max_iterations: r
+            .max_iterations
+            .map_or(DEFAULT_MAX_ITERATIONS, |v| v as usize),
+        tolerance: r.tolerance.unwrap_or(DEFAULT_TOLERANCE),
+        restarts: r.restarts as usize,
+        seed: r.seed,
+        time_limit: (r.time_limit_ms > 0)
+            .then(|| Instant::now().checked_add(Duration::from_millis(r.time_limit_ms)))
+            .flatten(),
+    })
 }
 
 pub fn model_info(m: &Model) -> pb::ModelInfo {

@@ -7,15 +7,12 @@ use futures_util::{Stream, StreamExt};
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
-use super::convert::{array, model_info, take};
+use super::convert::{model_info, plan_request, take};
 use super::pb::{self, dynamics_server::Dynamics};
 use crate::app::App;
-use crate::app::inference::{PlanCall, RolloutInputs};
-
-/// Dimension `i` of a shape the core has validated (0 if absent).
-fn dim(shape: &[u64], i: usize) -> usize {
-    shape.get(i).map_or(0, |&d| d as usize)
-}
+use crate::app::inference::RolloutInputs;
+use crate::array::Array;
+use crate::control::linalg::Mat;
 
 pub struct DynamicsService {
     pub app: App,
@@ -61,16 +58,10 @@ impl Dynamics for DynamicsService {
             .app
             .predict(&r.model_id, x, u, r.want_accel, until)
             .await?;
-        let b = p.max_abs_z.len();
-        let width = p.next.len() / b.max(1);
-        let accel = p.accel.map(|a| {
-            let n = a.len() / b.max(1);
-            array(&[b, n], a)
-        });
         Ok(Response::new(pb::PredictResponse {
             id: r.id,
-            x_next: Some(array(&[b, width], p.next)),
-            accel,
+            x_next: Some(p.next.into()),
+            accel: p.accel.map(Into::into),
             max_abs_z: p.max_abs_z,
         }))
     }
@@ -84,7 +75,7 @@ impl Dynamics for DynamicsService {
         let until = deadline(&req);
         let r = req.into_inner();
         let inputs = match r.inputs {
-            Some(pb::rollout_request::Inputs::U(u)) => RolloutInputs::U((u.data, u.shape)),
+            Some(pb::rollout_request::Inputs::U(u)) => RolloutInputs::U(u.into()),
             Some(pb::rollout_request::Inputs::Policy(p)) => RolloutInputs::Policy {
                 x_bar: take("policy.x_bar", p.x_bar)?,
                 u_bar: take("policy.u_bar", p.u_bar)?,
@@ -100,12 +91,11 @@ impl Dynamics for DynamicsService {
         let id = r.id;
         let stream = ReceiverStream::new(rx).map(move |c| {
             let c = c?;
-            let (states, steps) = (c.x.len() / c.width.0, c.max_abs_z.len());
             Ok(pb::RolloutChunk {
                 id: id.clone(),
                 start: c.start as u64,
-                x: Some(array(&[states, c.width.0], c.x)),
-                u: Some(array(&[steps, c.width.1], c.u)),
+                x: Some(c.x.into()),
+                u: Some(c.u.into()),
                 max_abs_z: c.max_abs_z,
             })
         });
@@ -119,13 +109,11 @@ impl Dynamics for DynamicsService {
         let until = deadline(&req);
         let r = req.into_inner();
         let (x, u) = (take("x", r.x)?, take("u", r.u)?);
-        let (nx, m) = (dim(&x.1, 1), dim(&u.1, 1));
         let l = self.app.linearize(&r.model_id, x, u, until).await?;
-        let b = l.max_abs_z.len();
         Ok(Response::new(pb::LinearizeResponse {
             id: r.id,
-            a: Some(array(&[b, nx, nx], l.a)),
-            b: Some(array(&[b, nx, m], l.b)),
+            a: Some(l.a.into()),
+            b: Some(l.b.into()),
             max_abs_z: l.max_abs_z,
         }))
     }
@@ -137,16 +125,15 @@ impl Dynamics for DynamicsService {
         let until = deadline(&req);
         let r = req.into_inner();
         let (xbar, ubar) = (take("x_bar", r.x_bar)?, take("u_bar", r.u_bar)?);
-        let (t, m, nx) = (dim(&ubar.1, 0), dim(&ubar.1, 1), dim(&xbar.1, 1));
         let weights = [take("q", r.q)?, take("r", r.r)?, take("qf", r.qf)?];
-        let (k, s) = self
+        let g = self
             .app
             .tvlqr(&r.model_id, xbar, ubar, weights, until)
             .await?;
         Ok(Response::new(pb::TvlqrResponse {
             id: r.id,
-            k: Some(array(&[t, m, nx], k)),
-            s: Some(array(&[t + 1, nx, nx], s)),
+            k: Some(g.k.into()),
+            s: Some(g.s.into()),
         }))
     }
 
@@ -155,34 +142,17 @@ impl Dynamics for DynamicsService {
         req: Request<pb::PlanRequest>,
     ) -> Result<Response<pb::PlanResponse>, Status> {
         let until = deadline(&req);
-        let r = req.into_inner();
-        let call = PlanCall {
-            x0: r.x0,
-            goal: r.goal,
-            horizon: r.horizon,
-            q: take("q", r.q)?,
-            r: take("r", r.r)?,
-            qf: take("qf", r.qf)?,
-            u_min: r.u_min,
-            u_max: r.u_max,
-            u_init: r.u_init.map(|a| take("u_init", Some(a))).transpose()?,
-            max_iterations: r.max_iterations,
-            tolerance: r.tolerance,
-            restarts: r.restarts,
-            seed: r.seed,
-            time_limit_ms: r.time_limit_ms,
-        };
-        let p = self.app.plan(&r.model_id, call, until).await?;
-        let (t, m) = (p.gains.k.len(), p.gains.k[0].rows);
-        let nx = p.x.len() / (t + 1);
+        let mut r = req.into_inner();
+        let id = std::mem::take(&mut r.id);
+        let model_id = std::mem::take(&mut r.model_id);
+        let p = self.app.plan(&model_id, plan_request(r)?, until).await?;
+        let (t, nx) = (p.gains.k.len(), p.x.len() / (p.gains.k.len() + 1));
+        let m = p.u.len() / t.max(1);
         Ok(Response::new(pb::PlanResponse {
-            id: r.id,
-            x: Some(array(&[t + 1, nx], p.x)),
-            u: Some(array(&[t, m], p.u)),
-            k: Some(array(
-                &[t, m, nx],
-                p.gains.k.into_iter().flat_map(|k| k.data).collect(),
-            )),
+            id,
+            x: Some(Array::new(&[t + 1, nx], p.x).into()),
+            u: Some(Array::new(&[t, m], p.u).into()),
+            k: Some(Mat::stack(p.gains.k).into()),
             cost: p.cost,
             costs: p.costs,
             iterations: p.iterations as u32,

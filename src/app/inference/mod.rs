@@ -13,7 +13,6 @@ mod rollout;
 
 pub use admission::Heavy;
 pub use cache::{CACHE_SWEEP, ModelCache};
-pub use plan::PlanCall;
 pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{RolloutChunk, RolloutInputs};
 
@@ -22,64 +21,30 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use super::App;
+use crate::array::Array;
 use crate::control::linalg::Mat;
 use crate::error::{Error, Result};
 use crate::infer::limits::Pass;
 use crate::infer::{Evaluator, finite_rows};
 use crate::model::file::ModelFile;
 
-/// A batch of rows: `rows` × `width`, row-major.
-pub struct Rows {
-    pub rows: usize,
-}
-
-/// Checks an array's shape and values; `field` names it in errors.
-pub fn rows(field: &str, shape: &[u64], data: &[f64], width: usize) -> Result<Rows> {
-    let [r, w] = shape else {
-        return Err(Error::invalid(
-            field,
-            format!("shape must be [rows, {width}], got {shape:?}"),
-        ));
-    };
-    // Checked: a client-supplied shape such as [2⁶³ + 1, 4] must not wrap around to match.
-    let expected = usize::try_from(*r)
-        .ok()
-        .zip(usize::try_from(*w).ok())
-        .and_then(|(r, w)| r.checked_mul(w));
-    if *w != width as u64 || *r == 0 || expected != Some(data.len()) {
-        return Err(Error::invalid(
-            field,
-            format!(
-                "expected [rows ≥ 1, {width}] with rows·{width} values, got shape {shape:?} and {} values",
-                data.len()
-            ),
-        ));
-    }
-    if let Some(i) = data.iter().position(|v| !v.is_finite()) {
-        return Err(Error::invalid(
-            field,
-            format!("row {} has a non-finite value", i / width),
-        ));
-    }
-    Ok(Rows { rows: *r as usize })
-}
-
-fn square(field: &str, shape: &[u64], data: &[f64], dim: usize) -> Result<Mat> {
-    let r = rows(field, shape, data, dim)?;
-    if r.rows != dim {
-        return Err(Error::invalid(field, format!("must be {dim}×{dim}")));
-    }
-    Ok(Mat::new(dim, dim, data.to_vec()))
-}
-
 /// A batch of states `[B, 2n]` and inputs `[B, m]` with the same B; returns B.
-fn check_batch(eval: &Evaluator, x: (&[f64], &[u64]), u: (&[f64], &[u64])) -> Result<usize> {
-    let xr = rows("x", x.1, x.0, 2 * eval.config.n)?.rows;
-    let ur = rows("u", u.1, u.0, eval.config.m)?.rows;
+fn check_batch(eval: &Evaluator, x: &Array, u: &Array) -> Result<usize> {
+    let xr = x.rows("x", 2 * eval.config.n)?;
+    let ur = u.rows("u", eval.config.m)?;
     if xr != ur {
         return Err(Error::invalid("u", format!("has {ur} rows but x has {xr}")));
     }
     Ok(xr)
+}
+
+/// A `dim × dim` matrix; `field` names it in errors.
+fn square(field: &str, a: Array, dim: usize) -> Result<Mat> {
+    let rows = a.rows(field, dim)?;
+    if rows != dim {
+        return Err(Error::invalid(field, format!("must be {dim}×{dim}")));
+    }
+    Ok(Mat::new(dim, dim, a.data))
 }
 
 /// Up to this many states a Predict runs on the executor thread itself (≈ 15–20 µs a state;
@@ -96,22 +61,27 @@ struct Cost {
     memory_bytes: usize,
 }
 
-/// x' (and q̈ when asked) for a batch, with each row's distance from the training data.
+/// x' `[B, 2n]` (and q̈ `[B, n]` when asked) for a batch, with each row's distance from the
+/// training data.
 pub struct Prediction {
-    pub next: Vec<f64>,
-    pub accel: Option<Vec<f64>>,
+    pub next: Array,
+    pub accel: Option<Array>,
     pub max_abs_z: Vec<f64>,
 }
 
-/// A `[B, 2n, 2n]` and B `[B, 2n, m]`, row-major, with each row's distance from the data.
+/// A `[B, 2n, 2n]` and B `[B, 2n, m]`, with each row's distance from the data.
 pub struct Linearization {
-    pub a: Vec<f64>,
-    pub b: Vec<f64>,
+    pub a: Array,
+    pub b: Array,
     pub max_abs_z: Vec<f64>,
 }
 
-/// An array as a request carries it: values and shape.
-pub type Array = (Vec<f64>, Vec<u64>);
+/// TVLQR along a nominal of T steps: the gains K `[T, m, 2n]` and the cost-to-go S
+/// `[T+1, 2n, 2n]`.
+pub struct TvlqrGains {
+    pub k: Array,
+    pub s: Array,
+}
 
 /// Sets the flag when dropped: the caller went away (its future was dropped), so the
 /// computation stops at its next check.
@@ -239,13 +209,13 @@ impl App {
     pub async fn predict(
         &self,
         id: &str,
-        x: (Vec<f64>, Vec<u64>),
-        u: (Vec<f64>, Vec<u64>),
+        x: Array,
+        u: Array,
         want_accel: bool,
         deadline: Option<Instant>,
     ) -> Result<Prediction> {
         let eval = self.evaluator(id).await?;
-        let b = check_batch(&eval, (&x.0, &x.1), (&u.0, &u.1))?;
+        let b = check_batch(&eval, &x, &u)?;
         let (n, nx, m) = (eval.config.n, 2 * eval.config.n, eval.config.m);
         let response_bytes = 8 * b * (nx + 1 + if want_accel { n } else { 0 });
         let work = b.min(2 * eval.chunk_states(Pass::Step)) * eval.work_bytes_per_state(Pass::Step);
@@ -256,19 +226,19 @@ impl App {
                 memory_bytes: 8 * b * (nx + m) + 2 * response_bytes + work,
             },
         )?;
-        let (x, u) = (x.0, u.0);
+        let (x, u) = (x.data, u.data);
         let out = self
             .compute(b <= INLINE_ROWS, "prediction", deadline, move |stop| {
                 let (next, accel) = eval.predict_until(&x, &u, want_accel, stop)?;
                 let max_abs_z = eval.max_abs_z(&x, &u);
                 Some(Prediction {
-                    next,
-                    accel,
+                    next: Array::new(&[b, nx], next),
+                    accel: accel.map(|a| Array::new(&[b, n], a)),
                     max_abs_z,
                 })
             })
             .await?;
-        finite_rows("x", "next state", &out.next, nx)?;
+        finite_rows("x", "next state", &out.next.data, nx)?;
         Ok(out)
     }
 
@@ -276,12 +246,12 @@ impl App {
     pub async fn linearize(
         &self,
         id: &str,
-        x: (Vec<f64>, Vec<u64>),
-        u: (Vec<f64>, Vec<u64>),
+        x: Array,
+        u: Array,
         deadline: Option<Instant>,
     ) -> Result<Linearization> {
         let eval = self.evaluator(id).await?;
-        let b = check_batch(&eval, (&x.0, &x.1), (&u.0, &u.1))?;
+        let b = check_batch(&eval, &x, &u)?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
         let response_bytes = 8 * b * (nx * nx + nx * m + 1);
         let work = b.min(2 * eval.chunk_states(Pass::Linearize))
@@ -294,19 +264,19 @@ impl App {
                 memory_bytes: 8 * b * (nx + m) + 4 * response_bytes + work,
             },
         )?;
-        let (x, u) = (x.0, u.0);
+        let (x, u) = (x.data, u.data);
         let out = self
             .compute(b == 1, "linearization", deadline, move |stop| {
                 let (a, bm) = eval.linearize_until(&x, &u, stop)?;
                 Some(Linearization {
-                    a,
-                    b: bm,
+                    a: Array::new(&[b, nx, nx], a),
+                    b: Array::new(&[b, nx, m], bm),
                     max_abs_z: eval.max_abs_z(&x, &u),
                 })
             })
             .await?;
-        finite_rows("x", "linearization", &out.a, nx * nx)?;
-        finite_rows("x", "linearization", &out.b, nx * m)?;
+        finite_rows("x", "linearization", &out.a.data, nx * nx)?;
+        finite_rows("x", "linearization", &out.b.data, nx * m)?;
         Ok(out)
     }
 
@@ -314,15 +284,15 @@ impl App {
     pub async fn tvlqr(
         &self,
         id: &str,
-        xbar: (Vec<f64>, Vec<u64>),
-        ubar: (Vec<f64>, Vec<u64>),
-        weights: [(Vec<f64>, Vec<u64>); 3],
+        xbar: Array,
+        ubar: Array,
+        weights: [Array; 3],
         deadline: Option<Instant>,
-    ) -> Result<(Vec<f64>, Vec<f64>)> {
+    ) -> Result<TvlqrGains> {
         let eval = self.evaluator(id).await?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
-        let t_x = rows("x_bar", &xbar.1, &xbar.0, nx)?.rows;
-        let t = rows("u_bar", &ubar.1, &ubar.0, m)?.rows;
+        let t_x = xbar.rows("x_bar", nx)?;
+        let t = ubar.rows("u_bar", m)?;
         if t_x != t + 1 {
             return Err(Error::invalid(
                 "x_bar",
@@ -337,9 +307,9 @@ impl App {
         }
         let [q, r, qf] = weights;
         let (qm, rm, qfm) = (
-            square("Q", &q.1, &q.0, nx)?,
-            square("R", &r.1, &r.0, m)?,
-            square("Qf", &qf.1, &qf.0, nx)?,
+            square("Q", q, nx)?,
+            square("R", r, m)?,
+            square("Qf", qf, nx)?,
         );
         let (jac, gains) = (nx * nx + nx * m, m * nx + nx * nx);
         let response_bytes = 8 * (t * m * nx + (t + 1) * nx * nx);
@@ -354,13 +324,13 @@ impl App {
             },
         )?;
         self.heavy_until("tvlqr", deadline, move |stop| {
-            match eval.tvlqr_until(&xbar.0, &ubar.0, [&qm, &rm, &qfm], stop) {
+            match eval.tvlqr_until(&xbar.data, &ubar.data, [&qm, &rm, &qfm], stop) {
                 Err(Error::Cancelled) => None,
                 Err(e) => Some(Err(e)),
-                Ok(g) => Some(Ok((
-                    g.k.into_iter().flat_map(|k| k.data).collect(),
-                    g.s.into_iter().flat_map(|s| s.data).collect(),
-                ))),
+                Ok(g) => Some(Ok(TvlqrGains {
+                    k: Mat::stack(g.k),
+                    s: Mat::stack(g.s),
+                })),
             }
         })
         .await?

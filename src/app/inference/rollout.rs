@@ -7,8 +7,9 @@ use std::time::Instant;
 
 use tokio::sync::mpsc;
 
-use super::{Array, Cost, rows};
+use super::Cost;
 use crate::app::App;
+use crate::array::Array;
 use crate::control::policy::Policy;
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
@@ -40,13 +41,13 @@ impl Inputs {
     /// The checked inputs and the number of steps T.
     fn check(req: RolloutInputs, nx: usize, m: usize) -> Result<(Self, usize)> {
         match req {
-            RolloutInputs::U((u, shape)) => {
-                let t = rows("u", &shape, &u, m)?.rows;
-                Ok((Inputs::Open(u), t))
+            RolloutInputs::U(u) => {
+                let t = u.rows("u", m)?;
+                Ok((Inputs::Open(u.data), t))
             }
             RolloutInputs::Policy { x_bar, u_bar, k } => {
-                let t = rows("policy.u_bar", &u_bar.1, &u_bar.0, m)?.rows;
-                let tx = rows("policy.x_bar", &x_bar.1, &x_bar.0, nx)?.rows;
+                let t = u_bar.rows("policy.u_bar", m)?;
+                let tx = x_bar.rows("policy.x_bar", nx)?;
                 if tx != t && tx != t + 1 {
                     return Err(Error::invalid(
                         "policy.x_bar",
@@ -54,19 +55,22 @@ impl Inputs {
                     ));
                 }
                 let expected = [t as u64, m as u64, nx as u64];
-                if k.1 != expected
-                    || t.checked_mul(m * nx) != Some(k.0.len())
-                    || k.0.iter().any(|v| !v.is_finite())
+                if k.shape != expected
+                    || t.checked_mul(m * nx) != Some(k.data.len())
+                    || k.data.iter().any(|v| !v.is_finite())
                 {
                     return Err(Error::invalid(
                         "policy.k",
-                        format!("must be {expected:?} finite values, got shape {:?}", k.1),
+                        format!(
+                            "must be {expected:?} finite values, got shape {:?}",
+                            k.shape
+                        ),
                     ));
                 }
                 let policy = Policy {
-                    xbar: x_bar.0,
-                    ubar: u_bar.0,
-                    k: k.0,
+                    xbar: x_bar.data,
+                    ubar: u_bar.data,
+                    k: k.data,
                     nx,
                     m,
                 };
@@ -80,10 +84,11 @@ impl Inputs {
 /// applied in it, and for each input the largest |z| of the (state, input) it was applied at.
 pub struct RolloutChunk {
     pub start: usize,
-    /// Widths of a state row and of an input row (2n, m).
-    pub width: (usize, usize),
-    pub x: Vec<f64>,
-    pub u: Vec<f64>,
+    /// States `[S, 2n]`.
+    pub x: Array,
+    /// Inputs `[T, m]`.
+    pub u: Array,
+    /// T values.
     pub max_abs_z: Vec<f64>,
 }
 
@@ -181,7 +186,7 @@ impl Rollout {
                     return;
                 }
             };
-            let sent = if chunk.u.is_empty() {
+            let sent = if chunk.u.data.is_empty() {
                 true
             } else {
                 let send = tx.send(Ok(chunk));
@@ -252,9 +257,8 @@ fn compute_piece(
     (
         RolloutChunk {
             start,
-            width: (nx, m),
-            x: states,
-            u: applied,
+            x: Array::new(&[states.len() / nx, nx], states),
+            u: Array::new(&[done, m], applied),
             max_abs_z,
         },
         last,

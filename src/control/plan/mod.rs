@@ -163,7 +163,7 @@ impl<D: Dynamics> Planner<'_, D> {
     /// u_init is zero); all clipped to the bounds.
     fn initial_guess(&self, start: usize, rng: &mut Rng) -> Vec<f64> {
         let (t, m) = (self.req.horizon, self.sys.m());
-        let given = self.req.u_init.clone().unwrap_or_else(|| vec![0.0; t * m]);
+        let given = (self.req.u_init.as_ref()).map_or_else(|| vec![0.0; t * m], |u| u.data.clone());
         let mut u = if start == 0 {
             given
         } else {
