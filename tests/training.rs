@@ -170,6 +170,8 @@ fn resumed_run_equals_uninterrupted_run() {
         let state = TrainState::from_bytes(&bytes).unwrap();
         let mut resumed = Trainer::resume(state, &train, None, &flex()).unwrap();
         assert_eq!(resumed.epoch(), 2);
+        // Everything the checkpoint held was restored: taken again, it is the same bytes.
+        assert!(resumed.checkpoint().to_bytes() == bytes, "{name}");
         resumed.run(&never, |_, _| {}).unwrap();
 
         assert_eq!(

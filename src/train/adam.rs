@@ -19,7 +19,7 @@ pub struct Adam {
 }
 
 /// Adam's state as plain numbers, for checkpoints.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct AdamState {
     pub step: u64,
     pub moments: Vec<Option<(Vec<f64>, Vec<f64>)>>,

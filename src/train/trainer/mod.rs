@@ -6,20 +6,18 @@ mod loss;
 mod report;
 mod state;
 
-use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use burn::tensor::Device;
 
-use super::adam::Adam;
+use super::adam::{Adam, AdamState};
 use super::setup::{TrainConfig, prepare};
 use super::shards;
 use super::warnings::zero_acceleration_loss;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::Model;
-use crate::model::params_io::NamedArray;
 use crate::model::report::EpochMetrics;
 use crate::model::spec::ModelSpec;
 use crate::physics::params::lower_bounds;
@@ -32,28 +30,18 @@ pub use state::TrainState;
 use state::fingerprint;
 
 pub struct Trainer {
-    model_name: String,
+    /// What a checkpoint holds, the run's progress included. Its `params` and `adam` stay
+    /// empty here: the live values are `model`'s tensors and `adam`'s, which `checkpoint`
+    /// writes in their place.
+    state: TrainState,
     model: Model,
     adam: Adam,
-    cfg: TrainConfig,
-    rng: Rng,
-    epoch: usize,
     train: HostData,
     val: Option<HostData>,
-    best_epoch: usize,
-    best_loss: f64,
-    best_params: Vec<NamedArray>,
-    history: Vec<EpochMetrics>,
-    stale_epochs: usize,
-    train_seconds: f64,
-    samples_seen: u64,
-    fingerprint: u64,
     /// The zero-acceleration loss on the set that picks the best epoch (validation, else
     /// training), for the training checks.
     baseline: f64,
-    initial_physical: Option<BTreeMap<String, f64>>,
-    /// Shards per batch (see `TrainState::shards`) and the threads that run them.
-    shards: usize,
+    /// The threads that run a batch's shards (`TrainState::shards`).
     pool: Option<rayon::ThreadPool>,
     /// The physical parameters' lower bounds, kept after every step (`Params::projected`).
     lower: Option<Vec<f64>>,
@@ -73,50 +61,52 @@ impl Trainer {
     ) -> Result<Self> {
         let (config, physical, train_ds, val_ds) = prepare(&spec, init, data, val, &cfg)?;
         let model = Model::init(config, physical, cfg.seed, device)?;
+        let state = TrainState {
+            model_name: model_name.to_string(),
+            config: model.config.clone(),
+            epoch: 0,
+            params: vec![],
+            adam: AdamState::default(),
+            rng: Rng::derive(cfg.seed, 0x05_40F),
+            train: cfg,
+            best_epoch: 0,
+            best_loss: f64::INFINITY,
+            best_params: model.params.export(),
+            history: vec![],
+            stale_epochs: 0,
+            train_seconds: 0.0,
+            samples_seen: 0,
+            data_fingerprint: fingerprint(&train_ds, val_ds.as_ref()),
+            initial_physical: used_physical_values(&model),
+            shards: 1,
+        };
         Ok(Self::start(
-            model_name,
+            state,
             model,
-            cfg,
+            Adam::default(),
             &train_ds,
             val_ds.as_ref(),
         ))
     }
 
+    /// A run at `state` with its live parameters and moments, on its data.
     fn start(
-        model_name: &str,
+        state: TrainState,
         model: Model,
-        cfg: TrainConfig,
+        adam: Adam,
         train: &Dataset,
         val: Option<&Dataset>,
     ) -> Self {
-        let best_params = model.params.export();
         let c = &model.config;
         let baseline = zero_acceleration_loss(val.unwrap_or(train), c.lambda, &c.periodic);
-        let initial_physical = used_physical_values(&model);
-        let lower = model
-            .config
-            .template()
-            .and_then(|t| lower_bounds(t.params()));
+        let lower = c.template().and_then(|t| lower_bounds(t.params()));
         Self {
-            model_name: model_name.to_string(),
+            state,
             model,
-            adam: Adam::default(),
-            rng: Rng::derive(cfg.seed, 0x05_40F),
-            cfg,
-            epoch: 0,
-            fingerprint: fingerprint(train, val),
+            adam,
             train: HostData::new(train),
             val: val.map(HostData::new),
-            best_epoch: 0,
-            best_loss: f64::INFINITY,
-            best_params,
-            history: vec![],
-            stale_epochs: 0,
-            train_seconds: 0.0,
-            samples_seen: 0,
             baseline,
-            initial_physical,
-            shards: 1,
             pool: None,
             lower,
         }
@@ -131,8 +121,8 @@ impl Trainer {
                 format!("must be between 1 and {}", shards::MAX_THREADS),
             ));
         }
-        if self.samples_seen == 0 {
-            self.shards = threads;
+        if self.state.samples_seen == 0 {
+            self.state.shards = threads;
         }
         self.pool = if threads > 1 {
             let pool = rayon::ThreadPoolBuilder::new()
@@ -149,12 +139,12 @@ impl Trainer {
 
     /// Shards per batch (what the results depend on, see `TrainState::shards`).
     pub fn shards(&self) -> usize {
-        self.shards
+        self.state.shards
     }
 
     /// The shards a batch of `rows` gets (fewer for small batches, see `shards::MIN_SHARD_ROWS`).
     pub fn shards_of(&self, rows: usize) -> usize {
-        shards::shard_count(self.shards, rows, self.min_shard_rows())
+        shards::shard_count(self.state.shards, rows, self.min_shard_rows())
     }
 
     fn min_shard_rows(&self) -> usize {
@@ -178,30 +168,31 @@ impl Trainer {
             ));
         }
         let cfg = TrainConfig {
-            epochs: self.epoch + epochs,
+            epochs: self.state.epoch + epochs,
             batch_size,
             val_fraction: 0.0,
-            ..self.cfg.clone()
+            ..self.state.train.clone()
         };
         cfg.validate()?;
-        self.cfg = cfg;
+        self.baseline = zero_acceleration_loss(data, c.lambda, &c.periodic);
         self.train = HostData::new(data);
         self.val = None;
-        self.fingerprint = fingerprint(data, None);
-        self.baseline = zero_acceleration_loss(data, c.lambda, &c.periodic);
-        self.best_loss = f64::INFINITY;
-        self.best_params = self.model.params.export();
-        self.stale_epochs = 0;
+        let s = &mut self.state;
+        s.train = cfg;
+        s.data_fingerprint = fingerprint(data, None);
+        s.best_loss = f64::INFINITY;
+        s.best_params = self.model.params.export();
+        s.stale_epochs = 0;
         Ok(())
     }
 
     pub fn epoch(&self) -> usize {
-        self.epoch
+        self.state.epoch
     }
 
     /// Seconds spent in training steps so far (validation excluded).
     pub fn train_seconds(&self) -> f64 {
-        self.train_seconds
+        self.state.train_seconds
     }
 
     pub fn model(&self) -> &Model {
@@ -210,15 +201,16 @@ impl Trainer {
 
     /// The best validation loss so far (`None` without a validation set or before epoch 1).
     pub fn best_val_loss(&self) -> Option<f64> {
-        (self.val.is_some() && self.epoch > 0).then_some(self.best_loss)
+        (self.val.is_some() && self.state.epoch > 0).then_some(self.state.best_loss)
     }
 
     pub fn stopped_early(&self) -> bool {
-        self.cfg.patience.is_some_and(|p| self.stale_epochs >= p)
+        let s = &self.state;
+        s.train.patience.is_some_and(|p| s.stale_epochs >= p)
     }
 
     pub fn finished(&self) -> bool {
-        self.epoch >= self.cfg.epochs || self.stopped_early()
+        self.state.epoch >= self.state.train.epochs || self.stopped_early()
     }
 
     /// One pass over the shuffled training data, then validation. `cancel` is checked between
@@ -226,10 +218,10 @@ impl Trainer {
     pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
         let start = Instant::now();
         let mut order: Vec<usize> = (0..self.train.count).collect();
-        self.rng.shuffle(&mut order);
-        let epoch = self.epoch + 1;
+        self.state.rng.shuffle(&mut order);
+        let epoch = self.state.epoch + 1;
         let mut total = 0.0;
-        for (b, batch) in order.chunks(self.cfg.batch_size).enumerate() {
+        for (b, batch) in order.chunks(self.state.train.batch_size).enumerate() {
             if cancel.load(Ordering::Relaxed) {
                 return Err(Error::Cancelled);
             }
@@ -241,34 +233,33 @@ impl Trainer {
                 )));
             }
             total += value * batch.len() as f64;
-            self.model.params = self
-                .adam
-                .step(self.model.params.clone(), &grads, self.cfg.lr);
+            self.model.params =
+                self.adam
+                    .step(self.model.params.clone(), &grads, self.state.train.lr);
             if let Some(lower) = &self.lower {
                 self.model.params = self.model.params.clone().projected(lower);
             }
         }
-        self.train_seconds += start.elapsed().as_secs_f64();
-        self.samples_seen += self.train.count as u64;
+        let s = &mut self.state;
+        s.train_seconds += start.elapsed().as_secs_f64();
+        s.samples_seen += self.train.count as u64;
         let train_loss = total / self.train.count as f64;
-        let val_loss = self
-            .val
-            .as_ref()
-            .map(|v| mean_loss(&self.model.valid(), v, self.shards, self.pool.as_ref()));
+        let val_loss = (self.val.as_ref())
+            .map(|v| mean_loss(&self.model.valid(), v, s.shards, self.pool.as_ref()));
         if let Some(v) = val_loss.filter(|v| !v.is_finite()) {
             return Err(Error::Training(format!(
                 "the validation loss became non-finite ({v}) at epoch {epoch}"
             )));
         }
-        self.epoch = epoch;
+        s.epoch = epoch;
         let criterion = val_loss.unwrap_or(train_loss);
-        if criterion < self.best_loss {
-            self.best_loss = criterion;
-            self.best_epoch = epoch;
-            self.best_params = self.model.params.export();
-            self.stale_epochs = 0;
+        if criterion < s.best_loss {
+            s.best_loss = criterion;
+            s.best_epoch = epoch;
+            s.best_params = self.model.params.export();
+            s.stale_epochs = 0;
         } else {
-            self.stale_epochs += 1;
+            s.stale_epochs += 1;
         }
         let metrics = EpochMetrics {
             epoch,
@@ -276,7 +267,7 @@ impl Trainer {
             val_loss,
             seconds: start.elapsed().as_secs_f64(),
         };
-        self.history.push(metrics);
+        s.history.push(metrics);
         Ok(metrics)
     }
 

@@ -25,14 +25,14 @@ pub(super) fn used_physical_values(model: &Model) -> Option<BTreeMap<String, f64
 impl Trainer {
     /// The report for the run so far.
     pub fn report(&self) -> TrainReport {
-        let last = self.history.last();
-        let seconds: f64 = self.history.iter().map(|h| h.seconds).sum();
+        let last = self.state.history.last();
+        let seconds: f64 = self.state.history.iter().map(|h| h.seconds).sum();
         let parts = self.model.white_box_parts();
         let best = Model::from_parts(
             self.model.config.clone(),
             import(
                 self.model.params.clone(),
-                &self.best_params,
+                &self.state.best_params,
                 &self.model.device(),
             )
             .expect("same structure"),
@@ -49,17 +49,17 @@ impl Trainer {
         let mut warnings = self.warnings();
         warnings.extend(best_values.and_then(|v| self.stiffness_at(&v)));
         TrainReport {
-            model: self.model_name.clone(),
+            model: self.state.model_name.clone(),
             spec: self.model.config.spec.clone(),
-            epochs: self.epoch,
+            epochs: self.state.epoch,
             train_loss: last.map_or(f64::NAN, |h| h.train_loss),
             val_loss: last.and_then(|h| h.val_loss),
-            best_epoch: self.best_epoch,
+            best_epoch: self.state.best_epoch,
             best_val_loss: self.best_val_loss(),
             stopped_early: self.stopped_early(),
             seconds,
-            samples_per_second: if self.train_seconds > 0.0 {
-                self.samples_seen as f64 / self.train_seconds
+            samples_per_second: if self.state.train_seconds > 0.0 {
+                self.state.samples_seen as f64 / self.state.train_seconds
             } else {
                 0.0
             },
@@ -72,7 +72,7 @@ impl Trainer {
                 .filter(|_| !self.model.white_box_parts().is_empty())
                 .and_then(|t| t.identifiability_note())
                 .map(str::to_string),
-            history: self.history.clone(),
+            history: self.state.history.clone(),
             warnings,
         }
     }
@@ -94,10 +94,10 @@ impl Trainer {
     fn warnings(&self) -> Vec<Warning> {
         let physical = used_physical_values(&self.model).unwrap_or_default();
         training_warnings(&RunSummary {
-            history: &self.history,
-            best_loss: self.best_loss,
+            history: &self.state.history,
+            best_loss: self.state.best_loss,
             baseline: self.baseline,
-            initial_physical: self.initial_physical.as_ref(),
+            initial_physical: self.state.initial_physical.as_ref(),
             physical: &physical,
         })
     }
@@ -106,7 +106,7 @@ impl Trainer {
     pub fn model_file(&self) -> ModelFile {
         ModelFile::new(
             self.model.config.clone(),
-            self.best_params.clone(),
+            self.state.best_params.clone(),
             Some(self.report()),
         )
     }

@@ -94,48 +94,23 @@ impl Trainer {
         }
         let skeleton = Model::init(state.config.clone(), None, state.train.seed, device)?;
         let params = import(skeleton.params, &state.params, device)?;
-        let model = Model::from_parts(state.config, params, device);
-        let mut t = Self::start(
-            &state.model_name,
-            model,
-            state.train,
-            &train_ds,
-            val_ds.as_ref(),
-        );
-        t.adam = Adam::from_state(&state.adam, &device.clone().without_autodiff());
-        t.rng = state.rng;
-        t.epoch = state.epoch;
-        t.best_epoch = state.best_epoch;
-        t.best_loss = state.best_loss;
-        t.best_params = state.best_params;
-        t.history = state.history;
-        t.stale_epochs = state.stale_epochs;
-        t.train_seconds = state.train_seconds;
-        t.samples_seen = state.samples_seen;
-        t.initial_physical = state.initial_physical;
-        t.shards = state.shards.max(1);
-        Ok(t)
+        let model = Model::from_parts(state.config.clone(), params, device);
+        let adam = Adam::from_state(&state.adam, &device.clone().without_autodiff());
+        // The live values are the model's and Adam's from here on (see `Trainer::state`).
+        let state = TrainState {
+            params: vec![],
+            adam: AdamState::default(),
+            shards: state.shards.max(1),
+            ..state
+        };
+        Ok(Self::start(state, model, adam, &train_ds, val_ds.as_ref()))
     }
 
     pub fn checkpoint(&self) -> TrainState {
         TrainState {
-            model_name: self.model_name.clone(),
-            config: self.model.config.clone(),
-            train: self.cfg.clone(),
-            epoch: self.epoch,
             params: self.model.params.export(),
             adam: self.adam.state(),
-            rng: self.rng,
-            best_epoch: self.best_epoch,
-            best_loss: self.best_loss,
-            best_params: self.best_params.clone(),
-            history: self.history.clone(),
-            stale_epochs: self.stale_epochs,
-            train_seconds: self.train_seconds,
-            samples_seen: self.samples_seen,
-            data_fingerprint: self.fingerprint,
-            initial_physical: self.initial_physical.clone(),
-            shards: self.shards,
+            ..self.state.clone()
         }
     }
 }
