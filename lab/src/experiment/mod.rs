@@ -13,7 +13,8 @@ mod rollout;
 use clap::Subcommand;
 
 use graybox::data::Dataset;
-use graybox::error::Result;
+use graybox::error::{Error, Result};
+use graybox::model::spec::ModelSpec;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
 use graybox::sim::{SimConfig, simulate};
@@ -53,6 +54,41 @@ fn paper_double_pendulum(count: usize, seed: u64, stream: u64) -> Result<Dataset
         ..SimConfig::default()
     };
     simulate(&t, t.defaults(), &cfg)
+}
+
+/// `--models`, comma-separated (else `default`): at least one, each a model the paper's
+/// double pendulum takes.
+fn models_arg(arg: Option<&str>, default: &[&str]) -> Result<Vec<String>> {
+    let models: Vec<String> = match arg {
+        Some(m) => (m.split(',').map(str::trim))
+            .filter(|s| !s.is_empty())
+            .map(String::from)
+            .collect(),
+        None => default.iter().map(|m| m.to_string()).collect(),
+    };
+    if models.is_empty() {
+        return Err(Error::invalid("models", "name at least one model"));
+    }
+    for m in &models {
+        ModelSpec::named(m, Some(Template::DoublePendulum))
+            .map_err(|e| Error::invalid("models", e.to_string()))?;
+    }
+    Ok(models)
+}
+
+/// `--seeds` (else `default`): that many seeds from 0, at least one.
+fn seeds_arg(arg: Option<u64>, default: u64) -> Result<Vec<u64>> {
+    match arg.unwrap_or(default) {
+        0 => Err(Error::invalid("seeds", "must be at least 1")),
+        k => Ok((0..k).collect()),
+    }
+}
+
+/// Every model with every seed, model by model.
+fn model_seeds(models: &[String], seeds: &[u64]) -> Vec<(String, u64)> {
+    (models.iter())
+        .flat_map(|m| seeds.iter().map(move |&seed| (m.clone(), seed)))
+        .collect()
 }
 
 /// The median of `v` (NaN when empty); infinities count as large values.

@@ -147,9 +147,16 @@ impl OutDir {
         self.dir.join(name)
     }
 
-    /// Marks the run complete in `run.json`, with its wall time.
+    /// Marks the run complete in `run.json`, with its wall time, and says where the results
+    /// are.
     pub fn finish(&self) -> Result<()> {
-        self.write_run(true)
+        self.write_run(true)?;
+        eprintln!(
+            "wrote {} ({:.0} s of wall time over every invocation)",
+            self.path("results.md").display(),
+            self.wall_seconds()
+        );
+        Ok(())
     }
 
     fn write_run(&self, complete: bool) -> Result<()> {

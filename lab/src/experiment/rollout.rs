@@ -63,7 +63,7 @@ pub struct RolloutArgs {
 }
 
 #[derive(Debug, Clone, Serialize)]
-struct Settings {
+struct RolloutSettings {
     system: &'static str,
     models: [&'static str; 2],
     seed: u64,
@@ -97,7 +97,7 @@ struct Trajectory {
 
 pub fn run(a: RolloutArgs) -> Result<()> {
     let q = a.run.quick;
-    let s = Settings {
+    let s = RolloutSettings {
         system: "double_pendulum (paper values), dt 0.01, RK4; training data as in data-efficiency",
         models: MODELS,
         seed: a.seed,
@@ -152,16 +152,14 @@ pub fn run(a: RolloutArgs) -> Result<()> {
         .map(|e| truth.iter().map(|t| predict(e, t)).collect())
         .collect();
     report(&s, &out, &trained, &truth, &predicted)?;
-    out.finish()?;
-    eprintln!(
-        "wrote {} ({:.0} s of wall time over every invocation)",
-        out.path("results.md").display(),
-        out.wall_seconds()
-    );
-    Ok(())
+    out.finish()
 }
 
-fn train(s: &Settings, model: &str, show: &dyn Fn(usize, f64)) -> Result<(Trained, ModelFile)> {
+fn train(
+    s: &RolloutSettings,
+    model: &str,
+    show: &dyn Fn(usize, f64),
+) -> Result<(Trained, ModelFile)> {
     let start = Instant::now();
     let data = paper_double_pendulum(s.train_size, s.seed, 0)?;
     let val = paper_double_pendulum(s.val_size, s.seed, 1)?;
@@ -193,7 +191,7 @@ fn train(s: &Settings, model: &str, show: &dyn Fn(usize, f64)) -> Result<(Traine
 }
 
 /// The true system's trajectories (RK4 at Δt = 0.01 on the template, as the training data).
-fn true_trajectories(s: &Settings) -> Vec<Trajectory> {
+fn true_trajectories(s: &RolloutSettings) -> Vec<Trajectory> {
     let t = Template::DoublePendulum;
     let (n, m) = (t.n(), t.m());
     let sys = TemplateSystem::new(t.clone(), t.defaults());
@@ -253,7 +251,7 @@ fn step_of(seconds: f64) -> usize {
 }
 
 fn report(
-    s: &Settings,
+    s: &RolloutSettings,
     out: &OutDir,
     trained: &[(Trained, ModelFile)],
     truth: &[Trajectory],

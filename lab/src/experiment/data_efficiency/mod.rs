@@ -12,10 +12,9 @@ use serde::{Deserialize, Serialize};
 use super::out::OutDir;
 use super::paper_double_pendulum;
 use super::pool::{self, Progress};
+use super::{model_seeds, models_arg, seeds_arg};
 use graybox::data::Dataset;
 use graybox::error::{Error, Result};
-use graybox::model::spec::ModelSpec;
-use graybox::physics::templates::Template;
 
 use report::report;
 use sweep::ladder;
@@ -81,7 +80,7 @@ pub struct DataEfficiencyArgs {
 
 /// Everything that decides the results (`run.json`; a rerun must match it).
 #[derive(Debug, Clone, Serialize)]
-struct Settings {
+struct DataEfficiencySettings {
     system: &'static str,
     models: Vec<String>,
     seeds: Vec<u64>,
@@ -98,25 +97,14 @@ struct Settings {
     precision: &'static str,
 }
 
-impl Settings {
+impl DataEfficiencySettings {
     fn from_args(a: &DataEfficiencyArgs) -> Result<Self> {
         let q = a.run.quick;
-        let models: Vec<String> = match &a.models {
-            Some(m) => m
-                .split(',')
-                .map(|s| s.trim().to_string())
-                .filter(|s| !s.is_empty())
-                .collect(),
-            None if q => ["W-B", "MVF", "naive"].map(String::from).to_vec(),
-            None => PAPER.iter().map(|(m, _)| m.to_string()).collect(),
-        };
-        for m in &models {
-            ModelSpec::named(m, Some(Template::DoublePendulum))
-                .map_err(|e| Error::invalid("models", e.to_string()))?;
-        }
-        if models.is_empty() {
-            return Err(Error::invalid("models", "name at least one model"));
-        }
+        let paper: Vec<&str> = PAPER.iter().map(|(m, _)| *m).collect();
+        let models = models_arg(
+            a.models.as_deref(),
+            if q { &["W-B", "MVF", "naive"] } else { &paper },
+        )?;
         let max_size = a.max_size.unwrap_or(if q { 32 } else { 4096 });
         if max_size < MIN_SIZE {
             return Err(Error::invalid(
@@ -127,14 +115,11 @@ impl Settings {
         let sizes = std::iter::successors(Some(MIN_SIZE), |s| Some(s * 2))
             .take_while(|&s| s <= max_size)
             .collect();
-        let seeds = a.seeds.unwrap_or(if q { 2 } else { 5 });
-        if seeds == 0 {
-            return Err(Error::invalid("seeds", "must be at least 1"));
-        }
+        let seeds = seeds_arg(a.seeds, if q { 2 } else { 5 })?;
         Ok(Self {
             system: "double_pendulum (paper values), dt 0.01, RK4; q ~ U(-pi, pi), qdot ~ U(-10, 10), u ~ N(0, 120^2)",
             models,
-            seeds: (0..seeds).collect(),
+            seeds,
             sizes,
             val_size: a.val_size.unwrap_or(if q { 64 } else { 1024 }).max(1),
             epochs: a.epochs.unwrap_or(if q { 40 } else { 3000 }),
@@ -178,7 +163,7 @@ struct SeedData {
 }
 
 pub fn run(a: DataEfficiencyArgs) -> Result<()> {
-    let s = Settings::from_args(&a)?;
+    let s = DataEfficiencySettings::from_args(&a)?;
     let out = OutDir::open(&a.out, "data-efficiency", &s)?;
     let max = *s.sizes.last().expect("at least one size");
     let data: Vec<SeedData> = s
@@ -192,11 +177,7 @@ pub fn run(a: DataEfficiencyArgs) -> Result<()> {
         })
         .collect::<Result<_>>()?;
     // Ladders of the costliest models first, so that the last to finish is a short one.
-    let mut ladders: Vec<(String, u64)> = s
-        .models
-        .iter()
-        .flat_map(|m| s.seeds.iter().map(move |&seed| (m.clone(), seed)))
-        .collect();
+    let mut ladders = model_seeds(&s.models, &s.seeds);
     ladders.sort_by_key(|(m, _)| std::cmp::Reverse(PAPER.iter().position(|(p, _)| p == m)));
     let total = ladders.len() * s.sizes.len();
     let progress = Progress::new(total, 0);
@@ -209,11 +190,5 @@ pub fn run(a: DataEfficiencyArgs) -> Result<()> {
     progress.finish();
     let cells: Vec<Cell> = results.into_iter().collect::<Result<Vec<_>>>()?.concat();
     report(&s, &out, &cells)?;
-    out.finish()?;
-    eprintln!(
-        "wrote {} ({:.0} s of wall time over every invocation)",
-        out.path("results.md").display(),
-        out.wall_seconds()
-    );
-    Ok(())
+    out.finish()
 }

@@ -4,7 +4,7 @@
 
 use plotters::prelude::*;
 
-use super::{Cell, PAPER, Settings};
+use super::{Cell, DataEfficiencySettings, PAPER};
 use crate::experiment::out::OutDir;
 use crate::experiment::plot::{self, COLORS, GRAY};
 use crate::experiment::{csv_line, median};
@@ -23,7 +23,7 @@ fn paper_value(model: &str) -> Option<usize> {
     PAPER.iter().find(|(m, _)| *m == model).map(|&(_, v)| v)
 }
 
-pub(super) fn report(s: &Settings, out: &OutDir, cells: &[Cell]) -> Result<()> {
+pub(super) fn report(s: &DataEfficiencySettings, out: &OutDir, cells: &[Cell]) -> Result<()> {
     let names = ["10^-2.5", "2·10^-2.5"];
     // results.csv: per model, seed and threshold.
     let mut csv = String::from("model,seed,threshold,smallest_size,range_low,range_high\n");
@@ -116,7 +116,7 @@ fn median_size(per: &[Option<usize>], max: usize) -> String {
 
 /// Bars on a log₂ axis: the paper's lower end beside graybox's median lower end (strict
 /// threshold), with the range over seeds as a whisker; "not reached" reaches the top.
-fn plot(s: &Settings, out: &OutDir, cells: &[Cell]) -> Result<()> {
+fn plot(s: &DataEfficiencySettings, out: &OutDir, cells: &[Cell]) -> Result<()> {
     let max = *s.sizes.last().expect("sizes");
     let top = (2 * max.max(4096)) as f64;
     let models = &s.models;

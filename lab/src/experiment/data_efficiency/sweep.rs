@@ -6,7 +6,7 @@
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use super::{Cell, MAX_BATCH, SeedData, Settings};
+use super::{Cell, DataEfficiencySettings, MAX_BATCH, SeedData};
 use crate::experiment::out::OutDir;
 use crate::experiment::pool::{Progress, Status};
 use graybox::backend::{self, Backend, Precision};
@@ -19,7 +19,7 @@ use graybox::train::{TrainConfig, Trainer};
 /// A model and seed over growing sizes, until one reaches the strict threshold (every size
 /// with `all_sizes`). Finished cells come from the directory.
 pub(super) fn ladder(
-    s: &Settings,
+    s: &DataEfficiencySettings,
     out: &OutDir,
     model: &str,
     seed: u64,
@@ -59,7 +59,7 @@ pub(super) fn ladder(
 }
 
 fn train_cell(
-    s: &Settings,
+    s: &DataEfficiencySettings,
     model: &str,
     seed: u64,
     size: usize,

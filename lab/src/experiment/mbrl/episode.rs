@@ -9,7 +9,7 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use super::system::{explore, random_episode, random_inputs, score, track};
-use super::{DT, Episode, HORIZON, Settings};
+use super::{DT, Episode, HORIZON, MbrlSettings};
 use crate::experiment::out::OutDir;
 use crate::experiment::pool::{Progress, Status};
 use graybox::backend::{self, Backend, Precision};
@@ -34,7 +34,7 @@ struct RunState {
 
 /// One model and seed through every episode, continuing from its saved state.
 pub(super) fn run_one(
-    s: &Settings,
+    s: &MbrlSettings,
     out: &OutDir,
     sys: &Evaluator,
     model: &str,
@@ -165,7 +165,7 @@ fn train_on(
     trainer: &mut Trainer,
     data: &Dataset,
     explored: &Dataset,
-    s: &Settings,
+    s: &MbrlSettings,
     status: &Status,
     what: &str,
 ) -> Result<(Dataset, f64)> {

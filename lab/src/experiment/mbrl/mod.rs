@@ -17,11 +17,10 @@ use serde::{Deserialize, Serialize};
 
 use super::out::OutDir;
 use super::pool::{self, Progress};
+use super::{model_seeds, models_arg, seeds_arg};
 use graybox::control::linalg::Mat;
 use graybox::control::plan::PlanRequest;
-use graybox::error::{Error, Result};
-use graybox::model::spec::ModelSpec;
-use graybox::physics::templates::Template;
+use graybox::error::Result;
 
 use episode::run_one;
 use report::report;
@@ -78,7 +77,7 @@ pub struct MbrlArgs {
 }
 
 #[derive(Debug, Clone, Serialize)]
-struct Settings {
+struct MbrlSettings {
     system: &'static str,
     models: Vec<String>,
     seeds: Vec<u64>,
@@ -101,33 +100,20 @@ struct Settings {
     precision: &'static str,
 }
 
-impl Settings {
+impl MbrlSettings {
     fn from_args(a: &MbrlArgs) -> Result<Self> {
         let q = a.run.quick;
-        let models: Vec<String> = match &a.models {
-            Some(m) => m
-                .split(',')
-                .map(|s| s.trim().to_string())
-                .filter(|s| !s.is_empty())
-                .collect(),
-            None if q => vec!["MVB".into()],
-            None => ["naive", "MVF", "MVB"].map(String::from).to_vec(),
+        let default: &[&str] = if q {
+            &["MVB"]
+        } else {
+            &["naive", "MVF", "MVB"]
         };
-        if models.is_empty() {
-            return Err(Error::invalid("models", "name at least one model"));
-        }
-        for m in &models {
-            ModelSpec::named(m, Some(Template::DoublePendulum))
-                .map_err(|e| Error::invalid("models", e.to_string()))?;
-        }
-        let seeds = a.seeds.unwrap_or(if q { 1 } else { 3 });
-        if seeds == 0 {
-            return Err(Error::invalid("seeds", "must be at least 1"));
-        }
+        let models = models_arg(a.models.as_deref(), default)?;
+        let seeds = seeds_arg(a.seeds, if q { 1 } else { 3 })?;
         Ok(Self {
             system: "double_pendulum (paper values) as a white-box model, dt 0.1, RK4; from (0,0,0,0) to (pi,0,0,0)",
             models,
-            seeds: (0..seeds).collect(),
+            seeds,
             episodes: a.episodes.unwrap_or(if q { 2 } else { 30 }),
             horizon: HORIZON,
             u_max: U_MAX,
@@ -217,7 +203,7 @@ struct Reference {
 }
 
 pub fn run(a: MbrlArgs) -> Result<()> {
-    let s = Settings::from_args(&a)?;
+    let s = MbrlSettings::from_args(&a)?;
     let out = OutDir::open(&a.out, "mbrl", &s)?;
     let sys = system()?;
     let reference = match out.get::<Reference>("reference") {
@@ -232,11 +218,7 @@ pub fn run(a: MbrlArgs) -> Result<()> {
         "reference score (plan on the true model): {:.4} m",
         reference.score
     );
-    let runs: Vec<(String, u64)> = s
-        .models
-        .iter()
-        .flat_map(|m| s.seeds.iter().map(move |&seed| (m.clone(), seed)))
-        .collect();
+    let runs = model_seeds(&s.models, &s.seeds);
     let progress = Progress::new(runs.len() * s.episodes, 0);
     let results = pool::parallel(
         &runs,
@@ -247,13 +229,7 @@ pub fn run(a: MbrlArgs) -> Result<()> {
     progress.finish();
     let episodes: Vec<Episode> = results.into_iter().collect::<Result<Vec<_>>>()?.concat();
     report(&s, &out, &reference, &episodes)?;
-    out.finish()?;
-    eprintln!(
-        "wrote {} ({:.0} s of wall time over every invocation)",
-        out.path("results.md").display(),
-        out.wall_seconds()
-    );
-    Ok(())
+    out.finish()
 }
 
 #[cfg(test)]

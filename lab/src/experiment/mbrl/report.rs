@@ -4,14 +4,14 @@
 
 use plotters::prelude::*;
 
-use super::{DT, Episode, HORIZON, QF_SCALE, R, Reference, SOLVED, Settings, U_MAX};
+use super::{DT, Episode, HORIZON, MbrlSettings, QF_SCALE, R, Reference, SOLVED, U_MAX};
 use crate::experiment::csv_line;
 use crate::experiment::out::OutDir;
 use crate::experiment::plot::{self, COLORS};
 use graybox::error::Result;
 
 pub(super) fn report(
-    s: &Settings,
+    s: &MbrlSettings,
     out: &OutDir,
     reference: &Reference,
     eps: &[Episode],
@@ -66,7 +66,12 @@ pub(super) fn report(
 
 /// Score per episode: per model the mean over seeds (line) and the range (band), with the
 /// reference line.
-fn plot_scores(s: &Settings, out: &OutDir, reference: &Reference, eps: &[Episode]) -> Result<()> {
+fn plot_scores(
+    s: &MbrlSettings,
+    out: &OutDir,
+    reference: &Reference,
+    eps: &[Episode],
+) -> Result<()> {
     let finite_max = eps
         .iter()
         .map(|e| e.score)

@@ -3,7 +3,7 @@
 //! reference (the plan on the true model) and every episode go through this same code, so
 //! that their scores compare.
 
-use super::{DT, EXPLORATION_STD, HORIZON, Reference, STATE_BOUND, Settings, U_MAX};
+use super::{DT, EXPLORATION_STD, HORIZON, MbrlSettings, Reference, STATE_BOUND, U_MAX};
 use graybox::control::plan::{Plan, plan};
 use graybox::control::policy::Policy;
 use graybox::control::tvlqr::Gains;
@@ -26,7 +26,7 @@ pub(super) fn system() -> Result<Evaluator> {
     )?)
 }
 
-pub(super) fn reference(s: &Settings, sys: &Evaluator) -> Result<Reference> {
+pub(super) fn reference(s: &MbrlSettings, sys: &Evaluator) -> Result<Reference> {
     let p = plan(sys, &s.request(0), &|| false)?;
     let states = track(sys, &p.x, &p.u, &p.gains);
     Ok(Reference {
@@ -59,7 +59,7 @@ pub(super) fn random_inputs(sys: &Evaluator, rng: &mut Rng) -> Dataset {
 pub(super) fn explore(
     sys: &Evaluator,
     learned: &Evaluator,
-    s: &Settings,
+    s: &MbrlSettings,
     p: &Plan,
     rng: &mut Rng,
 ) -> Dataset {
