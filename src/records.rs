@@ -4,9 +4,11 @@
 
 use serde::{Deserialize, Serialize};
 
+// The arrays themselves are a `data::Dataset`; the API schema keeps the name clients know.
 /// A dataset's metadata.
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct Dataset {
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema, sqlx::FromRow)]
+#[schema(as = Dataset)]
+pub struct DatasetInfo {
     pub id: String,
     pub name: Option<String>,
     pub n: i64,
@@ -16,6 +18,7 @@ pub struct Dataset {
     pub sha256: String,
     pub created_at: String,
     /// What the sanity checks at upload found (see README, "Dataset warnings").
+    #[sqlx(json)]
     pub warnings: Vec<Warning>,
 }
 
@@ -40,15 +43,19 @@ impl Warning {
     }
 }
 
+// `model` and `training` are not columns: `store::jobs` reads them from the stored request.
 /// A training job and its progress.
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema, sqlx::FromRow)]
 pub struct Job {
     pub id: String,
+    #[sqlx(try_from = "String")]
     pub state: JobState,
     /// The model as submitted: a paper name ("MVF"), or "custom" for a spec object.
+    #[sqlx(skip)]
     pub model: String,
     /// The training settings it runs with (epochs, batch_size, lr, …), defaults filled in.
     #[schema(value_type = Object)]
+    #[sqlx(skip)]
     pub training: serde_json::Value,
     /// Last completed epoch, counting from 1 (0 before the first).
     pub epoch: i64,
@@ -70,11 +77,12 @@ pub struct Job {
     pub finished_at: Option<String>,
     /// The training checks' findings, set when the job finishes (see README, "Training
     /// warnings").
+    #[sqlx(json)]
     pub warnings: Vec<Warning>,
 }
 
 /// One epoch's losses.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, utoipa::ToSchema, sqlx::FromRow)]
 pub struct Metric {
     pub epoch: i64,
     pub train_loss: f64,
@@ -120,5 +128,13 @@ impl JobState {
             self,
             JobState::Succeeded | JobState::Failed | JobState::Cancelled
         )
+    }
+}
+
+/// A stored job's `state` column.
+impl TryFrom<String> for JobState {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        Self::parse(&s).ok_or_else(|| format!("unknown job state {s}"))
     }
 }

@@ -39,7 +39,7 @@ pub struct TemplateSystem {
     pub template: Template,
     pub params: Vec<f64>,
     /// A URDF robot for the recursive algorithms (docs/robots.md#recursive-algorithms).
-    recursive: Option<featherstone::Model>,
+    recursive: Option<featherstone::RigidBodyModel>,
 }
 
 impl TemplateSystem {

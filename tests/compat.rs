@@ -7,7 +7,7 @@ use std::time::Duration;
 
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
-use graybox::store::JobState;
+use graybox::records::JobState;
 use serde_json::{Value, json};
 
 fn fixtures() -> PathBuf {

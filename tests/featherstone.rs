@@ -10,7 +10,7 @@ use graybox::physics::dual::Dual;
 use graybox::physics::jet::Jet;
 use graybox::physics::urdf::Tree;
 use graybox::physics::urdf::featherstone::{
-    Model, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
+    RigidBodyModel, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
     forward_dynamics, forward_dynamics_derivatives, gravity_torques, inverse_dynamics,
     kinetic_energy, potential_energy,
 };
@@ -76,7 +76,7 @@ fn states(fx: &Value) -> impl Iterator<Item = (Vec<f64>, Vec<f64>, &Value)> {
 fn crba_and_rnea_equal_pinocchio() {
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+        let model = RigidBodyModel::new(&tree, gravity(&fx));
         for (s, (q, qd, st)) in states(&fx).enumerate() {
             let m = flat(&crba(&model, &q));
             let m_ref: Vec<f64> = flat_matrix(&st["M"]);
@@ -109,10 +109,10 @@ fn random(rng: &mut Rng, n: usize, scale: f64) -> Vec<f64> {
 }
 
 /// Every fixture robot's model, with its name.
-fn models() -> impl Iterator<Item = (&'static str, Model)> {
+fn models() -> impl Iterator<Item = (&'static str, RigidBodyModel)> {
     FIXTURES.into_iter().map(|name| {
         let (tree, fx) = fixture(name);
-        (name, Model::new(&tree, gravity(&fx)))
+        (name, RigidBodyModel::new(&tree, gravity(&fx)))
     })
 }
 
@@ -123,7 +123,7 @@ fn random_state(rng: &mut Rng, n: usize, scale: f64) -> [Vec<f64>; 3] {
 
 /// ‖M q̈ + C q̇ + g − τ‖∞ relative to the size of the terms summed (max(1, |τ|, Σⱼ|Mᵢⱼ q̈ⱼ|)):
 /// a backward-stable solve leaves a residual of a few ε of that whatever M's condition.
-fn residual(model: &Model, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f64 {
+fn residual(model: &RigidBodyModel, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f64 {
     let m = crba(model, q);
     let b = bias(model, q, qd);
     let mut worst = 0.0f64;
@@ -149,7 +149,7 @@ fn residual(model: &Model, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f
 fn energies_equal_pinocchio() {
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+        let model = RigidBodyModel::new(&tree, gravity(&fx));
         for (s, (q, qd, st)) in states(&fx).enumerate() {
             let t = kinetic_energy(&model, &q, &qd);
             let t_ref = st["T"].as_f64().unwrap();
@@ -174,7 +174,7 @@ fn forward_dynamics_inverts_inverse_dynamics() {
     let mut rng = Rng::new(3);
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+        let model = RigidBodyModel::new(&tree, gravity(&fx));
         for (s, (q, qd, _)) in states(&fx).enumerate() {
             let tau = random(&mut rng, q.len(), 10.0);
             let qdd = forward_dynamics(&model, &q, &qd, &tau);
@@ -205,7 +205,7 @@ fn recursive_algorithms_agree_with_the_jacobian_form() {
             let inertias: Vec<Inertial> = (tree.bodies.iter())
                 .map(|_| Inertial::from_theta(&std::array::from_fn(|_| rng.normal())))
                 .collect();
-            let model = Model::with_inertias(&tree, &inertias, g);
+            let model = RigidBodyModel::with_inertias(&tree, &inertias, g);
             let n = model.n;
             let q: Vec<f64> = (0..n).map(|_| rng.uniform_in(-PI, PI)).collect();
             let qd = random(&mut rng, n, 2.0);
@@ -232,7 +232,7 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
     let mut rng = Rng::new(9);
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+        let model = RigidBodyModel::new(&tree, gravity(&fx));
         for (q, qd, _) in states(&fx).take(4) {
             let n = q.len();
             let tau = random(&mut rng, n, 5.0);
@@ -358,7 +358,7 @@ fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
         let inertias: Vec<Inertial> = (tree.bodies.iter())
             .map(|_| Inertial::from_theta(&std::array::from_fn(|_| rng.normal())))
             .collect();
-        let model = Model::with_inertias(&tree, &inertias, g);
+        let model = RigidBodyModel::with_inertias(&tree, &inertias, g);
         assert!(model.mimic);
         let q: Vec<f64> = (0..3).map(|_| rng.uniform_in(-PI, PI)).collect();
         let qd = random(&mut rng, 3, 2.0);

@@ -11,10 +11,10 @@ use utoipa::{OpenApi as _, ToSchema};
 
 use crate::app::datasets::Uploaded;
 use crate::app::jobs::JobRequest;
-use crate::app::views::{Dataset, Job, JobState, Metric, Warning};
+use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
 
 #[derive(utoipa::OpenApi)]
-#[openapi(components(schemas(Dataset, Job, JobState, Metric, JobRequest, Uploaded, Warning)))]
+#[openapi(components(schemas(DatasetInfo, Job, JobState, Metric, JobRequest, Uploaded, Warning)))]
 struct Components;
 
 /// One route: method, path, summary, request schema, parameters ("?name" for query ones).

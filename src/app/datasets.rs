@@ -3,11 +3,11 @@
 use serde_json::Value;
 
 use super::App;
-use super::views::Dataset as DatasetView;
 use crate::data::Dataset;
 use crate::data::trajectories;
 use crate::error::{Error, Result};
 use crate::names::check_name;
+use crate::records::DatasetInfo;
 
 /// What a POST /v1/datasets body was, with the Δt given beside it (`?dt=`).
 pub enum Upload {
@@ -20,7 +20,7 @@ pub enum Upload {
 #[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
 pub struct Uploaded {
     #[serde(flatten)]
-    pub dataset: DatasetView,
+    pub dataset: DatasetInfo,
     pub created: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
@@ -53,7 +53,7 @@ impl App {
             .store
             .insert_dataset(name.as_deref(), &ds, lengths.as_deref())
             .await?;
-        let dataset: DatasetView = row.into();
+        let dataset: DatasetInfo = row.into();
         let note = match (&name, &dataset.name) {
             (Some(asked), stored) if !created && stored.as_ref() != Some(asked) => Some(format!(
                 "this data was already stored as {}{}; the name '{asked}' was not applied \
@@ -72,11 +72,11 @@ impl App {
         })
     }
 
-    pub async fn dataset(&self, id: &str) -> Result<DatasetView> {
+    pub async fn dataset(&self, id: &str) -> Result<DatasetInfo> {
         self.store
             .get_dataset(id)
             .await?
-            .map(DatasetView::from)
+            .map(DatasetInfo::from)
             .ok_or_else(|| Error::NotFound(format!("dataset {id}")))
     }
 

@@ -11,15 +11,15 @@ use std::time::Duration;
 use tokio::sync::{broadcast, watch};
 
 use super::App;
-use super::views::{Job, Metric};
 use crate::error::Result;
+use crate::records::{Job, Metric};
 
 /// How often a followed job is read from the store.
 pub const POLL: Duration = Duration::from_millis(200);
 
 /// A job as last read, with every epoch's metrics so far.
 #[derive(Debug, Clone)]
-pub struct Progress {
+pub struct JobProgress {
     pub job: Job,
     pub metrics: Arc<Vec<Metric>>,
 }
@@ -27,7 +27,7 @@ pub struct Progress {
 /// The live pollers by job id (each entry a receiver kept to hand out clones).
 #[derive(Default)]
 pub struct Feeds {
-    live: Mutex<HashMap<String, watch::Receiver<Progress>>>,
+    live: Mutex<HashMap<String, watch::Receiver<JobProgress>>>,
 }
 
 /// Every job's changes (GET /v1/events): one poller for all subscribers, started by the
@@ -41,7 +41,7 @@ pub struct AllJobs {
 const ALL_JOBS_BACKLOG: usize = 1024;
 
 impl Feeds {
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, watch::Receiver<Progress>>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<String, watch::Receiver<JobProgress>>> {
         self.live.lock().expect("feeds lock")
     }
 }
@@ -61,7 +61,7 @@ impl App {
     }
 
     /// A receiver of `id`'s progress, joining the job's poller or starting it.
-    pub async fn follow_job(&self, id: &str) -> Result<watch::Receiver<Progress>> {
+    pub async fn follow_job(&self, id: &str) -> Result<watch::Receiver<JobProgress>> {
         if let Some(rx) = self
             .feeds
             .lock()
@@ -82,7 +82,7 @@ impl App {
     }
 
     /// The job and its metrics, appending to `prev`'s.
-    async fn read_progress(&self, id: &str, prev: Option<&Progress>) -> Result<Progress> {
+    async fn read_progress(&self, id: &str, prev: Option<&JobProgress>) -> Result<JobProgress> {
         self.telemetry.job_polls.fetch_add(1, Ordering::Relaxed);
         let job = self.job(id).await?;
         let last = prev.and_then(|p| p.metrics.last()).map_or(0, |m| m.epoch);
@@ -92,11 +92,11 @@ impl App {
             Some(p) => Arc::new(p.metrics.iter().cloned().chain(new).collect()),
             None => Arc::new(new),
         };
-        Ok(Progress { job, metrics })
+        Ok(JobProgress { job, metrics })
     }
 }
 
-async fn poll(app: App, id: String, tx: watch::Sender<Progress>) {
+async fn poll(app: App, id: String, tx: watch::Sender<JobProgress>) {
     loop {
         let done = tx.borrow().job.state.is_final();
         // One receiver is the map's own: with no other, nobody is listening.

@@ -8,9 +8,10 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::App;
-use super::views::{Dataset, Job, JobState, Metric};
+use super::views::Stored;
 use crate::error::{Error, Result};
 use crate::model::spec::ModelSpec;
+use crate::records::{DatasetInfo, Job, JobState, Metric};
 use crate::store::{NewJob, Submitted};
 use crate::train::setup::physical_init;
 use crate::train::{TrainConfig, budget};
@@ -99,7 +100,7 @@ impl App {
         &self,
         req: JobRequest,
         idempotency_key: Option<String>,
-    ) -> Result<(Job, bool)> {
+    ) -> Result<Stored<Job>> {
         let (spec, template_id) = self.validate_job(req).await?;
         let new = NewJob {
             dataset_id: spec.dataset_id.clone(),
@@ -109,9 +110,13 @@ impl App {
             idempotency_key,
             template_id,
         };
-        Ok(match self.store.submit_job(new).await? {
-            Submitted::Created(job) => (job.into(), true),
-            Submitted::Existing(job) => (job.into(), false),
+        let (job, created) = match self.store.submit_job(new).await? {
+            Submitted::Created(job) => (job, true),
+            Submitted::Existing(job) => (job, false),
+        };
+        Ok(Stored {
+            item: job.into(),
+            created,
         })
     }
 
@@ -174,12 +179,12 @@ impl App {
 
     /// The job's datasets exist and fit its model and each other; the training dataset and
     /// the validation dataset's size.
-    async fn check_datasets(&self, job: &JobSpec) -> Result<(Dataset, usize)> {
+    async fn check_datasets(&self, job: &JobSpec) -> Result<(DatasetInfo, usize)> {
         let find = |field: &'static str, id: String| async move {
             self.store
                 .get_dataset(&id)
                 .await?
-                .map(Dataset::from)
+                .map(DatasetInfo::from)
                 .ok_or_else(|| Error::Unprocessable {
                     field: field.into(),
                     message: format!("dataset {id} does not exist"),
@@ -215,7 +220,7 @@ impl App {
     /// before it is queued.
     /// The job's size, memory and checkpoint against the service's limits, each refusal
     /// naming the field to change.
-    fn check_job_cost(&self, job: &JobSpec, data: &Dataset, val_count: usize) -> Result<()> {
+    fn check_job_cost(&self, job: &JobSpec, data: &DatasetInfo, val_count: usize) -> Result<()> {
         let s = &self.settings;
         let n = data.n as usize;
         let refuse = |field: &str, message: String| {
@@ -343,7 +348,11 @@ impl App {
 
 /// The job's estimated cost and its effective batch: a batch larger than the training set is
 /// the whole set.
-fn job_estimate(job: &JobSpec, data: &Dataset, val_count: usize) -> (budget::JobEstimate, usize) {
+fn job_estimate(
+    job: &JobSpec,
+    data: &DatasetInfo,
+    val_count: usize,
+) -> (budget::JobEstimate, usize) {
     let (n, m) = (data.n as usize, data.m as usize);
     let count = data.count as usize;
     let train = if job.validation_dataset_id.is_some() {

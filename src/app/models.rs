@@ -3,12 +3,14 @@
 use serde_json::json;
 
 use super::App;
-use super::views::{Dataset, Model};
+use super::views::{ModelView, Stored};
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
-use crate::store::{JobState, ModelRow, NewModel};
+use crate::records::DatasetInfo;
+use crate::records::JobState;
+use crate::store::{ModelRow, NewModel};
 use crate::train::budget;
 
 impl App {
@@ -19,14 +21,14 @@ impl App {
             .ok_or_else(|| Error::NotFound(format!("model {id}")))
     }
 
-    pub async fn model(&self, id: &str) -> Result<Model> {
-        self.model_row(id).await.map(Model::from)
+    pub async fn model(&self, id: &str) -> Result<ModelView> {
+        self.model_row(id).await.map(ModelView::from)
     }
 
     /// A model by its id, or by the id of the job that trained it (gRPC callers may name
     /// either); a job that has not succeeded is a failed precondition.
-    pub async fn resolve_model(&self, id: &str) -> Result<Model> {
-        self.resolve_model_row(id).await.map(Model::from)
+    pub async fn resolve_model(&self, id: &str) -> Result<ModelView> {
+        self.resolve_model_row(id).await.map(ModelView::from)
     }
 
     pub(super) async fn resolve_model_row(&self, id: &str) -> Result<ModelRow> {
@@ -56,7 +58,7 @@ impl App {
         &self,
         name: Option<String>,
         bytes: Vec<u8>,
-    ) -> Result<(Model, bool)> {
+    ) -> Result<Stored<ModelView>> {
         let (max_dof, max_params) = (self.settings.max_dof, self.settings.max_model_params);
         // Reading checks an embedded template as an upload would: off the async executor.
         let (file, bytes) = super::templates::off_executor(move || {
@@ -101,7 +103,10 @@ impl App {
                 file: &bytes,
             })
             .await?;
-        Ok((row.into(), created))
+        Ok(Stored {
+            item: row.into(),
+            created,
+        })
     }
 
     pub async fn model_file(&self, id: &str) -> Result<Vec<u8>> {
@@ -123,24 +128,24 @@ impl App {
         &self,
         size: Option<i64>,
         token: Option<&str>,
-    ) -> Result<(Vec<Model>, Option<String>)> {
+    ) -> Result<(Vec<ModelView>, Option<String>)> {
         let size = super::paging::size(size)?;
         let before = super::paging::decode("models", token)?;
         let (items, more) = self.store.list_models(before, size).await?;
         let next = super::paging::after("models", &items, more, |m| m.seq);
-        Ok((items.into_iter().map(Model::from).collect(), next))
+        Ok((items.into_iter().map(ModelView::from).collect(), next))
     }
 
     pub async fn list_datasets(
         &self,
         size: Option<i64>,
         token: Option<&str>,
-    ) -> Result<(Vec<Dataset>, Option<String>)> {
+    ) -> Result<(Vec<DatasetInfo>, Option<String>)> {
         let size = super::paging::size(size)?;
         let before = super::paging::decode("datasets", token)?;
         let items = self.store.list_datasets(before, size).await?;
         let next = super::paging::next("datasets", &items, size, |d| d.seq);
-        Ok((items.into_iter().map(Dataset::from).collect(), next))
+        Ok((items.into_iter().map(DatasetInfo::from).collect(), next))
     }
 }
 

@@ -5,7 +5,7 @@ use std::fmt::Write;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use crate::store::JobState;
+use crate::records::JobState;
 
 /// Upper bounds (seconds) of the request-latency histogram.
 const BUCKETS: [f64; 12] = [

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use super::App;
+use super::views::Stored;
 use crate::error::{Error, Result};
 use crate::physics::templates::Template;
 use crate::physics::urdf::UrdfTemplate;
@@ -126,7 +127,7 @@ impl App {
         &self,
         body: impl AsRef<[u8]> + Send + 'static,
         xml: bool,
-    ) -> Result<(TemplateView, bool)> {
+    ) -> Result<Stored<TemplateView>> {
         let max_dof = self.settings.max_dof;
         // The checks evaluate the document (M at random points, a robot's tree): off the
         // async executor, whose threads answer every other request.
@@ -152,7 +153,10 @@ impl App {
                 summary: &summary,
             })
             .await?;
-        Ok((TemplateView::of(row, true)?, created))
+        Ok(Stored {
+            item: TemplateView::of(row, true)?,
+            created,
+        })
     }
 
     pub async fn template(&self, id: &str) -> Result<TemplateView> {

@@ -1,16 +1,28 @@
-//! What the core hands to adapters, so that REST bodies and gRPC messages never depend on
-//! the store's rows (which carry keys, leases and blobs): the records every layer shares
-//! (`crate::records`), and the one projection of a trained model.
+//! What the core hands to adapters besides the records every layer shares (`crate::records`),
+//! so that REST bodies and gRPC messages never depend on the store's rows (which carry keys,
+//! leases and blobs): the one projection of a trained model, and what a submission stored.
 
-use serde::Serialize;
-use serde_json::{Value, json};
+use std::collections::BTreeMap;
 
-pub use crate::records::{Dataset, Job, JobState, Metric, Warning};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use crate::model::file::Made;
+use crate::model::report::{Identified, TrainReport};
+use crate::records::Warning;
 use crate::store::ModelRow;
+
+/// What a submission or an upload stored: the item, and whether this request created it
+/// (false: an earlier request with the same idempotency key, or the same bytes, had).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stored<T> {
+    pub item: T,
+    pub created: bool,
+}
 
 /// A model: the one projection REST and gRPC both serve.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Model {
+pub struct ModelView {
     pub id: String,
     /// The job that trained it; `None` for an uploaded model.
     pub job_id: Option<String>,
@@ -23,36 +35,86 @@ pub struct Model {
     pub m: i64,
     pub dt: f64,
     /// The training report's figures: epochs, losses, time, throughput, physical
-    /// parameters and their identifiable combinations.
+    /// parameters and their identifiable combinations (see [`Metrics`]).
     pub metrics: Value,
-    pub physical_parameters: Value,
-    pub identifiable: Value,
+    pub physical_parameters: Option<BTreeMap<String, f64>>,
+    pub identifiable: Option<Vec<Identified>>,
     /// What the data cannot determine of the physical parameters beyond `identifiable`
     /// (null when the combinations say it all).
-    pub identifiability: Value,
+    pub identifiability: Option<String>,
     pub sha256: String,
     pub created_at: String,
 }
 
-impl From<ModelRow> for Model {
-    fn from(m: ModelRow) -> Self {
-        let report: Value = serde_json::from_str(&m.report).unwrap_or(Value::Null);
-        let mut metrics = json!({
-            "epochs": report["epochs"],
-            "train_loss": report["train_loss"],
-            "val_loss": report["val_loss"],
-            "best_epoch": report["best_epoch"],
-            "best_val_loss": report["best_val_loss"],
-            "seconds": report["seconds"],
-            "samples_per_second": report["samples_per_second"],
-            "physical_parameters": report["physical_parameters"],
-            "identifiable": report["identifiable"],
-            "warnings": report.get("warnings").cloned().unwrap_or_else(|| json!([])),
-        });
-        if let Some(made) = report.get("made") {
-            // Not trained: how it was made instead of losses.
-            metrics["made"] = made.clone();
+/// What a model row's report holds: a trained model's report, or how a model that was not
+/// trained was made (the text "null": neither).
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum StoredReport {
+    Trained(Box<TrainReport>),
+    Made { made: Made },
+}
+
+/// A model's `metrics`: every key present (null when the model has no such figure), and
+/// `made` only for a model made rather than trained. Kept a JSON value in the view: its keys
+/// come out sorted, as clients have always read them.
+#[derive(Serialize, Default)]
+struct Metrics<'a> {
+    epochs: Option<usize>,
+    train_loss: Option<f64>,
+    val_loss: Option<f64>,
+    best_epoch: Option<usize>,
+    best_val_loss: Option<f64>,
+    seconds: Option<f64>,
+    samples_per_second: Option<f64>,
+    physical_parameters: Option<&'a BTreeMap<String, f64>>,
+    identifiable: Option<&'a [Identified]>,
+    warnings: &'a [Warning],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    made: Option<&'a Made>,
+}
+
+impl<'a> Metrics<'a> {
+    fn of(report: Option<&'a StoredReport>) -> Self {
+        match report {
+            None => Self::default(),
+            Some(StoredReport::Made { made }) => Self {
+                made: Some(made),
+                ..Self::default()
+            },
+            Some(StoredReport::Trained(r)) => Self {
+                epochs: Some(r.epochs),
+                train_loss: Some(r.train_loss),
+                val_loss: r.val_loss,
+                best_epoch: Some(r.best_epoch),
+                best_val_loss: r.best_val_loss,
+                seconds: Some(r.seconds),
+                samples_per_second: Some(r.samples_per_second),
+                physical_parameters: Some(&r.physical_parameters),
+                identifiable: Some(&r.identifiable),
+                warnings: &r.warnings,
+                made: None,
+            },
         }
+    }
+}
+
+impl From<ModelRow> for ModelView {
+    fn from(m: ModelRow) -> Self {
+        // The store writes what it was given: a report that does not read is no report.
+        let report: Option<StoredReport> = serde_json::from_str(&m.report).unwrap_or(None);
+        let metrics =
+            serde_json::to_value(Metrics::of(report.as_ref())).expect("metrics serialize");
+        let (physical_parameters, identifiable, identifiability) = match report {
+            None => (None, None, None),
+            // A model made from a template (no training) states its values in "made".
+            Some(StoredReport::Made { made }) => (Some(made.physical_parameters), None, None),
+            Some(StoredReport::Trained(r)) => (
+                Some(r.physical_parameters),
+                Some(r.identifiable),
+                r.identifiability,
+            ),
+        };
         Self {
             id: m.id,
             job_id: m.job_id,
@@ -62,14 +124,10 @@ impl From<ModelRow> for Model {
             n: m.n,
             m: m.m,
             dt: m.dt,
-            // A model made from a template (no training) states its values in "made".
-            physical_parameters: match &report["physical_parameters"] {
-                Value::Null => report["made"]["physical_parameters"].clone(),
-                p => p.clone(),
-            },
-            identifiable: report["identifiable"].clone(),
-            identifiability: report["identifiability"].clone(),
             metrics,
+            physical_parameters,
+            identifiable,
+            identifiability,
             sha256: m.sha256,
             created_at: m.created_at,
         }

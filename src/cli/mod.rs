@@ -17,7 +17,6 @@ pub use eval::{EvalArgs, InspectArgs};
 pub use health::HealthArgs;
 pub use model::ModelArgs;
 pub use plan::PlanArgs;
-pub use serve::ServeArgs;
 pub use simulate::SimulateArgs;
 pub use train::TrainArgs;
 
@@ -78,7 +77,8 @@ pub enum Command {
     /// Plan a trajectory to a goal on a model file (iLQR with input bounds) and its gains.
     Plan(PlanArgs),
     /// Run the service: REST, gRPC and training workers over one SQLite file.
-    Serve(ServeArgs),
+    // `graybox serve`'s flags are the service's settings.
+    Serve(crate::app::Settings),
     /// Exit 0 if the service on this machine is ready (for container health checks).
     Health(HealthArgs),
 }

@@ -7,9 +7,6 @@ use crate::app::settings::MAX_BLOCKING_THREADS;
 use crate::error::Result;
 use crate::service::{Stopped, signal};
 
-/// `graybox serve`'s flags are the service's settings.
-pub type ServeArgs = Settings;
-
 /// How long the runtime waits at exit for blocking threads. Their callers are gone by then,
 /// which tells a solver to stop within a time step; a training thread abandoned mid-epoch
 /// would take the rest of its epoch, and dropping the runtime would wait for it (a runaway

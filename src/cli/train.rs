@@ -137,7 +137,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
     if let Some(w) = trainer.stiffness_warning() {
         eprintln!("warning: {}", w.message);
     }
-    let progress = Progress::new(a.epochs as u64);
+    let progress = EpochProgress::new(a.epochs as u64);
     trainer.run(&AtomicBool::new(false), |m, _| progress.epoch(m))?;
     progress.finish();
     let file = trainer.model_file();
@@ -171,13 +171,13 @@ fn load(path: &std::path::Path, dt: Option<f64>) -> Result<Dataset> {
 }
 
 /// A progress bar on a terminal; otherwise one line per epoch, at most one a second.
-struct Progress {
+struct EpochProgress {
     bar: Option<indicatif::ProgressBar>,
     last_line: std::cell::Cell<Option<Instant>>,
     total: u64,
 }
 
-impl Progress {
+impl EpochProgress {
     fn new(total: u64) -> Self {
         let bar = std::io::stderr().is_terminal().then(|| {
             let b = indicatif::ProgressBar::new(total);

@@ -47,7 +47,7 @@ pub struct Evaluator {
     pub config: ModelConfig,
     weights: Weights,
     /// A URDF model's robot for the recursive algorithms (`rigid`), at its physical values.
-    recursive: Option<featherstone::Model>,
+    recursive: Option<featherstone::RigidBodyModel>,
 }
 
 impl Evaluator {

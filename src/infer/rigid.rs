@@ -16,11 +16,11 @@ use crate::physics::dual::Dual;
 use crate::physics::dynamics::{Tri, cholesky, solve_llt};
 use crate::physics::jet::Jet;
 use crate::physics::templates::Template;
-use crate::physics::urdf::featherstone::{Model, crba, forward_dynamics, id_partials};
+use crate::physics::urdf::featherstone::{RigidBodyModel, crba, forward_dynamics, id_partials};
 
 /// The robot as the recursive algorithms take it, for a structured model whose M is a URDF
 /// template's; gravity is in it when V is the template's too.
-pub(super) fn recursive_model(config: &ModelConfig, weights: &Weights) -> Option<Model> {
+pub(super) fn recursive_model(config: &ModelConfig, weights: &Weights) -> Option<RigidBodyModel> {
     let (t, gravity) = config.spec.recursive()?;
     let Weights::Structured(w) = weights else {
         return None;
@@ -74,7 +74,7 @@ impl Evaluator {
     /// `jacobian_rows`); `None` beyond 64 directions (then dual numbers do it).
     pub(super) fn recursive_jacobian(
         &self,
-        model: &Model,
+        model: &RigidBodyModel,
         x: &[f64],
         u: &[f64],
     ) -> Option<Vec<f64>> {
@@ -87,7 +87,12 @@ impl Evaluator {
         })
     }
 
-    fn step_jacobian<const N: usize>(&self, model: &Model, x: &[f64], u: &[f64]) -> Vec<f64> {
+    fn step_jacobian<const N: usize>(
+        &self,
+        model: &RigidBodyModel,
+        x: &[f64],
+        u: &[f64],
+    ) -> Vec<f64> {
         let (n, dirs) = (self.config.n, x.len() + u.len());
         let xj: Vec<Jet<N>> = (x.iter().enumerate())
             .map(|(k, &v)| Jet::variable(v, k))
@@ -110,7 +115,7 @@ impl Evaluator {
     /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u).
     fn stage<const N: usize>(
         &self,
-        model: &Model,
+        model: &RigidBodyModel,
         q: &[Jet<N>],
         qd: &[Jet<N>],
         u: &[Jet<N>],

@@ -21,7 +21,7 @@ use crate::physics::urdf::featherstone::{self, forward_dynamics};
 #[derive(Debug)]
 pub(super) struct ForwardDynamics {
     /// The robot's tree; its inertias are replaced by π's on every call.
-    model: featherstone::Model,
+    model: featherstone::RigidBodyModel,
 }
 
 impl ForwardDynamics {

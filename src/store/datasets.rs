@@ -2,52 +2,34 @@
 
 use sha2::{Digest, Sha256};
 use sqlx::Row;
-use sqlx::sqlite::SqliteRow;
 
-use super::{Store, new_id, now_rfc3339};
+use super::{Store, new_id, now_rfc3339, row};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::records;
 
 /// A dataset as stored: the record and its listing key (its arrays are read separately).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, sqlx::FromRow)]
 pub struct DatasetRow {
-    pub info: records::Dataset,
+    #[sqlx(flatten)]
+    pub info: records::DatasetInfo,
     pub seq: i64,
 }
 
 impl std::ops::Deref for DatasetRow {
-    type Target = records::Dataset;
-    fn deref(&self) -> &records::Dataset {
+    type Target = records::DatasetInfo;
+    fn deref(&self) -> &records::DatasetInfo {
         &self.info
     }
 }
 
-impl From<DatasetRow> for records::Dataset {
+impl From<DatasetRow> for records::DatasetInfo {
     fn from(r: DatasetRow) -> Self {
         r.info
     }
 }
 
 const COLUMNS: &str = "seq, id, name, n, m, dt, count, sha256, created_at, warnings";
-
-fn row(r: &SqliteRow) -> Result<DatasetRow> {
-    let info = records::Dataset {
-        id: r.try_get("id")?,
-        name: r.try_get("name")?,
-        n: r.try_get("n")?,
-        m: r.try_get("m")?,
-        dt: r.try_get("dt")?,
-        count: r.try_get("count")?,
-        sha256: r.try_get("sha256")?,
-        created_at: r.try_get("created_at")?,
-        warnings: super::warnings(r)?,
-    };
-    Ok(DatasetRow {
-        info,
-        seq: r.try_get("seq")?,
-    })
-}
 
 /// Little-endian f64 of q | q̇ | u | q' | q̇', each row-major.
 pub fn encode(ds: &Dataset) -> Vec<u8> {

@@ -2,17 +2,18 @@
 //! same transaction), listing, cancellation, per-epoch metrics and counts. The worker's side
 //! of the queue is in `queue.rs`.
 
-use sqlx::Row;
 use sqlx::sqlite::SqliteRow;
+use sqlx::{FromRow, Row};
 
 use super::{Store, new_id, now_ms, now_rfc3339, sha256_hex};
 use crate::error::{Error, Result};
-pub use crate::records::JobState;
+use crate::records::JobState;
 use crate::records::{Job, Metric};
 
 /// A job as stored: the record and what only the queue reads.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, sqlx::FromRow)]
 pub struct JobRow {
+    #[sqlx(flatten)]
     pub info: Job,
     pub seq: i64,
     /// The normalized submission (JSON).
@@ -41,41 +42,16 @@ pub(super) fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::with_columns(s, COLUMNS)
 }
 
+/// A job's row: its columns, then the two fields the stored request holds (`model`,
+/// `training`), read once here.
 pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {
-    let state: String = r.try_get("state")?;
-    let request: String = r.try_get("request")?;
-    let submitted: serde_json::Value = serde_json::from_str(&request).unwrap_or_default();
-    let info = Job {
-        id: r.try_get("id")?,
-        state: JobState::parse(&state)
-            .ok_or_else(|| Error::Storage(format!("unknown job state {state}")))?,
-        model: submitted["model_name"]
-            .as_str()
-            .unwrap_or("custom")
-            .to_string(),
-        training: submitted["training"].clone(),
-        epoch: r.try_get("epoch")?,
-        epochs: r.try_get("epochs")?,
-        checkpoint_epoch: r.try_get("checkpoint_epoch")?,
-        train_loss: r.try_get("train_loss")?,
-        val_loss: r.try_get("val_loss")?,
-        best_val_loss: r.try_get("best_val_loss")?,
-        attempt: r.try_get("attempt")?,
-        error: r.try_get("error")?,
-        model_id: r.try_get("model_id")?,
-        dataset_id: r.try_get("dataset_id")?,
-        validation_dataset_id: r.try_get("validation_dataset_id")?,
-        created_at: r.try_get("created_at")?,
-        started_at: r.try_get("started_at")?,
-        finished_at: r.try_get("finished_at")?,
-        warnings: super::warnings(r)?,
-    };
-    Ok(JobRow {
-        info,
-        seq: r.try_get("seq")?,
-        request,
-        cancel_requested: r.try_get::<i64, _>("cancel_requested")? != 0,
-    })
+    let mut job = JobRow::from_row(r)?;
+    let submitted: serde_json::Value = serde_json::from_str(&job.request).unwrap_or_default();
+    job.info.model = (submitted["model_name"].as_str())
+        .unwrap_or("custom")
+        .to_string();
+    job.info.training = submitted["training"].clone();
+    Ok(job)
 }
 
 pub struct NewJob {
@@ -249,23 +225,13 @@ impl Store {
     }
 
     pub async fn metrics(&self, job_id: &str, after_epoch: i64) -> Result<Vec<Metric>> {
-        let rows = sqlx::query(
+        Ok(sqlx::query_as(
             "SELECT epoch, train_loss, val_loss, seconds FROM metrics WHERE job_id = ? AND epoch > ? ORDER BY epoch",
         )
         .bind(job_id)
         .bind(after_epoch)
         .fetch_all(&self.pool)
-        .await?;
-        rows.iter()
-            .map(|r| {
-                Ok(Metric {
-                    epoch: r.try_get("epoch")?,
-                    train_loss: r.try_get("train_loss")?,
-                    val_loss: r.try_get("val_loss")?,
-                    seconds: r.try_get("seconds")?,
-                })
-            })
-            .collect()
+        .await?)
     }
 
     pub async fn job_counts(&self) -> Result<Vec<(JobState, i64)>> {

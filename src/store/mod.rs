@@ -9,7 +9,7 @@ mod queue;
 mod templates;
 
 pub use datasets::DatasetRow;
-pub use jobs::{JobRow, JobState, NewJob, Submitted};
+pub use jobs::{JobRow, NewJob, Submitted};
 pub use models::{ModelRow, NewModel};
 pub use queue::{Claimed, Lease};
 pub use templates::{NewTemplate, TemplateRow};
@@ -18,7 +18,8 @@ use std::str::FromStr;
 use std::time::Duration;
 
 use sqlx::sqlite::{
-    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteSynchronous,
+    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteRow,
+    SqliteSynchronous,
 };
 use sqlx::{Sqlite, Transaction};
 
@@ -101,11 +102,9 @@ async fn fitting(
     Ok((fit, more))
 }
 
-/// A row's `warnings` column (a JSON array).
-fn warnings(r: &sqlx::sqlite::SqliteRow) -> Result<Vec<crate::records::Warning>> {
-    use sqlx::Row;
-    let text: String = r.try_get("warnings")?;
-    serde_json::from_str(&text).map_err(|e| Error::Storage(format!("warnings column: {e}")))
+/// A row as its record (`#[derive(sqlx::FromRow)]`).
+fn row<T: for<'r> sqlx::FromRow<'r, SqliteRow>>(r: &SqliteRow) -> Result<T> {
+    Ok(T::from_row(r)?)
 }
 
 pub fn new_id(prefix: &str) -> String {

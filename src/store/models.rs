@@ -2,14 +2,13 @@
 //! file uploaded as it is.
 
 use serde::Serialize;
-use sqlx::sqlite::SqliteRow;
 use sqlx::{Row, Sqlite, Transaction};
 
 use super::queue::{Claimed, FENCE, fenced};
-use super::{Store, new_id, now_rfc3339, sha256_hex, verified};
+use super::{Store, new_id, now_rfc3339, row, sha256_hex, verified};
 use crate::error::{Error, Result};
 
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, sqlx::FromRow)]
 pub struct ModelRow {
     pub id: String,
     /// The job that trained it; `None` for an uploaded model.
@@ -33,23 +32,6 @@ const COLUMNS: &str = "seq, id, job_id, origin, name, n, m, dt, spec, report, sh
 
 fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::with_columns(s, COLUMNS)
-}
-
-fn row(r: &SqliteRow) -> Result<ModelRow> {
-    Ok(ModelRow {
-        seq: r.try_get("seq")?,
-        id: r.try_get("id")?,
-        job_id: r.try_get("job_id")?,
-        origin: r.try_get("origin")?,
-        name: r.try_get("name")?,
-        n: r.try_get("n")?,
-        m: r.try_get("m")?,
-        dt: r.try_get("dt")?,
-        spec: r.try_get("spec")?,
-        report: r.try_get("report")?,
-        sha256: r.try_get("sha256")?,
-        created_at: r.try_get("created_at")?,
-    })
 }
 
 /// A model's record and file, as `finish_job` (trained) and `insert_model` (uploaded) store it.

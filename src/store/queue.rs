@@ -3,9 +3,10 @@
 
 use sqlx::Row;
 
-use super::jobs::{JobRow, JobState, row, sql};
+use super::jobs::{JobRow, row, sql};
 use super::{Store, now_ms, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
+use crate::records::JobState;
 use crate::records::Metric;
 
 /// A job a worker holds: fenced writes name this attempt and owner.

@@ -1,12 +1,9 @@
 //! Templates: a user's mechanism as its canonical JSON document, stored once per document.
 
-use sqlx::Row;
-use sqlx::sqlite::SqliteRow;
-
-use super::{Store, new_id, now_rfc3339, sha256_hex};
+use super::{Store, new_id, now_rfc3339, row, sha256_hex};
 use crate::error::{Error, Result};
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, sqlx::FromRow)]
 pub struct TemplateRow {
     pub id: String,
     pub kind: String,
@@ -41,21 +38,6 @@ const LIST_COLUMNS: &str = "seq, id, kind, name, n, m, summary, sha256, created_
 
 fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::with_columns(s, COLUMNS)
-}
-
-fn row(r: &SqliteRow) -> Result<TemplateRow> {
-    Ok(TemplateRow {
-        seq: r.try_get("seq")?,
-        id: r.try_get("id")?,
-        kind: r.try_get("kind")?,
-        name: r.try_get("name")?,
-        n: r.try_get("n")?,
-        m: r.try_get("m")?,
-        document: r.try_get("document")?,
-        summary: r.try_get("summary")?,
-        sha256: r.try_get("sha256")?,
-        created_at: r.try_get("created_at")?,
-    })
 }
 
 impl Store {

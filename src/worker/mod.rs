@@ -15,8 +15,8 @@ use crate::app::App;
 use crate::app::jobs::JobSpec;
 use crate::backend::{self, Backend, Precision};
 use crate::error::{Error, Result};
-use crate::records::Metric;
-use crate::store::{Claimed, JobState, Lease, NewModel};
+use crate::records::{JobState, Metric};
+use crate::store::{Claimed, Lease, NewModel};
 use crate::train::{TrainState, Trainer};
 
 /// Infrastructure failures (storage errors) a job survives before it is failed.

@@ -7,7 +7,8 @@ use std::time::Duration;
 use graybox::api::grpc::pb::{self, rollout_request::Inputs};
 use graybox::app::{App, Settings};
 use graybox::array::Array;
-use graybox::store::{JobState, Store};
+use graybox::records::JobState;
+use graybox::store::Store;
 use serde_json::{Value, json};
 use tonic::Code;
 

@@ -4,8 +4,8 @@
 //! with Plans and training running) is in tests/python/test_hostile.py.
 
 use graybox::app::Settings;
+use graybox::records::JobState;
 use graybox::service::Stopped;
-use graybox::store::JobState;
 use serde_json::json;
 
 use crate::helpers::*;

@@ -6,7 +6,7 @@ use graybox::physics::urdf::featherstone::adjoint::{forward_dynamics_adjoint, pa
 use graybox::physics::urdf::featherstone::regressor::{
     regressor, standard_parameters, with_parameters,
 };
-use graybox::physics::urdf::featherstone::{Model, forward_dynamics};
+use graybox::physics::urdf::featherstone::{RigidBodyModel, forward_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
@@ -47,7 +47,7 @@ fn the_adjoint_is_central_differences() {
     let mut rng = Rng::new(31);
     for name in ["robots/ur5", "robots/panda", "robots/solo12"] {
         let (tree, fx) = fixture(name);
-        let model = Model::new(&tree, gravity(&fx));
+        let model = RigidBodyModel::new(&tree, gravity(&fx));
         let n = model.n;
         let (q, qd, tau, g) = (
             random(&mut rng, n, 1.5),
@@ -56,7 +56,7 @@ fn the_adjoint_is_central_differences() {
             random(&mut rng, n, 1.0),
         );
         let adj = forward_dynamics_adjoint(&model, &q, &qd, &tau, &g);
-        let loss = |m: &Model, q: &[f64], qd: &[f64], tau: &[f64]| -> f64 {
+        let loss = |m: &RigidBodyModel, q: &[f64], qd: &[f64], tau: &[f64]| -> f64 {
             forward_dynamics(m, q, qd, tau)
                 .iter()
                 .zip(&g)

@@ -7,7 +7,7 @@ use graybox::physics::urdf::featherstone::base::base_parameters;
 use graybox::physics::urdf::featherstone::regressor::{
     PER_BODY, regressor, standard_parameters, with_parameters,
 };
-use graybox::physics::urdf::featherstone::{Model, inverse_dynamics};
+use graybox::physics::urdf::featherstone::{RigidBodyModel, inverse_dynamics};
 use graybox::rng::Rng;
 
 use super::{err, models, random, random_state};
@@ -69,7 +69,7 @@ fn base_parameters_reproduce_every_torque() {
     }
 }
 
-fn pendulum(axis: &str) -> Model {
+fn pendulum(axis: &str) -> RigidBodyModel {
     let urdf = format!(
         r#"<robot name="p"><link name="base"/>
   <joint name="j" type="revolute"><parent link="base"/><child link="rod"/>
@@ -78,7 +78,7 @@ fn pendulum(axis: &str) -> Model {
     <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
 </robot>"#
     );
-    Model::new(&Tree::parse(&urdf, 8).unwrap(), [0.0, 0.0, -9.81])
+    RigidBodyModel::new(&Tree::parse(&urdf, 8).unwrap(), [0.0, 0.0, -9.81])
 }
 
 /// One joint: about y under gravity along −z, τ = I_yy q̈ + g (m c_x cos q + m c_z sin q)
@@ -86,7 +86,7 @@ fn pendulum(axis: &str) -> Model {
 /// work and only I_zz remains.
 #[test]
 fn a_pendulums_base_parameters_are_what_its_axis_leaves() {
-    let singles = |m: &Model| -> Vec<usize> {
+    let singles = |m: &RigidBodyModel| -> Vec<usize> {
         let base = base_parameters(m);
         assert!(base.iter().all(|b| b.terms.len() == 1), "{base:?}");
         let mut k: Vec<usize> = base.iter().map(|b| b.terms[0].0).collect();

@@ -16,8 +16,8 @@ use graybox::physics::dynamics::{constants, white_box_acceleration};
 use graybox::physics::urdf::UrdfTemplate;
 use graybox::physics::urdf::featherstone::adjoint::{forward_dynamics_adjoint, parameter_gradient};
 use graybox::physics::urdf::featherstone::{
-    Model, aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets, forward_dynamics,
-    forward_dynamics_derivatives,
+    RigidBodyModel, aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets,
+    forward_dynamics, forward_dynamics_derivatives,
 };
 use graybox::rng::Rng;
 
@@ -62,7 +62,7 @@ pub fn run(a: BenchRigidArgs) -> Result<()> {
         .map_err(|e| Error::invalid("urdf", format!("{}: {e}", a.urdf.display())))?;
     let t = UrdfTemplate::from_urdf(&text)?;
     let n = t.n();
-    let model = Model::new(&t.tree, t.doc.gravity);
+    let model = RigidBodyModel::new(&t.tree, t.doc.gravity);
     let p: Vec<f64> = t.params().iter().map(|p| p.default).collect();
     let pd = constants(&p);
     let mut rng = Rng::new(a.seed);

@@ -7,7 +7,7 @@ use tonic::Status;
 
 use super::pb;
 use crate::api::echo::{MESSAGE_LIMIT, bounded};
-use crate::app::views::Model;
+use crate::app::views::ModelView;
 use crate::array::Array;
 use crate::control::linalg::Mat;
 use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, PlanRequest};
@@ -90,7 +90,7 @@ pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
     })
 }
 
-pub fn model_info(m: &Model) -> pb::ModelInfo {
+pub fn model_info(m: &ModelView) -> pb::ModelInfo {
     pb::ModelInfo {
         id: m.id.clone(),
         job_id: m.job_id.clone().unwrap_or_default(),

@@ -7,7 +7,9 @@ use axum::response::IntoResponse;
 use axum::routing::get;
 
 use super::error::{ApiError, ApiResult};
-use super::{Params, RestState, body_bytes, float_param, int_param, json_body, page};
+use super::{
+    Params, RestState, body_bytes, float_param, int_param, json_body, page, stored_status,
+};
 use crate::app::datasets::Upload;
 use crate::app::uploads::BodyKind;
 
@@ -61,12 +63,7 @@ async fn upload(
         .app
         .upload_dataset(params.get("name").cloned(), upload)
         .await?;
-    let status = if uploaded.created {
-        StatusCode::CREATED
-    } else {
-        StatusCode::OK
-    };
-    Ok((status, axum::Json(uploaded)))
+    Ok((stored_status(uploaded.created), axum::Json(uploaded)))
 }
 
 async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoResponse> {

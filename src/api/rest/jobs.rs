@@ -5,7 +5,7 @@ use axum::Router;
 use axum::body::Bytes;
 use axum::extract::rejection::BytesRejection;
 use axum::extract::{Path, State};
-use axum::http::{HeaderMap, StatusCode};
+use axum::http::HeaderMap;
 use axum::response::IntoResponse;
 use axum::response::sse::{Event, KeepAlive, Sse};
 use axum::routing::{get, post};
@@ -13,12 +13,12 @@ use futures_util::Stream;
 use serde_json::json;
 
 use super::error::{ApiError, ApiResult};
-use super::{Params, RestState, int_param, json_body, page};
-use crate::app::events::Progress;
+use super::{Params, RestState, int_param, json_body, page, stored};
+use crate::app::events::JobProgress;
 use crate::app::jobs::JobRequest;
 use crate::app::requests::parse_body;
 use crate::app::uploads::BodyKind;
-use crate::app::views::JobState;
+use crate::records::JobState;
 use tokio::sync::{broadcast, watch};
 
 pub fn routes() -> Router<RestState> {
@@ -70,15 +70,7 @@ async fn submit(
         }
     };
     let req: JobRequest = parse_body(json_body(body, s.limit(BodyKind::Template))?)?;
-    let (job, created) = s.app.submit_job(req, key).await?;
-    Ok((
-        if created {
-            StatusCode::CREATED
-        } else {
-            StatusCode::OK
-        },
-        axum::Json(job),
-    ))
+    Ok(stored(s.app.submit_job(req, key).await?))
 }
 
 async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoResponse> {
@@ -124,7 +116,7 @@ async fn events(
 }
 
 struct Cursor {
-    rx: watch::Receiver<Progress>,
+    rx: watch::Receiver<JobProgress>,
     last_epoch: i64,
     last_state: Option<JobState>,
     pending: VecDeque<Event>,
@@ -133,7 +125,7 @@ struct Cursor {
 
 impl Cursor {
     /// Queues the events `p` adds to what this subscriber has seen.
-    fn catch_up(&mut self, p: &Progress) {
+    fn catch_up(&mut self, p: &JobProgress) {
         let seen = self.last_epoch;
         for r in p.metrics.iter().filter(|r| r.epoch > seen) {
             self.last_epoch = r.epoch;
@@ -157,7 +149,7 @@ impl Cursor {
     }
 }
 
-fn event_stream(rx: watch::Receiver<Progress>) -> impl Stream<Item = Result<Event, Infallible>> {
+fn event_stream(rx: watch::Receiver<JobProgress>) -> impl Stream<Item = Result<Event, Infallible>> {
     let cursor = Cursor {
         rx,
         last_epoch: 0,

@@ -21,6 +21,7 @@ use axum::response::{IntoResponse, Response};
 
 use crate::app::App;
 use crate::app::uploads::BodyKind;
+use crate::app::views::Stored;
 use error::{ApiError, ApiResult};
 
 #[derive(Clone)]
@@ -116,6 +117,20 @@ async fn record(State(s): State<RestState>, req: Request, next: Next) -> Respons
 /// Query parameters as strings, parsed by the handlers so that every bad value gets the
 /// error shape with its field named.
 pub type Params = axum::extract::Query<HashMap<String, String>>;
+
+/// 201 Created for what this request stored, 200 OK for what an earlier one had.
+pub fn stored_status(created: bool) -> StatusCode {
+    if created {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    }
+}
+
+/// A stored item as the response: its status ([`stored_status`]) and the item.
+pub fn stored<T: serde::Serialize>(s: Stored<T>) -> (StatusCode, axum::Json<T>) {
+    (stored_status(s.created), axum::Json(s.item))
+}
 
 pub fn int_param(p: &HashMap<String, String>, name: &str) -> ApiResult<Option<i64>> {
     p.get(name)

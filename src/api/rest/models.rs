@@ -7,7 +7,7 @@ use axum::response::IntoResponse;
 use axum::routing::get;
 
 use super::error::{ApiError, ApiResult};
-use super::{Params, RestState, body_bytes, int_param, page};
+use super::{Params, RestState, body_bytes, int_param, page, stored};
 use crate::app::uploads::BodyKind;
 
 pub fn routes() -> Router<RestState> {
@@ -44,16 +44,8 @@ async fn upload(
 ) -> ApiResult<impl IntoResponse> {
     let limit = s.limit(BodyKind::Model);
     let bytes = body_bytes(body, limit)?;
-    let (model, created) = s
-        .app
-        .upload_model(p.get("name").cloned(), Vec::from(bytes))
-        .await?;
-    let status = if created {
-        StatusCode::CREATED
-    } else {
-        StatusCode::OK
-    };
-    Ok((status, axum::Json(model)))
+    let model = s.app.upload_model(p.get("name").cloned(), Vec::from(bytes));
+    Ok(stored(model.await?))
 }
 
 async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoResponse> {

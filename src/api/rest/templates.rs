@@ -7,7 +7,7 @@ use axum::response::IntoResponse;
 use axum::routing::get;
 
 use super::error::ApiResult;
-use super::{Params, RestState, body_bytes, int_param, page};
+use super::{Params, RestState, body_bytes, int_param, page, stored};
 use crate::app::uploads::BodyKind;
 
 pub fn routes() -> Router<RestState> {
@@ -29,13 +29,7 @@ async fn upload(
         .get(header::CONTENT_TYPE)
         .and_then(|v| v.to_str().ok())
         .is_some_and(|v| v.split(';').next().unwrap_or("").trim().ends_with("xml"));
-    let (template, created) = s.app.upload_template(bytes, xml).await?;
-    let status = if created {
-        StatusCode::CREATED
-    } else {
-        StatusCode::OK
-    };
-    Ok((status, axum::Json(template)))
+    Ok(stored(s.app.upload_template(bytes, xml).await?))
 }
 
 async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoResponse> {

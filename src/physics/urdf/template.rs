@@ -382,12 +382,12 @@ impl UrdfTemplate {
     /// The robot at these physical values as the recursive algorithms take it
     /// (`featherstone`); gravity only when the model's V is this template's (otherwise the
     /// model's own V stands in for it).
-    pub fn recursive_model(&self, physical: &[f64], gravity: bool) -> featherstone::Model {
+    pub fn recursive_model(&self, physical: &[f64], gravity: bool) -> featherstone::RigidBodyModel {
         let bodies: Vec<Inertial> = (0..self.nb())
             .map(|b| self.link_inertial(physical, b))
             .collect();
         let g = if gravity { self.doc.gravity } else { [0.0; 3] };
-        featherstone::Model::with_inertias(&self.tree, &bodies, g)
+        featherstone::RigidBodyModel::with_inertias(&self.tree, &bodies, g)
     }
 
     /// The base parameters at these physical values (docs/robots.md#base-parameters): each a

@@ -9,10 +9,9 @@ use super::{BATCH, BenchInferArgs, HORIZON, Problem, ROLLOUT, summary, weights};
 use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
 use graybox::app::datasets::Upload;
 use graybox::app::jobs::JobRequest;
-use graybox::app::views::Job;
-use graybox::app::views::JobState;
 use graybox::app::{App, Settings};
 use graybox::error::{Error, Result};
+use graybox::records::{Job, JobState};
 use graybox::service::start;
 
 fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
@@ -74,7 +73,7 @@ pub(super) async fn over_grpc(
         )
         .await?
         .dataset;
-    let (job, _) = submit(&app, &ds.id, 1).await?;
+    let job = submit(&app, &ds.id, 1).await?;
     let model = wait_for(&app, &job.id, |s| s == JobState::Succeeded).await?;
     let model = model.model_id.expect("a succeeded job has a model");
     let url = format!("http://{}", running.grpc_addr);
@@ -91,10 +90,10 @@ pub(super) async fn over_grpc(
     .await
     .expect("client thread")?;
     let made = super::plan::true_double_pendulum().to_bytes()?;
-    let (true_dp, _) = app.upload_model(Some("true-dp".into()), made).await?;
+    let true_dp = app.upload_model(Some("true-dp".into()), made).await?.item;
     super::plan::over_grpc(&url, &true_dp.id).await?;
 
-    let (train_job, _) = submit(&app, &ds.id, 1_000_000).await?;
+    let train_job = submit(&app, &ds.id, 1_000_000).await?;
     wait_for(&app, &train_job.id, |s| s == JobState::Running).await?;
     let (lat, secs) = concurrent(&url, predict_one(&model, p), a).await?;
     let still_training = app.job(&train_job.id).await?.state == JobState::Running;
@@ -114,13 +113,13 @@ pub(super) async fn over_grpc(
 }
 
 /// An MVF job on the dataset for `epochs` epochs.
-async fn submit(app: &App, dataset: &str, epochs: usize) -> Result<(Job, bool)> {
+async fn submit(app: &App, dataset: &str, epochs: usize) -> Result<Job> {
     let req: JobRequest = serde_json::from_value(json!({
         "dataset_id": dataset, "model": "MVF", "template": "double_pendulum",
         "training": {"epochs": epochs, "batch_size": 256}
     }))
     .expect("a valid job request");
-    app.submit_job(req, None).await
+    Ok(app.submit_job(req, None).await?.item)
 }
 
 /// Concurrent clients, each on its own connection, calling Predict for `a.seconds`: every
@@ -296,7 +295,7 @@ async fn wait_for(
     app: &graybox::app::App,
     job: &str,
     ok: impl Fn(JobState) -> bool,
-) -> Result<graybox::app::views::Job> {
+) -> Result<Job> {
     loop {
         let j = app.job(job).await?;
         if ok(j.state) {

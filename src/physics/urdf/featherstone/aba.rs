@@ -3,7 +3,7 @@
 //! Cholesky solve for any tree (a mimic joint is not a degree of freedom of its own, which
 //! ABA's per-joint recursion assumes).
 
-use super::Model;
+use super::RigidBodyModel;
 use super::rnea::{bias, crba};
 use super::spatial::{Force, Inertia, Motion, Xform};
 use crate::physics::dynamics::{cholesky, solve_llt};
@@ -11,7 +11,7 @@ use crate::physics::scalar::Scalar;
 
 /// q̈ by the articulated-body algorithm; τ on the coordinates. Panics on a tree with mimic
 /// joints (use `forward_dynamics`).
-pub fn aba<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
+pub fn aba<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     assert!(!model.mimic, "ABA takes a tree without mimic joints");
     let zero = q[0].lift(0.0);
     let nb = model.joints.len();
@@ -77,7 +77,7 @@ pub fn aba<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
 }
 
 /// q̈ from M(q) q̈ = τ − C(q, q̇) q̇ − g(q): CRBA, RNEA and a Cholesky solve (any tree).
-pub fn crba_forward<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
+pub fn crba_forward<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     let m = crba(model, q);
     let rhs = tau
         .iter()
@@ -88,7 +88,7 @@ pub fn crba_forward<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> V
 }
 
 /// q̈: ABA without mimic joints, else CRBA and Cholesky.
-pub fn forward_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
+pub fn forward_dynamics<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     if model.mimic {
         crba_forward(model, q, qd, tau)
     } else {

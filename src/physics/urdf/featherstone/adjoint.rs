@@ -10,7 +10,7 @@
 //! force and wᵢ = Xᵢ w_parent + Sᵢ λ its joints' λ carried out to it, and wᵢ·fᵢ is linear in
 //! π_i: wᵀI a − (v × w)ᵀ I v (since (v ×* f)·w = −f·(v × w)).
 
-use super::Model;
+use super::RigidBodyModel;
 use super::aba::forward_dynamics;
 use super::regressor::PER_BODY;
 use super::rnea::crba;
@@ -41,7 +41,7 @@ fn inertia_form(a: &Motion<f64>, b: &Motion<f64>) -> [f64; PER_BODY] {
 
 /// Y(q, q̇, q̈)ᵀ λ: the gradient of λᵀ ID with respect to the standard parameters, O(n).
 pub fn parameter_gradient(
-    model: &Model,
+    model: &RigidBodyModel,
     q: &[f64],
     qd: &[f64],
     qdd: &[f64],
@@ -88,7 +88,7 @@ pub fn parameter_gradient(
 /// v̄ = −w ×* (I v) − I (v × w) + (S q̇) ×* ā + Σ Xᵀv̄_child, using (a × b)·F = a·(b ×* F);
 /// a joint's value moves X by ∂(X m)/∂q = (X m) × S, its rate enters v and v × S q̇.
 pub fn id_gradient(
-    model: &Model,
+    model: &RigidBodyModel,
     q: &[f64],
     qd: &[f64],
     qdd: &[f64],
@@ -186,7 +186,7 @@ pub struct Adjoint {
 
 /// Forward dynamics and its vector–Jacobian product for ḡ.
 pub fn forward_dynamics_adjoint(
-    model: &Model,
+    model: &RigidBodyModel,
     q: &[f64],
     qd: &[f64],
     tau: &[f64],
@@ -198,7 +198,13 @@ pub fn forward_dynamics_adjoint(
 
 /// The vector–Jacobian product at a q̈ that forward dynamics already gave (a training step's
 /// forward pass), without computing it again.
-pub fn adjoint_at(model: &Model, q: &[f64], qd: &[f64], qdd: Vec<f64>, gbar: &[f64]) -> Adjoint {
+pub fn adjoint_at(
+    model: &RigidBodyModel,
+    q: &[f64],
+    qd: &[f64],
+    qdd: Vec<f64>,
+    gbar: &[f64],
+) -> Adjoint {
     let lambda = solve_llt(&cholesky(&crba(model, q)), gbar.to_vec());
     let (dq, dqd) = id_gradient(model, q, qd, &qdd, &lambda);
     let minus = |g: Vec<f64>| g.into_iter().map(|g| -g).collect();

@@ -8,7 +8,7 @@
 //! r combinations of the standard parameters that motion data determines (a dependent column
 //! that is zero, a parameter τ never feels, appears in none).
 
-use super::Model;
+use super::RigidBodyModel;
 use super::regressor::regressor;
 use crate::rng::Rng;
 
@@ -36,7 +36,7 @@ const COEFFICIENT_ZERO: f64 = 1e-9;
 
 /// The base parameters of `model`'s kinematics (its inertias are not read), from enough
 /// random states (seeded: the same robot gives the same list).
-pub fn base_parameters(model: &Model) -> Vec<BaseParameter> {
+pub fn base_parameters(model: &RigidBodyModel) -> Vec<BaseParameter> {
     let n = model.n;
     let cols = super::regressor::PER_BODY * model.joints.len();
     let states = (2 * cols).div_ceil(n.max(1)) + 8;

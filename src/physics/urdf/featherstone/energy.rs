@@ -3,12 +3,12 @@
 //! potential V = −Σ g · (mᵢ pᵢ + E₀ᵢᵀ hᵢ) with each body's placement in the root frame
 //! (E₀ᵢ root axes to body axes, pᵢ its origin) composed from its parent's: O(n) each.
 
-use super::Model;
+use super::RigidBodyModel;
 use super::spatial::{M3, Motion, V3, add, cdot, mtv};
 use crate::physics::scalar::Scalar;
 
 /// ½ q̇ᵀ M(q) q̇, without forming M.
-pub fn kinetic_energy<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> S {
+pub fn kinetic_energy<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S]) -> S {
     let zero = q[0].lift(0.0);
     let mut vs: Vec<Motion<S>> = Vec::with_capacity(model.joints.len());
     let mut twice = zero.clone();
@@ -26,7 +26,7 @@ pub fn kinetic_energy<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> S {
 }
 
 /// V(q) of gravity, zero at the root frame's origin (the template's `rigid::potential`).
-pub fn potential_energy<S: Scalar>(model: &Model, q: &[S]) -> S {
+pub fn potential_energy<S: Scalar>(model: &RigidBodyModel, q: &[S]) -> S {
     let zero = q[0].lift(0.0);
     let mut placed: Vec<(M3<S>, V3<S>)> = Vec::with_capacity(model.joints.len());
     let mut v = zero.clone();

@@ -5,7 +5,7 @@
 //! (`aba`), the derivatives of forward dynamics (`derivatives`), and the kinetic and potential
 //! energies (`energy`). Each is O(n) or O(n·depth) per state, generic over `Scalar` (f64 for
 //! speed, dual numbers for exact derivatives), with the joints' constant frames precomputed
-//! once in a [`Model`]. The f64 evaluator runs them for URDF models (`infer::rigid`).
+//! once in a [`RigidBodyModel`]. The f64 evaluator runs them for URDF models (`infer::rigid`).
 //!
 //! Mimic joints (`tree::Drive`): joint values are G q + offset with G = ∂(joint values)/∂q,
 //! so joint velocities and accelerations are G q̇ and G q̈, forces on the coordinates are
@@ -59,7 +59,7 @@ pub struct Joint {
 /// The robot as the recursive algorithms take it: joints in the tree's (depth-first) order,
 /// so that every parent comes before its children.
 #[derive(Debug, Clone)]
-pub struct Model {
+pub struct RigidBodyModel {
     pub joints: Vec<Joint>,
     /// Coordinates (joints that are not mimic joints).
     pub n: usize,
@@ -69,7 +69,7 @@ pub struct Model {
     pub mimic: bool,
 }
 
-impl Model {
+impl RigidBodyModel {
     /// The tree with its bodies' URDF inertias.
     pub fn new(tree: &Tree, gravity: [f64; 3]) -> Self {
         let inertials: Vec<Inertial> = tree.bodies.iter().map(|b| b.inertial.clone()).collect();

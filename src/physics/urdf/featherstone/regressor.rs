@@ -4,7 +4,7 @@
 //! origin in its axes (the spatial inertia's A = I, B = [m c]×, C = m 𝟙). The base parameters
 //! of a robot are the combinations of π that τ depends on: what motion data can identify.
 
-use super::Model;
+use super::RigidBodyModel;
 use super::rnea::inverse_dynamics;
 use super::spatial::Inertia;
 
@@ -23,7 +23,7 @@ fn inertia_of(p: &[f64]) -> Inertia<f64> {
 }
 
 /// π of the model's bodies, body after body.
-pub fn standard_parameters(model: &Model) -> Vec<f64> {
+pub fn standard_parameters(model: &RigidBodyModel) -> Vec<f64> {
     (model.joints.iter())
         .flat_map(|j| {
             let (a, b) = (&j.inertia.a, &j.inertia.b);
@@ -44,7 +44,7 @@ pub fn standard_parameters(model: &Model) -> Vec<f64> {
 }
 
 /// The model with the bodies' inertias of π.
-pub fn with_parameters(model: &Model, pi: &[f64]) -> Model {
+pub fn with_parameters(model: &RigidBodyModel, pi: &[f64]) -> RigidBodyModel {
     let mut m = model.clone();
     for (j, p) in m.joints.iter_mut().zip(pi.chunks(PER_BODY)) {
         j.inertia = inertia_of(p);
@@ -55,7 +55,7 @@ pub fn with_parameters(model: &Model, pi: &[f64]) -> Model {
 /// Y(q, q̇, q̈), n rows of 10·bodies columns: column k is ID with π = e_k (gravity included:
 /// it acts on the inertia too). 10·bodies passes of RNEA, for identification and reports,
 /// not for a training loop.
-pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
+pub fn regressor(model: &RigidBodyModel, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
     let cols = PER_BODY * model.joints.len();
     let mut unit = with_parameters(model, &vec![0.0; cols]);
     let mut y = vec![vec![0.0; cols]; q.len()];

@@ -1,12 +1,12 @@
 //! The recursive Newton–Euler algorithm (Featherstone 2008, Table 5.1) and the composite
 //! rigid-body algorithm (Table 6.2), over the coordinates (mimic joints contracted with G).
 
-use super::Model;
+use super::RigidBodyModel;
 use super::spatial::{Force, Inertia, Motion, Xform};
 use crate::physics::scalar::Scalar;
 
 /// Joint torques contracted onto the coordinates: τ_q = Gᵀ τ_joints.
-fn contract<S: Scalar>(model: &Model, tau: Vec<S>, zero: &S) -> Vec<S> {
+fn contract<S: Scalar>(model: &RigidBodyModel, tau: Vec<S>, zero: &S) -> Vec<S> {
     let mut out: Vec<Option<S>> = vec![None; model.n];
     for (j, t) in model.joints.iter().zip(tau) {
         let t = if j.multiplier != 1.0 {
@@ -28,7 +28,7 @@ fn contract<S: Scalar>(model: &Model, tau: Vec<S>, zero: &S) -> Vec<S> {
 /// τ = M(q) q̈ + C(q, q̇) q̇ + g(q), with `None` for a zero q̇ or q̈ and `with_gravity` false
 /// for a robot without gravity (so C q̇ comes out directly).
 pub fn rnea<S: Scalar>(
-    model: &Model,
+    model: &RigidBodyModel,
     q: &[S],
     qd: Option<&[S]>,
     qdd: Option<&[S]>,
@@ -86,29 +86,29 @@ pub fn rnea<S: Scalar>(
 }
 
 /// τ = ID(q, q̇, q̈) with gravity.
-pub fn inverse_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], qdd: &[S]) -> Vec<S> {
+pub fn inverse_dynamics<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], qdd: &[S]) -> Vec<S> {
     rnea(model, q, Some(qd), Some(qdd), true)
 }
 
 /// g(q) = ID(q, 0, 0) = ∂V/∂q.
-pub fn gravity_torques<S: Scalar>(model: &Model, q: &[S]) -> Vec<S> {
+pub fn gravity_torques<S: Scalar>(model: &RigidBodyModel, q: &[S]) -> Vec<S> {
     rnea(model, q, None, None, true)
 }
 
 /// C(q, q̇) q̇ = ID(q, q̇, 0) without gravity.
-pub fn coriolis<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> Vec<S> {
+pub fn coriolis<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S]) -> Vec<S> {
     rnea(model, q, Some(qd), None, false)
 }
 
 /// C(q, q̇) q̇ + g(q) = ID(q, q̇, 0).
-pub fn bias<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> Vec<S> {
+pub fn bias<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S]) -> Vec<S> {
     rnea(model, q, Some(qd), None, true)
 }
 
 /// M(q) over the coordinates by the composite rigid-body algorithm: each body's composite
 /// inertia Iᶜ (itself and everything it carries), then H_ij = S_jᵀ X Iᶜ_i S_i for j on i's path
 /// to the root, contracted M = Gᵀ H G (a mimic joint's multiplier on each side).
-pub fn crba<S: Scalar>(model: &Model, q: &[S]) -> Vec<Vec<S>> {
+pub fn crba<S: Scalar>(model: &RigidBodyModel, q: &[S]) -> Vec<Vec<S>> {
     let zero = q[0].lift(0.0);
     let nb = model.joints.len();
     let xs: Vec<Xform<S>> = (model.joints.iter())
