@@ -1,6 +1,6 @@
 //! The layers of ARCHITECTURE.md, enforced: reads every file under `src/` and fails on a
 //! dependency that points up, naming file and line. It sees `use crate::x`, grouped
-//! `use crate::{x, y::z}`, paths written inline without a `use` (`crate::store::JobState`),
+//! `use crate::{x, y::z}`, paths written inline without a `use` (`crate::store::JobRow`),
 //! and `super::` paths that climb out of a layer. It also fails on a circle of modules inside
 //! a layer (`cycles.rs`) and on a source file over 450 lines (`sizes.rs`).
 
@@ -271,7 +271,7 @@ mod checker {
         assert_eq!(
             deps(
                 "api/rest/jobs.rs",
-                "    last_state: Option<crate::store::JobState>,"
+                "    last_state: Option<crate::store::JobRow>,"
             ),
             ["store"]
         );
