@@ -153,7 +153,7 @@ impl Store {
             .max_connections(8)
             .connect_with(opts)
             .await?;
-        let migrated = sqlx::migrate!("./migrations").run(&pool).await;
+        let migrated = sqlx::migrate!("./migrations/sqlite").run(&pool).await;
         drop(lock);
         migrated?;
         Ok(Self { pool })
