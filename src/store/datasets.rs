@@ -3,6 +3,7 @@
 use sha2::{Digest, Sha256};
 use sqlx::Row;
 
+use super::dialect::{Dialect, begin_write};
 use super::{Store, new_id, now_rfc3339, row};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
@@ -82,135 +83,147 @@ impl Store {
         ds: &Dataset,
         trajectories: Option<&[usize]>,
     ) -> Result<(DatasetRow, bool)> {
-        let lengths = trajectories.map(|t| serde_json::to_string(t).expect("lengths serialize"));
-        let blob = encode(ds);
-        let sha = sha256(ds, &blob);
-        // Computed before the write lock is taken: the checks read every value.
-        let warnings = serde_json::to_string(&ds.warnings()).expect("warnings serialize");
-        let mut tx = self.write().await?;
-        let existing = sqlx::query(sql("SELECT {COLUMNS} FROM datasets WHERE sha256 = ?"))
-            .bind(&sha)
-            .fetch_optional(&mut *tx)
-            .await?;
-        if let Some(r) = existing {
-            if lengths.is_some() {
-                sqlx::query(
-                    "UPDATE datasets SET trajectories = ? WHERE sha256 = ? AND trajectories IS NULL",
-                )
-                .bind(&lengths)
+        on_db!(self, pool, D => {
+            let lengths = trajectories.map(|t| serde_json::to_string(t).expect("lengths serialize"));
+            let blob = encode(ds);
+            let sha = sha256(ds, &blob);
+            // Computed before the write lock is taken: the checks read every value.
+            let warnings = serde_json::to_string(&ds.warnings()).expect("warnings serialize");
+            let mut tx = begin_write(pool).await?;
+            let existing = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM datasets WHERE sha256 = $1"))
                 .bind(&sha)
-                .execute(&mut *tx)
+                .fetch_optional(&mut *tx)
                 .await?;
+            if let Some(r) = existing {
+                if lengths.is_some() {
+                    sqlx::query(
+                        "UPDATE datasets SET trajectories = $1 WHERE sha256 = $2 AND trajectories IS NULL",
+                    )
+                    .bind(&lengths)
+                    .bind(&sha)
+                    .execute(&mut *tx)
+                    .await?;
+                }
+                tx.commit().await?;
+                return Ok((row(&r)?, false));
             }
+            let r = sqlx::query(sql::<D>(
+                "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at, warnings,
+                                       trajectories)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11) RETURNING {COLUMNS}",
+            ))
+            .bind(new_id("ds"))
+            .bind(name)
+            .bind(&sha)
+            .bind(ds.n as i64)
+            .bind(ds.m as i64)
+            .bind(ds.dt)
+            .bind(ds.count() as i64)
+            .bind(blob)
+            .bind(now_rfc3339())
+            .bind(warnings)
+            .bind(lengths)
+            .fetch_one(&mut *tx)
+            .await?;
             tx.commit().await?;
-            return Ok((row(&r)?, false));
-        }
-        let r = sqlx::query(sql(
-            "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at, warnings,
-                                   trajectories)
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
-        ))
-        .bind(new_id("ds"))
-        .bind(name)
-        .bind(&sha)
-        .bind(ds.n as i64)
-        .bind(ds.m as i64)
-        .bind(ds.dt)
-        .bind(ds.count() as i64)
-        .bind(blob)
-        .bind(now_rfc3339())
-        .bind(warnings)
-        .bind(lengths)
-        .fetch_one(&mut *tx)
-        .await?;
-        tx.commit().await?;
-        Ok((row(&r)?, true))
+            Ok((row(&r)?, true))
+        })
     }
 
     pub async fn get_dataset(&self, id: &str) -> Result<Option<DatasetRow>> {
-        let r = sqlx::query(sql("SELECT {COLUMNS} FROM datasets WHERE id = ?"))
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        r.as_ref().map(row).transpose()
+        on_db!(self, pool, D => {
+            let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM datasets WHERE id = $1"))
+                .bind(id)
+                .fetch_optional(pool)
+                .await?;
+            r.as_ref().map(row).transpose()
+        })
     }
 
     pub async fn load_dataset(&self, id: &str) -> Result<Option<Dataset>> {
-        let r = sqlx::query("SELECT n, m, dt, count, data FROM datasets WHERE id = ?")
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        let Some(r) = r else { return Ok(None) };
-        let (n, m, count): (i64, i64, i64) =
-            (r.try_get("n")?, r.try_get("m")?, r.try_get("count")?);
-        let blob: Vec<u8> = r.try_get("data")?;
-        decode(
-            &blob,
-            n as usize,
-            m as usize,
-            r.try_get("dt")?,
-            count as usize,
-        )
-        .map(Some)
+        on_db!(self, pool, D => {
+            let r = sqlx::query("SELECT n, m, dt, count, data FROM datasets WHERE id = $1")
+                .bind(id)
+                .fetch_optional(pool)
+                .await?;
+            let Some(r) = r else { return Ok(None) };
+            let (n, m, count): (i64, i64, i64) =
+                (r.try_get("n")?, r.try_get("m")?, r.try_get("count")?);
+            let blob: Vec<u8> = r.try_get("data")?;
+            decode(
+                &blob,
+                n as usize,
+                m as usize,
+                r.try_get("dt")?,
+                count as usize,
+            )
+            .map(Some)
+        })
     }
 
     /// The trajectory lengths a dataset was uploaded with: None when there is no such
     /// dataset, Some(None) when it was uploaded flat.
     pub async fn dataset_trajectories(&self, id: &str) -> Result<Option<Option<Vec<usize>>>> {
-        let r: Option<Option<String>> =
-            sqlx::query_scalar("SELECT trajectories FROM datasets WHERE id = ?")
-                .bind(id)
-                .fetch_optional(&self.pool)
-                .await?;
-        r.map(|t| {
-            t.map(|text| {
-                serde_json::from_str(&text)
-                    .map_err(|e| Error::corrupt("dataset", format!("trajectories: {e}")))
+        on_db!(self, pool, D => {
+            let r: Option<Option<String>> =
+                sqlx::query_scalar("SELECT trajectories FROM datasets WHERE id = $1")
+                    .bind(id)
+                    .fetch_optional(pool)
+                    .await?;
+            r.map(|t| {
+                t.map(|text| {
+                    serde_json::from_str(&text)
+                        .map_err(|e| Error::corrupt("dataset", format!("trajectories: {e}")))
+                })
+                .transpose()
             })
             .transpose()
         })
-        .transpose()
     }
 
     /// Newest first; `before` is the `seq` of the last row of the previous page.
     pub async fn list_datasets(&self, before: Option<i64>, limit: i64) -> Result<Vec<DatasetRow>> {
-        let rows = sqlx::query(sql(
-            "SELECT {COLUMNS} FROM datasets WHERE seq < ? ORDER BY seq DESC LIMIT ?",
-        ))
-        .bind(before.unwrap_or(i64::MAX))
-        .bind(limit)
-        .fetch_all(&self.pool)
-        .await?;
-        rows.iter().map(row).collect()
+        on_db!(self, pool, D => {
+            let rows = sqlx::query(sql::<D>(
+                "SELECT {COLUMNS} FROM datasets WHERE seq < $1 ORDER BY seq DESC LIMIT $2",
+            ))
+            .bind(before.unwrap_or(i64::MAX))
+            .bind(limit)
+            .fetch_all(pool)
+            .await?;
+            rows.iter().map(row).collect()
+        })
     }
 
     /// Deletes a dataset unless a queued or running job uses it.
     pub async fn delete_dataset(&self, id: &str) -> Result<()> {
-        let mut tx = self.write().await?;
-        let users: i64 = sqlx::query_scalar(
-            "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')
-             AND (dataset_id = ?1 OR validation_dataset_id = ?1)",
-        )
-        .bind(id)
-        .fetch_one(&mut *tx)
-        .await?;
-        if users > 0 {
-            return Err(Error::Conflict(format!(
-                "dataset {id} is used by {users} queued or running job(s)"
-            )));
-        }
-        let deleted = sqlx::query("DELETE FROM datasets WHERE id = ?")
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let users: i64 = sqlx::query_scalar(
+                "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')
+                 AND (dataset_id = $1 OR validation_dataset_id = $1)",
+            )
             .bind(id)
-            .execute(&mut *tx)
+            .fetch_one(&mut *tx)
             .await?;
-        if deleted.rows_affected() == 0 {
-            return Err(Error::NotFound(format!("dataset {id}")));
-        }
-        tx.commit().await?;
-        Ok(())
+            if users > 0 {
+                return Err(Error::Conflict(format!(
+                    "dataset {id} is used by {users} queued or running job(s)"
+                )));
+            }
+            let deleted = sqlx::query("DELETE FROM datasets WHERE id = $1")
+                .bind(id)
+                .execute(&mut *tx)
+                .await?;
+            if deleted.rows_affected() == 0 {
+                return Err(Error::NotFound(format!("dataset {id}")));
+            }
+            tx.commit().await?;
+            Ok(())
+        })
     }
 }
 
-fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
-    super::with_columns(s, COLUMNS)
+fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
+    super::dialect::sql::<D>(s, COLUMNS)
 }

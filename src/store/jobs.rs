@@ -5,7 +5,8 @@
 use sqlx::sqlite::SqliteRow;
 use sqlx::{FromRow, Row};
 
-use super::{Store, new_id, now_ms, now_rfc3339, sha256_hex};
+use super::dialect::{Dialect, begin_write};
+use super::{Store, new_id, now_rfc3339, sha256_hex};
 use crate::error::{Error, Result};
 use crate::records::JobState;
 use crate::records::{Job, Metric};
@@ -38,8 +39,8 @@ const COLUMNS: &str = "seq, id, state, epoch, epochs, checkpoint_epoch, train_lo
     attempt, error, model_id, dataset_id, validation_dataset_id, created_at, started_at, finished_at, \
     request, cancel_requested, warnings";
 
-pub(super) fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
-    super::with_columns(s, COLUMNS)
+pub(super) fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
+    super::dialect::sql::<D>(s, COLUMNS)
 }
 
 /// A job's row: its columns, then the two fields the stored request holds (`model`,
@@ -74,84 +75,88 @@ pub enum Submitted {
 
 impl Store {
     pub async fn submit_job(&self, new: NewJob) -> Result<Submitted> {
-        let request_sha = sha256_hex(new.request.as_bytes());
-        let mut tx = self.write().await?;
-        if let Some(key) = &new.idempotency_key {
-            let existing = sqlx::query(sql(
-                "SELECT {COLUMNS}, request_sha256 FROM jobs WHERE idempotency_key = ?",
-            ))
-            .bind(key)
-            .fetch_optional(&mut *tx)
-            .await?;
-            if let Some(r) = existing {
-                let sha: Option<String> = r.try_get("request_sha256")?;
-                tx.commit().await?;
-                if sha.as_deref() != Some(request_sha.as_str()) {
+        on_db!(self, pool, D => {
+            let request_sha = sha256_hex(new.request.as_bytes());
+            let mut tx = begin_write(pool).await?;
+            if let Some(key) = &new.idempotency_key {
+                let existing = sqlx::query(sql::<D>(
+                    "SELECT {COLUMNS}, request_sha256 FROM jobs WHERE idempotency_key = $1",
+                ))
+                .bind(key)
+                .fetch_optional(&mut *tx)
+                .await?;
+                if let Some(r) = existing {
+                    let sha: Option<String> = r.try_get("request_sha256")?;
+                    tx.commit().await?;
+                    if sha.as_deref() != Some(request_sha.as_str()) {
+                        return Err(Error::Unprocessable {
+                            field: "Idempotency-Key".into(),
+                            message: "this key was used with a different request".into(),
+                        });
+                    }
+                    return Ok(Submitted::Existing(row(&r)?));
+                }
+            }
+            // Inside the write transaction, so that a concurrent DELETE of a dataset either runs
+            // first (and this submission fails) or sees this job and refuses.
+            for (field, id) in [
+                ("dataset_id", Some(&new.dataset_id)),
+                ("validation_dataset_id", new.validation_dataset_id.as_ref()),
+            ] {
+                let Some(id) = id else { continue };
+                let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM datasets WHERE id = $1")
+                    .bind(id)
+                    .fetch_one(&mut *tx)
+                    .await?;
+                if found == 0 {
                     return Err(Error::Unprocessable {
-                        field: "Idempotency-Key".into(),
-                        message: "this key was used with a different request".into(),
+                        field: field.into(),
+                        message: format!("dataset {id} does not exist"),
                     });
                 }
-                return Ok(Submitted::Existing(row(&r)?));
             }
-        }
-        // Inside the write transaction, so that a concurrent DELETE of a dataset either runs
-        // first (and this submission fails) or sees this job and refuses.
-        for (field, id) in [
-            ("dataset_id", Some(&new.dataset_id)),
-            ("validation_dataset_id", new.validation_dataset_id.as_ref()),
-        ] {
-            let Some(id) = id else { continue };
-            let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM datasets WHERE id = ?")
-                .bind(id)
-                .fetch_one(&mut *tx)
-                .await?;
-            if found == 0 {
-                return Err(Error::Unprocessable {
-                    field: field.into(),
-                    message: format!("dataset {id} does not exist"),
-                });
+            // Likewise for the template against a concurrent DELETE of it.
+            if let Some(id) = &new.template_id {
+                let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM templates WHERE id = $1")
+                    .bind(id)
+                    .fetch_one(&mut *tx)
+                    .await?;
+                if found == 0 {
+                    return Err(Error::Unprocessable {
+                        field: "template".into(),
+                        message: format!("template {id} does not exist"),
+                    });
+                }
             }
-        }
-        // Likewise for the template against a concurrent DELETE of it.
-        if let Some(id) = &new.template_id {
-            let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM templates WHERE id = ?")
-                .bind(id)
-                .fetch_one(&mut *tx)
-                .await?;
-            if found == 0 {
-                return Err(Error::Unprocessable {
-                    field: "template".into(),
-                    message: format!("template {id} does not exist"),
-                });
-            }
-        }
-        let r = sqlx::query(sql(
-            "INSERT INTO jobs (id, state, dataset_id, validation_dataset_id, request, epochs,
-                               idempotency_key, request_sha256, created_at, template_id)
-             VALUES (?, 'queued', ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
-        ))
-        .bind(new_id("job"))
-        .bind(&new.dataset_id)
-        .bind(&new.validation_dataset_id)
-        .bind(&new.request)
-        .bind(new.epochs)
-        .bind(&new.idempotency_key)
-        .bind(&request_sha)
-        .bind(now_rfc3339())
-        .bind(&new.template_id)
-        .fetch_one(&mut *tx)
-        .await?;
-        tx.commit().await?;
-        Ok(Submitted::Created(row(&r)?))
+            let r = sqlx::query(sql::<D>(
+                "INSERT INTO jobs (id, state, dataset_id, validation_dataset_id, request, epochs,
+                                   idempotency_key, request_sha256, created_at, template_id)
+                 VALUES ($1, 'queued', $2, $3, $4, $5, $6, $7, $8, $9) RETURNING {COLUMNS}",
+            ))
+            .bind(new_id("job"))
+            .bind(&new.dataset_id)
+            .bind(&new.validation_dataset_id)
+            .bind(&new.request)
+            .bind(new.epochs)
+            .bind(&new.idempotency_key)
+            .bind(&request_sha)
+            .bind(now_rfc3339())
+            .bind(&new.template_id)
+            .fetch_one(&mut *tx)
+            .await?;
+            tx.commit().await?;
+            Ok(Submitted::Created(row(&r)?))
+        })
     }
 
     pub async fn get_job(&self, id: &str) -> Result<Option<JobRow>> {
-        let r = sqlx::query(sql("SELECT {COLUMNS} FROM jobs WHERE id = ?"))
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        r.as_ref().map(row).transpose()
+        on_db!(self, pool, D => {
+            let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM jobs WHERE id = $1"))
+                .bind(id)
+                .fetch_optional(pool)
+                .await?;
+            r.as_ref().map(row).transpose()
+        })
     }
 
     /// Oldest first; `after` is the `seq` of the last row of the previous page.
@@ -161,90 +166,101 @@ impl Store {
         after: Option<i64>,
         limit: i64,
     ) -> Result<Vec<JobRow>> {
-        let rows = sqlx::query(sql(
-            "SELECT {COLUMNS} FROM jobs WHERE seq > ?1 AND (?2 IS NULL OR state = ?2) ORDER BY seq LIMIT ?3",
-        ))
-        .bind(after.unwrap_or(0))
-        .bind(state.map(JobState::as_str))
-        .bind(limit)
-        .fetch_all(&self.pool)
-        .await?;
-        rows.iter().map(row).collect()
+        on_db!(self, pool, D => {
+            let rows = sqlx::query(sql::<D>(
+                "SELECT {COLUMNS} FROM jobs WHERE seq > $1 AND ($2 IS NULL OR state = $2) ORDER BY seq LIMIT $3",
+            ))
+            .bind(after.unwrap_or(0))
+            .bind(state.map(JobState::as_str))
+            .bind(limit)
+            .fetch_all(pool)
+            .await?;
+            rows.iter().map(row).collect()
+        })
     }
 
     /// The newest job's `seq` (0 with none).
     pub async fn max_job_seq(&self) -> Result<i64> {
-        let seq: Option<i64> = sqlx::query_scalar("SELECT MAX(seq) FROM jobs")
-            .fetch_one(&self.pool)
-            .await?;
-        Ok(seq.unwrap_or(0))
+        on_db!(self, pool, D => {
+            let seq: Option<i64> = sqlx::query_scalar("SELECT MAX(seq) FROM jobs")
+                .fetch_one(pool)
+                .await?;
+            Ok(seq.unwrap_or(0))
+        })
     }
 
     /// What a watcher of every job reads each poll: the jobs submitted after `after` and
     /// every queued or running one.
     pub async fn watched_jobs(&self, after: i64) -> Result<Vec<JobRow>> {
-        let rows = sqlx::query(sql(
-            "SELECT {COLUMNS} FROM jobs WHERE seq > ?1 OR state IN ('queued', 'running') ORDER BY seq",
-        ))
-        .bind(after)
-        .fetch_all(&self.pool)
-        .await?;
-        rows.iter().map(row).collect()
+        on_db!(self, pool, D => {
+            let rows = sqlx::query(sql::<D>(
+                "SELECT {COLUMNS} FROM jobs WHERE seq > $1 OR state IN ('queued', 'running') ORDER BY seq",
+            ))
+            .bind(after)
+            .fetch_all(pool)
+            .await?;
+            rows.iter().map(row).collect()
+        })
     }
 
     /// Queued, or running with an expired lease (its worker died) → cancelled at once; running
     /// → the cancel flag, which the worker sees at its next heartbeat. A finished job is a
     /// conflict.
     pub async fn cancel_job(&self, id: &str) -> Result<JobRow> {
-        let mut tx = self.write().await?;
-        let r = sqlx::query(sql("UPDATE jobs SET
-                state = CASE WHEN state = 'queued' OR (state = 'running' AND lease_expires_ms < ?3)
-                             THEN 'cancelled' ELSE state END,
-                finished_at = CASE WHEN state = 'queued' OR (state = 'running' AND lease_expires_ms < ?3)
-                             THEN ?2 ELSE finished_at END,
-                cancel_requested = CASE state WHEN 'running' THEN 1 ELSE cancel_requested END
-             WHERE id = ?1 RETURNING {COLUMNS}"))
-        .bind(id)
-        .bind(now_rfc3339())
-        .bind(now_ms())
-        .fetch_optional(&mut *tx)
-        .await?;
-        tx.commit().await?;
-        let job = r
-            .as_ref()
-            .map(row)
-            .transpose()?
-            .ok_or_else(|| Error::NotFound(format!("job {id}")))?;
-        match job.state {
-            JobState::Succeeded | JobState::Failed => Err(Error::Conflict(format!(
-                "job {id} already {}",
-                job.state.as_str()
-            ))),
-            _ => Ok(job),
-        }
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let r = sqlx::query(sql::<D>("UPDATE jobs SET
+                    state = CASE WHEN state = 'queued' OR (state = 'running' AND lease_expires_ms < {NOW_MS})
+                                 THEN 'cancelled' ELSE state END,
+                    finished_at = CASE WHEN state = 'queued' OR (state = 'running' AND lease_expires_ms < {NOW_MS})
+                                 THEN $2 ELSE finished_at END,
+                    cancel_requested = CASE state WHEN 'running' THEN 1 ELSE cancel_requested END
+                 WHERE id = $1 RETURNING {COLUMNS}"))
+            .bind(id)
+            .bind(now_rfc3339())
+            .fetch_optional(&mut *tx)
+            .await?;
+            tx.commit().await?;
+            let job = r
+                .as_ref()
+                .map(row)
+                .transpose()?
+                .ok_or_else(|| Error::NotFound(format!("job {id}")))?;
+            match job.state {
+                JobState::Succeeded | JobState::Failed => Err(Error::Conflict(format!(
+                    "job {id} already {}",
+                    job.state.as_str()
+                ))),
+                _ => Ok(job),
+            }
+        })
     }
 
     pub async fn metrics(&self, job_id: &str, after_epoch: i64) -> Result<Vec<Metric>> {
-        Ok(sqlx::query_as(
-            "SELECT epoch, train_loss, val_loss, seconds FROM metrics WHERE job_id = ? AND epoch > ? ORDER BY epoch",
-        )
-        .bind(job_id)
-        .bind(after_epoch)
-        .fetch_all(&self.pool)
-        .await?)
+        on_db!(self, pool, D => {
+            Ok(sqlx::query_as(
+                "SELECT epoch, train_loss, val_loss, seconds FROM metrics WHERE job_id = $1 AND epoch > $2 ORDER BY epoch",
+            )
+            .bind(job_id)
+            .bind(after_epoch)
+            .fetch_all(pool)
+            .await?)
+        })
     }
 
     pub async fn job_counts(&self) -> Result<Vec<(JobState, i64)>> {
-        let rows = sqlx::query("SELECT state, COUNT(*) AS c FROM jobs GROUP BY state")
-            .fetch_all(&self.pool)
-            .await?;
-        let mut out: Vec<(JobState, i64)> = JobState::ALL.iter().map(|s| (*s, 0)).collect();
-        for r in rows {
-            let s: String = r.try_get("state")?;
-            if let Some(slot) = out.iter_mut().find(|(st, _)| st.as_str() == s) {
-                slot.1 = r.try_get("c")?;
+        on_db!(self, pool, D => {
+            let rows = sqlx::query("SELECT state, COUNT(*) AS c FROM jobs GROUP BY state")
+                .fetch_all(pool)
+                .await?;
+            let mut out: Vec<(JobState, i64)> = JobState::ALL.iter().map(|s| (*s, 0)).collect();
+            for r in rows {
+                let s: String = r.try_get("state")?;
+                if let Some(slot) = out.iter_mut().find(|(st, _)| st.as_str() == s) {
+                    slot.1 = r.try_get("c")?;
+                }
             }
-        }
-        Ok(out)
+            Ok(out)
+        })
     }
 }

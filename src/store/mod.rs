@@ -2,6 +2,9 @@
 //! `BEGIN IMMEDIATE` for every write transaction, so that concurrent writers queue on the lock
 //! instead of failing with SQLITE_BUSY. Queries are checked at run time (no offline data).
 
+// First: its `on_db!` is used by every module after it.
+#[macro_use]
+mod dialect;
 mod datasets;
 mod jobs;
 mod models;
@@ -17,17 +20,15 @@ pub use templates::{NewTemplate, TemplateRow};
 use std::str::FromStr;
 use std::time::Duration;
 
-use sqlx::sqlite::{
-    SqliteConnectOptions, SqliteJournalMode, SqlitePool, SqlitePoolOptions, SqliteRow,
-    SqliteSynchronous,
-};
-use sqlx::{Sqlite, Transaction};
+use sqlx::sqlite::{SqliteConnectOptions, SqliteJournalMode, SqlitePoolOptions, SqliteSynchronous};
+
+use dialect::Db;
 
 use crate::error::{Error, Result};
 
 #[derive(Debug, Clone)]
 pub struct Store {
-    pool: SqlitePool,
+    db: Db,
 }
 
 impl From<sqlx::Error> for Error {
@@ -46,10 +47,6 @@ pub fn now_rfc3339() -> String {
     chrono::Utc::now().to_rfc3339_opts(chrono::SecondsFormat::Millis, true)
 }
 
-pub fn now_ms() -> i64 {
-    chrono::Utc::now().timestamp_millis()
-}
-
 pub fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::Digest;
     hex::encode(sha2::Sha256::digest(bytes))
@@ -63,35 +60,24 @@ pub fn verified(bytes: Vec<u8>, sha256: &str, what: &str, id: &str) -> Result<Ve
     Ok(bytes)
 }
 
-/// `sql` with its `{COLUMNS}` placeholder filled in by a table's column list: the SQL stays
-/// static and parameterized (no value is ever formatted into it).
-fn with_columns(sql: &'static str, columns: &'static str) -> sqlx::AssertSqlSafe<String> {
-    sqlx::AssertSqlSafe(sql.replace("{COLUMNS}", columns))
-}
-
 /// Bytes a page of a list may carry: rows whose documents are large (a model's spec embeds
 /// its template, up to `--max-template-mb`) fill a page before its count does.
 pub const PAGE_BYTES: i64 = 8 << 20;
 
-/// How many of the next `limit` rows of `table` (newest first, `seq < before`) fit in
-/// [`PAGE_BYTES`] by the byte length `size` (an SQL expression) of each, at least one; and
-/// whether rows remain after them. Reads only the lengths.
-async fn fitting(
-    pool: &sqlx::SqlitePool,
-    table: &'static str,
-    size: &'static str,
-    before: i64,
-    limit: i64,
-) -> Result<(i64, bool)> {
-    let sql = format!("SELECT {size} FROM {table} WHERE seq < ? ORDER BY seq DESC LIMIT ?");
-    let sizes: Vec<i64> = sqlx::query_scalar(sqlx::AssertSqlSafe(sql))
-        .bind(before)
-        .bind(limit)
-        .fetch_all(pool)
-        .await?;
+/// The byte lengths `size` (an SQL expression) of the next `limit` rows of `table`, newest
+/// first after `seq` `$1` (`LIMIT $2`): what [`fitting`] pages by.
+fn sizes_sql(table: &'static str, size: &'static str) -> sqlx::AssertSqlSafe<String> {
+    sqlx::AssertSqlSafe(format!(
+        "SELECT {size} FROM {table} WHERE seq < $1 ORDER BY seq DESC LIMIT $2"
+    ))
+}
+
+/// How many of the next `limit` rows, of these byte lengths ([`sizes_sql`]), fit in
+/// [`PAGE_BYTES`], at least one; and whether rows remain after them.
+fn fitting(sizes: &[i64], limit: i64) -> (i64, bool) {
     let mut total = 0i64;
     let mut fit = 0i64;
-    for s in &sizes {
+    for s in sizes {
         if fit > 0 && total.saturating_add(*s) > PAGE_BYTES {
             break;
         }
@@ -99,11 +85,11 @@ async fn fitting(
         fit += 1;
     }
     let more = (fit as usize) < sizes.len() || sizes.len() as i64 == limit;
-    Ok((fit, more))
+    (fit, more)
 }
 
 /// A row as its record (`#[derive(sqlx::FromRow)]`).
-fn row<T: for<'r> sqlx::FromRow<'r, SqliteRow>>(r: &SqliteRow) -> Result<T> {
+fn row<R: sqlx::Row, T: for<'r> sqlx::FromRow<'r, R>>(r: &R) -> Result<T> {
     Ok(T::from_row(r)?)
 }
 
@@ -156,17 +142,15 @@ impl Store {
         let migrated = sqlx::migrate!("./migrations/sqlite").run(&pool).await;
         drop(lock);
         migrated?;
-        Ok(Self { pool })
-    }
-
-    /// A write transaction that takes the write lock up front: a deferred transaction that
-    /// reads and then writes fails with SQLITE_BUSY instead of waiting.
-    async fn write(&self) -> Result<Transaction<'static, Sqlite>> {
-        Ok(self.pool.begin_with("BEGIN IMMEDIATE").await?)
+        Ok(Self {
+            db: Db::Sqlite(pool),
+        })
     }
 
     pub async fn ping(&self) -> Result<()> {
-        sqlx::query("SELECT 1").execute(&self.pool).await?;
+        on_db!(self, pool, D => {
+            sqlx::query("SELECT 1").execute(pool).await?;
+        });
         Ok(())
     }
 }

@@ -2,9 +2,10 @@
 //! file uploaded as it is.
 
 use serde::Serialize;
-use sqlx::{Row, Sqlite, Transaction};
+use sqlx::Row;
 
-use super::queue::{Claimed, FENCE, fenced};
+use super::dialect::{Dialect, begin_write};
+use super::queue::{Claimed, fence, fenced};
 use super::{Store, new_id, now_rfc3339, row, sha256_hex, verified};
 use crate::error::{Error, Result};
 
@@ -30,8 +31,8 @@ pub struct ModelRow {
 
 const COLUMNS: &str = "seq, id, job_id, origin, name, n, m, dt, spec, report, sha256, created_at";
 
-fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
-    super::with_columns(s, COLUMNS)
+fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
+    super::dialect::sql::<D>(s, COLUMNS)
 }
 
 /// A model's record and file, as `finish_job` (trained) and `insert_model` (uploaded) store it.
@@ -47,38 +48,37 @@ pub struct NewModel<'a> {
     pub file: &'a [u8],
 }
 
-/// Inserts a model in `tx`: trained when it has a job, uploaded when not.
-async fn insert_row(
-    tx: &mut Transaction<'static, Sqlite>,
-    id: &str,
-    job_id: Option<&str>,
-    m: &NewModel<'_>,
-) -> Result<ModelRow> {
-    let origin = if job_id.is_some() {
-        "trained"
-    } else {
-        "uploaded"
-    };
-    let r = sqlx::query(sql(
-        "INSERT INTO models (id, job_id, origin, name, n, m, dt, spec, report, file, sha256,
-             created_at)
-         VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
-    ))
-    .bind(id)
-    .bind(job_id)
-    .bind(origin)
-    .bind(m.name)
-    .bind(m.n)
-    .bind(m.m)
-    .bind(m.dt)
-    .bind(m.spec)
-    .bind(m.report)
-    .bind(m.file)
-    .bind(sha256_hex(m.file))
-    .bind(now_rfc3339())
-    .fetch_one(&mut **tx)
-    .await?;
-    row(&r)
+/// Inserts a model in the transaction `$tx` of database `$D`: trained when it has a job,
+/// uploaded when not; the stored row. (A macro: it runs in either backend's transaction.)
+macro_rules! insert_row {
+    ($D:ty, $tx:expr, $id:expr, $job_id:expr, $m:expr) => {{
+        let (id, job_id, m): (&str, Option<&str>, &NewModel<'_>) = ($id, $job_id, $m);
+        let origin = if job_id.is_some() {
+            "trained"
+        } else {
+            "uploaded"
+        };
+        let r = sqlx::query(sql::<$D>(
+            "INSERT INTO models (id, job_id, origin, name, n, m, dt, spec, report, file, sha256,
+                 created_at)
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12) RETURNING {COLUMNS}",
+        ))
+        .bind(id)
+        .bind(job_id)
+        .bind(origin)
+        .bind(m.name)
+        .bind(m.n)
+        .bind(m.m)
+        .bind(m.dt)
+        .bind(m.spec)
+        .bind(m.report)
+        .bind(m.file)
+        .bind(sha256_hex(m.file))
+        .bind(now_rfc3339())
+        .fetch_one(&mut *$tx)
+        .await?;
+        row::<_, ModelRow>(&r)
+    }};
 }
 
 impl Store {
@@ -91,65 +91,74 @@ impl Store {
         m: NewModel<'_>,
         warnings: &str,
     ) -> Result<Option<String>> {
-        let mut tx = self.write().await?;
-        let model_id = new_id("mdl");
-        let updated = fenced(
-            sqlx::query(sqlx::AssertSqlSafe(format!(
-                "UPDATE jobs SET state = 'succeeded', model_id = ?, finished_at = ?, warnings = ?,
-                    lease_owner = NULL, lease_expires_ms = NULL WHERE {FENCE}"
-            )))
-            .bind(&model_id)
-            .bind(now_rfc3339())
-            .bind(warnings),
-            c,
-        )
-        .execute(&mut *tx)
-        .await?;
-        if updated.rows_affected() == 0 {
-            return Ok(None);
-        }
-        insert_row(&mut tx, &model_id, Some(&c.job.id), &m).await?;
-        tx.commit().await?;
-        Ok(Some(model_id))
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let model_id = new_id("mdl");
+            let updated = fenced(
+                sqlx::query(sqlx::AssertSqlSafe(format!(
+                    "UPDATE jobs SET state = 'succeeded', model_id = $1, finished_at = $2, warnings = $3,
+                        lease_owner = NULL, lease_expires_ms = NULL WHERE {}",
+                    fence(3)
+                )))
+                .bind(&model_id)
+                .bind(now_rfc3339())
+                .bind(warnings),
+                c,
+            )
+            .execute(&mut *tx)
+            .await?;
+            if updated.rows_affected() == 0 {
+                return Ok(None);
+            }
+            insert_row!(D, tx, &model_id, Some(&c.job.id), &m)?;
+            tx.commit().await?;
+            Ok(Some(model_id))
+        })
     }
 
     /// Stores an uploaded model unless the same file is stored already; the row and whether
     /// it was created.
     pub async fn insert_model(&self, m: NewModel<'_>) -> Result<(ModelRow, bool)> {
-        let sha = sha256_hex(m.file);
-        let mut tx = self.write().await?;
-        let existing = sqlx::query(sql(
-            "SELECT {COLUMNS} FROM models WHERE origin = 'uploaded' AND sha256 = ?",
-        ))
-        .bind(&sha)
-        .fetch_optional(&mut *tx)
-        .await?;
-        if let Some(r) = existing {
+        on_db!(self, pool, D => {
+            let sha = sha256_hex(m.file);
+            let mut tx = begin_write(pool).await?;
+            let existing = sqlx::query(sql::<D>(
+                "SELECT {COLUMNS} FROM models WHERE origin = 'uploaded' AND sha256 = $1",
+            ))
+            .bind(&sha)
+            .fetch_optional(&mut *tx)
+            .await?;
+            if let Some(r) = existing {
+                tx.commit().await?;
+                return Ok((row(&r)?, false));
+            }
+            let stored = insert_row!(D, tx, &new_id("mdl"), None, &m)?;
             tx.commit().await?;
-            return Ok((row(&r)?, false));
-        }
-        let stored = insert_row(&mut tx, &new_id("mdl"), None, &m).await?;
-        tx.commit().await?;
-        Ok((stored, true))
+            Ok((stored, true))
+        })
     }
 
     pub async fn get_model(&self, id: &str) -> Result<Option<ModelRow>> {
-        let r = sqlx::query(sql("SELECT {COLUMNS} FROM models WHERE id = ?"))
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        r.as_ref().map(row).transpose()
+        on_db!(self, pool, D => {
+            let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM models WHERE id = $1"))
+                .bind(id)
+                .fetch_optional(pool)
+                .await?;
+            r.as_ref().map(row).transpose()
+        })
     }
 
     /// The model file (`.gbx` bytes), verified against its checksum.
     pub async fn model_file(&self, id: &str) -> Result<Option<Vec<u8>>> {
-        let r = sqlx::query("SELECT file, sha256 FROM models WHERE id = ?")
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        let Some(r) = r else { return Ok(None) };
-        let sha: String = r.try_get("sha256")?;
-        Ok(Some(verified(r.try_get("file")?, &sha, "model file", id)?))
+        on_db!(self, pool, D => {
+            let r = sqlx::query("SELECT file, sha256 FROM models WHERE id = $1")
+                .bind(id)
+                .fetch_optional(pool)
+                .await?;
+            let Some(r) = r else { return Ok(None) };
+            let sha: String = r.try_get("sha256")?;
+            Ok(Some(verified(r.try_get("file")?, &sha, "model file", id)?))
+        })
     }
 
     /// Newest first.
@@ -160,17 +169,24 @@ impl Store {
         before: Option<i64>,
         limit: i64,
     ) -> Result<(Vec<ModelRow>, bool)> {
-        let before = before.unwrap_or(i64::MAX);
-        let size = "length(spec) + coalesce(length(report), 0)";
-        let (fit, more) = super::fitting(&self.pool, "models", size, before, limit).await?;
-        let rows = sqlx::query(sql(
-            "SELECT {COLUMNS} FROM models WHERE seq < ? ORDER BY seq DESC LIMIT ?",
-        ))
-        .bind(before)
-        .bind(fit)
-        .fetch_all(&self.pool)
-        .await?;
-        Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
+        on_db!(self, pool, D => {
+            let before = before.unwrap_or(i64::MAX);
+            let size = "length(spec) + coalesce(length(report), 0)";
+            let sizes: Vec<i64> = sqlx::query_scalar(super::sizes_sql("models", size))
+                .bind(before)
+                .bind(limit)
+                .fetch_all(pool)
+                .await?;
+            let (fit, more) = super::fitting(&sizes, limit);
+            let rows = sqlx::query(sql::<D>(
+                "SELECT {COLUMNS} FROM models WHERE seq < $1 ORDER BY seq DESC LIMIT $2",
+            ))
+            .bind(before)
+            .bind(fit)
+            .fetch_all(pool)
+            .await?;
+            Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
+        })
     }
 
     /// Which of `ids` are still stored.
@@ -178,29 +194,34 @@ impl Store {
         &self,
         ids: &[String],
     ) -> Result<std::collections::HashSet<String>> {
-        let mut found = std::collections::HashSet::new();
-        for chunk in ids.chunks(500) {
-            let marks = vec!["?"; chunk.len()].join(", ");
-            let sql = format!("SELECT id FROM models WHERE id IN ({marks})");
-            let mut q = sqlx::query_scalar::<_, String>(sqlx::AssertSqlSafe(sql));
-            for id in chunk {
-                q = q.bind(id);
+        on_db!(self, pool, D => {
+            let mut found = std::collections::HashSet::new();
+            for chunk in ids.chunks(500) {
+                let marks: Vec<String> = (1..=chunk.len()).map(|i| format!("${i}")).collect();
+                let marks = marks.join(", ");
+                let sql = format!("SELECT id FROM models WHERE id IN ({marks})");
+                let mut q = sqlx::query_scalar::<_, String>(sqlx::AssertSqlSafe(sql));
+                for id in chunk {
+                    q = q.bind(id);
+                }
+                found.extend(q.fetch_all(pool).await?);
             }
-            found.extend(q.fetch_all(&self.pool).await?);
-        }
-        Ok(found)
+            Ok(found)
+        })
     }
 
     pub async fn delete_model(&self, id: &str) -> Result<()> {
-        let mut tx = self.write().await?;
-        let r = sqlx::query("DELETE FROM models WHERE id = ?")
-            .bind(id)
-            .execute(&mut *tx)
-            .await?;
-        if r.rows_affected() == 0 {
-            return Err(Error::NotFound(format!("model {id}")));
-        }
-        tx.commit().await?;
-        Ok(())
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let r = sqlx::query("DELETE FROM models WHERE id = $1")
+                .bind(id)
+                .execute(&mut *tx)
+                .await?;
+            if r.rows_affected() == 0 {
+                return Err(Error::NotFound(format!("model {id}")));
+            }
+            tx.commit().await?;
+            Ok(())
+        })
     }
 }

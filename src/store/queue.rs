@@ -3,8 +3,9 @@
 
 use sqlx::Row;
 
+use super::dialect::{begin_write, owned_sql};
 use super::jobs::{JobRow, row, sql};
-use super::{Store, now_ms, now_rfc3339, sha256_hex, verified};
+use super::{Store, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
 use crate::records::JobState;
 use crate::records::Metric;
@@ -28,14 +29,27 @@ pub enum Lease {
 }
 
 /// Every worker write names the job, the attempt and the owner it claimed with: a worker whose
-/// lease expired (and whose job was reclaimed) can no longer write. Bind with [`fenced`].
-pub(super) const FENCE: &str = "id = ? AND attempt = ? AND lease_owner = ? AND state = 'running'";
+/// lease expired (and whose job was reclaimed) can no longer write. The condition, with its
+/// parameters numbered after a statement's own `own`; bind them last, with [`fenced`].
+pub(super) fn fence(own: usize) -> String {
+    let p = |k: usize| own + k;
+    format!(
+        "id = ${} AND attempt = ${} AND lease_owner = ${} AND state = 'running'",
+        p(1),
+        p(2),
+        p(3)
+    )
+}
 
-pub(super) type SqliteQuery<'q> =
-    sqlx::query::Query<'q, sqlx::Sqlite, <sqlx::Sqlite as sqlx::Database>::Arguments>;
-
-/// Binds the [`FENCE`] parameters after the statement's own.
-pub(super) fn fenced<'q>(q: SqliteQuery<'q>, c: &Claimed) -> SqliteQuery<'q> {
+/// Binds the [`fence`]'s parameters after the statement's own.
+pub(super) fn fenced<'q, D: sqlx::Database>(
+    q: sqlx::query::Query<'q, D, D::Arguments>,
+    c: &Claimed,
+) -> sqlx::query::Query<'q, D, D::Arguments>
+where
+    for<'t> String: sqlx::Encode<'t, D> + sqlx::Type<D>,
+    for<'t> i64: sqlx::Encode<'t, D> + sqlx::Type<D>,
+{
     q.bind(c.job.id.clone())
         .bind(c.attempt)
         .bind(c.owner.clone())
@@ -60,82 +74,80 @@ fn too_big(e: sqlx::Error, len: usize) -> Error {
 impl Store {
     /// Claims the oldest queued job, or a running one whose lease expired (its worker died:
     /// counted), in one transaction. An expired job that was asked to cancel is cancelled, and
-    /// one whose worker died `max_attempts` times fails, instead of running again.
+    /// one whose worker died `max_attempts` times fails, instead of running again. Leases are
+    /// stamped and compared on the database's clock.
     pub async fn claim_job(
         &self,
         owner: &str,
         lease_ms: i64,
         max_attempts: i64,
     ) -> Result<Option<Claimed>> {
-        let now = now_ms();
-        let mut tx = self.write().await?;
-        const EXPIRED: &str = "state = 'running' AND lease_expires_ms < ?1";
-        sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE jobs SET state = 'cancelled', finished_at = ?2, lease_owner = NULL,
-                lease_expires_ms = NULL WHERE {EXPIRED} AND cancel_requested = 1"
-        )))
-        .bind(now)
-        .bind(now_rfc3339())
-        .execute(&mut *tx)
-        .await?;
-        sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE jobs SET state = 'failed', worker_deaths = worker_deaths + 1,
-                error = 'the worker died ' || (worker_deaths + 1) || ' times running this job',
-                finished_at = ?2, lease_owner = NULL, lease_expires_ms = NULL
-             WHERE {EXPIRED} AND worker_deaths + 1 >= ?3"
-        )))
-        .bind(now)
-        .bind(now_rfc3339())
-        .bind(max_attempts)
-        .execute(&mut *tx)
-        .await?;
-        let r = sqlx::query(sql(
-            "UPDATE jobs SET state = 'running', attempt = attempt + 1, lease_owner = ?1,
-                worker_deaths = worker_deaths + (state = 'running'),
-                lease_expires_ms = ?2 + ?3, heartbeat_ms = ?2, started_at = COALESCE(started_at, ?4)
-             WHERE id = (SELECT id FROM jobs
-                         WHERE state = 'queued' OR (state = 'running' AND lease_expires_ms < ?2)
-                         ORDER BY seq LIMIT 1)
-             RETURNING {COLUMNS}",
-        ))
-        .bind(owner)
-        .bind(now)
-        .bind(lease_ms)
-        .bind(now_rfc3339())
-        .fetch_optional(&mut *tx)
-        .await?;
-        tx.commit().await?;
-        Ok(match r {
-            Some(r) => {
-                let job = row(&r)?;
-                Some(Claimed {
-                    attempt: job.attempt,
-                    owner: owner.to_string(),
-                    job,
-                })
-            }
-            None => None,
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            sqlx::query(sql::<D>(
+                "UPDATE jobs SET state = 'cancelled', finished_at = $1, lease_owner = NULL,
+                    lease_expires_ms = NULL WHERE state = 'running' AND lease_expires_ms < {NOW_MS} AND cancel_requested = 1",
+            ))
+            .bind(now_rfc3339())
+            .execute(&mut *tx)
+            .await?;
+            sqlx::query(sql::<D>(
+                "UPDATE jobs SET state = 'failed', worker_deaths = worker_deaths + 1,
+                    error = 'the worker died ' || (worker_deaths + 1) || ' times running this job',
+                    finished_at = $1, lease_owner = NULL, lease_expires_ms = NULL
+                 WHERE state = 'running' AND lease_expires_ms < {NOW_MS}
+                    AND worker_deaths + 1 >= $2",
+            ))
+            .bind(now_rfc3339())
+            .bind(max_attempts)
+            .execute(&mut *tx)
+            .await?;
+            let r = sqlx::query(sql::<D>(
+                "UPDATE jobs SET state = 'running', attempt = attempt + 1, lease_owner = $1,
+                    worker_deaths = worker_deaths + CASE WHEN state = 'running' THEN 1 ELSE 0 END,
+                    lease_expires_ms = {NOW_MS} + $2, heartbeat_ms = {NOW_MS},
+                    started_at = COALESCE(started_at, $3)
+                 WHERE id = (SELECT id FROM jobs WHERE state = 'queued'
+                                OR (state = 'running' AND lease_expires_ms < {NOW_MS})
+                             ORDER BY seq LIMIT 1)
+                 RETURNING {COLUMNS}",
+            ))
+            .bind(owner)
+            .bind(lease_ms)
+            .bind(now_rfc3339())
+            .fetch_optional(&mut *tx)
+            .await?;
+            tx.commit().await?;
+            Ok(match r {
+                Some(r) => {
+                    let job = row(&r)?;
+                    Some(Claimed {
+                        attempt: job.attempt,
+                        owner: owner.to_string(),
+                        job,
+                    })
+                }
+                None => None,
+            })
         })
     }
 
     pub async fn heartbeat(&self, c: &Claimed, lease_ms: i64) -> Result<Lease> {
-        let now = now_ms();
-        let r = fenced(
-        sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE jobs SET lease_expires_ms = ? + ?, heartbeat_ms = ? WHERE {FENCE} RETURNING cancel_requested"
-        )))
-        .bind(now)
-        .bind(lease_ms)
-        .bind(now),
-        c,
-    )
-        .fetch_optional(&self.pool)
-        .await?;
-        Ok(match r {
-            Some(r) => Lease::Held {
-                cancel_requested: r.try_get::<i64, _>("cancel_requested")? != 0,
-            },
-            None => Lease::Lost,
+        on_db!(self, pool, D => {
+            let text = format!(
+                "UPDATE jobs SET lease_expires_ms = {{NOW_MS}} + $1, heartbeat_ms = {{NOW_MS}}
+                 WHERE {} RETURNING cancel_requested",
+                fence(1)
+            );
+            let r = fenced(sqlx::query(owned_sql::<D>(text)).bind(lease_ms), c)
+                .fetch_optional(pool)
+                .await?;
+            Ok(match r {
+                Some(r) => Lease::Held {
+                    cancel_requested: r.try_get::<i64, _>("cancel_requested")? != 0,
+                },
+                None => Lease::Lost,
+            })
         })
     }
 
@@ -147,116 +159,127 @@ impl Store {
         m: &Metric,
         best_val_loss: Option<f64>,
     ) -> Result<bool> {
-        let mut tx = self.write().await?;
-        let updated = fenced(
-        sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE jobs SET epoch = ?, train_loss = ?, val_loss = ?, best_val_loss = ? WHERE {FENCE}"
-        )))
-        .bind(m.epoch)
-        .bind(m.train_loss)
-        .bind(m.val_loss)
-        .bind(best_val_loss),
-        c,
-    )
-        .execute(&mut *tx)
-        .await?;
-        if updated.rows_affected() == 0 {
-            return Ok(false);
-        }
-        sqlx::query(
-            "INSERT INTO metrics (job_id, epoch, train_loss, val_loss, seconds) VALUES (?, ?, ?, ?, ?)
-             ON CONFLICT (job_id, epoch) DO UPDATE SET
-                train_loss = excluded.train_loss, val_loss = excluded.val_loss, seconds = excluded.seconds",
-        )
-        .bind(&c.job.id)
-        .bind(m.epoch)
-        .bind(m.train_loss)
-        .bind(m.val_loss)
-        .bind(m.seconds)
-        .execute(&mut *tx)
-        .await?;
-        tx.commit().await?;
-        Ok(true)
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let text = format!(
+                "UPDATE jobs SET epoch = $1, train_loss = $2, val_loss = $3, best_val_loss = $4
+                 WHERE {}",
+                fence(4)
+            );
+            let updated = fenced(
+                sqlx::query(owned_sql::<D>(text))
+                    .bind(m.epoch)
+                    .bind(m.train_loss)
+                    .bind(m.val_loss)
+                    .bind(best_val_loss),
+                c,
+            )
+            .execute(&mut *tx)
+            .await?;
+            if updated.rows_affected() == 0 {
+                return Ok(false);
+            }
+            sqlx::query(
+                "INSERT INTO metrics (job_id, epoch, train_loss, val_loss, seconds)
+                 VALUES ($1, $2, $3, $4, $5)
+                 ON CONFLICT (job_id, epoch) DO UPDATE SET train_loss = excluded.train_loss,
+                    val_loss = excluded.val_loss, seconds = excluded.seconds",
+            )
+            .bind(&c.job.id)
+            .bind(m.epoch)
+            .bind(m.train_loss)
+            .bind(m.val_loss)
+            .bind(m.seconds)
+            .execute(&mut *tx)
+            .await?;
+            tx.commit().await?;
+            Ok(true)
+        })
     }
 
     /// Replaces the job's checkpoint atomically (inside the transaction, so a crash leaves the
     /// previous one); false when the lease was lost.
     pub async fn save_checkpoint(&self, c: &Claimed, epoch: i64, state: &[u8]) -> Result<bool> {
-        let mut tx = self.write().await?;
-        let updated = fenced(
-            sqlx::query(sqlx::AssertSqlSafe(format!(
-                "UPDATE jobs SET checkpoint_epoch = ? WHERE {FENCE}"
-            )))
-            .bind(epoch),
-            c,
-        )
-        .execute(&mut *tx)
-        .await?;
-        if updated.rows_affected() == 0 {
-            return Ok(false);
-        }
-        sqlx::query(
-            "INSERT INTO checkpoints (job_id, epoch, attempt, state, sha256, created_at) VALUES (?, ?, ?, ?, ?, ?)
-             ON CONFLICT (job_id) DO UPDATE SET epoch = excluded.epoch, attempt = excluded.attempt,
-                state = excluded.state, sha256 = excluded.sha256, created_at = excluded.created_at",
-        )
-        .bind(&c.job.id)
-        .bind(epoch)
-        .bind(c.attempt)
-        .bind(state)
-        .bind(sha256_hex(state))
-        .bind(now_rfc3339())
-        .execute(&mut *tx)
-        .await
-        .map_err(|e| too_big(e, state.len()))?;
-        tx.commit().await?;
-        Ok(true)
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let text = format!("UPDATE jobs SET checkpoint_epoch = $1 WHERE {}", fence(1));
+            let updated = fenced(sqlx::query(owned_sql::<D>(text)).bind(epoch), c)
+                .execute(&mut *tx)
+                .await?;
+            if updated.rows_affected() == 0 {
+                return Ok(false);
+            }
+            sqlx::query(
+                "INSERT INTO checkpoints (job_id, epoch, attempt, state, sha256, created_at)
+                 VALUES ($1, $2, $3, $4, $5, $6)
+                 ON CONFLICT (job_id) DO UPDATE SET epoch = excluded.epoch,
+                    attempt = excluded.attempt, state = excluded.state,
+                    sha256 = excluded.sha256, created_at = excluded.created_at",
+            )
+            .bind(&c.job.id)
+            .bind(epoch)
+            .bind(c.attempt)
+            .bind(state)
+            .bind(sha256_hex(state))
+            .bind(now_rfc3339())
+            .execute(&mut *tx)
+            .await
+            .map_err(|e| too_big(e, state.len()))?;
+            tx.commit().await?;
+            Ok(true)
+        })
     }
 
     /// The last committed checkpoint (epoch, bytes), verified against its checksum.
     pub async fn load_checkpoint(&self, job_id: &str) -> Result<Option<(i64, Vec<u8>)>> {
-        let r = sqlx::query("SELECT epoch, state, sha256 FROM checkpoints WHERE job_id = ?")
-            .bind(job_id)
-            .fetch_optional(&self.pool)
-            .await?;
-        let Some(r) = r else { return Ok(None) };
-        let sha: String = r.try_get("sha256")?;
-        let state = verified(r.try_get("state")?, &sha, "checkpoint", job_id)?;
-        Ok(Some((r.try_get("epoch")?, state)))
+        on_db!(self, pool, D => {
+            let r = sqlx::query("SELECT epoch, state, sha256 FROM checkpoints WHERE job_id = $1")
+                .bind(job_id)
+                .fetch_optional(pool)
+                .await?;
+            let Some(r) = r else { return Ok(None) };
+            let sha: String = r.try_get("sha256")?;
+            let state = verified(r.try_get("state")?, &sha, "checkpoint", job_id)?;
+            Ok(Some((r.try_get("epoch")?, state)))
+        })
     }
 
     /// Ends a held job in a final state (with its error message, if any); false when the lease
     /// was lost.
     pub async fn end_job(&self, c: &Claimed, state: JobState, error: Option<&str>) -> Result<bool> {
-        let r = fenced(
-        sqlx::query(sqlx::AssertSqlSafe(format!(
-            "UPDATE jobs SET state = ?, error = ?, finished_at = ?, lease_owner = NULL, lease_expires_ms = NULL
-             WHERE {FENCE}"
-        )))
-        .bind(state.as_str())
-        .bind(error)
-        .bind(now_rfc3339()),
-        c,
-    )
-        .execute(&self.pool)
-        .await?;
-        Ok(r.rows_affected() == 1)
+        on_db!(self, pool, D => {
+            let text = format!(
+                "UPDATE jobs SET state = $1, error = $2, finished_at = $3, lease_owner = NULL,
+                    lease_expires_ms = NULL WHERE {}",
+                fence(3)
+            );
+            let r = fenced(
+                sqlx::query(owned_sql::<D>(text))
+                    .bind(state.as_str())
+                    .bind(error)
+                    .bind(now_rfc3339()),
+                c,
+            )
+            .execute(pool)
+            .await?;
+            Ok(r.rows_affected() == 1)
+        })
     }
 
     /// Gives a held job back to the queue (graceful shutdown, or an infrastructure failure
     /// that may succeed on retry).
     pub async fn release_job(&self, c: &Claimed, infra_failure: bool) -> Result<bool> {
-        let r = fenced(
-            sqlx::query(sqlx::AssertSqlSafe(format!(
+        on_db!(self, pool, D => {
+            let text = format!(
                 "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL,
-                infra_failures = infra_failures + ? WHERE {FENCE}"
-            )))
-            .bind(infra_failure as i64),
-            c,
-        )
-        .execute(&self.pool)
-        .await?;
-        Ok(r.rows_affected() == 1)
+                    infra_failures = infra_failures + $1 WHERE {}",
+                fence(1)
+            );
+            let r = fenced(sqlx::query(owned_sql::<D>(text)).bind(infra_failure as i64), c)
+                .execute(pool)
+                .await?;
+            Ok(r.rows_affected() == 1)
+        })
     }
 
     /// Gives back every job `owner` holds, without its fence's attempt: a process exiting
@@ -265,22 +288,26 @@ impl Store {
     /// dead worker. The abandoned threads' later writes fail their fence (the job is no longer
     /// running under this owner). Returns the jobs given back.
     pub async fn release_owned(&self, owner: &str) -> Result<u64> {
-        let r = sqlx::query(
-            "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL
-             WHERE state = 'running' AND lease_owner = ?",
-        )
-        .bind(owner)
-        .execute(&self.pool)
-        .await?;
-        Ok(r.rows_affected())
+        on_db!(self, pool, D => {
+            let r = sqlx::query(
+                "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL
+                 WHERE state = 'running' AND lease_owner = $1",
+            )
+            .bind(owner)
+            .execute(pool)
+            .await?;
+            Ok(r.rows_affected())
+        })
     }
 
     pub async fn infra_failures(&self, job_id: &str) -> Result<i64> {
-        Ok(
-            sqlx::query_scalar("SELECT infra_failures FROM jobs WHERE id = ?")
-                .bind(job_id)
-                .fetch_one(&self.pool)
-                .await?,
-        )
+        on_db!(self, pool, D => {
+            Ok(
+                sqlx::query_scalar("SELECT infra_failures FROM jobs WHERE id = $1")
+                    .bind(job_id)
+                    .fetch_one(pool)
+                    .await?,
+            )
+        })
     }
 }

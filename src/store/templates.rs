@@ -1,5 +1,6 @@
 //! Templates: a user's mechanism as its canonical JSON document, stored once per document.
 
+use super::dialect::{Dialect, begin_write};
 use super::{Store, new_id, now_rfc3339, row, sha256_hex};
 use crate::error::{Error, Result};
 
@@ -36,49 +37,53 @@ const COLUMNS: &str = "seq, id, kind, name, n, m, document, summary, sha256, cre
 const LIST_COLUMNS: &str = "seq, id, kind, name, n, m, summary, sha256, created_at, \
      CASE WHEN summary IS NULL THEN document END AS document";
 
-fn sql(s: &'static str) -> sqlx::AssertSqlSafe<String> {
-    super::with_columns(s, COLUMNS)
+fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
+    super::dialect::sql::<D>(s, COLUMNS)
 }
 
 impl Store {
     /// Stores a template unless the same document is stored already; the row and whether it
     /// was created.
     pub async fn insert_template(&self, t: NewTemplate<'_>) -> Result<(TemplateRow, bool)> {
-        let sha = sha256_hex(t.document.as_bytes());
-        let mut tx = self.write().await?;
-        let existing = sqlx::query(sql("SELECT {COLUMNS} FROM templates WHERE sha256 = ?"))
+        on_db!(self, pool, D => {
+            let sha = sha256_hex(t.document.as_bytes());
+            let mut tx = begin_write(pool).await?;
+            let existing = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM templates WHERE sha256 = $1"))
+                .bind(&sha)
+                .fetch_optional(&mut *tx)
+                .await?;
+            if let Some(r) = existing {
+                tx.commit().await?;
+                return Ok((row(&r)?, false));
+            }
+            let r = sqlx::query(sql::<D>(
+                "INSERT INTO templates (id, kind, name, n, m, document, summary, sha256, created_at)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) RETURNING {COLUMNS}",
+            ))
+            .bind(new_id("tpl"))
+            .bind(t.kind)
+            .bind(t.name)
+            .bind(t.n)
+            .bind(t.m)
+            .bind(t.document)
+            .bind(t.summary)
             .bind(&sha)
-            .fetch_optional(&mut *tx)
+            .bind(now_rfc3339())
+            .fetch_one(&mut *tx)
             .await?;
-        if let Some(r) = existing {
             tx.commit().await?;
-            return Ok((row(&r)?, false));
-        }
-        let r = sqlx::query(sql(
-            "INSERT INTO templates (id, kind, name, n, m, document, summary, sha256, created_at)
-             VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) RETURNING {COLUMNS}",
-        ))
-        .bind(new_id("tpl"))
-        .bind(t.kind)
-        .bind(t.name)
-        .bind(t.n)
-        .bind(t.m)
-        .bind(t.document)
-        .bind(t.summary)
-        .bind(&sha)
-        .bind(now_rfc3339())
-        .fetch_one(&mut *tx)
-        .await?;
-        tx.commit().await?;
-        Ok((row(&r)?, true))
+            Ok((row(&r)?, true))
+        })
     }
 
     pub async fn get_template(&self, id: &str) -> Result<Option<TemplateRow>> {
-        let r = sqlx::query(sql("SELECT {COLUMNS} FROM templates WHERE id = ?"))
-            .bind(id)
-            .fetch_optional(&self.pool)
-            .await?;
-        r.as_ref().map(row).transpose()
+        on_db!(self, pool, D => {
+            let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM templates WHERE id = $1"))
+                .bind(id)
+                .fetch_optional(pool)
+                .await?;
+            r.as_ref().map(row).transpose()
+        })
     }
 
     /// Newest first, at most `limit` rows and [`super::PAGE_BYTES`] of summaries (documents
@@ -89,42 +94,51 @@ impl Store {
         before: Option<i64>,
         limit: i64,
     ) -> Result<(Vec<TemplateRow>, bool)> {
-        let before = before.unwrap_or(i64::MAX);
-        let size = "coalesce(length(summary), length(document))";
-        let (fit, more) = super::fitting(&self.pool, "templates", size, before, limit).await?;
-        let rows = sqlx::query(super::with_columns(
-            "SELECT {COLUMNS} FROM templates WHERE seq < ? ORDER BY seq DESC LIMIT ?",
-            LIST_COLUMNS,
-        ))
-        .bind(before)
-        .bind(fit)
-        .fetch_all(&self.pool)
-        .await?;
-        Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
+        on_db!(self, pool, D => {
+            let before = before.unwrap_or(i64::MAX);
+            let size = "coalesce(length(summary), length(document))";
+            let sizes: Vec<i64> = sqlx::query_scalar(super::sizes_sql("templates", size))
+                .bind(before)
+                .bind(limit)
+                .fetch_all(pool)
+                .await?;
+            let (fit, more) = super::fitting(&sizes, limit);
+            let rows = sqlx::query(super::dialect::sql::<D>(
+                "SELECT {COLUMNS} FROM templates WHERE seq < $1 ORDER BY seq DESC LIMIT $2",
+                LIST_COLUMNS,
+            ))
+            .bind(before)
+            .bind(fit)
+            .fetch_all(pool)
+            .await?;
+            Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
+        })
     }
 
     /// Deletes a template unless a queued or running job uses it.
     pub async fn delete_template(&self, id: &str) -> Result<()> {
-        let mut tx = self.write().await?;
-        let users: i64 = sqlx::query_scalar(
-            "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running') AND template_id = ?",
-        )
-        .bind(id)
-        .fetch_one(&mut *tx)
-        .await?;
-        if users > 0 {
-            return Err(Error::Conflict(format!(
-                "template {id} is used by {users} queued or running job(s)"
-            )));
-        }
-        let deleted = sqlx::query("DELETE FROM templates WHERE id = ?")
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let users: i64 = sqlx::query_scalar(
+                "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running') AND template_id = $1",
+            )
             .bind(id)
-            .execute(&mut *tx)
+            .fetch_one(&mut *tx)
             .await?;
-        if deleted.rows_affected() == 0 {
-            return Err(Error::NotFound(format!("template {id}")));
-        }
-        tx.commit().await?;
-        Ok(())
+            if users > 0 {
+                return Err(Error::Conflict(format!(
+                    "template {id} is used by {users} queued or running job(s)"
+                )));
+            }
+            let deleted = sqlx::query("DELETE FROM templates WHERE id = $1")
+                .bind(id)
+                .execute(&mut *tx)
+                .await?;
+            if deleted.rows_affected() == 0 {
+                return Err(Error::NotFound(format!("template {id}")));
+            }
+            tx.commit().await?;
+            Ok(())
+        })
     }
 }
