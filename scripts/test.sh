@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test graybox has: the Rust unit and integration tests (release profile, so that
-# the tests, benchmarks and the Python client tests share one build), then the Python client
-# tests in a pinned virtualenv when they exist.
+# the tests, benchmarks and the Python client tests share one build), the API tests once more
+# on a throwaway PostgreSQL cluster, then the Python client tests in a pinned virtualenv when
+# they exist.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -26,6 +27,13 @@ for line in sys.stdin:
     exit 1
   fi
 done
+
+# The service's API tests again, on PostgreSQL: each test on a new database of a throwaway
+# cluster (tests/api/helpers.rs reads GRAYBOX_TEST_POSTGRES). Same build, nothing recompiles.
+# shellcheck source=scripts/postgres.sh
+source scripts/postgres.sh
+start_postgres
+cargo test -p graybox --release --locked --test api
 
 if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
   # The dashboard test drives Debian's Chromium (browsers cannot be downloaded here).

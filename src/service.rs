@@ -103,7 +103,8 @@ pub async fn start(settings: Settings) -> Result<Running> {
             tokio::spawn(worker)
         })
         .collect();
-    info!(%http_addr, %grpc_addr, db = %cfg.db, workers = cfg.workers, "graybox serving");
+    let db = crate::store::redacted(&cfg.db);
+    info!(%http_addr, %grpc_addr, %db, workers = cfg.workers, "graybox serving");
     Ok(Running {
         http_addr,
         grpc_addr,

@@ -22,7 +22,9 @@ pub struct Settings {
     /// gRPC listen address.
     #[arg(long, env = "GRAYBOX_GRPC", default_value = "127.0.0.1:50051")]
     pub grpc: String,
-    /// SQLite database file (created if missing).
+    /// SQLite database file (created if missing), or a PostgreSQL URL
+    /// (postgres://user:password@host:port/database?sslmode=require) that several graybox
+    /// processes share.
     #[arg(long, env = "GRAYBOX_DB", default_value = "./graybox.db")]
     pub db: String,
     /// Training workers (jobs trained at once).

@@ -88,7 +88,7 @@ impl Store {
             let blob = encode(ds);
             let sha = sha256(ds, &blob);
             // Computed before the write lock is taken: the checks read every value.
-            let warnings = serde_json::to_string(&ds.warnings()).expect("warnings serialize");
+            let warnings = sqlx::types::Json(ds.warnings());
             let mut tx = begin_write(pool).await?;
             let existing = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM datasets WHERE sha256 = $1"))
                 .bind(&sha)

@@ -2,7 +2,6 @@
 //! same transaction), listing, cancellation, per-epoch metrics and counts. The worker's side
 //! of the queue is in `queue.rs`.
 
-use sqlx::sqlite::SqliteRow;
 use sqlx::{FromRow, Row};
 
 use super::dialect::{Dialect, begin_write};
@@ -45,7 +44,10 @@ pub(super) fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
 
 /// A job's row: its columns, then the two fields the stored request holds (`model`,
 /// `training`), read once here.
-pub(super) fn row(r: &SqliteRow) -> Result<JobRow> {
+pub(super) fn row<R: sqlx::Row>(r: &R) -> Result<JobRow>
+where
+    JobRow: for<'r> FromRow<'r, R>,
+{
     let mut job = JobRow::from_row(r)?;
     let submitted: serde_json::Value = serde_json::from_str(&job.request).unwrap_or_default();
     job.info.model = (submitted["model_name"].as_str())
@@ -214,7 +216,7 @@ impl Store {
                                  THEN 'cancelled' ELSE state END,
                     finished_at = CASE WHEN state = 'queued' OR (state = 'running' AND lease_expires_ms < {NOW_MS})
                                  THEN $2 ELSE finished_at END,
-                    cancel_requested = CASE state WHEN 'running' THEN 1 ELSE cancel_requested END
+                    cancel_requested = CASE state WHEN 'running' THEN TRUE ELSE cancel_requested END
                  WHERE id = $1 RETURNING {COLUMNS}"))
             .bind(id)
             .bind(now_rfc3339())

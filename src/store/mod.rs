@@ -68,7 +68,8 @@ pub const PAGE_BYTES: i64 = 8 << 20;
 /// first after `seq` `$1` (`LIMIT $2`): what [`fitting`] pages by.
 fn sizes_sql(table: &'static str, size: &'static str) -> sqlx::AssertSqlSafe<String> {
     sqlx::AssertSqlSafe(format!(
-        "SELECT {size} FROM {table} WHERE seq < $1 ORDER BY seq DESC LIMIT $2"
+        // BIGINT: Postgres's length() is a 4-byte integer, which does not decode as i64.
+        "SELECT CAST({size} AS BIGINT) FROM {table} WHERE seq < $1 ORDER BY seq DESC LIMIT $2"
     ))
 }
 
@@ -122,9 +123,54 @@ async fn migration_lock(db: &str) -> Result<Option<std::fs::File>> {
     .map_err(|e| Error::Internal(format!("migration lock: {e}")))?
 }
 
+/// Whether `db` names a PostgreSQL database (else it is an SQLite file's path).
+pub fn is_postgres(db: &str) -> bool {
+    db.starts_with("postgres://") || db.starts_with("postgresql://")
+}
+
+/// `db` as logs may show it: a URL's password replaced by `***`.
+pub fn redacted(db: &str) -> String {
+    let Some((scheme, rest)) = db.split_once("://") else {
+        return db.to_string();
+    };
+    match rest.rsplit_once('@') {
+        Some((user, host)) => match user.split_once(':') {
+            Some((name, _password)) => format!("{scheme}://{name}:***@{host}"),
+            None => db.to_string(),
+        },
+        None => db.to_string(),
+    }
+}
+
 impl Store {
+    /// Opens the database `db` names and applies its migrations: a `postgres://` URL, or the
+    /// path of an SQLite file (created if needed).
+    pub async fn open(db: &str) -> Result<Self> {
+        if is_postgres(db) {
+            Self::open_postgres(db).await
+        } else {
+            Self::open_sqlite(db).await
+        }
+    }
+
+    /// Several processes may start at once on an empty database: sqlx's migrator holds a
+    /// Postgres advisory lock while it migrates, so the others wait and find it done.
+    async fn open_postgres(url: &str) -> Result<Self> {
+        let opts = sqlx::postgres::PgConnectOptions::from_str(url)
+            .map_err(|e| Error::invalid("db", format!("not a usable PostgreSQL URL: {e}")))?;
+        let pool = sqlx::postgres::PgPoolOptions::new()
+            .max_connections(8)
+            .acquire_timeout(Duration::from_secs(30))
+            .connect_with(opts)
+            .await?;
+        sqlx::migrate!("./migrations/postgres").run(&pool).await?;
+        Ok(Self {
+            db: Db::Postgres(pool),
+        })
+    }
+
     /// Opens (creating if needed) the database file and applies the migrations.
-    pub async fn open(path: &str) -> Result<Self> {
+    async fn open_sqlite(path: &str) -> Result<Self> {
         let opts = SqliteConnectOptions::from_str(&format!("sqlite://{path}"))
             .map_err(|e| Error::invalid("db", e))?
             .create_if_missing(true)
@@ -152,5 +198,27 @@ impl Store {
             sqlx::query("SELECT 1").execute(pool).await?;
         });
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{is_postgres, redacted};
+
+    #[test]
+    fn logs_show_a_database_url_without_its_password() {
+        let url = "postgres://graybox:s3cr:et@db.internal:5432/graybox?sslmode=require";
+        let shown = redacted(url);
+        assert!(!shown.contains("s3cr"), "{shown}");
+        assert_eq!(
+            shown,
+            "postgres://graybox:***@db.internal:5432/graybox?sslmode=require"
+        );
+        // Nothing to hide: shown as given.
+        for db in ["./graybox.db", "postgres://graybox@127.0.0.1/graybox"] {
+            assert_eq!(redacted(db), db);
+        }
+        assert!(is_postgres(url) && is_postgres("postgresql://h/d"));
+        assert!(!is_postgres("./postgres://.db") && !is_postgres("graybox.db"));
     }
 }

@@ -8,6 +8,7 @@ use super::dialect::{Dialect, begin_write};
 use super::queue::{Claimed, fence, fenced};
 use super::{Store, new_id, now_rfc3339, row, sha256_hex, verified};
 use crate::error::{Error, Result};
+use crate::records::Warning;
 
 #[derive(Debug, Clone, PartialEq, Serialize, sqlx::FromRow)]
 pub struct ModelRow {
@@ -84,12 +85,12 @@ macro_rules! insert_row {
 impl Store {
     /// Stores the model and marks the job succeeded in one transaction, fenced by the lease:
     /// either both happen or neither. Returns the model id, or None when the lease was lost.
-    /// `warnings` (JSON) are the training checks' findings, recorded on the job.
+    /// `warnings` are the training checks' findings, recorded on the job.
     pub async fn finish_job(
         &self,
         c: &Claimed,
         m: NewModel<'_>,
-        warnings: &str,
+        warnings: &[Warning],
     ) -> Result<Option<String>> {
         on_db!(self, pool, D => {
             let mut tx = begin_write(pool).await?;
@@ -102,7 +103,7 @@ impl Store {
                 )))
                 .bind(&model_id)
                 .bind(now_rfc3339())
-                .bind(warnings),
+                .bind(sqlx::types::Json(warnings)),
                 c,
             )
             .execute(&mut *tx)

@@ -3,7 +3,7 @@
 
 use sqlx::Row;
 
-use super::dialect::{begin_write, owned_sql};
+use super::dialect::{Dialect, begin_write, owned_sql};
 use super::jobs::{JobRow, row, sql};
 use super::{Store, now_rfc3339, sha256_hex, verified};
 use crate::error::{Error, Result};
@@ -83,10 +83,10 @@ impl Store {
         max_attempts: i64,
     ) -> Result<Option<Claimed>> {
         on_db!(self, pool, D => {
-            let mut tx = begin_write(pool).await?;
+            let mut tx = D::begin_claim(pool).await?;
             sqlx::query(sql::<D>(
                 "UPDATE jobs SET state = 'cancelled', finished_at = $1, lease_owner = NULL,
-                    lease_expires_ms = NULL WHERE state = 'running' AND lease_expires_ms < {NOW_MS} AND cancel_requested = 1",
+                    lease_expires_ms = NULL WHERE state = 'running' AND lease_expires_ms < {NOW_MS} AND cancel_requested",
             ))
             .bind(now_rfc3339())
             .execute(&mut *tx)
@@ -109,7 +109,7 @@ impl Store {
                     started_at = COALESCE(started_at, $3)
                  WHERE id = (SELECT id FROM jobs WHERE state = 'queued'
                                 OR (state = 'running' AND lease_expires_ms < {NOW_MS})
-                             ORDER BY seq LIMIT 1)
+                             ORDER BY seq LIMIT 1 {SKIP_LOCKED})
                  RETURNING {COLUMNS}",
             ))
             .bind(owner)
@@ -144,7 +144,7 @@ impl Store {
                 .await?;
             Ok(match r {
                 Some(r) => Lease::Held {
-                    cancel_requested: r.try_get::<i64, _>("cancel_requested")? != 0,
+                    cancel_requested: r.try_get("cancel_requested")?,
                 },
                 None => Lease::Lost,
             })

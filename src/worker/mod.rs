@@ -285,7 +285,7 @@ async fn store_model(
 ) -> Result<Option<String>> {
     let file = trainer.model_file();
     let report = file.report.as_ref().expect("trained files carry a report");
-    let warnings = serde_json::to_string(&report.warnings).expect("json");
+    let warnings = report.warnings.clone();
     let report = serde_json::to_string(report).expect("json");
     let spec_json = serde_json::to_string(&file.config.spec).expect("json");
     let model = NewModel {

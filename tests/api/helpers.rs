@@ -14,7 +14,28 @@ pub struct TestApp {
     pub running: Option<Running>,
     pub base: String,
     pub client: reqwest::Client,
+    /// The database it runs on (`--db`).
+    pub db: String,
     pub _dir: tempfile::TempDir,
+}
+
+/// A new, empty database for one test: an SQLite file in `dir`, or, when
+/// `GRAYBOX_TEST_POSTGRES` names a PostgreSQL server (`postgres://user@host:port`, as
+/// `scripts/test.sh` starts one), a new database on it. The suite runs once on each.
+pub async fn fresh_db(dir: &std::path::Path) -> String {
+    let Ok(server) = std::env::var("GRAYBOX_TEST_POSTGRES") else {
+        return dir.join("test.db").to_string_lossy().into_owned();
+    };
+    use sqlx::Connection;
+    let mut admin = sqlx::PgConnection::connect(&format!("{server}/postgres"))
+        .await
+        .expect("the test PostgreSQL server answers");
+    let name = format!("t_{}", uuid::Uuid::new_v4().simple());
+    sqlx::raw_sql(sqlx::AssertSqlSafe(format!("CREATE DATABASE {name}")))
+        .execute(&mut admin)
+        .await
+        .unwrap();
+    format!("{server}/{name}")
 }
 
 pub async fn spawn_app(workers: usize) -> TestApp {
@@ -40,30 +61,24 @@ pub fn test_settings() -> Settings {
 /// replaced: port 0 and a temporary file).
 pub async fn spawn_configured(settings: Settings) -> TestApp {
     let dir = tempfile::tempdir().unwrap();
-    let db = dir.path().join("test.db").to_string_lossy().into_owned();
+    let db = fresh_db(dir.path()).await;
     spawn_on(db, settings, dir).await
 }
 
 /// A second service process (its own App, cache and workers) on `app`'s database.
 pub async fn spawn_app_on(app: &TestApp, workers: usize) -> TestApp {
-    let db = app
-        ._dir
-        .path()
-        .join("test.db")
-        .to_string_lossy()
-        .into_owned();
     let settings = Settings {
         workers,
         ..Settings::default()
     };
-    spawn_on(db, settings, tempfile::tempdir().unwrap()).await
+    spawn_on(app.db.clone(), settings, tempfile::tempdir().unwrap()).await
 }
 
 async fn spawn_on(db: String, settings: Settings, dir: tempfile::TempDir) -> TestApp {
     let running = start(Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
-        db,
+        db: db.clone(),
         ..settings
     })
     .await
@@ -73,6 +88,7 @@ async fn spawn_on(db: String, settings: Settings, dir: tempfile::TempDir) -> Tes
         running: Some(running),
         base,
         client: reqwest::Client::new(),
+        db,
         _dir: dir,
     }
 }
@@ -80,10 +96,7 @@ async fn spawn_on(db: String, settings: Settings, dir: tempfile::TempDir) -> Tes
 impl TestApp {
     /// Another connection pool on the service's database, as a second process would open it.
     pub async fn open_store(&self) -> graybox::store::Store {
-        let db = self._dir.path().join("test.db");
-        graybox::store::Store::open(&db.to_string_lossy())
-            .await
-            .unwrap()
+        graybox::store::Store::open(&self.db).await.unwrap()
     }
 
     pub fn url(&self, path: &str) -> String {

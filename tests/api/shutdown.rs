@@ -49,14 +49,31 @@ async fn a_forced_shutdown_gives_held_jobs_back_at_once() {
         .expect("claimable at once, long before the lease would expire");
     assert_eq!(again.job.id, id);
     assert_eq!(again.attempt, running["attempt"].as_i64().unwrap() + 1);
-    let deaths: i64 = sqlx::query_scalar("SELECT worker_deaths FROM jobs WHERE id = ?")
-        .bind(&id)
-        .fetch_one(&sqlx::SqlitePool::connect(&db_url(&app)).await.unwrap())
-        .await
-        .unwrap();
-    assert_eq!(deaths, 0, "a release is not a dead worker");
+    assert_eq!(
+        worker_deaths(&app, &id).await,
+        0,
+        "a release is not a dead worker"
+    );
 }
 
-fn db_url(app: &TestApp) -> String {
-    format!("sqlite://{}", app._dir.path().join("test.db").display())
+/// The job's count of dead workers, read from its database as it stands.
+async fn worker_deaths(app: &TestApp, id: &str) -> i64 {
+    const SQL: &str = "SELECT worker_deaths FROM jobs WHERE id = $1";
+    if graybox::store::is_postgres(&app.db) {
+        let pool = sqlx::PgPool::connect(&app.db).await.unwrap();
+        sqlx::query_scalar(SQL)
+            .bind(id)
+            .fetch_one(&pool)
+            .await
+            .unwrap()
+    } else {
+        let pool = sqlx::SqlitePool::connect(&format!("sqlite://{}", app.db))
+            .await
+            .unwrap();
+        sqlx::query_scalar(SQL)
+            .bind(id)
+            .fetch_one(&pool)
+            .await
+            .unwrap()
+    }
 }
