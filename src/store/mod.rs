@@ -2,9 +2,11 @@
 //! `BEGIN IMMEDIATE` for every write transaction, so that concurrent writers queue on the lock
 //! instead of failing with SQLITE_BUSY. Queries are checked at run time (no offline data).
 
-// First: its `on_db!` is used by every module after it.
+// First: their macros (`on_db!`, `page!`) are used by every module after them.
 #[macro_use]
 mod dialect;
+#[macro_use]
+mod page;
 mod datasets;
 mod jobs;
 mod models;
@@ -63,31 +65,6 @@ pub fn verified(bytes: Vec<u8>, sha256: &str, what: &str, id: &str) -> Result<Ve
 /// Bytes a page of a list may carry: rows whose documents are large (a model's spec embeds
 /// its template, up to `--max-template-mb`) fill a page before its count does.
 pub const PAGE_BYTES: i64 = 8 << 20;
-
-/// The byte lengths `size` (an SQL expression) of the next `limit` rows of `table`, newest
-/// first after `seq` `$1` (`LIMIT $2`): what [`fitting`] pages by.
-fn sizes_sql(table: &'static str, size: &'static str) -> sqlx::AssertSqlSafe<String> {
-    sqlx::AssertSqlSafe(format!(
-        // BIGINT: Postgres's length() is a 4-byte integer, which does not decode as i64.
-        "SELECT CAST({size} AS BIGINT) FROM {table} WHERE seq < $1 ORDER BY seq DESC LIMIT $2"
-    ))
-}
-
-/// How many of the next `limit` rows, of these byte lengths ([`sizes_sql`]), fit in
-/// [`PAGE_BYTES`], at least one; and whether rows remain after them.
-fn fitting(sizes: &[i64], limit: i64) -> (i64, bool) {
-    let mut total = 0i64;
-    let mut fit = 0i64;
-    for s in sizes {
-        if fit > 0 && total.saturating_add(*s) > PAGE_BYTES {
-            break;
-        }
-        total = total.saturating_add(*s);
-        fit += 1;
-    }
-    let more = (fit as usize) < sizes.len() || sizes.len() as i64 == limit;
-    (fit, more)
-}
 
 /// A row as its record (`#[derive(sqlx::FromRow)]`).
 fn row<R: sqlx::Row, T: for<'r> sqlx::FromRow<'r, R>>(r: &R) -> Result<T> {

@@ -162,7 +162,6 @@ impl Store {
         })
     }
 
-    /// Newest first.
     /// Newest first, at most `limit` rows and [`super::PAGE_BYTES`] of specs and reports;
     /// whether more rows follow.
     pub async fn list_models(
@@ -170,23 +169,9 @@ impl Store {
         before: Option<i64>,
         limit: i64,
     ) -> Result<(Vec<ModelRow>, bool)> {
+        let before = before.unwrap_or(i64::MAX);
         on_db!(self, pool, D => {
-            let before = before.unwrap_or(i64::MAX);
-            let size = "length(spec) + coalesce(length(report), 0)";
-            let sizes: Vec<i64> = sqlx::query_scalar(super::sizes_sql("models", size))
-                .bind(before)
-                .bind(limit)
-                .fetch_all(pool)
-                .await?;
-            let (fit, more) = super::fitting(&sizes, limit);
-            let rows = sqlx::query(sql::<D>(
-                "SELECT {COLUMNS} FROM models WHERE seq < $1 ORDER BY seq DESC LIMIT $2",
-            ))
-            .bind(before)
-            .bind(fit)
-            .fetch_all(pool)
-            .await?;
-            Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
+            Ok(page!(pool, D, ModelRow, "models", COLUMNS, "length(spec) + coalesce(length(report), 0)", before, limit))
         })
     }
 

@@ -94,24 +94,9 @@ impl Store {
         before: Option<i64>,
         limit: i64,
     ) -> Result<(Vec<TemplateRow>, bool)> {
+        let before = before.unwrap_or(i64::MAX);
         on_db!(self, pool, D => {
-            let before = before.unwrap_or(i64::MAX);
-            let size = "coalesce(length(summary), length(document))";
-            let sizes: Vec<i64> = sqlx::query_scalar(super::sizes_sql("templates", size))
-                .bind(before)
-                .bind(limit)
-                .fetch_all(pool)
-                .await?;
-            let (fit, more) = super::fitting(&sizes, limit);
-            let rows = sqlx::query(super::dialect::sql::<D>(
-                "SELECT {COLUMNS} FROM templates WHERE seq < $1 ORDER BY seq DESC LIMIT $2",
-                LIST_COLUMNS,
-            ))
-            .bind(before)
-            .bind(fit)
-            .fetch_all(pool)
-            .await?;
-            Ok((rows.iter().map(row).collect::<Result<_>>()?, more))
+            Ok(page!(pool, D, TemplateRow, "templates", LIST_COLUMNS, "coalesce(length(summary), length(document))", before, limit))
         })
     }
 
