@@ -198,28 +198,9 @@ impl Store {
     /// Deletes a dataset unless a queued or running job uses it.
     pub async fn delete_dataset(&self, id: &str) -> Result<()> {
         on_db!(self, pool, D => {
-            let mut tx = begin_write(pool).await?;
-            let users: i64 = sqlx::query_scalar(
-                "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')
-                 AND (dataset_id = $1 OR validation_dataset_id = $1)",
-            )
-            .bind(id)
-            .fetch_one(&mut *tx)
-            .await?;
-            if users > 0 {
-                return Err(Error::Conflict(format!(
-                    "dataset {id} is used by {users} queued or running job(s)"
-                )));
-            }
-            let deleted = sqlx::query("DELETE FROM datasets WHERE id = $1")
-                .bind(id)
-                .execute(&mut *tx)
-                .await?;
-            if deleted.rows_affected() == 0 {
-                return Err(Error::NotFound(format!("dataset {id}")));
-            }
-            tx.commit().await?;
-            Ok(())
+            delete_row!(pool, "datasets", "dataset", id,
+                users = "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')
+                         AND (dataset_id = $1 OR validation_dataset_id = $1)")
         })
     }
 }

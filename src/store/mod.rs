@@ -2,11 +2,13 @@
 //! `BEGIN IMMEDIATE` for every write transaction, so that concurrent writers queue on the lock
 //! instead of failing with SQLITE_BUSY. Queries are checked at run time (no offline data).
 
-// First: their macros (`on_db!`, `page!`) are used by every module after them.
+// First: their macros (`on_db!`, `page!`, `delete_row!`) are used by every module after them.
 #[macro_use]
 mod dialect;
 #[macro_use]
 mod page;
+#[macro_use]
+mod delete;
 mod datasets;
 mod jobs;
 mod models;

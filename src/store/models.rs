@@ -198,16 +198,7 @@ impl Store {
 
     pub async fn delete_model(&self, id: &str) -> Result<()> {
         on_db!(self, pool, D => {
-            let mut tx = begin_write(pool).await?;
-            let r = sqlx::query("DELETE FROM models WHERE id = $1")
-                .bind(id)
-                .execute(&mut *tx)
-                .await?;
-            if r.rows_affected() == 0 {
-                return Err(Error::NotFound(format!("model {id}")));
-            }
-            tx.commit().await?;
-            Ok(())
+            delete_row!(pool, "models", "model", id)
         })
     }
 }

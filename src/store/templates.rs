@@ -103,27 +103,9 @@ impl Store {
     /// Deletes a template unless a queued or running job uses it.
     pub async fn delete_template(&self, id: &str) -> Result<()> {
         on_db!(self, pool, D => {
-            let mut tx = begin_write(pool).await?;
-            let users: i64 = sqlx::query_scalar(
-                "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running') AND template_id = $1",
-            )
-            .bind(id)
-            .fetch_one(&mut *tx)
-            .await?;
-            if users > 0 {
-                return Err(Error::Conflict(format!(
-                    "template {id} is used by {users} queued or running job(s)"
-                )));
-            }
-            let deleted = sqlx::query("DELETE FROM templates WHERE id = $1")
-                .bind(id)
-                .execute(&mut *tx)
-                .await?;
-            if deleted.rows_affected() == 0 {
-                return Err(Error::NotFound(format!("template {id}")));
-            }
-            tx.commit().await?;
-            Ok(())
+            delete_row!(pool, "templates", "template", id,
+                users = "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')
+                         AND template_id = $1")
         })
     }
 }

@@ -1,0 +1,30 @@
+//! Deleting a row by its id, the same way for every table that has a delete.
+
+/// Deletes the row of `$table` with id `$id` in a write transaction on `$pool`, and returns
+/// from the calling operation: NotFound when there is no such row; with `users`, an SQL count
+/// of the queued or running jobs that use it (`$1` the id), Conflict while it is used. (A
+/// macro: it runs on either backend's pool, in `on_db!`.)
+macro_rules! delete_row {
+    ($pool:expr, $table:literal, $what:literal, $id:expr $(, users = $users:literal)?) => {{
+        let id: &str = $id;
+        let mut tx = $crate::store::dialect::begin_write($pool).await?;
+        $(
+            let users: i64 = sqlx::query_scalar($users).bind(id).fetch_one(&mut *tx).await?;
+            if users > 0 {
+                return Err(Error::Conflict(format!(
+                    concat!($what, " {} is used by {} queued or running job(s)"),
+                    id, users
+                )));
+            }
+        )?
+        let deleted = sqlx::query(concat!("DELETE FROM ", $table, " WHERE id = $1"))
+            .bind(id)
+            .execute(&mut *tx)
+            .await?;
+        if deleted.rows_affected() == 0 {
+            return Err(Error::NotFound(format!(concat!($what, " {}"), id)));
+        }
+        tx.commit().await?;
+        Ok(())
+    }};
+}
