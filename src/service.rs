@@ -1,4 +1,5 @@
-//! `graybox serve`: REST, gRPC and training workers in one process over one SQLite file.
+//! The long-running processes: `graybox serve` (REST, gRPC and training workers over one
+//! database) and `graybox worker` (training workers alone).
 //! Graceful shutdown: stop accepting and claiming, let running jobs reach an epoch end,
 //! checkpoint them and give them back to the queue, then stop the listeners. A shutdown has a
 //! bound (`--shutdown-grace-secs`): past it, jobs still mid-epoch go back to the queue from
@@ -11,44 +12,44 @@ use std::time::Duration;
 use tokio::net::TcpListener;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
-use tracing::{info, warn};
+use tracing::info;
 
 use crate::api::listen::{TlsListener, acceptor};
 use crate::api::rest::router;
 use crate::api::tls::TlsFiles;
-use crate::app::{App, Settings};
+use crate::app::{App, Settings, WorkerSettings};
 use crate::error::{Error, Result};
 use crate::store::Store;
+use crate::worker::Pool;
+pub use crate::worker::Stopped;
 
 /// A started service. Dropping it does not stop it; call `shutdown`.
 pub struct Running {
     pub http_addr: SocketAddr,
     pub grpc_addr: SocketAddr,
     pub app: App,
-    stop: watch::Sender<bool>,
-    workers: Vec<JoinHandle<()>>,
-    /// The workers' lease owners: a forced shutdown gives back what they hold.
-    owners: Vec<String>,
-    servers: Vec<JoinHandle<Result<()>>>,
+    tasks: Tasks,
 }
 
-/// How a shutdown ended.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Stopped {
-    /// Every worker gave its job back at an epoch end, checkpointed.
-    Clean,
-    /// The grace ran out first: `released` jobs went back to the queue from their last
-    /// checkpoint, and whatever was still computing was abandoned.
-    Forced { released: u64 },
+/// A started `graybox worker`: training workers alone, and the health listener if asked
+/// for. Dropping it does not stop it; call `shutdown`.
+pub struct Worker {
+    /// Where `/healthz` and `/readyz` answer (`--health`).
+    pub health_addr: Option<SocketAddr>,
+    pub app: App,
+    tasks: Tasks,
+}
+
+/// What a process runs and stops together: its training workers, then its listeners.
+struct Tasks {
+    stop: watch::Sender<bool>,
+    pool: Pool,
+    servers: Vec<JoinHandle<Result<()>>>,
 }
 
 /// How long the listeners may finish answering once the workers are done: an open
 /// server-sent event stream would hold a graceful HTTP shutdown forever.
 const DRAIN: Duration = Duration::from_secs(5);
-
-/// Giving held jobs back on a forced shutdown waits this long for the database at most;
-/// past it their leases expire instead (and the jobs are reclaimed then).
-const RELEASE_TIMEOUT: Duration = Duration::from_secs(5);
 
 async fn bind(addr: &str, what: &str) -> Result<TcpListener> {
     TcpListener::bind(addr)
@@ -67,7 +68,7 @@ pub async fn start(settings: Settings) -> Result<Running> {
         .zip(cfg.tls_key.clone())
         .map(|(cert, key)| TlsFiles { cert, key }.load())
         .transpose()?;
-    let store = Store::open(&cfg.db).await?;
+    let store = Store::open(&cfg.worker.db).await?;
     let app = App::new(store, settings);
     let http = bind(&cfg.http, "http").await?;
     let grpc = bind(&cfg.grpc, "grpc").await?;
@@ -93,26 +94,61 @@ pub async fn start(settings: Settings) -> Result<Running> {
             until_stopped(stopped.clone()),
         )),
     ];
-    let owners: Vec<String> = (0..cfg.workers)
-        .map(|i| format!("{}-w{i}", crate::store::new_id("proc")))
-        .collect();
-    let workers = owners
-        .iter()
-        .map(|owner| {
-            let worker = crate::worker::run_worker(app.clone(), owner.clone(), stopped.clone());
-            tokio::spawn(worker)
-        })
-        .collect();
-    let db = crate::store::redacted(&cfg.db);
-    info!(%http_addr, %grpc_addr, %db, workers = cfg.workers, "graybox serving");
+    let pool = Pool::spawn(&app, &stopped);
+    let db = crate::store::redacted(&cfg.worker.db);
+    info!(%http_addr, %grpc_addr, %db, workers = cfg.worker.workers, "graybox serving");
     Ok(Running {
         http_addr,
         grpc_addr,
         app,
-        stop,
-        workers,
-        owners,
-        servers,
+        tasks: Tasks {
+            stop,
+            pool,
+            servers,
+        },
+    })
+}
+
+/// Starts a training worker process: `settings`' workers on its database, and `/healthz` and
+/// `/readyz` on `health` when given (no port otherwise).
+pub async fn start_worker(settings: WorkerSettings, health: Option<&str>) -> Result<Worker> {
+    let settings = Settings {
+        worker: settings,
+        ..Settings::default()
+    };
+    settings.validate()?;
+    if settings.worker.workers == 0 {
+        return Err(Error::invalid(
+            "workers",
+            "a worker process needs at least 1",
+        ));
+    }
+    let store = Store::open(&settings.worker.db).await?;
+    let db = crate::store::redacted(&settings.worker.db);
+    let app = App::new(store, settings);
+    let (stop, stopped) = watch::channel(false);
+    let mut servers = Vec::new();
+    let mut health_addr = None;
+    if let Some(addr) = health {
+        let listener = bind(addr, "health").await?;
+        health_addr = Some(listener.local_addr()?);
+        let router = crate::api::rest::health_router(app.clone());
+        let stop = until_stopped(stopped.clone());
+        servers.push(tokio::spawn(async move {
+            let served = axum::serve(listener, router).with_graceful_shutdown(stop);
+            served.await.map_err(Error::Io)
+        }));
+    }
+    let pool = Pool::spawn(&app, &stopped);
+    info!(%db, health = ?health_addr, workers = app.settings.worker.workers, "graybox worker");
+    Ok(Worker {
+        health_addr,
+        app,
+        tasks: Tasks {
+            stop,
+            pool,
+            servers,
+        },
     })
 }
 
@@ -167,7 +203,7 @@ impl Running {
     /// Stops accepting and claiming, releases running jobs at their next epoch end
     /// (checkpointed), then stops the listeners; forced after `--shutdown-grace-secs`.
     pub async fn shutdown(self) -> Stopped {
-        let grace = self.app.settings.shutdown_grace();
+        let grace = self.app.settings.worker.shutdown_grace();
         self.shutdown_by(tokio::time::sleep(grace)).await
     }
 
@@ -177,34 +213,29 @@ impl Running {
     /// runtime down without waiting for them (see `cli::serve`); dropping the calls' futures
     /// there tells their solvers to stop at the next time step.
     pub async fn shutdown_by(self, force: impl Future<Output = ()>) -> Stopped {
+        self.tasks.stop_by(&self.app, force).await
+    }
+}
+
+impl Worker {
+    /// Resolves (with the reason) if a training worker ends without being told to: the
+    /// process should stop and exit with a failure.
+    pub async fn died(&mut self) -> String {
+        self.tasks.pool.died().await
+    }
+
+    /// As [`Running::shutdown_by`]: jobs go back at their next epoch end, or at once when
+    /// `force` resolves first.
+    pub async fn shutdown_by(self, force: impl Future<Output = ()>) -> Stopped {
+        self.tasks.stop_by(&self.app, force).await
+    }
+}
+
+impl Tasks {
+    async fn stop_by(self, app: &App, force: impl Future<Output = ()>) -> Stopped {
         let _ = self.stop.send(true);
         tokio::pin!(force);
-        let aborts: Vec<_> = self.workers.iter().map(JoinHandle::abort_handle).collect();
-        let workers = async {
-            for w in self.workers {
-                let _ = w.await;
-            }
-        };
-        let stopped = tokio::select! {
-            biased;
-            () = &mut force => {
-                aborts.iter().for_each(tokio::task::AbortHandle::abort);
-                let held = crate::worker::release_held(&self.app, &self.owners);
-                let released = match tokio::time::timeout(RELEASE_TIMEOUT, held).await {
-                    Ok(Ok(n)) => n,
-                    Ok(Err(e)) => {
-                        warn!(error = %e, "giving jobs back failed; their leases will expire");
-                        0
-                    }
-                    Err(_) => {
-                        warn!("giving jobs back timed out; their leases will expire");
-                        0
-                    }
-                };
-                Stopped::Forced { released }
-            }
-            () = workers => Stopped::Clean,
-        };
+        let stopped = self.pool.stop_by(app, &mut force).await;
         let drain = tokio::time::sleep(DRAIN);
         tokio::pin!(drain);
         // `force` may be any future: never polled again once it has resolved.

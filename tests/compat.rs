@@ -102,11 +102,14 @@ async fn a_job_killed_while_running_resumes_and_finishes() {
     let cfg = graybox::app::Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
-        db: db.to_string_lossy().into_owned(),
+        worker: graybox::app::WorkerSettings {
+            db: db.to_string_lossy().into_owned(),
+            ..Default::default()
+        },
         ..Default::default()
     };
     // The job as the killed process left it, read before a worker can reclaim it.
-    let store = graybox::store::Store::open(&cfg.db).await.unwrap();
+    let store = graybox::store::Store::open(&cfg.worker.db).await.unwrap();
     let before = store.get_job(job).await.unwrap().unwrap();
     drop(store);
     let running = graybox::service::start(cfg).await.unwrap();

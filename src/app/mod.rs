@@ -15,7 +15,7 @@ pub mod views;
 
 use std::sync::Arc;
 
-pub use settings::Settings;
+pub use settings::{Settings, WorkerSettings};
 
 use crate::error::Result;
 use crate::store::Store;

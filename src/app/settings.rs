@@ -22,32 +22,9 @@ pub struct Settings {
     /// gRPC listen address.
     #[arg(long, env = "GRAYBOX_GRPC", default_value = "127.0.0.1:50051")]
     pub grpc: String,
-    /// SQLite database file (created if missing), or a PostgreSQL URL
-    /// (postgres://user:password@host:port/database?sslmode=require) that several graybox
-    /// processes share.
-    #[arg(long, env = "GRAYBOX_DB", default_value = "./graybox.db")]
-    pub db: String,
-    /// Training workers (jobs trained at once).
-    #[arg(long, env = "GRAYBOX_WORKERS", default_value_t = 1)]
-    pub workers: usize,
-    /// Threads each training job computes on [default: cores / workers, at least 1]. A job
-    /// keeps the split of its batches when it resumes, so its results do not depend on it.
-    #[arg(long, env = "GRAYBOX_JOB_THREADS")]
-    pub job_threads: Option<usize>,
-    /// Checkpoint a running job every this many epochs.
-    #[arg(long, env = "GRAYBOX_CHECKPOINT_EVERY", default_value_t = 10)]
-    pub checkpoint_every: usize,
-    /// A job whose worker has not heartbeated for this long is reclaimed.
-    #[arg(long, env = "GRAYBOX_LEASE_SECS", default_value_t = 30)]
-    pub lease_secs: u64,
-    /// Seconds from SIGTERM (or ctrl-c) until the process exits even if running jobs have not
-    /// reached an epoch end (they go back to the queue from their last checkpoint) or calls
-    /// are still computing. The default leaves room under a 30 s kill.
-    #[arg(long, env = "GRAYBOX_SHUTDOWN_GRACE_SECS", default_value_t = 20)]
-    pub shutdown_grace_secs: u64,
-    /// Times a job's worker may die (lease expired) before the job fails.
-    #[arg(long, env = "GRAYBOX_MAX_ATTEMPTS", default_value_t = 3)]
-    pub max_attempts: u32,
+    /// The database and the training workers (`graybox worker` takes exactly these).
+    #[command(flatten)]
+    pub worker: WorkerSettings,
     /// Largest dataset upload (JSON or CSV), in MiB.
     #[arg(long, env = "GRAYBOX_MAX_BODY_MB", default_value_t = 128)]
     pub max_body_mb: usize,
@@ -102,25 +79,69 @@ pub struct Settings {
     pub tls_key: Option<PathBuf>,
 }
 
+/// What a training worker reads: the database, how many jobs train at once and how, the
+/// lease and the shutdown grace. `graybox serve` flattens it into [`Settings`]; `graybox
+/// worker` takes it alone, so one flag means one thing in both.
+#[derive(Args, Debug, Clone)]
+pub struct WorkerSettings {
+    /// SQLite database file (created if missing), or a PostgreSQL URL
+    /// (postgres://user:password@host:port/database?sslmode=require) that several graybox
+    /// processes share.
+    #[arg(long, env = "GRAYBOX_DB", default_value = "./graybox.db")]
+    pub db: String,
+    /// Training workers (jobs trained at once).
+    #[arg(long, env = "GRAYBOX_WORKERS", default_value_t = 1)]
+    pub workers: usize,
+    /// Threads each training job computes on [default: cores / workers, at least 1]. A job
+    /// keeps the split of its batches when it resumes, so its results do not depend on it.
+    #[arg(long, env = "GRAYBOX_JOB_THREADS")]
+    pub job_threads: Option<usize>,
+    /// Checkpoint a running job every this many epochs.
+    #[arg(long, env = "GRAYBOX_CHECKPOINT_EVERY", default_value_t = 10)]
+    pub checkpoint_every: usize,
+    /// A job whose worker has not heartbeated for this long is reclaimed.
+    #[arg(long, env = "GRAYBOX_LEASE_SECS", default_value_t = 30)]
+    pub lease_secs: u64,
+    /// Seconds from SIGTERM (or ctrl-c) until the process exits even if running jobs have not
+    /// reached an epoch end (they go back to the queue from their last checkpoint) or calls
+    /// are still computing. The default leaves room under a 30 s kill.
+    #[arg(long, env = "GRAYBOX_SHUTDOWN_GRACE_SECS", default_value_t = 20)]
+    pub shutdown_grace_secs: u64,
+    /// Times a job's worker may die (lease expired) before the job fails.
+    #[arg(long, env = "GRAYBOX_MAX_ATTEMPTS", default_value_t = 3)]
+    pub max_attempts: u32,
+}
+
 impl Default for Settings {
     /// The flags' defaults (without reading the environment).
     fn default() -> Self {
-        #[derive(clap::Parser)]
-        struct Defaults {
-            #[command(flatten)]
-            settings: Settings,
-        }
-        // Parsing an empty command line gives exactly the declared defaults; the environment
-        // is ignored so that a library user's GRAYBOX_* variables cannot change them.
-        let cmd = <Defaults as clap::CommandFactory>::command();
-        let cmd = cmd.mut_args(|a| a.env(None::<&str>));
-        let matches = cmd
-            .try_get_matches_from(["graybox"])
-            .expect("the declared defaults parse");
-        <Defaults as clap::FromArgMatches>::from_arg_matches(&matches)
-            .expect("the declared defaults parse")
-            .settings
+        declared_defaults()
     }
+}
+
+impl Default for WorkerSettings {
+    /// The flags' defaults (without reading the environment).
+    fn default() -> Self {
+        declared_defaults()
+    }
+}
+
+/// Parsing an empty command line gives exactly the declared defaults; the environment is
+/// ignored so that a library user's GRAYBOX_* variables cannot change them.
+fn declared_defaults<T: Args>() -> T {
+    #[derive(clap::Parser)]
+    struct Defaults<T: Args> {
+        #[command(flatten)]
+        settings: T,
+    }
+    let cmd = <Defaults<T> as clap::CommandFactory>::command();
+    let cmd = cmd.mut_args(|a| a.env(None::<&str>));
+    let matches = cmd
+        .try_get_matches_from(["graybox"])
+        .expect("the declared defaults parse");
+    <Defaults<T> as clap::FromArgMatches>::from_arg_matches(&matches)
+        .expect("the declared defaults parse")
+        .settings
 }
 
 const MB: usize = 1 << 20;
@@ -132,8 +153,8 @@ impl Settings {
     /// Checks the values together (each flag that counts something is at least 1; the
     /// threads the settings imply fit the runtime's cap).
     pub fn validate(&self) -> Result<()> {
+        self.worker.validate()?;
         let at_least_one = [
-            ("lease-secs", self.lease_secs as usize),
             ("max-body-mb", self.max_body_mb),
             ("max-model-mb", self.max_model_mb),
             ("max-template-mb", self.max_template_mb),
@@ -145,18 +166,8 @@ impl Settings {
             ("max-job-memory-mb", self.max_job_memory_mb),
             ("max-model-params", self.max_model_params),
             ("max-dof", self.max_dof),
-            ("max-attempts", self.max_attempts as usize),
-            ("job-threads", self.job_threads.unwrap_or(1)),
         ];
-        if let Some((flag, _)) = at_least_one.iter().find(|(_, v)| *v == 0) {
-            return Err(Error::invalid(*flag, "must be at least 1"));
-        }
-        if self.shutdown_grace_secs > MAX_SHUTDOWN_GRACE_SECS {
-            return Err(Error::invalid(
-                "shutdown-grace-secs",
-                format!("must be at most {MAX_SHUTDOWN_GRACE_SECS}"),
-            ));
-        }
+        at_least_one_each(&at_least_one)?;
         // Every body must fit the budget alone, or it could never be admitted.
         let budget = self.max_inflight_body_bytes();
         if let Some(kind) = super::uploads::BodyKind::ALL
@@ -179,15 +190,8 @@ impl Settings {
                 format!("must be at most {dof} (the most a template document may have)"),
             ));
         }
-        let most = crate::train::shards::MAX_THREADS;
-        if self.job_threads.is_some_and(|t| t > most) {
-            return Err(Error::invalid(
-                "job-threads",
-                format!("must be at most {most}"),
-            ));
-        }
         // Calls and rollout streams each get --max-heavy-calls threads; 8 spare for loads.
-        if self.workers + 2 * self.max_heavy_calls + 8 > MAX_BLOCKING_THREADS {
+        if self.worker.workers + 2 * self.max_heavy_calls + 8 > MAX_BLOCKING_THREADS {
             return Err(Error::invalid(
                 "workers",
                 format!(
@@ -231,6 +235,39 @@ impl Settings {
     pub fn token(&self) -> Option<&str> {
         self.api_token.as_deref().filter(|t| !t.is_empty())
     }
+}
+
+/// The first flag in `flags` whose value is 0 is an error.
+fn at_least_one_each(flags: &[(&str, usize)]) -> Result<()> {
+    match flags.iter().find(|(_, v)| *v == 0) {
+        Some((flag, _)) => Err(Error::invalid(*flag, "must be at least 1")),
+        None => Ok(()),
+    }
+}
+
+impl WorkerSettings {
+    /// Checks the worker's flags (the counts are at least 1, the grace and threads bounded).
+    pub fn validate(&self) -> Result<()> {
+        at_least_one_each(&[
+            ("lease-secs", self.lease_secs as usize),
+            ("max-attempts", self.max_attempts as usize),
+            ("job-threads", self.job_threads.unwrap_or(1)),
+        ])?;
+        if self.shutdown_grace_secs > MAX_SHUTDOWN_GRACE_SECS {
+            return Err(Error::invalid(
+                "shutdown-grace-secs",
+                format!("must be at most {MAX_SHUTDOWN_GRACE_SECS}"),
+            ));
+        }
+        let most = crate::train::shards::MAX_THREADS;
+        if self.job_threads.is_some_and(|t| t > most) {
+            return Err(Error::invalid(
+                "job-threads",
+                format!("must be at most {most}"),
+            ));
+        }
+        Ok(())
+    }
 
     /// Threads per training job: `--job-threads`, else the cores shared among the workers,
     /// so that jobs training at once do not oversubscribe the machine.
@@ -258,10 +295,10 @@ mod tests {
     #[test]
     fn job_threads_share_the_cores_among_workers_unless_given() {
         let cores = crate::train::shards::cores();
-        let s = |workers, job_threads| Settings {
+        let s = |workers, job_threads| WorkerSettings {
             workers,
             job_threads,
-            ..Settings::default()
+            ..WorkerSettings::default()
         };
         assert_eq!(s(1, None).job_threads(), cores);
         assert_eq!(s(2, None).job_threads(), (cores / 2).max(1));
@@ -276,10 +313,13 @@ mod tests {
     #[test]
     fn shutdown_grace_is_bounded() {
         let s = |shutdown_grace_secs| Settings {
-            shutdown_grace_secs,
+            worker: WorkerSettings {
+                shutdown_grace_secs,
+                ..WorkerSettings::default()
+            },
             ..Settings::default()
         };
-        assert!(Settings::default().shutdown_grace_secs < 30);
+        assert!(WorkerSettings::default().shutdown_grace_secs < 30);
         for ok in [0, MAX_SHUTDOWN_GRACE_SECS] {
             s(ok).validate().unwrap();
         }

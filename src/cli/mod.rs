@@ -12,6 +12,7 @@ mod plan;
 mod serve;
 mod simulate;
 mod train;
+mod worker;
 
 pub use eval::{EvalArgs, InspectArgs};
 pub use health::HealthArgs;
@@ -19,6 +20,7 @@ pub use model::ModelArgs;
 pub use plan::PlanArgs;
 pub use simulate::SimulateArgs;
 pub use train::TrainArgs;
+pub use worker::WorkerArgs;
 
 use crate::error::{Error, Result};
 use crate::physics::templates::Template;
@@ -76,9 +78,12 @@ pub enum Command {
     ExportUrdf(model::ExportUrdfArgs),
     /// Plan a trajectory to a goal on a model file (iLQR with input bounds) and its gains.
     Plan(PlanArgs),
-    /// Run the service: REST, gRPC and training workers over one SQLite file.
+    /// Run the service: REST, gRPC and training workers over one database (`--workers 0`: an
+    /// API node that trains nothing).
     // `graybox serve`'s flags are the service's settings.
     Serve(crate::app::Settings),
+    /// Run training workers alone (no API), on the database the API nodes use.
+    Worker(WorkerArgs),
     /// Exit 0 if the service on this machine is ready (for container health checks).
     Health(HealthArgs),
 }
@@ -141,6 +146,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::ExportUrdf(a) => model::export_urdf(a),
         Command::Plan(a) => plan::run(a),
         Command::Serve(a) => serve::serve(a),
+        Command::Worker(a) => worker::worker(a),
         Command::Health(a) => health::health(a),
     }
 }

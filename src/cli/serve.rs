@@ -1,5 +1,6 @@
-//! `graybox serve`: its flags and the runtime it starts the service on.
+//! `graybox serve`, and the runtime and signal handling it shares with `graybox worker`.
 
+use std::future::Future;
 use std::time::Duration;
 
 use crate::app::Settings;
@@ -16,12 +17,8 @@ const EXIT_WAIT: Duration = Duration::from_secs(1);
 pub fn serve(settings: Settings) -> Result<()> {
     settings.validate()?;
     let tls = settings.tls_cert.is_some();
-    let grace = settings.shutdown_grace();
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .max_blocking_threads(MAX_BLOCKING_THREADS)
-        .enable_all()
-        .build()?;
-    let served = rt.block_on(async {
+    let grace = settings.worker.shutdown_grace();
+    long_running(async move {
         let running = crate::service::start(settings).await?;
         let scheme = if tls { "https" } else { "http" };
         eprintln!(
@@ -31,25 +28,45 @@ pub fn serve(settings: Settings) -> Result<()> {
             if tls { " (TLS)" } else { "" }
         );
         signal().await;
-        eprintln!(
-            "graybox: shutting down (running jobs are checkpointed at their next epoch end; \
-             after {} s, or at a second signal, they go back from their last checkpoint)",
-            grace.as_secs()
-        );
-        let force = async {
-            tokio::select! {
-                () = tokio::time::sleep(grace) => {}
-                () = signal() => {}
-            }
-        };
-        if let Stopped::Forced { released } = running.shutdown_by(force).await {
-            eprintln!(
-                "graybox: stopped without waiting: {released} job(s) given back to the queue \
-                 from their last checkpoint"
-            );
-        }
+        announce_stop(grace);
+        announce_forced(running.shutdown_by(until_forced(grace)).await);
         Ok(())
-    });
+    })
+}
+
+/// Runs a service process's future on a runtime with the capped blocking pool, and exits
+/// without waiting long for computations nobody awaits any more.
+pub(super) fn long_running(process: impl Future<Output = Result<()>>) -> Result<()> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .max_blocking_threads(MAX_BLOCKING_THREADS)
+        .enable_all()
+        .build()?;
+    let done = rt.block_on(process);
     rt.shutdown_timeout(EXIT_WAIT);
-    served
+    done
+}
+
+/// Resolves when the grace has run out or a second signal came.
+pub(super) async fn until_forced(grace: Duration) {
+    tokio::select! {
+        () = tokio::time::sleep(grace) => {}
+        () = signal() => {}
+    }
+}
+
+pub(super) fn announce_stop(grace: Duration) {
+    eprintln!(
+        "graybox: shutting down (running jobs are checkpointed at their next epoch end; \
+         after {} s, or at a second signal, they go back from their last checkpoint)",
+        grace.as_secs()
+    );
+}
+
+pub(super) fn announce_forced(stopped: Stopped) {
+    if let Stopped::Forced { released } = stopped {
+        eprintln!(
+            "graybox: stopped without waiting: {released} job(s) given back to the queue \
+             from their last checkpoint"
+        );
+    }
 }

@@ -69,6 +69,7 @@ pub struct NewJob {
     pub template_id: Option<String>,
 }
 
+#[derive(Debug)]
 pub enum Submitted {
     Created(JobRow),
     /// Same idempotency key, same request: the job created the first time.

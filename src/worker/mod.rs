@@ -2,6 +2,10 @@
 //! with heartbeats, train on a blocking thread, record each epoch, checkpoint at epoch ends,
 //! and end the job (or give it back on shutdown). Every write is fenced by (job, attempt).
 
+mod pool;
+
+pub use pool::{Pool, Stopped};
+
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
@@ -54,7 +58,11 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
         }
         match app
             .store
-            .claim_job(&owner, lease_ms(&app), app.settings.max_attempts as i64)
+            .claim_job(
+                &owner,
+                lease_ms(&app),
+                app.settings.worker.max_attempts as i64,
+            )
             .await
         {
             Ok(Some(claimed)) => {
@@ -78,18 +86,8 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
     }
 }
 
-/// Forced shutdown: gives back the jobs these workers still hold mid-epoch, at once and from
-/// their last checkpoint (see `Store::release_owned`); returns how many.
-pub async fn release_held(app: &App, owners: &[String]) -> Result<u64> {
-    let mut released = 0;
-    for owner in owners {
-        released += app.store.release_owned(owner).await?;
-    }
-    Ok(released)
-}
-
 fn lease_ms(app: &App) -> i64 {
-    app.settings.lease_secs as i64 * 1000
+    app.settings.worker.lease_secs as i64 * 1000
 }
 
 /// Trains one claimed job to its end (or until shutdown, cancellation or a lost lease).
@@ -199,7 +197,7 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
     {
         warn!(job = %c.job.id, code = %w.code, "{}", w.message);
     }
-    let every = app.settings.checkpoint_epochs();
+    let every = app.settings.worker.checkpoint_epochs();
     let mut checkpointed = trainer.epoch();
     let lost = || {
         flags.lost.store(true, Ordering::Relaxed);
@@ -272,7 +270,7 @@ fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<
             &device,
         ),
     }?;
-    trainer.with_threads(app.settings.job_threads())
+    trainer.with_threads(app.settings.worker.job_threads())
 }
 
 /// The trained model and the job's success in one fenced transaction; None when the lease

@@ -4,7 +4,7 @@
 use std::time::Duration;
 
 use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
-use graybox::app::Settings;
+use graybox::app::{Settings, WorkerSettings};
 use graybox::physics::templates::Template;
 use graybox::service::{Running, start};
 use graybox::sim::{SimConfig, simulate};
@@ -39,19 +39,20 @@ pub async fn fresh_db(dir: &std::path::Path) -> String {
 }
 
 pub async fn spawn_app(workers: usize) -> TestApp {
-    spawn_configured(Settings {
-        workers,
-        ..test_settings()
-    })
-    .await
+    let mut settings = test_settings();
+    settings.worker.workers = workers;
+    spawn_configured(settings).await
 }
 
 /// What the tests run with unless they say otherwise: checkpoints every 2 epochs, 64 MB
 /// bodies.
 pub fn test_settings() -> Settings {
     Settings {
-        checkpoint_every: 2,
-        lease_secs: 30,
+        worker: WorkerSettings {
+            checkpoint_every: 2,
+            lease_secs: 30,
+            ..WorkerSettings::default()
+        },
         max_body_mb: 64,
         ..Settings::default()
     }
@@ -67,18 +68,16 @@ pub async fn spawn_configured(settings: Settings) -> TestApp {
 
 /// A second service process (its own App, cache and workers) on `app`'s database.
 pub async fn spawn_app_on(app: &TestApp, workers: usize) -> TestApp {
-    let settings = Settings {
-        workers,
-        ..Settings::default()
-    };
+    let mut settings = Settings::default();
+    settings.worker.workers = workers;
     spawn_on(app.db.clone(), settings, tempfile::tempdir().unwrap()).await
 }
 
-async fn spawn_on(db: String, settings: Settings, dir: tempfile::TempDir) -> TestApp {
+async fn spawn_on(db: String, mut settings: Settings, dir: tempfile::TempDir) -> TestApp {
+    settings.worker.db = db.clone();
     let running = start(Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
-        db: db.clone(),
         ..settings
     })
     .await

@@ -282,8 +282,8 @@ async fn deleted_models_stop_being_served() {
 async fn concurrent_first_opens_both_succeed() {
     for trial in 0..14 {
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("new.db").to_string_lossy().into_owned();
-        let (a, b) = tokio::join!(Store::open(&path), Store::open(&path));
+        let db = fresh_db(dir.path()).await;
+        let (a, b) = tokio::join!(Store::open(&db), Store::open(&db));
         assert!(
             a.is_ok() && b.is_ok(),
             "trial {trial}: {:?} {:?}",

@@ -3,7 +3,6 @@
 //! their lease expires, and not counted as a dead worker. The process-level bound (SIGTERM
 //! with Plans and training running) is in tests/python/test_hostile.py.
 
-use graybox::app::Settings;
 use graybox::records::JobState;
 use graybox::service::Stopped;
 use serde_json::json;
@@ -13,12 +12,10 @@ use crate::helpers::*;
 #[tokio::test]
 async fn a_forced_shutdown_gives_held_jobs_back_at_once() {
     // A lease far longer than the test: only an explicit release makes the job claimable.
-    let mut app = spawn_configured(Settings {
-        workers: 1,
-        lease_secs: 600,
-        ..test_settings()
-    })
-    .await;
+    let mut settings = test_settings();
+    settings.worker.workers = 1;
+    settings.worker.lease_secs = 600;
+    let mut app = spawn_configured(settings).await;
     let ds = app.upload(&dataset(1024, 3)).await;
     let body = json!({"dataset_id": ds, "model": "MVF", "template": "double_pendulum",
                       "training": {"epochs": 100_000, "batch_size": 1024}});

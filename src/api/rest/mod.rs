@@ -75,6 +75,16 @@ pub fn router(app: App) -> Router {
         .with_state(state)
 }
 
+/// A worker process's only listener (`graybox worker --health`): `/healthz`, `/readyz` and
+/// `/metrics`, no resources and no token (it carries no data).
+pub fn health_router(app: App) -> Router {
+    let bodies = Arc::new(admission::BodyBudget::new(0));
+    Router::new()
+        .merge(ops::probes())
+        .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "not_found", "no such route") })
+        .with_state(RestState { app, bodies })
+}
+
 async fn authorize(State(s): State<RestState>, req: Request, next: Next) -> Response {
     let Some(token) = s.app.settings.token() else {
         return next.run(req).await;

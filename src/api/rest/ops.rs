@@ -9,6 +9,14 @@ use super::RestState;
 use super::error::{ApiError, ApiResult};
 
 pub fn routes() -> Router<RestState> {
+    probes().route(
+        "/openapi.json",
+        get(|| async { axum::Json(crate::api::openapi::document()) }),
+    )
+}
+
+/// Liveness, readiness and the Prometheus metrics: what every graybox process answers.
+pub fn probes() -> Router<RestState> {
     Router::new()
         .route(
             "/healthz",
@@ -16,10 +24,6 @@ pub fn routes() -> Router<RestState> {
         )
         .route("/readyz", get(ready))
         .route("/metrics", get(metrics))
-        .route(
-            "/openapi.json",
-            get(|| async { axum::Json(crate::api::openapi::document()) }),
-        )
 }
 
 /// Ready when the database answers.

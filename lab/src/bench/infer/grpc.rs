@@ -9,7 +9,7 @@ use super::{BATCH, BenchInferArgs, HORIZON, Problem, ROLLOUT, summary, weights};
 use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
 use graybox::app::datasets::Upload;
 use graybox::app::jobs::JobRequest;
-use graybox::app::{App, Settings};
+use graybox::app::{App, Settings, WorkerSettings};
 use graybox::error::{Error, Result};
 use graybox::records::{Job, JobState};
 use graybox::service::start;
@@ -56,8 +56,11 @@ pub(super) async fn over_grpc(
     let running = start(Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
-        db: db.0.to_string_lossy().into_owned(),
-        workers: 1,
+        worker: WorkerSettings {
+            db: db.0.to_string_lossy().into_owned(),
+            workers: 1,
+            ..WorkerSettings::default()
+        },
         ..Settings::default()
     })
     .await?;
