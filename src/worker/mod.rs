@@ -67,9 +67,14 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
         {
             Ok(Some(claimed)) => {
                 let id = claimed.job.id.clone();
+                info!(job = %id, attempt = claimed.attempt, worker = %owner, "claimed a job");
                 match run_claimed(&app, claimed, shutdown.clone()).await {
-                    Ok(outcome) => info!(job = %id, ?outcome, "job left the worker"),
-                    Err(e) => warn!(job = %id, error = %e, "worker failed to finish a job"),
+                    Ok(outcome) => {
+                        info!(job = %id, ?outcome, worker = %owner, "job left the worker")
+                    }
+                    Err(e) => {
+                        warn!(job = %id, error = %e, worker = %owner, "worker failed to finish a job")
+                    }
                 }
             }
             Ok(None) => {

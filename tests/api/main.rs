@@ -1,5 +1,6 @@
 //! Service integration tests: one binary (style.md: zero-to-production), an app per test.
 
+mod cluster;
 mod crash;
 mod datasets;
 mod errors;
@@ -11,6 +12,7 @@ mod jobs;
 mod model_uploads;
 mod nodes;
 mod plan_stop;
+mod processes;
 mod replay;
 mod shutdown;
 mod store;
