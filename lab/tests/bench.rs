@@ -98,3 +98,29 @@ fn bench_rigid_prints_agreement_and_figures() {
         assert!(l["p50_us"].as_f64().unwrap() > 0.0, "{l}");
     }
 }
+
+/// `graybox-lab bench events` prints one line per phase: no polls while nobody subscribes,
+/// one shared poller for many subscribers of `/v1/events` or of one job, one per job when
+/// each follows its own.
+#[test]
+fn bench_events_prints_the_polls_of_each_phase() {
+    let out = lab(&["bench", "events", "--subscribers", "3", "--seconds", "0.5"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<Value> = (out.stdout.split(|&b| b == b'\n'))
+        .filter(|l| !l.is_empty())
+        .map(|l| serde_json::from_slice(l).unwrap())
+        .collect();
+    let polls = |phase: &str| {
+        let line = lines.iter().find(|l| l["phase"] == phase).unwrap();
+        assert_eq!(line["backend"], "sqlite", "{line}");
+        line["polls_per_second"].as_f64().unwrap()
+    };
+    assert_eq!(polls("Idle"), 0.0);
+    assert!(polls("AllJobs") > 0.0 && polls("OneJob") > 0.0, "{lines:?}");
+    // Three pollers against one in the same window.
+    assert!(polls("OwnJob") > polls("OneJob"), "{lines:?}");
+}

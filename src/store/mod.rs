@@ -137,6 +137,13 @@ impl Store {
     async fn open_postgres(url: &str) -> Result<Self> {
         let opts = sqlx::postgres::PgConnectOptions::from_str(url)
             .map_err(|e| Error::invalid("db", format!("not a usable PostgreSQL URL: {e}")))?;
+        // One connection first: the pool's own attempts would end in "pool timed out" 30 s
+        // later, without the reason (refused, authentication, no such database).
+        use sqlx::Connection;
+        let first = sqlx::PgConnection::connect_with(&opts)
+            .await
+            .map_err(|e| Error::Storage(format!("cannot connect to {}: {e}", redacted(url))))?;
+        first.close().await?;
         let pool = sqlx::postgres::PgPoolOptions::new()
             .max_connections(8)
             .acquire_timeout(Duration::from_secs(30))

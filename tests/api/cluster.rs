@@ -151,3 +151,69 @@ fn migration_files(db: &str) -> usize {
         })
         .count()
 }
+
+/// A worker's health signal: its probes on `--health` (no API there), `graybox health` against
+/// it, exit 0 after SIGTERM; exit 1 when its database cannot be reached, 2 for a bad flag.
+#[test]
+fn a_worker_answers_its_probes_and_exits_by_its_status() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = fresh_db(dir.path());
+    let mut worker = Proc::spawn("worker", &db, &["--health", "127.0.0.1:0"]);
+    let line = worker.wait_for("graybox worker: ");
+    let addr = line.rsplit("http://").next().unwrap().to_string();
+    let get = |path: &str| {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .unwrap();
+        rt.block_on(async {
+            let r = reqwest::get(format!("http://{addr}{path}")).await.unwrap();
+            (r.status().as_u16(), r.text().await.unwrap())
+        })
+    };
+    assert_eq!(get("/healthz").0, 200);
+    assert_eq!(get("/readyz"), (200, r#"{"status":"ready"}"#.to_string()));
+    assert!(
+        get("/metrics")
+            .1
+            .contains("graybox_jobs{state=\"queued\"} 0")
+    );
+    assert_eq!(get("/v1/jobs").0, 404, "a worker serves no API");
+    let health = graybox(&["health", "--http", &addr]);
+    assert!(health.status.success(), "{health:?}");
+    worker.sigterm();
+
+    // Nothing listens on port 1: refused at once, and said so.
+    let out = graybox(&[
+        "worker",
+        "--db",
+        "postgres://graybox:secret@127.0.0.1:1/graybox",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert!(
+        stderr.contains("cannot connect to postgres://graybox:"),
+        "{stderr}"
+    );
+    assert!(
+        !stderr.contains("secret"),
+        "the password stays out: {stderr}"
+    );
+    let bad = [
+        ("workers", ["--db", &db, "--workers", "0"]),
+        ("db", ["--db", "/no/such/dir/graybox.db", "--workers", "1"]),
+    ];
+    for (flag, args) in bad {
+        let out = graybox(&[&["worker"][..], &args].concat());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{out:?}");
+        assert!(stderr.contains(&format!("error: {flag}: ")), "{stderr}");
+    }
+}
+
+fn graybox(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_graybox"))
+        .args(args)
+        .output()
+        .unwrap()
+}

@@ -1,5 +1,6 @@
 //! `graybox-lab bench …`: the figures the issues ask for, printed as JSON lines on stdout.
 
+mod events;
 mod infer;
 mod rigid;
 
@@ -31,6 +32,9 @@ pub enum BenchCommand {
     Infer(infer::BenchInferArgs),
     /// µs per call of a URDF robot's dynamics: the template path vs the recursive algorithms.
     Rigid(rigid::BenchRigidArgs),
+    /// The database load of one API node's event streams (polls and statements per second)
+    /// with many subscribers, on SQLite or PostgreSQL.
+    Events(events::BenchEventsArgs),
 }
 
 #[derive(Args, Debug)]
@@ -89,12 +93,33 @@ pub struct BenchTrainArgs {
     pub threads: usize,
 }
 
+/// A temporary SQLite database file, removed (with its WAL files) on drop.
+pub(crate) struct TempDb(pub std::path::PathBuf);
+
+impl TempDb {
+    pub fn new() -> Self {
+        let name = format!("graybox-bench-{}.db", graybox::store::new_id("b"));
+        Self(std::env::temp_dir().join(name))
+    }
+}
+
+impl Drop for TempDb {
+    fn drop(&mut self) {
+        for ext in ["", "-wal", "-shm", ".lock"] {
+            let mut p = self.0.clone().into_os_string();
+            p.push(ext);
+            let _ = std::fs::remove_file(p);
+        }
+    }
+}
+
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Train(a) => bench_train(a),
         BenchCommand::Step(a) => bench_step(a),
         BenchCommand::Infer(a) => infer::run(a),
         BenchCommand::Rigid(a) => rigid::run(a),
+        BenchCommand::Events(a) => events::run(a),
     }
 }
 

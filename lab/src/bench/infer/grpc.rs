@@ -21,19 +21,6 @@ fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
     })
 }
 
-/// A temporary database file, removed on drop.
-struct TempDb(std::path::PathBuf);
-
-impl Drop for TempDb {
-    fn drop(&mut self) {
-        for ext in ["", "-wal", "-shm"] {
-            let mut p = self.0.clone().into_os_string();
-            p.push(ext);
-            let _ = std::fs::remove_file(p);
-        }
-    }
-}
-
 /// A closure making one unary call on a clone of the client (tonic clients are cheap handles).
 macro_rules! unary {
     ($c:expr, $method:ident, $req:expr) => {
@@ -50,14 +37,12 @@ pub(super) async fn over_grpc(
     data: &graybox::data::Dataset,
     p: &Problem,
 ) -> Result<()> {
-    let db = TempDb(
-        std::env::temp_dir().join(format!("graybox-bench-{}.db", graybox::store::new_id("b"))),
-    );
+    let db = crate::bench::TempDb::new();
     let running = start(Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
         worker: WorkerSettings {
-            db: db.0.to_string_lossy().into_owned(),
+            db: (a.db.clone()).unwrap_or_else(|| db.0.to_string_lossy().into_owned()),
             workers: 1,
             ..WorkerSettings::default()
         },

@@ -29,6 +29,10 @@ pub struct BenchInferArgs {
     /// How long the concurrent phase lasts.
     #[arg(long, default_value_t = 10.0)]
     pub seconds: f64,
+    /// The service's database for the gRPC figures: an empty PostgreSQL database's URL, to
+    /// compare with the default [a temporary SQLite file] (Predict never reads the database).
+    #[arg(long)]
+    pub db: Option<String>,
     /// Skip the gRPC figures (evaluator only).
     #[arg(long)]
     pub in_process_only: bool,
