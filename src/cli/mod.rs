@@ -78,7 +78,7 @@ pub enum Command {
     ExportUrdf(model::ExportUrdfArgs),
     /// Plan a trajectory to a goal on a model file (iLQR with input bounds) and its gains.
     Plan(PlanArgs),
-    /// Run the service: REST, gRPC and training workers over one database (`--workers 0`: an
+    /// Run the service: REST, gRPC and training workers over one database (with 0 workers, an
     /// API node that trains nothing).
     // `graybox serve`'s flags are the service's settings.
     Serve(crate::app::Settings),
