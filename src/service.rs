@@ -68,7 +68,7 @@ pub async fn start(settings: Settings) -> Result<Running> {
         .zip(cfg.tls_key.clone())
         .map(|(cert, key)| TlsFiles { cert, key }.load())
         .transpose()?;
-    let store = Store::open(&cfg.worker.db).await?;
+    let store = Store::open_with(&cfg.worker.db, cfg.worker.blobs.as_deref()).await?;
     let app = App::new(store, settings);
     let http = bind(&cfg.http, "http").await?;
     let grpc = bind(&cfg.grpc, "grpc").await?;
@@ -123,7 +123,7 @@ pub async fn start_worker(settings: WorkerSettings, health: Option<&str>) -> Res
             "a worker process needs at least 1",
         ));
     }
-    let store = Store::open(&settings.worker.db).await?;
+    let store = Store::open_with(&settings.worker.db, settings.worker.blobs.as_deref()).await?;
     let db = crate::store::redacted(&settings.worker.db);
     let app = App::new(store, settings);
     let (stop, stopped) = watch::channel(false);

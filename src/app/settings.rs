@@ -89,6 +89,11 @@ pub struct WorkerSettings {
     /// processes share.
     #[arg(long, env = "GRAYBOX_DB", default_value = "./graybox.db")]
     pub db: String,
+    /// Where datasets, checkpoints and model files go: an object store, `file:///dir` or
+    /// `s3://bucket/prefix` (S3 and S3-compatible stores, configured by the AWS_* environment
+    /// variables) [default: inline, in the database's rows].
+    #[arg(long, env = "GRAYBOX_BLOBS")]
+    pub blobs: Option<String>,
     /// Training workers (jobs trained at once).
     #[arg(long, env = "GRAYBOX_WORKERS", default_value_t = 1)]
     pub workers: usize,

@@ -1,8 +1,8 @@
 //! Datasets: canonical arrays stored once, identified by their sha256.
 
 use sha2::{Digest, Sha256};
-use sqlx::Row;
 
+use super::blobs::{Kind, Placed};
 use super::dialect::{Dialect, begin_write};
 use super::{Store, new_id, now_rfc3339, row};
 use crate::data::Dataset;
@@ -83,10 +83,28 @@ impl Store {
         ds: &Dataset,
         trajectories: Option<&[usize]>,
     ) -> Result<(DatasetRow, bool)> {
+        let blob = encode(ds);
+        let placed = self.place(Kind::Dataset, &blob).await?;
+        let stored = self
+            .insert_dataset_row(name, ds, trajectories, &blob, &placed)
+            .await;
+        if !matches!(stored, Ok((_, true))) {
+            self.unreference(placed.key.as_deref()).await;
+        }
+        stored
+    }
+
+    async fn insert_dataset_row(
+        &self,
+        name: Option<&str>,
+        ds: &Dataset,
+        trajectories: Option<&[usize]>,
+        blob: &[u8],
+        placed: &Placed<'_>,
+    ) -> Result<(DatasetRow, bool)> {
         on_db!(self, pool, D => {
             let lengths = trajectories.map(|t| serde_json::to_string(t).expect("lengths serialize"));
-            let blob = encode(ds);
-            let sha = sha256(ds, &blob);
+            let sha = sha256(ds, blob);
             // Computed before the write lock is taken: the checks read every value.
             let warnings = sqlx::types::Json(ds.warnings());
             let mut tx = begin_write(pool).await?;
@@ -109,8 +127,8 @@ impl Store {
             }
             let r = sqlx::query(sql::<D>(
                 "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at, warnings,
-                                       trajectories)
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11) RETURNING {COLUMNS}",
+                                       trajectories, blob_key)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12) RETURNING {COLUMNS}",
             ))
             .bind(new_id("ds"))
             .bind(name)
@@ -119,10 +137,11 @@ impl Store {
             .bind(ds.m as i64)
             .bind(ds.dt)
             .bind(ds.count() as i64)
-            .bind(blob)
+            .bind(placed.inline)
             .bind(now_rfc3339())
             .bind(warnings)
             .bind(lengths)
+            .bind(&placed.key)
             .fetch_one(&mut *tx)
             .await?;
             tx.commit().await?;
@@ -141,24 +160,18 @@ impl Store {
     }
 
     pub async fn load_dataset(&self, id: &str) -> Result<Option<Dataset>> {
-        on_db!(self, pool, D => {
-            let r = sqlx::query("SELECT n, m, dt, count, data FROM datasets WHERE id = $1")
+        type Stored = (i64, i64, f64, i64, Vec<u8>, Option<String>);
+        let r: Option<Stored> = on_db!(self, pool, D => {
+            sqlx::query_as("SELECT n, m, dt, count, data, blob_key FROM datasets WHERE id = $1")
                 .bind(id)
                 .fetch_optional(pool)
-                .await?;
-            let Some(r) = r else { return Ok(None) };
-            let (n, m, count): (i64, i64, i64) =
-                (r.try_get("n")?, r.try_get("m")?, r.try_get("count")?);
-            let blob: Vec<u8> = r.try_get("data")?;
-            decode(
-                &blob,
-                n as usize,
-                m as usize,
-                r.try_get("dt")?,
-                count as usize,
-            )
-            .map(Some)
-        })
+                .await?
+        });
+        let Some((n, m, dt, count, inline, key)) = r else {
+            return Ok(None);
+        };
+        let blob = self.fetch(inline, key).await?;
+        decode(&blob, n as usize, m as usize, dt, count as usize).map(Some)
     }
 
     /// The trajectory lengths a dataset was uploaded with: None when there is no such
@@ -197,11 +210,13 @@ impl Store {
 
     /// Deletes a dataset unless a queued or running job uses it.
     pub async fn delete_dataset(&self, id: &str) -> Result<()> {
-        on_db!(self, pool, D => {
-            delete_row!(pool, "datasets", "dataset", id,
+        let key = on_db!(self, pool, D => {
+            delete_row!(pool, "datasets", "dataset", id, blob_key,
                 users = "SELECT COUNT(*) FROM jobs WHERE state IN ('queued', 'running')
                          AND (dataset_id = $1 OR validation_dataset_id = $1)")
-        })
+        })?;
+        self.unreference(key.as_deref()).await;
+        Ok(())
     }
 }
 

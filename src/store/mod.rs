@@ -9,6 +9,7 @@ mod dialect;
 mod page;
 #[macro_use]
 mod delete;
+pub mod blobs;
 mod datasets;
 mod jobs;
 mod models;
@@ -33,6 +34,8 @@ use crate::error::{Error, Result};
 #[derive(Debug, Clone)]
 pub struct Store {
     db: Db,
+    /// Where large bytes go (`--blobs`); None: inline in their rows.
+    blobs: Option<blobs::Blobs>,
 }
 
 impl From<sqlx::Error> for Error {
@@ -125,16 +128,29 @@ impl Store {
     /// Opens the database `db` names and applies its migrations: a `postgres://` URL, or the
     /// path of an SQLite file (created if needed).
     pub async fn open(db: &str) -> Result<Self> {
-        if is_postgres(db) {
-            Self::open_postgres(db).await
+        let db = if is_postgres(db) {
+            Self::open_postgres(db).await?
         } else {
-            Self::open_sqlite(db).await
+            Self::open_sqlite(db).await?
+        };
+        Ok(Self { db, blobs: None })
+    }
+
+    /// [`Store::open`], with new rows' large bytes in the object store `blobs` names (see
+    /// `blobs.rs`); rows stored inline before keep their bytes and are served as they are.
+    pub async fn open_with(db: &str, blobs: Option<&str>) -> Result<Self> {
+        // The cheap check first: a bad URL stops the start-up before the database is opened.
+        let blobs = blobs.map(blobs::Blobs::open).transpose()?;
+        let store = Self::open(db).await?;
+        if let Some(b) = &blobs {
+            b.ping().await?;
         }
+        Ok(Self { blobs, ..store })
     }
 
     /// Several processes may start at once on an empty database: sqlx's migrator holds a
     /// Postgres advisory lock while it migrates, so the others wait and find it done.
-    async fn open_postgres(url: &str) -> Result<Self> {
+    async fn open_postgres(url: &str) -> Result<Db> {
         let opts = sqlx::postgres::PgConnectOptions::from_str(url)
             .map_err(|e| Error::invalid("db", format!("not a usable PostgreSQL URL: {e}")))?;
         // One connection first: the pool's own attempts would end in "pool timed out" 30 s
@@ -150,13 +166,11 @@ impl Store {
             .connect_with(opts)
             .await?;
         sqlx::migrate!("./migrations/postgres").run(&pool).await?;
-        Ok(Self {
-            db: Db::Postgres(pool),
-        })
+        Ok(Db::Postgres(pool))
     }
 
     /// Opens (creating if needed) the database file and applies the migrations.
-    async fn open_sqlite(path: &str) -> Result<Self> {
+    async fn open_sqlite(path: &str) -> Result<Db> {
         let opts = SqliteConnectOptions::from_str(&format!("sqlite://{path}"))
             .map_err(|e| Error::invalid("db", e))?
             .create_if_missing(true)
@@ -174,15 +188,17 @@ impl Store {
         let migrated = sqlx::migrate!("./migrations/sqlite").run(&pool).await;
         drop(lock);
         migrated?;
-        Ok(Self {
-            db: Db::Sqlite(pool),
-        })
+        Ok(Db::Sqlite(pool))
     }
 
+    /// Ready when the database (and the object store, with `--blobs`) answer.
     pub async fn ping(&self) -> Result<()> {
         on_db!(self, pool, D => {
             sqlx::query("SELECT 1").execute(pool).await?;
         });
+        if let Some(b) = &self.blobs {
+            b.ping().await?;
+        }
         Ok(())
     }
 }

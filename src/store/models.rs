@@ -2,8 +2,8 @@
 //! file uploaded as it is.
 
 use serde::Serialize;
-use sqlx::Row;
 
+use super::blobs::{Kind, Placed};
 use super::dialect::{Dialect, begin_write};
 use super::queue::{Claimed, fence, fenced};
 use super::{Store, new_id, now_rfc3339, row, sha256_hex, verified};
@@ -52,8 +52,9 @@ pub struct NewModel<'a> {
 /// Inserts a model in the transaction `$tx` of database `$D`: trained when it has a job,
 /// uploaded when not; the stored row. (A macro: it runs in either backend's transaction.)
 macro_rules! insert_row {
-    ($D:ty, $tx:expr, $id:expr, $job_id:expr, $m:expr) => {{
+    ($D:ty, $tx:expr, $id:expr, $job_id:expr, $m:expr, $placed:expr) => {{
         let (id, job_id, m): (&str, Option<&str>, &NewModel<'_>) = ($id, $job_id, $m);
+        let placed: &Placed<'_> = $placed;
         let origin = if job_id.is_some() {
             "trained"
         } else {
@@ -61,8 +62,8 @@ macro_rules! insert_row {
         };
         let r = sqlx::query(sql::<$D>(
             "INSERT INTO models (id, job_id, origin, name, n, m, dt, spec, report, file, sha256,
-                 created_at)
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12) RETURNING {COLUMNS}",
+                 created_at, blob_key)
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13) RETURNING {COLUMNS}",
         ))
         .bind(id)
         .bind(job_id)
@@ -73,9 +74,10 @@ macro_rules! insert_row {
         .bind(m.dt)
         .bind(m.spec)
         .bind(m.report)
-        .bind(m.file)
+        .bind(placed.inline)
         .bind(sha256_hex(m.file))
         .bind(now_rfc3339())
+        .bind(&placed.key)
         .fetch_one(&mut *$tx)
         .await?;
         row::<_, ModelRow>(&r)
@@ -91,6 +93,21 @@ impl Store {
         c: &Claimed,
         m: NewModel<'_>,
         warnings: &[Warning],
+    ) -> Result<Option<String>> {
+        let placed = self.place(Kind::Model, m.file).await?;
+        let finished = self.finish_job_row(c, &m, warnings, &placed).await;
+        if !matches!(finished, Ok(Some(_))) {
+            self.unreference(placed.key.as_deref()).await;
+        }
+        finished
+    }
+
+    async fn finish_job_row(
+        &self,
+        c: &Claimed,
+        m: &NewModel<'_>,
+        warnings: &[Warning],
+        placed: &Placed<'_>,
     ) -> Result<Option<String>> {
         on_db!(self, pool, D => {
             let mut tx = begin_write(pool).await?;
@@ -111,7 +128,7 @@ impl Store {
             if updated.rows_affected() == 0 {
                 return Ok(None);
             }
-            insert_row!(D, tx, &model_id, Some(&c.job.id), &m)?;
+            insert_row!(D, tx, &model_id, Some(&c.job.id), m, placed)?;
             tx.commit().await?;
             Ok(Some(model_id))
         })
@@ -120,6 +137,19 @@ impl Store {
     /// Stores an uploaded model unless the same file is stored already; the row and whether
     /// it was created.
     pub async fn insert_model(&self, m: NewModel<'_>) -> Result<(ModelRow, bool)> {
+        let placed = self.place(Kind::Model, m.file).await?;
+        let stored = self.insert_model_row(&m, &placed).await;
+        if !matches!(stored, Ok((_, true))) {
+            self.unreference(placed.key.as_deref()).await;
+        }
+        stored
+    }
+
+    async fn insert_model_row(
+        &self,
+        m: &NewModel<'_>,
+        placed: &Placed<'_>,
+    ) -> Result<(ModelRow, bool)> {
         on_db!(self, pool, D => {
             let sha = sha256_hex(m.file);
             let mut tx = begin_write(pool).await?;
@@ -133,7 +163,7 @@ impl Store {
                 tx.commit().await?;
                 return Ok((row(&r)?, false));
             }
-            let stored = insert_row!(D, tx, &new_id("mdl"), None, &m)?;
+            let stored = insert_row!(D, tx, &new_id("mdl"), None, m, placed)?;
             tx.commit().await?;
             Ok((stored, true))
         })
@@ -151,15 +181,17 @@ impl Store {
 
     /// The model file (`.gbx` bytes), verified against its checksum.
     pub async fn model_file(&self, id: &str) -> Result<Option<Vec<u8>>> {
-        on_db!(self, pool, D => {
-            let r = sqlx::query("SELECT file, sha256 FROM models WHERE id = $1")
+        let r: Option<(Vec<u8>, String, Option<String>)> = on_db!(self, pool, D => {
+            sqlx::query_as("SELECT file, sha256, blob_key FROM models WHERE id = $1")
                 .bind(id)
                 .fetch_optional(pool)
-                .await?;
-            let Some(r) = r else { return Ok(None) };
-            let sha: String = r.try_get("sha256")?;
-            Ok(Some(verified(r.try_get("file")?, &sha, "model file", id)?))
-        })
+                .await?
+        });
+        let Some((inline, sha, key)) = r else {
+            return Ok(None);
+        };
+        let file = self.fetch(inline, key).await?;
+        Ok(Some(verified(file, &sha, "model file", id)?))
     }
 
     /// Newest first, at most `limit` rows and [`super::PAGE_BYTES`] of specs and reports;
@@ -197,8 +229,10 @@ impl Store {
     }
 
     pub async fn delete_model(&self, id: &str) -> Result<()> {
-        on_db!(self, pool, D => {
-            delete_row!(pool, "models", "model", id)
-        })
+        let key = on_db!(self, pool, D => {
+            delete_row!(pool, "models", "model", id, blob_key)
+        })?;
+        self.unreference(key.as_deref()).await;
+        Ok(())
     }
 }

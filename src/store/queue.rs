@@ -3,6 +3,7 @@
 
 use sqlx::Row;
 
+use super::blobs::{Kind, Placed};
 use super::dialect::{Dialect, begin_write, owned_sql};
 use super::jobs::{JobRow, row, sql};
 use super::{Store, now_rfc3339, sha256_hex, verified};
@@ -200,6 +201,25 @@ impl Store {
     /// Replaces the job's checkpoint atomically (inside the transaction, so a crash leaves the
     /// previous one); false when the lease was lost.
     pub async fn save_checkpoint(&self, c: &Claimed, epoch: i64, state: &[u8]) -> Result<bool> {
+        let placed = self.place(Kind::Checkpoint, state).await?;
+        let saved = self.save_checkpoint_row(c, epoch, state, &placed).await;
+        // The object no row points at: the new one when fenced out, else the replaced one.
+        match &saved {
+            Ok(Some(replaced)) => self.unreference(replaced.as_deref()).await,
+            _ => self.unreference(placed.key.as_deref()).await,
+        }
+        saved.map(|s| s.is_some())
+    }
+
+    /// The fenced write of a checkpoint; None when the lease was lost, else the object key of
+    /// the checkpoint it replaced (if that one was in the object store).
+    async fn save_checkpoint_row(
+        &self,
+        c: &Claimed,
+        epoch: i64,
+        state: &[u8],
+        placed: &Placed<'_>,
+    ) -> Result<Option<Option<String>>> {
         on_db!(self, pool, D => {
             let mut tx = begin_write(pool).await?;
             let text = format!("UPDATE jobs SET checkpoint_epoch = $1 WHERE {}", fence(1));
@@ -207,41 +227,50 @@ impl Store {
                 .execute(&mut *tx)
                 .await?;
             if updated.rows_affected() == 0 {
-                return Ok(false);
+                return Ok(None);
             }
+            let replaced: Option<Option<String>> =
+                sqlx::query_scalar("SELECT blob_key FROM checkpoints WHERE job_id = $1")
+                    .bind(&c.job.id)
+                    .fetch_optional(&mut *tx)
+                    .await?;
             sqlx::query(
-                "INSERT INTO checkpoints (job_id, epoch, attempt, state, sha256, created_at)
-                 VALUES ($1, $2, $3, $4, $5, $6)
+                "INSERT INTO checkpoints (job_id, epoch, attempt, state, sha256, created_at, blob_key)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7)
                  ON CONFLICT (job_id) DO UPDATE SET epoch = excluded.epoch,
                     attempt = excluded.attempt, state = excluded.state,
-                    sha256 = excluded.sha256, created_at = excluded.created_at",
+                    sha256 = excluded.sha256, created_at = excluded.created_at,
+                    blob_key = excluded.blob_key",
             )
             .bind(&c.job.id)
             .bind(epoch)
             .bind(c.attempt)
-            .bind(state)
+            .bind(placed.inline)
             .bind(sha256_hex(state))
             .bind(now_rfc3339())
+            .bind(&placed.key)
             .execute(&mut *tx)
             .await
             .map_err(|e| too_big(e, state.len()))?;
             tx.commit().await?;
-            Ok(true)
+            Ok(Some(replaced.flatten()))
         })
     }
 
     /// The last committed checkpoint (epoch, bytes), verified against its checksum.
     pub async fn load_checkpoint(&self, job_id: &str) -> Result<Option<(i64, Vec<u8>)>> {
-        on_db!(self, pool, D => {
-            let r = sqlx::query("SELECT epoch, state, sha256 FROM checkpoints WHERE job_id = $1")
+        type Stored = (i64, Vec<u8>, String, Option<String>);
+        let r: Option<Stored> = on_db!(self, pool, D => {
+            sqlx::query_as("SELECT epoch, state, sha256, blob_key FROM checkpoints WHERE job_id = $1")
                 .bind(job_id)
                 .fetch_optional(pool)
-                .await?;
-            let Some(r) = r else { return Ok(None) };
-            let sha: String = r.try_get("sha256")?;
-            let state = verified(r.try_get("state")?, &sha, "checkpoint", job_id)?;
-            Ok(Some((r.try_get("epoch")?, state)))
-        })
+                .await?
+        });
+        let Some((epoch, inline, sha, key)) = r else {
+            return Ok(None);
+        };
+        let state = self.fetch(inline, key).await?;
+        Ok(Some((epoch, verified(state, &sha, "checkpoint", job_id)?)))
     }
 
     /// Ends a held job in a final state (with its error message, if any); false when the lease

@@ -3,6 +3,7 @@
 //! API tests reach the store through the service; these call it directly, so that a backend
 //! that differs in one statement fails here by name.
 
+mod blobs;
 mod queue;
 mod rows;
 

@@ -1,0 +1,149 @@
+//! Large bytes in an object store (`--blobs`, here a local directory): written under their
+//! content's key before a row points at them, read back verified, shared by rows with the same
+//! bytes and deleted with the last of them; rows stored inline before keep being served.
+
+use std::path::Path;
+
+use graybox::error::Error;
+use graybox::records::JobState;
+use graybox::store::Store;
+
+use super::rows::model;
+use super::{TestStore, queued_job, small_dataset};
+
+/// The objects under `dir/<kind>`, by name.
+fn objects(dir: &Path, kind: &str) -> Vec<String> {
+    let Ok(entries) = std::fs::read_dir(dir.join(kind)) else {
+        return Vec::new();
+    };
+    let mut names: Vec<String> = entries
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+fn sha(bytes: &[u8]) -> String {
+    graybox::store::sha256_hex(bytes)
+}
+
+async fn with_blobs(s: &TestStore, dir: &Path) -> Store {
+    let url = format!("file://{}", dir.display());
+    Store::open_with(&s.db, Some(&url)).await.unwrap()
+}
+
+#[tokio::test]
+async fn rows_point_at_objects_that_two_rows_may_share_and_the_last_deletes() {
+    let s = TestStore::new().await;
+    let dir = tempfile::tempdir().unwrap();
+    let b = with_blobs(&s, dir.path()).await;
+    let file = b"one model file".to_vec();
+    let (uploaded, _) = b.insert_model(model(&file)).await.unwrap();
+    assert_eq!(objects(dir.path(), "models"), [sha(&file)]);
+    // A trained model with the same bytes: a second row on the same object.
+    queued_job(&b, 1, None).await;
+    let c = b.claim_job("w", 600_000, 3).await.unwrap().unwrap();
+    let trained = b.finish_job(&c, model(&file), &[]).await.unwrap().unwrap();
+    assert_eq!(objects(dir.path(), "models"), [sha(&file)]);
+    b.delete_model(&uploaded.id).await.unwrap();
+    assert_eq!(b.model_file(&trained).await.unwrap(), Some(file.clone()));
+    b.delete_model(&trained).await.unwrap();
+    assert!(
+        objects(dir.path(), "models").is_empty(),
+        "the last row took it"
+    );
+
+    // A dataset: its arrays are one object; the same arrays again are the same row.
+    let before = objects(dir.path(), "datasets");
+    let ds = small_dataset(2);
+    let (row, _) = b.insert_dataset(None, &ds, None).await.unwrap();
+    let (again, created) = b.insert_dataset(None, &ds, None).await.unwrap();
+    assert!(!created && again.id == row.id);
+    assert_eq!(objects(dir.path(), "datasets").len(), before.len() + 1);
+    assert_eq!(b.load_dataset(&row.id).await.unwrap(), Some(ds));
+    b.delete_dataset(&row.id).await.unwrap();
+    assert_eq!(objects(dir.path(), "datasets"), before);
+}
+
+#[tokio::test]
+async fn a_replaced_or_fenced_out_checkpoint_leaves_no_object_behind() {
+    let s = TestStore::new().await;
+    let dir = tempfile::tempdir().unwrap();
+    let b = with_blobs(&s, dir.path()).await;
+    let job = queued_job(&b, 1, None).await;
+    let c = b.claim_job("a", 1, 3).await.unwrap().unwrap();
+    for epoch in 1..=3u8 {
+        assert!(
+            b.save_checkpoint(&c, epoch.into(), &[epoch; 64])
+                .await
+                .unwrap()
+        );
+    }
+    assert_eq!(objects(dir.path(), "checkpoints"), [sha(&[3; 64])]);
+    // Its lease expires and another worker takes the job: the old holder's checkpoint is
+    // refused and its object removed; the last committed one stays.
+    tokio::time::sleep(std::time::Duration::from_millis(50)).await;
+    let new = b.claim_job("b", 600_000, 3).await.unwrap().unwrap();
+    assert!(!b.save_checkpoint(&c, 4, &[4; 64]).await.unwrap());
+    assert_eq!(objects(dir.path(), "checkpoints"), [sha(&[3; 64])]);
+    assert_eq!(
+        b.load_checkpoint(&job.id).await.unwrap(),
+        Some((3, vec![3; 64]))
+    );
+    assert!(b.end_job(&new, JobState::Succeeded, None).await.unwrap());
+}
+
+#[tokio::test]
+async fn inline_rows_stay_served_beside_object_rows_and_need_the_store_they_name() {
+    let s = TestStore::new().await;
+    let (inline, _) = s
+        .insert_dataset(None, &small_dataset(1), None)
+        .await
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let b = with_blobs(&s, dir.path()).await;
+    let (external, _) = b
+        .insert_dataset(None, &small_dataset(2), None)
+        .await
+        .unwrap();
+    assert_eq!(
+        b.load_dataset(&inline.id).await.unwrap(),
+        Some(small_dataset(1))
+    );
+    assert_eq!(
+        b.load_dataset(&external.id).await.unwrap(),
+        Some(small_dataset(2))
+    );
+    // A process without --blobs serves the inline row and says what the other needs.
+    assert!(s.load_dataset(&inline.id).await.unwrap().is_some());
+    match s.load_dataset(&external.id).await {
+        Err(Error::FailedPrecondition(m)) => assert!(m.contains("--blobs"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+    // An object that went missing or changed is corrupt, not a wrong answer.
+    let key = dir
+        .path()
+        .join("datasets")
+        .join(&objects(dir.path(), "datasets")[0]);
+    std::fs::write(&key, b"not the arrays").unwrap();
+    match b.load_dataset(&external.id).await {
+        Err(Error::Corrupt { .. }) => {}
+        other => panic!("{other:?}"),
+    }
+    std::fs::remove_file(&key).unwrap();
+    assert!(matches!(
+        b.load_dataset(&external.id).await,
+        Err(Error::Corrupt { .. })
+    ));
+}
+
+#[tokio::test]
+async fn a_bad_blobs_url_is_refused_naming_the_flag() {
+    let s = TestStore::new().await;
+    for url in ["file://relative/dir", "s3://", "ftp://host/x"] {
+        match Store::open_with(&s.db, Some(url)).await {
+            Err(Error::Invalid { field, .. }) => assert_eq!(field, "blobs", "{url}"),
+            other => panic!("{url}: {other:?}"),
+        }
+    }
+}
