@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test graybox has: the Rust unit and integration tests (release profile, so that
 # the tests, benchmarks and the Python client tests share one build), the API tests once more
-# on a throwaway PostgreSQL cluster, then the Python client tests in a pinned virtualenv when
-# they exist.
+# on a throwaway PostgreSQL cluster and S3 endpoint, then the Python client tests in a pinned
+# virtualenv.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,11 +28,21 @@ for line in sys.stdin:
   fi
 done
 
-# The service's API tests again, on PostgreSQL: each test on a new database of a throwaway
-# cluster (tests/api/helpers.rs reads GRAYBOX_TEST_POSTGRES). Same build, nothing recompiles.
-# shellcheck source=scripts/postgres.sh
-source scripts/postgres.sh
+# The pinned virtualenv of the Python tests; it also serves the S3 endpoint below.
+venv=${GRAYBOX_VENV:-.venv}
+if [ ! -x "$venv/bin/python" ]; then
+  python3 -m venv "$venv"
+fi
+"$venv/bin/pip" install --quiet --disable-pip-version-check -r tests/python/requirements.txt
+"$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/python
+
+# The service's API tests again as it runs beyond one machine: each test on a new database of
+# a throwaway PostgreSQL cluster and its large bytes in an S3 endpoint (tests/api/helpers.rs
+# reads GRAYBOX_TEST_POSTGRES and GRAYBOX_TEST_BLOBS). Same build, nothing recompiles.
+# shellcheck source=scripts/services.sh
+source scripts/services.sh
 start_postgres
+start_s3 "$venv"
 cargo test -p graybox --release --locked --test api
 
 if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
@@ -43,12 +53,6 @@ if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
     $sudo apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq chromium > /dev/null
   fi
-  venv=${GRAYBOX_VENV:-.venv}
-  if [ ! -x "$venv/bin/python" ]; then
-    python3 -m venv "$venv"
-  fi
-  "$venv/bin/pip" install --quiet --disable-pip-version-check -r tests/python/requirements.txt
-  "$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/python
   GRAYBOX_BIN="$PWD/target/release/graybox" GRAYBOX_LAB_BIN="$PWD/target/release/graybox-lab" \
     "$venv/bin/python" -m pytest -q tests/python
 fi

@@ -38,6 +38,17 @@ pub async fn fresh_db(dir: &std::path::Path) -> String {
     format!("{server}/{name}")
 }
 
+/// The object store of `db`'s large bytes: with `GRAYBOX_TEST_BLOBS` (an S3 bucket, as
+/// `scripts/test.sh` starts one), a prefix of its own for each database, so that every node on
+/// one database shares it; else none (inline in the rows).
+pub fn blobs_for(db: &str) -> Option<String> {
+    let bucket = std::env::var("GRAYBOX_TEST_BLOBS").ok()?;
+    let name: String = (db.chars())
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    Some(format!("{bucket}/{name}"))
+}
+
 pub async fn spawn_app(workers: usize) -> TestApp {
     let mut settings = test_settings();
     settings.worker.workers = workers;
@@ -75,6 +86,7 @@ pub async fn spawn_app_on(app: &TestApp, workers: usize) -> TestApp {
 
 async fn spawn_on(db: String, mut settings: Settings, dir: tempfile::TempDir) -> TestApp {
     settings.worker.db = db.clone();
+    settings.worker.blobs = settings.worker.blobs.or_else(|| blobs_for(&db));
     let running = start(Settings {
         http: "127.0.0.1:0".into(),
         grpc: "127.0.0.1:0".into(),
@@ -95,7 +107,8 @@ async fn spawn_on(db: String, mut settings: Settings, dir: tempfile::TempDir) ->
 impl TestApp {
     /// Another connection pool on the service's database, as a second process would open it.
     pub async fn open_store(&self) -> graybox::store::Store {
-        graybox::store::Store::open(&self.db).await.unwrap()
+        let blobs = blobs_for(&self.db);
+        (graybox::store::Store::open_with(&self.db, blobs.as_deref()).await).unwrap()
     }
 
     pub fn url(&self, path: &str) -> String {

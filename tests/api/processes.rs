@@ -17,19 +17,16 @@ pub struct Proc {
 }
 
 impl Proc {
-    /// `graybox <command> --db <db>` with a 2 s lease and checkpoints every 2 epochs, so that
-    /// a killed worker's job is reclaimed soon and resumes from a recent checkpoint.
+    /// `graybox <command> --db <db>` (and the run's object store, see `blobs_for`) with a 2 s
+    /// lease and checkpoints every 2 epochs, so that a killed worker's job is reclaimed soon
+    /// and resumes from a recent checkpoint.
     pub fn spawn(command: &str, db: &str, args: &[&str]) -> Proc {
+        let blobs = crate::helpers::blobs_for(db).map(|b| ["--blobs".to_string(), b]);
+        let common = ["--db", db, "--lease-secs", "2", "--checkpoint-every", "2"];
         let mut child = Command::new(env!("CARGO_BIN_EXE_graybox"))
-            .args([
-                command,
-                "--db",
-                db,
-                "--lease-secs",
-                "2",
-                "--checkpoint-every",
-                "2",
-            ])
+            .arg(command)
+            .args(common)
+            .args(blobs.iter().flatten())
             .args(args)
             .env("RUST_LOG", "warn,graybox=info")
             .stderr(Stdio::piped())

@@ -95,7 +95,7 @@ async fn a_replaced_or_fenced_out_checkpoint_leaves_no_object_behind() {
 
 #[tokio::test]
 async fn inline_rows_stay_served_beside_object_rows_and_need_the_store_they_name() {
-    let s = TestStore::new().await;
+    let s = TestStore::inline().await;
     let (inline, _) = s
         .insert_dataset(None, &small_dataset(1), None)
         .await
@@ -146,4 +146,39 @@ async fn a_bad_blobs_url_is_refused_naming_the_flag() {
             other => panic!("{url}: {other:?}"),
         }
     }
+}
+
+/// The S3 endpoint of the run (`GRAYBOX_TEST_S3`, moto's server in `scripts/test.sh`) refuses
+/// a second create of one key (412, which object_store reports as AlreadyExists): the
+/// guarantee create-if-absent rests on, checked first so that an endpoint that regressed
+/// (moto 5.2.0 answered 500) shows here by name. Without the endpoint (the SQLite run) there
+/// is nothing to check.
+#[tokio::test]
+async fn the_s3_endpoint_refuses_a_second_create_of_a_key() {
+    use object_store::aws::{AmazonS3Builder, S3ConditionalPut};
+    use object_store::{ObjectStore, PutMode, PutOptions, PutPayload, path::Path};
+    if std::env::var("GRAYBOX_TEST_S3").is_err() {
+        return;
+    }
+    let s3 = AmazonS3Builder::from_env()
+        .with_bucket_name("graybox-test")
+        .with_conditional_put(S3ConditionalPut::ETagMatch)
+        .build()
+        .unwrap();
+    let path = Path::from(format!("create-twice/{}", uuid::Uuid::new_v4().simple()));
+    let create = || PutOptions {
+        mode: PutMode::Create,
+        ..PutOptions::default()
+    };
+    let once = s3
+        .put_opts(&path, PutPayload::from_static(b"one"), create())
+        .await;
+    assert!(once.is_ok(), "{once:?}");
+    let twice = s3
+        .put_opts(&path, PutPayload::from_static(b"two"), create())
+        .await;
+    assert!(
+        matches!(twice, Err(object_store::Error::AlreadyExists { .. })),
+        "{twice:?}"
+    );
 }

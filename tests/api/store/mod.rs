@@ -12,7 +12,7 @@ use graybox::physics::templates::Template;
 use graybox::sim::{SimConfig, simulate};
 use graybox::store::{NewJob, Store, Submitted};
 
-use crate::helpers::fresh_db;
+use crate::helpers::{blobs_for, fresh_db};
 
 /// A store on a new database (as `fresh_db` makes one).
 pub struct TestStore {
@@ -29,10 +29,21 @@ impl std::ops::Deref for TestStore {
 }
 
 impl TestStore {
+    /// On the run's backends (large bytes in its object store, if it has one).
     pub async fn new() -> Self {
+        Self::open(true).await
+    }
+
+    /// Large bytes inline in the rows, whatever the run's object store.
+    pub async fn inline() -> Self {
+        Self::open(false).await
+    }
+
+    async fn open(blobs: bool) -> Self {
         let dir = tempfile::tempdir().unwrap();
         let db = fresh_db(dir.path()).await;
-        let store = Store::open(&db).await.unwrap();
+        let blobs = blobs.then(|| blobs_for(&db)).flatten();
+        let store = Store::open_with(&db, blobs.as_deref()).await.unwrap();
         Self {
             store,
             db,
@@ -42,7 +53,8 @@ impl TestStore {
 
     /// A second connection pool on the same database, as another process opens it.
     pub async fn reopen(&self) -> Store {
-        Store::open(&self.db).await.unwrap()
+        let blobs = blobs_for(&self.db);
+        Store::open_with(&self.db, blobs.as_deref()).await.unwrap()
     }
 }
 
