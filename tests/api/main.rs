@@ -1,5 +1,6 @@
 //! Service integration tests: one binary (style.md: zero-to-production), an app per test.
 
+mod chaos;
 mod cluster;
 mod crash;
 mod datasets;

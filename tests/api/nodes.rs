@@ -7,6 +7,8 @@ use std::time::Duration;
 use serde_json::Value;
 use tonic::Code;
 
+use graybox::store::blobs::Kind;
+
 use crate::helpers::*;
 
 /// Twenty clients retry one submission through two API nodes at once: one job, and every
@@ -48,7 +50,7 @@ async fn one_idempotency_key_across_two_nodes_makes_one_job() {
 
 /// A job submitted through one API node and trained by a worker node streams its progress and
 /// end on another API node; the model it made is served by both, and once deleted through one
-/// it is refused by the other (within its cache sweep).
+/// it is refused by the other (within its cache sweep), its object gone from the store.
 #[tokio::test]
 async fn a_job_trained_by_a_worker_shows_and_serves_on_every_api_node() {
     let a = spawn_app(0).await;
@@ -84,8 +86,17 @@ async fn a_job_trained_by_a_worker_shows_and_serves_on_every_api_node() {
     );
     assert_eq!(pa.x_next, pb.x_next, "both nodes serve the same model");
 
+    // With an object store, the file is an object, and it goes with the model's row.
+    let blobs = blobs_for(&a.db).map(|url| graybox::store::blobs::Blobs::open(&url).unwrap());
+    let key = graybox::store::blobs::Blobs::key(Kind::Model, &a.model_file(&model).await);
+    if let Some(blobs) = &blobs {
+        assert!(blobs.exists(&key).await.unwrap(), "{key}");
+    }
     let del = a.client.delete(a.url(&format!("/v1/models/{model}")));
     assert!(del.send().await.unwrap().status().is_success());
+    if let Some(blobs) = &blobs {
+        assert!(!blobs.exists(&key).await.unwrap(), "{key} outlived its row");
+    }
     let e = ca.predict(predict_req(&model, 1)).await.unwrap_err();
     assert_eq!(e.code(), Code::NotFound, "{e:?}");
     // The other node's sweep (every CACHE_SWEEP, 0.5 s) drops it; the deadline is generous
