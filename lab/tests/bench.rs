@@ -124,3 +124,24 @@ fn bench_events_prints_the_polls_of_each_phase() {
     // Three pollers against one in the same window.
     assert!(polls("OwnJob") > polls("OneJob"), "{lines:?}");
 }
+
+/// `graybox-lab bench queue` prints the wait of jobs submitted to idle workers, in order.
+#[test]
+fn bench_queue_prints_the_claim_latency() {
+    let out = lab(&["bench", "queue", "--workers", "2", "--jobs", "3"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line: Value = serde_json::from_slice(out.stdout.trim_ascii()).unwrap();
+    assert_eq!(
+        (line["bench"].as_str(), line["jobs"].as_u64()),
+        (Some("claim_latency"), Some(3))
+    );
+    let (p50, p99) = (
+        line["p50_ms"].as_f64().unwrap(),
+        line["p99_ms"].as_f64().unwrap(),
+    );
+    assert!(0.0 < p50 && p50 <= p99, "{line}");
+}

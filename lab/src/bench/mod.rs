@@ -2,6 +2,7 @@
 
 mod events;
 mod infer;
+mod queue;
 mod rigid;
 
 use std::sync::atomic::AtomicBool;
@@ -35,6 +36,8 @@ pub enum BenchCommand {
     /// The database load of one API node's event streams (polls and statements per second)
     /// with many subscribers, on SQLite or PostgreSQL.
     Events(events::BenchEventsArgs),
+    /// How long a submitted job waits for an idle worker (queued → running), p50 and p99.
+    Queue(queue::BenchQueueArgs),
 }
 
 #[derive(Args, Debug)]
@@ -120,6 +123,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Infer(a) => infer::run(a),
         BenchCommand::Rigid(a) => rigid::run(a),
         BenchCommand::Events(a) => events::run(a),
+        BenchCommand::Queue(a) => queue::run(a),
     }
 }
 
