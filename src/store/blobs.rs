@@ -14,6 +14,9 @@ use object_store::{ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload}
 use super::sha256_hex;
 use crate::error::{Error, Result};
 
+/// The object every graybox process writes at start and readiness checks for.
+const MARKER: &str = "graybox/ready";
+
 /// What a row's bytes are: the key's directory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
@@ -113,23 +116,21 @@ impl Blobs {
         }
     }
 
-    /// The bytes under `key`, checked against the hash the key names.
-    pub async fn get(&self, key: &str) -> Result<Vec<u8>> {
-        let got = self.store.get(&self.path(key)).await.map_err(|e| match e {
-            object_store::Error::NotFound { .. } => {
-                Error::corrupt("object store", format!("{key} is missing"))
-            }
-            e => storage(e),
-        })?;
+    /// The bytes under `key`, checked against the hash the key names; None when there is no
+    /// object there.
+    pub async fn get(&self, key: &str) -> Result<Option<Vec<u8>>> {
+        let got = match self.store.get(&self.path(key)).await {
+            Ok(got) => got,
+            Err(object_store::Error::NotFound { .. }) => return Ok(None),
+            Err(e) => return Err(storage(e)),
+        };
         let bytes = got.bytes().await.map_err(storage)?.to_vec();
         let want = key.rsplit('/').next().unwrap_or_default();
         if sha256_hex(&bytes) != want {
-            return Err(Error::corrupt(
-                "object store",
-                format!("checksum mismatch for {key}"),
-            ));
+            let why = format!("checksum mismatch for {key}");
+            return Err(Error::corrupt("object store", why));
         }
-        Ok(bytes)
+        Ok(Some(bytes))
     }
 
     /// Deletes the object under `key` (gone already is fine).
@@ -149,11 +150,31 @@ impl Blobs {
         }
     }
 
-    /// Ready when the store answers (a missing object is an answer).
+    /// Writes the marker [`Blobs::ping`] looks for: at start, the store is writable (bucket,
+    /// credentials, permissions), or the process does not start.
+    pub async fn mark(&self) -> Result<()> {
+        let marker = PutPayload::from_static(b"graybox");
+        self.store
+            .put(&self.path(MARKER), marker)
+            .await
+            .map_err(storage)?;
+        Ok(())
+    }
+
+    /// Ready when the store answers with the marker: a missing bucket answers a read of any
+    /// key as a missing object, so the marker's absence is what tells it apart.
     pub async fn ping(&self) -> Result<()> {
-        self.exists("ping/readyz").await.map(|_| ())
+        if self.exists(MARKER).await? {
+            return Ok(());
+        }
+        Err(Error::Storage(format!(
+            "object store: {MARKER} is missing (the bucket or prefix was deleted or changed)"
+        )))
     }
 }
+
+/// A row that points at an object: its table, the column that identifies it, and its id.
+pub(super) type Row<'a> = (&'static str, &'static str, &'a str);
 
 /// Bytes as a new row keeps them: inline in its column, or under `key` in the object store
 /// (the column then empty).
@@ -228,16 +249,39 @@ impl super::Store {
         }
     }
 
-    /// A row's bytes: its inline column, or its object (verified against the key).
-    pub(super) async fn fetch(&self, inline: Vec<u8>, key: Option<String>) -> Result<Vec<u8>> {
+    /// A row's bytes: its inline column, or its object (verified against the key). None when
+    /// the object is gone because the row was deleted or replaced after it was read (the
+    /// deletion won the race: as if the row had not been found); a row that still points at a
+    /// missing object is corrupt.
+    pub(super) async fn fetch(
+        &self,
+        inline: Vec<u8>,
+        key: Option<String>,
+        row: Row<'_>,
+    ) -> Result<Option<Vec<u8>>> {
         let Some(key) = key else {
-            return Ok(inline);
+            return Ok(Some(inline));
         };
-        match &self.blobs {
-            Some(blobs) => blobs.get(&key).await,
-            None => Err(Error::FailedPrecondition(format!(
+        let Some(blobs) = &self.blobs else {
+            return Err(Error::FailedPrecondition(format!(
                 "{key} is in the object store: start graybox with the --blobs it was stored with"
-            ))),
+            )));
+        };
+        if let Some(bytes) = blobs.get(&key).await? {
+            return Ok(Some(bytes));
         }
+        let (table, column, id) = row;
+        let text = format!("SELECT COUNT(*) FROM {table} WHERE {column} = $1 AND blob_key = $2");
+        let still: i64 = on_db!(self, pool, D => {
+            sqlx::query_scalar(sqlx::AssertSqlSafe(text))
+                .bind(id)
+                .bind(&key)
+                .fetch_one(pool)
+                .await?
+        });
+        if still > 0 {
+            return Err(Error::corrupt("object store", format!("{key} is missing")));
+        }
+        Ok(None)
     }
 }

@@ -170,7 +170,9 @@ impl Store {
         let Some((n, m, dt, count, inline, key)) = r else {
             return Ok(None);
         };
-        let blob = self.fetch(inline, key).await?;
+        let Some(blob) = self.fetch(inline, key, ("datasets", "id", id)).await? else {
+            return Ok(None);
+        };
         decode(&blob, n as usize, m as usize, dt, count as usize).map(Some)
     }
 

@@ -143,7 +143,7 @@ impl Store {
         let blobs = blobs.map(blobs::Blobs::open).transpose()?;
         let store = Self::open(db).await?;
         if let Some(b) = &blobs {
-            b.ping().await?;
+            b.mark().await?;
         }
         Ok(Self { blobs, ..store })
     }

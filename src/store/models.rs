@@ -190,7 +190,9 @@ impl Store {
         let Some((inline, sha, key)) = r else {
             return Ok(None);
         };
-        let file = self.fetch(inline, key).await?;
+        let Some(file) = self.fetch(inline, key, ("models", "id", id)).await? else {
+            return Ok(None);
+        };
         Ok(Some(verified(file, &sha, "model file", id)?))
     }
 

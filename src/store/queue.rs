@@ -269,7 +269,12 @@ impl Store {
         let Some((epoch, inline, sha, key)) = r else {
             return Ok(None);
         };
-        let state = self.fetch(inline, key).await?;
+        let Some(state) = self
+            .fetch(inline, key, ("checkpoints", "job_id", job_id))
+            .await?
+        else {
+            return Ok(None);
+        };
         Ok(Some((epoch, verified(state, &sha, "checkpoint", job_id)?)))
     }
 

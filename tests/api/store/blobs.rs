@@ -137,6 +137,23 @@ async fn inline_rows_stay_served_beside_object_rows_and_need_the_store_they_name
     ));
 }
 
+/// Readiness asks the store for the marker every process writes at start: a store that lost
+/// it (a deleted bucket or prefix answers every read as a missing object) is not ready.
+#[tokio::test]
+async fn readiness_needs_the_stores_marker() {
+    let s = TestStore::new().await;
+    let dir = tempfile::tempdir().unwrap();
+    let b = with_blobs(&s, dir.path()).await;
+    b.ping().await.unwrap();
+    std::fs::remove_dir_all(dir.path().join("graybox")).unwrap();
+    match b.ping().await {
+        Err(Error::Storage(m)) => assert!(m.contains("graybox/ready"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+    // Opening it again writes the marker anew.
+    with_blobs(&s, dir.path()).await.ping().await.unwrap();
+}
+
 #[tokio::test]
 async fn a_bad_blobs_url_is_refused_naming_the_flag() {
     let s = TestStore::new().await;
