@@ -145,3 +145,28 @@ fn bench_queue_prints_the_claim_latency() {
     );
     assert!(0.0 < p50 && p50 <= p99, "{line}");
 }
+
+/// `graybox-lab bench scale` prints one line per worker count, the first its own reference.
+#[test]
+fn bench_scale_prints_each_worker_count() {
+    let out = lab(&["bench", "scale", "--jobs", "2", "--epochs", "1"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<Value> = (out.stdout.split(|&b| b == b'\n'))
+        .filter(|l| !l.is_empty())
+        .map(|l| serde_json::from_slice(l).unwrap())
+        .collect();
+    let workers: Vec<u64> = lines
+        .iter()
+        .map(|l| l["workers"].as_u64().unwrap())
+        .collect();
+    assert_eq!(workers, [1, 2]);
+    assert_eq!(lines[0]["ratio_to_first"], 1.0);
+    assert!(
+        lines.iter().all(|l| l["seconds"].as_f64().unwrap() > 0.0),
+        "{lines:?}"
+    );
+}

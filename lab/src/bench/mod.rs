@@ -4,6 +4,7 @@ mod events;
 mod infer;
 mod queue;
 mod rigid;
+mod scale;
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -38,6 +39,8 @@ pub enum BenchCommand {
     Events(events::BenchEventsArgs),
     /// How long a submitted job waits for an idle worker (queued → running), p50 and p99.
     Queue(queue::BenchQueueArgs),
+    /// The wall time of a batch of jobs on one worker and on two, one thread each.
+    Scale(scale::BenchScaleArgs),
 }
 
 #[derive(Args, Debug)]
@@ -124,6 +127,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Rigid(a) => rigid::run(a),
         BenchCommand::Events(a) => events::run(a),
         BenchCommand::Queue(a) => queue::run(a),
+        BenchCommand::Scale(a) => scale::run(a),
     }
 }
 
