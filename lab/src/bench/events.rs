@@ -9,11 +9,9 @@ use clap::Args;
 use serde_json::json;
 use sqlx::Connection;
 
-use graybox::app::datasets::Upload;
 use graybox::app::jobs::JobRequest;
-use graybox::app::{App, Settings, WorkerSettings};
+use graybox::app::{App, WorkerSettings};
 use graybox::error::{Error, Result};
-use graybox::service::start;
 
 #[derive(Args, Debug)]
 pub struct BenchEventsArgs {
@@ -55,15 +53,10 @@ async fn measure(a: BenchEventsArgs) -> Result<()> {
     let temp = super::TempDb::new();
     let db = (a.db.clone()).unwrap_or_else(|| temp.0.display().to_string());
     // An API node: no workers, so the jobs stay queued and their streams keep polling.
-    let running = start(Settings {
-        http: "127.0.0.1:0".into(),
-        grpc: "127.0.0.1:0".into(),
-        worker: WorkerSettings {
-            db: db.clone(),
-            workers: 0,
-            ..WorkerSettings::default()
-        },
-        ..Settings::default()
+    let running = super::api_node(WorkerSettings {
+        db: db.clone(),
+        workers: 0,
+        ..WorkerSettings::default()
     })
     .await?;
     let app = running.app.clone();
@@ -102,19 +95,11 @@ async fn measure(a: BenchEventsArgs) -> Result<()> {
 
 /// `n` queued jobs on a small dataset.
 async fn queued_jobs(app: &App, n: usize) -> Result<Vec<String>> {
-    let t = graybox::physics::templates::Template::DoublePendulum;
-    let cfg = graybox::sim::SimConfig {
-        count: 64,
-        ..Default::default()
-    };
-    let data = graybox::sim::simulate(&t, t.defaults(), &cfg)?;
-    let value = serde_json::from_str(&data.to_json()).expect("datasets serialize to JSON");
-    let upload = Upload::Json { value, dt: None };
-    let ds = app.upload_dataset(None, upload).await?.dataset;
+    let ds = super::upload_double_pendulum(app, 64).await?;
     let mut ids = Vec::with_capacity(n);
     for _ in 0..n.max(1) {
         let req: JobRequest = serde_json::from_value(json!({
-            "dataset_id": ds.id, "model": "MVF", "template": "double_pendulum"
+            "dataset_id": ds, "model": "MVF", "template": "double_pendulum"
         }))
         .expect("a valid job request");
         ids.push(app.submit_job(req, None).await?.item.id);

@@ -119,6 +119,35 @@ impl Drop for TempDb {
     }
 }
 
+/// An API node (no workers of its own unless `worker` says) on `worker.db`, on free ports.
+pub(crate) async fn api_node(
+    worker: graybox::app::WorkerSettings,
+) -> Result<graybox::service::Running> {
+    graybox::service::start(graybox::app::Settings {
+        http: "127.0.0.1:0".into(),
+        grpc: "127.0.0.1:0".into(),
+        worker,
+        ..graybox::app::Settings::default()
+    })
+    .await
+}
+
+/// Uploads `count` transitions of the double pendulum (seed 0); the dataset's id.
+pub(crate) async fn upload_double_pendulum(
+    app: &graybox::app::App,
+    count: usize,
+) -> Result<String> {
+    let t = Template::DoublePendulum;
+    let cfg = SimConfig {
+        count,
+        ..SimConfig::default()
+    };
+    let data = simulate(&t, t.defaults(), &cfg)?;
+    let value = serde_json::from_str(&data.to_json()).expect("datasets serialize to JSON");
+    let upload = graybox::app::datasets::Upload::Json { value, dt: None };
+    Ok(app.upload_dataset(None, upload).await?.dataset.id)
+}
+
 pub fn run(cmd: BenchCommand) -> Result<()> {
     match cmd {
         BenchCommand::Train(a) => bench_train(a),

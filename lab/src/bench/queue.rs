@@ -8,12 +8,11 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use serde_json::json;
 
-use graybox::app::datasets::Upload;
+use graybox::app::WorkerSettings;
 use graybox::app::jobs::JobRequest;
-use graybox::app::{Settings, WorkerSettings};
 use graybox::error::Result;
 use graybox::records::JobState;
-use graybox::service::{start, start_worker};
+use graybox::service::start_worker;
 
 #[derive(Args, Debug)]
 pub struct BenchQueueArgs {
@@ -45,13 +44,7 @@ async fn measure(a: BenchQueueArgs) -> Result<()> {
         workers: 0,
         ..WorkerSettings::default()
     };
-    let api = start(Settings {
-        http: "127.0.0.1:0".into(),
-        grpc: "127.0.0.1:0".into(),
-        worker: worker.clone(),
-        ..Settings::default()
-    })
-    .await?;
+    let api = super::api_node(worker.clone()).await?;
     let mut workers = Vec::new();
     for _ in 0..a.workers {
         let one = WorkerSettings {
@@ -62,23 +55,13 @@ async fn measure(a: BenchQueueArgs) -> Result<()> {
         workers.push(start_worker(one, None).await?);
     }
     let app = api.app.clone();
-    let t = graybox::physics::templates::Template::DoublePendulum;
-    let cfg = graybox::sim::SimConfig {
-        count: 32,
-        ..Default::default()
-    };
-    let data = graybox::sim::simulate(&t, t.defaults(), &cfg)?;
-    let value = serde_json::from_str(&data.to_json()).expect("datasets serialize to JSON");
-    let ds = (app
-        .upload_dataset(None, Upload::Json { value, dt: None })
-        .await?)
-        .dataset;
+    let ds = super::upload_double_pendulum(&app, 32).await?;
     let mut waits = Vec::with_capacity(a.jobs);
     for i in 0..a.jobs {
         // Submissions at varying phases of the workers' polls.
         tokio::time::sleep(Duration::from_millis(37 * (i as u64 % 7))).await;
         let req: JobRequest = serde_json::from_value(json!({
-            "dataset_id": ds.id, "model": "W-B", "template": "double_pendulum",
+            "dataset_id": ds, "model": "W-B", "template": "double_pendulum",
             "training": {"epochs": 1, "batch_size": 32}
         }))
         .expect("a valid job request");

@@ -7,11 +7,10 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use serde_json::json;
 
-use graybox::app::datasets::Upload;
+use graybox::app::WorkerSettings;
 use graybox::app::jobs::JobRequest;
-use graybox::app::{Settings, WorkerSettings};
 use graybox::error::Result;
-use graybox::service::{start, start_worker};
+use graybox::service::start_worker;
 
 #[derive(Args, Debug)]
 pub struct BenchScaleArgs {
@@ -57,29 +56,13 @@ async fn batch(a: &BenchScaleArgs, workers: usize) -> Result<f64> {
         job_threads: Some(1),
         ..WorkerSettings::default()
     };
-    let api = start(Settings {
-        http: "127.0.0.1:0".into(),
-        grpc: "127.0.0.1:0".into(),
-        worker: worker.clone(),
-        ..Settings::default()
-    })
-    .await?;
+    let api = super::api_node(worker.clone()).await?;
     let app = api.app.clone();
-    let t = graybox::physics::templates::Template::DoublePendulum;
-    let cfg = graybox::sim::SimConfig {
-        count: 1024,
-        ..Default::default()
-    };
-    let data = graybox::sim::simulate(&t, t.defaults(), &cfg)?;
-    let value = serde_json::from_str(&data.to_json()).expect("datasets serialize to JSON");
-    let ds = (app
-        .upload_dataset(None, Upload::Json { value, dt: None })
-        .await?)
-        .dataset;
+    let ds = super::upload_double_pendulum(&app, 1024).await?;
     let mut ids = Vec::new();
     for seed in 0..a.jobs {
         let req: JobRequest = serde_json::from_value(json!({
-            "dataset_id": ds.id, "model": "MVF", "template": "double_pendulum",
+            "dataset_id": ds, "model": "MVF", "template": "double_pendulum",
             "training": {"epochs": a.epochs, "batch_size": 64, "seed": seed}
         }))
         .expect("a valid job request");

@@ -9,10 +9,9 @@ use super::{BATCH, BenchInferArgs, HORIZON, Problem, ROLLOUT, summary, weights};
 use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
 use graybox::app::datasets::Upload;
 use graybox::app::jobs::JobRequest;
-use graybox::app::{App, Settings, WorkerSettings};
+use graybox::app::{App, WorkerSettings};
 use graybox::error::{Error, Result};
 use graybox::records::{Job, JobState};
-use graybox::service::start;
 
 fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
     Some(pb::Array {
@@ -38,15 +37,10 @@ pub(super) async fn over_grpc(
     p: &Problem,
 ) -> Result<()> {
     let db = crate::bench::TempDb::new();
-    let running = start(Settings {
-        http: "127.0.0.1:0".into(),
-        grpc: "127.0.0.1:0".into(),
-        worker: WorkerSettings {
-            db: (a.db.clone()).unwrap_or_else(|| db.0.to_string_lossy().into_owned()),
-            workers: 1,
-            ..WorkerSettings::default()
-        },
-        ..Settings::default()
+    let running = crate::bench::api_node(WorkerSettings {
+        db: (a.db.clone()).unwrap_or_else(|| db.0.to_string_lossy().into_owned()),
+        workers: 1,
+        ..WorkerSettings::default()
     })
     .await?;
     let app = running.app.clone();
