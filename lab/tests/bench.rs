@@ -4,6 +4,20 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
+/// The JSON lines a successful `graybox-lab` run prints.
+fn json_lines(args: &[&str]) -> Vec<Value> {
+    let out = lab(args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.stdout.split(|&b| b == b'\n'))
+        .filter(|l| !l.is_empty())
+        .map(|l| serde_json::from_slice(l).unwrap())
+        .collect()
+}
+
 fn lab(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_graybox-lab"))
         .args(args)
@@ -65,16 +79,7 @@ fn bench_rigid_prints_agreement_and_figures() {
         "{}/../tests/fixtures/urdf/robots/panda.urdf",
         env!("CARGO_MANIFEST_DIR")
     );
-    let out = lab(&["bench", "rigid", "--urdf", &urdf, "--calls", "20"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines: Vec<Value> = (out.stdout.split(|&b| b == b'\n'))
-        .filter(|l| !l.is_empty())
-        .map(|l| serde_json::from_slice(l).unwrap())
-        .collect();
+    let lines = json_lines(&["bench", "rigid", "--urdf", &urdf, "--calls", "20"]);
     assert_eq!(lines[0]["bench"], "rigid_agreement");
     assert_eq!(lines[0]["mimic"], true);
     assert!(
@@ -104,16 +109,7 @@ fn bench_rigid_prints_agreement_and_figures() {
 /// each follows its own.
 #[test]
 fn bench_events_prints_the_polls_of_each_phase() {
-    let out = lab(&["bench", "events", "--subscribers", "3", "--seconds", "0.5"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines: Vec<Value> = (out.stdout.split(|&b| b == b'\n'))
-        .filter(|l| !l.is_empty())
-        .map(|l| serde_json::from_slice(l).unwrap())
-        .collect();
+    let lines = json_lines(&["bench", "events", "--subscribers", "3", "--seconds", "0.5"]);
     let polls = |phase: &str| {
         let line = lines.iter().find(|l| l["phase"] == phase).unwrap();
         assert_eq!(line["backend"], "sqlite", "{line}");
@@ -128,13 +124,9 @@ fn bench_events_prints_the_polls_of_each_phase() {
 /// `graybox-lab bench queue` prints the wait of jobs submitted to idle workers, in order.
 #[test]
 fn bench_queue_prints_the_claim_latency() {
-    let out = lab(&["bench", "queue", "--workers", "2", "--jobs", "3"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let line: Value = serde_json::from_slice(out.stdout.trim_ascii()).unwrap();
+    let lines = json_lines(&["bench", "queue", "--workers", "2", "--jobs", "3"]);
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    let line = &lines[0];
     assert_eq!(
         (line["bench"].as_str(), line["jobs"].as_u64()),
         (Some("claim_latency"), Some(3))
@@ -149,16 +141,7 @@ fn bench_queue_prints_the_claim_latency() {
 /// `graybox-lab bench scale` prints one line per worker count, the first its own reference.
 #[test]
 fn bench_scale_prints_each_worker_count() {
-    let out = lab(&["bench", "scale", "--jobs", "2", "--epochs", "1"]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let lines: Vec<Value> = (out.stdout.split(|&b| b == b'\n'))
-        .filter(|l| !l.is_empty())
-        .map(|l| serde_json::from_slice(l).unwrap())
-        .collect();
+    let lines = json_lines(&["bench", "scale", "--jobs", "2", "--epochs", "1"]);
     let workers: Vec<u64> = lines
         .iter()
         .map(|l| l["workers"].as_u64().unwrap())
