@@ -138,15 +138,22 @@ fn bench_queue_prints_the_claim_latency() {
     assert!(0.0 < p50 && p50 <= p99, "{line}");
 }
 
-/// `graybox-lab bench scale` prints one line per worker count, the first its own reference.
+/// `graybox-lab bench scale` prints one line per worker count and placement (one worker
+/// once), the first its own reference; the processes are real `graybox worker`s.
 #[test]
 fn bench_scale_prints_each_worker_count() {
     let lines = json_lines(&["bench", "scale", "--jobs", "2", "--epochs", "1"]);
-    let workers: Vec<u64> = lines
+    let runs: Vec<(u64, &str)> = lines
         .iter()
-        .map(|l| l["workers"].as_u64().unwrap())
+        .map(|l| {
+            let placement = l["placement"].as_str().unwrap();
+            (l["workers"].as_u64().unwrap(), placement)
+        })
         .collect();
-    assert_eq!(workers, [1, 2]);
+    assert_eq!(
+        runs,
+        [(1, "processes"), (2, "processes"), (2, "threads")]
+    );
     assert_eq!(lines[0]["ratio_to_first"], 1.0);
     assert!(
         lines.iter().all(|l| l["seconds"].as_f64().unwrap() > 0.0),

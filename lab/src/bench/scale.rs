@@ -1,15 +1,17 @@
 //! `graybox-lab bench scale`: the wall time of a batch of jobs on one worker and on two, each
-//! training on one thread (`--job-threads 1`): what adding a worker process buys on a machine
-//! with a core to spare.
+//! training on one thread (`--job-threads 1`): what adding a worker buys on a machine with a
+//! core to spare, as separate `graybox worker` processes and as workers in one process.
 
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 use serde_json::json;
 
 use graybox::app::WorkerSettings;
 use graybox::app::jobs::JobRequest;
-use graybox::error::Result;
+use graybox::error::{Error, Result};
 use graybox::service::start_worker;
 
 #[derive(Args, Debug)]
@@ -24,6 +26,16 @@ pub struct BenchScaleArgs {
     /// Worker counts to measure, comma-separated.
     #[arg(long, default_value = "1,2")]
     pub workers: String,
+    /// Where the workers run: `processes` (one `graybox worker` process each, found next to
+    /// this binary) and/or `threads` (all in one process, as `serve --workers N`).
+    #[arg(long, value_delimiter = ',', default_value = "processes,threads")]
+    pub placement: Vec<Placement>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, ValueEnum)]
+pub enum Placement {
+    Processes,
+    Threads,
 }
 
 pub fn run(a: BenchScaleArgs) -> Result<()> {
@@ -35,20 +47,27 @@ pub fn run(a: BenchScaleArgs) -> Result<()> {
         .build()?;
     let mut first = None;
     for w in counts {
-        let secs = rt.block_on(batch(&a, w))?;
-        let base = *first.get_or_insert(secs);
-        println!(
-            "{}",
-            json!({"bench": "worker_scaling", "workers": w, "jobs": a.jobs, "epochs": a.epochs,
-                   "job_threads": 1, "seconds": secs, "ratio_to_first": secs / base})
-        );
+        for &p in &a.placement {
+            // One worker is the same thing in either placement: measure it once.
+            if w == 1 && p != a.placement[0] {
+                continue;
+            }
+            let secs = rt.block_on(batch(&a, w, p))?;
+            let base = *first.get_or_insert(secs);
+            println!(
+                "{}",
+                json!({"bench": "worker_scaling", "workers": w, "placement": format!("{p:?}").to_lowercase(),
+                       "jobs": a.jobs, "epochs": a.epochs, "job_threads": 1, "seconds": secs,
+                       "ratio_to_first": secs / base})
+            );
+        }
     }
     Ok(())
 }
 
-/// Seconds from submitting the batch until every job has ended, with `workers` workers (each
-/// its own pool, as separate `graybox worker` processes) on a new database.
-async fn batch(a: &BenchScaleArgs, workers: usize) -> Result<f64> {
+/// Seconds from submitting the batch until every job has ended, with `workers` workers placed
+/// as `placement` says, on a new database.
+async fn batch(a: &BenchScaleArgs, workers: usize, placement: Placement) -> Result<f64> {
     let temp = super::TempDb::new();
     let worker = WorkerSettings {
         db: temp.0.display().to_string(),
@@ -69,13 +88,21 @@ async fn batch(a: &BenchScaleArgs, workers: usize) -> Result<f64> {
         ids.push(app.submit_job(req, None).await?.item.id);
     }
     let t0 = Instant::now();
-    let mut running = Vec::new();
-    for _ in 0..workers {
-        let one = WorkerSettings {
-            workers: 1,
-            ..worker.clone()
-        };
-        running.push(start_worker(one, None).await?);
+    let mut in_process = None;
+    let mut children = Vec::new();
+    match placement {
+        Placement::Threads => {
+            let all = WorkerSettings {
+                workers,
+                ..worker.clone()
+            };
+            in_process = Some(start_worker(all, None).await?);
+        }
+        Placement::Processes => {
+            for _ in 0..workers {
+                children.push(spawn_worker(&worker.db)?);
+            }
+        }
     }
     for id in &ids {
         while !app.job(id).await?.state.is_final() {
@@ -83,9 +110,42 @@ async fn batch(a: &BenchScaleArgs, workers: usize) -> Result<f64> {
         }
     }
     let secs = t0.elapsed().as_secs_f64();
-    for w in running {
+    if let Some(w) = in_process {
         w.shutdown_by(async {}).await;
+    }
+    for child in children {
+        stop(child)?;
     }
     api.shutdown().await;
     Ok(secs)
+}
+
+/// The `graybox` binary built beside this one.
+fn graybox_binary() -> Result<PathBuf> {
+    let exe = std::env::current_exe()?;
+    let bin = exe.with_file_name("graybox");
+    if !bin.exists() {
+        return Err(Error::FailedPrecondition(format!(
+            "{} not found: build it first (cargo build --release --workspace)",
+            bin.display()
+        )));
+    }
+    Ok(bin)
+}
+
+fn spawn_worker(db: &str) -> Result<Child> {
+    Ok(Command::new(graybox_binary()?)
+        .args(["worker", "--db", db, "--workers", "1", "--job-threads", "1"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()?)
+}
+
+/// SIGTERM, as an orchestrator stops a worker, and wait for it to exit.
+fn stop(mut child: Child) -> Result<()> {
+    let pid = libc::pid_t::try_from(child.id()).expect("a pid fits pid_t");
+    // SAFETY: kill(2) with a pid this process spawned and has not yet reaped.
+    unsafe { libc::kill(pid, libc::SIGTERM) };
+    child.wait()?;
+    Ok(())
 }
