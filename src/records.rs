@@ -66,6 +66,10 @@ pub struct Job {
     pub checkpoint_epoch: i64,
     pub train_loss: Option<f64>,
     pub val_loss: Option<f64>,
+    /// A multi-step job's last validation loss over windows of its horizon (README
+    /// "Multi-step training"); `val_loss` is the one-step loss.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub val_horizon_loss: Option<f64>,
     pub best_val_loss: Option<f64>,
     pub attempt: i64,
     pub error: Option<String>,
@@ -87,6 +91,9 @@ pub struct Metric {
     pub epoch: i64,
     pub train_loss: f64,
     pub val_loss: Option<f64>,
+    /// The validation loss over windows of a multi-step job's horizon.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub val_horizon_loss: Option<f64>,
     pub seconds: f64,
 }
 

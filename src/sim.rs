@@ -1,6 +1,10 @@
 //! Simulated datasets from a template, with the paper's sampling: q ~ U(−r_q, r_q),
 //! q̇ ~ U(−r_q̇, r_q̇), u ~ N(0, σ_u²), next state by RK4 of the true system.
 
+mod trajectories;
+
+pub use trajectories::{MAX_TRANSITIONS, TrajectoryShape, simulate_trajectories};
+
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::physics::dual::Dual;
@@ -140,33 +144,8 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
     if cfg.count == 0 {
         return Err(Error::invalid("count", "must be at least 1"));
     }
-    for (name, v) in [
-        ("dt", cfg.dt),
-        ("q_range", cfg.q_range),
-        ("qdot_range", cfg.qdot_range),
-        ("u_std", cfg.u_std),
-    ] {
-        if !v.is_finite() || v < 0.0 || (name == "dt" && v == 0.0) {
-            return Err(Error::invalid(
-                name,
-                format!("must be a finite number ≥ 0 (dt > 0), got {v}"),
-            ));
-        }
-    }
+    cfg.check(template.m())?;
     let (n, m) = (template.n(), template.m());
-    if !cfg.u_stds.is_empty() && cfg.u_stds.len() != m {
-        return Err(Error::invalid(
-            "u_std",
-            format!(
-                "expected one value or {m} (one per input), got {}",
-                cfg.u_stds.len()
-            ),
-        ));
-    }
-    if cfg.u_stds.iter().any(|v| !v.is_finite() || *v < 0.0) {
-        return Err(Error::invalid("u_std", "must be finite numbers ≥ 0"));
-    }
-    let sigma = |i: usize| cfg.u_stds.get(i).copied().unwrap_or(cfg.u_std);
     let sys = TemplateSystem::new(template.clone(), params);
     let mut rng = Rng::new(cfg.seed);
     let mut arrays: [Vec<f64>; 5] = Default::default();
@@ -177,7 +156,7 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
         let qd: Vec<f64> = (0..n)
             .map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range))
             .collect();
-        let u: Vec<f64> = (0..m).map(|i| sigma(i) * rng.normal()).collect();
+        let u = cfg.input(&mut rng, m);
         let x: Vec<f64> = q.iter().chain(&qd).copied().collect();
         let next = true_step(&sys, &x, &u, cfg.dt, Integrator::Rk4);
         arrays[0].extend(&q);
@@ -187,6 +166,45 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
         arrays[4].extend(&next[n..]);
     }
     Dataset::new(cfg.dt, n, m, arrays)
+}
+
+impl SimConfig {
+    /// The ranges and σs are usable for a system of `m` inputs.
+    fn check(&self, m: usize) -> Result<()> {
+        let cfg = self;
+        for (name, v) in [
+            ("dt", cfg.dt),
+            ("q_range", cfg.q_range),
+            ("qdot_range", cfg.qdot_range),
+            ("u_std", cfg.u_std),
+        ] {
+            if !v.is_finite() || v < 0.0 || (name == "dt" && v == 0.0) {
+                return Err(Error::invalid(
+                    name,
+                    format!("must be a finite number ≥ 0 (dt > 0), got {v}"),
+                ));
+            }
+        }
+        if !cfg.u_stds.is_empty() && cfg.u_stds.len() != m {
+            return Err(Error::invalid(
+                "u_std",
+                format!(
+                    "expected one value or {m} (one per input), got {}",
+                    cfg.u_stds.len()
+                ),
+            ));
+        }
+        if cfg.u_stds.iter().any(|v| !v.is_finite() || *v < 0.0) {
+            return Err(Error::invalid("u_std", "must be finite numbers ≥ 0"));
+        }
+        Ok(())
+    }
+
+    /// One input u ~ N(0, σᵢ²).
+    fn input(&self, rng: &mut Rng, m: usize) -> Vec<f64> {
+        let sigma = |i: usize| self.u_stds.get(i).copied().unwrap_or(self.u_std);
+        (0..m).map(|i| sigma(i) * rng.normal()).collect()
+    }
 }
 
 /// Parses "k=v,k=v" into template parameter values, starting from the defaults; unknown

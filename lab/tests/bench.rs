@@ -150,10 +150,7 @@ fn bench_scale_prints_each_worker_count() {
             (l["workers"].as_u64().unwrap(), placement)
         })
         .collect();
-    assert_eq!(
-        runs,
-        [(1, "processes"), (2, "processes"), (2, "threads")]
-    );
+    assert_eq!(runs, [(1, "processes"), (2, "processes"), (2, "threads")]);
     assert_eq!(lines[0]["ratio_to_first"], 1.0);
     assert!(
         lines.iter().all(|l| l["seconds"].as_f64().unwrap() > 0.0),

@@ -4,7 +4,6 @@ use serde_json::Value;
 
 use super::App;
 use crate::data::Dataset;
-use crate::data::trajectories;
 use crate::error::{Error, Result};
 use crate::names::check_name;
 use crate::records::DatasetInfo;
@@ -30,10 +29,10 @@ impl App {
     /// Validates and stores a dataset; the same arrays again return the stored one
     /// (`created = false`).
     pub async fn upload_dataset(&self, name: Option<String>, upload: Upload) -> Result<Uploaded> {
-        let (ds, body_name, lengths) = match upload {
+        let (ds, body_name) = match upload {
             Upload::Csv { text, dt } => {
                 let dt = dt.ok_or_else(|| Error::invalid("dt", "a CSV upload needs ?dt="))?;
-                (Dataset::from_csv(&text, dt)?, None, None)
+                (Dataset::from_csv(&text, dt)?, None)
             }
             Upload::Json { value, dt } => {
                 let body_name = match value.get("name") {
@@ -41,18 +40,14 @@ impl App {
                     Some(Value::String(s)) => Some(s.clone()),
                     Some(_) => return Err(Error::invalid("name", "must be a string")),
                 };
-                let ds = Dataset::from_json_value(&value, dt)?;
-                (ds, body_name, trajectories::uploaded_lengths(&value))
+                (Dataset::from_json_value(&value, dt)?, body_name)
             }
         };
         let name = name.or(body_name);
         if let Some(n) = &name {
             check_name(n)?;
         }
-        let (row, created) = self
-            .store
-            .insert_dataset(name.as_deref(), &ds, lengths.as_deref())
-            .await?;
+        let (row, created) = self.store.insert_dataset(name.as_deref(), &ds).await?;
         let dataset: DatasetInfo = row.into();
         let note = match (&name, &dataset.name) {
             (Some(asked), stored) if !created && stored.as_ref() != Some(asked) => Some(format!(

@@ -263,10 +263,12 @@ impl App {
             return refuse(
                 "training.batch_size",
                 format!(
-                    "training would take about {} MB at its peak (batch {batch}), over the limit of \
-                     {} MB (--max-job-memory-mb); lower batch_size or the network widths",
+                    "training would take about {} MB at its peak (batch {batch}{}), over the \
+                     limit of {} MB (--max-job-memory-mb); lower batch_size{} or the network widths",
                     est.peak_bytes >> 20,
-                    s.max_job_memory_bytes() >> 20
+                    horizon_note(job.training.horizon, " windows of horizon "),
+                    s.max_job_memory_bytes() >> 20,
+                    horizon_note(job.training.horizon, ", horizon ")
                 ),
             );
         }
@@ -288,7 +290,8 @@ impl App {
         tokio::task::spawn_blocking(move || {
             let physical = physical_init(&job.spec, &job.init)?;
             crate::train::setup::periodic(&job.spec, &job.training, data.n)?;
-            crate::train::setup::scaling(&job.spec, physical.as_deref(), &data).map(|_| ())
+            crate::train::setup::scaling(&job.spec, physical.as_deref(), &data)?;
+            check_windows(&job, &data)
         })
         .await
         .map_err(|e| Error::Internal(format!("checking the data failed: {e}")))?
@@ -370,6 +373,31 @@ fn job_estimate(
     let angles = crate::train::setup::periodic(&job.spec, &job.training, n)
         .map_or(0, |p| p.iter().filter(|&&a| a).count());
     let dims = budget::Dims { n, m, angles };
-    let est = budget::estimate(&job.spec, dims, batch, count + val_count, physical);
+    // A window keeps every step's integrator stages for the backward pass.
+    let steps = batch.saturating_mul(job.training.horizon);
+    let est = budget::estimate(&job.spec, dims, steps, count + val_count, physical);
     (est, batch)
+}
+
+/// `prefix` and the horizon when it is over 1, else nothing.
+fn horizon_note(horizon: usize, prefix: &str) -> String {
+    if horizon > 1 {
+        format!("{prefix}{horizon}")
+    } else {
+        String::new()
+    }
+}
+
+/// A multi-step job's training data (what is left after the validation split) has a
+/// trajectory as long as its horizon.
+fn check_windows(job: &JobSpec, data: &crate::data::Dataset) -> Result<()> {
+    let t = &job.training;
+    if t.horizon == 1 {
+        return Ok(());
+    }
+    if job.validation_dataset_id.is_some() || t.val_fraction == 0.0 || data.count() < 2 {
+        return crate::train::windows::check(data, t.horizon);
+    }
+    let (train, _) = data.split_by_trajectories(t.val_fraction, t.seed);
+    crate::train::windows::check(&train, t.horizon)
 }

@@ -16,8 +16,20 @@ pub struct SimulateArgs {
     /// URDF file.
     #[arg(long, visible_alias = "system")]
     pub template: String,
-    #[arg(long, default_value_t = 1024)]
+    /// Transitions, each from its own random state (the paper's sampling).
+    #[arg(long, default_value_t = 1024, conflicts_with = "trajectories")]
     pub count: usize,
+    /// Trajectories instead of independent transitions: this many, each from a random state
+    /// (--q-range, --qdot-range) under inputs drawn every --hold steps (--u-std), written in
+    /// the trajectory form (README "Dataset files").
+    #[arg(long)]
+    pub trajectories: Option<usize>,
+    /// Transitions per trajectory.
+    #[arg(long, default_value_t = 200, requires = "trajectories")]
+    pub steps: usize,
+    /// Steps each input of a trajectory is held for.
+    #[arg(long, default_value_t = 10, requires = "trajectories")]
+    pub hold: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     #[arg(long, default_value_t = 0.01)]
@@ -62,7 +74,17 @@ pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
         u_std: stds.first().copied().unwrap_or(f64::NAN),
         u_stds: if stds.len() > 1 { stds } else { vec![] },
     };
-    let ds = sim::simulate(&t, params.clone(), &cfg)?;
+    let ds = match a.trajectories {
+        None => sim::simulate(&t, params.clone(), &cfg)?,
+        Some(count) => {
+            let shape = sim::TrajectoryShape {
+                count,
+                steps: a.steps,
+                hold: a.hold,
+            };
+            sim::simulate_trajectories(&t, params.clone(), &cfg, shape)?
+        }
+    };
     // After the data: the check looks at its first states too.
     let warnings: Vec<_> = sim::stiffness_warning(
         &t,
@@ -78,6 +100,9 @@ pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
     }
     write_atomic(&a.out, ds.to_json().as_bytes())?;
     let mut out = json!({"out": a.out, "system": t.name(), "count": ds.count(), "n": ds.n, "m": ds.m, "dt": ds.dt});
+    if let Some(k) = a.trajectories {
+        out["trajectories"] = json!(k);
+    }
     if !warnings.is_empty() {
         out["warnings"] = json!(warnings);
     }

@@ -67,6 +67,14 @@ pub struct TrainArgs {
     /// template's own `periodic`, else none].
     #[arg(long)]
     pub periodic: Option<String>,
+    /// Transitions per training window: the loss compares the model's own rollout of this many
+    /// steps with the recorded states (README "Multi-step training"); needs trajectory data.
+    /// 1 is the one-step loss. --batch-size counts windows.
+    #[arg(long, default_value_t = 1)]
+    pub horizon: usize,
+    /// Weight γ of each further step of a window (step k counts γ^(k−1)), in (0, 1].
+    #[arg(long, default_value_t = 1.0)]
+    pub discount: f64,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
@@ -127,6 +135,8 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
             .map(parse_periodic)
             .transpose()?
             .unwrap_or_default(),
+        horizon: a.horizon,
+        discount: a.discount,
     };
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;

@@ -26,6 +26,26 @@ struct DatasetJson<'a> {
     qdot_next: Vec<&'a [f64]>,
 }
 
+#[derive(Serialize)]
+struct TrajectoriesJson<'a> {
+    dt: f64,
+    trajectories: Vec<TrajectoryJson<'a>>,
+}
+
+#[derive(Serialize)]
+struct TrajectoryJson<'a> {
+    q: Vec<&'a [f64]>,
+    qdot: Vec<&'a [f64]>,
+    u: Vec<&'a [f64]>,
+}
+
+/// Rows `a..b` of the states, then the last row's next state: a trajectory's T + 1 states.
+fn states<'d>(now: &'d [f64], next: &'d [f64], a: usize, b: usize, n: usize) -> Vec<&'d [f64]> {
+    let mut r: Vec<&[f64]> = now[a * n..b * n].chunks(n).collect();
+    r.push(&next[(b - 1) * n..b * n]);
+    r
+}
+
 /// One trajectory: T+1 states and T inputs.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -153,9 +173,28 @@ impl Dataset {
         Self::new(dt, n, m, arrays)
     }
 
+    /// The dataset as a JSON file: in trajectory form when it has trajectories (one without
+    /// transitions has nothing to write and is left out), else as transitions.
     pub fn to_json(&self) -> String {
         fn rows(a: &[f64], w: usize) -> Vec<&[f64]> {
             a.chunks(w).collect()
+        }
+        if self.trajectories.is_some() {
+            let (n, m) = (self.n, self.m);
+            let one = |s: super::trajectories::Segment| {
+                let (a, b) = (s.start, s.start + s.length);
+                TrajectoryJson {
+                    q: states(&self.q, &self.q_next, a, b, n),
+                    qdot: states(&self.qdot, &self.qdot_next, a, b, n),
+                    u: rows(&self.u[a * m..b * m], m),
+                }
+            };
+            let trajectories = self.segments().into_iter().filter(|s| s.length > 0);
+            return serde_json::to_string(&TrajectoriesJson {
+                dt: self.dt,
+                trajectories: trajectories.map(one).collect(),
+            })
+            .expect("plain arrays serialize");
         }
         serde_json::to_string(&DatasetJson {
             dt: self.dt,
@@ -189,6 +228,7 @@ impl Dataset {
             .as_array()
             .ok_or_else(|| Error::invalid("trajectories", "must be an array of {q, qdot, u}"))?;
         let mut fields: [Vec<Value>; 5] = Default::default();
+        let mut lengths = Vec::with_capacity(trajs.len());
         for (k, t) in trajs.iter().enumerate() {
             let tr: Trajectory = serde_json::from_value(t.clone()).map_err(|e| {
                 Error::invalid(
@@ -208,6 +248,7 @@ impl Dataset {
                     ),
                 ));
             }
+            lengths.push(steps);
             for t in 0..steps {
                 let push = |f: &mut Vec<Value>, r: &Vec<f64>| f.push(Value::from(r.clone()));
                 push(&mut fields[0], &tr.q[t]);
@@ -222,7 +263,7 @@ impl Dataset {
             .zip(fields)
             .map(|(name, f)| ((*name).to_string(), Value::Array(f)))
             .collect();
-        Self::from_transitions(&obj, dt)
+        Self::from_transitions(&obj, dt)?.with_trajectories(lengths)
     }
 }
 

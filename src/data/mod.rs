@@ -21,6 +21,10 @@ pub struct Dataset {
     pub u: Vec<f64>,
     pub q_next: Vec<f64>,
     pub qdot_next: Vec<f64>,
+    /// The transitions' count per trajectory when the data came in trajectory form (rows in
+    /// order, summing to `count`); `None` for flat rows, whose trajectories are their chains
+    /// (`segments`).
+    pub trajectories: Option<Vec<usize>>,
 }
 
 pub const FIELDS: [&str; 5] = ["q", "qdot", "u", "q_next", "qdot_next"];
@@ -48,9 +52,35 @@ impl Dataset {
             u,
             q_next,
             qdot_next,
+            trajectories: None,
         };
         d.validate()?;
         Ok(d)
+    }
+
+    /// The same rows as trajectories of `lengths` transitions each, in order.
+    pub fn with_trajectories(mut self, lengths: Vec<usize>) -> Result<Self> {
+        let total = lengths.iter().try_fold(0usize, |a, &l| a.checked_add(l));
+        if total != Some(self.count()) {
+            return Err(Error::invalid(
+                "trajectories",
+                format!(
+                    "the lengths sum to {} but there are {} transitions",
+                    total.map_or("more than usize".into(), |t| t.to_string()),
+                    self.count()
+                ),
+            ));
+        }
+        self.trajectories = Some(lengths);
+        Ok(self)
+    }
+
+    /// The trajectories: as uploaded, else the chains of the rows (`trajectories::chains`).
+    pub fn segments(&self) -> Vec<trajectories::Segment> {
+        match &self.trajectories {
+            Some(lengths) => trajectories::from_lengths(lengths),
+            None => trajectories::chains(self),
+        }
     }
 
     fn validate(&self) -> Result<()> {
@@ -123,6 +153,7 @@ impl Dataset {
             u: take(&self.u, self.m),
             q_next: take(&self.q_next, self.n),
             qdot_next: take(&self.qdot_next, self.n),
+            trajectories: None,
         }
     }
 

@@ -3,6 +3,7 @@
 //! exactly (flat transitions cut from recordings keep their order).
 
 use super::Dataset;
+use crate::rng::Rng;
 
 /// Rows `start .. start + length` of a dataset, one trajectory of `length` transitions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -54,14 +55,59 @@ pub fn chains(d: &Dataset) -> Vec<Segment> {
     from_lengths(&lengths)
 }
 
-/// The trajectories' lengths of a JSON upload in trajectory form (each trajectory's number of
-/// inputs), or None for any other form. Read after the upload parsed, so the shape is known.
-pub fn uploaded_lengths(value: &serde_json::Value) -> Option<Vec<usize>> {
-    value.get("trajectories")?.as_array().map(|ts| {
-        ts.iter()
-            .map(|t| t.get("u").and_then(|u| u.as_array()).map_or(0, Vec::len))
-            .collect()
-    })
+impl Dataset {
+    /// A seeded split into (train, validation) that keeps trajectories whole, for training on
+    /// windows of several steps (a row split would break every chain): whole trajectories,
+    /// drawn in a seeded order, go to validation until it holds round(fraction·count)
+    /// transitions (at least one trajectory, never all). Data that is one trajectory is cut
+    /// in time instead: its last round(fraction·count) transitions validate. Both parts keep
+    /// their trajectory boundaries.
+    pub fn split_by_trajectories(&self, fraction: f64, seed: u64) -> (Dataset, Dataset) {
+        let count = self.count();
+        let want = ((fraction * count as f64).round() as usize).clamp(1, count.max(2) - 1);
+        let segments: Vec<Segment> = self
+            .segments()
+            .into_iter()
+            .filter(|s| s.length > 0)
+            .collect();
+        if segments.len() < 2 {
+            let cut = count - want;
+            let part = |rows: std::ops::Range<usize>| {
+                let len = rows.len();
+                let idx: Vec<usize> = rows.collect();
+                let d = self.subset(&idx);
+                d.with_trajectories(vec![len])
+                    .expect("one trajectory of all its rows")
+            };
+            return (part(0..cut), part(cut..count));
+        }
+        let mut order: Vec<usize> = (0..segments.len()).collect();
+        Rng::derive(seed, 0x5_9117).shuffle(&mut order);
+        let mut is_val = vec![false; segments.len()];
+        let mut held = 0;
+        for &k in order.iter().take(segments.len() - 1) {
+            if held >= want {
+                break;
+            }
+            is_val[k] = true;
+            held += segments[k].length;
+        }
+        let part = |val: bool| {
+            let chosen: Vec<&Segment> = (segments.iter().zip(&is_val))
+                .filter(|(_, v)| **v == val)
+                .map(|(s, _)| s)
+                .collect();
+            let idx: Vec<usize> = chosen
+                .iter()
+                .flat_map(|s| s.start..s.start + s.length)
+                .collect();
+            let lengths = chosen.iter().map(|s| s.length).collect();
+            (self.subset(&idx))
+                .with_trajectories(lengths)
+                .expect("the chosen trajectories' rows")
+        };
+        (part(false), part(true))
+    }
 }
 
 #[cfg(test)]
@@ -105,6 +151,40 @@ mod tests {
         // One ulp off breaks the chain: exact means exact.
         let off = data(&[0.0, f64::from_bits(1.0f64.to_bits() + 1)], &[1.0, 2.0]);
         assert_eq!(chains(&off).len(), 2);
+    }
+
+    #[test]
+    fn a_trajectory_split_keeps_trajectories_whole() {
+        let states: Vec<f64> = (0..10).map(f64::from).collect();
+        let next: Vec<f64> = (1..11).map(f64::from).collect();
+        let d = data(&states, &next)
+            .with_trajectories(vec![4, 2, 4])
+            .unwrap();
+        let (train, val) = d.split_by_trajectories(0.3, 1);
+        let (lt, lv) = (
+            train.trajectories.clone().unwrap(),
+            val.trajectories.clone().unwrap(),
+        );
+        assert_eq!(train.count() + val.count(), 10);
+        assert!(
+            lv.iter().sum::<usize>() >= 3 && !lt.is_empty(),
+            "{lt:?} {lv:?}"
+        );
+        // Each part's trajectories are rows that chained in the original: still chains.
+        for part in [&train, &val] {
+            let chained: Vec<usize> = chains(part).iter().map(|s| s.length).collect();
+            let given = part.trajectories.clone().unwrap();
+            assert!(chained.len() <= given.len(), "{chained:?} {given:?}");
+        }
+        let mut sizes = [lt, lv].concat();
+        sizes.sort();
+        assert_eq!(sizes, [2, 4, 4]);
+        // One trajectory is cut in time: the last 30% validates.
+        let one = data(&states, &next).with_trajectories(vec![10]).unwrap();
+        let (train, val) = one.split_by_trajectories(0.3, 1);
+        assert_eq!(train.q, states[..7]);
+        assert_eq!(val.q, states[7..]);
+        assert_eq!(val.trajectories, Some(vec![3]));
     }
 
     #[test]

@@ -427,7 +427,12 @@ impl Model {
     /// Sum over the batch of Σ(q' − q̂')² + λ Σ(q̇' − q̂̇')² (divide by the batch size for the
     /// mean); an angle's position term is 2(1 − cos(q' − q̂')).
     pub fn loss_sum(&self, x: Tensor<2>, u: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
-        let err = self.step(x, u) - target;
+        self.error_sum(self.step(x, u), target)
+    }
+
+    /// The same sum for predicted states against targets (a rollout's step).
+    pub fn error_sum(&self, predicted: Tensor<2>, target: Tensor<2>) -> Tensor<1> {
+        let err = predicted - target;
         (self.consts.squared_error(err) * self.consts.loss_w.clone()).sum()
     }
 

@@ -15,6 +15,10 @@ pub struct EpochMetrics {
     pub epoch: usize,
     pub train_loss: f64,
     pub val_loss: Option<f64>,
+    /// The validation loss over windows of the run's horizon, for a multi-step run whose
+    /// validation data has such windows (`val_loss` stays the one-step loss).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_horizon_loss: Option<f64>,
     /// Wall time of this epoch (training and validation).
     pub seconds: f64,
 }

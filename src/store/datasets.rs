@@ -75,19 +75,16 @@ pub fn sha256(ds: &Dataset, blob: &[u8]) -> String {
 
 impl Store {
     /// Stores a dataset unless the same arrays are already stored; returns the row and whether
-    /// it was created. `trajectories` are the lengths of an upload in trajectory form; the
-    /// same arrays uploaded flat first gain them.
+    /// it was created. The same arrays uploaded flat first gain the trajectories of an upload
+    /// in trajectory form.
     pub async fn insert_dataset(
         &self,
         name: Option<&str>,
         ds: &Dataset,
-        trajectories: Option<&[usize]>,
     ) -> Result<(DatasetRow, bool)> {
         let blob = encode(ds);
         let placed = self.place(Kind::Dataset, &blob).await?;
-        let stored = self
-            .insert_dataset_row(name, ds, trajectories, &blob, &placed)
-            .await;
+        let stored = self.insert_dataset_row(name, ds, &blob, &placed).await;
         if !matches!(stored, Ok((_, true))) {
             self.unreference(placed.key.as_deref()).await;
         }
@@ -98,12 +95,12 @@ impl Store {
         &self,
         name: Option<&str>,
         ds: &Dataset,
-        trajectories: Option<&[usize]>,
         blob: &[u8],
         placed: &Placed<'_>,
     ) -> Result<(DatasetRow, bool)> {
         on_db!(self, pool, D => {
-            let lengths = trajectories.map(|t| serde_json::to_string(t).expect("lengths serialize"));
+            let lengths = (ds.trajectories.as_ref())
+                .map(|t| serde_json::to_string(t).expect("lengths serialize"));
             let sha = sha256(ds, blob);
             // Computed before the write lock is taken: the checks read every value.
             let warnings = sqlx::types::Json(ds.warnings());
@@ -160,20 +157,28 @@ impl Store {
     }
 
     pub async fn load_dataset(&self, id: &str) -> Result<Option<Dataset>> {
-        type Stored = (i64, i64, f64, i64, Vec<u8>, Option<String>);
+        type Stored = (i64, i64, f64, i64, Vec<u8>, Option<String>, Option<String>);
         let r: Option<Stored> = on_db!(self, pool, D => {
-            sqlx::query_as("SELECT n, m, dt, count, data, blob_key FROM datasets WHERE id = $1")
+            sqlx::query_as(
+                "SELECT n, m, dt, count, data, blob_key, trajectories FROM datasets WHERE id = $1",
+            )
                 .bind(id)
                 .fetch_optional(pool)
                 .await?
         });
-        let Some((n, m, dt, count, inline, key)) = r else {
+        let Some((n, m, dt, count, inline, key, lengths)) = r else {
             return Ok(None);
         };
         let Some(blob) = self.fetch(inline, key, ("datasets", "id", id)).await? else {
             return Ok(None);
         };
-        decode(&blob, n as usize, m as usize, dt, count as usize).map(Some)
+        let ds = decode(&blob, n as usize, m as usize, dt, count as usize)?;
+        match lengths.as_deref().map(trajectory_lengths).transpose()? {
+            Some(lengths) => (ds.with_trajectories(lengths))
+                .map(Some)
+                .map_err(|e| Error::corrupt("dataset", e)),
+            None => Ok(Some(ds)),
+        }
     }
 
     /// The trajectory lengths a dataset was uploaded with: None when there is no such
@@ -185,14 +190,7 @@ impl Store {
                     .bind(id)
                     .fetch_optional(pool)
                     .await?;
-            r.map(|t| {
-                t.map(|text| {
-                    serde_json::from_str(&text)
-                        .map_err(|e| Error::corrupt("dataset", format!("trajectories: {e}")))
-                })
-                .transpose()
-            })
-            .transpose()
+            r.map(|t| t.as_deref().map(trajectory_lengths).transpose()).transpose()
         })
     }
 
@@ -224,4 +222,9 @@ impl Store {
 
 fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::dialect::sql::<D>(s, COLUMNS)
+}
+
+/// A row's `trajectories` column: the lengths as JSON.
+fn trajectory_lengths(text: &str) -> Result<Vec<usize>> {
+    serde_json::from_str(text).map_err(|e| Error::corrupt("dataset", format!("trajectories: {e}")))
 }

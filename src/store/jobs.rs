@@ -34,7 +34,7 @@ impl From<JobRow> for Job {
     }
 }
 
-const COLUMNS: &str = "seq, id, state, epoch, epochs, checkpoint_epoch, train_loss, val_loss, best_val_loss, \
+const COLUMNS: &str = "seq, id, state, epoch, epochs, checkpoint_epoch, train_loss, val_loss, val_horizon_loss, best_val_loss, \
     attempt, error, model_id, dataset_id, validation_dataset_id, created_at, started_at, finished_at, \
     request, cancel_requested, warnings";
 
@@ -242,7 +242,8 @@ impl Store {
     pub async fn metrics(&self, job_id: &str, after_epoch: i64) -> Result<Vec<Metric>> {
         on_db!(self, pool, D => {
             Ok(sqlx::query_as(
-                "SELECT epoch, train_loss, val_loss, seconds FROM metrics WHERE job_id = $1 AND epoch > $2 ORDER BY epoch",
+                "SELECT epoch, train_loss, val_loss, val_horizon_loss, seconds FROM metrics
+                 WHERE job_id = $1 AND epoch > $2 ORDER BY epoch",
             )
             .bind(job_id)
             .bind(after_epoch)

@@ -163,16 +163,18 @@ impl Store {
         on_db!(self, pool, D => {
             let mut tx = begin_write(pool).await?;
             let text = format!(
-                "UPDATE jobs SET epoch = $1, train_loss = $2, val_loss = $3, best_val_loss = $4
+                "UPDATE jobs SET epoch = $1, train_loss = $2, val_loss = $3, best_val_loss = $4,
+                    val_horizon_loss = $5
                  WHERE {}",
-                fence(4)
+                fence(5)
             );
             let updated = fenced(
                 sqlx::query(owned_sql::<D>(text))
                     .bind(m.epoch)
                     .bind(m.train_loss)
                     .bind(m.val_loss)
-                    .bind(best_val_loss),
+                    .bind(best_val_loss)
+                    .bind(m.val_horizon_loss),
                 c,
             )
             .execute(&mut *tx)
@@ -181,16 +183,18 @@ impl Store {
                 return Ok(false);
             }
             sqlx::query(
-                "INSERT INTO metrics (job_id, epoch, train_loss, val_loss, seconds)
-                 VALUES ($1, $2, $3, $4, $5)
+                "INSERT INTO metrics (job_id, epoch, train_loss, val_loss, seconds, val_horizon_loss)
+                 VALUES ($1, $2, $3, $4, $5, $6)
                  ON CONFLICT (job_id, epoch) DO UPDATE SET train_loss = excluded.train_loss,
-                    val_loss = excluded.val_loss, seconds = excluded.seconds",
+                    val_loss = excluded.val_loss, seconds = excluded.seconds,
+                    val_horizon_loss = excluded.val_horizon_loss",
             )
             .bind(&c.job.id)
             .bind(m.epoch)
             .bind(m.train_loss)
             .bind(m.val_loss)
             .bind(m.seconds)
+            .bind(m.val_horizon_loss)
             .execute(&mut *tx)
             .await?;
             tx.commit().await?;

@@ -7,6 +7,7 @@ pub mod setup;
 pub mod shards;
 pub mod trainer;
 pub mod warnings;
+pub mod windows;
 
 pub use setup::TrainConfig;
 pub use trainer::{TrainState, Trainer};

@@ -31,7 +31,28 @@ pub struct TrainConfig {
     /// own `periodic`, else none.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub periodic: Vec<bool>,
+    /// Transitions per training window (README "Multi-step training"): the loss compares the
+    /// model's own rollout of this many steps from a window's first state with the recorded
+    /// states. 1 is the one-step loss (and is left out of files, which stay as they were).
+    #[serde(skip_serializing_if = "is_one")]
+    pub horizon: usize,
+    /// Weight γ of each further step of a window (step k counts γ^(k−1)); 1 counts all alike.
+    #[serde(skip_serializing_if = "is_unit")]
+    pub discount: f64,
 }
+
+fn is_one(h: &usize) -> bool {
+    *h == 1
+}
+
+fn is_unit(g: &f64) -> bool {
+    *g == 1.0
+}
+
+/// The longest training window: each step of a window keeps its integrator stages for the
+/// backward pass, so memory grows with it (the job budget counts it), and beyond a few
+/// hundred steps gradients through a rollout of a learned model explode.
+pub const MAX_HORIZON: usize = 1000;
 
 impl Default for TrainConfig {
     fn default() -> Self {
@@ -45,6 +66,8 @@ impl Default for TrainConfig {
             integrator: Integrator::Rk4,
             patience: None,
             periodic: vec![],
+            horizon: 1,
+            discount: 1.0,
         }
     }
 }
@@ -66,6 +89,12 @@ impl TrainConfig {
         }
         if !(self.val_fraction.is_finite() && (0.0..1.0).contains(&self.val_fraction)) {
             return bad("val_fraction", "must be in [0, 1)");
+        }
+        if !(1..=MAX_HORIZON).contains(&self.horizon) {
+            return bad("horizon", &format!("must be between 1 and {MAX_HORIZON}"));
+        }
+        if !(self.discount.is_finite() && self.discount > 0.0 && self.discount <= 1.0) {
+            return bad("discount", "must be a number in (0, 1]");
         }
         if self.patience == Some(0) {
             return bad(
@@ -99,7 +128,12 @@ pub(super) fn split_data(
         return Ok((data.clone(), Some(v.clone())));
     }
     if cfg.val_fraction > 0.0 && data.count() > 1 {
-        let (t, v) = data.split(cfg.val_fraction, cfg.seed);
+        // Windows need whole trajectories: a row split would break every chain.
+        let (t, v) = if cfg.horizon > 1 {
+            data.split_by_trajectories(cfg.val_fraction, cfg.seed)
+        } else {
+            data.split(cfg.val_fraction, cfg.seed)
+        };
         return Ok((t, Some(v)));
     }
     Ok((data.clone(), None))
@@ -171,6 +205,7 @@ pub fn prepare(
     spec.check_dims(data.n, data.m)?;
     let physical = physical_init(spec, init)?;
     let (train_ds, val_ds) = split_data(data, val, cfg)?;
+    crate::train::windows::check(&train_ds, cfg.horizon)?;
     let scaling = scaling(spec, physical.as_deref(), &train_ds)?;
     let periodic = periodic(spec, cfg, data.n)?;
     let config = ModelConfig {

@@ -131,6 +131,7 @@ mod tests {
                 epoch: i + 1,
                 train_loss: l,
                 val_loss: Some(l),
+                val_horizon_loss: None,
                 seconds: 0.1,
             })
             .collect()

@@ -228,6 +228,7 @@ fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outco
             epoch: m.epoch as i64,
             train_loss: m.train_loss,
             val_loss: m.val_loss,
+            val_horizon_loss: m.val_horizon_loss,
             seconds: m.seconds,
         };
         if !rt.block_on(app.store.record_epoch(c, &row, trainer.best_val_loss()))? {

@@ -1,17 +1,40 @@
 //! Durability with the real binary: `kill -9` mid-training and SIGTERM. A job resumes from
 //! its last checkpoint and ends with exactly the parameters of an uninterrupted run (on
-//! SQLite, whichever backend the crashed runs use).
+//! SQLite, whichever backend the crashed runs use). The job trains on windows of 3 steps of
+//! trajectory data: what a multi-step job adds to a checkpoint (its windows, their order,
+//! the horizon loss) must survive too; one-step jobs are killed in `chaos.rs` and
+//! `cluster.rs`.
 
-use serde_json::json;
+use serde_json::{Value, json};
 
-use crate::helpers::{dataset, final_state};
+use crate::helpers::final_state;
 use crate::processes::{Server, fresh_db};
+use graybox::physics::templates::Template;
+use graybox::sim::{SimConfig, TrajectoryShape, simulate_trajectories};
+
+/// `count` double-pendulum trajectories of 64 transitions, as an upload body.
+fn trajectories(count: usize, seed: u64) -> Value {
+    let t = Template::DoublePendulum;
+    let cfg = SimConfig {
+        seed,
+        qdot_range: 2.0,
+        u_std: 30.0,
+        ..SimConfig::default()
+    };
+    let shape = TrajectoryShape {
+        count,
+        steps: 64,
+        hold: 10,
+    };
+    let ds = simulate_trajectories(&t, t.defaults(), &cfg, shape).unwrap();
+    serde_json::from_str(&ds.to_json()).unwrap()
+}
 
 fn setup(s: &Server) -> String {
-    let d = s.post("/v1/datasets", &dataset(1024, 21));
-    let v = s.post("/v1/datasets", &dataset(128, 22));
+    let d = s.post("/v1/datasets", &trajectories(8, 21));
+    let v = s.post("/v1/datasets", &trajectories(2, 22));
     let body = json!({"dataset_id": d["id"], "validation_dataset_id": v["id"], "model": "MVF",
-                      "training": {"epochs": 24, "batch_size": 64, "lr": 0.003}});
+                      "training": {"epochs": 24, "batch_size": 64, "lr": 0.003, "horizon": 3}});
     s.post("/v1/jobs", &body)["id"]
         .as_str()
         .unwrap()
@@ -54,6 +77,12 @@ fn kill_and_sigterm_resume_from_checkpoints_and_match_an_uninterrupted_run() {
         "resumed at a checkpoint, not epoch 0: {}",
         resumed[0]
     );
+    let horizon: Vec<Value> = (second.get(&format!("/v1/jobs/{id}/metrics"))["items"].as_array())
+        .unwrap()
+        .iter()
+        .map(|m| m["val_horizon_loss"].clone())
+        .collect();
+    assert!(horizon.iter().all(Value::is_f64), "{horizon:?}");
     let got = second.model_file(&done);
     assert_eq!(
         got.params, want.params,

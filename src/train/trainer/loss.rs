@@ -1,7 +1,8 @@
-//! The one-step prediction loss: the transitions kept as host arrays and gathered into
-//! tensors per batch, the mean loss over a whole set (validation and the `eval` command), and
-//! a batch's loss with its gradient, split into shards. Training steps, validation and `eval`
-//! share this code so that they measure the same loss.
+//! The prediction loss over windows of transitions (one transition each for the one-step
+//! loss): the transitions kept as host arrays and gathered into tensors per batch, the mean
+//! loss over a whole set (validation and the `eval` command), and a batch's loss with its
+//! gradient, split into shards. Training steps, validation and `eval` share this code so that
+//! they measure the same loss.
 
 use burn::tensor::{Device, Tensor, TensorData};
 
@@ -10,13 +11,13 @@ use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::train::shards::{self, ParamGrads};
+use crate::train::windows::Windows;
 
 /// One set of transitions as host arrays: x = [q, q̇], u, target x'.
 pub(super) struct HostData {
     x: Vec<f64>,
     u: Vec<f64>,
     y: Vec<f64>,
-    pub(super) count: usize,
     n2: usize,
     m: usize,
 }
@@ -28,7 +29,6 @@ impl HostData {
             x,
             u: ds.u.clone(),
             y,
-            count: ds.count(),
             n2: 2 * ds.n,
             m: ds.m,
         }
@@ -44,44 +44,74 @@ impl HostData {
             .collect()
     }
 
-    fn gather(&self, idx: &[usize], device: &Device) -> (Tensor<2>, Tensor<2>, Tensor<2>) {
-        let take = |a: &[f64], w: usize| -> Tensor<2> {
-            let v: Vec<f64> = idx
-                .iter()
-                .flat_map(|&i| a[i * w..(i + 1) * w].iter().copied())
-                .collect();
-            Tensor::from_data(TensorData::new(v, [idx.len(), w]), device)
+    /// Rows `idx + k` of one array as a tensor.
+    fn take(a: &[f64], w: usize, idx: &[usize], k: usize, device: &Device) -> Tensor<2> {
+        let v: Vec<f64> = idx
+            .iter()
+            .flat_map(|&i| a[(i + k) * w..(i + k + 1) * w].iter().copied())
+            .collect();
+        Tensor::from_data(TensorData::new(v, [idx.len(), w]), device)
+    }
+
+    /// Σ over the windows starting at rows `idx` of each window's loss: the model's rollout
+    /// from the first state under the recorded inputs against the recorded states, step k's
+    /// error weighted by `weights[k]`. Gradients flow through every step.
+    fn window_loss_sum(
+        &self,
+        model: &Model,
+        idx: &[usize],
+        weights: &[f64],
+        device: &Device,
+    ) -> Tensor<1> {
+        let x = Self::take(&self.x, self.n2, idx, 0, device);
+        let step = |k: usize| {
+            (
+                Self::take(&self.u, self.m, idx, k, device),
+                Self::take(&self.y, self.n2, idx, k, device),
+            )
         };
-        (
-            take(&self.x, self.n2),
-            take(&self.u, self.m),
-            take(&self.y, self.n2),
-        )
+        if let [_] = weights {
+            // The one-step loss exactly as it always was (no weight multiplies it).
+            let (u, y) = step(0);
+            return model.loss_sum(x, u, y);
+        }
+        let mut x = x;
+        let mut total: Option<Tensor<1>> = None;
+        for (k, w) in weights.iter().enumerate() {
+            let (u, y) = step(k);
+            x = model.step(x, u);
+            let e = model.error_sum(x.clone(), y).mul_scalar(*w);
+            total = Some(match total {
+                None => e,
+                Some(t) => t + e,
+            });
+        }
+        total.expect("a window has at least one step")
     }
 }
 
-/// Mean loss of `model` over `data`, in chunks of at most 4096 rows, each split into
-/// `shards` pieces run on `pool`, without autodiff.
+/// Mean loss of `model` over the `windows` of `data`, in chunks of at most 4096 rows (window
+/// steps), each split into `shards` pieces run on `pool`, without autodiff.
 pub(super) fn mean_loss(
     model: &Model,
     data: &HostData,
+    windows: &Windows,
     shards: usize,
     pool: Option<&rayon::ThreadPool>,
 ) -> f64 {
     let device = model.device();
     let min_rows = shards::min_shard_rows(&model.config.spec);
-    let idx: Vec<usize> = (0..data.count).collect();
-    let total: f64 = idx
-        .chunks(4096)
+    let chunk = (4096 / windows.horizon()).max(1);
+    let total: f64 = (windows.starts)
+        .chunks(chunk)
         .flat_map(|c| {
             let pieces = shards::split(c, shards::shard_count(shards, c.len(), min_rows));
             shards::map_pieces(&pieces, pool, |p| {
-                let (x, u, y) = data.gather(p, &device);
-                scalar(model.loss_sum(x, u, y))
+                scalar(data.window_loss_sum(model, p, &windows.weights, &device))
             })
         })
         .sum();
-    total / data.count as f64
+    total / windows.count() as f64
 }
 
 fn scalar(t: Tensor<1>) -> f64 {
@@ -99,18 +129,27 @@ pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
             ),
         ));
     }
-    Ok(mean_loss(&model.valid(), &HostData::new(ds), 1, None))
+    let one_step = Windows::one_step(ds.count());
+    Ok(mean_loss(
+        &model.valid(),
+        &HostData::new(ds),
+        &one_step,
+        1,
+        None,
+    ))
 }
 
 impl Trainer {
-    /// The mean loss over the training rows `batch` and its gradient (the parameters' visiting
-    /// order), the batch split into shards as a training step splits it.
+    /// The mean loss over the training windows starting at rows `batch` and its gradient (the
+    /// parameters' visiting order), the batch split into shards as a training step splits it.
     pub fn loss_and_grads(&self, batch: &[usize]) -> (f64, ParamGrads) {
         let rows = batch.len() as f64;
         let k = self.shards_of(batch.len());
+        let weights = &self.train_windows.weights;
         let shard = |idx: &[usize], model: &Model| {
-            let (x, u, y) = self.train.gather(idx, &model.device());
-            let loss = model.loss_sum(x, u, y).div_scalar(rows);
+            let loss = (self.train)
+                .window_loss_sum(model, idx, weights, &model.device())
+                .div_scalar(rows);
             let value = scalar(loss.clone());
             (value, shards::gradients(&model.params, &loss))
         };

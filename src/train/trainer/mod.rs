@@ -15,6 +15,7 @@ use super::adam::{Adam, AdamState};
 use super::setup::{TrainConfig, prepare};
 use super::shards;
 use super::warnings::zero_acceleration_loss;
+use super::windows::Windows;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::Model;
@@ -37,7 +38,9 @@ pub struct Trainer {
     model: Model,
     adam: Adam,
     train: HostData,
-    val: Option<HostData>,
+    /// The training windows (every row, for the one-step loss).
+    train_windows: Windows,
+    val: Option<Validation>,
     /// The zero-acceleration loss on the set that picks the best epoch (validation, else
     /// training), for the training checks.
     baseline: f64,
@@ -100,12 +103,14 @@ impl Trainer {
         let c = &model.config;
         let baseline = zero_acceleration_loss(val.unwrap_or(train), c.lambda, &c.periodic);
         let lower = c.template().and_then(|t| lower_bounds(t.params()));
+        let (horizon, discount) = (state.train.horizon, state.train.discount);
         Self {
             state,
             model,
             adam,
             train: HostData::new(train),
-            val: val.map(HostData::new),
+            train_windows: Windows::of(train, horizon, discount),
+            val: val.map(|v| Validation::new(v, horizon, discount)),
             baseline,
             pool: None,
             lower,
@@ -176,6 +181,7 @@ impl Trainer {
         cfg.validate()?;
         self.baseline = zero_acceleration_loss(data, c.lambda, &c.periodic);
         self.train = HostData::new(data);
+        self.train_windows = Windows::of(data, cfg.horizon, cfg.discount);
         self.val = None;
         let s = &mut self.state;
         s.train = cfg;
@@ -217,7 +223,7 @@ impl Trainer {
     /// batches.
     pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
         let start = Instant::now();
-        let mut order: Vec<usize> = (0..self.train.count).collect();
+        let mut order = self.train_windows.starts.clone();
         self.state.rng.shuffle(&mut order);
         let epoch = self.state.epoch + 1;
         let mut total = 0.0;
@@ -242,17 +248,23 @@ impl Trainer {
         }
         let s = &mut self.state;
         s.train_seconds += start.elapsed().as_secs_f64();
-        s.samples_seen += self.train.count as u64;
-        let train_loss = total / self.train.count as f64;
-        let val_loss = (self.val.as_ref())
-            .map(|v| mean_loss(&self.model.valid(), v, s.shards, self.pool.as_ref()));
-        if let Some(v) = val_loss.filter(|v| !v.is_finite()) {
+        let windows = self.train_windows.count();
+        s.samples_seen += (windows * self.train_windows.horizon()) as u64;
+        let train_loss = total / windows as f64;
+        let valid = self.model.valid();
+        let loss =
+            |v: &HostData, w: &Windows| mean_loss(&valid, v, w, s.shards, self.pool.as_ref());
+        let val_loss = (self.val.as_ref()).map(|v| loss(&v.data, &v.one_step));
+        let val_horizon_loss =
+            (self.val.as_ref()).and_then(|v| v.horizon.as_ref().map(|w| loss(&v.data, w)));
+        if let Some(v) = (val_loss.iter().chain(&val_horizon_loss)).find(|v| !v.is_finite()) {
             return Err(Error::Training(format!(
                 "the validation loss became non-finite ({v}) at epoch {epoch}"
             )));
         }
         s.epoch = epoch;
-        let criterion = val_loss.unwrap_or(train_loss);
+        // A multi-step run keeps the epoch whose rollouts validate best.
+        let criterion = val_horizon_loss.or(val_loss).unwrap_or(train_loss);
         if criterion < s.best_loss {
             s.best_loss = criterion;
             s.best_epoch = epoch;
@@ -265,6 +277,7 @@ impl Trainer {
             epoch,
             train_loss,
             val_loss,
+            val_horizon_loss,
             seconds: start.elapsed().as_secs_f64(),
         };
         s.history.push(metrics);
@@ -282,5 +295,24 @@ impl Trainer {
             on_epoch(&m, self);
         }
         Ok(())
+    }
+}
+
+/// The validation set: its one-step loss (comparable across every job), and for a multi-step
+/// run the loss over its windows of the run's horizon when it has any.
+struct Validation {
+    data: HostData,
+    one_step: Windows,
+    horizon: Option<Windows>,
+}
+
+impl Validation {
+    fn new(ds: &Dataset, horizon: usize, discount: f64) -> Self {
+        let windows = (horizon > 1).then(|| Windows::of(ds, horizon, discount));
+        Self {
+            data: HostData::new(ds),
+            one_step: Windows::one_step(ds.count()),
+            horizon: windows.filter(|w| w.count() > 0),
+        }
     }
 }

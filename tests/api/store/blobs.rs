@@ -56,8 +56,8 @@ async fn rows_point_at_objects_that_two_rows_may_share_and_the_last_deletes() {
     // A dataset: its arrays are one object; the same arrays again are the same row.
     let before = objects(dir.path(), "datasets");
     let ds = small_dataset(2);
-    let (row, _) = b.insert_dataset(None, &ds, None).await.unwrap();
-    let (again, created) = b.insert_dataset(None, &ds, None).await.unwrap();
+    let (row, _) = b.insert_dataset(None, &ds).await.unwrap();
+    let (again, created) = b.insert_dataset(None, &ds).await.unwrap();
     assert!(!created && again.id == row.id);
     assert_eq!(objects(dir.path(), "datasets").len(), before.len() + 1);
     assert_eq!(b.load_dataset(&row.id).await.unwrap(), Some(ds));
@@ -96,16 +96,10 @@ async fn a_replaced_or_fenced_out_checkpoint_leaves_no_object_behind() {
 #[tokio::test]
 async fn inline_rows_stay_served_beside_object_rows_and_need_the_store_they_name() {
     let s = TestStore::inline().await;
-    let (inline, _) = s
-        .insert_dataset(None, &small_dataset(1), None)
-        .await
-        .unwrap();
+    let (inline, _) = s.insert_dataset(None, &small_dataset(1)).await.unwrap();
     let dir = tempfile::tempdir().unwrap();
     let b = with_blobs(&s, dir.path()).await;
-    let (external, _) = b
-        .insert_dataset(None, &small_dataset(2), None)
-        .await
-        .unwrap();
+    let (external, _) = b.insert_dataset(None, &small_dataset(2)).await.unwrap();
     assert_eq!(
         b.load_dataset(&inline.id).await.unwrap(),
         Some(small_dataset(1))

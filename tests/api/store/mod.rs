@@ -71,7 +71,7 @@ pub fn small_dataset(seed: u64) -> Dataset {
 /// A dataset in the store and a job on it (created), with an idempotency key if given.
 pub async fn queued_job(store: &Store, seed: u64, key: Option<&str>) -> graybox::store::JobRow {
     let (ds, _) = store
-        .insert_dataset(None, &small_dataset(seed), None)
+        .insert_dataset(None, &small_dataset(seed))
         .await
         .unwrap();
     match store.submit_job(new_job(&ds.id, key)).await.unwrap() {

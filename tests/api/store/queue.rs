@@ -29,6 +29,7 @@ fn metric(epoch: i64) -> Metric {
         epoch,
         train_loss: 1.0 / epoch as f64,
         val_loss: Some(2.0 / epoch as f64),
+        val_horizon_loss: None,
         seconds: 0.5,
     }
 }
@@ -323,10 +324,7 @@ async fn jobs_given_back_are_claimed_again_and_infrastructure_failures_are_count
 async fn a_validation_dataset_is_checked_and_kept_like_the_training_one() {
     let s = TestStore::new().await;
     let job = queued_job(&s, 1, None).await;
-    let (val, _) = s
-        .insert_dataset(None, &small_dataset(9), None)
-        .await
-        .unwrap();
+    let (val, _) = s.insert_dataset(None, &small_dataset(9)).await.unwrap();
     let mut with_val = new_job(&job.dataset_id, None);
     with_val.validation_dataset_id = Some(val.id.clone());
     s.submit_job(with_val).await.unwrap();

@@ -10,20 +10,24 @@ use super::{TestStore, new_job, queued_job, small_dataset};
 async fn a_dataset_is_stored_once_read_back_exactly_and_listed_newest_first() {
     let s = TestStore::new().await;
     let ds = small_dataset(1);
-    let (first, created) = s.insert_dataset(Some("arm"), &ds, None).await.unwrap();
+    let (first, created) = s.insert_dataset(Some("arm"), &ds).await.unwrap();
     assert!(created);
     assert_eq!((first.n, first.m, first.count), (2, 2, 16));
     assert_eq!(first.name.as_deref(), Some("arm"));
     // The same content again: the first row, and its trajectory lengths filled in.
-    let (again, created) = s.insert_dataset(None, &ds, Some(&[8, 8])).await.unwrap();
+    let as_trajectories = ds.clone().with_trajectories(vec![8, 8]).unwrap();
+    let (again, created) = s.insert_dataset(None, &as_trajectories).await.unwrap();
     assert!(!created);
     assert_eq!(again.id, first.id);
     assert_eq!(
         s.dataset_trajectories(&first.id).await.unwrap(),
         Some(Some(vec![8, 8]))
     );
-    // f64 arrays survive the blob column bit for bit.
-    assert_eq!(s.load_dataset(&first.id).await.unwrap(), Some(ds));
+    // f64 arrays survive the blob column bit for bit, and come back with their trajectories.
+    assert_eq!(
+        s.load_dataset(&first.id).await.unwrap(),
+        Some(as_trajectories)
+    );
     assert_eq!(
         s.get_dataset(&first.id).await.unwrap().unwrap().id,
         first.id
@@ -32,10 +36,7 @@ async fn a_dataset_is_stored_once_read_back_exactly_and_listed_newest_first() {
     assert!(s.load_dataset("ds_missing").await.unwrap().is_none());
     assert_eq!(s.dataset_trajectories("ds_missing").await.unwrap(), None);
 
-    let (second, _) = s
-        .insert_dataset(None, &small_dataset(2), None)
-        .await
-        .unwrap();
+    let (second, _) = s.insert_dataset(None, &small_dataset(2)).await.unwrap();
     let page = s.list_datasets(None, 1).await.unwrap();
     assert_eq!(ids(&page), [second.id.as_str()]);
     let rest = s.list_datasets(Some(page[0].seq), 10).await.unwrap();
@@ -94,10 +95,7 @@ async fn a_template_is_stored_once_by_content_and_kept_while_a_job_uses_it() {
     let (page, more) = s.list_templates(Some(page[0].seq), 10).await.unwrap();
     assert_eq!((page[0].id.as_str(), more), (t.id.as_str(), false));
 
-    let (ds, _) = s
-        .insert_dataset(None, &small_dataset(4), None)
-        .await
-        .unwrap();
+    let (ds, _) = s.insert_dataset(None, &small_dataset(4)).await.unwrap();
     let mut job = new_job(&ds.id, None);
     job.template_id = Some(t.id.clone());
     let Submitted::Created(job) = s.submit_job(job).await.unwrap() else {

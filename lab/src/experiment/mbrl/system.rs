@@ -149,6 +149,7 @@ fn transitions(states: &[f64], u: &[f64]) -> Dataset {
         u,
         q_next,
         qdot_next,
+        trajectories: None,
     }
 }
 

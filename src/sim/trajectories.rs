@@ -1,0 +1,117 @@
+//! Simulated trajectories of the true system, for multi-step training, rollout error against
+//! horizon and the dashboard's replay: each from a random state, its inputs drawn afresh every
+//! few steps and held in between (as a controller's commands are), integrated by RK4.
+
+use super::{SimConfig, TemplateSystem, true_step};
+use crate::data::Dataset;
+use crate::error::{Error, Result};
+use crate::physics::integrator::Integrator;
+use crate::physics::templates::Template;
+use crate::rng::Rng;
+
+/// How many trajectories, of how many transitions, with each input held for how many steps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct TrajectoryShape {
+    pub count: usize,
+    pub steps: usize,
+    pub hold: usize,
+}
+
+/// The most transitions one call simulates (a few seconds of CPU, ~100 MB of JSON written).
+pub const MAX_TRANSITIONS: usize = 10_000_000;
+
+/// `shape.count` trajectories of `shape.steps` transitions each: x₀ with q ~ U(−r_q, r_q) and
+/// q̇ ~ U(−r_q̇, r_q̇), an input u ~ N(0, σ²) drawn every `shape.hold` steps and held in
+/// between, RK4 at `cfg.dt` (`cfg.count` is not used). The dataset keeps the trajectories'
+/// boundaries.
+pub fn simulate_trajectories(
+    template: &Template,
+    params: Vec<f64>,
+    cfg: &SimConfig,
+    shape: TrajectoryShape,
+) -> Result<Dataset> {
+    for (name, v) in [
+        ("trajectories", shape.count),
+        ("steps", shape.steps),
+        ("hold", shape.hold),
+    ] {
+        if v == 0 {
+            return Err(Error::invalid(name, "must be at least 1"));
+        }
+    }
+    if shape.count.saturating_mul(shape.steps) > MAX_TRANSITIONS {
+        return Err(Error::invalid(
+            "trajectories",
+            format!("trajectories × steps must be at most {MAX_TRANSITIONS}"),
+        ));
+    }
+    cfg.check(template.m())?;
+    let (n, m) = (template.n(), template.m());
+    let sys = TemplateSystem::new(template.clone(), params);
+    let mut rng = Rng::derive(cfg.seed, 0x0707_0001);
+    let mut arrays: [Vec<f64>; 5] = Default::default();
+    for _ in 0..shape.count {
+        let q0 = (0..n).map(|_| rng.uniform_in(-cfg.q_range, cfg.q_range));
+        let q0: Vec<f64> = q0.collect();
+        let qd0 = (0..n).map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range));
+        let mut x: Vec<f64> = q0.into_iter().chain(qd0).collect();
+        let mut u = Vec::with_capacity(shape.steps * m);
+        for k in 0..shape.steps {
+            if k % shape.hold == 0 {
+                u.extend(cfg.input(&mut rng, m));
+            } else {
+                u.extend_from_within(u.len() - m..);
+            }
+        }
+        for uk in u.chunks(m) {
+            let next = true_step(&sys, &x, uk, cfg.dt, Integrator::Rk4);
+            arrays[0].extend(&x[..n]);
+            arrays[1].extend(&x[n..]);
+            arrays[2].extend(uk);
+            arrays[3].extend(&next[..n]);
+            arrays[4].extend(&next[n..]);
+            x = next;
+        }
+    }
+    Dataset::new(cfg.dt, n, m, arrays)?.with_trajectories(vec![shape.steps; shape.count])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trajectories_chain_hold_their_inputs_and_keep_their_boundaries() {
+        let t = Template::DoublePendulum;
+        let cfg = SimConfig {
+            qdot_range: 2.0,
+            u_std: 30.0,
+            ..SimConfig::default()
+        };
+        let shape = TrajectoryShape {
+            count: 3,
+            steps: 25,
+            hold: 10,
+        };
+        let d = simulate_trajectories(&t, t.defaults(), &cfg, shape).unwrap();
+        assert_eq!(d.count(), 75);
+        assert_eq!(d.trajectories, Some(vec![25; 3]));
+        // Inside a trajectory each row starts where the last one ended, bit for bit: its
+        // chains are the trajectories themselves.
+        let chains: Vec<usize> = crate::data::trajectories::chains(&d)
+            .iter()
+            .map(|s| s.length)
+            .collect();
+        assert_eq!(chains, [25, 25, 25]);
+        // Inputs change only every 10 steps: rows 0-9 share one, row 10 has another.
+        let u = |r: usize| &d.u[2 * r..2 * r + 2];
+        assert!((1..10).all(|r| u(r) == u(0)));
+        assert_ne!(u(10), u(9));
+        assert_ne!(u(25), u(24), "a new trajectory draws a new input");
+        // Starting velocities within ±2.
+        assert!(d.qdot[..2].iter().all(|v| v.abs() <= 2.0));
+        let none = TrajectoryShape { hold: 0, ..shape };
+        let e = simulate_trajectories(&t, t.defaults(), &cfg, none).unwrap_err();
+        assert!(e.to_string().contains("hold"), "{e}");
+    }
+}
