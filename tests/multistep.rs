@@ -209,3 +209,71 @@ fn a_resumed_multi_step_run_equals_an_uninterrupted_one() {
     };
     assert_eq!(h(&full), h(&resumed));
 }
+
+/// The error-against-horizon figures (all window starts stepped as one batch, starts leaving
+/// as their trajectory ends) are each window's own rollout: checked against one
+/// `Evaluator::rollout` per window start.
+#[test]
+fn horizon_errors_are_each_windows_own_rollout() {
+    use graybox::infer::horizons::{check_horizons, horizon_errors};
+    let data = trajectories(3, 12, 6);
+    let cfg = TrainConfig {
+        val_fraction: 0.0,
+        ..config(1, 1)
+    };
+    let mut t = Trainer::new("MVF", mvf(), &[], &data, None, cfg, &flex()).unwrap();
+    t.run(&AtomicBool::new(false), |_, _| {}).unwrap();
+    let e = Evaluator::from_file(&t.model_file()).unwrap();
+    let horizons = check_horizons(&[10, 1, 4, 10], 100).unwrap();
+    assert_eq!(horizons, [1, 4, 10]);
+    let found = horizon_errors(&e, &data, &horizons, &|| false).unwrap();
+    for (h, f) in horizons.iter().zip(&found) {
+        // Starts with h transitions left in their trajectory of 12.
+        assert_eq!(f.windows, 3 * (12 - h + 1), "h {h}");
+        let mut pos = vec![];
+        for traj in 0..3 {
+            for i in 0..=(12 - h) {
+                let r = traj * 12 + i;
+                let x0 = [&data.q[2 * r..2 * r + 2], &data.qdot[2 * r..2 * r + 2]].concat();
+                let mut last = vec![];
+                e.rollout(
+                    &x0,
+                    *h,
+                    |k, _| data.u[2 * (r + k)..2 * (r + k) + 2].to_vec(),
+                    |x, _| {
+                        last = x.to_vec();
+                        true
+                    },
+                );
+                let end = r + h - 1;
+                let wrap = |d: f64| d.sin().atan2(d.cos());
+                let d: f64 = (0..2)
+                    .map(|j| wrap(last[j] - data.q_next[2 * end + j]).powi(2))
+                    .sum();
+                pos.push(d.sqrt());
+            }
+        }
+        pos.sort_by(f64::total_cmp);
+        let k = pos.len();
+        let median = if k % 2 == 1 {
+            pos[k / 2]
+        } else {
+            0.5 * (pos[k / 2 - 1] + pos[k / 2])
+        };
+        let mean = pos.iter().sum::<f64>() / k as f64;
+        // Both f64; the batch steps through SIMD columns, the single rollout through scalars:
+        // rounding differs in the last bits only.
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * b.abs().max(1e-12);
+        assert!(
+            close(f.position_median.unwrap(), median),
+            "h {h}: {f:?} vs {median}"
+        );
+        assert!(
+            close(f.position_mean.unwrap(), mean),
+            "h {h}: {f:?} vs {mean}"
+        );
+        assert!((f.seconds - *h as f64 * 0.01).abs() < 1e-12);
+    }
+    assert!(check_horizons(&[], 10).is_err() && check_horizons(&[0], 10).is_err());
+    assert!(check_horizons(&[11], 10).is_err());
+}

@@ -7,7 +7,9 @@ use serde_json::json;
 
 use crate::backend::{self, Backend, Precision};
 use crate::data::Dataset;
-use crate::error::Result;
+use crate::error::{Error, Result};
+use crate::infer::Evaluator;
+use crate::infer::horizons::{check_horizons, horizon_errors};
 use crate::model::file::ModelFile;
 use crate::model::report::{identifiable, used_physical};
 use crate::train::trainer::evaluate;
@@ -24,6 +26,12 @@ pub struct EvalArgs {
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
     pub precision: Precision,
+    /// Instead of the loss: open-loop rollouts of this many steps (comma-separated, e.g.
+    /// 1,10,50,100) from every window start of the data's trajectories, one JSON line per
+    /// horizon with the median and mean position and velocity errors (README "Multi-step
+    /// training").
+    #[arg(long, value_delimiter = ',')]
+    pub horizons: Option<Vec<usize>>,
 }
 
 #[derive(Args, Debug)]
@@ -35,10 +43,40 @@ pub struct InspectArgs {
 pub(super) fn eval(a: EvalArgs) -> Result<()> {
     let file = ModelFile::load(&a.model)?;
     let data = Dataset::load(&a.data, a.dt)?;
+    if let Some(horizons) = &a.horizons {
+        return eval_horizons(&file, &data, horizons);
+    }
     let device = backend::device(a.backend, a.precision)?;
     let model = file.model(&device)?;
     let loss = evaluate(&model, &data)?;
     println!("{}", json!({"loss": loss, "count": data.count()}));
+    Ok(())
+}
+
+fn eval_horizons(file: &ModelFile, data: &Dataset, horizons: &[usize]) -> Result<()> {
+    let e = Evaluator::from_file(file)?;
+    let c = &e.config;
+    if (data.n, data.m) != (c.n, c.m) {
+        return Err(Error::invalid(
+            "data",
+            format!(
+                "has n = {}, m = {} but the model has n = {}, m = {}",
+                data.n, data.m, c.n, c.m
+            ),
+        ));
+    }
+    let longest = data.segments().iter().map(|s| s.length).max().unwrap_or(0);
+    let horizons = check_horizons(horizons, usize::MAX)?;
+    let found = horizon_errors(&e, data, &horizons, &|| false).expect("never stopped");
+    for h in found {
+        println!("{}", serde_json::to_string(&h).expect("json"));
+    }
+    if longest < *horizons.last().expect("checked") {
+        eprintln!(
+            "note: the data's longest trajectory has {longest} transitions: longer horizons \
+             have no windows"
+        );
+    }
     Ok(())
 }
 

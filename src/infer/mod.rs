@@ -6,6 +6,7 @@
 //! Weights come from the model file (Burn's layout: Linear weights `[in, out]`).
 
 pub mod col;
+pub mod horizons;
 pub mod jet;
 pub mod limits;
 mod nets;

@@ -20,6 +20,7 @@ EXPERIMENTS = {
     "data-efficiency": ("data_efficiency.png", GRAY),
     "rollout": ("rollouts.png", BLUE),
     "mbrl": ("mbrl.png", BLUE),
+    "multistep": ("horizons.png", BLUE),
 }
 
 

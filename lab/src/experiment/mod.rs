@@ -5,6 +5,7 @@
 
 mod data_efficiency;
 mod mbrl;
+mod multistep;
 mod out;
 mod plot;
 mod pool;
@@ -21,6 +22,7 @@ use graybox::sim::{SimConfig, simulate};
 
 pub use data_efficiency::DataEfficiencyArgs;
 pub use mbrl::MbrlArgs;
+pub use multistep::MultistepArgs;
 pub use rollout::RolloutArgs;
 
 #[derive(Subcommand, Debug)]
@@ -33,6 +35,9 @@ pub enum ExperimentCommand {
     /// §V-D: model-based RL of the swing-up (plan on the model, track with TVLQR on the
     /// system, learn from the episode), per model and seed.
     Mbrl(MbrlArgs),
+    /// Multi-step (shooting) training: MVF trained on windows of H steps of trajectories
+    /// against its open-loop error on held-out trajectories, paired by seed across H.
+    Multistep(MultistepArgs),
 }
 
 pub fn run(cmd: ExperimentCommand) -> Result<()> {
@@ -40,6 +45,7 @@ pub fn run(cmd: ExperimentCommand) -> Result<()> {
         ExperimentCommand::DataEfficiency(a) => data_efficiency::run(a),
         ExperimentCommand::Rollout(a) => rollout::run(a),
         ExperimentCommand::Mbrl(a) => mbrl::run(a),
+        ExperimentCommand::Multistep(a) => multistep::run(a),
     }
 }
 

@@ -1,0 +1,303 @@
+//! `graybox-lab experiment multistep`: MVF trained on windows of H transitions of the double
+//! pendulum's trajectories (H = 1 is the paper's one-step loss) against the open-loop error of
+//! its rollouts on held-out trajectories, per seed, paired across H (same data, same epochs),
+//! and H = 1 once more for the wall time H = 10 took. Cells checkpoint every few epochs, so an
+//! interrupted run resumes mid-cell.
+
+mod report;
+
+use std::path::PathBuf;
+use std::sync::atomic::AtomicBool;
+
+use clap::Args;
+use serde::{Deserialize, Serialize};
+
+use super::out::OutDir;
+use super::pool::{self, Progress};
+use graybox::backend::{self, Backend, Precision};
+use graybox::data::Dataset;
+use graybox::error::Result;
+use graybox::infer::Evaluator;
+use graybox::infer::horizons::{HorizonError, horizon_errors};
+use graybox::model::file::{ModelFile, write_atomic};
+use graybox::model::spec::ModelSpec;
+use graybox::physics::templates::Template;
+use graybox::rng::Rng;
+use graybox::sim::{SimConfig, TrajectoryShape, simulate_trajectories};
+use graybox::train::{TrainConfig, TrainState, Trainer};
+
+/// Where the error is read, in steps of Δt = 0.01 (the plot's points); the tables show
+/// `TABLE_STEPS`: 0.5 s, 1 s and 2 s.
+const EVAL_STEPS: [usize; 10] = [1, 2, 5, 10, 20, 50, 75, 100, 150, 200];
+const TABLE_STEPS: [usize; 3] = [50, 100, 200];
+/// Epochs between a cell's checkpoints.
+const CHECKPOINT_EVERY: usize = 10;
+
+#[derive(Args, Debug)]
+pub struct MultistepArgs {
+    /// Directory for results.md, results.csv, the models, checkpoints and run.json; running
+    /// again with the same settings continues where it stopped.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Horizons to train with, comma-separated [default: 1,10,5,20; 1,3 with --quick].
+    #[arg(long, value_delimiter = ',')]
+    pub horizons: Option<Vec<usize>>,
+    /// Seeds (each its own training data and initialization) [default: 3; 1 with --quick].
+    #[arg(long)]
+    pub seeds: Option<u64>,
+    /// Epochs of every training [default: 200; 3 with --quick].
+    #[arg(long)]
+    pub epochs: Option<usize>,
+    /// Training threads per cell [default: every core divided by --jobs]. Burn records a
+    /// process's ops under one lock, so two runs side by side go faster as two processes
+    /// (different --horizons and --out) than as --jobs 2.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Trainings at once [default: 1].
+    #[arg(long, default_value_t = 1)]
+    pub jobs: usize,
+    /// A small run for tests (well under a minute).
+    #[arg(long)]
+    pub quick: bool,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub(super) struct MultistepSettings {
+    system: &'static str,
+    model: &'static str,
+    horizons: Vec<usize>,
+    seeds: Vec<u64>,
+    epochs: usize,
+    batch_size: usize,
+    lr: f64,
+    discount: f64,
+    train_trajectories: usize,
+    val_trajectories: usize,
+    test_trajectories: usize,
+    steps: usize,
+    test_steps: usize,
+    trajectory: &'static str,
+}
+
+/// One training: its horizon, seed and epochs (more than the settings' for the H = 1 run at
+/// H = 10's wall time).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CellKey {
+    horizon: usize,
+    seed: u64,
+    equal_time: bool,
+}
+
+impl CellKey {
+    fn name(&self) -> String {
+        let tag = if self.equal_time { "-equal-time" } else { "" };
+        format!("h{}-seed{}{tag}", self.horizon, self.seed)
+    }
+}
+
+/// A finished cell.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(super) struct Cell {
+    horizon: usize,
+    seed: u64,
+    equal_time: bool,
+    epochs: usize,
+    best_epoch: usize,
+    best_val_loss: Option<f64>,
+    best_val_horizon_loss: Option<f64>,
+    /// Seconds in training steps, and per epoch.
+    train_seconds: f64,
+    seconds_per_epoch: f64,
+    samples_per_second: f64,
+    /// Held-out open-loop errors at `EVAL_STEPS`.
+    errors: Vec<HorizonError>,
+}
+
+pub fn run(a: MultistepArgs) -> Result<()> {
+    let q = a.quick;
+    let s = MultistepSettings {
+        system: "double_pendulum (paper values), dt 0.01, RK4",
+        model: "MVF",
+        horizons: a
+            .horizons
+            .unwrap_or(if q { vec![1, 3] } else { vec![1, 10, 5, 20] }),
+        seeds: super::seeds_arg(a.seeds, if q { 1 } else { 3 })?,
+        epochs: a.epochs.unwrap_or(if q { 3 } else { 200 }),
+        batch_size: 256,
+        lr: 1e-3,
+        discount: 1.0,
+        train_trajectories: if q { 4 } else { 40 },
+        val_trajectories: if q { 2 } else { 10 },
+        test_trajectories: if q { 2 } else { 20 },
+        steps: if q { 30 } else { 200 },
+        test_steps: if q { 60 } else { 300 },
+        trajectory: "q0 ~ U(-pi, pi), qdot0 ~ U(-2, 2), inputs ~ N(0, 30^2) held 0.1 s",
+    };
+    let out = OutDir::open(&a.out, "multistep", &s)?;
+    let jobs = a.jobs.max(1);
+    let threads = a.threads.unwrap_or((pool::threads(0) / jobs).max(1));
+    let test = trajectories(s.test_trajectories, s.test_steps, 1000, 2)?;
+    let keys = cell_keys(&s);
+    let done = keys
+        .iter()
+        .filter(|k| out.get::<Cell>(&k.name()).is_some())
+        .count();
+    if done > 0 {
+        eprintln!("{done} of {} cells finished earlier", keys.len());
+    }
+    let progress = Progress::new(keys.len(), done);
+    // The equal-time cells last: they need their seed's H = 1 and H = 10 times.
+    for equal_time in [false, true] {
+        let phase: Vec<CellKey> = keys
+            .iter()
+            .filter(|k| k.equal_time == equal_time)
+            .copied()
+            .collect();
+        let results = pool::parallel(&phase, jobs, &progress, |k, status| {
+            if let Some(c) = out.get::<Cell>(&k.name()) {
+                return Ok(c);
+            }
+            let c = train_cell(&s, &out, *k, threads, &test, &|what| status.show(what))?;
+            out.put(&k.name(), &c)?;
+            progress.cells_done(1, &format!("{}: {:.0} s", k.name(), c.train_seconds));
+            Ok(c)
+        });
+        results.into_iter().collect::<Result<Vec<Cell>>>()?;
+    }
+    progress.finish();
+    let cells: Vec<Cell> = keys.iter().filter_map(|k| out.get(&k.name())).collect();
+    report::write(&s, &out, &cells)?;
+    out.finish()
+}
+
+/// Each horizon with every seed, in the order given, then H = 1 at H = 10's wall time per
+/// seed when both are trained.
+fn cell_keys(s: &MultistepSettings) -> Vec<CellKey> {
+    let key = |horizon, seed, equal_time| CellKey {
+        horizon,
+        seed,
+        equal_time,
+    };
+    let own =
+        (s.horizons.iter()).flat_map(|&h| s.seeds.iter().map(move |&seed| key(h, seed, false)));
+    let equal = s.horizons.contains(&1) && s.horizons.contains(&10);
+    let extra = (s.seeds.iter())
+        .filter(|_| equal)
+        .map(|&seed| key(1, seed, true));
+    own.chain(extra).collect()
+}
+
+/// `count` trajectories of `steps` transitions from stream `stream` of `seed`.
+fn trajectories(count: usize, steps: usize, seed: u64, stream: u64) -> Result<Dataset> {
+    let t = Template::DoublePendulum;
+    let cfg = SimConfig {
+        seed: Rng::derive(seed, 0x7A7A_0000 + stream).next_u64(),
+        qdot_range: 2.0,
+        u_std: 30.0,
+        ..SimConfig::default()
+    };
+    let shape = TrajectoryShape {
+        count,
+        steps,
+        hold: 10,
+    };
+    simulate_trajectories(&t, t.defaults(), &cfg, shape)
+}
+
+/// Trains one cell (resuming from its checkpoint when there is one), saves its model and
+/// measures its held-out errors.
+fn train_cell(
+    s: &MultistepSettings,
+    out: &OutDir,
+    k: CellKey,
+    threads: usize,
+    test: &Dataset,
+    show: &dyn Fn(&str),
+) -> Result<Cell> {
+    let data = trajectories(s.train_trajectories, s.steps, k.seed, 0)?;
+    let val = trajectories(s.val_trajectories, s.steps, k.seed, 1)?;
+    let epochs = if k.equal_time {
+        equal_time_epochs(s, out, k.seed)
+    } else {
+        s.epochs
+    };
+    let cfg = TrainConfig {
+        epochs,
+        batch_size: s.batch_size,
+        lr: s.lr,
+        val_fraction: 0.0,
+        seed: k.seed,
+        horizon: k.horizon,
+        discount: s.discount,
+        ..TrainConfig::default()
+    };
+    let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
+    let ckpt = out.path(&format!("{}.ckpt.json", k.name()));
+    let mut trainer = match std::fs::read(&ckpt) {
+        Ok(bytes) => Trainer::resume(TrainState::from_bytes(&bytes)?, &data, Some(&val), &device)?,
+        Err(_) => {
+            let spec = ModelSpec::named(s.model, Some(Template::DoublePendulum))?;
+            Trainer::new(s.model, spec, &[], &data, Some(&val), cfg, &device)?
+        }
+    }
+    .with_threads(threads)?;
+    let never = AtomicBool::new(false);
+    while !trainer.finished() {
+        let m = trainer.run_epoch(&never)?;
+        show(&format!(
+            "{}: epoch {}/{epochs} val {:.3e}",
+            k.name(),
+            m.epoch,
+            m.val_horizon_loss.or(m.val_loss).unwrap_or(f64::NAN)
+        ));
+        if m.epoch % CHECKPOINT_EVERY == 0 {
+            write_atomic(&ckpt, &trainer.checkpoint().to_bytes())?;
+        }
+    }
+    let file = trainer.model_file();
+    file.save(&out.path(&format!("{}.gbx", k.name())))?;
+    let report = trainer.report();
+    let history = &trainer.checkpoint().history;
+    let best = history.iter().find(|m| m.epoch == report.best_epoch);
+    let errors = held_out_errors(&file, test)?;
+    let _ = std::fs::remove_file(&ckpt);
+    Ok(Cell {
+        horizon: k.horizon,
+        seed: k.seed,
+        equal_time: k.equal_time,
+        epochs: report.epochs,
+        best_epoch: report.best_epoch,
+        best_val_loss: best.and_then(|m| m.val_loss),
+        best_val_horizon_loss: best.and_then(|m| m.val_horizon_loss),
+        train_seconds: trainer.train_seconds(),
+        seconds_per_epoch: trainer.train_seconds() / report.epochs.max(1) as f64,
+        samples_per_second: report.samples_per_second,
+        errors,
+    })
+}
+
+/// H = 1's epochs in the training time H = 10 took on this seed (the settings' epochs when
+/// either is missing).
+fn equal_time_epochs(s: &MultistepSettings, out: &OutDir, seed: u64) -> usize {
+    let cell = |h: usize| {
+        out.get::<Cell>(
+            &CellKey {
+                horizon: h,
+                seed,
+                equal_time: false,
+            }
+            .name(),
+        )
+    };
+    match (cell(1), cell(10)) {
+        (Some(one), Some(ten)) => {
+            ((ten.train_seconds / one.seconds_per_epoch).round() as usize).max(s.epochs)
+        }
+        _ => s.epochs,
+    }
+}
+
+fn held_out_errors(file: &ModelFile, test: &Dataset) -> Result<Vec<HorizonError>> {
+    let e = Evaluator::from_file(file)?;
+    Ok(horizon_errors(&e, test, &EVAL_STEPS, &|| false).expect("never stopped"))
+}

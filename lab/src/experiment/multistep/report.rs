@@ -1,0 +1,199 @@
+//! The multi-step experiment's tables: held-out open-loop error per horizon and seed, the
+//! paired ratios against H = 1, and what each horizon costs per epoch.
+
+use plotters::prelude::*;
+
+use super::{Cell, EVAL_STEPS, MultistepSettings, TABLE_STEPS};
+use crate::experiment::out::OutDir;
+use crate::experiment::plot::{self, COLORS};
+use crate::experiment::{csv_line, median};
+use graybox::error::Result;
+
+/// The median position error after `steps` of a cell (∞ for none: diverged everywhere).
+fn error_at(c: &Cell, steps: usize) -> f64 {
+    (c.errors.iter().find(|e| e.horizon == steps))
+        .and_then(|e| e.position_median)
+        .unwrap_or(f64::INFINITY)
+}
+
+fn label(c: &Cell) -> String {
+    if c.equal_time {
+        format!("H = 1, {} epochs (H = 10's time)", c.epochs)
+    } else {
+        format!("H = {}", c.horizon)
+    }
+}
+
+pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Result<()> {
+    let mut md = format!(
+        "# Multi-step training: open-loop error against training horizon\n\n\
+         MVF on the double pendulum: {} training trajectories of {} steps (Δt = 0.01), {} for \
+         validation, per seed; {} epochs, batch {} windows, lr {}. Errors: median ‖q̂ − q‖ \
+         (angles on the circle) over every window start of {} held-out trajectories of {} \
+         steps, open loop under the recorded inputs.\n\n",
+        s.train_trajectories,
+        s.steps,
+        s.val_trajectories,
+        s.epochs,
+        s.batch_size,
+        s.lr,
+        s.test_trajectories,
+        s.test_steps
+    );
+    md.push_str("| training | seed | 0.5 s | 1 s | 2 s | s / epoch | samples/s | best epoch |\n");
+    md.push_str("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    let header = [
+        "training",
+        "horizon",
+        "seed",
+        "epochs",
+        "error_0.5s",
+        "error_1s",
+        "error_2s",
+        "seconds_per_epoch",
+        "samples_per_second",
+        "best_epoch",
+    ];
+    let mut csv = csv_line(&header.map(String::from));
+    for c in cells {
+        let e: Vec<f64> = TABLE_STEPS.iter().map(|&k| error_at(c, k)).collect();
+        md.push_str(&format!(
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.0} | {} |\n",
+            label(c),
+            c.seed,
+            e[0],
+            e[1],
+            e[2],
+            c.seconds_per_epoch,
+            c.samples_per_second,
+            c.best_epoch
+        ));
+        csv.push_str(&csv_line(&[
+            label(c),
+            c.horizon.to_string(),
+            c.seed.to_string(),
+            c.epochs.to_string(),
+            e[0].to_string(),
+            e[1].to_string(),
+            e[2].to_string(),
+            c.seconds_per_epoch.to_string(),
+            c.samples_per_second.to_string(),
+            c.best_epoch.to_string(),
+        ]));
+    }
+    md.push_str(&ratios(cells));
+    md.push_str("\n![median held-out error against prediction time](horizons.png)\n");
+    plot_errors(out, cells)?;
+    out.write("results.md", md.as_bytes())?;
+    out.write("results.csv", csv.as_bytes())
+}
+
+/// Per horizon: the median over seeds of H = 1's error divided by its error (paired by seed),
+/// at each time, and its epoch time against H = 1's.
+fn ratios(cells: &[Cell]) -> String {
+    let one = |seed: u64| {
+        cells
+            .iter()
+            .find(|c| c.horizon == 1 && !c.equal_time && c.seed == seed)
+    };
+    let mut md = String::from(
+        "\n## Against H = 1, paired by seed\n\n\
+         Error ratio: H = 1's median error over this training's (above 1: this training is \
+         better), the median over seeds, and how many seeds it is better in.\n\n\
+         | training | 0.5 s | 1 s | 2 s | better at 1 s and 2 s | epoch time / H = 1's |\n\
+         |---|---:|---:|---:|---:|---:|\n",
+    );
+    for c in cells.iter().filter(|c| c.horizon != 1 || c.equal_time) {
+        if md.contains(&format!("| {} |", label(c))) {
+            continue;
+        }
+        let peers: Vec<(&Cell, &Cell)> = (cells.iter())
+            .filter(|d| d.horizon == c.horizon && d.equal_time == c.equal_time)
+            .filter_map(|d| one(d.seed).map(|o| (d, o)))
+            .collect();
+        let ratio = |k: usize| {
+            median(
+                &peers
+                    .iter()
+                    .map(|(d, o)| error_at(o, k) / error_at(d, k))
+                    .collect::<Vec<_>>(),
+            )
+        };
+        let better = (peers.iter())
+            .filter(|(d, o)| {
+                error_at(d, 100) < error_at(o, 100) && error_at(d, 200) < error_at(o, 200)
+            })
+            .count();
+        let time = median(
+            &peers
+                .iter()
+                .map(|(d, o)| d.seconds_per_epoch / o.seconds_per_epoch)
+                .collect::<Vec<_>>(),
+        );
+        md.push_str(&format!(
+            "| {} | {:.2}× | {:.2}× | {:.2}× | {better} of {} | {time:.1}× |\n",
+            label(c),
+            ratio(50),
+            ratio(100),
+            ratio(200),
+            peers.len()
+        ));
+    }
+    md
+}
+
+/// Each training's median held-out position error (median over seeds) against prediction
+/// time, both axes logarithmic.
+fn plot_errors(out: &OutDir, cells: &[Cell]) -> Result<()> {
+    let mut labels: Vec<String> = cells.iter().map(label).collect();
+    labels.dedup();
+    let (lo, hi) = (1e-4, 10.0);
+    let curve = |l: &String| -> Vec<(f64, f64)> {
+        let mine: Vec<&Cell> = cells.iter().filter(|c| &label(c) == l).collect();
+        (EVAL_STEPS.iter())
+            .map(|&k| {
+                let e = median(&mine.iter().map(|c| error_at(c, k)).collect::<Vec<_>>());
+                // A diverged median sits on the top edge, marked by the clamp.
+                (
+                    k as f64 * 0.01,
+                    if e.is_finite() { e.clamp(lo, hi) } else { hi },
+                )
+            })
+            .collect()
+    };
+    plot::png(&out.path("horizons.png"), (1000, 600), |root| {
+        let mut chart = ChartBuilder::on(root)
+            .caption(
+                "Open-loop position error on held-out trajectories (median)",
+                plot::font(20),
+            )
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d((0.01f64..2.0).log_scale(), (lo..hi).log_scale())?;
+        chart
+            .configure_mesh()
+            .x_desc("prediction time (s)")
+            .y_desc("|q_pred - q| (rad)")
+            .label_style(plot::font(13))
+            .axis_desc_style(plot::font(14))
+            .draw()?;
+        // The baseline (H = 1, blue) drawn last, on top: it stays visible where lines meet.
+        for (i, l) in labels.iter().enumerate().rev() {
+            let color = COLORS[i % COLORS.len()];
+            chart
+                .draw_series(LineSeries::new(curve(l), color.stroke_width(2)))?
+                .label(l.clone())
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 20, y)], color.stroke_width(2))
+                });
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE)
+            .border_style(BLACK)
+            .label_font(plot::font(14))
+            .draw()?;
+        Ok(())
+    })
+}

@@ -1,0 +1,159 @@
+//! Open-loop error against horizon: a model rolled out from every window start of a
+//! trajectory dataset under the recorded inputs, its error against the recorded states after
+//! h steps, summarized per horizon. What `graybox eval --horizons`, `POST
+//! /v1/models/{id}/evaluate` and the multi-step experiments report.
+
+use serde::{Deserialize, Serialize};
+
+use super::Evaluator;
+use crate::data::Dataset;
+use crate::error::{Error, Result};
+
+/// The most horizons one evaluation reports.
+pub const MAX_HORIZONS: usize = 32;
+
+/// The errors after `horizon` steps over every window of that many transitions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct HorizonError {
+    pub horizon: usize,
+    /// horizon × Δt.
+    pub seconds: f64,
+    /// Window starts with `horizon` transitions after them in their trajectory.
+    pub windows: usize,
+    /// Of them, rollouts whose state left the finite numbers (their errors count as ∞).
+    pub diverged: usize,
+    /// ‖q̂ − q‖₂ after `horizon` steps, angles (the model's periodic coordinates) compared on
+    /// the circle (the difference wrapped into (−π, π]). Null without windows, or when the
+    /// figure is infinite (JSON has no ∞).
+    pub position_median: Option<f64>,
+    pub position_mean: Option<f64>,
+    /// ‖q̂̇ − q̇‖₂ after `horizon` steps.
+    pub velocity_median: Option<f64>,
+    pub velocity_mean: Option<f64>,
+}
+
+/// Horizons must be 1 or more, at most [`MAX_HORIZONS`] of them; returned sorted, each once.
+pub fn check_horizons(horizons: &[usize], max_steps: usize) -> Result<Vec<usize>> {
+    if horizons.is_empty() || horizons.len() > MAX_HORIZONS {
+        return Err(Error::invalid(
+            "horizons",
+            format!("give 1 to {MAX_HORIZONS} horizons (steps), e.g. 1,10,50,100"),
+        ));
+    }
+    if let Some(h) = horizons.iter().find(|h| !(1..=max_steps).contains(*h)) {
+        return Err(Error::invalid(
+            "horizons",
+            format!("{h} is not a number of steps in 1..={max_steps}"),
+        ));
+    }
+    let mut sorted = horizons.to_vec();
+    sorted.sort_unstable();
+    sorted.dedup();
+    Ok(sorted)
+}
+
+/// How many model steps [`horizon_errors`] takes: each window start rolled out as far as the
+/// longest horizon its trajectory allows.
+pub fn cost(ds: &Dataset, longest: usize) -> usize {
+    ds.segments()
+        .iter()
+        .flat_map(|s| (0..s.length).map(move |i| (s.length - i).min(longest)))
+        .sum()
+}
+
+/// The errors at each of `horizons` (checked, sorted), or None when `stop` says so between
+/// steps. All window starts step together as one batch; a start leaves the batch when its
+/// trajectory ends.
+pub fn horizon_errors(
+    e: &Evaluator,
+    ds: &Dataset,
+    horizons: &[usize],
+    stop: &dyn Fn() -> bool,
+) -> Option<Vec<HorizonError>> {
+    let (n, m) = (ds.n, ds.m);
+    let longest = *horizons.last().expect("checked: at least one horizon");
+    // (start row, transitions left in its trajectory), and each start's current state.
+    let mut alive: Vec<(usize, usize)> = (ds.segments().iter())
+        .flat_map(|s| (0..s.length).map(move |i| (s.start + i, s.length - i)))
+        .collect();
+    let mut x: Vec<f64> = (alive.iter())
+        .flat_map(|&(r, _)| {
+            ds.q[r * n..(r + 1) * n]
+                .iter()
+                .chain(&ds.qdot[r * n..(r + 1) * n])
+        })
+        .copied()
+        .collect();
+    let mut found: Vec<Vec<(f64, f64)>> = vec![vec![]; horizons.len()];
+    for k in 0..longest {
+        let u: Vec<f64> = (alive.iter())
+            .flat_map(|&(r, _)| ds.u[(r + k) * m..(r + k + 1) * m].iter().copied())
+            .collect();
+        (x, _) = e.predict_until(&x, &u, false, stop)?;
+        let step = k + 1;
+        if let Some(slot) = horizons.iter().position(|&h| h == step) {
+            found[slot] = (alive.iter().enumerate())
+                .map(|(b, &(r, _))| errors(e, ds, &x[b * 2 * n..(b + 1) * 2 * n], r + k))
+                .collect();
+        }
+        // Keep the starts whose trajectory goes on.
+        let keep: Vec<bool> = alive.iter().map(|&(_, left)| left > step).collect();
+        x = (x.chunks(2 * n).zip(&keep))
+            .filter(|(_, k)| **k)
+            .flat_map(|(row, _)| row.iter().copied())
+            .collect();
+        alive.retain(|&(_, left)| left > step);
+        if alive.is_empty() {
+            break;
+        }
+    }
+    let summary = |h: usize, errs: &[(f64, f64)]| HorizonError {
+        horizon: h,
+        seconds: h as f64 * ds.dt,
+        windows: errs.len(),
+        diverged: errs.iter().filter(|e| !e.0.is_finite()).count(),
+        position_median: median(errs.iter().map(|e| e.0)),
+        position_mean: mean(errs.iter().map(|e| e.0)),
+        velocity_median: median(errs.iter().map(|e| e.1)),
+        velocity_mean: mean(errs.iter().map(|e| e.1)),
+    };
+    Some(
+        (horizons.iter().zip(&found))
+            .map(|(&h, f)| summary(h, f))
+            .collect(),
+    )
+}
+
+/// (position, velocity) error of predicted state `x` against the next state of row `r`.
+fn errors(e: &Evaluator, ds: &Dataset, x: &[f64], r: usize) -> (f64, f64) {
+    let n = ds.n;
+    let wrap = |d: f64| d.sin().atan2(d.cos());
+    let norm = |it: &mut dyn Iterator<Item = f64>| {
+        let s: f64 = it.map(|d| d * d).sum::<f64>().sqrt();
+        if s.is_finite() { s } else { f64::INFINITY }
+    };
+    let q = norm(&mut (0..n).map(|i| {
+        let d = x[i] - ds.q_next[r * n + i];
+        if e.config.is_periodic(i) { wrap(d) } else { d }
+    }));
+    let v = norm(&mut (0..n).map(|i| x[n + i] - ds.qdot_next[r * n + i]));
+    (q, v)
+}
+
+fn median(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut v: Vec<f64> = values.collect();
+    v.sort_by(f64::total_cmp);
+    let k = v.len();
+    let mid = match k {
+        0 => return None,
+        _ if k % 2 == 1 => v[k / 2],
+        _ => 0.5 * (v[k / 2 - 1] + v[k / 2]),
+    };
+    mid.is_finite().then_some(mid)
+}
+
+fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let v: Vec<f64> = values.collect();
+    let s = v.iter().sum::<f64>() / v.len() as f64;
+    (!v.is_empty() && s.is_finite()).then_some(s)
+}
