@@ -10,11 +10,24 @@ use utoipa::openapi::{
 use utoipa::{OpenApi as _, ToSchema};
 
 use crate::app::datasets::Uploaded;
+use crate::app::inference::{EvaluateRequest, Evaluation};
 use crate::app::jobs::JobRequest;
+use crate::infer::horizons::HorizonError;
 use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
 
 #[derive(utoipa::OpenApi)]
-#[openapi(components(schemas(DatasetInfo, Job, JobState, Metric, JobRequest, Uploaded, Warning)))]
+#[openapi(components(schemas(
+    DatasetInfo,
+    Job,
+    JobState,
+    Metric,
+    JobRequest,
+    Uploaded,
+    Warning,
+    EvaluateRequest,
+    Evaluation,
+    HorizonError
+)))]
 struct Components;
 
 /// One route: method, path, summary, request schema, parameters ("?name" for query ones).
@@ -146,6 +159,13 @@ const ROUTES: &[Route] = &[
         "Replay trajectory `index` of a dataset with the model: from its first state with its recorded inputs, the recorded and predicted q and q̇ (T + 1 rows each) and their times",
         None,
         &["id", "?dataset_id", "?index"],
+    ),
+    Route(
+        "post",
+        "/v1/models/{id}/evaluate",
+        "Open-loop error against horizon on a trajectory dataset: from every window start, the model rolled out under the recorded inputs; per horizon the median and mean position and velocity errors (README \"Multi-step training\")",
+        Some("EvaluateRequest"),
+        &["id"],
     ),
     Route("delete", "/v1/models/{id}", "Delete a model", None, &["id"]),
     Route(

@@ -8,31 +8,12 @@
 use serde_json::{Value, json};
 
 use crate::helpers::final_state;
+use crate::multistep::trajectories;
 use crate::processes::{Server, fresh_db};
-use graybox::physics::templates::Template;
-use graybox::sim::{SimConfig, TrajectoryShape, simulate_trajectories};
-
-/// `count` double-pendulum trajectories of 64 transitions, as an upload body.
-fn trajectories(count: usize, seed: u64) -> Value {
-    let t = Template::DoublePendulum;
-    let cfg = SimConfig {
-        seed,
-        qdot_range: 2.0,
-        u_std: 30.0,
-        ..SimConfig::default()
-    };
-    let shape = TrajectoryShape {
-        count,
-        steps: 64,
-        hold: 10,
-    };
-    let ds = simulate_trajectories(&t, t.defaults(), &cfg, shape).unwrap();
-    serde_json::from_str(&ds.to_json()).unwrap()
-}
 
 fn setup(s: &Server) -> String {
-    let d = s.post("/v1/datasets", &trajectories(8, 21));
-    let v = s.post("/v1/datasets", &trajectories(2, 22));
+    let d = s.post("/v1/datasets", &trajectories(8, 64, 21));
+    let v = s.post("/v1/datasets", &trajectories(2, 64, 22));
     let body = json!({"dataset_id": d["id"], "validation_dataset_id": v["id"], "model": "MVF",
                       "training": {"epochs": 24, "batch_size": 64, "lr": 0.003, "horizon": 3}});
     s.post("/v1/jobs", &body)["id"]

@@ -79,6 +79,25 @@ async fn bad_input_table() {
     let good = dataset(8, 1);
     let ds = app.upload(&good).await;
     let cp = app.upload(&json!({"dt": 0.01, "q": [[0.0]], "qdot": [[0.0]], "u": [[1.0]], "q_next": [[0.0]], "qdot_next": [[0.1]]})).await;
+    // A white-box model (nothing to train) for the inference cases.
+    let t = graybox::physics::templates::Template::DoublePendulum;
+    let file = graybox::model::file::ModelFile::from_template(
+        &t,
+        &t.defaults(),
+        0.01,
+        graybox::physics::integrator::Integrator::Rk4,
+    )
+    .unwrap();
+    let r = (app.client.post(app.url("/v1/models")))
+        .body(file.to_bytes().unwrap())
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 201);
+    let mid = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
     let with = |f: &dyn Fn(&mut Value)| {
         let mut v = good.clone();
         f(&mut v);
@@ -318,6 +337,69 @@ async fn bad_input_table() {
             422,
             "unprocessable",
             Some("training.val_fraction"),
+        ),
+        case(
+            "evaluate: no horizons",
+            "POST",
+            format!("/v1/models/{mid}/evaluate"),
+            Some(json!({"dataset_id": ds, "horizons": []})),
+            400,
+            "invalid_argument",
+            Some("horizons"),
+        ),
+        case(
+            "evaluate: horizon 0",
+            "POST",
+            format!("/v1/models/{mid}/evaluate"),
+            Some(json!({"dataset_id": ds, "horizons": [0, 10]})),
+            400,
+            "invalid_argument",
+            Some("horizons"),
+        ),
+        case(
+            "evaluate: horizons missing",
+            "POST",
+            format!("/v1/models/{mid}/evaluate"),
+            Some(json!({"dataset_id": ds})),
+            422,
+            "unprocessable",
+            Some("horizons"),
+        ),
+        case(
+            "evaluate: unknown dataset",
+            "POST",
+            format!("/v1/models/{mid}/evaluate"),
+            Some(json!({"dataset_id": "ds_missing", "horizons": [1]})),
+            404,
+            "not_found",
+            None,
+        ),
+        case(
+            "evaluate: unknown model",
+            "POST",
+            "/v1/models/mdl_missing/evaluate",
+            Some(json!({"dataset_id": ds, "horizons": [1]})),
+            404,
+            "not_found",
+            None,
+        ),
+        case(
+            "evaluate: timeout out of range",
+            "POST",
+            format!("/v1/models/{mid}/evaluate"),
+            Some(json!({"dataset_id": ds, "horizons": [1], "timeout_seconds": 0})),
+            400,
+            "invalid_argument",
+            Some("timeout_seconds"),
+        ),
+        case(
+            "evaluate: horizon over --max-rollout-steps",
+            "POST",
+            format!("/v1/models/{mid}/evaluate"),
+            Some(json!({"dataset_id": ds, "horizons": [1, 100_001]})),
+            400,
+            "invalid_argument",
+            Some("horizons"),
         ),
         case(
             "zero horizon",

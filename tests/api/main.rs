@@ -11,6 +11,7 @@ mod helpers;
 mod hostile;
 mod jobs;
 mod model_uploads;
+mod multistep;
 mod nodes;
 mod plan_stop;
 mod processes;

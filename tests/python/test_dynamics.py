@@ -2,7 +2,9 @@
 double pendulum with RK4 (the W-B model), Predict itself (Rollout), central differences
 (Linearize), a numpy Riccati recursion and python-control's dlqr (Tvlqr)."""
 
+import json
 import math
+import subprocess
 
 import control
 import numpy as np
@@ -257,3 +259,44 @@ def test_plan_time_limit_and_deadline(server, models):
         with pytest.raises(GrayboxError) as e:
             c.plan(models.wb, np.zeros(4), goal, 2000, Q, R, Qf, restarts=50)
         assert e.value.code == "DEADLINE_EXCEEDED", e.value
+
+
+def test_evaluate_against_horizon_equals_a_numpy_rollout(server, client, models):
+    """POST /v1/models/{id}/evaluate: from every window start of the dataset's trajectories,
+    the W-B model's open-loop rollout under the recorded inputs, its errors after h steps,
+    against the closed-form double pendulum rolled out in numpy with the learned values."""
+    data = server.tmp / "trajectories.json"
+    subprocess.run([server.binary, "simulate", "--template", "double_pendulum",
+                    "--trajectories", "3", "--steps", "40", "--qdot-range", "2",
+                    "--u-std", "30", "--seed", "5", "--out", str(data)],
+                   check=True, capture_output=True)
+    status, ds = server.rest.post("/v1/datasets", raw=data.read_bytes())
+    assert status == 201, ds
+    horizons = [20, 1, 5]
+    status, ev = server.rest.post(f"/v1/models/{models.wb}/evaluate",
+                                  {"dataset_id": ds["id"], "horizons": horizons})
+    assert status == 200, ev
+    assert [e["horizon"] for e in ev["items"]] == [1, 5, 20]
+
+    info = client.get_model(models.wb)
+    p = [info.metrics["physical_parameters"][k] for k in PARAMS]
+    trajs = json.loads(data.read_text())["trajectories"]
+    for item in ev["items"]:
+        h = item["horizon"]
+        pos, vel = [], []
+        for t in trajs:
+            q, qd, u = (np.array(t[k]) for k in ("q", "qdot", "u"))
+            starts = np.arange(len(u) - h + 1)
+            x = np.column_stack([q[starts], qd[starts]])
+            for k in range(h):
+                x = dp_rk4(p, x, u[starts + k], info.dt)
+            dq = x[:, :2] - q[starts + h]
+            dq = np.arctan2(np.sin(dq), np.cos(dq))  # both coordinates are angles
+            pos.extend(np.linalg.norm(dq, axis=1))
+            vel.extend(np.linalg.norm(x[:, 2:] - qd[starts + h], axis=1))
+        assert item["windows"] == len(pos) == 3 * (40 - h + 1) and item["diverged"] == 0
+        assert item["seconds"] == pytest.approx(h * info.dt, rel=1e-12)
+        # Both f64; the service steps the windows as one SIMD batch: last-bit differences.
+        for key, ref in [("position_median", np.median(pos)), ("position_mean", np.mean(pos)),
+                         ("velocity_median", np.median(vel)), ("velocity_mean", np.mean(vel))]:
+            assert item[key] == pytest.approx(ref, rel=1e-9), (h, key)

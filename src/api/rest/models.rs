@@ -4,10 +4,12 @@ use axum::extract::rejection::BytesRejection;
 use axum::extract::{Path, State};
 use axum::http::{StatusCode, header};
 use axum::response::IntoResponse;
-use axum::routing::get;
+use axum::routing::{get, post};
 
 use super::error::{ApiError, ApiResult};
-use super::{Params, RestState, body_bytes, int_param, page, stored};
+use super::{Params, RestState, body_bytes, int_param, json_body, page, stored};
+use crate::app::inference::EvaluateRequest;
+use crate::app::requests::parse_body;
 use crate::app::uploads::BodyKind;
 
 pub fn routes() -> Router<RestState> {
@@ -17,6 +19,17 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/models/{id}/checkpoint", get(checkpoint))
         .route("/v1/models/{id}/urdf", get(urdf))
         .route("/v1/models/{id}/rollout", get(rollout))
+        .route("/v1/models/{id}/evaluate", post(evaluate))
+}
+
+/// The model's open-loop error against horizon on a trajectory dataset.
+async fn evaluate(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> ApiResult<impl IntoResponse> {
+    let req: EvaluateRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
+    Ok(axum::Json(s.app.evaluate(&id, req).await?))
 }
 
 /// The model's replay of a dataset's trajectory beside the recording.

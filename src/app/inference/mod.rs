@@ -7,12 +7,14 @@
 
 mod admission;
 mod cache;
+mod evaluate;
 mod plan;
 mod replay;
 mod rollout;
 
 pub use admission::Heavy;
 pub use cache::{CACHE_SWEEP, ModelCache};
+pub use evaluate::{EvaluateRequest, Evaluation};
 pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{RolloutChunk, RolloutInputs};
 

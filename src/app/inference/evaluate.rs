@@ -1,0 +1,121 @@
+//! POST /v1/models/{id}/evaluate: a model's open-loop error against horizon on a stored
+//! trajectory dataset (`infer::horizons`), its cost (window starts × horizon) admitted before
+//! it computes, stopped at its deadline.
+
+use std::time::{Duration, Instant};
+
+use serde::{Deserialize, Serialize};
+
+use super::Cost;
+use crate::app::App;
+use crate::error::{Error, Result};
+use crate::infer::horizons::{HorizonError, check_horizons, cost, horizon_errors};
+use crate::infer::limits::Pass;
+
+/// How long an evaluation may compute unless the request says otherwise, and at most.
+const DEFAULT_SECONDS: f64 = 60.0;
+const MAX_SECONDS: f64 = 600.0;
+
+/// Model steps one evaluation may take, per step of `--max-rollout-steps` (100 000 steps
+/// by default: 10⁷ steps, ~10 s of MVF on one core).
+const STEPS_PER_ROLLOUT_STEP: usize = 100;
+
+#[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EvaluateRequest {
+    /// A stored dataset with trajectories (uploaded in trajectory form, or chained rows).
+    pub dataset_id: String,
+    /// Horizons in steps, e.g. [1, 10, 50, 100] (at most 32, each ≤ --max-rollout-steps).
+    pub horizons: Vec<usize>,
+    /// Seconds the evaluation may compute (default 60, at most 600): past it, 504.
+    #[serde(default)]
+    pub timeout_seconds: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
+pub struct Evaluation {
+    pub model_id: String,
+    pub dataset_id: String,
+    /// One per horizon, shortest first.
+    pub items: Vec<HorizonError>,
+}
+
+impl EvaluateRequest {
+    fn deadline(&self) -> Result<Instant> {
+        let s = self.timeout_seconds.unwrap_or(DEFAULT_SECONDS);
+        if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
+            return Err(Error::invalid(
+                "timeout_seconds",
+                format!("must be in (0, {MAX_SECONDS}]"),
+            ));
+        }
+        Ok(Instant::now() + Duration::from_secs_f64(s))
+    }
+}
+
+impl App {
+    pub async fn evaluate(&self, model_id: &str, req: EvaluateRequest) -> Result<Evaluation> {
+        let deadline = req.deadline()?;
+        let max_steps = self.settings.max_rollout_steps;
+        let horizons = check_horizons(&req.horizons, max_steps)?;
+        let eval = self.evaluator(model_id).await?;
+        let (n, m) = (eval.config.n, eval.config.m);
+        let id = req.dataset_id.clone();
+        let info = (self.store.get_dataset(&id).await?)
+            .ok_or_else(|| Error::NotFound(format!("dataset {id}")))?;
+        if (info.n as usize, info.m as usize) != (n, m) {
+            return Err(Error::invalid(
+                "dataset_id",
+                format!(
+                    "dataset {id} has n = {}, m = {}; the model has n = {n}, m = {m}",
+                    info.n, info.m
+                ),
+            ));
+        }
+        let longest = *horizons.last().expect("checked: at least one");
+        let limit = max_steps.saturating_mul(STEPS_PER_ROLLOUT_STEP);
+        // Cheap bound first: every row rolled out to the longest horizon.
+        let rows = info.count as usize;
+        let ds = (self.store.load_dataset(&id).await?)
+            .ok_or_else(|| Error::NotFound(format!("dataset {id}")))?;
+        let ds = if rows.saturating_mul(longest) <= limit {
+            ds
+        } else {
+            let (ds, steps) = tokio::task::spawn_blocking(move || {
+                let steps = cost(&ds, longest);
+                (ds, steps)
+            })
+            .await
+            .map_err(|e| Error::Internal(format!("costing the evaluation failed: {e}")))?;
+            if steps > limit {
+                return Err(Error::ResourceExhausted(format!(
+                    "{steps} model steps (window starts × horizon) is over the limit of {limit} \
+                     (100 × --max-rollout-steps): fewer or shorter horizons, or less data"
+                )));
+            }
+            ds
+        };
+        // Every start's state and inputs, its errors at each horizon, and the work of the
+        // chunks being stepped (as Predict counts it).
+        let row_bytes = 8 * (2 * 2 * n + m) + 16 * horizons.len();
+        let work =
+            rows.min(2 * eval.chunk_states(Pass::Step)) * eval.work_bytes_per_state(Pass::Step);
+        self.admit(
+            "horizons",
+            &Cost {
+                response_bytes: 100 * horizons.len(),
+                memory_bytes: rows * row_bytes + work,
+            },
+        )?;
+        let items = self
+            .heavy_until("evaluation", Some(deadline), move |stop| {
+                horizon_errors(&eval, &ds, &horizons, stop)
+            })
+            .await?;
+        Ok(Evaluation {
+            model_id: model_id.into(),
+            dataset_id: req.dataset_id,
+            items,
+        })
+    }
+}
