@@ -103,9 +103,11 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     page.wait_for_selector("#jobs-table")
     jobs = {}
     for model, epochs in EPOCHS.items():
+        # MVF trains on windows of 2 steps: its chart shows that loss too.
+        training = {"epochs": epochs, "batch_size": 32, **({"horizon": 2} if model == "MVF" else {})}
         status, job = s.rest.post("/v1/jobs", {
             "dataset_id": ds["id"], "model": model, "template": "double_pendulum",
-            "training": {"epochs": epochs, "batch_size": 32}})
+            "training": training})
         assert status == 201, job
         jobs[model] = job["id"]
     for job_id in jobs.values():
@@ -129,6 +131,12 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     page.select_option("#x-axis", "time")
     assert series(page, "#loss-chart")["x_label"] == "wall time (s)"
     page.screenshot(path=str(tmp_path / "job.png"), full_page=True)
+    # The multi-step job's chart: its 2-step validation loss beside the one-step one.
+    page.goto(base + f'/#/jobs/{jobs["MVF"]}')
+    page.wait_for_selector("#loss-chart canvas")
+    multi = series(page, "#loss-chart")["series"]
+    assert set(multi) == {"train", "validation", "validation, 2 steps"}, multi.keys()
+    assert all(v is not None and v > 0 for v in multi["validation, 2 steps"])
 
     # Compare: both jobs' validation curves on one chart.
     page.goto(base + "/#/jobs")
@@ -158,6 +166,12 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
                         np.array(replay["series"]["predicted"])))
     assert gap < 0.1, gap
     assert page.locator("#physical-table tbody tr").count() == 9  # m1 m2 l1 l2 g b1 b2 eta1 eta2
+    # Error against horizon on the same trajectories: the horizons they are long enough for.
+    page.click("#horizon-button")
+    page.wait_for_selector("#horizon-chart canvas")
+    curve = series(page, "#horizon-chart")
+    assert curve["x"] == pytest.approx([0.01, 0.02, 0.05, 0.1, 0.2, 0.5]), curve["x"]
+    assert all(v > 0 for v in curve["series"]["median"]), curve
     # The download button saves the model file through a blob: link.
     with page.expect_download() as download:
         page.click("text=Download model (.gbx)")

@@ -132,7 +132,7 @@ function ema(values, weight) {
 }
 
 // A uPlot chart in `host`: x values and named series; the data drawn is in data-series.
-function chart(host, { x, series, xLabel, yLabel, logY = false, dashed = [] }) {
+function chart(host, { x, series, xLabel, yLabel, logY = false, logX = false, dashed = [] }) {
   host.replaceChildren();
   host.classList.add("chart");
   host.dataset.series = JSON.stringify({ x, x_label: xLabel, y_label: yLabel, series });
@@ -140,7 +140,7 @@ function chart(host, { x, series, xLabel, yLabel, logY = false, dashed = [] }) {
   const width = Math.max(280, host.clientWidth || host.parentElement.clientWidth || 600);
   const opts = {
     width, height: 300,
-    scales: { x: { time: false }, y: logY ? { distr: 3 } : {} },
+    scales: { x: logX ? { time: false, distr: 3 } : { time: false }, y: logY ? { distr: 3 } : {} },
     axes: [{ label: xLabel }, {
       label: yLabel, size: 70,
       // Losses span decades: powers of ten as 1e-3, not as rounded zeros.
@@ -360,9 +360,14 @@ async function jobView(view, id) {
     const x = xAxis.value === "epoch" ? metrics.map((m) => m.epoch) : metrics.map((m) => (t += m.seconds));
     const train = metrics.map((m) => m.train_loss);
     const val = metrics.map((m) => (m.val_loss === null ? null : m.val_loss));
+    const series = { train: ema(train, w), validation: ema(val, w) };
+    // A multi-step job: its validation loss over windows of its horizon too.
+    const horizon = metrics.map((m) => m.val_horizon_loss ?? null);
+    const horizonName = `validation, ${job.training?.horizon ?? "H"} steps`;
+    if (horizon.some((v) => v !== null)) series[horizonName] = ema(horizon, w);
     chart(chartHost, {
       x, xLabel: xAxis.value === "epoch" ? "epoch" : "wall time (s)", yLabel: "loss (log scale)", logY: true,
-      series: { train: ema(train, w), validation: ema(val, w) },
+      series,
     });
     chartHost.dataset.raw = JSON.stringify({ train, validation: val });
   }
@@ -501,6 +506,33 @@ async function replayPanel(view, m) {
   go.addEventListener("click", replay);
   await loadTrajectories();
   await replay();
+  horizonPanel(view, m, dsSelect);
+}
+
+// The model's open-loop error against prediction time on the chosen dataset's trajectories
+// (POST /v1/models/{id}/evaluate), both axes logarithmic.
+function horizonPanel(view, m, dsSelect) {
+  const horizons = [1, 2, 5, 10, 20, 50, 100, 200, 500];
+  const host = el("div", { id: "horizon-chart", role: "img", "aria-label": "open-loop error against prediction time" });
+  const status = el("div", { role: "alert", id: "horizon-alert" });
+  const go = el("button", { type: "button", id: "horizon-button" }, "Evaluate");
+  view.append(el("h2", { text: "Error against horizon" }), el("p", { class: "muted",
+    text: "From every state of the dataset's trajectories, the model predicts open loop under the recorded inputs; the median and mean error of q after each horizon (angles on the circle)." }),
+    el("div", { class: "toolbar" }, go), status, host);
+  go.addEventListener("click", async () => {
+    status.replaceChildren();
+    try {
+      const r = await api("POST", `/v1/models/${m.id}/evaluate`, { dataset_id: dsSelect.value, horizons });
+      const items = r.items.filter((e) => e.windows > 0);
+      chart(host, {
+        x: items.map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)",
+        logX: true, logY: true,
+        series: { median: items.map((e) => e.position_median), mean: items.map((e) => e.position_mean) },
+      });
+    } catch (e) {
+      status.replaceChildren(errorBox(e));
+    }
+  });
 }
 
 // Datasets: the list and an upload form (JSON or CSV files).
