@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::model::file::Made;
-use crate::model::report::{Identified, TrainReport};
+use crate::model::report::{HorizonError, Identified, TrainReport};
 use crate::records::Warning;
 use crate::store::ModelRow;
 
@@ -69,6 +69,9 @@ struct Metrics<'a> {
     samples_per_second: Option<f64>,
     physical_parameters: Option<&'a BTreeMap<String, f64>>,
     identifiable: Option<&'a [Identified]>,
+    /// Open-loop error against horizon on the validation trajectories (README "Multi-step
+    /// training"); empty without them.
+    horizon_errors: &'a [HorizonError],
     warnings: &'a [Warning],
     #[serde(skip_serializing_if = "Option::is_none")]
     made: Option<&'a Made>,
@@ -92,6 +95,7 @@ impl<'a> Metrics<'a> {
                 samples_per_second: Some(r.samples_per_second),
                 physical_parameters: Some(&r.physical_parameters),
                 identifiable: Some(&r.identifiable),
+                horizon_errors: &r.horizon_errors,
                 warnings: &r.warnings,
                 made: None,
             },

@@ -3,34 +3,18 @@
 //! h steps, summarized per horizon. What `graybox eval --horizons`, `POST
 //! /v1/models/{id}/evaluate` and the multi-step experiments report.
 
-use serde::{Deserialize, Serialize};
-
 use super::Evaluator;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
+pub use crate::model::report::HorizonError;
+use crate::model::file::ModelFile;
+
+/// Where a training's end looks, in steps (those its validation trajectories are long enough
+/// for).
+pub const END_OF_TRAINING: [usize; 4] = [1, 10, 50, 100];
 
 /// The most horizons one evaluation reports.
 pub const MAX_HORIZONS: usize = 32;
-
-/// The errors after `horizon` steps over every window of that many transitions.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
-pub struct HorizonError {
-    pub horizon: usize,
-    /// horizon × Δt.
-    pub seconds: f64,
-    /// Window starts with `horizon` transitions after them in their trajectory.
-    pub windows: usize,
-    /// Of them, rollouts whose state left the finite numbers (their errors count as ∞).
-    pub diverged: usize,
-    /// ‖q̂ − q‖₂ after `horizon` steps, angles (the model's periodic coordinates) compared on
-    /// the circle (the difference wrapped into (−π, π]). Null without windows, or when the
-    /// figure is infinite (JSON has no ∞).
-    pub position_median: Option<f64>,
-    pub position_mean: Option<f64>,
-    /// ‖q̂̇ − q̇‖₂ after `horizon` steps.
-    pub velocity_median: Option<f64>,
-    pub velocity_mean: Option<f64>,
-}
 
 /// Horizons must be 1 or more, at most [`MAX_HORIZONS`] of them; returned sorted, each once.
 pub fn check_horizons(horizons: &[usize], max_steps: usize) -> Result<Vec<usize>> {
@@ -156,4 +140,17 @@ fn mean(values: impl Iterator<Item = f64>) -> Option<f64> {
     let v: Vec<f64> = values.collect();
     let s = v.iter().sum::<f64>() / v.len() as f64;
     (!v.is_empty() && s.is_finite()).then_some(s)
+}
+
+/// The errors a finished training reports on its validation trajectories: at
+/// [`END_OF_TRAINING`]'s horizons their longest trajectory reaches; none when no trajectory
+/// has two transitions (independent samples).
+pub fn end_of_training(file: &ModelFile, val: &Dataset) -> Result<Vec<HorizonError>> {
+    let longest = val.segments().iter().map(|s| s.length).max().unwrap_or(0);
+    if longest < 2 {
+        return Ok(vec![]);
+    }
+    let horizons: Vec<usize> = END_OF_TRAINING.into_iter().filter(|&h| h <= longest).collect();
+    let e = Evaluator::from_file(file)?;
+    Ok(horizon_errors(&e, val, &horizons, &|| false).expect("never stopped"))
 }

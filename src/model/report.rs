@@ -23,6 +23,26 @@ pub struct EpochMetrics {
     pub seconds: f64,
 }
 
+/// The errors after `horizon` steps over every window of that many transitions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct HorizonError {
+    pub horizon: usize,
+    /// horizon × Δt.
+    pub seconds: f64,
+    /// Window starts with `horizon` transitions after them in their trajectory.
+    pub windows: usize,
+    /// Of them, rollouts whose state left the finite numbers (their errors count as ∞).
+    pub diverged: usize,
+    /// ‖q̂ − q‖₂ after `horizon` steps, angles (the model's periodic coordinates) compared on
+    /// the circle (the difference wrapped into (−π, π]). Null without windows, or when the
+    /// figure is infinite (JSON has no ∞).
+    pub position_median: Option<f64>,
+    pub position_mean: Option<f64>,
+    /// ‖q̂̇ − q̇‖₂ after `horizon` steps.
+    pub velocity_median: Option<f64>,
+    pub velocity_mean: Option<f64>,
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Identified {
     pub name: String,
@@ -54,6 +74,10 @@ pub struct TrainReport {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub identifiability: Option<String>,
     pub history: Vec<EpochMetrics>,
+    /// Open-loop error against horizon on the validation trajectories at the end (README
+    /// "Multi-step training"); absent without validation trajectories, and in earlier files.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub horizon_errors: Vec<HorizonError>,
     /// The training checks' findings (`train::warnings`); absent in earlier files.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<Warning>,

@@ -57,6 +57,15 @@ async fn a_multi_step_job_reports_its_horizon_loss_and_its_model_evaluates() {
     }
 
     let model = done["model_id"].as_str().unwrap();
+    // The held-out trajectory (one of 30 transitions) reports the error at the horizons it
+    // is long enough for.
+    let (_, view) = app.get(&format!("/v1/models/{model}")).await;
+    let at: Vec<u64> = (view["metrics"]["horizon_errors"].as_array())
+        .unwrap_or_else(|| panic!("{view}"))
+        .iter()
+        .map(|e| e["horizon"].as_u64().unwrap())
+        .collect();
+    assert_eq!(at, [1, 10], "{view}");
     let path = format!("/v1/models/{model}/evaluate");
     let (s, ev) = app
         .post(&path, &json!({"dataset_id": ds, "horizons": [5, 1]}))

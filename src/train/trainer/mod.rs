@@ -301,6 +301,8 @@ impl Trainer {
 /// The validation set: its one-step loss (comparable across every job), and for a multi-step
 /// run the loss over its windows of the run's horizon when it has any.
 struct Validation {
+    /// The set itself, for the error against horizon at the end (`model_file`).
+    ds: Dataset,
     data: HostData,
     one_step: Windows,
     horizon: Option<Windows>,
@@ -310,6 +312,7 @@ impl Validation {
     fn new(ds: &Dataset, horizon: usize, discount: f64) -> Self {
         let windows = (horizon > 1).then(|| Windows::of(ds, horizon, discount));
         Self {
+            ds: ds.clone(),
             data: HostData::new(ds),
             one_step: Windows::one_step(ds.count()),
             horizon: windows.filter(|w| w.count() > 0),

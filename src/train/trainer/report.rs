@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 
 use super::Trainer;
+use crate::infer::horizons::end_of_training;
 use crate::model::Model;
 use crate::model::file::{ModelFile, stiffness_of};
 use crate::model::params_io::import;
@@ -73,6 +74,7 @@ impl Trainer {
                 .and_then(|t| t.identifiability_note())
                 .map(str::to_string),
             history: self.state.history.clone(),
+            horizon_errors: vec![],
             warnings,
         }
     }
@@ -102,12 +104,18 @@ impl Trainer {
         })
     }
 
-    /// The best parameters as a model file, with the report.
+    /// The best parameters as a model file, with the report: with validation trajectories,
+    /// the report includes the model's open-loop error against horizon on them.
     pub fn model_file(&self) -> ModelFile {
-        ModelFile::new(
+        let mut file = ModelFile::new(
             self.model.config.clone(),
             self.state.best_params.clone(),
             Some(self.report()),
-        )
+        );
+        let errors = (self.val.as_ref()).map(|v| end_of_training(&file, &v.ds));
+        if let (Some(Ok(errors)), Some(report)) = (errors, file.report.as_mut()) {
+            report.horizon_errors = errors;
+        }
+        file
     }
 }
