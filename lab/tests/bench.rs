@@ -157,3 +157,30 @@ fn bench_scale_prints_each_worker_count() {
         "{lines:?}"
     );
 }
+
+/// `graybox-lab bench horizon` prints one line per horizon, the first its own reference.
+#[test]
+fn bench_horizon_prints_each_horizon() {
+    let lines = json_lines(&[
+        "bench",
+        "horizon",
+        "--horizons",
+        "1,3",
+        "--epochs",
+        "1",
+        "--trajectories",
+        "2",
+    ]);
+    let h: Vec<u64> = lines
+        .iter()
+        .map(|l| l["horizon"].as_u64().unwrap())
+        .collect();
+    assert_eq!(h, [1, 3]);
+    assert_eq!(lines[0]["epoch_time_over_first"], 1.0);
+    assert_eq!(lines[1]["windows"], 2 * 198);
+    assert!(
+        lines
+            .iter()
+            .all(|l| l["samples_per_second"].as_f64().unwrap() > 0.0)
+    );
+}

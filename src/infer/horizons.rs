@@ -6,8 +6,8 @@
 use super::Evaluator;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
-pub use crate::model::report::HorizonError;
 use crate::model::file::ModelFile;
+pub use crate::model::report::HorizonError;
 
 /// Where a training's end looks, in steps (those its validation trajectories are long enough
 /// for).
@@ -150,7 +150,10 @@ pub fn end_of_training(file: &ModelFile, val: &Dataset) -> Result<Vec<HorizonErr
     if longest < 2 {
         return Ok(vec![]);
     }
-    let horizons: Vec<usize> = END_OF_TRAINING.into_iter().filter(|&h| h <= longest).collect();
+    let horizons: Vec<usize> = END_OF_TRAINING
+        .into_iter()
+        .filter(|&h| h <= longest)
+        .collect();
     let e = Evaluator::from_file(file)?;
     Ok(horizon_errors(&e, val, &horizons, &|| false).expect("never stopped"))
 }

@@ -1,6 +1,7 @@
 //! `graybox-lab bench …`: the figures the issues ask for, printed as JSON lines on stdout.
 
 mod events;
+mod horizon;
 mod infer;
 mod queue;
 mod rigid;
@@ -41,6 +42,8 @@ pub enum BenchCommand {
     Queue(queue::BenchQueueArgs),
     /// The wall time of a batch of jobs on one worker and on two, one thread each.
     Scale(scale::BenchScaleArgs),
+    /// Multi-step training's cost: samples/s and seconds per epoch at each horizon.
+    Horizon(horizon::BenchHorizonArgs),
 }
 
 #[derive(Args, Debug)]
@@ -157,6 +160,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Events(a) => events::run(a),
         BenchCommand::Queue(a) => queue::run(a),
         BenchCommand::Scale(a) => scale::run(a),
+        BenchCommand::Horizon(a) => horizon::run(a),
     }
 }
 
