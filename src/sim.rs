@@ -3,7 +3,9 @@
 
 mod trajectories;
 
-pub use trajectories::{MAX_TRANSITIONS, TrajectoryShape, simulate_trajectories};
+pub use trajectories::{
+    MAX_TRANSITIONS, TrajectoryShape, double_pendulum_trajectories, simulate_trajectories,
+};
 
 use crate::data::Dataset;
 use crate::error::{Error, Result};

@@ -9,7 +9,7 @@ use graybox::data::Dataset;
 use graybox::infer::Evaluator;
 use graybox::model::spec::ModelSpec;
 use graybox::physics::templates::Template;
-use graybox::sim::{SimConfig, TrajectoryShape, simulate_trajectories};
+use graybox::sim::{SimConfig, double_pendulum_trajectories};
 use graybox::train::windows::{self, Windows};
 use graybox::train::{TrainConfig, TrainState, Trainer};
 
@@ -17,22 +17,8 @@ fn flex() -> Device {
     device(Backend::Flex, Precision::F32).unwrap().autodiff()
 }
 
-/// `count` trajectories of `steps` transitions of the double pendulum (q̇₀ within ±2, inputs
-/// N(0, 30²) held 0.1 s, as the multi-step experiments use).
 fn trajectories(count: usize, steps: usize, seed: u64) -> Dataset {
-    let t = Template::DoublePendulum;
-    let cfg = SimConfig {
-        seed,
-        qdot_range: 2.0,
-        u_std: 30.0,
-        ..SimConfig::default()
-    };
-    let shape = TrajectoryShape {
-        count,
-        steps,
-        hold: 10,
-    };
-    simulate_trajectories(&t, t.defaults(), &cfg, shape).unwrap()
+    double_pendulum_trajectories(count, steps, seed).unwrap()
 }
 
 fn config(horizon: usize, epochs: usize) -> TrainConfig {

@@ -76,24 +76,32 @@ pub fn simulate_trajectories(
     Dataset::new(cfg.dt, n, m, arrays)?.with_trajectories(vec![shape.steps; shape.count])
 }
 
+/// `count` trajectories of `steps` transitions of the double pendulum at its default values
+/// as the rollout and multi-step experiments draw them: q₀ ~ U(−π, π), q̇₀ ~ U(−2, 2),
+/// inputs N(0, 30²) held 0.1 s (10 steps).
+pub fn double_pendulum_trajectories(count: usize, steps: usize, seed: u64) -> Result<Dataset> {
+    let t = Template::DoublePendulum;
+    let cfg = SimConfig {
+        seed,
+        qdot_range: 2.0,
+        u_std: 30.0,
+        ..SimConfig::default()
+    };
+    let shape = TrajectoryShape {
+        count,
+        steps,
+        hold: 10,
+    };
+    simulate_trajectories(&t, t.defaults(), &cfg, shape)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn trajectories_chain_hold_their_inputs_and_keep_their_boundaries() {
-        let t = Template::DoublePendulum;
-        let cfg = SimConfig {
-            qdot_range: 2.0,
-            u_std: 30.0,
-            ..SimConfig::default()
-        };
-        let shape = TrajectoryShape {
-            count: 3,
-            steps: 25,
-            hold: 10,
-        };
-        let d = simulate_trajectories(&t, t.defaults(), &cfg, shape).unwrap();
+        let d = double_pendulum_trajectories(3, 25, 0).unwrap();
         assert_eq!(d.count(), 75);
         assert_eq!(d.trajectories, Some(vec![25; 3]));
         // Inside a trajectory each row starts where the last one ended, bit for bit: its
@@ -110,8 +118,13 @@ mod tests {
         assert_ne!(u(25), u(24), "a new trajectory draws a new input");
         // Starting velocities within ±2.
         assert!(d.qdot[..2].iter().all(|v| v.abs() <= 2.0));
-        let none = TrajectoryShape { hold: 0, ..shape };
-        let e = simulate_trajectories(&t, t.defaults(), &cfg, none).unwrap_err();
+        let t = Template::DoublePendulum;
+        let none = TrajectoryShape {
+            count: 1,
+            steps: 5,
+            hold: 0,
+        };
+        let e = simulate_trajectories(&t, t.defaults(), &SimConfig::default(), none).unwrap_err();
         assert!(e.to_string().contains("hold"), "{e}");
     }
 }

@@ -1,26 +1,13 @@
 //! Multi-step jobs and the error-against-horizon call through the REST API.
 
-use graybox::physics::templates::Template;
-use graybox::sim::{SimConfig, TrajectoryShape, simulate_trajectories};
+use graybox::sim::double_pendulum_trajectories;
 use serde_json::{Value, json};
 
 use crate::helpers::*;
 
 /// `count` double-pendulum trajectories of `steps` transitions, as an upload body.
 pub fn trajectories(count: usize, steps: usize, seed: u64) -> Value {
-    let t = Template::DoublePendulum;
-    let cfg = SimConfig {
-        seed,
-        qdot_range: 2.0,
-        u_std: 30.0,
-        ..SimConfig::default()
-    };
-    let shape = TrajectoryShape {
-        count,
-        steps,
-        hold: 10,
-    };
-    let ds = simulate_trajectories(&t, t.defaults(), &cfg, shape).unwrap();
+    let ds = double_pendulum_trajectories(count, steps, seed).unwrap();
     serde_json::from_str(&ds.to_json()).unwrap()
 }
 

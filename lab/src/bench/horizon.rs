@@ -11,7 +11,7 @@ use graybox::backend::{self, Backend, Precision};
 use graybox::error::Result;
 use graybox::model::spec::ModelSpec;
 use graybox::physics::templates::Template;
-use graybox::sim::{SimConfig, TrajectoryShape, simulate_trajectories};
+use graybox::sim::double_pendulum_trajectories;
 use graybox::train::{TrainConfig, Trainer};
 
 #[derive(Args, Debug)]
@@ -33,17 +33,7 @@ pub struct BenchHorizonArgs {
 
 pub fn run(a: BenchHorizonArgs) -> Result<()> {
     let t = Template::DoublePendulum;
-    let cfg = SimConfig {
-        qdot_range: 2.0,
-        u_std: 30.0,
-        ..SimConfig::default()
-    };
-    let shape = TrajectoryShape {
-        count: a.trajectories,
-        steps: 200,
-        hold: 10,
-    };
-    let data = simulate_trajectories(&t, t.defaults(), &cfg, shape)?;
+    let data = double_pendulum_trajectories(a.trajectories, 200, 0)?;
     let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
     let never = AtomicBool::new(false);
     let mut first: Option<f64> = None;

@@ -23,7 +23,7 @@ use graybox::model::file::{ModelFile, write_atomic};
 use graybox::model::spec::ModelSpec;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
-use graybox::sim::{SimConfig, TrajectoryShape, simulate_trajectories};
+use graybox::sim::double_pendulum_trajectories;
 use graybox::train::{TrainConfig, TrainState, Trainer};
 
 /// Where the error is read, in steps of Δt = 0.01 (the plot's points); the tables show
@@ -189,19 +189,8 @@ fn cell_keys(s: &MultistepSettings) -> Vec<CellKey> {
 
 /// `count` trajectories of `steps` transitions from stream `stream` of `seed`.
 fn trajectories(count: usize, steps: usize, seed: u64, stream: u64) -> Result<Dataset> {
-    let t = Template::DoublePendulum;
-    let cfg = SimConfig {
-        seed: Rng::derive(seed, 0x7A7A_0000 + stream).next_u64(),
-        qdot_range: 2.0,
-        u_std: 30.0,
-        ..SimConfig::default()
-    };
-    let shape = TrajectoryShape {
-        count,
-        steps,
-        hold: 10,
-    };
-    simulate_trajectories(&t, t.defaults(), &cfg, shape)
+    let seed = Rng::derive(seed, 0x7A7A_0000 + stream).next_u64();
+    double_pendulum_trajectories(count, steps, seed)
 }
 
 /// Trains one cell (resuming from its checkpoint when there is one), saves its model and
