@@ -196,6 +196,50 @@ fn a_resumed_multi_step_run_equals_an_uninterrupted_one() {
     assert_eq!(h(&full), h(&resumed));
 }
 
+/// A curriculum's one-step epochs train exactly as an H = 1 run (every row a window, the same
+/// shuffles), the windows of its horizon take over after them, and a run resumed inside the
+/// one-step epochs equals the uninterrupted one.
+#[test]
+fn one_step_epochs_train_on_rows_then_on_windows() {
+    let data = trajectories(4, 15, 6);
+    let never = AtomicBool::new(false);
+    let cfg = |horizon, one_step_epochs, epochs| TrainConfig {
+        val_fraction: 0.0,
+        one_step_epochs,
+        ..config(horizon, epochs)
+    };
+    let new = |c| Trainer::new("MVF", mvf(), &[], &data, None, c, &flex()).unwrap();
+    let mut one_step = new(cfg(1, 0, 2));
+    one_step.run(&never, |_, _| {}).unwrap();
+    let mut curriculum = new(cfg(3, 2, 3));
+    curriculum.run_epoch(&never).unwrap();
+    let bytes = curriculum.checkpoint().to_bytes();
+    curriculum.run_epoch(&never).unwrap();
+    assert_eq!(
+        one_step.checkpoint().params,
+        curriculum.checkpoint().params
+    );
+    let rows = data.count() as u64;
+    assert_eq!(curriculum.checkpoint().samples_seen, 2 * rows);
+    curriculum.run_epoch(&never).unwrap();
+    // 4 trajectories of 15 transitions hold 13 windows of 3 each.
+    let seen = curriculum.checkpoint().samples_seen;
+    assert_eq!(seen, 2 * rows + 4 * 13 * 3);
+
+    let state = TrainState::from_bytes(&bytes).unwrap();
+    let mut resumed = Trainer::resume(state, &data, None, &flex()).unwrap();
+    resumed.run(&never, |_, _| {}).unwrap();
+    assert_eq!(curriculum.checkpoint().params, resumed.checkpoint().params);
+
+    let err = TrainConfig {
+        one_step_epochs: 3,
+        ..cfg(3, 0, 3)
+    }
+    .validate()
+    .unwrap_err();
+    assert!(err.to_string().contains("training.one_step_epochs"), "{err}");
+}
+
 /// The error-against-horizon figures (all window starts stepped as one batch, starts leaving
 /// as their trajectory ends) are each window's own rollout: checked against one
 /// `Evaluator::rollout` per window start.

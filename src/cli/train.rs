@@ -75,6 +75,10 @@ pub struct TrainArgs {
     /// Weight γ of each further step of a window (step k counts γ^(k−1)), in (0, 1].
     #[arg(long, default_value_t = 1.0)]
     pub discount: f64,
+    /// Epochs of one-step training before the windows of --horizon take over (a curriculum;
+    /// fewer than --epochs).
+    #[arg(long, default_value_t = 0)]
+    pub one_step_epochs: usize,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
@@ -137,6 +141,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
             .unwrap_or_default(),
         horizon: a.horizon,
         discount: a.discount,
+        one_step_epochs: a.one_step_epochs,
     };
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;

@@ -39,6 +39,15 @@ pub struct TrainConfig {
     /// Weight γ of each further step of a window (step k counts γ^(k−1)); 1 counts all alike.
     #[serde(skip_serializing_if = "is_unit")]
     pub discount: f64,
+    /// Epochs trained on the one-step loss before windows of `horizon` take over (a
+    /// curriculum: one-step epochs cost a `horizon`-th of a window epoch); 0 trains on windows
+    /// from the start (and is left out of files).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub one_step_epochs: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 fn is_one(h: &usize) -> bool {
@@ -68,11 +77,21 @@ impl Default for TrainConfig {
             periodic: vec![],
             horizon: 1,
             discount: 1.0,
+            one_step_epochs: 0,
         }
     }
 }
 
 impl TrainConfig {
+    /// The horizon of the epoch after `done` epochs: 1 during the one-step epochs.
+    pub fn horizon_at(&self, done: usize) -> usize {
+        if done < self.one_step_epochs {
+            1
+        } else {
+            self.horizon
+        }
+    }
+
     pub fn validate(&self) -> Result<()> {
         let bad = |f: &str, m: &str| Err(Error::invalid(format!("training.{f}"), m));
         if self.epochs == 0 || self.epochs > 1_000_000 {
@@ -95,6 +114,12 @@ impl TrainConfig {
         }
         if !(self.discount.is_finite() && self.discount > 0.0 && self.discount <= 1.0) {
             return bad("discount", "must be a number in (0, 1]");
+        }
+        if self.one_step_epochs > 0 && self.one_step_epochs >= self.epochs {
+            return bad(
+                "one_step_epochs",
+                "must be less than epochs (the epochs after it train on windows of horizon)",
+            );
         }
         if self.patience == Some(0) {
             return bad(

@@ -419,6 +419,18 @@ async fn bad_input_table() {
             "unprocessable",
             Some("training.discount"),
         ),
+        case(
+            "one-step epochs not fewer than epochs",
+            "POST",
+            "/v1/jobs",
+            job(&|v| {
+                v["training"]["horizon"] = json!(2);
+                v["training"]["one_step_epochs"] = v["training"]["epochs"].clone();
+            }),
+            422,
+            "unprocessable",
+            Some("training.one_step_epochs"),
+        ),
         // The table's dataset is independent samples: chains of one transition.
         case(
             "horizon longer than any trajectory",

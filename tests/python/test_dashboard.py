@@ -148,6 +148,13 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     assert len(compared["series"]) == 2, compared["series"].keys()
     assert len(compared["x"]) == max(EPOCHS.values())
     assert page.locator("#compare-table th", has_text=jobs["MVF"]).count() == 1
+    # Their models' error against horizon on the training trajectories: a line each.
+    assert page.input_value("#compare-dataset") == ds["id"]
+    page.click("#horizon-button")
+    page.wait_for_selector("#horizon-chart canvas")
+    against = series(page, "#horizon-chart")
+    assert set(against["series"]) == {f"{jobs[m]} ({m})" for m in jobs}, against["series"].keys()
+    assert all(len(v) == len(against["x"]) == 6 for v in against["series"].values()), against
     page.screenshot(path=str(tmp_path / "compare.png"), full_page=True)
 
     # A model replays a recorded trajectory: recorded and predicted, T + 1 points each.

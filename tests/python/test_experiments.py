@@ -79,6 +79,10 @@ def test_quick_run_writes_its_results_and_a_rerun_resumes(lab_bin, tmp_path, nam
     for t in tables:
         assert_well_formed(t)
     assert f"]({png})" in md
+    if name == "rollout":
+        # --quick adds the trajectory rows: the one-step loss and windows of 3.
+        rows = [r[0] for r in tables[0][2:]]
+        assert rows[2:] == ["MVF, trajectories, H = 1", "MVF, trajectories, H = 3"], rows
 
     with open(out / "results.csv", newline="") as f:
         rows = list(csv.DictReader(f))

@@ -9,6 +9,7 @@ mod multistep;
 mod out;
 mod plot;
 mod pool;
+mod resumable;
 mod rollout;
 
 use clap::Subcommand;

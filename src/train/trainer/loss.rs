@@ -145,7 +145,7 @@ impl Trainer {
     pub fn loss_and_grads(&self, batch: &[usize]) -> (f64, ParamGrads) {
         let rows = batch.len() as f64;
         let k = self.shards_of(batch.len());
-        let weights = &self.train_windows.weights;
+        let weights = &self.windows().weights;
         let shard = |idx: &[usize], model: &Model| {
             let loss = (self.train)
                 .window_loss_sum(model, idx, weights, &model.device())

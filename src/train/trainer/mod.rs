@@ -38,8 +38,11 @@ pub struct Trainer {
     model: Model,
     adam: Adam,
     train: HostData,
-    /// The training windows (every row, for the one-step loss).
+    /// The training windows of the run's horizon (every row, for the one-step loss).
     train_windows: Windows,
+    /// Every row on its own, for the one-step epochs of a curriculum
+    /// (`TrainConfig::one_step_epochs`).
+    train_rows: Windows,
     val: Option<Validation>,
     /// The zero-acceleration loss on the set that picks the best epoch (validation, else
     /// training), for the training checks.
@@ -110,6 +113,7 @@ impl Trainer {
             adam,
             train: HostData::new(train),
             train_windows: Windows::of(train, horizon, discount),
+            train_rows: Windows::one_step(train.count()),
             val: val.map(|v| Validation::new(v, horizon, discount)),
             baseline,
             pool: None,
@@ -182,6 +186,7 @@ impl Trainer {
         self.baseline = zero_acceleration_loss(data, c.lambda, &c.periodic);
         self.train = HostData::new(data);
         self.train_windows = Windows::of(data, cfg.horizon, cfg.discount);
+        self.train_rows = Windows::one_step(data.count());
         self.val = None;
         let s = &mut self.state;
         s.train = cfg;
@@ -223,7 +228,7 @@ impl Trainer {
     /// batches.
     pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
         let start = Instant::now();
-        let mut order = self.train_windows.starts.clone();
+        let mut order = self.windows().starts.clone();
         self.state.rng.shuffle(&mut order);
         let epoch = self.state.epoch + 1;
         let mut total = 0.0;
@@ -246,10 +251,10 @@ impl Trainer {
                 self.model.params = self.model.params.clone().projected(lower);
             }
         }
+        let (windows, horizon) = (self.windows().count(), self.windows().horizon());
         let s = &mut self.state;
         s.train_seconds += start.elapsed().as_secs_f64();
-        let windows = self.train_windows.count();
-        s.samples_seen += (windows * self.train_windows.horizon()) as u64;
+        s.samples_seen += (windows * horizon) as u64;
         let train_loss = total / windows as f64;
         let valid = self.model.valid();
         let loss =
@@ -282,6 +287,15 @@ impl Trainer {
         };
         s.history.push(metrics);
         Ok(metrics)
+    }
+
+    /// The windows the next epoch trains on.
+    fn windows(&self) -> &Windows {
+        if self.state.train.horizon_at(self.state.epoch) == 1 {
+            &self.train_rows
+        } else {
+            &self.train_windows
+        }
     }
 
     /// Runs to the end, calling `on_epoch` after each epoch.

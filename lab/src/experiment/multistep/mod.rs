@@ -7,31 +7,24 @@
 mod report;
 
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
 
 use clap::Args;
 use serde::{Deserialize, Serialize};
 
 use super::out::OutDir;
 use super::pool::{self, Progress};
-use graybox::backend::{self, Backend, Precision};
+use super::resumable::{self, trajectories};
 use graybox::data::Dataset;
 use graybox::error::Result;
 use graybox::infer::Evaluator;
 use graybox::infer::horizons::{HorizonError, horizon_errors};
-use graybox::model::file::{ModelFile, write_atomic};
-use graybox::model::spec::ModelSpec;
-use graybox::physics::templates::Template;
-use graybox::rng::Rng;
-use graybox::sim::double_pendulum_trajectories;
-use graybox::train::{TrainConfig, TrainState, Trainer};
+use graybox::model::file::ModelFile;
+use graybox::train::TrainConfig;
 
 /// Where the error is read, in steps of Δt = 0.01 (the plot's points); the tables show
 /// `TABLE_STEPS`: 0.5 s, 1 s and 2 s.
 const EVAL_STEPS: [usize; 10] = [1, 2, 5, 10, 20, 50, 75, 100, 150, 200];
 const TABLE_STEPS: [usize; 3] = [50, 100, 200];
-/// Epochs between a cell's checkpoints.
-const CHECKPOINT_EVERY: usize = 10;
 
 #[derive(Args, Debug)]
 pub struct MultistepArgs {
@@ -48,6 +41,10 @@ pub struct MultistepArgs {
     /// Epochs of every training [default: 200; 3 with --quick].
     #[arg(long)]
     pub epochs: Option<usize>,
+    /// Epochs of one-step training before the windows take over, in every H > 1 cell (a
+    /// curriculum; fewer than --epochs).
+    #[arg(long, default_value_t = 0)]
+    pub one_step_epochs: usize,
     /// Training threads per cell [default: every core divided by --jobs]. Burn records a
     /// process's ops under one lock, so two runs side by side go faster as two processes
     /// (different --horizons and --out) than as --jobs 2.
@@ -71,6 +68,10 @@ pub(super) struct MultistepSettings {
     batch_size: usize,
     lr: f64,
     discount: f64,
+    /// One-step epochs before the windows in H > 1 cells (left out when 0, as before it was
+    /// an option).
+    #[serde(skip_serializing_if = "is_zero")]
+    one_step_epochs: usize,
     train_trajectories: usize,
     val_trajectories: usize,
     test_trajectories: usize,
@@ -126,6 +127,7 @@ pub fn run(a: MultistepArgs) -> Result<()> {
         batch_size: 256,
         lr: 1e-3,
         discount: 1.0,
+        one_step_epochs: a.one_step_epochs,
         train_trajectories: if q { 4 } else { 40 },
         val_trajectories: if q { 2 } else { 10 },
         test_trajectories: if q { 2 } else { 20 },
@@ -187,10 +189,8 @@ fn cell_keys(s: &MultistepSettings) -> Vec<CellKey> {
     own.chain(extra).collect()
 }
 
-/// `count` trajectories of `steps` transitions from stream `stream` of `seed`.
-fn trajectories(count: usize, steps: usize, seed: u64, stream: u64) -> Result<Dataset> {
-    let seed = Rng::derive(seed, 0x7A7A_0000 + stream).next_u64();
-    double_pendulum_trajectories(count, steps, seed)
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 /// Trains one cell (resuming from its checkpoint when there is one), saves its model and
@@ -218,31 +218,18 @@ fn train_cell(
         seed: k.seed,
         horizon: k.horizon,
         discount: s.discount,
+        one_step_epochs: if k.horizon > 1 { s.one_step_epochs } else { 0 },
         ..TrainConfig::default()
     };
-    let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
     let ckpt = out.path(&format!("{}.ckpt.json", k.name()));
-    let mut trainer = match std::fs::read(&ckpt) {
-        Ok(bytes) => Trainer::resume(TrainState::from_bytes(&bytes)?, &data, Some(&val), &device)?,
-        Err(_) => {
-            let spec = ModelSpec::named(s.model, Some(Template::DoublePendulum))?;
-            Trainer::new(s.model, spec, &[], &data, Some(&val), cfg, &device)?
-        }
-    }
-    .with_threads(threads)?;
-    let never = AtomicBool::new(false);
-    while !trainer.finished() {
-        let m = trainer.run_epoch(&never)?;
+    let trainer = resumable::train(s.model, cfg, &data, &val, &ckpt, threads, &|m| {
         show(&format!(
             "{}: epoch {}/{epochs} val {:.3e}",
             k.name(),
             m.epoch,
             m.val_horizon_loss.or(m.val_loss).unwrap_or(f64::NAN)
-        ));
-        if m.epoch % CHECKPOINT_EVERY == 0 {
-            write_atomic(&ckpt, &trainer.checkpoint().to_bytes())?;
-        }
-    }
+        ))
+    })?;
     let file = trainer.model_file();
     file.save(&out.path(&format!("{}.gbx", k.name())))?;
     let report = trainer.report();

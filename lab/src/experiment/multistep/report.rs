@@ -33,13 +33,23 @@ fn label(c: &Cell) -> String {
     }
 }
 
+fn curriculum(one_step_epochs: usize) -> String {
+    if one_step_epochs == 0 {
+        return String::new();
+    }
+    format!(
+        " Curriculum: every H > 1 training spends its first {one_step_epochs} epochs on the \
+         one-step loss, then trains on its windows."
+    )
+}
+
 pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Result<()> {
     let mut md = format!(
         "# Multi-step training: open-loop error against training horizon\n\n\
          MVF on the double pendulum: {} training trajectories of {} steps (Δt = 0.01), {} for \
          validation, per seed; {} epochs, batch {} windows, lr {}. Errors: median ‖q̂ − q‖ \
          (angles on the circle) over every window start of {} held-out trajectories of {} \
-         steps, open loop under the recorded inputs.\n\n",
+         steps, open loop under the recorded inputs.{}\n\n",
         s.train_trajectories,
         s.steps,
         s.val_trajectories,
@@ -47,7 +57,8 @@ pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Resu
         s.batch_size,
         s.lr,
         s.test_trajectories,
-        s.test_steps
+        s.test_steps,
+        curriculum(s.one_step_epochs)
     );
     md.push_str("| training | seed | 0.5 s | 1 s | 2 s | s / epoch | samples/s | best epoch |\n");
     md.push_str("|---|---:|---:|---:|---:|---:|---:|---:|\n");

@@ -418,6 +418,13 @@ async function compareView(view, ids) {
       row("best val loss", (j) => fmtLoss(j.best_val_loss)),
       row("final train loss", (j) => fmtLoss(j.train_loss)),
       row("duration", (j) => duration(j))))));
+  // The trained models' median open-loop error on one dataset, a line each.
+  const trained = jobs.filter((j) => j.model_id).map((j) => ({ id: j.model_id, label: `${j.id} (${j.model})` }));
+  if (!trained.length) return;
+  const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items;
+  const dsSelect = el("select", { id: "compare-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
+  dsSelect.value = jobs[0].dataset_id;
+  horizonPanel(view, trained, dsSelect, el("label", { for: "compare-dataset", text: "Trajectories" }), dsSelect);
 }
 
 async function modelsView(view) {
@@ -506,28 +513,33 @@ async function replayPanel(view, m) {
   go.addEventListener("click", replay);
   await loadTrajectories();
   await replay();
-  horizonPanel(view, m, dsSelect);
+  horizonPanel(view, [{ id: m.id, label: m.id }], dsSelect);
 }
 
-// The model's open-loop error against prediction time on the chosen dataset's trajectories
-// (POST /v1/models/{id}/evaluate), both axes logarithmic.
-function horizonPanel(view, m, dsSelect) {
+// Open-loop error against prediction time on the chosen dataset's trajectories
+// (POST /v1/models/{id}/evaluate), both axes logarithmic: one model's median and mean, or
+// each compared model's median. `models`: [{id, label}].
+function horizonPanel(view, models, dsSelect, ...controls) {
   const horizons = [1, 2, 5, 10, 20, 50, 100, 200, 500];
   const host = el("div", { id: "horizon-chart", role: "img", "aria-label": "open-loop error against prediction time" });
   const status = el("div", { role: "alert", id: "horizon-alert" });
   const go = el("button", { type: "button", id: "horizon-button" }, "Evaluate");
   view.append(el("h2", { text: "Error against horizon" }), el("p", { class: "muted",
     text: "From every state of the dataset's trajectories, the model predicts open loop under the recorded inputs; the median and mean error of q after each horizon (angles on the circle)." }),
-    el("div", { class: "toolbar" }, go), status, host);
+    el("div", { class: "toolbar" }, ...controls, go), status, host);
   go.addEventListener("click", async () => {
     status.replaceChildren();
     try {
-      const r = await api("POST", `/v1/models/${m.id}/evaluate`, { dataset_id: dsSelect.value, horizons });
-      const items = r.items.filter((e) => e.windows > 0);
+      const body = { dataset_id: dsSelect.value, horizons };
+      const found = await Promise.all(models.map((m) => api("POST", `/v1/models/${m.id}/evaluate`, body)));
+      // The same dataset for every model: the same horizons have windows.
+      const items = found.map((r) => r.items.filter((e) => e.windows > 0));
+      const series = models.length === 1
+        ? { median: items[0].map((e) => e.position_median), mean: items[0].map((e) => e.position_mean) }
+        : Object.fromEntries(models.map((m, k) => [m.label, items[k].map((e) => e.position_median)]));
       chart(host, {
-        x: items.map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)",
-        logX: true, logY: true,
-        series: { median: items.map((e) => e.position_median), mean: items.map((e) => e.position_mean) },
+        x: items[0].map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)",
+        logX: true, logY: true, series,
       });
     } catch (e) {
       status.replaceChildren(errorBox(e));

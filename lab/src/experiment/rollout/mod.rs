@@ -1,18 +1,21 @@
 //! `graybox-lab experiment rollout`: the paper's §V-C. MVF and naive trained on the same data
 //! predict 5-second trajectories open loop from the true system's initial states and inputs.
+//! With `--horizon H` the table gains MVF trained on trajectories, with the one-step loss and
+//! with windows of H (README "Multi-step training").
+
+mod report;
 
 use std::path::PathBuf;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use clap::Args;
-use plotters::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::out::OutDir;
-use super::plot::{self, COLORS};
+use super::paper_double_pendulum;
 use super::pool::{self, Progress};
-use super::{csv_line, median, paper_double_pendulum};
+use super::resumable::{self, trajectories};
 use graybox::backend::{self, Backend, Precision};
 use graybox::error::Result;
 use graybox::infer::Evaluator;
@@ -26,6 +29,10 @@ use graybox::sim::true_step;
 use graybox::train::{TrainConfig, Trainer};
 
 const MODELS: [&str; 2] = ["MVF", "naive"];
+/// The trajectory rows' data: as `experiment multistep`'s (training, then validation).
+const TRAIN_TRAJECTORIES: usize = 40;
+const VAL_TRAJECTORIES: usize = 10;
+const TRAJECTORY_STEPS: usize = 200;
 const DT: f64 = 0.01;
 /// 5 s at Δt = 0.01.
 const STEPS: usize = 500;
@@ -33,9 +40,6 @@ const STEPS: usize = 500;
 const HOLD: usize = 10;
 const U_STD: f64 = 30.0;
 const QDOT0: f64 = 2.0;
-/// Where the error table looks, in seconds.
-const TIMES: [f64; 4] = [0.5, 1.0, 2.0, 5.0];
-const PLOTTED: usize = 4;
 
 #[derive(Args, Debug)]
 pub struct RolloutArgs {
@@ -58,6 +62,18 @@ pub struct RolloutArgs {
     pub epochs: Option<usize>,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Adds MVF trained on trajectories of the double pendulum (as `experiment multistep`'s)
+    /// with the one-step loss and with windows of this many steps [default: none; 3 with
+    /// --quick].
+    #[arg(long)]
+    pub horizon: Option<usize>,
+    /// Epochs of the trajectory rows [default: 600; 3 with --quick].
+    #[arg(long)]
+    pub trajectory_epochs: Option<usize>,
+    /// Epochs of one-step training before the windows take over in the --horizon row (a
+    /// curriculum; fewer than --trajectory-epochs).
+    #[arg(long, default_value_t = 0)]
+    pub one_step_epochs: usize,
     #[command(flatten)]
     pub run: pool::RunArgs,
 }
@@ -76,6 +92,45 @@ struct RolloutSettings {
     trajectory: &'static str,
     backend: &'static str,
     precision: &'static str,
+    /// The trajectory rows (left out without --horizon, as before it was an option).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    trajectories: Option<TrajectorySettings>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct TrajectorySettings {
+    horizon: usize,
+    train_trajectories: usize,
+    val_trajectories: usize,
+    steps: usize,
+    epochs: usize,
+    one_step_epochs: usize,
+}
+
+/// A row of the table: what its model trained on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Row {
+    /// The paper's independent samples.
+    Samples(&'static str),
+    /// MVF on trajectories, on windows of this many steps.
+    Trajectories(usize),
+}
+
+impl Row {
+    /// The row's cell key and file name.
+    fn key(&self) -> String {
+        match self {
+            Row::Samples(m) => m.to_string(),
+            Row::Trajectories(h) => format!("MVF-trajectories-h{h}"),
+        }
+    }
+
+    fn label(&self) -> String {
+        match self {
+            Row::Samples(m) => m.to_string(),
+            Row::Trajectories(h) => format!("MVF, trajectories, H = {h}"),
+        }
+    }
 }
 
 /// A trained model, saved as `<model>.gbx` in the directory.
@@ -110,36 +165,49 @@ pub fn run(a: RolloutArgs) -> Result<()> {
         trajectory: "5 s (500 steps): q0 ~ U(-pi, pi), qdot0 ~ U(-2, 2), inputs held 0.1 s, ~ N(0, 30^2)",
         backend: "flex",
         precision: "f32",
+        trajectories: a.horizon.or(q.then_some(3)).map(|horizon| TrajectorySettings {
+            horizon,
+            train_trajectories: if q { 4 } else { TRAIN_TRAJECTORIES },
+            val_trajectories: if q { 2 } else { VAL_TRAJECTORIES },
+            steps: if q { 30 } else { TRAJECTORY_STEPS },
+            epochs: a.trajectory_epochs.unwrap_or(if q { 3 } else { 600 }),
+            one_step_epochs: a.one_step_epochs,
+        }),
     };
     let out = OutDir::open(&a.out, "rollout", &s)?;
-    let progress = Progress::new(MODELS.len(), 0);
-    let trained = pool::parallel(
-        &MODELS,
-        pool::threads(a.run.jobs),
-        &progress,
-        |m, status| {
-            if let Some(t) = out.get::<Trained>(&format!("train/{m}"))
-                && let Ok(file) = ModelFile::load(&out.path(&t.file))
-            {
-                progress.cells_done(1, &format!("{m}: trained earlier"));
-                return Ok((t, file));
-            }
-            let (t, file) = train(&s, m, &|e, best| {
-                status.show(&format!("{m}: epoch {e}/{} best val {best:.3e}", s.epochs))
-            })?;
-            file.save(&out.path(&t.file))?;
-            out.put(&format!("train/{m}"), &t)?;
-            progress.cells_done(
-                1,
-                &format!(
-                    "{m}: best val {:.3e} ({:.0} s)",
-                    t.best_val_loss.unwrap_or(f64::NAN),
-                    t.seconds
-                ),
-            );
-            Ok((t, file))
-        },
-    );
+    let mut rows: Vec<Row> = MODELS.iter().map(|&m| Row::Samples(m)).collect();
+    if let Some(t) = &s.trajectories {
+        rows.extend([Row::Trajectories(1), Row::Trajectories(t.horizon)]);
+    }
+    let progress = Progress::new(rows.len(), 0);
+    let trained = pool::parallel(&rows, pool::threads(a.run.jobs), &progress, |row, status| {
+        let name = row.key();
+        if let Some(t) = out.get::<Trained>(&format!("train/{name}"))
+            && let Ok(file) = ModelFile::load(&out.path(&t.file))
+        {
+            progress.cells_done(1, &format!("{name}: trained earlier"));
+            return Ok((t, file));
+        }
+        let show = |e: usize, epochs: usize, best: f64| {
+            status.show(&format!("{name}: epoch {e}/{epochs} best val {best:.3e}"))
+        };
+        let (t, file) = match row {
+            Row::Samples(m) => train(&s, m, &|e, best| show(e, s.epochs, best))?,
+            Row::Trajectories(h) => train_on_trajectories(&s, &out, *h, &show)?,
+        };
+        file.save(&out.path(&t.file))?;
+        out.put(&format!("train/{name}"), &t)?;
+        let _ = std::fs::remove_file(checkpoint(&out, *row));
+        progress.cells_done(
+            1,
+            &format!(
+                "{name}: best val {:.3e} ({:.0} s)",
+                t.best_val_loss.unwrap_or(f64::NAN),
+                t.seconds
+            ),
+        );
+        Ok((t, file))
+    });
     progress.finish();
     let trained: Vec<(Trained, ModelFile)> = trained.into_iter().collect::<Result<_>>()?;
     let evaluators: Vec<Evaluator> = trained
@@ -151,7 +219,7 @@ pub fn run(a: RolloutArgs) -> Result<()> {
         .iter()
         .map(|e| truth.iter().map(|t| predict(e, t)).collect())
         .collect();
-    report(&s, &out, &trained, &truth, &predicted)?;
+    report::write(&s, &out, &trained, &truth, &predicted)?;
     out.finish()
 }
 
@@ -185,6 +253,53 @@ fn train(
             best_epoch: report.best_epoch,
             seconds: start.elapsed().as_secs_f64(),
             file: format!("{model}.gbx"),
+        },
+        trainer.model_file(),
+    ))
+}
+
+fn checkpoint(out: &OutDir, row: Row) -> std::path::PathBuf {
+    out.path(&format!("{}.ckpt.json", row.key()))
+}
+
+/// MVF on the settings' trajectories with windows of `horizon` (the one-step epochs first when
+/// `horizon` > 1), checkpointing as it goes so that an interrupted run resumes mid-cell.
+fn train_on_trajectories(
+    s: &RolloutSettings,
+    out: &OutDir,
+    horizon: usize,
+    show: &dyn Fn(usize, usize, f64),
+) -> Result<(Trained, ModelFile)> {
+    let t = s.trajectories.as_ref().expect("trajectory rows have settings");
+    let data = trajectories(t.train_trajectories, t.steps, s.seed, 0)?;
+    let val = trajectories(t.val_trajectories, t.steps, s.seed, 1)?;
+    let cfg = TrainConfig {
+        epochs: t.epochs,
+        batch_size: s.batch_size,
+        lr: s.lr,
+        val_fraction: 0.0,
+        seed: s.seed,
+        horizon,
+        one_step_epochs: if horizon > 1 { t.one_step_epochs } else { 0 },
+        ..TrainConfig::default()
+    };
+    let row = Row::Trajectories(horizon);
+    let ckpt = checkpoint(out, row);
+    let trainer = resumable::train("MVF", cfg, &data, &val, &ckpt, 1, &|m| {
+        show(m.epoch, t.epochs, m.val_horizon_loss.or(m.val_loss).unwrap_or(f64::NAN))
+    })?;
+    let report = trainer.report();
+    // The one-step validation loss of the kept epoch, comparable with the other rows' (the
+    // multi-step run picks its epoch by the loss over its windows).
+    let history = &trainer.checkpoint().history;
+    let best = history.iter().find(|m| m.epoch == report.best_epoch);
+    Ok((
+        Trained {
+            model: row.label(),
+            best_val_loss: best.and_then(|m| m.val_loss),
+            best_epoch: report.best_epoch,
+            seconds: trainer.train_seconds(),
+            file: format!("{}.gbx", row.key()),
         },
         trainer.model_file(),
     ))
@@ -237,148 +352,3 @@ fn predict(e: &Evaluator, t: &Trajectory) -> Vec<f64> {
     q
 }
 
-/// ‖q̂_k − q_k‖₂ (angles not wrapped); a prediction that left the finite numbers is ∞.
-fn error_at(truth: &[f64], pred: &[f64], k: usize, n: usize) -> f64 {
-    let d: f64 = (0..n)
-        .map(|i| (pred[k * n + i] - truth[k * n + i]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    if d.is_finite() { d } else { f64::INFINITY }
-}
-
-fn step_of(seconds: f64) -> usize {
-    (seconds / DT).round() as usize
-}
-
-fn report(
-    s: &RolloutSettings,
-    out: &OutDir,
-    trained: &[(Trained, ModelFile)],
-    truth: &[Trajectory],
-    predicted: &[Vec<Vec<f64>>],
-) -> Result<()> {
-    let n = Template::DoublePendulum.n();
-    let mut csv = String::from("trajectory,model,seconds,position_error\n");
-    let mut md = String::from("# 5-second rollouts (paper §V-C)\n\n");
-    md += &format!(
-        "{} true trajectories; position error ‖q̂ − q‖₂ in rad (angles not wrapped) of open-loop \
-         predictions from the same x₀ under the same inputs. Models trained on {} samples for \
-         {} epochs (best validation loss kept).\n\n",
-        s.count, s.train_size, s.epochs
-    );
-    md += "| model | best val loss |";
-    for t in TIMES {
-        md += &format!(" {t} s mean | {t} s median |");
-    }
-    md += " diverged |\n|---|---|";
-    md += &"---|---|".repeat(TIMES.len());
-    md += "---|\n";
-    for ((t, _), preds) in trained.iter().zip(predicted) {
-        md += &format!(
-            "| {} | {} |",
-            t.model,
-            t.best_val_loss
-                .map_or_else(|| "–".into(), |l| format!("{l:.2e}"))
-        );
-        for sec in TIMES {
-            let k = step_of(sec);
-            let errors: Vec<f64> = truth
-                .iter()
-                .zip(preds)
-                .map(|(tr, p)| error_at(&tr.q, p, k, n))
-                .collect();
-            for (i, e) in errors.iter().enumerate() {
-                csv += &csv_line(&[
-                    i.to_string(),
-                    t.model.clone(),
-                    sec.to_string(),
-                    format!("{e:.6e}"),
-                ]);
-            }
-            let mean = errors.iter().sum::<f64>() / errors.len() as f64;
-            md += &format!(" {} | {} |", fmt_err(mean), fmt_err(median(&errors)));
-        }
-        let diverged = preds
-            .iter()
-            .filter(|p| p.iter().any(|v| !v.is_finite()))
-            .count();
-        md += &format!(" {diverged} |\n");
-    }
-    md += "\n![rollouts](rollouts.png)\n";
-    out.write("results.csv", csv.as_bytes())?;
-    out.write("results.md", md.as_bytes())?;
-    plot_rollouts(out, trained, truth, predicted)
-}
-
-fn fmt_err(e: f64) -> String {
-    if e.is_finite() {
-        format!("{e:.3}")
-    } else {
-        "∞".into()
-    }
-}
-
-/// q₁ and q₂ over time for the first trajectories: truth, MVF, naive. Predictions that leave
-/// the plot are clipped to its edge.
-fn plot_rollouts(
-    out: &OutDir,
-    trained: &[(Trained, ModelFile)],
-    truth: &[Trajectory],
-    predicted: &[Vec<Vec<f64>>],
-) -> Result<()> {
-    let n = Template::DoublePendulum.n();
-    let shown = truth.len().min(PLOTTED);
-    plot::png(
-        &out.path("rollouts.png"),
-        (1200, 260 * shown as u32 + 40),
-        |root| {
-            let (title, body) = root.split_vertically(40);
-            title.titled(
-                "5 s open-loop predictions: truth (blue), MVF (orange), naive (green)",
-                plot::font(20),
-            )?;
-            let panels = body.split_evenly((shown, n));
-            for (p, area) in panels.iter().enumerate() {
-                let (j, i) = (p / n, p % n);
-                let series =
-                    |q: &[f64]| -> Vec<f64> { (0..=STEPS).map(|k| q[k * n + i]).collect() };
-                let tq = series(&truth[j].q);
-                let (lo, hi) = tq
-                    .iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                        (a.min(v), b.max(v))
-                    });
-                let pad = 0.5 * (hi - lo).max(1.0);
-                let (lo, hi) = (lo - pad, hi + pad);
-                let mut chart = ChartBuilder::on(area)
-                    .caption(format!("trajectory {j}, q{}", i + 1), plot::font(15))
-                    .margin(6)
-                    .x_label_area_size(28)
-                    .y_label_area_size(48)
-                    .build_cartesian_2d(0f64..STEPS as f64 * DT, lo..hi)?;
-                chart
-                    .configure_mesh()
-                    .light_line_style(WHITE)
-                    .x_desc("s")
-                    .y_desc("rad")
-                    .label_style(plot::font(12))
-                    .axis_desc_style(plot::font(12))
-                    .draw()?;
-                let line = |v: Vec<f64>, color: RGBColor| {
-                    LineSeries::new(
-                        v.into_iter().enumerate().map(move |(k, y)| {
-                            let y = if y.is_finite() { y.clamp(lo, hi) } else { hi };
-                            (k as f64 * DT, y)
-                        }),
-                        color.stroke_width(2),
-                    )
-                };
-                chart.draw_series(line(tq, COLORS[0]))?;
-                for (m, preds) in predicted.iter().enumerate().take(trained.len()) {
-                    chart.draw_series(line(series(&preds[j]), COLORS[1 + m]))?;
-                }
-            }
-            Ok(())
-        },
-    )
-}
