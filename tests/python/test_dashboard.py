@@ -103,8 +103,11 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     page.wait_for_selector("#jobs-table")
     jobs = {}
     for model, epochs in EPOCHS.items():
-        # MVF trains on windows of 2 steps: its chart shows that loss too.
-        training = {"epochs": epochs, "batch_size": 32, **({"horizon": 2} if model == "MVF" else {})}
+        # MVF trains on windows of 2 steps (its chart shows that loss too); W-B starts at the
+        # true values and, at a learning rate of 1e-9, stays there (its replay follows the
+        # recording, and its training warnings show).
+        extra = {"horizon": 2} if model == "MVF" else {"lr": 1e-9}
+        training = {"epochs": epochs, "batch_size": 32, **extra}
         status, job = s.rest.post("/v1/jobs", {
             "dataset_id": ds["id"], "model": model, "template": "double_pendulum",
             "training": training})
@@ -130,6 +133,9 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     assert series(page, "#loss-chart")["series"]["train"] == raw
     page.select_option("#x-axis", "time")
     assert series(page, "#loss-chart")["x_label"] == "wall time (s)"
+    # W-B learns nothing at its tiny learning rate: its page says so.
+    warned = page.inner_text("#job-warnings")
+    assert "loss_not_decreasing" in warned and "physical_parameters_unmoved" in warned, warned
     page.screenshot(path=str(tmp_path / "job.png"), full_page=True)
     # The multi-step job's chart: its 2-step validation loss beside the one-step one.
     page.goto(base + f'/#/jobs/{jobs["MVF"]}')
@@ -173,6 +179,7 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
                         np.array(replay["series"]["predicted"])))
     assert gap < 0.1, gap
     assert page.locator("#physical-table tbody tr").count() == 9  # m1 m2 l1 l2 g b1 b2 eta1 eta2
+    assert "physical_parameters_unmoved" in page.inner_text("#model-warnings")
     # Error against horizon on the same trajectories: the horizons they are long enough for.
     page.click("#horizon-button")
     page.wait_for_selector("#horizon-chart canvas")
@@ -207,6 +214,24 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     message = page.inner_text("#upload-alert")
     status, api_error = s.rest.post("/v1/datasets", raw=bad.read_bytes())
     assert status == 400 and api_error["error"]["message"] in message, (message, api_error)
+    # A swing recorded in degrees uploads, and says plainly that angles must be in radians.
+    t = np.arange(300) * 0.01
+    deg = {"dt": 0.01, "q": (60 * np.sin(3 * t))[:-1, None].tolist(),
+           "qdot": (180 * np.cos(3 * t))[:-1, None].tolist(), "u": np.zeros((299, 1)).tolist(),
+           "q_next": (60 * np.sin(3 * t))[1:, None].tolist(),
+           "qdot_next": (180 * np.cos(3 * t))[1:, None].tolist()}
+    degrees = tmp_path / "degrees.json"
+    degrees.write_text(json.dumps(deg))
+    page.set_input_files("#upload-file", str(degrees))
+    page.fill("#upload-name", "in-degrees")
+    page.click('#upload-form button[type="submit"]')
+    page.wait_for_selector("#upload-warnings")
+    warned = page.inner_text("#upload-warnings")
+    assert "coordinate_span" in warned and "radians" in warned, warned
+    assert page.is_visible("#upload-warnings")
+    row = page.locator("#datasets-table tr", has=page.locator('td:text-is("in-degrees")'))
+    row.locator("summary").click()
+    assert "radians" in row.inner_text(), row.inner_text()
     page.screenshot(path=str(tmp_path / "datasets.png"), full_page=True)
 
     # Readable on a phone: nothing wider than the screen but the tables' own scrollers.

@@ -96,6 +96,15 @@ function el(tag, attrs = {}, ...children) {
   return e;
 }
 
+// Warnings (the data checks at upload, the training checks at a job's end) where they cannot
+// be missed: each one's code, field and message.
+function warningsBox(warnings, id, title) {
+  if (!warnings?.length) return "";
+  return el("div", { class: "warnings", role: "status", id },
+    el("strong", { text: title }),
+    el("ul", {}, warnings.map((w) => el("li", {}, el("code", { text: w.code }), w.field ? ` (${w.field})` : "", `: ${w.message}`))));
+}
+
 const fmtLoss = (v) => (v === null || v === undefined ? "–" : Number(v).toExponential(3));
 const fmtTime = (s) => (s ? new Date(s).toLocaleString() : "–");
 function duration(job) {
@@ -350,7 +359,8 @@ async function jobView(view, id) {
         ["duration", duration(job)],
         ["trained model", job.model_id ? el("a", { href: `#/models/${job.model_id}`, text: job.model_id }) : "–"],
       ]),
-      job.error ? el("div", { class: "error", role: "alert", id: "job-error", text: `This job failed: ${job.error}` }) : "");
+      job.error ? el("div", { class: "error", role: "alert", id: "job-error", text: `This job failed: ${job.error}` }) : "",
+      warningsBox(job.warnings, "job-warnings", "Training warnings:"));
     settings.replaceChildren(el("h2", { text: "Training settings" }), factList(Object.entries(job.training || {}).map(([k, v]) => [k, v === null ? "–" : String(v)])));
   }
   function draw() {
@@ -451,6 +461,7 @@ async function modelView(view, id) {
   const identifiable = Array.isArray(m.identifiable) ? m.identifiable : [];
   view.append(...[
     el("h1", { text: `Model ${m.id}` }), buttons, notice,
+    warningsBox(m.metrics?.warnings, "model-warnings", "Training warnings:"),
     el("div", { class: "card" }, factList([
       ["name", m.name], ["origin", m.origin],
       ["job", m.job_id ? el("a", { href: `#/jobs/${m.job_id}`, text: m.job_id }) : "uploaded"],
@@ -552,6 +563,7 @@ async function datasetsView(view) {
   const tbody = el("tbody");
   const message = el("div", { role: "alert", id: "upload-alert" });
   const done = el("p", { "aria-live": "polite", id: "upload-status", class: "muted" });
+  const warned = el("div");
   const file = el("input", { type: "file", id: "upload-file", accept: ".json,.csv,application/json,text/csv", required: true });
   const name = el("input", { type: "text", id: "upload-name", placeholder: "optional" });
   const dt = el("input", { type: "number", id: "upload-dt", step: "any", min: "0", placeholder: "from the file (needed for CSV)" });
@@ -560,11 +572,12 @@ async function datasetsView(view) {
     el("label", { for: "upload-file", text: "File (transitions or trajectories as JSON, or CSV)" }), file,
     el("label", { for: "upload-name", text: "Name" }), name,
     el("label", { for: "upload-dt", text: "Δt (s)" }), dt,
-    el("div", {}, el("button", { type: "submit" }, "Upload")), message, done);
+    el("div", {}, el("button", { type: "submit" }, "Upload")), message, done, warned);
   form.addEventListener("submit", async (e) => {
     e.preventDefault();
     message.replaceChildren();
     done.textContent = "";
+    warned.replaceChildren();
     const f = file.files[0];
     if (!f) { message.textContent = "Choose a file first."; return; }
     const q = new URLSearchParams();
@@ -574,6 +587,7 @@ async function datasetsView(view) {
     try {
       const d = await api("POST", `/v1/datasets?${q}`, f, csv ? "text/csv" : "application/json");
       done.textContent = d.created ? `Uploaded ${d.id} (${d.count} transitions).` : `Already stored as ${d.id}.`;
+      warned.replaceChildren(warningsBox(d.warnings, "upload-warnings", "Check the data before training on it:"));
       form.reset();
       await load();
     } catch (err) {
@@ -587,10 +601,13 @@ async function datasetsView(view) {
       el("td", { class: "num", text: d.n }), el("td", { class: "num", text: d.m }),
       el("td", { class: "num", text: d.count }), el("td", { class: "num", text: d.dt }),
       el("td", { class: "num", text: `${((d.count * (4 * d.n + d.m) * 8) / 1024).toFixed(1)} KiB` }),
+      el("td", { class: "wrap" }, d.warnings?.length ? el("details", { class: "warnings" },
+        el("summary", { text: `⚠ ${d.warnings.length} warning${d.warnings.length > 1 ? "s" : ""}` }),
+        el("ul", {}, d.warnings.map((w) => el("li", { text: `${w.field ? `${w.field}: ` : ""}${w.message}` })))) : "–"),
       el("td", { class: "hide-narrow", text: fmtTime(d.created_at) }))));
   }
   view.append(el("h1", { text: "Datasets" }), form, el("div", { class: "table-wrap" }, el("table", { id: "datasets-table" },
-    el("thead", {}, el("tr", {}, ["name", "id", "n", "m", "count", "Δt", "size", "created"].map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined, text: h })))),
+    el("thead", {}, el("tr", {}, ["name", "id", "n", "m", "count", "Δt", "size", "warnings", "created"].map((h, i) => el("th", { scope: "col", class: i === 8 ? "hide-narrow" : undefined, text: h })))),
     tbody)));
   await load();
 }
