@@ -50,6 +50,9 @@ pub struct Job {
     pub id: String,
     #[sqlx(try_from = "String")]
     pub state: JobState,
+    /// The name it was given (its model takes it); null when none was.
+    #[sqlx(skip)]
+    pub name: Option<String>,
     /// The model as submitted: a paper name ("MVF"), or "custom" for a spec object.
     #[sqlx(skip)]
     pub model: String,

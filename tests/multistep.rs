@@ -215,10 +215,7 @@ fn one_step_epochs_train_on_rows_then_on_windows() {
     curriculum.run_epoch(&never).unwrap();
     let bytes = curriculum.checkpoint().to_bytes();
     curriculum.run_epoch(&never).unwrap();
-    assert_eq!(
-        one_step.checkpoint().params,
-        curriculum.checkpoint().params
-    );
+    assert_eq!(one_step.checkpoint().params, curriculum.checkpoint().params);
     let rows = data.count() as u64;
     assert_eq!(curriculum.checkpoint().samples_seen, 2 * rows);
     curriculum.run_epoch(&never).unwrap();
@@ -237,7 +234,10 @@ fn one_step_epochs_train_on_rows_then_on_windows() {
     }
     .validate()
     .unwrap_err();
-    assert!(err.to_string().contains("training.one_step_epochs"), "{err}");
+    assert!(
+        err.to_string().contains("training.one_step_epochs"),
+        "{err}"
+    );
 }
 
 /// The error-against-horizon figures (all window starts stepped as one batch, starts leaving

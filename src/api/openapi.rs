@@ -85,7 +85,7 @@ const ROUTES: &[Route] = &[
     Route(
         "get",
         "/v1/jobs",
-        "List jobs, oldest first",
+        "List jobs, newest first",
         None,
         &["?state", "?page_size", "?page_token"],
     ),

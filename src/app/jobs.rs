@@ -20,6 +20,10 @@ use crate::train::{TrainConfig, budget};
 #[derive(Debug, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct JobRequest {
+    /// A name for the job and the model it trains (shown in every list) [default: the
+    /// model's name].
+    #[serde(default)]
+    pub name: Option<String>,
     pub dataset_id: String,
     #[serde(default)]
     pub validation_dataset_id: Option<String>,
@@ -45,6 +49,9 @@ pub struct JobRequest {
 /// The validated job as stored (and as the worker reads it back).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct JobSpec {
+    /// The name the job was given (its model takes it), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
     pub model_name: String,
     pub spec: ModelSpec,
     pub init: Vec<(String, f64)>,
@@ -54,9 +61,27 @@ pub struct JobSpec {
 }
 
 impl JobSpec {
+    /// The trained model's name: the job's, else its model's.
+    pub fn display_name(&self) -> &str {
+        self.name.as_deref().unwrap_or(&self.model_name)
+    }
+
     pub fn from_json(s: &str) -> Result<Self> {
         serde_json::from_str(s).map_err(|e| Error::corrupt("job request", e))
     }
+}
+
+/// A job's name, trimmed: not empty, and a name by the one rule for names (`crate::names`).
+fn check_name(name: &str) -> Result<String> {
+    let name = name.trim();
+    if name.is_empty() {
+        return Err(Error::Unprocessable {
+            field: "name".into(),
+            message: "must not be empty (leave it out for the model's name)".into(),
+        });
+    }
+    crate::names::check_name_at("name", name)?;
+    Ok(name.to_string())
 }
 
 /// A request's template document (errors name `template.<field>`).
@@ -143,6 +168,7 @@ impl App {
     }
 
     async fn validate_job(&self, req: JobRequest) -> Result<(JobSpec, Option<String>)> {
+        let name = req.name.as_deref().map(check_name).transpose()?;
         let mut training = req.training.unwrap_or_default();
         if !training.periodic.is_empty() {
             return Err(Error::Unprocessable {
@@ -164,6 +190,7 @@ impl App {
         let init: Vec<(String, f64)> = req.init.unwrap_or_default().into_iter().collect();
         physical_init(&spec, &init).map_err(Error::unprocessable)?;
         let job = JobSpec {
+            name,
             model_name,
             spec,
             init,
@@ -342,8 +369,8 @@ impl App {
             })?),
         };
         let size = super::paging::size(size)?;
-        let after = super::paging::decode("jobs", token)?;
-        let items = self.store.list_jobs(state, after, size).await?;
+        let before = super::paging::decode("jobs", token)?;
+        let items = self.store.list_jobs(state, before, size).await?;
         let next = super::paging::next("jobs", &items, size, |j| j.seq);
         Ok((items.into_iter().map(Job::from).collect(), next))
     }

@@ -29,6 +29,10 @@ pub struct TrainArgs {
     /// One of MVF, MVB, MV, VB, MB, M, V, B, F, W-B, naive (default MVF unless --spec).
     #[arg(long)]
     pub model: Option<String>,
+    /// The model's name in its file (and so in the service's lists when it is uploaded)
+    /// [default: the model's, or "custom" for --spec].
+    #[arg(long)]
+    pub name: Option<String>,
     /// A JSON model spec file instead of a named model.
     #[arg(long, conflicts_with = "model")]
     pub spec: Option<PathBuf>,
@@ -121,6 +125,13 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
             let spec = ModelSpec::named(&name, template)?;
             (name, spec)
         }
+    };
+    let name = match &a.name {
+        Some(given) => {
+            crate::names::check_name(given)?;
+            given.clone()
+        }
+        None => name,
     };
     let init = parse_pairs(a.init.as_deref().unwrap_or(""), "init")?;
     let integrator = Integrator::parse(&a.integrator)?;

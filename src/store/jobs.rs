@@ -42,7 +42,7 @@ pub(super) fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::dialect::sql::<D>(s, COLUMNS)
 }
 
-/// A job's row: its columns, then the two fields the stored request holds (`model`,
+/// A job's row: its columns, then the fields the stored request holds (`name`, `model`,
 /// `training`), read once here.
 pub(super) fn row<R: sqlx::Row>(r: &R) -> Result<JobRow>
 where
@@ -54,6 +54,7 @@ where
         .unwrap_or("custom")
         .to_string();
     job.info.training = submitted["training"].clone();
+    job.info.name = submitted["name"].as_str().map(String::from);
     Ok(job)
 }
 
@@ -162,18 +163,19 @@ impl Store {
         })
     }
 
-    /// Oldest first; `after` is the `seq` of the last row of the previous page.
+    /// Newest first (a new job is on the first page); `before` is the `seq` of the last row
+    /// of the previous page.
     pub async fn list_jobs(
         &self,
         state: Option<JobState>,
-        after: Option<i64>,
+        before: Option<i64>,
         limit: i64,
     ) -> Result<Vec<JobRow>> {
         on_db!(self, pool, D => {
             let rows = sqlx::query(sql::<D>(
-                "SELECT {COLUMNS} FROM jobs WHERE seq > $1 AND ($2 IS NULL OR state = $2) ORDER BY seq LIMIT $3",
+                "SELECT {COLUMNS} FROM jobs WHERE seq < $1 AND ($2 IS NULL OR state = $2) ORDER BY seq DESC LIMIT $3",
             ))
-            .bind(after.unwrap_or(0))
+            .bind(before.unwrap_or(i64::MAX))
             .bind(state.map(JobState::as_str))
             .bind(limit)
             .fetch_all(pool)

@@ -303,7 +303,7 @@ async fn store_model(
     let report = serde_json::to_string(report).expect("json");
     let spec_json = serde_json::to_string(&file.config.spec).expect("json");
     let model = NewModel {
-        name: &spec.model_name,
+        name: spec.display_name(),
         n: file.config.n as i64,
         m: file.config.m as i64,
         dt: file.config.dt,

@@ -5,7 +5,8 @@ use serde_json::{Value, json};
 use crate::helpers::*;
 
 /// A job trains to `succeeded`; its best validation loss equals `graybox eval` of the model
-/// file the API serves, on the validation dataset.
+/// file the API serves, on the validation dataset; the name it was given (trimmed) is its and
+/// its model's.
 #[tokio::test]
 async fn job_lifecycle_and_checkpoint_matches_cli_eval() {
     let app = spawn_app(1).await;
@@ -13,9 +14,11 @@ async fn job_lifecycle_and_checkpoint_matches_cli_eval() {
     let val = dataset(64, 11);
     let (ds, vs) = (app.upload(&train).await, app.upload(&val).await);
     let body = json!({"dataset_id": ds, "validation_dataset_id": vs, "model": "MVB",
+                      "name": "  pendulum, run 1 ",
                       "training": {"epochs": 4, "batch_size": 64, "lr": 0.01}});
     let (s, job) = app.post("/v1/jobs", &body).await;
     assert_eq!(s, 201, "{job}");
+    assert_eq!(job["name"], "pendulum, run 1");
     assert_eq!(
         (job["state"].as_str(), job["epoch"].as_i64()),
         (Some("queued"), Some(0))
@@ -39,6 +42,7 @@ async fn job_lifecycle_and_checkpoint_matches_cli_eval() {
         (model["n"].as_i64(), model["job_id"].as_str()),
         (Some(2), Some(id))
     );
+    assert_eq!(model["name"], "pendulum, run 1");
 
     let file = app.model_file(model_id).await;
     let dir = tempfile::tempdir().unwrap();

@@ -110,14 +110,17 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
         training = {"epochs": epochs, "batch_size": 32, **extra}
         status, job = s.rest.post("/v1/jobs", {
             "dataset_id": ds["id"], "model": model, "template": "double_pendulum",
-            "training": training})
+            "name": f"{model} at lr {training.get('lr', 'default')}", "training": training})
         assert status == 201, job
         jobs[model] = job["id"]
     for job_id in jobs.values():
         page.wait_for_selector(f'tr[data-job="{job_id}"][data-state="succeeded"]', timeout=180_000)
     rows = page.locator("#jobs-table tbody tr")
     assert rows.count() == 2
-    assert "W-B" in page.locator(f'tr[data-job="{jobs["W-B"]}"]').inner_text()
+    # Newest first; each job by its name, its dataset by the dataset's.
+    assert rows.nth(0).get_attribute("data-job") == jobs["MVF"]
+    wb = page.locator(f'tr[data-job="{jobs["W-B"]}"]').inner_text()
+    assert "W-B at lr 1e-09" in wb and "recorded" in wb and ds["id"] not in wb, wb
     page.screenshot(path=str(tmp_path / "jobs.png"), full_page=True)
 
     # A job's loss chart: one point per epoch.

@@ -81,8 +81,14 @@ async fn jobs_are_listed_counted_and_watched() {
         .await
         .unwrap();
     assert_eq!(running.iter().map(|j| &j.id).collect::<Vec<_>>(), [&a.id]);
-    let after_a = s.list_jobs(None, Some(a.seq), 10).await.unwrap();
-    assert_eq!(after_a.iter().map(|j| &j.id).collect::<Vec<_>>(), [&b.id]);
+    // Newest first; a page continues before the last job it showed.
+    let all = s.list_jobs(None, None, 10).await.unwrap();
+    assert_eq!(
+        all.iter().map(|j| &j.id).collect::<Vec<_>>(),
+        [&b.id, &a.id]
+    );
+    let before_b = s.list_jobs(None, Some(b.seq), 10).await.unwrap();
+    assert_eq!(before_b.iter().map(|j| &j.id).collect::<Vec<_>>(), [&a.id]);
     let counts = s.job_counts().await.unwrap();
     let count = |st| counts.iter().find(|(s, _)| *s == st).unwrap().1;
     assert_eq!((count(JobState::Queued), count(JobState::Running)), (1, 1));

@@ -253,6 +253,7 @@ async function jobsView(view) {
   const params = new URLSearchParams(location.hash.split("?")[1] || "");
   const filter = params.get("state") || "";
   const tokens = [""];
+  const datasetNames = new Map();
   let page = 0;
   const selected = new Set();
   const rows = new Map();
@@ -272,13 +273,13 @@ async function jobsView(view) {
     el("h1", { text: "Jobs" }),
     el("div", { class: "toolbar" }, el("label", { for: "state-filter", text: "State" }), stateSelect, compare, prev, next),
     el("div", { class: "table-wrap" }, el("table", { id: "jobs-table" },
-      el("caption", { class: "muted", text: "Training jobs, oldest first" }),
+      el("caption", { class: "muted", text: "Training jobs, newest first" }),
       el("thead", {}, el("tr", {}, ["", "job", "state", "model", "dataset", "progress", "best val loss", "created", "duration", ""]
         .map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined }, h ? h : el("span", { class: "muted", text: i ? "actions" : "select" }))))),
       tbody)),
     status);
 
-  function renderRow(job) {
+  function renderRow(job, atTop = false) {
     const box = el("input", { type: "checkbox", "aria-label": `select ${job.id}`, checked: selected.has(job.id),
       onchange: (e) => { e.target.checked ? selected.add(job.id) : selected.delete(job.id); compare.disabled = selected.size < 1; } });
     const bar = el("progress", { max: job.epochs || 1, value: job.epoch, "aria-label": `${job.epoch} of ${job.epochs} epochs` });
@@ -290,22 +291,26 @@ async function jobsView(view) {
       : "";
     const tr = el("tr", { "data-job": job.id, "data-state": job.state },
       el("td", {}, box),
-      el("td", {}, el("a", { href: `#/jobs/${job.id}`, text: job.id })),
+      el("td", {}, el("a", { href: `#/jobs/${job.id}`, text: job.name || job.id }), job.name ? el("div", { class: "muted small", text: job.id }) : ""),
       el("td", {}, stateBadge(job.state)),
       el("td", { text: job.model }),
-      el("td", {}, el("span", { class: "muted", text: job.dataset_id })),
+      el("td", {}, datasetNames.get(job.dataset_id) || el("span", { class: "muted", text: job.dataset_id })),
       el("td", {}, bar, ` ${job.epoch}/${job.epochs}`),
       el("td", { class: "num", text: fmtLoss(job.best_val_loss) }),
       el("td", { class: "hide-narrow", text: fmtTime(job.created_at) }),
       el("td", { class: "num", text: duration(job) }),
       el("td", {}, cancel));
     const old = rows.get(job.id);
-    if (old) old.replaceWith(tr); else tbody.append(tr);
+    if (old) old.replaceWith(tr); else if (atTop) tbody.prepend(tr); else tbody.append(tr);
     rows.set(job.id, tr);
   }
 
   async function load(p) {
     if (p < 0 || tokens[p] === undefined) return;
+    // Datasets by name: what the table shows for each job's dataset.
+    if (!datasetNames.size) {
+      for (const d of (await api("GET", "/v1/datasets?page_size=1000")).items) if (d.name) datasetNames.set(d.id, d.name);
+    }
     const q = new URLSearchParams({ page_size: PAGE_SIZE });
     if (tokens[p]) q.set("page_token", tokens[p]);
     if (filter) q.set("state", filter);
@@ -326,9 +331,10 @@ async function jobsView(view) {
     const matches = !filter || job.state === filter;
     if (rows.has(job.id)) {
       if (matches) renderRow(job); else { rows.get(job.id).remove(); rows.delete(job.id); }
-    } else if (matches && !tokens[page + 1] && rows.size < PAGE_SIZE) {
-      renderRow(job); // the newest job belongs on the last page
+    } else if (matches && page === 0) {
+      renderRow(job, true); // the newest job belongs at the top of the first page
       status.textContent = `Page ${page + 1}`;
+      if (rows.size > PAGE_SIZE) load(0); // the page's last row and the next page's start moved
     }
   }));
   await load(0);
@@ -347,8 +353,9 @@ async function jobView(view, id) {
 
   function drawHead() {
     head.replaceChildren(
-      el("h1", { text: `Job ${job.id}` }),
+      el("h1", { text: job.name ? `Job ${job.name}` : `Job ${job.id}` }),
       factList([
+        ["id", job.id],
         ["state", stateBadge(job.state)],
         ["model", job.model],
         ["dataset", job.dataset_id],
