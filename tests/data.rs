@@ -136,6 +136,14 @@ fn bad_csv_names_the_field() {
         field_of(Dataset::from_csv(&format!("{header}0,1,0,0,1,0,1,0,0\n"), 0.0).unwrap_err()),
         "dt"
     );
+    // A header with no q (or no u) columns says what the columns are, with an example.
+    let msg = Dataset::from_csv("x,y,z\n1,2,3\n", 0.01)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("q0,q1,qdot0,qdot1,u0,q_next0,q_next1,qdot_next0,qdot_next1"),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -21,10 +21,6 @@ impl App {
             .ok_or_else(|| Error::NotFound(format!("model {id}")))
     }
 
-    pub async fn model(&self, id: &str) -> Result<ModelView> {
-        self.model_row(id).await.map(ModelView::from)
-    }
-
     /// A model by its id, or by the id of the job that trained it (gRPC callers may name
     /// either); a job that has not succeeded is a failed precondition.
     pub async fn resolve_model(&self, id: &str) -> Result<ModelView> {

@@ -125,13 +125,27 @@ impl Dataset {
         let count_prefix = |p: &str| cols.iter().filter(|c| strip_index(c, p).is_some()).count();
         let n = count_prefix("q");
         let m = count_prefix("u");
-        let expected: Vec<String> = FIELDS
-            .iter()
-            .flat_map(|f| {
-                let w = if *f == "u" { m } else { n };
-                (0..w).map(move |i| format!("{f}{i}"))
-            })
-            .collect();
+        let columns = |n: usize, m: usize| -> Vec<String> {
+            let mut out = vec![];
+            for f in FIELDS {
+                let w = if f == "u" { m } else { n };
+                out.extend((0..w).map(|i| format!("{f}{i}")));
+            }
+            out
+        };
+        let expected = columns(n, m);
+        if n == 0 || m == 0 {
+            return Err(Error::invalid(
+                "csv.header",
+                format!(
+                    "found {n} q columns and {m} u columns, got {}: the header names n columns \
+                     each of q, qdot, q_next and qdot_next and m of u, numbered from 0, in the \
+                     order q, qdot, u, q_next, qdot_next (for n = 2, m = 1: {})",
+                    cols.join(","),
+                    columns(2, 1).join(",")
+                ),
+            ));
+        }
         if cols != expected {
             return Err(Error::invalid(
                 "csv.header",

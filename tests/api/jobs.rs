@@ -43,6 +43,9 @@ async fn job_lifecycle_and_checkpoint_matches_cli_eval() {
         (Some(2), Some(id))
     );
     assert_eq!(model["name"], "pendulum, run 1");
+    // The job's id reads its model too (as gRPC does).
+    let (s, by_job) = app.get(&format!("/v1/models/{id}")).await;
+    assert_eq!((s, &by_job["id"]), (200, &model["id"]), "{by_job}");
 
     let file = app.model_file(model_id).await;
     let dir = tempfile::tempdir().unwrap();

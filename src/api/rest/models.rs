@@ -72,8 +72,9 @@ async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoRespo
     Ok(page(items, next))
 }
 
+/// A model by its id, or by the id of the job that trained it (as gRPC reads it).
 async fn read(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<impl IntoResponse> {
-    Ok(axum::Json(s.app.model(&id).await?))
+    Ok(axum::Json(s.app.resolve_model(&id).await?))
 }
 
 async fn checkpoint(

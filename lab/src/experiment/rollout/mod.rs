@@ -165,14 +165,17 @@ pub fn run(a: RolloutArgs) -> Result<()> {
         trajectory: "5 s (500 steps): q0 ~ U(-pi, pi), qdot0 ~ U(-2, 2), inputs held 0.1 s, ~ N(0, 30^2)",
         backend: "flex",
         precision: "f32",
-        trajectories: a.horizon.or(q.then_some(3)).map(|horizon| TrajectorySettings {
-            horizon,
-            train_trajectories: if q { 4 } else { TRAIN_TRAJECTORIES },
-            val_trajectories: if q { 2 } else { VAL_TRAJECTORIES },
-            steps: if q { 30 } else { TRAJECTORY_STEPS },
-            epochs: a.trajectory_epochs.unwrap_or(if q { 3 } else { 600 }),
-            one_step_epochs: a.one_step_epochs,
-        }),
+        trajectories: a
+            .horizon
+            .or(q.then_some(3))
+            .map(|horizon| TrajectorySettings {
+                horizon,
+                train_trajectories: if q { 4 } else { TRAIN_TRAJECTORIES },
+                val_trajectories: if q { 2 } else { VAL_TRAJECTORIES },
+                steps: if q { 30 } else { TRAJECTORY_STEPS },
+                epochs: a.trajectory_epochs.unwrap_or(if q { 3 } else { 600 }),
+                one_step_epochs: a.one_step_epochs,
+            }),
     };
     let out = OutDir::open(&a.out, "rollout", &s)?;
     let mut rows: Vec<Row> = MODELS.iter().map(|&m| Row::Samples(m)).collect();
@@ -180,34 +183,39 @@ pub fn run(a: RolloutArgs) -> Result<()> {
         rows.extend([Row::Trajectories(1), Row::Trajectories(t.horizon)]);
     }
     let progress = Progress::new(rows.len(), 0);
-    let trained = pool::parallel(&rows, pool::threads(a.run.jobs), &progress, |row, status| {
-        let name = row.key();
-        if let Some(t) = out.get::<Trained>(&format!("train/{name}"))
-            && let Ok(file) = ModelFile::load(&out.path(&t.file))
-        {
-            progress.cells_done(1, &format!("{name}: trained earlier"));
-            return Ok((t, file));
-        }
-        let show = |e: usize, epochs: usize, best: f64| {
-            status.show(&format!("{name}: epoch {e}/{epochs} best val {best:.3e}"))
-        };
-        let (t, file) = match row {
-            Row::Samples(m) => train(&s, m, &|e, best| show(e, s.epochs, best))?,
-            Row::Trajectories(h) => train_on_trajectories(&s, &out, *h, &show)?,
-        };
-        file.save(&out.path(&t.file))?;
-        out.put(&format!("train/{name}"), &t)?;
-        let _ = std::fs::remove_file(checkpoint(&out, *row));
-        progress.cells_done(
-            1,
-            &format!(
-                "{name}: best val {:.3e} ({:.0} s)",
-                t.best_val_loss.unwrap_or(f64::NAN),
-                t.seconds
-            ),
-        );
-        Ok((t, file))
-    });
+    let trained = pool::parallel(
+        &rows,
+        pool::threads(a.run.jobs),
+        &progress,
+        |row, status| {
+            let name = row.key();
+            if let Some(t) = out.get::<Trained>(&format!("train/{name}"))
+                && let Ok(file) = ModelFile::load(&out.path(&t.file))
+            {
+                progress.cells_done(1, &format!("{name}: trained earlier"));
+                return Ok((t, file));
+            }
+            let show = |e: usize, epochs: usize, best: f64| {
+                status.show(&format!("{name}: epoch {e}/{epochs} best val {best:.3e}"))
+            };
+            let (t, file) = match row {
+                Row::Samples(m) => train(&s, m, &|e, best| show(e, s.epochs, best))?,
+                Row::Trajectories(h) => train_on_trajectories(&s, &out, *h, &show)?,
+            };
+            file.save(&out.path(&t.file))?;
+            out.put(&format!("train/{name}"), &t)?;
+            let _ = std::fs::remove_file(checkpoint(&out, *row));
+            progress.cells_done(
+                1,
+                &format!(
+                    "{name}: best val {:.3e} ({:.0} s)",
+                    t.best_val_loss.unwrap_or(f64::NAN),
+                    t.seconds
+                ),
+            );
+            Ok((t, file))
+        },
+    );
     progress.finish();
     let trained: Vec<(Trained, ModelFile)> = trained.into_iter().collect::<Result<_>>()?;
     let evaluators: Vec<Evaluator> = trained
@@ -270,7 +278,10 @@ fn train_on_trajectories(
     horizon: usize,
     show: &dyn Fn(usize, usize, f64),
 ) -> Result<(Trained, ModelFile)> {
-    let t = s.trajectories.as_ref().expect("trajectory rows have settings");
+    let t = s
+        .trajectories
+        .as_ref()
+        .expect("trajectory rows have settings");
     let data = trajectories(t.train_trajectories, t.steps, s.seed, 0)?;
     let val = trajectories(t.val_trajectories, t.steps, s.seed, 1)?;
     let cfg = TrainConfig {
@@ -286,7 +297,11 @@ fn train_on_trajectories(
     let row = Row::Trajectories(horizon);
     let ckpt = checkpoint(out, row);
     let trainer = resumable::train("MVF", cfg, &data, &val, &ckpt, 1, &|m| {
-        show(m.epoch, t.epochs, m.val_horizon_loss.or(m.val_loss).unwrap_or(f64::NAN))
+        show(
+            m.epoch,
+            t.epochs,
+            m.val_horizon_loss.or(m.val_loss).unwrap_or(f64::NAN),
+        )
     })?;
     let report = trainer.report();
     // The one-step validation loss of the kept epoch, comparable with the other rows' (the
@@ -351,4 +366,3 @@ fn predict(e: &Evaluator, t: &Trajectory) -> Vec<f64> {
     );
     q
 }
-

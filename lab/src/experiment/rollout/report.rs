@@ -117,8 +117,7 @@ fn fmt_err(e: f64) -> String {
     }
 }
 
-/// q₁ and q₂ over time for the first trajectories: truth and every row's model. Predictions
-/// that leave the plot are clipped to its edge.
+/// q₁ and q₂ over time for the first trajectories: truth and every row's model.
 fn plot_rollouts(
     out: &OutDir,
     trained: &[(Trained, ModelFile)],
@@ -136,7 +135,7 @@ fn plot_rollouts(
                 .map(|(m, (t, _))| format!("{} ({})", t.model, COLOR_NAMES[1 + m]));
             let names: Vec<String> = names.collect();
             let caption = format!(
-                "5 s open-loop predictions: truth (blue), {}",
+                "5 s open-loop predictions (× where one leaves the plot): truth (blue), {}",
                 names.join(", ")
             );
             title.titled(&caption, plot::font(16))?;
@@ -167,18 +166,23 @@ fn plot_rollouts(
                     .label_style(plot::font(12))
                     .axis_desc_style(plot::font(12))
                     .draw()?;
-                let line = |v: Vec<f64>, color: RGBColor| {
-                    LineSeries::new(
-                        v.into_iter().enumerate().map(move |(k, y)| {
-                            let y = if y.is_finite() { y.clamp(lo, hi) } else { hi };
-                            (k as f64 * DT, y)
-                        }),
-                        color.stroke_width(2),
-                    )
+                // A prediction is drawn until it leaves the plot (or the finite numbers),
+                // and marked with an × where it does, rather than run along the edge.
+                let draw = |chart: &mut ChartContext<'_, _, _>, v: Vec<f64>, color: RGBColor| {
+                    let exit = v.iter().position(|y| !(lo..=hi).contains(y));
+                    let kept = v[..exit.unwrap_or(v.len())].iter().enumerate();
+                    let points = kept.map(|(k, &y)| (k as f64 * DT, y));
+                    chart.draw_series(LineSeries::new(points, color.stroke_width(2)))?;
+                    if let Some(k) = exit {
+                        let y = if v[k] < lo { lo } else { hi };
+                        let mark = Cross::new((k as f64 * DT, y), 7, color.stroke_width(3));
+                        chart.draw_series(std::iter::once(mark))?;
+                    }
+                    Ok::<(), Box<dyn std::error::Error>>(())
                 };
-                chart.draw_series(line(tq, COLORS[0]))?;
+                draw(&mut chart, tq, COLORS[0])?;
                 for (m, preds) in predicted.iter().enumerate().take(trained.len()) {
-                    chart.draw_series(line(series(&preds[j]), COLORS[1 + m]))?;
+                    draw(&mut chart, series(&preds[j]), COLORS[1 + m])?;
                 }
             }
             Ok(())
