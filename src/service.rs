@@ -68,10 +68,12 @@ pub async fn start(settings: Settings) -> Result<Running> {
         .zip(cfg.tls_key.clone())
         .map(|(cert, key)| TlsFiles { cert, key }.load())
         .transpose()?;
-    let store = Store::open_with(&cfg.worker.db, cfg.worker.blobs.as_deref()).await?;
-    let app = App::new(store, settings);
+    // The ports before the database: a port another process holds stops the start-up
+    // without creating database files.
     let http = bind(&cfg.http, "http").await?;
     let grpc = bind(&cfg.grpc, "grpc").await?;
+    let store = Store::open_with(&cfg.worker.db, cfg.worker.blobs.as_deref()).await?;
+    let app = App::new(store, settings);
     let (http_addr, grpc_addr) = (http.local_addr()?, grpc.local_addr()?);
     let (stop, stopped) = watch::channel(false);
     let tls = |alpn: &[&[u8]]| identity.as_ref().map(|i| acceptor(i, alpn)).transpose();

@@ -405,3 +405,26 @@ fn inspect_names_a_robots_coordinates_in_order() {
         .unwrap();
     assert!(String::from_utf8_lossy(&help.stdout).contains("URDF"));
 }
+
+/// A `serve` whose port another process holds stops at once, naming the port, and leaves no
+/// database file behind.
+#[test]
+fn serve_on_a_taken_port_creates_no_database() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = taken.local_addr().unwrap().to_string();
+    let db = tmp("taken-port.db");
+    let _ = std::fs::remove_file(&db);
+    let out = graybox(&[
+        "serve",
+        "--db",
+        &db,
+        "--http",
+        &addr,
+        "--grpc",
+        "127.0.0.1:0",
+    ]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains(&addr), "{stderr}");
+    assert!(!std::path::Path::new(&db).exists(), "{db} was created");
+}
