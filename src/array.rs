@@ -46,7 +46,9 @@ impl Array {
             return Err(Error::invalid(
                 field,
                 format!(
-                    "expected [rows ≥ 1, {width}] with rows·{width} values, got shape {shape:?} and {} values",
+                    "expected [rows ≥ 1, {width}] with rows·{width} values{}, got shape {shape:?} \
+                     and {} values",
+                    meaning(field),
                     data.len()
                 ),
             ));
@@ -58,5 +60,15 @@ impl Array {
             ));
         }
         Ok(r as usize)
+    }
+}
+
+/// What a request's array holds per row, by the last part of its field's name: said in shape
+/// errors, so that a client learns what a row is rather than only its width.
+fn meaning(field: &str) -> &'static str {
+    match field.rsplit('.').next().unwrap_or(field) {
+        "x" | "x_bar" | "x0" => " (each row a state x = [q, q̇]: 2n values)",
+        "u" | "u_bar" => " (each row the inputs u: m values)",
+        _ => "",
     }
 }

@@ -235,9 +235,16 @@ async fn dynamics_rpcs_against_independent_references() {
         code(c.predict(bad("mdl_nope", vec![0.0; 4], &[1, 4])).await),
         Code::NotFound
     );
-    assert_eq!(
-        code(c.predict(bad(&wb, vec![0.0; 3], &[1, 3])).await),
-        Code::InvalidArgument
+    let wrong_width = c
+        .predict(bad(&wb, vec![0.0; 3], &[1, 3]))
+        .await
+        .unwrap_err();
+    assert_eq!(wrong_width.code(), Code::InvalidArgument);
+    // The message says what a row of x is, not only its width.
+    assert!(
+        wrong_width.message().contains("x = [q, q̇]"),
+        "{}",
+        wrong_width.message()
     );
     assert_eq!(
         code(
@@ -289,10 +296,16 @@ async fn dynamics_rpcs_against_independent_references() {
         qf: arr(&[4, 4], eye(4, 1.0)),
     };
     assert_eq!(
-        c.tvlqr(tv).await.unwrap_err().code(),
+        c.tvlqr(tv.clone()).await.unwrap_err().code(),
         Code::InvalidArgument,
         "R not positive definite"
     );
+    let small_q = pb::TvlqrRequest {
+        q: arr(&[2, 4], vec![0.0; 8]),
+        ..tv
+    };
+    let err = c.tvlqr(small_q).await.unwrap_err();
+    assert!(err.message().contains("2n × 2n"), "{}", err.message());
     let info = c
         .get_model(pb::GetModelRequest {
             model_id: wb.clone(),

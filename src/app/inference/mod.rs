@@ -44,7 +44,11 @@ fn check_batch(eval: &Evaluator, x: &Array, u: &Array) -> Result<usize> {
 fn square(field: &str, a: Array, dim: usize) -> Result<Mat> {
     let rows = a.rows(field, dim)?;
     if rows != dim {
-        return Err(Error::invalid(field, format!("must be {dim}×{dim}")));
+        let what = match field {
+            "R" => " (m × m: a weight on the inputs u)",
+            _ => " (2n × 2n: a weight on the state x = [q, q̇])",
+        };
+        return Err(Error::invalid(field, format!("must be {dim}×{dim}{what}")));
     }
     Ok(Mat::new(dim, dim, a.data))
 }
