@@ -57,3 +57,58 @@ pub fn train(
     }
     Ok(trainer)
 }
+
+/// `ds` as sensors would record it: each state of its trajectories with Gaussian noise of
+/// standard deviation `std[0]` on q and `std[1]` on q̇ added, the same noisy state where one
+/// row's next state is the following row's state (so windows still chain).
+pub fn observed(ds: &Dataset, std: [f64; 2], seed: u64) -> Dataset {
+    let mut rng = Rng::derive(seed, 0x0B5E_0000);
+    let n = ds.n;
+    let mut out = ds.clone();
+    // q's n values, then q̇'s.
+    let mut noise = || -> Vec<f64> { (0..2 * n).map(|i| std[i / n] * rng.normal()).collect() };
+    let add = |a: &mut [f64], row: usize, e: &[f64]| {
+        a[row * n..(row + 1) * n]
+            .iter_mut()
+            .zip(e)
+            .for_each(|(v, e)| *v += e);
+    };
+    for seg in ds.segments() {
+        let mut here = noise();
+        for row in seg.start..seg.start + seg.length {
+            let next = noise();
+            add(&mut out.q, row, &here[..n]);
+            add(&mut out.qdot, row, &here[n..]);
+            add(&mut out.q_next, row, &next[..n]);
+            add(&mut out.qdot_next, row, &next[n..]);
+            here = next;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn observed_states_are_noisy_and_still_chain() {
+        let exact = trajectories(2, 20, 0, 0).unwrap();
+        let noisy = observed(&exact, [0.01, 0.1], 3);
+        let n = exact.n;
+        let differs = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x != y);
+        assert!(differs(&exact.q, &noisy.q) && differs(&exact.qdot_next, &noisy.qdot_next));
+        // The spread of the added noise is the one asked for (a seeded sample of 80: within 20%).
+        let d: Vec<f64> = (noisy.qdot.iter().zip(&exact.qdot))
+            .map(|(a, b)| a - b)
+            .collect();
+        let sd = (d.iter().map(|v| v * v).sum::<f64>() / d.len() as f64).sqrt();
+        assert!((sd - 0.1).abs() < 0.02, "{sd}");
+        // Within a trajectory a row's next state is the following row's state, bit for bit.
+        for row in 0..19 {
+            let next = &noisy.q_next[row * n..(row + 1) * n];
+            assert_eq!(next, &noisy.q[(row + 1) * n..(row + 2) * n]);
+        }
+        assert_eq!(noisy.segments().len(), 2);
+    }
+}

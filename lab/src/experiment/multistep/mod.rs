@@ -45,6 +45,11 @@ pub struct MultistepArgs {
     /// curriculum; fewer than --epochs).
     #[arg(long, default_value_t = 0)]
     pub one_step_epochs: usize,
+    /// Standard deviations of Gaussian noise added to the training and validation states, on
+    /// q and on q̇ (e.g. 0.01,0.1), as sensors would record them; the held-out trajectories
+    /// stay exact [default: none].
+    #[arg(long, value_delimiter = ',')]
+    pub noise: Option<Vec<f64>>,
     /// Training threads per cell [default: every core divided by --jobs]. Burn records a
     /// process's ops under one lock, so two runs side by side go faster as two processes
     /// (different --horizons and --out) than as --jobs 2.
@@ -72,6 +77,10 @@ pub(super) struct MultistepSettings {
     /// an option).
     #[serde(skip_serializing_if = "is_zero")]
     one_step_epochs: usize,
+    /// Noise on the training and validation states, [q, q̇] standard deviations (left out
+    /// when there is none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    noise: Option<[f64; 2]>,
     train_trajectories: usize,
     val_trajectories: usize,
     test_trajectories: usize,
@@ -128,6 +137,7 @@ pub fn run(a: MultistepArgs) -> Result<()> {
         lr: 1e-3,
         discount: 1.0,
         one_step_epochs: a.one_step_epochs,
+        noise: noise_arg(a.noise.as_deref())?,
         train_trajectories: if q { 4 } else { 40 },
         val_trajectories: if q { 2 } else { 10 },
         test_trajectories: if q { 2 } else { 20 },
@@ -189,6 +199,20 @@ fn cell_keys(s: &MultistepSettings) -> Vec<CellKey> {
     own.chain(extra).collect()
 }
 
+/// `--noise`: two finite standard deviations ≥ 0.
+fn noise_arg(noise: Option<&[f64]>) -> Result<Option<[f64; 2]>> {
+    match noise {
+        None => Ok(None),
+        Some(&[q, qdot]) if [q, qdot].iter().all(|v| v.is_finite() && *v >= 0.0) => {
+            Ok(Some([q, qdot]))
+        }
+        Some(_) => Err(graybox::error::Error::invalid(
+            "noise",
+            "expected two standard deviations ≥ 0: on q, then on q̇",
+        )),
+    }
+}
+
 fn is_zero(n: &usize) -> bool {
     *n == 0
 }
@@ -203,8 +227,12 @@ fn train_cell(
     test: &Dataset,
     show: &dyn Fn(&str),
 ) -> Result<Cell> {
-    let data = trajectories(s.train_trajectories, s.steps, k.seed, 0)?;
-    let val = trajectories(s.val_trajectories, s.steps, k.seed, 1)?;
+    let mut data = trajectories(s.train_trajectories, s.steps, k.seed, 0)?;
+    let mut val = trajectories(s.val_trajectories, s.steps, k.seed, 1)?;
+    if let Some(std) = s.noise {
+        data = resumable::observed(&data, std, k.seed);
+        val = resumable::observed(&val, std, k.seed + 1_000_000);
+    }
     let epochs = if k.equal_time {
         equal_time_epochs(s, out, k.seed)
     } else {

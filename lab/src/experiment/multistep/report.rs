@@ -58,8 +58,16 @@ pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Resu
         s.lr,
         s.test_trajectories,
         s.test_steps,
-        curriculum(s.one_step_epochs)
+        curriculum(s.one_step_epochs),
     );
+    if let Some([q, qdot]) = s.noise {
+        let note = format!(
+            "Training and validation states carry Gaussian noise (σ = {q} rad on q, {qdot} rad/s \
+             on q̇), as sensors would record them; the held-out trajectories are exact.\n\n"
+        );
+        let at = md.rfind("\n\n").expect("the intro ends with a blank line");
+        md.insert_str(at + 2, &note);
+    }
     md.push_str("| training | seed | 0.5 s | 1 s | 2 s | s / epoch | samples/s | best epoch |\n");
     md.push_str("|---|---:|---:|---:|---:|---:|---:|---:|\n");
     let header = [
