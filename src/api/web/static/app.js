@@ -253,7 +253,7 @@ async function jobsView(view) {
   const params = new URLSearchParams(location.hash.split("?")[1] || "");
   const filter = params.get("state") || "";
   const tokens = [""];
-  const datasetNames = new Map();
+  let datasetNames = null;
   let page = 0;
   const selected = new Set();
   const rows = new Map();
@@ -294,7 +294,7 @@ async function jobsView(view) {
       el("td", {}, el("a", { href: `#/jobs/${job.id}`, text: job.name || job.id }), job.name ? el("div", { class: "muted small", text: job.id }) : ""),
       el("td", {}, stateBadge(job.state)),
       el("td", { text: job.model }),
-      el("td", {}, datasetNames.get(job.dataset_id) || el("span", { class: "muted", text: job.dataset_id })),
+      el("td", {}, datasetNames?.get(job.dataset_id) || el("span", { class: "muted", text: job.dataset_id })),
       el("td", {}, bar, ` ${job.epoch}/${job.epochs}`),
       el("td", { class: "num", text: fmtLoss(job.best_val_loss) }),
       el("td", { class: "hide-narrow", text: fmtTime(job.created_at) }),
@@ -307,8 +307,9 @@ async function jobsView(view) {
 
   async function load(p) {
     if (p < 0 || tokens[p] === undefined) return;
-    // Datasets by name: what the table shows for each job's dataset.
-    if (!datasetNames.size) {
+    // Datasets by name, read once per visit: what the table shows for each job's dataset.
+    if (!datasetNames) {
+      datasetNames = new Map();
       for (const d of (await api("GET", "/v1/datasets?page_size=1000")).items) if (d.name) datasetNames.set(d.id, d.name);
     }
     const q = new URLSearchParams({ page_size: PAGE_SIZE });
