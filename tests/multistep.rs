@@ -222,6 +222,8 @@ fn one_step_epochs_train_on_rows_then_on_windows() {
     // 4 trajectories of 15 transitions hold 13 windows of 3 each.
     let seen = curriculum.checkpoint().samples_seen;
     assert_eq!(seen, 2 * rows + 4 * 13 * 3);
+    // The window epochs start Adam afresh: its step count is the window epoch's batches only.
+    assert_eq!(curriculum.checkpoint().adam.step, (4 * 13_u64).div_ceil(32));
 
     let state = TrainState::from_bytes(&bytes).unwrap();
     let mut resumed = Trainer::resume(state, &data, None, &flex()).unwrap();

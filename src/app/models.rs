@@ -3,11 +3,13 @@
 use serde_json::json;
 
 use super::App;
+use super::templates::off_executor;
 use super::views::{ModelView, Stored};
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
+use crate::model::spec::ModelSpec;
 use crate::records::DatasetInfo;
 use crate::records::JobState;
 use crate::store::{ModelRow, NewModel};
@@ -24,7 +26,10 @@ impl App {
     /// A model by its id, or by the id of the job that trained it (gRPC callers may name
     /// either); a job that has not succeeded is a failed precondition.
     pub async fn resolve_model(&self, id: &str) -> Result<ModelView> {
-        self.resolve_model_row(id).await.map(ModelView::from)
+        let mut view = ModelView::from(self.resolve_model_row(id).await?);
+        let (spec, n) = (view.spec.clone(), view.n.max(0) as usize);
+        view.coordinates = Some(off_executor(move || Ok(coordinate_names(spec, n))).await?);
+        Ok(view)
     }
 
     pub(super) async fn resolve_model_row(&self, id: &str) -> Result<ModelRow> {
@@ -221,4 +226,14 @@ fn trainable_params(c: &ModelConfig) -> usize {
         angles: c.q_inputs() - c.n,
     };
     budget::estimate(&c.spec, dims, 0, 0, physical).params
+}
+
+/// The names of a stored spec's coordinates: its template's, else q1 … qn (a spec that no
+/// longer reads is named like one without a template).
+fn coordinate_names(spec: serde_json::Value, n: usize) -> Vec<String> {
+    serde_json::from_value::<ModelSpec>(spec)
+        .ok()
+        .and_then(|s| s.template().map(|t| t.coordinates()))
+        .filter(|names| names.len() == n)
+        .unwrap_or_else(|| (1..=n).map(|i| format!("q{i}")).collect())
 }

@@ -44,6 +44,10 @@ pub struct ModelView {
     pub identifiability: Option<String>,
     pub sha256: String,
     pub created_at: String,
+    /// The coordinates' names (a URDF's joints, a formula's coordinates, else q1, q2, …):
+    /// one model's read only, since naming them parses its template.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coordinates: Option<Vec<String>>,
 }
 
 /// What a model row's report holds: a trained model's report, or how a model that was not
@@ -134,6 +138,7 @@ impl From<ModelRow> for ModelView {
             identifiability,
             sha256: m.sha256,
             created_at: m.created_at,
+            coordinates: None,
         }
     }
 }

@@ -15,6 +15,8 @@ pub enum Integrator {
 }
 
 impl Integrator {
+    pub const ALL: [Integrator; 3] = [Integrator::Rk4, Integrator::Euler, Integrator::Midpoint];
+
     pub fn name(self) -> &'static str {
         match self {
             Integrator::Rk4 => "rk4",
@@ -24,9 +26,7 @@ impl Integrator {
     }
 
     pub fn from_name(s: &str) -> Option<Self> {
-        [Integrator::Rk4, Integrator::Euler, Integrator::Midpoint]
-            .into_iter()
-            .find(|i| i.name() == s)
+        Self::ALL.into_iter().find(|i| i.name() == s)
     }
 
     /// A name given by a person (the `integrator` field or flag); an unknown one is an error

@@ -17,6 +17,8 @@ async fn the_page_loads_without_a_token_and_the_api_still_needs_one() {
     for (path, content_type, holds) in [
         ("/", "text/html", "<script src=\"/ui/app.js\">"),
         ("/ui/app.js", "text/javascript", "/v1/events"),
+        ("/ui/forms.js", "text/javascript", "/v1/jobs"),
+        ("/ui/defaults.js", "text/javascript", "GRAYBOX_DEFAULTS"),
         ("/ui/style.css", "text/css", "--accent"),
         ("/ui/uPlot.iife.min.js", "text/javascript", "uPlot"),
         ("/ui/uPlot.min.css", "text/css", ".uplot"),
@@ -83,4 +85,45 @@ async fn every_answer_carries_the_security_headers() {
         assert_eq!(h["x-frame-options"], "DENY", "{method} {path}");
     }
     app.stop().await;
+}
+
+/// The new-job form starts from the service's own defaults: the script it reads holds every
+/// training field at `TrainConfig::default()` (the fields files leave out at their default
+/// included), the paper's model names and the built-in templates.
+#[tokio::test]
+async fn the_job_form_starts_from_the_services_defaults() {
+    use graybox::train::TrainConfig;
+    let app = spawn_configured(test_settings()).await;
+    let r = app
+        .client
+        .get(app.url("/ui/defaults.js"))
+        .send()
+        .await
+        .unwrap();
+    let text = r.text().await.unwrap();
+    let json = text
+        .split("const GRAYBOX_DEFAULTS = ")
+        .nth(1)
+        .and_then(|t| t.trim().strip_suffix(';'))
+        .expect("one assignment");
+    let d: serde_json::Value = serde_json::from_str(json).unwrap();
+    let training: TrainConfig = serde_json::from_value(d["training"].clone()).unwrap();
+    assert_eq!(training, TrainConfig::default());
+    for field in [
+        "horizon",
+        "discount",
+        "one_step_epochs",
+        "patience",
+        "epochs",
+    ] {
+        assert!(d["training"].get(field).is_some(), "{field} missing: {d}");
+    }
+    assert!(
+        d["models"].as_array().unwrap().iter().any(|m| m == "MVF"),
+        "{d}"
+    );
+    assert_eq!(
+        d["templates"],
+        serde_json::json!(["double_pendulum", "pendulum", "cartpole"])
+    );
 }

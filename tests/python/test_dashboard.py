@@ -206,7 +206,7 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     page.set_input_files("#upload-file", str(good))
     page.fill("#upload-name", "from-the-form")
     page.click('#upload-form button[type="submit"]')
-    page.wait_for_selector('#datasets-table td:text-is("from-the-form")')
+    page.wait_for_selector('#datasets-table .dataset-name:text-is("from-the-form")')
     assert page.locator("#datasets-table tbody tr").count() == before + 1
     bad = tmp_path / "bad.json"
     bad.write_text('{"dt": 0.01, "q": [[0.1], [0.2]], "qdot": [[0.0]], "u": [[1.0]], '
@@ -232,7 +232,7 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     warned = page.inner_text("#upload-warnings")
     assert "coordinate_span" in warned and "radians" in warned, warned
     assert page.is_visible("#upload-warnings")
-    row = page.locator("#datasets-table tr", has=page.locator('td:text-is("in-degrees")'))
+    row = page.locator("#datasets-table tr", has=page.locator('.dataset-name:text-is("in-degrees")'))
     row.locator("summary").click()
     assert "radians" in row.inner_text(), row.inner_text()
     page.screenshot(path=str(tmp_path / "datasets.png"), full_page=True)

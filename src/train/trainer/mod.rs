@@ -228,6 +228,14 @@ impl Trainer {
     /// batches.
     pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
         let start = Instant::now();
+        let t = &self.state.train;
+        if t.one_step_epochs > 0 && self.state.epoch == t.one_step_epochs && t.horizon > 1 {
+            // The window loss's gradients are larger than the one-step loss's; Adam's second
+            // moments (β₂ = 0.999, ~1000 steps to adapt) would scale the first window steps
+            // by the old, small gradients and overshoot. Fresh moments restart the bias
+            // correction at the new scale.
+            self.adam = Adam::default();
+        }
         let mut order = self.windows().starts.clone();
         self.state.rng.shuffle(&mut order);
         let epoch = self.state.epoch + 1;

@@ -1,5 +1,6 @@
 // graybox dashboard: one page over the JSON API. Views are chosen by the URL's hash
-// (#/jobs, #/jobs/ID, #/compare/ID,ID, #/models, #/models/ID, #/datasets); one stream
+// (#/jobs, #/jobs/ID, #/new, #/compare/ID,ID, #/models, #/models/ID, #/datasets, #/templates;
+// the forms that change things are in forms.js); one stream
 // (GET /v1/events, read with fetch so that it can carry the token) keeps every view live.
 // Each chart's element carries the data it draws in `data-series` (JSON), for tests and
 // for anyone who wants the numbers.
@@ -65,12 +66,17 @@ async function download(path, filename) {
 // ---------- the token ----------
 
 const dialog = document.getElementById("token-dialog");
+const tokenButton = document.getElementById("token-button");
+// The button shows once the service has asked for a token (or one is kept from before):
+// a service without one never needs it.
+tokenButton.hidden = !sessionStorage.getItem(TOKEN_KEY);
 function askToken(why) {
+  tokenButton.hidden = false;
   document.getElementById("token-why").textContent = why;
   document.getElementById("token-input").value = sessionStorage.getItem(TOKEN_KEY) || "";
   if (!dialog.open) dialog.showModal();
 }
-document.getElementById("token-button").addEventListener("click", () =>
+tokenButton.addEventListener("click", () =>
   askToken("The token is kept for this tab only and sent with every request."));
 dialog.addEventListener("close", () => {
   if (dialog.returnValue !== "save") return;
@@ -107,6 +113,9 @@ function warningsBox(warnings, id, title) {
 
 const fmtLoss = (v) => (v === null || v === undefined ? "–" : Number(v).toExponential(3));
 const fmtTime = (s) => (s ? new Date(s).toLocaleString() : "–");
+// In tables: month, day and time, which fit a column (the full time is the cell's title).
+const fmtShort = (s) => (s ? new Date(s).toLocaleString(undefined, { month: "short", day: "numeric", hour: "2-digit", minute: "2-digit" }) : "–");
+const timeCell = (s) => el("td", { class: "hide-narrow", title: fmtTime(s), text: fmtShort(s) });
 function duration(job) {
   if (!job.started_at) return "–";
   const end = job.finished_at ? new Date(job.finished_at) : new Date();
@@ -238,6 +247,8 @@ async function route() {
   root.replaceChildren(view);
   try {
     if (!section || section === "jobs") await (arg ? jobView(view, arg) : jobsView(view));
+    else if (section === "new") await newJobView(view);
+    else if (section === "templates") await templatesView(view);
     else if (section === "compare") await compareView(view, arg.split(",").filter(Boolean));
     else if (section === "models") await (arg ? modelView(view, arg) : modelsView(view));
     else if (section === "datasets") await datasetsView(view);
@@ -271,7 +282,8 @@ async function jobsView(view) {
   const status = el("p", { class: "muted", "aria-live": "polite" });
   view.append(
     el("h1", { text: "Jobs" }),
-    el("div", { class: "toolbar" }, el("label", { for: "state-filter", text: "State" }), stateSelect, compare, prev, next),
+    el("div", { class: "toolbar" }, el("a", { class: "button", href: "#/new", id: "new-job" }, "New job"),
+      el("label", { for: "state-filter", text: "State" }), stateSelect, compare, prev, next),
     el("div", { class: "table-wrap" }, el("table", { id: "jobs-table" },
       el("caption", { class: "muted", text: "Training jobs, newest first" }),
       el("thead", {}, el("tr", {}, ["", "job", "state", "model", "dataset", "progress", "best val loss", "created", "duration", ""]
@@ -291,13 +303,13 @@ async function jobsView(view) {
       : "";
     const tr = el("tr", { "data-job": job.id, "data-state": job.state },
       el("td", {}, box),
-      el("td", {}, el("a", { href: `#/jobs/${job.id}`, text: job.name || job.id }), job.name ? el("div", { class: "muted small", text: job.id }) : ""),
+      el("td", { class: "name" }, el("a", { href: `#/jobs/${job.id}`, text: job.name || job.id }), job.name ? el("div", { class: "muted small", text: job.id }) : ""),
       el("td", {}, stateBadge(job.state)),
       el("td", { text: job.model }),
-      el("td", {}, datasetNames?.get(job.dataset_id) || el("span", { class: "muted", text: job.dataset_id })),
+      el("td", { class: "name" }, datasetNames?.get(job.dataset_id) || el("span", { class: "muted", text: job.dataset_id })),
       el("td", {}, bar, ` ${job.epoch}/${job.epochs}`),
       el("td", { class: "num", text: fmtLoss(job.best_val_loss) }),
-      el("td", { class: "hide-narrow", text: fmtTime(job.created_at) }),
+      timeCell(job.created_at),
       el("td", { class: "num", text: duration(job) }),
       el("td", {}, cancel));
     const old = rows.get(job.id);
@@ -446,15 +458,22 @@ async function compareView(view, ids) {
 }
 
 async function modelsView(view) {
-  const data = await api("GET", `/v1/models?page_size=${PAGE_SIZE}`);
-  view.append(el("h1", { text: "Models" }), el("div", { class: "table-wrap" }, el("table", { id: "models-table" },
-    el("thead", {}, el("tr", {}, ["model", "name", "origin", "n", "m", "Δt", "best val loss", "created"].map((h) => el("th", { scope: "col", text: h })))),
-    el("tbody", {}, data.items.map((m) => el("tr", {},
-      el("td", {}, el("a", { href: `#/models/${m.id}`, text: m.id })),
-      el("td", { text: m.name }), el("td", { text: m.origin }),
+  const tbody = el("tbody");
+  const empty = el("p", { class: "muted" });
+  async function load() {
+    const data = await api("GET", `/v1/models?page_size=${PAGE_SIZE}`);
+    tbody.replaceChildren(...data.items.map((m) => el("tr", { "data-model": m.id },
+      el("td", { class: "name" }, el("a", { href: `#/models/${m.id}`, text: m.name }), el("div", { class: "muted small", text: m.id })),
+      el("td", { text: m.origin }),
       el("td", { class: "num", text: m.n }), el("td", { class: "num", text: m.m }), el("td", { class: "num", text: m.dt }),
-      el("td", { class: "num", text: fmtLoss(m.metrics?.best_val_loss) }), el("td", { text: fmtTime(m.created_at) })))))),
-  data.items.length ? "" : el("p", { class: "muted", text: "No models yet: they appear when a job succeeds." }));
+      el("td", { class: "num", text: fmtLoss(m.metrics?.best_val_loss) }), timeCell(m.created_at))));
+    empty.textContent = data.items.length ? "" : "No models yet: they appear when a job succeeds, or upload a model file.";
+  }
+  view.append(el("h1", { text: "Models" }), el("div", { class: "table-wrap" }, el("table", { id: "models-table" },
+    el("thead", {}, el("tr", {}, ["model", "origin", "n", "m", "Δt", "best val loss", "created"].map((h, i) =>
+      el("th", { scope: "col", class: i === 6 ? "hide-narrow" : undefined, text: h })))), tbody)),
+  empty, modelUploadForm(load));
+  await load();
 }
 
 // A model: what it is, what it learned, and its replay of recorded trajectories.
@@ -464,20 +483,21 @@ async function modelView(view, id) {
   const notice = el("div", { role: "alert", id: "model-alert" });
   const buttons = el("div", { class: "toolbar" },
     el("button", { type: "button", onclick: () => download(`/v1/models/${id}/checkpoint`, `${id}.gbx`).catch((e) => notice.replaceChildren(errorBox(e))) }, "Download model (.gbx)"),
-    isUrdf ? el("button", { type: "button", onclick: () => download(`/v1/models/${id}/urdf`, `${id}.urdf`).catch((e) => notice.replaceChildren(errorBox(e))) }, "Download URDF") : "");
+    isUrdf ? el("button", { type: "button", onclick: () => download(`/v1/models/${id}/urdf`, `${id}.urdf`).catch((e) => notice.replaceChildren(errorBox(e))) }, "Download URDF") : "",
+    deleteButton(`/v1/models/${m.id}`, `model ${m.name}`, notice, () => { location.hash = "#/models"; }));
   const physical = Object.entries(m.physical_parameters || {});
   const identifiable = Array.isArray(m.identifiable) ? m.identifiable : [];
   view.append(...[
-    el("h1", { text: `Model ${m.id}` }), buttons, notice,
+    el("h1", { text: `Model ${m.name}` }), buttons, notice,
     warningsBox(m.metrics?.warnings, "model-warnings", "Training warnings:"),
     el("div", { class: "card" }, factList([
-      ["name", m.name], ["origin", m.origin],
+      ["id", m.id], ["origin", m.origin],
       ["job", m.job_id ? el("a", { href: `#/jobs/${m.job_id}`, text: m.job_id }) : "uploaded"],
-      ["n (coordinates)", String(m.n)], ["m (inputs)", String(m.m)], ["Δt", `${m.dt} s`],
+      ["n (coordinates)", `${m.n}: ${coordinateNames(m).join(", ")}`], ["m (inputs)", String(m.m)], ["Δt", `${m.dt} s`],
       ["best val loss", fmtLoss(m.metrics?.best_val_loss)], ["epochs", String(m.metrics?.epochs ?? "–")],
       ["created", fmtTime(m.created_at)],
     ])),
-    el("h2", { text: "Spec" }), el("pre", { text: JSON.stringify(m.spec, null, 2) }),
+    el("h2", { text: "Spec" }), specView(m.spec),
     physical.length ? [
       el("h2", { text: "Learned physical parameters" }),
       el("div", { class: "table-wrap" }, el("table", { id: "physical-table" },
@@ -489,7 +509,24 @@ async function modelView(view, id) {
   await replayPanel(view, m);
 }
 
+// The spec as JSON, a template's document (a URDF's XML, long) shortened in place and shown
+// whole, collapsed, below.
+function specView(spec) {
+  const docs = [];
+  const shown = JSON.stringify(spec, (key, v) => {
+    if (typeof v !== "string" || v.length < 300) return v;
+    docs.push(v);
+    return `⟨document ${docs.length}: ${v.split("\n").length} lines, below⟩`;
+  }, 2);
+  return [el("pre", { id: "model-spec", text: shown }), docs.map((d, i) => el("details", { class: "document", id: `spec-document-${i + 1}` },
+    el("summary", { text: `Document ${i + 1} (${d.trimStart().startsWith("<") ? "URDF" : "text"}, ${d.split("\n").length} lines)` }),
+    el("pre", { text: d })))];
+}
+
+const coordinateNames = (m) => m.coordinates || Array.from({ length: m.n }, (_, i) => `q${i + 1}`);
+
 async function replayPanel(view, m) {
+  const names = coordinateNames(m);
   const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items.filter((d) => d.n === m.n && d.m === m.m);
   const dsSelect = el("select", { id: "replay-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
   const trSelect = el("select", { id: "replay-index" });
@@ -516,10 +553,12 @@ async function replayPanel(view, m) {
       charts.replaceChildren();
       for (const key of ["q", "qdot"]) {
         for (let i = 0; i < m.n; i++) {
-          const host = el("div", { class: "replay-chart", "data-variable": `${key}${i}`, role: "img", "aria-label": `${key}[${i}] recorded and predicted` });
-          charts.append(el("figure", {}, el("figcaption", { text: `${key === "q" ? "q" : "q̇"}${i}` }), host));
+          // Coordinates by their names: a URDF's joints, a formula's coordinates.
+          const label = key === "q" ? names[i] : `${names[i]} rate`;
+          const host = el("div", { class: "replay-chart", "data-variable": `${key}${i}`, role: "img", "aria-label": `${label}, recorded and predicted` });
+          charts.append(el("figure", {}, el("figcaption", { text: label }), host));
           chart(host, {
-            x: r.t, xLabel: "time (s)", yLabel: `${key}[${i}]`, dashed: ["predicted"],
+            x: r.t, xLabel: "time (s)", yLabel: label, dashed: ["predicted"],
             series: { recorded: r.recorded[key].map((row) => row[i]), predicted: r.predicted[key].map((row) => row[i]) },
           });
         }
@@ -602,20 +641,22 @@ async function datasetsView(view) {
       message.textContent = err.field ? `${err.field}: ${err.message}` : err.message;
     }
   });
+  const listStatus = el("div", { role: "alert", id: "datasets-alert" });
   async function load() {
     const data = await api("GET", `/v1/datasets?page_size=${PAGE_SIZE}`);
     tbody.replaceChildren(...data.items.map((d) => el("tr", { "data-dataset": d.id },
-      el("td", { text: d.name || "–" }), el("td", {}, el("span", { class: "muted", text: d.id })),
+      el("td", { class: "name" }, el("span", { class: "dataset-name", text: d.name || "–" }), el("div", { class: "muted small", text: d.id })),
       el("td", { class: "num", text: d.n }), el("td", { class: "num", text: d.m }),
       el("td", { class: "num", text: d.count }), el("td", { class: "num", text: d.dt }),
       el("td", { class: "num", text: `${((d.count * (4 * d.n + d.m) * 8) / 1024).toFixed(1)} KiB` }),
       el("td", { class: "wrap" }, d.warnings?.length ? el("details", { class: "warnings" },
         el("summary", { text: `⚠ ${d.warnings.length} warning${d.warnings.length > 1 ? "s" : ""}` }),
         el("ul", {}, d.warnings.map((w) => el("li", { text: `${w.field ? `${w.field}: ` : ""}${w.message}` })))) : "–"),
-      el("td", { class: "hide-narrow", text: fmtTime(d.created_at) }))));
+      timeCell(d.created_at),
+      el("td", {}, deleteButton(`/v1/datasets/${d.id}`, `dataset ${d.name || d.id}`, listStatus, load)))));
   }
-  view.append(el("h1", { text: "Datasets" }), form, el("div", { class: "table-wrap" }, el("table", { id: "datasets-table" },
-    el("thead", {}, el("tr", {}, ["name", "id", "n", "m", "count", "Δt", "size", "warnings", "created"].map((h, i) => el("th", { scope: "col", class: i === 8 ? "hide-narrow" : undefined, text: h })))),
+  view.append(el("h1", { text: "Datasets" }), form, listStatus, el("div", { class: "table-wrap" }, el("table", { id: "datasets-table" },
+    el("thead", {}, el("tr", {}, ["dataset", "n", "m", "count", "Δt", "size", "warnings", "created", ""].map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined, text: h })))),
     tbody)));
   await load();
 }
