@@ -12,12 +12,14 @@ This script
 4. prints the validation table and the identified masses beside the true and nominal ones,
 5. writes the identified robot as URDF (`GET /v1/models/{id}/urdf`).
 
-Run the service first (`cargo run --release -- serve`), then, from the repository:
+Run the service first (`cargo run --release -- serve`), then, from the repository, with the
+Python client installed (README "Python client": `python3 -m venv .venv && .venv/bin/pip
+install ./clients/python`):
 
-    python3 examples/urdf_arm/run.py                 # ~10 min on 2 cores
-    python3 examples/urdf_arm/run.py --epochs 20     # a quick look
+    .venv/bin/python examples/urdf_arm/run.py                 # ~10 min on 2 cores
+    .venv/bin/python examples/urdf_arm/run.py --epochs 20     # a quick look
 
-Only the standard library is needed; `graybox` must be on PATH (or pass --graybox).
+`graybox` must be on PATH (or pass --graybox): it simulates the data.
 """
 
 import argparse
@@ -26,10 +28,9 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
-import urllib.error
-import urllib.request
 from pathlib import Path
+
+from graybox_client import GrayboxError, RestClient
 
 HERE = Path(__file__).resolve().parent
 
@@ -42,36 +43,15 @@ FRICTION = {"turret.friction": 0.2, "shoulder.friction": 0.3, "elbow.friction": 
 U_STD = "8,8,3,0.2"
 
 
-class Api:
-    def __init__(self, base: str):
-        self.base = base if base.startswith("http") else f"http://{base}"
-
-    def call(self, method: str, path: str, body=None, raw: bytes | None = None,
-             content_type: str = "application/json"):
-        data = raw if raw is not None else (json.dumps(body).encode() if body is not None else None)
-        req = urllib.request.Request(self.base + path, data=data, method=method,
-                                     headers={"content-type": content_type})
-        try:
-            with urllib.request.urlopen(req, timeout=60) as r:
-                text = r.read().decode()
-        except urllib.error.HTTPError as e:
-            sys.exit(f"{method} {path}: {e.code} {e.read().decode()}")
-        except urllib.error.URLError as e:
-            sys.exit(f"cannot reach graybox at {self.base} ({e.reason}); start it with "
-                     "`cargo run --release -- serve` or pass --api")
-        return json.loads(text) if text.startswith(("{", "[")) else text
-
-    def wait(self, job_id: str, label: str) -> dict:
-        while True:
-            job = self.call("GET", f"/v1/jobs/{job_id}")
-            if job["state"] in ("succeeded", "failed", "cancelled"):
-                print(f"  {label}: {job['state']} after {job['epoch']} epochs", file=sys.stderr)
-                if job["state"] != "succeeded":
-                    sys.exit(f"{label} did not succeed: {job.get('error')}")
-                return job
-            print(f"  {label}: epoch {job['epoch']}/{job['epochs']}, "
-                  f"val {job.get('val_loss')}", end="\r", file=sys.stderr)
-            time.sleep(2)
+def follow(g: RestClient, job_id: str, label: str) -> dict:
+    """Waits for a job, showing its epochs on one line; exits unless it succeeds."""
+    def show(m):
+        print(f"  {label}: epoch {m['epoch']}, val {m.get('val_loss')}", end="\r", file=sys.stderr)
+    job = g.wait(job_id, progress=show)
+    print(f"  {label}: {job['state']} after {job['epoch']} epochs", file=sys.stderr)
+    if job["state"] != "succeeded":
+        sys.exit(f"{label} did not succeed: {job.get('error')}")
+    return job
 
 
 def simulate(graybox: str, urdf: Path, truth: dict, count: int, seed: int, out: Path):
@@ -99,10 +79,15 @@ def main():
     p.add_argument("--count", type=int, default=1024, help="training transitions")
     p.add_argument("--out", type=Path, default=Path("identified_arm.urdf"))
     a = p.parse_args()
-    api, urdf = Api(a.api), HERE / "arm.urdf"
+    try:
+        run(RestClient(a.api), a)
+    except GrayboxError as e:
+        sys.exit(f"graybox at {a.api}: {e}")
 
-    template = api.call("POST", "/v1/templates", raw=urdf.read_bytes(),
-                        content_type="application/xml")
+
+def run(g: RestClient, a: argparse.Namespace):
+    urdf = HERE / "arm.urdf"
+    template = g.upload_template(urdf)
     print(f"template {template['id']}: {template['n']} joints {template['coordinates']}, "
           f"{len(template['parameters'])} trainable values", file=sys.stderr)
     nominal = {q["name"]: q["value"] for q in template["parameters"]}
@@ -112,9 +97,8 @@ def main():
     print(f"simulating the true arm into {work}", file=sys.stderr)
     simulate(a.graybox, urdf, truth, a.count, 0, work / "train.json")
     simulate(a.graybox, urdf, truth, 1024, 1, work / "val.json")
-    train = api.call("POST", "/v1/datasets?name=urdf-arm-train",
-                     raw=(work / "train.json").read_bytes())
-    val = api.call("POST", "/v1/datasets?name=urdf-arm-val", raw=(work / "val.json").read_bytes())
+    train = g.upload_dataset_file(work / "train.json", name="urdf-arm-train")
+    val = g.upload_dataset_file(work / "val.json", name="urdf-arm-val")
 
     residual_force = {"kind": "structured", "mass": "template", "potential": "template",
                       "forces": {"type": "template", "residual": {"type": "mlp",
@@ -125,12 +109,11 @@ def main():
             ("MVF", "MVF", 128, 3e-3)]
     jobs = {}
     for label, model, batch, lr in runs:
-        req = {"dataset_id": train["id"], "validation_dataset_id": val["id"], "model": model,
-               "training": {"epochs": a.epochs, "batch_size": batch, "lr": lr}}
-        if model != "MVF":
-            req["template"] = template["id"]
-        jobs[label] = api.call("POST", "/v1/jobs", req)["id"]
-    done = {label: api.wait(job, label) for label, job in jobs.items()}
+        jobs[label] = g.submit_job(
+            train["id"], model, template=template["id"] if model != "MVF" else None,
+            name=f"urdf arm: {label}", validation_dataset_id=val["id"],
+            training={"epochs": a.epochs, "batch_size": batch, "lr": lr})["id"]
+    done = {label: follow(g, job, label) for label, job in jobs.items()}
 
     baseline = zero_acceleration_loss(json.loads((work / "val.json").read_text()))
     print(f"\nvalidation loss (1024 transitions; predicting q̇′ = q̇ scores {baseline:.3e})\n")
@@ -141,7 +124,7 @@ def main():
         print(f"| {label} | {job['best_val_loss']:.3e} | {job['best_val_loss'] / baseline:.1e} | "
               f"{job['epoch']} | {secs:.0f} |")
 
-    wb = api.call("GET", f"/v1/models/{done['W-B']['model_id']}")
+    wb = g.model(done["W-B"]["model_id"])
     print("\n| parameter | nominal (arm.urdf) | true | identified (W-B) |")
     print("|---|---|---|---|")
     for name in sorted(truth):
@@ -149,7 +132,7 @@ def main():
               f"{wb['physical_parameters'][name]:.3f} |")
     print(f"\n{wb['identifiability']}")
 
-    a.out.write_text(api.call("GET", f"/v1/models/{wb['id']}/urdf"))
+    a.out.write_text(g.model_urdf(wb["id"]))
     print(f"\nwrote the identified arm to {a.out}")
 
 

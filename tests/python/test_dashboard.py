@@ -208,6 +208,7 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     page.click('#upload-form button[type="submit"]')
     page.wait_for_selector('#datasets-table .dataset-name:text-is("from-the-form")')
     assert page.locator("#datasets-table tbody tr").count() == before + 1
+    assert page.inner_text("#upload-status").startswith("Uploaded ds_"), "a 201 is a new dataset"
     bad = tmp_path / "bad.json"
     bad.write_text('{"dt": 0.01, "q": [[0.1], [0.2]], "qdot": [[0.0]], "u": [[1.0]], '
                    '"q_next": [[0.1]], "qdot_next": [[0.1]]}')

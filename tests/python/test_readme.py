@@ -93,18 +93,31 @@ def test_curl_walkthrough(walkthrough):
 
 
 def test_python_example(walkthrough):
+    """The Python section as a reader runs it after the walkthrough: a venv, the client
+    installed into it, the REST example training from Python, the gRPC example tracking a
+    swing with the walkthrough's model; the gRPC example shown is the file it runs."""
     _, env, done = walkthrough
     assert done.returncode == 0, done.stderr
     ids = dict(kv.split("=", 1) for kv in done.stdout.strip().splitlines()[-1].split()[1:])
-    lang, script = blocks("client")
+    lang, shown = blocks("client")
     assert lang == "python"
-    r = subprocess.run([sys.executable, "-c", script], cwd=ids["WORK"],
-                       env={**env, "MODEL": ids["MODEL"]}, capture_output=True, text=True,
-                       timeout=300)
+    assert shown.strip() == (ROOT / "examples/python/track_swing.py").read_text().strip()
+    _, script = blocks("python")
+    path = f"{ROOT / 'target/release'}{os.pathsep}{env['PATH']}"
+    r = subprocess.run(["bash", "-euo", "pipefail", "-c", script], cwd=ids["WORK"],
+                       env={**env, "MODEL": ids["MODEL"], "WORK": ids["WORK"], "REPO": str(ROOT),
+                            "PATH": path, "EPOCHS": "6"},
+                       capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, f"stdout:\n{r.stdout}\nstderr:\n{r.stderr}"
     out = r.stdout
+    # REST: trained from Python with its progress shown, evaluated, saved, a refusal named.
+    assert "MVF, 10-step windows: succeeded" in out, out
+    assert r.stderr.count(": epoch ") == 6, r.stderr
+    assert re.search(r"after 1\.0 s: median \|q̂ − q\| [\d.]+ rad", out), out
+    assert Path(ids["WORK"], "mvf-windows.gbx").is_file()
+    assert "refused: 422 training.epochs must be between" in out, out
+    # gRPC: TVLQR brings the perturbed start back to the swing, open loop does not.
     assert f"model {ids['MODEL']}: n = 2, m = 2" in out, out
-    # Its point: TVLQR brings the perturbed start back to the swing, open loop does not.
     m = re.search(r"open loop ([\d.]+), TVLQR ([\d.]+)", out)
     assert m, out
     assert float(m.group(2)) < 0.5 * float(m.group(1)), out

@@ -23,13 +23,19 @@ from ._pb import dynamics_pb2_grpc as pb_grpc
 
 
 class GrayboxError(Exception):
-    """A failed call: `code` is the gRPC status name (e.g. "INVALID_ARGUMENT"), `message`
-    the server's explanation."""
+    """A failed call: `code` is the gRPC status name (e.g. "INVALID_ARGUMENT") or the REST
+    error's code (e.g. "unprocessable"), `message` the server's explanation; from REST also
+    `field`, the input it names (e.g. "training.epochs", None when it names none), and
+    `status`, the HTTP status."""
 
-    def __init__(self, code: str, message: str):
-        super().__init__(f"{code}: {message}")
+    def __init__(self, code: str, message: str, field: Optional[str] = None,
+                 status: Optional[int] = None):
+        where = f" ({field})" if field else ""
+        super().__init__(f"{code}{where}: {message}")
         self.code = code
         self.message = message
+        self.field = field
+        self.status = status
 
 
 @dataclass

@@ -44,6 +44,10 @@ async function api(method, path, body, contentType) {
     askToken("This service needs a bearer token for this.");
   }
   if (!r.ok) throw new ApiError(r.status, data);
+  // An upload answers 201 when it stored the item, 200 when the same bytes were stored before.
+  if (method === "POST" && data && typeof data === "object" && !Array.isArray(data) && !("created" in data)) {
+    Object.defineProperty(data, "created", { value: r.status === 201, enumerable: false });
+  }
   return data;
 }
 

@@ -1,0 +1,318 @@
+"""The REST side of graybox for Python: datasets from numpy arrays, jobs followed with their
+progress, models and templates as files, with the standard library's HTTP and numpy only.
+
+Every failed request raises the same `GrayboxError` as the gRPC client, with the REST error's
+`code` ("invalid_argument", "unprocessable", "not_found", "conflict", …), `message`, `field`
+(the bad input's name, e.g. "training.epochs", when the server names one) and HTTP `status`.
+As with gRPC, the server validates: a bad request reaches it and comes back with its reason.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import urllib.error
+import urllib.parse
+import urllib.request
+from pathlib import Path
+from typing import Any, Callable, Iterator, Optional, Sequence, Union
+
+import numpy as np
+
+from .client import GrayboxError
+
+PathLike = Union[str, Path]
+FINAL = ("succeeded", "failed", "cancelled")
+
+
+def _rows(a: Any, what: str, width: Optional[int] = None) -> list:
+    """A 2-D float array as lists of rows (1-D arrays are one column)."""
+    a = np.asarray(a, dtype=np.float64)
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.ndim != 2:
+        raise ValueError(f"{what} must be 1-D or 2-D, got shape {a.shape}")
+    return a.tolist()
+
+
+class RestClient:
+    """graybox's REST API at `base` ("http://127.0.0.1:8080"; "127.0.0.1:8080" also works).
+    `token`: the bearer token of a server started with `--api-token`; `timeout`: seconds per
+    request (a job's progress stream waits longer between events). Usable as a context
+    manager for symmetry with `Client`; it holds no connection between requests."""
+
+    def __init__(self, base: str = "http://127.0.0.1:8080", token: Optional[str] = None,
+                 timeout: float = 60.0):
+        self.base = (base if "://" in base else f"http://{base}").rstrip("/")
+        self.token = token
+        self.timeout = timeout
+
+    def __enter__(self) -> "RestClient":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
+
+    # ---------- requests ----------
+
+    def request(self, method: str, path: str, body: Any = None, raw: Optional[bytes] = None,
+                content_type: str = "application/json", query: Optional[dict] = None,
+                parse: bool = True) -> Any:
+        """One request: the JSON answer (bytes with `parse=False`, None for 204)."""
+        url = self.base + path
+        q = {k: v for k, v in (query or {}).items() if v is not None}
+        if q:
+            url += "?" + urllib.parse.urlencode(q)
+        data = raw if raw is not None else (None if body is None else json.dumps(body).encode())
+        req = urllib.request.Request(url, data=data, method=method, headers=self._headers(
+            content_type if data is not None else None))
+        try:
+            with urllib.request.urlopen(req, timeout=self.timeout) as r:
+                answer, status = r.read(), r.status
+        except urllib.error.HTTPError as e:
+            raise _error(e.code, e.read()) from None
+        except urllib.error.URLError as e:
+            raise GrayboxError("unavailable", f"cannot reach graybox at {self.base}: "
+                               f"{e.reason}") from None
+        if not parse:
+            return answer
+        item = json.loads(answer) if answer else None
+        if method == "POST" and isinstance(item, dict) and status in (200, 201) and (
+                path in ("/v1/datasets", "/v1/models", "/v1/templates")):
+            # An upload answers 201 when it stored the item, 200 when the same bytes were
+            # stored before (the item as it was).
+            item.setdefault("created", status == 201)
+        return item
+
+    def _headers(self, content_type: Optional[str]) -> dict:
+        h = {"accept": "application/json"}
+        if content_type:
+            h["content-type"] = content_type
+        if self.token:
+            h["authorization"] = f"Bearer {self.token}"
+        return h
+
+    def _pages(self, path: str, query: Optional[dict] = None) -> Iterator[dict]:
+        """Every item of a paged list, page after page."""
+        token = None
+        while True:
+            page = self.request("GET", path, query={**(query or {}), "page_size": 500,
+                                                    "page_token": token})
+            yield from page["items"]
+            token = page.get("next_page_token")
+            if not token:
+                return
+
+    # ---------- datasets ----------
+
+    def upload_dataset(self, q, qdot, u, q_next, qdot_next, dt: float,
+                       name: Optional[str] = None) -> dict:
+        """Transitions from arrays ([N, n] each, [N, m] for `u`; 1-D means one column). The
+        answer carries `id`, `count`, `created` (false: the same data was stored before) and
+        the data's `warnings` (read them: angles
+        in degrees, a wrong Δt, … are warned of, not refused)."""
+        doc = {"dt": dt, "q": _rows(q, "q"), "qdot": _rows(qdot, "qdot"), "u": _rows(u, "u"),
+               "q_next": _rows(q_next, "q_next"), "qdot_next": _rows(qdot_next, "qdot_next")}
+        return self.request("POST", "/v1/datasets", doc, query={"name": name})
+
+    def upload_trajectories(self, trajectories: Sequence[dict], dt: float,
+                            name: Optional[str] = None) -> dict:
+        """Trajectories, each a dict of `q` and `qdot` [T+1, n] and `u` [T, m] (u_t moves x_t
+        to x_t+1); their boundaries are kept (multi-step training, replays)."""
+        doc = {"dt": dt, "trajectories": [
+            {k: _rows(t[k], f"trajectories[{i}].{k}") for k in ("q", "qdot", "u")}
+            for i, t in enumerate(trajectories)]}
+        return self.request("POST", "/v1/datasets", doc, query={"name": name})
+
+    def upload_dataset_file(self, path: PathLike, name: Optional[str] = None,
+                            dt: Optional[float] = None) -> dict:
+        """A dataset file as `graybox simulate` writes it (JSON), or CSV (needs `dt`)."""
+        path = Path(path)
+        csv = path.suffix.lower() == ".csv"
+        return self.request("POST", "/v1/datasets", raw=path.read_bytes(),
+                            content_type="text/csv" if csv else "application/json",
+                            query={"name": name, "dt": dt})
+
+    def dataset(self, dataset_id: str) -> dict:
+        return self.request("GET", f"/v1/datasets/{dataset_id}")
+
+    def datasets(self) -> list:
+        return list(self._pages("/v1/datasets"))
+
+    def trajectories(self, dataset_id: str) -> list:
+        """The dataset's trajectories: `index`, `start` row and `length` each."""
+        return list(self._pages(f"/v1/datasets/{dataset_id}/trajectories"))
+
+    def delete_dataset(self, dataset_id: str) -> None:
+        """Refused (`conflict`) while a queued or running job uses it."""
+        self.request("DELETE", f"/v1/datasets/{dataset_id}")
+
+    # ---------- jobs ----------
+
+    def submit_job(self, dataset_id: str, model: Union[str, dict] = "MVF",
+                   template: Union[None, str, dict] = None, name: Optional[str] = None,
+                   validation_dataset_id: Optional[str] = None,
+                   training: Optional[dict] = None, init: Optional[dict] = None,
+                   periodic: Optional[Sequence[bool]] = None) -> dict:
+        """A training job (README "Training details" lists `training`'s fields and defaults):
+        `model` a paper name ("MVF", "W-B", …) or a spec, `template` a built-in's name, a
+        stored template's id or a template document. Returns the queued job."""
+        body = {"dataset_id": dataset_id, "model": model, "name": name,
+                "validation_dataset_id": validation_dataset_id, "template": template,
+                "training": training, "init": init,
+                "periodic": list(periodic) if periodic is not None else None}
+        return self.request("POST", "/v1/jobs", {k: v for k, v in body.items() if v is not None})
+
+    def job(self, job_id: str) -> dict:
+        return self.request("GET", f"/v1/jobs/{job_id}")
+
+    def jobs(self, state: Optional[str] = None) -> list:
+        """Every job, newest first (optionally only those in `state`)."""
+        return list(self._pages("/v1/jobs", {"state": state}))
+
+    def cancel(self, job_id: str) -> dict:
+        return self.request("POST", f"/v1/jobs/{job_id}/cancel")
+
+    def metrics(self, job_id: str) -> dict:
+        """Per-epoch figures as arrays: `epoch`, `train_loss`, `val_loss`, `val_horizon_loss`
+        (a multi-step job's; NaN where there is none), `seconds`."""
+        items = self.request("GET", f"/v1/jobs/{job_id}/metrics")["items"]
+        col = lambda k: np.array([np.nan if i.get(k) is None else i[k] for i in items],  # noqa: E731
+                                 dtype=np.float64)
+        return {"epoch": np.array([i["epoch"] for i in items], dtype=np.int64),
+                "train_loss": col("train_loss"), "val_loss": col("val_loss"),
+                "val_horizon_loss": col("val_horizon_loss"), "seconds": col("seconds")}
+
+    def wait(self, job_id: str, progress: Union[bool, Callable[[dict], None]] = False,
+             timeout: Optional[float] = None) -> dict:
+        """Follows the job's event stream until it ends and returns the finished job (any
+        final state: check `state`). `progress`: True prints a line per epoch to stderr, a
+        function is called with each epoch's figures (`epoch`, `train_loss`, `val_loss`, …).
+        A dropped stream (a restarting service) is followed again; `timeout` seconds in all
+        raise `deadline_exceeded`."""
+        report = _printer(job_id) if progress is True else (progress or None)
+        end = None if timeout is None else time.monotonic() + timeout
+        while True:
+            job = self.job(job_id)
+            if job["state"] in FINAL:
+                return job
+            try:
+                for kind, data in self._events(f"/v1/jobs/{job_id}/events", end):
+                    if kind == "progress" and report:
+                        report(data)
+                    elif kind == "state" and data["state"] in FINAL:
+                        return data
+            except (OSError, ValueError):
+                time.sleep(1.0)  # the stream dropped: read the job again and follow anew
+            if end is not None and time.monotonic() > end:
+                raise GrayboxError("deadline_exceeded", f"job {job_id} still "
+                                   f"{self.job(job_id)['state']} after {timeout} s")
+
+    def _events(self, path: str, end: Optional[float]) -> Iterator[tuple]:
+        """Server-sent events as (event, parsed data) until the stream ends or `end` passes."""
+        req = urllib.request.Request(self.base + path, headers=self._headers(None))
+        try:
+            r = urllib.request.urlopen(req, timeout=self.timeout)
+        except urllib.error.HTTPError as e:
+            raise _error(e.code, e.read()) from None
+        with r:
+            kind, data = "message", []
+            for line in r:
+                line = line.decode().rstrip("\r\n")
+                if line.startswith("event:"):
+                    kind = line[6:].strip()
+                elif line.startswith("data:"):
+                    data.append(line[5:].strip())
+                elif not line and data:
+                    yield kind, json.loads("".join(data))
+                    kind, data = "message", []
+                if end is not None and time.monotonic() > end:
+                    return
+
+    # ---------- models ----------
+
+    def model(self, model_id: str) -> dict:
+        """A model (or the model of the job `model_id` names): spec, n, m, dt, metrics,
+        physical parameters, identifiable combinations, coordinates."""
+        return self.request("GET", f"/v1/models/{model_id}")
+
+    def models(self) -> list:
+        return list(self._pages("/v1/models"))
+
+    def download_model(self, model_id: str, path: Optional[PathLike] = None) -> bytes:
+        """The model file (.gbx): its bytes, also written to `path` when given."""
+        data = self.request("GET", f"/v1/models/{model_id}/checkpoint", parse=False)
+        if path is not None:
+            Path(path).write_bytes(data)
+        return data
+
+    def upload_model(self, file: Union[PathLike, bytes], name: Optional[str] = None) -> dict:
+        """A model file (a path or its bytes); the same bytes again return the stored model
+        (`created` false)."""
+        data = file if isinstance(file, bytes) else Path(file).read_bytes()
+        return self.request("POST", "/v1/models", raw=data,
+                            content_type="application/octet-stream", query={"name": name})
+
+    def model_urdf(self, model_id: str) -> str:
+        """A URDF model's identified robot as URDF text."""
+        return self.request("GET", f"/v1/models/{model_id}/urdf", parse=False).decode()
+
+    def delete_model(self, model_id: str) -> None:
+        self.request("DELETE", f"/v1/models/{model_id}")
+
+    def replay(self, model_id: str, dataset_id: str, index: int = 0) -> dict:
+        """The model's open-loop prediction of a recorded trajectory from its first state
+        under its inputs: `t` [T+1], and `recorded` / `predicted` dicts of `q`, `qdot`
+        [T+1, n]."""
+        r = self.request("GET", f"/v1/models/{model_id}/rollout",
+                         query={"dataset_id": dataset_id, "index": index})
+        arrays = lambda d: {k: np.asarray(d[k], dtype=np.float64) for k in ("q", "qdot")}  # noqa: E731
+        return {"t": np.asarray(r["t"], dtype=np.float64), "recorded": arrays(r["recorded"]),
+                "predicted": arrays(r["predicted"])}
+
+    def evaluate(self, model_id: str, dataset_id: str, horizons: Sequence[int]) -> list:
+        """Open-loop error against horizon on a dataset's trajectories: one dict per horizon
+        (`horizon`, `seconds`, `windows`, `position_median`, `position_mean`,
+        `velocity_median`, `velocity_mean`, `diverged`)."""
+        return self.request("POST", f"/v1/models/{model_id}/evaluate",
+                            {"dataset_id": dataset_id, "horizons": list(horizons)})["items"]
+
+    # ---------- templates ----------
+
+    def upload_template(self, template: Union[PathLike, dict]) -> dict:
+        """A URDF file (.urdf, .xml), a formula template file (.json), or a template document
+        as a dict; the answer lists its coordinates, inputs and trainable `parameters`."""
+        if isinstance(template, dict):
+            return self.request("POST", "/v1/templates", template)
+        path = Path(template)
+        xml = path.suffix.lower() in (".urdf", ".xml")
+        return self.request("POST", "/v1/templates", raw=path.read_bytes(),
+                            content_type="application/xml" if xml else "application/json")
+
+    def template(self, template_id: str) -> dict:
+        return self.request("GET", f"/v1/templates/{template_id}")
+
+    def templates(self) -> list:
+        return list(self._pages("/v1/templates"))
+
+    def delete_template(self, template_id: str) -> None:
+        self.request("DELETE", f"/v1/templates/{template_id}")
+
+
+def _error(status: int, body: bytes) -> GrayboxError:
+    """The REST error body `{"error": {"code", "message", "field"}}` as a GrayboxError."""
+    try:
+        e = json.loads(body)["error"]
+    except (ValueError, KeyError, TypeError):
+        e = {"code": "http_error", "message": body.decode(errors="replace")[:500]}
+    return GrayboxError(e.get("code", "http_error"), e.get("message", ""), field=e.get("field"),
+                        status=status)
+
+
+def _printer(job_id: str) -> Callable[[dict], None]:
+    def report(m: dict) -> None:
+        val = m.get("val_loss")
+        print(f"{job_id}: epoch {m['epoch']}, train {m['train_loss']:.4e}"
+              + (f", val {val:.4e}" if val is not None else ""), file=sys.stderr)
+    return report

@@ -1,0 +1,115 @@
+"""graybox_client.RestClient against a real service: numpy arrays and trajectories in, a job
+followed through its events to the end, the model's file down and up again, templates, the
+replay and error-against-horizon as arrays, and every refusal as a GrayboxError carrying the
+server's code, field and status."""
+
+import json
+import subprocess
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import serve
+from graybox_client import GrayboxError, RestClient
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def rest(tmp_path_factory, graybox_bin):
+    tmp = tmp_path_factory.mktemp("rest-client")
+    with serve(graybox_bin, tmp, "--workers", "1", name="rest client serve") as s:
+        yield RestClient(s.rest.base), s, tmp
+
+
+def pendulum_swings(graybox_bin, tmp) -> dict:
+    out = tmp / "swings.json"
+    subprocess.run([graybox_bin, "simulate", "--template", "pendulum", "--trajectories", "4",
+                    "--steps", "40", "--u-std", "2", "--out", str(out)], check=True,
+                   capture_output=True)
+    return json.loads(out.read_text())
+
+
+def test_a_whole_workflow_from_python(rest, graybox_bin):
+    g, s, tmp = rest
+    doc = pendulum_swings(graybox_bin, tmp)
+    trajectories = [{k: np.array(t[k]) for k in ("q", "qdot", "u")} for t in doc["trajectories"]]
+    ds = g.upload_trajectories(trajectories, dt=doc["dt"], name="swings")
+    assert ds["created"] and ds["count"] == 4 * 40 and ds["warnings"] == [], ds
+    assert [t["length"] for t in g.trajectories(ds["id"])] == [40] * 4
+
+    # The same transitions as flat arrays (1-D columns for n = m = 1) are the same data.
+    t0 = trajectories[0]
+    flat = g.upload_dataset(q=t0["q"][:-1, 0], qdot=t0["qdot"][:-1, 0], u=t0["u"][:, 0],
+                            q_next=t0["q"][1:, 0], qdot_next=t0["qdot"][1:, 0], dt=doc["dt"],
+                            name="flat")
+    assert flat["count"] == 40 and flat["n"] == flat["m"] == 1, flat
+    assert {d["id"] for d in g.datasets()} == {ds["id"], flat["id"]}
+
+    seen = []
+    job = g.submit_job(ds["id"], "W-B", template="pendulum", name="from python",
+                       training={"epochs": 5, "batch_size": 32, "horizon": 2})
+    assert job["state"] == "queued" and job["name"] == "from python", job
+    done = g.wait(job["id"], progress=seen.append, timeout=300)
+    assert done["state"] == "succeeded", done
+    assert [m["epoch"] for m in seen] == [1, 2, 3, 4, 5], seen  # each epoch once, in order
+    metrics = g.metrics(job["id"])
+    assert metrics["epoch"].tolist() == [1, 2, 3, 4, 5]
+    assert np.all(np.isfinite(metrics["val_horizon_loss"])), metrics  # a 2-step job's
+    assert g.jobs()[0]["id"] == job["id"] and g.jobs(state="failed") == []
+
+    model = g.model(job["id"])  # the job's id names its model too
+    assert model["id"] == done["model_id"] and model["coordinates"] == ["q1"], model
+    data = g.download_model(model["id"], tmp / "m.gbx")
+    with urllib.request.urlopen(f"{s.rest.base}/v1/models/{model['id']}/checkpoint") as r:
+        assert r.read() == data == (tmp / "m.gbx").read_bytes()
+    copy = g.upload_model(tmp / "m.gbx", name="copy")
+    assert copy["created"] and copy["origin"] == "uploaded" and copy["name"] == "copy", copy
+    again = g.upload_model(data)
+    assert again["created"] is False and again["id"] == copy["id"], again
+    g.delete_model(copy["id"])
+    assert [m["id"] for m in g.models()] == [model["id"]]
+
+    replay = g.replay(model["id"], ds["id"], index=1)
+    assert replay["t"].shape == (41,) and replay["predicted"]["q"].shape == (41, 1)
+    np.testing.assert_allclose(replay["recorded"]["q"], trajectories[1]["q"])
+    errors = g.evaluate(model["id"], ds["id"], [1, 10])
+    assert [e["horizon"] for e in errors] == [1, 10]
+    assert [e["windows"] for e in errors] == [4 * 40, 4 * 31], errors
+
+    template = g.upload_template(ROOT / "examples" / "urdf_arm" / "arm.urdf")
+    assert template["kind"] == "urdf" and template["n"] == 4, template
+    assert g.template(template["id"])["coordinates"] == ["turret", "shoulder", "elbow", "wrist"]
+    g.delete_template(template["id"])
+    assert g.templates() == []
+
+
+def test_refusals_are_graybox_errors_with_code_field_and_status(rest):
+    g, s, tmp = rest
+    with pytest.raises(GrayboxError) as e:
+        g.upload_dataset(q=np.zeros((3, 1)), qdot=np.zeros((2, 1)), u=np.zeros((3, 1)),
+                         q_next=np.zeros((3, 1)), qdot_next=np.zeros((3, 1)), dt=0.01)
+    assert e.value.status == 400 and e.value.code == "invalid_argument", e.value
+    assert e.value.field and e.value.field.startswith("qdot"), e.value
+    ds = g.upload_dataset(q=np.zeros(3), qdot=np.zeros(3), u=np.zeros(3), q_next=np.zeros(3),
+                          qdot_next=np.zeros(3), dt=0.01, name="still")
+    with pytest.raises(GrayboxError) as e:
+        g.submit_job(ds["id"], "MVF", training={"epochs": 0})
+    assert (e.value.status, e.value.code, e.value.field) == (422, "unprocessable",
+                                                             "training.epochs"), e.value
+    assert "training.epochs" in str(e.value) and e.value.message in str(e.value)
+    with pytest.raises(GrayboxError) as e:
+        g.model("mdl_nothing")
+    assert (e.value.status, e.value.code) == (404, "not_found"), e.value
+    busy = g.submit_job(ds["id"], "MVF", training={"epochs": 1_000_000})
+    with pytest.raises(GrayboxError) as e:
+        g.delete_dataset(ds["id"])
+    assert (e.value.status, e.value.code) == (409, "conflict"), e.value
+    g.cancel(busy["id"])
+    assert g.wait(busy["id"], timeout=120)["state"] == "cancelled"
+    g.delete_dataset(ds["id"])
+    with pytest.raises(GrayboxError) as e:
+        RestClient("127.0.0.1:9").datasets()  # nothing listens on the discard port
+    assert e.value.code == "unavailable" and e.value.status is None, e.value
