@@ -22,6 +22,8 @@ use graybox::sim::{SimConfig, simulate};
 use graybox::train::{TrainConfig, Trainer};
 use serde_json::{Value, json};
 
+#[path = "formula/identify.rs"]
+mod identify;
 #[path = "formula/limits.rs"]
 mod limits;
 #[path = "formula/recursive.rs"]

@@ -70,6 +70,9 @@ impl Summary {
                     if let Some(min) = p.min {
                         v["min"] = json!(min);
                     }
+                    if p.fixed {
+                        v["fixed"] = json!(true);
+                    }
                     v
                 })
                 .collect(),

@@ -212,17 +212,25 @@ impl Model {
         t.natural(&raw)
     }
 
+    /// The physical parameters as the optimiser moves them (host f64): logarithms of the
+    /// positive ones, a URDF body's log-Cholesky factor (`Template::natural`).
+    pub fn raw_physical(&self) -> Option<Vec<f64>> {
+        let c = self.params.components()?;
+        Some(
+            c.physical
+                .as_ref()?
+                .val()
+                .into_data()
+                .iter::<f64>()
+                .collect(),
+        )
+    }
+
     /// Learned physical values by name (host f64), for reports.
     pub fn physical_values(&self) -> Option<Vec<(String, f64)>> {
         let t = self.config.template()?;
         let c = self.params.components()?;
-        let raw: Vec<f64> = c
-            .physical
-            .as_ref()?
-            .val()
-            .into_data()
-            .iter::<f64>()
-            .collect();
+        let raw = self.raw_physical()?;
         let values = if c.physical_as_is {
             raw
         } else {

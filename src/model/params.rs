@@ -150,10 +150,10 @@ impl Params {
 }
 
 impl Params {
-    /// These values with the template's raw physical values put back onto `lower` (one per
-    /// parameter, −∞ for none; `physics::params::lower_bounds`): the projection of projected
-    /// gradient descent, after every optimizer step (docs/robots.md#joint-forces).
-    pub fn projected(self, lower: &[f64]) -> Self {
+    /// These values with the template's raw physical values put back between `lower` and
+    /// `upper` (one each per parameter; `physics::params::bounds`): the projection of
+    /// projected gradient descent, after every optimizer step (docs/robots.md#joint-forces).
+    pub fn projected(self, (lower, upper): &(Vec<f64>, Vec<f64>)) -> Self {
         let Params::Structured(mut c) = self else {
             return self;
         };
@@ -161,11 +161,11 @@ impl Params {
             let (id, t, _) = p.consume();
             let (autodiff, grad) = (t.is_autodiff(), t.is_require_grad());
             let inner = t.inner();
-            let bound = Tensor::from_data(
-                TensorData::new(lower.to_vec(), inner.dims()),
-                &inner.device(),
-            );
-            let mut t = inner.max_pair(bound);
+            let bound = |b: &[f64]| {
+                Tensor::from_data(TensorData::new(b.to_vec(), inner.dims()), &inner.device())
+            };
+            let (lo, hi) = (bound(lower), bound(upper));
+            let mut t = inner.max_pair(lo).min_pair(hi);
             if autodiff {
                 t = Tensor::from_inner(t);
             }

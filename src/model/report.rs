@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 use crate::model::spec::ModelSpec;
+use crate::physics::identify;
 use crate::physics::params::Part;
 use crate::physics::templates::Template;
 use crate::records::Warning;
@@ -114,6 +115,14 @@ pub fn identifiable(t: &Template, parts: &[Part], values: &[(String, f64)]) -> V
             value: (c.eval)(&lookup),
         })
         .collect();
+    // A formula template's, from the sensitivity of its dynamics (all of it white-box).
+    if let Template::Formula(_) = t
+        && [Part::Mass, Part::Potential, Part::Forces]
+            .iter()
+            .all(|p| parts.contains(p))
+    {
+        out.extend(formula_products(t, values));
+    }
     // A robot's are computed from its kinematics: its base parameters.
     if let Template::Urdf(u) = t
         && parts.contains(&Part::Mass)
@@ -126,4 +135,65 @@ pub fn identifiable(t: &Template, parts: &[Part], values: &[(String, f64)]) -> V
         );
     }
     out
+}
+
+/// Sampled states at which a formula template's sensitivities are taken: generic ones (q over
+/// a turn, moderate velocities and inputs), seeded, so a report is reproducible.
+const SENSITIVITY_STATES: usize = 32;
+
+/// The identifiable products of a formula template's trained parameters (fixed ones are known
+/// and drop out; one at 0 has no logarithm and is left out), from ∂q̈/∂ log θ by central
+/// differences at `SENSITIVITY_STATES` states (docs/dynamics.md#identifiability-of-formula-templates).
+fn formula_products(t: &Template, values: &[(String, f64)]) -> Vec<Identified> {
+    let infos = t.params();
+    let theta: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
+    let trained: Vec<usize> = (0..infos.len())
+        .filter(|&j| !infos[j].fixed && !infos[j].used_by.is_empty() && theta[j] != 0.0)
+        .collect();
+    let mut rng = crate::rng::Rng::new(0x1D_E7);
+    let states: Vec<[Vec<f64>; 3]> = (0..SENSITIVITY_STATES)
+        .map(|_| {
+            let mut draw = |k: usize, r: f64| (0..k).map(|_| rng.uniform_in(-r, r)).collect();
+            [
+                draw(t.n(), std::f64::consts::PI),
+                draw(t.n(), 2.0),
+                draw(t.m(), 1.0),
+            ]
+        })
+        .collect();
+    let accelerations = |theta: Vec<f64>| -> Vec<f64> {
+        let sys = crate::sim::TemplateSystem::new(t.clone(), theta);
+        (states.iter())
+            .flat_map(|[q, qd, u]| sys.acceleration(q, qd, u))
+            .collect()
+    };
+    // Central differences in log θ: an O(h²) error of ~1e-8, far below identifiable effects.
+    let h = 1e-4;
+    let columns: Vec<Vec<f64>> = (trained.iter())
+        .map(|&j| {
+            let at = |s: f64| {
+                let mut th = theta.clone();
+                th[j] *= s.exp();
+                accelerations(th)
+            };
+            let (up, down) = (at(h), at(-h));
+            up.iter()
+                .zip(&down)
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect()
+        })
+        .collect();
+    let rows: Vec<Vec<f64>> = (0..columns.first().map_or(0, Vec::len))
+        .map(|r| columns.iter().map(|c| c[r]).collect())
+        .collect();
+    let names: Vec<&str> = trained.iter().map(|&j| values[j].0.as_str()).collect();
+    let picked: Vec<f64> = trained.iter().map(|&j| theta[j]).collect();
+    let (products, _) = identify::identifiable_products(&rows, trained.len());
+    products
+        .iter()
+        .map(|p| Identified {
+            name: p.name(&names),
+            value: p.value(&picked),
+        })
+        .collect()
 }

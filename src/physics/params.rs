@@ -23,6 +23,8 @@ pub struct ParamInfo {
     /// `lower_bounds`): unlike a logarithm it can start at, and rest on, the bound. Only for
     /// a parameter whose raw value is its physical value (not `positive`, not a URDF body's).
     pub min: Option<f64>,
+    /// Known, not trained: kept at its starting value (a formula template's `fixed`).
+    pub fixed: bool,
     pub used_by: Cow<'static, [Part]>,
 }
 
@@ -34,15 +36,22 @@ impl ParamInfo {
     }
 }
 
-/// Each raw parameter's lower bound (−∞ where there is none), in parameter order; None when
-/// no parameter has one. Training projects onto them after every step: the physical optimum
-/// under the bound is reached by clamping the raw value (equal to the physical one).
-pub fn lower_bounds(params: &[ParamInfo]) -> Option<Vec<f64>> {
-    params.iter().any(|p| p.min.is_some()).then(|| {
+/// Each raw parameter's bounds (lower, upper), in parameter order: a parameter's `min` below
+/// (−∞ where there is none), and for a fixed one its raw value `start` on both sides; None
+/// when no parameter has either. Training projects onto them after every step: the physical
+/// optimum under a bound is reached by clamping the raw value (equal to the physical one),
+/// and a fixed value clamped onto itself never moves.
+pub fn bounds(params: &[ParamInfo], start: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
+    params.iter().any(|p| p.min.is_some() || p.fixed).then(|| {
         params
             .iter()
-            .map(|p| p.min.unwrap_or(f64::NEG_INFINITY))
-            .collect()
+            .zip(start)
+            .map(|(p, &v)| match (p.fixed, p.min) {
+                (true, _) => (v, v),
+                (false, Some(min)) => (min, f64::INFINITY),
+                (false, None) => (f64::NEG_INFINITY, f64::INFINITY),
+            })
+            .unzip()
     })
 }
 

@@ -18,6 +18,7 @@
 
 use super::dual::Dual;
 use super::dynamics::{cholesky_f64, constants, dual_vars};
+use super::eigen::symmetric_eigen;
 use super::integrator::Integrator;
 use super::templates::Template;
 
@@ -281,44 +282,12 @@ fn inverse_diagonal(l: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// The largest eigenvalue of a symmetric matrix, by cyclic Jacobi rotations (robust for any
-/// spectrum, O(n³) per sweep: microseconds for a robot's n).
+/// The largest eigenvalue of a symmetric matrix (`eigen::symmetric_eigen`).
 pub fn largest_eigenvalue(a: &[Vec<f64>]) -> f64 {
-    let n = a.len();
-    let mut a = a.to_vec();
-    let norm: f64 = a.iter().flatten().map(|v| v * v).sum();
-    for _ in 0..100 {
-        let off: f64 = (0..n)
-            .flat_map(|p| (p + 1..n).map(move |q| (p, q)))
-            .map(|(p, q)| a[p][q] * a[p][q])
-            .sum();
-        if off <= 1e-30 * norm {
-            break;
-        }
-        for p in 0..n {
-            for q in p + 1..n {
-                if a[p][q] == 0.0 {
-                    continue;
-                }
-                // The rotation that zeroes a_pq (the smaller root t of t² + 2θt − 1 = 0).
-                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
-                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
-                let c = 1.0 / (t * t + 1.0).sqrt();
-                let s = t * c;
-                for row in a.iter_mut() {
-                    let (kp, kq) = (row[p], row[q]);
-                    row[p] = c * kp - s * kq;
-                    row[q] = s * kp + c * kq;
-                }
-                let (mut rp, mut rq) = (std::mem::take(&mut a[p]), std::mem::take(&mut a[q]));
-                for (x, y) in rp.iter_mut().zip(rq.iter_mut()) {
-                    (*x, *y) = (c * *x - s * *y, s * *x + c * *y);
-                }
-                (a[p], a[q]) = (rp, rq);
-            }
-        }
-    }
-    (0..n).map(|i| a[i][i]).fold(f64::NEG_INFINITY, f64::max)
+    symmetric_eigen(a)
+        .0
+        .into_iter()
+        .fold(f64::NEG_INFINITY, f64::max)
 }
 
 #[cfg(test)]

@@ -50,6 +50,7 @@ const fn p(
         default,
         positive,
         min: None,
+        fixed: false,
         used_by: Cow::Borrowed(used_by),
     }
 }

@@ -45,6 +45,9 @@ pub struct RunSummary<'a> {
     /// Used physical values at the start and now, by name.
     pub initial_physical: Option<&'a BTreeMap<String, f64>>,
     pub physical: &'a BTreeMap<String, f64>,
+    /// The parameters that appear in some identifiable combination the report lists; None
+    /// when no combinations are known for the model (then none can be called unidentifiable).
+    pub identified: Option<&'a [String]>,
 }
 
 pub fn training_warnings(r: &RunSummary) -> Vec<Warning> {
@@ -67,7 +70,7 @@ pub fn training_warnings(r: &RunSummary) -> Vec<Warning> {
     if r.history.len() >= MIN_EPOCHS {
         out.extend(not_decreasing(r.history));
         if let Some(initial) = r.initial_physical {
-            out.extend(unmoved(initial, r.physical, r.history.len()));
+            out.extend(unmoved(initial, r.physical, r.identified, r.history.len()));
         }
     }
     out
@@ -95,6 +98,7 @@ fn not_decreasing(history: &[EpochMetrics]) -> Option<Warning> {
 fn unmoved(
     initial: &BTreeMap<String, f64>,
     now: &BTreeMap<String, f64>,
+    identified: Option<&[String]>,
     epochs: usize,
 ) -> Option<Warning> {
     let moved = |name: &String, v0: f64| {
@@ -106,17 +110,27 @@ fn unmoved(
         .filter(|(name, v0)| !moved(name, **v0))
         .map(|(name, _)| name.as_str())
         .collect();
-    (!stuck.is_empty()).then(|| {
-        Warning::new(
-            "physical_parameters_unmoved",
-            None,
-            format!(
-                "the physical parameters {} did not change in {epochs} epochs: their gradients \
-                 vanish or the loss is dominated by something they cannot fit (check units)",
-                stuck.join(", ")
-            ),
-        )
-    })
+    // Those in no identifiable combination: the data cannot tell their values apart, so not
+    // moving is no sign of a unit error.
+    let (blind, stuck): (Vec<&str>, Vec<&str>) = stuck
+        .into_iter()
+        .partition(|name| identified.is_some_and(|ids| !ids.iter().any(|i| i == name)));
+    let mut parts = vec![];
+    if !stuck.is_empty() {
+        parts.push(format!(
+            "the physical parameters {} did not change in {epochs} epochs: their gradients \
+             vanish or the loss is dominated by something they cannot fit (check units)",
+            stuck.join(", ")
+        ));
+    }
+    if !blind.is_empty() {
+        parts.push(format!(
+            "{} did not change in {epochs} epochs and are not identifiable from this data (they \
+             are in no identifiable combination: read the combinations, not these values)",
+            blind.join(", ")
+        ));
+    }
+    (!parts.is_empty()).then(|| Warning::new("physical_parameters_unmoved", None, parts.join("; ")))
 }
 
 #[cfg(test)]
@@ -155,6 +169,7 @@ mod tests {
             baseline: 3.0,
             initial_physical: Some(&p0),
             physical: &p1,
+            identified: None,
         };
         assert!(codes(&r).is_empty());
     }
@@ -169,6 +184,7 @@ mod tests {
             baseline: 3.0,
             initial_physical: Some(&p0),
             physical: &p0,
+            identified: None,
         };
         assert_eq!(
             codes(&r),
@@ -177,6 +193,34 @@ mod tests {
                 "loss_not_decreasing",
                 "physical_parameters_unmoved"
             ]
+        );
+    }
+
+    /// A parameter in no identifiable combination is called unidentifiable, not a unit
+    /// problem; one in a combination keeps the old advice; unknown combinations, the old text.
+    #[test]
+    fn unmoved_parameters_the_data_cannot_identify_are_named_so() {
+        let h = history(&[1.0, 0.5, 0.2, 0.1, 0.05]);
+        let p0 = values(&[("g", 9.8), ("l", 1.0), ("b", 0.1)]);
+        let ids = ["g/l".to_string(), "g".to_string(), "l".to_string()];
+        let message = |identified| {
+            let r = RunSummary {
+                history: &h,
+                best_loss: 0.05,
+                baseline: 3.0,
+                initial_physical: Some(&p0),
+                physical: &p0,
+                identified,
+            };
+            training_warnings(&r).remove(0).message
+        };
+        let known = message(Some(&ids[1..]));
+        assert!(known.contains("parameters g, l did not change"), "{known}");
+        assert!(known.contains("b did not change") && known.contains("not identifiable"));
+        let unknown = message(None);
+        assert!(
+            !unknown.contains("not identifiable") && unknown.contains("b, g, l"),
+            "{unknown}"
         );
     }
 
@@ -190,6 +234,7 @@ mod tests {
             baseline: 3.0,
             initial_physical: Some(&p0),
             physical: &p0,
+            identified: None,
         };
         assert!(codes(&r).is_empty());
     }

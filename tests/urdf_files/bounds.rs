@@ -11,7 +11,7 @@ use graybox::error::Error;
 use graybox::model::mlp::param;
 use graybox::model::params::{Components, Params};
 use graybox::model::spec::ModelSpec;
-use graybox::physics::params::lower_bounds;
+use graybox::physics::params::bounds;
 use graybox::physics::urdf::UrdfTemplate;
 use graybox::sim::{SimConfig, parse_assignments, simulate};
 use graybox::train::setup::physical_init;
@@ -63,8 +63,8 @@ fn negative_damping_or_friction_is_refused_naming_the_field() {
 #[test]
 fn the_projection_clamps_only_bounded_values_below_their_bound() {
     let t = template(&fixture("double_pendulum"));
-    let lower = lower_bounds(t.params()).expect("damping and friction are bounded");
-    let k = lower.len();
+    let k = t.params().len();
+    let bounds = bounds(t.params(), &vec![0.0; k]).expect("damping and friction are bounded");
     let device = graybox::backend::device(Backend::Flex, Precision::F32)
         .unwrap()
         .autodiff();
@@ -77,7 +77,7 @@ fn the_projection_clamps_only_bounded_values_below_their_bound() {
         physical: Some(param(vec![-0.25; k], [1, k], &device)),
         physical_as_is: false,
     });
-    let c = params.projected(&lower);
+    let c = params.projected(&bounds);
     let p = c.components().unwrap().physical.as_ref().unwrap().val();
     assert!(p.is_require_grad());
     let got: Vec<f64> = p.into_data().iter::<f64>().collect();

@@ -33,6 +33,14 @@ pub struct ParamDoc {
     /// Trained in log space (masses, lengths): it cannot turn negative.
     #[serde(default)]
     pub positive: bool,
+    /// Known, not trained (g, a measured length): it keeps its value (or the job's `init`).
+    /// Left out of documents when false, which so read and hash as before.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub fixed: bool,
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 pub(super) fn bad(field: impl Into<String>, message: impl std::fmt::Display) -> Error {

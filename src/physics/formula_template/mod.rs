@@ -270,6 +270,7 @@ fn param_infos(
                 default: p.value,
                 positive: p.positive,
                 min: None,
+                fixed: p.fixed,
                 used_by: Cow::Owned(used_by),
             }
         })

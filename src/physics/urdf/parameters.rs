@@ -37,6 +37,7 @@ pub(super) fn params_of(tree: &Tree) -> Vec<ParamInfo> {
                 default: v,
                 positive: k == 0,
                 min: None,
+                fixed: false,
                 used_by: Cow::Borrowed(if k < 4 { MV } else { M }),
             });
         }
@@ -50,6 +51,7 @@ pub(super) fn params_of(tree: &Tree) -> Vec<ParamInfo> {
                 // Trained as themselves and kept ≥ 0 by projection: both often start at
                 // exactly 0, where a logarithm cannot start and a square has no gradient.
                 min: Some(0.0),
+                fixed: false,
                 used_by: Cow::Borrowed(F),
             });
         }

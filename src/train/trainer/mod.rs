@@ -21,7 +21,7 @@ use crate::error::{Error, Result};
 use crate::model::Model;
 use crate::model::report::EpochMetrics;
 use crate::model::spec::ModelSpec;
-use crate::physics::params::lower_bounds;
+use crate::physics::params::bounds;
 use crate::rng::Rng;
 
 pub use loss::evaluate;
@@ -49,8 +49,9 @@ pub struct Trainer {
     baseline: f64,
     /// The threads that run a batch's shards (`TrainState::shards`).
     pool: Option<rayon::ThreadPool>,
-    /// The physical parameters' lower bounds, kept after every step (`Params::projected`).
-    lower: Option<Vec<f64>>,
+    /// The physical parameters' raw bounds, kept after every step (`Params::projected`):
+    /// minimums, and fixed parameters held at their values.
+    bounds: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 impl Trainer {
@@ -105,7 +106,9 @@ impl Trainer {
     ) -> Self {
         let c = &model.config;
         let baseline = zero_acceleration_loss(val.unwrap_or(train), c.lambda, &c.periodic);
-        let lower = c.template().and_then(|t| lower_bounds(t.params()));
+        // A fixed parameter's value now is its start: it never moves (a resumed run's too).
+        let bounds =
+            (c.template().zip(model.raw_physical())).and_then(|(t, raw)| bounds(t.params(), &raw));
         let (horizon, discount) = (state.train.horizon, state.train.discount);
         Self {
             state,
@@ -117,7 +120,7 @@ impl Trainer {
             val: val.map(|v| Validation::new(v, horizon, discount)),
             baseline,
             pool: None,
-            lower,
+            bounds,
         }
     }
 
@@ -255,8 +258,8 @@ impl Trainer {
             self.model.params =
                 self.adam
                     .step(self.model.params.clone(), &grads, self.state.train.lr);
-            if let Some(lower) = &self.lower {
-                self.model.params = self.model.params.clone().projected(lower);
+            if let Some(bounds) = &self.bounds {
+                self.model.params = self.model.params.clone().projected(bounds);
             }
         }
         let (windows, horizon) = (self.windows().count(), self.windows().horizon());

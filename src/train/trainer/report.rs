@@ -9,18 +9,36 @@ use crate::infer::horizons::end_of_training;
 use crate::model::Model;
 use crate::model::file::{ModelFile, stiffness_of};
 use crate::model::params_io::import;
-use crate::model::report::{TrainReport, identifiable, used_physical};
+use crate::model::report::{Identified, TrainReport, identifiable, used_physical};
 use crate::records::Warning;
 use crate::train::warnings::{RunSummary, training_warnings};
 
-/// The physical values the model's white-box parts use, by name.
+/// The physical values the model's white-box parts use and training moves (a fixed one
+/// stays put by design), by name.
 pub(super) fn used_physical_values(model: &Model) -> Option<BTreeMap<String, f64>> {
     let t = model.config.template()?;
-    Some(used_physical(
-        t,
-        &model.white_box_parts(),
-        &model.physical_values()?,
-    ))
+    let mut used = used_physical(t, &model.white_box_parts(), &model.physical_values()?);
+    used.retain(|name, _| !t.params().iter().any(|p| p.fixed && p.name == *name));
+    Some(used)
+}
+
+/// The physical parameters named in some identifiable combination (a name's tokens that are
+/// parameter names), or None when no combination is known.
+fn identified_parameters(
+    physical: &BTreeMap<String, f64>,
+    ident: &[Identified],
+) -> Option<Vec<String>> {
+    if ident.is_empty() {
+        return None;
+    }
+    let named = |p: &str| {
+        ident.iter().any(|c| {
+            c.name
+                .split(|ch: char| !(ch.is_alphanumeric() || ch == '_' || ch == '.'))
+                .any(|token| token == p)
+        })
+    };
+    Some(physical.keys().filter(|p| named(p)).cloned().collect())
 }
 
 impl Trainer {
@@ -47,7 +65,8 @@ impl Trainer {
             ),
             _ => Default::default(),
         };
-        let mut warnings = self.warnings();
+        let identified = identified_parameters(&physical_parameters, &ident);
+        let mut warnings = self.warnings(identified.as_deref());
         warnings.extend(best_values.and_then(|v| self.stiffness_at(&v)));
         TrainReport {
             model: self.state.model_name.clone(),
@@ -92,8 +111,9 @@ impl Trainer {
         stiffness_of(&self.model.config, &values, &self.train.configurations(8))
     }
 
-    /// The training checks on the run so far.
-    fn warnings(&self) -> Vec<Warning> {
+    /// The training checks on the run so far; `identified`: the parameters in some
+    /// identifiable combination, when any are known.
+    fn warnings(&self, identified: Option<&[String]>) -> Vec<Warning> {
         let physical = used_physical_values(&self.model).unwrap_or_default();
         training_warnings(&RunSummary {
             history: &self.state.history,
@@ -101,6 +121,7 @@ impl Trainer {
             baseline: self.baseline,
             initial_physical: self.state.initial_physical.as_ref(),
             physical: &physical,
+            identified,
         })
     }
 
