@@ -393,8 +393,9 @@ fn export_writes_identified_values_and_keeps_the_rest() {
 
 /// When training leaves a link with fixed links lighter than those links alone (arm4's hand
 /// identified at a tenth of its nominal mass, below the fixed tool's 0.3 kg), no split of the
-/// body between them is physical: the export gives the hand the whole body and the tool a
-/// massless `<inertial>` with a comment, and the document still reads back to the same model.
+/// body between them is physical: the export gives the tool a token body (1e-6 kg: some
+/// simulators refuse mass 0) with a comment and the hand the rest, and the document still
+/// reads back to the same model.
 #[test]
 fn export_folds_a_fixed_link_into_its_body_when_no_split_is_physical() {
     let t = urdf_template("arm4");
@@ -408,10 +409,12 @@ fn export_folds_a_fixed_link_into_its_body_when_no_split_is_physical() {
         "{text}"
     );
     let tool = &text[text.find("<link name=\"tool\"").unwrap()..];
-    assert!(tool[..tool.find("</link>").unwrap()].contains("<mass value=\"0\"/>"));
+    let tool = &tool[..tool.find("</link>").unwrap()];
+    assert!(tool.contains("<mass value=\"0.000001\"/>"), "{tool}");
+    assert!(tool.contains("ixx=\"0.000000001\""), "{tool}");
     let back = Template::Urdf(Arc::new(UrdfTemplate::from_urdf(&text).unwrap())).defaults();
-    // The tool's massless link reads back massless: the hand's written values are the
-    // whole, equal to rounding.
+    // The hand's written values and the tool's token add up to the identified body, equal to
+    // rounding.
     assert!(err(&back, &values) < 1e-12, "{back:?} vs {values:?}");
 }
 

@@ -105,12 +105,35 @@ struct Written {
     moments: [f64; 6],
 }
 
+/// What a link merged into the body it is fixed to is written with when the identified body
+/// cannot be split between them: a token body at its frame's origin, not mass 0, which some
+/// simulators refuse (a real robot file's dummy values are of this size). Its owner's values
+/// are the identified whole less it, so the model reads back the same.
+pub const MERGED_LINK_MASS: f64 = 1e-6;
+pub const MERGED_LINK_INERTIA: f64 = 1e-9;
+
 impl Written {
-    const MASSLESS: Written = Written {
-        mass: 0.0,
+    const MERGED: Written = Written {
+        mass: MERGED_LINK_MASS,
         com: [0.0; 3],
-        moments: [0.0; 6],
+        moments: [
+            MERGED_LINK_INERTIA,
+            0.0,
+            0.0,
+            MERGED_LINK_INERTIA,
+            0.0,
+            MERGED_LINK_INERTIA,
+        ],
     };
+
+    fn inertial(&self) -> Inertial {
+        let [xx, xy, xz, yy, yz, zz] = self.moments;
+        Inertial::from_com(
+            self.mass,
+            self.com,
+            [[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]],
+        )
+    }
 
     fn of(body: &Inertial) -> Written {
         let i = body.inertia_at_com();
@@ -157,8 +180,9 @@ fn in_comment(text: &str) -> String {
 /// The document with `physical` (the template's parameter order) written in. A link that has
 /// links fixed to it keeps theirs, and its own `<inertial>` becomes the identified whole less
 /// theirs. When that difference is not a physical body (training moved mass the fixed links
-/// were given), the link takes the whole and the fixed links' `<inertial>` become massless,
-/// each with a comment saying where its mass went: the same model either way. The result is
+/// were given), the fixed links' `<inertial>` become a token body (`Written::MERGED`), each
+/// with a comment saying where its mass went, and the link takes the whole less those: the
+/// same model either way. The result is
 /// read back before it is returned (`check_read_back`): a document that would not give these
 /// values on these links is an internal error, never a file.
 pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
@@ -195,19 +219,25 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
         let readable = |i: &Inertial| i.regularised().theta().is_ok();
         let mut own = identified.minus(&body.inertial.minus(&body.own));
         if !readable(&own) {
-            // The fixed links written massless read back massless: the link takes the whole.
-            own = identified.clone();
+            // The fixed links written as token bodies read back so: the link takes the rest.
+            let mut tokens = Inertial::ZERO;
+            for (name, rot, pos) in &body.fixed {
+                if child(link_at(name)?, "inertial").is_some() {
+                    tokens = tokens.plus(&Written::MERGED.inertial().transformed(rot, pos));
+                }
+            }
+            own = identified.minus(&tokens);
             if !readable(&own) {
                 return Err(Error::FailedPrecondition(format!(
                     "link '{}': the identified body is not physical once the links fixed to \
-                     it are written massless",
+                     it are written as {MERGED_LINK_MASS} kg tokens",
                     body.link
                 )));
             }
             for (name, _, _) in &body.fixed {
                 let link = link_at(name)?;
                 let Some(i) = child(link, "inertial") else {
-                    continue; // no <inertial> reads as massless already
+                    continue; // no <inertial> reads as massless, as the file had it
                 };
                 let e = &all[i];
                 let indent = indent_at(text, e.open.0);
@@ -216,8 +246,8 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
                     in_comment(&body.link)
                 );
                 let end = e.close.map_or(e.open.1, |c| c.1);
-                edits.push((e.open.0, end, note + &Written::MASSLESS.xml(indent, step)));
-                links.insert(name.clone(), Written::MASSLESS);
+                edits.push((e.open.0, end, note + &Written::MERGED.xml(indent, step)));
+                links.insert(name.clone(), Written::MERGED);
             }
         }
         let own = Written::of(&own);
