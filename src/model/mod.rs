@@ -215,34 +215,17 @@ impl Model {
     /// The physical parameters as the optimiser moves them (host f64): logarithms of the
     /// positive ones, a URDF body's log-Cholesky factor (`Template::natural`).
     pub fn raw_physical(&self) -> Option<Vec<f64>> {
-        let c = self.params.components()?;
-        Some(
-            c.physical
-                .as_ref()?
-                .val()
-                .into_data()
-                .iter::<f64>()
-                .collect(),
-        )
+        let p = self.params.components()?.physical.as_ref()?;
+        Some(p.val().into_data().iter::<f64>().collect())
     }
 
     /// Learned physical values by name (host f64), for reports.
     pub fn physical_values(&self) -> Option<Vec<(String, f64)>> {
-        let t = self.config.template()?;
-        let c = self.params.components()?;
-        let raw = self.raw_physical()?;
-        let values = if c.physical_as_is {
-            raw
-        } else {
-            t.natural(&raw)
-        };
-        Some(
-            t.params()
-                .iter()
-                .zip(values)
-                .map(|(info, v)| (info.name.to_string(), v))
-                .collect(),
-        )
+        let (t, raw) = (self.config.template()?, self.raw_physical()?);
+        let as_is = self.params.components()?.physical_as_is;
+        let values = if as_is { raw } else { t.natural(&raw) };
+        let names = t.params().iter().map(|info| info.name.to_string());
+        Some(names.zip(values).collect())
     }
 
     /// q̈ for a batch: q, q̇ `[batch, n]`, u `[batch, m]` → `[batch, n]`.
