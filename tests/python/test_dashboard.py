@@ -273,6 +273,9 @@ def test_dashboard_with_a_token(tmp_path_factory, graybox_bin, browser):
         violations = watch_csp(page)
         page.goto(s.rest.base + "/")
         page.wait_for_selector("#token-dialog[open]")
+        # This service has a token: the button to change it shows (a service without one
+        # never shows it: test_dashboard_work).
+        assert page.is_visible("#token-button")
         page.fill("#token-input", "wrong")
         page.click('#token-form button[value="save"]')
         page.wait_for_selector("#token-dialog[open]")  # refused: asked again
