@@ -176,10 +176,11 @@ impl ModelSpec {
             || *potential == PotentialSpec::Quadratic
             || *forces == ForceSpec::ConstantAffine;
         let parts = self.white_box_parts();
+        // A fixed parameter is known, not trained.
         let used = t
             .params()
             .iter()
-            .any(|p| p.used_by.iter().any(|u| parts.contains(u)));
+            .any(|p| !p.fixed && p.used_by.iter().any(|u| parts.contains(u)));
         if learned || used {
             return Ok(());
         }
@@ -192,7 +193,7 @@ impl ModelSpec {
         let why = match t.params().len() {
             0 => "has no parameters".to_string(),
             k => format!(
-                "has {k} ({}{}) that none of the white-box parts uses",
+                "has {k} ({}{}) that none of the white-box parts uses or that are fixed",
                 names.join(", "),
                 if k > names.len() { ", …" } else { "" }
             ),

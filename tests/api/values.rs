@@ -135,19 +135,25 @@ async fn names_and_values_follow_one_rule_wherever_they_enter() {
 async fn white_box_jobs_with_nothing_to_train_are_refused_at_submission() {
     let app = spawn_app(0).await;
     let ds = app.upload(&dataset(16, 2)).await;
-    let two = |parameters: Value| {
+    let two = |parameters: Value, force: &str| {
         json!({
             "kind": "formula", "name": "still", "coordinates": ["a", "b"], "inputs": ["u", "v"],
             "parameters": parameters,
-            "mass": [["1", "0"], ["0", "1"]], "potential": "0", "forces": ["u", "v"]
+            "mass": [["1", "0"], ["0", "1"]], "potential": "0", "forces": [force, "v"]
         })
     };
-    for parameters in [json!({}), json!({"k": {"value": 1.0}})] {
-        let body = json!({"dataset_id": ds, "model": "W-B", "template": two(parameters.clone())});
+    // No parameter, one no part uses, one F uses but that is fixed (known, not trained).
+    for (parameters, force) in [
+        (json!({}), "u"),
+        (json!({"k": {"value": 1.0}}), "u"),
+        (json!({"k": {"value": 1.0, "fixed": true}}), "k*u"),
+    ] {
+        let template = two(parameters, force);
+        let body = json!({"dataset_id": ds, "model": "W-B", "template": template.clone()});
         let (status, v) = app.post("/v1/jobs", &body).await;
         assert_refused(status, &v, "template", "no trainable parameter");
         // A network has something to train.
-        let body = json!({"dataset_id": ds, "model": "MVF", "template": two(parameters)});
+        let body = json!({"dataset_id": ds, "model": "MVF", "template": template});
         let (status, v) = app.post("/v1/jobs", &body).await;
         assert_eq!(status, 201, "{v}");
     }
