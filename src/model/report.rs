@@ -150,6 +150,10 @@ fn formula_products(t: &Template, values: &[(String, f64)]) -> Vec<Identified> {
     let trained: Vec<usize> = (0..infos.len())
         .filter(|&j| !infos[j].fixed && !infos[j].used_by.is_empty() && theta[j] != 0.0)
         .collect();
+    // The differences alone cost 2p rollouts of the document: none beyond the search's limit.
+    if trained.len() > identify::MAX_PARAMS {
+        return vec![];
+    }
     let mut rng = crate::rng::Rng::new(0x1D_E7);
     let states: Vec<[Vec<f64>; 3]> = (0..SENSITIVITY_STATES)
         .map(|_| {

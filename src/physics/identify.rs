@@ -9,7 +9,8 @@ use super::eigen::symmetric_eigen;
 const POWERS: [i32; 4] = [1, -1, 2, -2];
 /// Factors per candidate product.
 const MAX_FACTORS: usize = 3;
-/// Beyond this many parameters the candidate search (O(p³) products) is skipped.
+/// Beyond this many parameters nothing is searched: the candidates grow as p³ and the
+/// eigen-decomposition as p³ per sweep, and a document may hold thousands of parameters.
 pub const MAX_PARAMS: usize = 32;
 /// An eigenvalue of JᵀJ below this fraction of the largest is a direction the data cannot
 /// see. The Jacobian is a central difference with a relative error of ~1e-8, so a true null
@@ -53,13 +54,14 @@ impl Product {
 /// `rows`: ∂(output)/∂ log θⱼ, one row per output (each sampled state's q̈ᵢ) and one column
 /// per parameter considered. Returns independent identifiable products, simplest first
 /// (fewer factors, then lower powers), and the rank: how many independent combinations the
-/// data determines. Fewer products than the rank: the rest are not simple products.
+/// data determines. Fewer products than the rank: the rest are not simple products. Nothing
+/// (and rank 0) beyond `MAX_PARAMS` parameters.
 pub fn identifiable_products(rows: &[Vec<f64>], p: usize) -> (Vec<Product>, usize) {
+    if p > MAX_PARAMS {
+        return (vec![], 0);
+    }
     let null = null_space(rows, p);
     let rank = p - null.len();
-    if p > MAX_PARAMS {
-        return (vec![], rank);
-    }
     let (mut chosen, mut basis) = (vec![], Vec::<Vec<f64>>::new());
     for a in candidates(p) {
         if chosen.len() == rank {
