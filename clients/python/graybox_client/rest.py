@@ -193,13 +193,15 @@ class RestClient:
         raise `deadline_exceeded`."""
         report = _printer(job_id) if progress is True else (progress or None)
         end = None if timeout is None else time.monotonic() + timeout
+        reported = 0  # a stream followed again replays the epochs from the first
         while True:
             job = self.job(job_id)
             if job["state"] in FINAL:
                 return job
             try:
                 for kind, data in self._events(f"/v1/jobs/{job_id}/events", end):
-                    if kind == "progress" and report:
+                    if kind == "progress" and report and data["epoch"] > reported:
+                        reported = data["epoch"]
                         report(data)
                     elif kind == "state" and data["state"] in FINAL:
                         return data
