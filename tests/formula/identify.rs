@@ -125,3 +125,45 @@ fn a_fixed_parameter_keeps_its_value_and_the_rest_become_identifiable() {
         r.warnings
     );
 }
+
+/// The paper's double pendulum as a formula (README "What the data determines"): nine
+/// parameters, the mass and the length scale free, seven products, each unchanged under
+/// (m, l, g, b, η) → (c_m m, c_l l, c_l g, c_m c_l² b, c_m c_l² η).
+#[test]
+fn the_formula_double_pendulum_reports_seven_products_invariant_under_both_scalings() {
+    let t = Template::Formula(Arc::new(super::template(&super::double_pendulum())));
+    let names: Vec<String> = t.params().iter().map(|p| p.name.to_string()).collect();
+    let at = |c_m: f64, c_l: f64| -> Vec<(String, f64)> {
+        let scale = |name: &str| match name {
+            "m1" | "m2" => c_m,
+            "l1" | "l2" | "g" => c_l,
+            _ => c_m * c_l * c_l, // b1, b2, eta1, eta2
+        };
+        (names.iter().zip(t.defaults()))
+            .map(|(n, v)| (n.clone(), v * scale(n)))
+            .collect()
+    };
+    let found = identifiable(&t, &ALL, &at(1.0, 1.0));
+    let got: Vec<&str> = found.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(
+        got,
+        [
+            "b1/b2",
+            "b1/eta1",
+            "b1/eta2",
+            "g/l1",
+            "g/l2",
+            "m1/m2",
+            "b1/(g^2*m1)"
+        ]
+    );
+    for (c_m, c_l) in [(2.0, 1.0), (1.0, 0.5), (3.0, 1.7)] {
+        for (x, y) in found.iter().zip(identifiable(&t, &ALL, &at(c_m, c_l))) {
+            assert_eq!(x.name, y.name);
+            assert!(
+                (x.value - y.value).abs() <= 1e-9 * x.value.abs(),
+                "{x:?} vs {y:?}"
+            );
+        }
+    }
+}
