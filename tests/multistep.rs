@@ -242,6 +242,47 @@ fn one_step_epochs_train_on_rows_then_on_windows() {
     );
 }
 
+/// `window_lr` sets the window epochs' learning rate only: equal to `lr` it changes no bit,
+/// and another value leaves the one-step epochs as they were and changes the window epochs.
+#[test]
+fn window_lr_applies_to_the_window_epochs_only() {
+    let data = trajectories(4, 15, 6);
+    let never = AtomicBool::new(false);
+    // Of a run of 2 one-step epochs and 1 on windows of 3, the parameters after `epochs`.
+    let run = |window_lr: Option<f64>, epochs: usize| {
+        let cfg = TrainConfig {
+            val_fraction: 0.0,
+            one_step_epochs: 2,
+            window_lr,
+            ..config(3, 3)
+        };
+        let mut t = Trainer::new("MVF", mvf(), &[], &data, None, cfg, &flex()).unwrap();
+        for _ in 0..epochs {
+            t.run_epoch(&never).unwrap();
+        }
+        t.checkpoint().params
+    };
+    let lr = TrainConfig::default().lr;
+    assert_eq!(run(None, 3), run(Some(lr), 3));
+    assert_eq!(
+        run(None, 2),
+        run(Some(lr / 10.0), 2),
+        "one-step epochs use lr"
+    );
+    assert_ne!(
+        run(None, 3),
+        run(Some(lr / 10.0), 3),
+        "window epochs use window_lr"
+    );
+    let err = TrainConfig {
+        window_lr: Some(0.0),
+        ..config(3, 3)
+    }
+    .validate()
+    .unwrap_err();
+    assert!(err.to_string().contains("training.window_lr"), "{err}");
+}
+
 /// The error-against-horizon figures (all window starts stepped as one batch, starts leaving
 /// as their trajectory ends) are each window's own rollout: checked against one
 /// `Evaluator::rollout` per window start.

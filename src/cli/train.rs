@@ -83,6 +83,9 @@ pub struct TrainArgs {
     /// fewer than --epochs).
     #[arg(long, default_value_t = 0)]
     pub one_step_epochs: usize,
+    /// Learning rate of the epochs on windows (--horizon > 1) [default: --lr].
+    #[arg(long)]
+    pub window_lr: Option<f64>,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
@@ -153,6 +156,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
         horizon: a.horizon,
         discount: a.discount,
         one_step_epochs: a.one_step_epochs,
+        window_lr: a.window_lr,
     };
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;

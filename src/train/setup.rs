@@ -44,6 +44,11 @@ pub struct TrainConfig {
     /// from the start (and is left out of files).
     #[serde(skip_serializing_if = "is_zero")]
     pub one_step_epochs: usize,
+    /// The learning rate of the epochs on windows of `horizon` > 1 (None: `lr`), so that a
+    /// curriculum can take smaller steps once its loss runs through rollouts (left out of
+    /// files when unset).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub window_lr: Option<f64>,
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -78,11 +83,20 @@ impl Default for TrainConfig {
             horizon: 1,
             discount: 1.0,
             one_step_epochs: 0,
+            window_lr: None,
         }
     }
 }
 
 impl TrainConfig {
+    /// The learning rate of the epoch after `done` epochs: `window_lr` on windows.
+    pub fn lr_at(&self, done: usize) -> f64 {
+        match self.window_lr {
+            Some(lr) if self.horizon_at(done) > 1 => lr,
+            _ => self.lr,
+        }
+    }
+
     /// The horizon of the epoch after `done` epochs: 1 during the one-step epochs.
     pub fn horizon_at(&self, done: usize) -> usize {
         if done < self.one_step_epochs {
@@ -100,8 +114,10 @@ impl TrainConfig {
         if self.batch_size == 0 || self.batch_size > 1 << 22 {
             return bad("batch_size", "must be between 1 and 4194304");
         }
-        if !(self.lr.is_finite() && self.lr > 0.0 && self.lr <= 10.0) {
-            return bad("lr", "must be a finite number in (0, 10]");
+        for (field, lr) in [("lr", Some(self.lr)), ("window_lr", self.window_lr)] {
+            if lr.is_some_and(|lr| !(lr.is_finite() && lr > 0.0 && lr <= 10.0)) {
+                return bad(field, "must be a finite number in (0, 10]");
+            }
         }
         if !(self.lambda.is_finite() && self.lambda >= 0.0) {
             return bad("lambda", "must be a finite number ≥ 0");

@@ -255,9 +255,8 @@ impl Trainer {
                 )));
             }
             total += value * batch.len() as f64;
-            self.model.params =
-                self.adam
-                    .step(self.model.params.clone(), &grads, self.state.train.lr);
+            let lr = self.state.train.lr_at(self.state.epoch);
+            self.model.params = self.adam.step(self.model.params.clone(), &grads, lr);
             if let Some(bounds) = &self.bounds {
                 self.model.params = self.model.params.clone().projected(bounds);
             }

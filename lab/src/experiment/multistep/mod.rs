@@ -45,6 +45,9 @@ pub struct MultistepArgs {
     /// curriculum; fewer than --epochs).
     #[arg(long, default_value_t = 0)]
     pub one_step_epochs: usize,
+    /// Learning rate of the window epochs in H > 1 cells [default: the run's lr].
+    #[arg(long)]
+    pub window_lr: Option<f64>,
     /// Standard deviations of Gaussian noise added to the training and validation states, on
     /// q and on q̇ (e.g. 0.01,0.1), as sensors would record them; the held-out trajectories
     /// stay exact [default: none].
@@ -77,6 +80,9 @@ pub(super) struct MultistepSettings {
     /// an option).
     #[serde(skip_serializing_if = "is_zero")]
     one_step_epochs: usize,
+    /// The window epochs' learning rate (left out when it is `lr`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    window_lr: Option<f64>,
     /// Noise on the training and validation states, [q, q̇] standard deviations (left out
     /// when there is none).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -137,6 +143,7 @@ pub fn run(a: MultistepArgs) -> Result<()> {
         lr: 1e-3,
         discount: 1.0,
         one_step_epochs: a.one_step_epochs,
+        window_lr: a.window_lr,
         noise: noise_arg(a.noise.as_deref())?,
         train_trajectories: if q { 4 } else { 40 },
         val_trajectories: if q { 2 } else { 10 },
@@ -247,6 +254,7 @@ fn train_cell(
         horizon: k.horizon,
         discount: s.discount,
         one_step_epochs: if k.horizon > 1 { s.one_step_epochs } else { 0 },
+        window_lr: s.window_lr.filter(|_| k.horizon > 1),
         ..TrainConfig::default()
     };
     let ckpt = out.path(&format!("{}.ckpt.json", k.name()));
