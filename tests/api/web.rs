@@ -113,6 +113,7 @@ async fn the_job_form_starts_from_the_services_defaults() {
         "horizon",
         "discount",
         "one_step_epochs",
+        "window_lr",
         "patience",
         "epochs",
     ] {

@@ -90,6 +90,7 @@ pub fn defaults_script() -> String {
     training["horizon"] = t.horizon.into();
     training["discount"] = t.discount.into();
     training["one_step_epochs"] = t.one_step_epochs.into();
+    training["window_lr"] = serde_json::Value::Null;
     let defaults = serde_json::json!({
         "training": training,
         "models": NAMED,

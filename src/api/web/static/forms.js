@@ -71,7 +71,10 @@ const TRAINING_HINTS = {
   horizon: "transitions per training window (1: the one-step loss)",
   discount: "weight γ of each further step of a window",
   one_step_epochs: "epochs on the one-step loss before the windows",
+  window_lr: "learning rate of the epochs on windows",
 };
+// What an empty field means, for the fields without a value by default.
+const EMPTY_MEANS = { patience: "off", window_lr: "lr" };
 
 async function newJobView(view) {
   const [datasets, templates] = await Promise.all([
@@ -104,8 +107,8 @@ async function newJobView(view) {
     const id = `job-${k.replace(/_/g, "-")}`;
     training[k] = k === "integrator"
       ? el("select", { id }, D.integrators.map((i) => el("option", { value: i, text: i, selected: i === v })))
-      : el("input", { type: "number", id, step: "any", value: v ?? "", placeholder: v === null ? "off" : undefined });
-    return field(`training.${k}`, id, k, training[k], `${TRAINING_HINTS[k]} (default ${v ?? "off"})`);
+      : el("input", { type: "number", id, step: "any", value: v ?? "", placeholder: v === null ? EMPTY_MEANS[k] : undefined });
+    return field(`training.${k}`, id, k, training[k], `${TRAINING_HINTS[k]} (default ${v ?? EMPTY_MEANS[k]})`);
   });
   const alert = el("div", { role: "alert", id: "job-form-alert" });
   const submit = el("button", { type: "submit" }, "Start training");
@@ -151,7 +154,7 @@ async function newJobView(view) {
       try { body.model = JSON.parse(spec.value); } catch (err) { throw fieldErr("model", `is not JSON: ${err.message}`); }
     } else body.model = model.value;
     for (const [k, input] of Object.entries(training)) {
-      if (input.value === "") continue; // patience: off
+      if (input.value === "") continue; // patience off, window_lr = lr
       body.training[k] = k === "integrator" ? input.value : Number(input.value);
     }
     if (template.value === "file") body.template = await storeTemplate(templateFile.files[0]);
