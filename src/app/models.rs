@@ -26,7 +26,13 @@ impl App {
     /// A model by its id, or by the id of the job that trained it (gRPC callers may name
     /// either); a job that has not succeeded is a failed precondition.
     pub async fn resolve_model(&self, id: &str) -> Result<ModelView> {
-        let mut view = ModelView::from(self.resolve_model_row(id).await?);
+        self.resolve_model_row(id).await.map(ModelView::from)
+    }
+
+    /// `resolve_model` with the coordinates' names (GET /v1/models/{id}): naming them parses
+    /// the model's template, off the executor, so only a read that shows them pays for it.
+    pub async fn model_with_coordinates(&self, id: &str) -> Result<ModelView> {
+        let mut view = self.resolve_model(id).await?;
         let (spec, n) = (view.spec.clone(), view.n.max(0) as usize);
         view.coordinates = Some(off_executor(move || Ok(coordinate_names(spec, n))).await?);
         Ok(view)

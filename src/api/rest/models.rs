@@ -74,7 +74,7 @@ async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoRespo
 
 /// A model by its id, or by the id of the job that trained it (as gRPC reads it).
 async fn read(State(s): State<RestState>, Path(id): Path<String>) -> ApiResult<impl IntoResponse> {
-    Ok(axum::Json(s.app.resolve_model(&id).await?))
+    Ok(axum::Json(s.app.model_with_coordinates(&id).await?))
 }
 
 async fn checkpoint(
