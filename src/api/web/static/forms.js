@@ -163,12 +163,14 @@ async function newJobView(view) {
   }
 }
 
+// A template file's content type: a URDF is XML, a formula template JSON.
+const templateType = (file) => (/\.(urdf|xml)$/i.test(file.name) ? "application/xml" : "application/json");
+
 // Stores a template file (POST /v1/templates) and returns its id; its errors name `template`.
 async function storeTemplate(file) {
   if (!file) throw fieldErr("template", "choose a URDF or formula template file");
-  const xml = /\.(urdf|xml)$/i.test(file.name);
   try {
-    return (await api("POST", "/v1/templates", file, xml ? "application/xml" : "application/json")).id;
+    return (await api("POST", "/v1/templates", file, templateType(file))).id;
   } catch (err) {
     throw fieldErr(err.field ? `template.${err.field}` : "template", err.message);
   }
@@ -230,7 +232,7 @@ async function templatesView(view) {
   view.append(el("h1", { text: "Templates" }),
     uploadForm({
       id: "template-upload", title: "Upload a template", accept: ".urdf,.xml,.json", fileLabel: "URDF (.urdf, .xml) or formula template (.json)",
-      contentType: (f) => (/\.(urdf|xml)$/i.test(f.name) ? "application/xml" : "application/json"), path: "/v1/templates", withName: false, onDone: load,
+      contentType: templateType, path: "/v1/templates", withName: false, onDone: load,
     }),
     status,
     el("div", { class: "table-wrap" }, el("table", { id: "templates-table" },
