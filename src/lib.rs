@@ -13,6 +13,7 @@ pub mod api;
 pub mod app;
 pub mod array;
 pub mod backend;
+pub mod backoff;
 pub mod cli;
 pub mod control;
 pub mod data;

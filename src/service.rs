@@ -72,7 +72,7 @@ pub async fn start(settings: Settings) -> Result<Running> {
     // without creating database files.
     let http = bind(&cfg.http, "http").await?;
     let grpc = bind(&cfg.grpc, "grpc").await?;
-    let store = Store::open_with(&cfg.worker.db, cfg.worker.blobs.as_deref()).await?;
+    let store = open_store(&cfg.worker).await?;
     let app = App::new(store, settings);
     let (http_addr, grpc_addr) = (http.local_addr()?, grpc.local_addr()?);
     let (stop, stopped) = watch::channel(false);
@@ -95,6 +95,7 @@ pub async fn start(settings: Settings) -> Result<Running> {
             app.clone(),
             until_stopped(stopped.clone()),
         )),
+        spawn_collector(&app, &stopped),
     ];
     let pool = Pool::spawn(&app, &stopped);
     let db = crate::store::redacted(&cfg.worker.db);
@@ -125,11 +126,11 @@ pub async fn start_worker(settings: WorkerSettings, health: Option<&str>) -> Res
             "a worker process needs at least 1",
         ));
     }
-    let store = Store::open_with(&settings.worker.db, settings.worker.blobs.as_deref()).await?;
+    let store = open_store(&settings.worker).await?;
     let db = crate::store::redacted(&settings.worker.db);
     let app = App::new(store, settings);
     let (stop, stopped) = watch::channel(false);
-    let mut servers = Vec::new();
+    let mut servers = vec![spawn_collector(&app, &stopped)];
     let mut health_addr = None;
     if let Some(addr) = health {
         let listener = bind(addr, "health").await?;
@@ -151,6 +152,22 @@ pub async fn start_worker(settings: WorkerSettings, health: Option<&str>) -> Res
             pool,
             servers,
         },
+    })
+}
+
+/// The database and object store `settings` name, the store's calls retried as they say.
+async fn open_store(settings: &WorkerSettings) -> Result<Store> {
+    let store = Store::open_with(&settings.db, settings.blobs.as_deref()).await?;
+    Ok(store.with_retry(settings.blobs_retry()))
+}
+
+/// The process's collector of unreferenced objects and ended jobs' checkpoints (every
+/// process runs one: whichever claims an object first deletes it), until the process stops.
+fn spawn_collector(app: &App, stopped: &watch::Receiver<bool>) -> JoinHandle<Result<()>> {
+    let (store, stop) = (app.store.clone(), until_stopped(stopped.clone()));
+    tokio::spawn(async move {
+        store.run_collector(crate::store::COLLECT_EVERY, stop).await;
+        Ok(())
     })
 }
 

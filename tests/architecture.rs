@@ -31,9 +31,8 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         "cli", "service",
     ];
     match layer {
-        "error" | "rng" | "names" | "array" | "backend" | "simd" | "data" | "records" => {
-            ABOVE_GROUND
-        }
+        "error" | "rng" | "backoff" | "names" | "array" | "backend" | "simd" | "data"
+        | "records" => ABOVE_GROUND,
         "model" | "infer" | "control" | "sim" => {
             &["train", "app", "store", "worker", "api", "cli", "service"]
         }

@@ -47,7 +47,10 @@ impl App {
         if let Some(n) = &name {
             check_name(n)?;
         }
-        let (row, created) = self.store.insert_dataset(name.as_deref(), &ds).await?;
+        let (store, asked) = (self.store.clone(), name.clone());
+        let (row, created) =
+            super::detached(async move { store.insert_dataset(asked.as_deref(), &ds).await })
+                .await?;
         let dataset: DatasetInfo = row.into();
         let note = match (&name, &dataset.name) {
             (Some(asked), stored) if !created && stored.as_ref() != Some(asked) => Some(format!(

@@ -20,6 +20,9 @@ pub use settings::{Settings, WorkerSettings};
 use crate::error::Result;
 use crate::store::Store;
 
+/// How long a `/metrics` scrape waits for the database's job counts.
+pub const JOB_COUNTS_WAIT: std::time::Duration = std::time::Duration::from_secs(1);
+
 /// The shared core. Cheap to clone.
 #[derive(Clone)]
 pub struct App {
@@ -44,10 +47,24 @@ impl App {
         self.store.ping().await
     }
 
-    /// The Prometheus exposition text: this process's counters and the jobs by state.
-    pub async fn metrics_text(&self) -> Result<String> {
-        let jobs = self.store.job_counts().await?;
-        Ok(self.telemetry.render(&jobs))
+    /// The Prometheus exposition text: this process's counters and the jobs by state. The
+    /// counts are read anew for [`JOB_COUNTS_WAIT`] at most (one read in flight per process,
+    /// not cancelled by a scrape that stops waiting); past it, the last counts read are shown
+    /// with their age, so that a scrape answers while the database does not.
+    pub async fn metrics_text(&self) -> String {
+        let app = self.clone();
+        let read = tokio::spawn(async move {
+            let telemetry = &app.telemetry;
+            let Ok(_reading) = telemetry.counting.try_lock() else {
+                return;
+            };
+            match app.store.job_counts().await {
+                Ok(jobs) => telemetry.set_job_counts(jobs),
+                Err(e) => tracing::warn!(error = %e, "reading the job counts failed"),
+            }
+        });
+        let _ = tokio::time::timeout(JOB_COUNTS_WAIT, read).await;
+        self.telemetry.render()
     }
 
     pub fn new(store: Store, settings: Settings) -> Self {
@@ -62,6 +79,17 @@ impl App {
             settings: Arc::new(settings),
         }
     }
+}
+
+/// Runs a store write to its end even if the request that started it goes away: a write of
+/// large bytes counts a reference to their object before it writes the row, and a future
+/// dropped in between would leave the count too high (the object never collected).
+async fn detached<T: Send + 'static>(
+    write: impl std::future::Future<Output = Result<T>> + Send + 'static,
+) -> Result<T> {
+    tokio::spawn(write)
+        .await
+        .map_err(|e| crate::error::Error::Internal(format!("a store write failed: {e}")))?
 }
 
 /// Keyset pagination: an opaque token carrying the last row's position.

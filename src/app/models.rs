@@ -98,18 +98,25 @@ impl App {
             (None, None) => "null".into(),
         };
         let spec = serde_json::to_string(&file.config.spec).expect("json");
-        let (row, created) = self
-            .store
-            .insert_model(NewModel {
+        let (store, n, m, dt) = (
+            self.store.clone(),
+            file.config.n as i64,
+            file.config.m as i64,
+            file.config.dt,
+        );
+        let (row, created) = super::detached(async move {
+            let new = NewModel {
                 name: &name,
-                n: file.config.n as i64,
-                m: file.config.m as i64,
-                dt: file.config.dt,
+                n,
+                m,
+                dt,
                 spec: &spec,
                 report: &report,
                 file: &bytes,
-            })
-            .await?;
+            };
+            store.insert_model(new).await
+        })
+        .await?;
         Ok(Stored {
             item: row.into(),
             created,

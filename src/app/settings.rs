@@ -115,6 +115,19 @@ pub struct WorkerSettings {
     /// Times a job's worker may die (lease expired) before the job fails.
     #[arg(long, env = "GRAYBOX_MAX_ATTEMPTS", default_value_t = 3)]
     pub max_attempts: u32,
+    /// One call to the object store that has not answered by then is abandoned and tried
+    /// again.
+    #[arg(long, env = "GRAYBOX_BLOBS_TIMEOUT_SECS", default_value_t = 30)]
+    pub blobs_timeout_secs: u64,
+    /// How long a failing object-store call is tried again (with backoff) before its request
+    /// or job sees the error.
+    #[arg(long, env = "GRAYBOX_BLOBS_RETRY_SECS", default_value_t = 30)]
+    pub blobs_retry_secs: u64,
+    /// How long a job's storage may keep failing before the job fails; until then it goes
+    /// back to the queue after each failure, waiting longer each time (outages are the
+    /// cluster's, not the job's).
+    #[arg(long, env = "GRAYBOX_STORAGE_PATIENCE_SECS", default_value_t = 1800)]
+    pub storage_patience_secs: u64,
 }
 
 impl Default for Settings {
@@ -153,6 +166,10 @@ const MB: usize = 1 << 20;
 
 /// An hour: longer is no grace but a hang (and a deadline far enough away overflows a clock).
 pub const MAX_SHUTDOWN_GRACE_SECS: u64 = 3600;
+
+/// A week: the most any of the waits the settings name may be (a longer one is a hang, and
+/// a deadline far enough away overflows a clock).
+pub const MAX_WAIT_SECS: u64 = 7 * 24 * 3600;
 
 impl Settings {
     /// Checks the values together (each flag that counts something is at least 1; the
@@ -257,7 +274,20 @@ impl WorkerSettings {
             ("lease-secs", self.lease_secs as usize),
             ("max-attempts", self.max_attempts as usize),
             ("job-threads", self.job_threads.unwrap_or(1)),
+            ("blobs-timeout-secs", self.blobs_timeout_secs as usize),
         ])?;
+        for (flag, secs) in [
+            ("blobs-timeout-secs", self.blobs_timeout_secs),
+            ("blobs-retry-secs", self.blobs_retry_secs),
+            ("storage-patience-secs", self.storage_patience_secs),
+        ] {
+            if secs > MAX_WAIT_SECS {
+                return Err(Error::invalid(
+                    flag,
+                    format!("must be at most {MAX_WAIT_SECS}"),
+                ));
+            }
+        }
         if self.shutdown_grace_secs > MAX_SHUTDOWN_GRACE_SECS {
             return Err(Error::invalid(
                 "shutdown-grace-secs",
@@ -285,6 +315,19 @@ impl WorkerSettings {
     /// Checkpoint interval in epochs (at least 1).
     pub fn checkpoint_epochs(&self) -> usize {
         self.checkpoint_every.max(1)
+    }
+
+    /// How the object store's calls are timed out and retried.
+    pub fn blobs_retry(&self) -> crate::store::blobs::Retry {
+        crate::store::blobs::Retry {
+            timeout: std::time::Duration::from_secs(self.blobs_timeout_secs),
+            retry_for: std::time::Duration::from_secs(self.blobs_retry_secs),
+        }
+    }
+
+    /// How long a job's storage may keep failing before the job fails.
+    pub fn storage_patience(&self) -> std::time::Duration {
+        std::time::Duration::from_secs(self.storage_patience_secs)
     }
 
     /// How long a signalled shutdown waits for jobs and calls before it exits anyway.

@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write;
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
 
 use crate::records::JobState;
 
@@ -28,6 +29,10 @@ pub struct Telemetry {
     pub computations_stopped: AtomicU64,
     /// Store reads made to follow jobs' progress (server-sent events), all subscribers together.
     pub job_polls: AtomicU64,
+    /// The jobs by state as last read from the database, and when.
+    job_counts: Mutex<Option<(Instant, Vec<(JobState, i64)>)>>,
+    /// Held while the job counts are read: one read at a time, however many scrapes.
+    pub counting: tokio::sync::Mutex<()>,
 }
 
 fn escape(s: &str) -> String {
@@ -55,13 +60,23 @@ impl Telemetry {
         h.sum += seconds;
     }
 
-    /// The exposition text, with the job counts read from the store.
-    pub fn render(&self, jobs: &[(JobState, i64)]) -> String {
+    pub fn set_job_counts(&self, jobs: Vec<(JobState, i64)>) {
+        *self.job_counts.lock().expect("telemetry lock") = Some((Instant::now(), jobs));
+    }
+
+    /// The exposition text, with the job counts last read from the store and their age
+    /// (NaN before the first read).
+    pub fn render(&self) -> String {
         let mut out = String::new();
+        let counts = self.job_counts.lock().expect("telemetry lock").clone();
         out.push_str("# HELP graybox_jobs Jobs by state.\n# TYPE graybox_jobs gauge\n");
-        for (state, count) in jobs {
+        for (state, count) in counts.iter().flat_map(|(_, jobs)| jobs) {
             let _ = writeln!(out, "graybox_jobs{{state=\"{}\"}} {count}", state.as_str());
         }
+        let age = counts.map_or(f64::NAN, |(read, _)| read.elapsed().as_secs_f64());
+        out.push_str("# HELP graybox_jobs_age_seconds How old the graybox_jobs counts are.\n");
+        out.push_str("# TYPE graybox_jobs_age_seconds gauge\n");
+        let _ = writeln!(out, "graybox_jobs_age_seconds {age}");
         self.render_counters(&mut out);
         self.render_requests(&mut out);
         self.render_latency(&mut out);

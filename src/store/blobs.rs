@@ -3,19 +3,34 @@
 //! configured by the usual `AWS_*` environment variables). Keys are the bytes' sha256, so an
 //! object never changes once written; objects are written create-if-absent before any row
 //! points at them, and read back verified against their key.
+//!
+//! Every call has a timeout and is retried with backoff (docs/storage.md#object-store-faults):
+//! an unreachable store is the cluster's fault, not the request's, so a call gives up only
+//! after `--blobs-retry-secs` of failures. The object store's own client does not retry, so
+//! that one policy, this one, bounds how long a call can take.
 
+use std::future::Future;
 use std::sync::Arc;
+use std::time::{Duration, Instant};
 
 use object_store::aws::{AmazonS3Builder, S3ConditionalPut};
 use object_store::local::LocalFileSystem;
 use object_store::path::Path;
-use object_store::{ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload};
+use object_store::{ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload, RetryConfig};
 
 use super::sha256_hex;
+use crate::backoff::Backoff;
 use crate::error::{Error, Result};
 
 /// The object every graybox process writes at start and readiness checks for.
 const MARKER: &str = "graybox/ready";
+
+/// Readiness asks the store once, this long at most: a probe must answer while the store
+/// hangs.
+pub const PING_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// The waits between tries of one call.
+const RETRY_BACKOFF: Backoff = Backoff::new(Duration::from_millis(200), Duration::from_secs(5));
 
 /// What a row's bytes are: the key's directory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -35,11 +50,30 @@ impl Kind {
     }
 }
 
+/// How long one call to the store may take, and how long a failing call is tried again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Retry {
+    /// One try that has not answered by then is abandoned (and counts as a failure).
+    pub timeout: Duration,
+    /// Tries go on, with backoff, until this long after the first; then the error is returned.
+    pub retry_for: Duration,
+}
+
+impl Default for Retry {
+    fn default() -> Self {
+        Self {
+            timeout: Duration::from_secs(30),
+            retry_for: Duration::from_secs(30),
+        }
+    }
+}
+
 /// An object store under a prefix. Cheap to clone.
 #[derive(Clone)]
 pub struct Blobs {
     store: Arc<dyn ObjectStore>,
     prefix: Path,
+    retry: Retry,
 }
 
 impl std::fmt::Debug for Blobs {
@@ -48,14 +82,29 @@ impl std::fmt::Debug for Blobs {
     }
 }
 
+/// How a deletion's one try failed.
+#[derive(Debug)]
+pub enum DeleteFailed {
+    /// The store answered with an error: the object is still there.
+    Refused(Error),
+    /// No answer in time: the store may still carry the deletion out.
+    Unanswered(Error),
+}
+
 /// An object store failure: the store is unavailable, not the request wrong.
 fn storage(e: object_store::Error) -> Error {
     Error::Storage(format!("object store: {e}"))
 }
 
+/// What one try of a call came to: done, or failed in a way another try may not repeat.
+enum Try<T> {
+    Done(T),
+    Again(Error),
+}
+
 impl Blobs {
     /// The store `url` names: `file:///absolute/dir` (created if missing) or
-    /// `s3://bucket[/prefix]`.
+    /// `s3://bucket[/prefix]`; calls retried as [`Retry::default`].
     pub fn open(url: &str) -> Result<Self> {
         let bad = |why: &str| Error::invalid("blobs", format!("{url}: {why}"));
         if let Some(dir) = url.strip_prefix("file://") {
@@ -64,10 +113,7 @@ impl Blobs {
             }
             std::fs::create_dir_all(dir).map_err(|e| bad(&e.to_string()))?;
             let local = LocalFileSystem::new_with_prefix(dir).map_err(|e| bad(&e.to_string()))?;
-            return Ok(Self {
-                store: Arc::new(local),
-                prefix: Path::default(),
-            });
+            return Ok(Self::new(Arc::new(local), Path::default()));
         }
         let Some(rest) = url.strip_prefix("s3://") else {
             return Err(bad("expected file:///dir or s3://bucket/prefix"));
@@ -84,12 +130,31 @@ impl Blobs {
         let s3 = AmazonS3Builder::from_env()
             .with_bucket_name(bucket)
             .with_conditional_put(S3ConditionalPut::ETagMatch)
+            .with_retry(RetryConfig {
+                max_retries: 0,
+                ..RetryConfig::default()
+            })
             .build()
             .map_err(|e| bad(&e.to_string()))?;
-        Ok(Self {
-            store: Arc::new(s3),
-            prefix: Path::from(prefix),
-        })
+        Ok(Self::new(Arc::new(s3), Path::from(prefix)))
+    }
+
+    fn new(store: Arc<dyn ObjectStore>, prefix: Path) -> Self {
+        Self {
+            store,
+            prefix,
+            retry: Retry::default(),
+        }
+    }
+
+    /// The same store, its calls timed out and retried as `retry` says.
+    pub fn with_retry(self, retry: Retry) -> Self {
+        Self { retry, ..self }
+    }
+
+    /// How long one try of a call may take.
+    pub fn timeout(&self) -> Duration {
+        self.retry.timeout
     }
 
     /// The key of `bytes` of this kind: its directory and sha256.
@@ -102,186 +167,156 @@ impl Blobs {
             .fold(self.prefix.clone(), |p, part| p.join(part))
     }
 
+    /// Runs `call` until it is done, a try times out or fails again after `retry_for`
+    /// (then its last error), with backoff between tries.
+    async fn retried<T, F, Fut>(&self, what: &str, mut call: F) -> Result<T>
+    where
+        F: FnMut() -> Fut,
+        Fut: Future<Output = Result<Try<T>>>,
+    {
+        let start = Instant::now();
+        for retry in 0.. {
+            let error = match self.once(what, self.retry.timeout, call()).await {
+                Ok(Try::Done(t)) => return Ok(t),
+                Ok(Try::Again(e)) | Err(e) => e,
+            };
+            let wait = RETRY_BACKOFF.delay(retry);
+            if start.elapsed() + wait > self.retry.retry_for {
+                return Err(error);
+            }
+            tracing::debug!(what, error = %error, ?wait, "object store call failed; retrying");
+            tokio::time::sleep(wait).await;
+        }
+        unreachable!("the tries end by returning")
+    }
+
+    /// One try of `call`, abandoned after `timeout`.
+    async fn once<T>(
+        &self,
+        what: &str,
+        timeout: Duration,
+        call: impl Future<Output = Result<T>>,
+    ) -> Result<T> {
+        match tokio::time::timeout(timeout, call).await {
+            Ok(done) => done,
+            Err(_) => Err(Error::Storage(format!(
+                "object store: {what} did not answer within {} s",
+                timeout.as_secs_f64()
+            ))),
+        }
+    }
+
     /// Writes `bytes` under `key` unless an object is there already (then it holds the same
     /// bytes: the key is their hash).
     pub async fn put(&self, key: &str, bytes: &[u8]) -> Result<()> {
-        let opts = PutOptions {
-            mode: PutMode::Create,
-            ..PutOptions::default()
-        };
+        let path = self.path(key);
         let payload = PutPayload::from(bytes.to_vec());
-        match self.store.put_opts(&self.path(key), payload, opts).await {
-            Ok(_) | Err(object_store::Error::AlreadyExists { .. }) => Ok(()),
-            Err(e) => Err(storage(e)),
-        }
+        self.retried(&format!("writing {key}"), || async {
+            let opts = PutOptions {
+                mode: PutMode::Create,
+                ..PutOptions::default()
+            };
+            match self.store.put_opts(&path, payload.clone(), opts).await {
+                Ok(_) | Err(object_store::Error::AlreadyExists { .. }) => Ok(Try::Done(())),
+                Err(e) => Ok(Try::Again(storage(e))),
+            }
+        })
+        .await
     }
 
     /// The bytes under `key`, checked against the hash the key names; None when there is no
-    /// object there.
+    /// object there. A read that does not match its key is tried again (a transfer cut
+    /// short), and is corrupt when it still does not.
     pub async fn get(&self, key: &str) -> Result<Option<Vec<u8>>> {
-        let got = match self.store.get(&self.path(key)).await {
-            Ok(got) => got,
-            Err(object_store::Error::NotFound { .. }) => return Ok(None),
-            Err(e) => return Err(storage(e)),
-        };
-        let bytes = got.bytes().await.map_err(storage)?.to_vec();
+        let path = self.path(key);
         let want = key.rsplit('/').next().unwrap_or_default();
-        if sha256_hex(&bytes) != want {
-            let why = format!("checksum mismatch for {key}");
-            return Err(Error::corrupt("object store", why));
-        }
-        Ok(Some(bytes))
+        self.retried(&format!("reading {key}"), || async {
+            let got = match self.store.get(&path).await {
+                Ok(got) => got,
+                Err(object_store::Error::NotFound { .. }) => return Ok(Try::Done(None)),
+                Err(e) => return Ok(Try::Again(storage(e))),
+            };
+            let bytes = match got.bytes().await {
+                Ok(b) => b.to_vec(),
+                Err(e) => return Ok(Try::Again(storage(e))),
+            };
+            if sha256_hex(&bytes) != want {
+                let why = format!("checksum mismatch for {key}");
+                return Ok(Try::Again(Error::corrupt("object store", why)));
+            }
+            Ok(Try::Done(Some(bytes)))
+        })
+        .await
     }
 
-    /// Deletes the object under `key` (gone already is fine).
-    pub async fn delete(&self, key: &str) -> Result<()> {
-        match self.store.delete(&self.path(key)).await {
-            Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
-            Err(e) => Err(storage(e)),
+    /// Deletes the object under `key` (gone already is fine): one try, as the collector
+    /// makes it (it tries again on a later sweep).
+    pub async fn delete_once(&self, key: &str) -> std::result::Result<(), DeleteFailed> {
+        let path = self.path(key);
+        match tokio::time::timeout(self.retry.timeout, self.store.delete(&path)).await {
+            Ok(Ok(()) | Err(object_store::Error::NotFound { .. })) => Ok(()),
+            Ok(Err(e)) => Err(DeleteFailed::Refused(storage(e))),
+            Err(_) => Err(DeleteFailed::Unanswered(Error::Storage(format!(
+                "object store: deleting {key} did not answer within {} s",
+                self.retry.timeout.as_secs_f64()
+            )))),
         }
     }
 
     /// Whether `key` has an object.
     pub async fn exists(&self, key: &str) -> Result<bool> {
-        match self.store.head(&self.path(key)).await {
-            Ok(_) => Ok(true),
-            Err(object_store::Error::NotFound { .. }) => Ok(false),
-            Err(e) => Err(storage(e)),
-        }
+        let path = self.path(key);
+        self.retried(&format!("looking up {key}"), || async {
+            match self.store.head(&path).await {
+                Ok(_) => Ok(Try::Done(true)),
+                Err(object_store::Error::NotFound { .. }) => Ok(Try::Done(false)),
+                Err(e) => Ok(Try::Again(storage(e))),
+            }
+        })
+        .await
     }
 
     /// Writes the marker [`Blobs::ping`] looks for: at start, the store is writable (bucket,
     /// credentials, permissions), or the process does not start.
     pub async fn mark(&self) -> Result<()> {
         let marker = PutPayload::from_static(b"graybox");
-        self.store
-            .put(&self.path(MARKER), marker)
-            .await
-            .map_err(storage)?;
-        Ok(())
+        self.retried("writing the readiness marker", || async {
+            match self.store.put(&self.path(MARKER), marker.clone()).await {
+                Ok(_) => Ok(Try::Done(())),
+                Err(e) => Ok(Try::Again(storage(e))),
+            }
+        })
+        .await
     }
 
-    /// Ready when the store answers with the marker: a missing bucket answers a read of any
-    /// key as a missing object, so the marker's absence is what tells it apart.
+    /// Ready when the store answers with the marker, asked once within [`PING_TIMEOUT`]. A
+    /// missing marker is written anew: a deleted bucket refuses that write (not ready), while
+    /// a store that merely lost the marker is ready again (and the loss is logged).
     pub async fn ping(&self) -> Result<()> {
-        if self.exists(MARKER).await? {
+        let path = self.path(MARKER);
+        let found = self.once("readiness", PING_TIMEOUT, async {
+            match self.store.head(&path).await {
+                Ok(_) => Ok(true),
+                Err(object_store::Error::NotFound { .. }) => Ok(false),
+                Err(e) => Err(storage(e)),
+            }
+        });
+        if found.await? {
             return Ok(());
         }
-        Err(Error::Storage(format!(
-            "object store: {MARKER} is missing (the bucket or prefix was deleted or changed)"
-        )))
-    }
-}
-
-/// A row that points at an object: its table, the column that identifies it, and its id.
-pub(super) type Row<'a> = (&'static str, &'static str, &'a str);
-
-/// Bytes as a new row keeps them: inline in its column, or under `key` in the object store
-/// (the column then empty).
-pub(super) struct Placed<'a> {
-    pub inline: &'a [u8],
-    pub key: Option<String>,
-}
-
-impl super::Store {
-    /// Puts `bytes` where a new row of `kind` keeps them. With `--blobs`: first counted as
-    /// referenced (so that a concurrent delete of the same content cannot remove the object
-    /// this row will point at), then written; the caller gives the reference back with
-    /// [`Store::unreference`] if no row ends up pointing at it. A crash in between leaves a
-    /// count too high: an object kept, never a row pointing at a missing one.
-    pub(super) async fn place<'a>(&self, kind: Kind, bytes: &'a [u8]) -> Result<Placed<'a>> {
-        let Some(blobs) = &self.blobs else {
-            return Ok(Placed {
-                inline: bytes,
-                key: None,
-            });
-        };
-        let key = Blobs::key(kind, bytes);
-        on_db!(self, pool, D => {
-            let mut tx = super::dialect::begin_write(pool).await?;
-            sqlx::query(
-                "INSERT INTO blob_refs (key, refs) VALUES ($1, 1)
-                 ON CONFLICT (key) DO UPDATE SET refs = blob_refs.refs + 1",
-            )
-            .bind(&key)
-            .execute(&mut *tx)
-            .await?;
-            tx.commit().await?;
+        tracing::warn!(
+            marker = MARKER,
+            "the object store's marker was missing; writing it anew"
+        );
+        let marker = PutPayload::from_static(b"graybox");
+        let written = self.once("readiness", PING_TIMEOUT, async {
+            self.store.put(&path, marker).await.map_err(storage)
         });
-        if let Err(e) = blobs.put(&key, bytes).await {
-            self.unreference(Some(&key)).await;
-            return Err(e);
-        }
-        Ok(Placed {
-            inline: &[],
-            key: Some(key),
+        written.await.map(|_| ()).map_err(|e| {
+            Error::Storage(format!(
+                "{e} ({MARKER} was missing and cannot be written: was the bucket or prefix \
+                 deleted or changed?)"
+            ))
         })
-    }
-
-    /// Gives back one reference to `key`'s object (a row deleted or replaced, or a write that
-    /// made none); at zero the object is deleted, inside the write transaction, so that a
-    /// [`Store::place`] of the same bytes comes wholly before (and is counted) or wholly
-    /// after (and writes the object anew). A failure is logged, not returned: the row's
-    /// change has happened, and the object is merely kept.
-    pub(super) async fn unreference(&self, key: Option<&str>) {
-        let (Some(key), Some(blobs)) = (key, &self.blobs) else {
-            return;
-        };
-        let released: Result<()> = on_db!(self, pool, D => async {
-            let mut tx = super::dialect::begin_write(pool).await?;
-            let left: Option<i64> =
-                sqlx::query_scalar("UPDATE blob_refs SET refs = refs - 1 WHERE key = $1 RETURNING refs")
-                    .bind(key)
-                    .fetch_optional(&mut *tx)
-                    .await?;
-            if left.is_some_and(|n| n <= 0) {
-                sqlx::query("DELETE FROM blob_refs WHERE key = $1")
-                    .bind(key)
-                    .execute(&mut *tx)
-                    .await?;
-                blobs.delete(key).await?;
-            }
-            tx.commit().await?;
-            Ok(())
-        }.await);
-        if let Err(e) = released {
-            tracing::warn!(key, error = %e, "releasing an object failed; it is kept");
-        }
-    }
-
-    /// A row's bytes: its inline column, or its object (verified against the key). None when
-    /// the object is gone because the row was deleted or replaced after it was read (the
-    /// deletion won the race: as if the row had not been found); a row that still points at a
-    /// missing object is corrupt.
-    pub(super) async fn fetch(
-        &self,
-        inline: Vec<u8>,
-        key: Option<String>,
-        row: Row<'_>,
-    ) -> Result<Option<Vec<u8>>> {
-        let Some(key) = key else {
-            return Ok(Some(inline));
-        };
-        let Some(blobs) = &self.blobs else {
-            return Err(Error::FailedPrecondition(format!(
-                "{key} is in the object store: start graybox with the --blobs it was stored with"
-            )));
-        };
-        if let Some(bytes) = blobs.get(&key).await? {
-            return Ok(Some(bytes));
-        }
-        let (table, column, id) = row;
-        let text = format!("SELECT COUNT(*) FROM {table} WHERE {column} = $1 AND blob_key = $2");
-        let still: i64 = on_db!(self, pool, D => {
-            sqlx::query_scalar(sqlx::AssertSqlSafe(text))
-                .bind(id)
-                .bind(&key)
-                .fetch_one(pool)
-                .await?
-        });
-        if still > 0 {
-            return Err(Error::corrupt("object store", format!("{key} is missing")));
-        }
-        Ok(None)
     }
 }

@@ -2,8 +2,9 @@
 
 use sha2::{Digest, Sha256};
 
-use super::blobs::{Kind, Placed};
+use super::blobs::Kind;
 use super::dialect::{Dialect, begin_write};
+use super::refs::Placed;
 use super::{Store, new_id, now_rfc3339, row};
 use crate::data::Dataset;
 use crate::error::{Error, Result};

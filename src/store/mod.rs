@@ -14,12 +14,14 @@ mod datasets;
 mod jobs;
 mod models;
 mod queue;
+mod refs;
 mod templates;
 
 pub use datasets::DatasetRow;
 pub use jobs::{JobRow, NewJob, Submitted};
 pub use models::{ModelRow, NewModel};
 pub use queue::{Claimed, Lease};
+pub use refs::COLLECT_EVERY;
 pub use templates::{NewTemplate, TemplateRow};
 
 use std::str::FromStr;
@@ -36,6 +38,8 @@ pub struct Store {
     db: Db,
     /// Where large bytes go (`--blobs`); None: inline in their rows.
     blobs: Option<blobs::Blobs>,
+    /// Wakes this process's collector (`refs.rs`): an object's last reference went.
+    collect_soon: std::sync::Arc<tokio::sync::Notify>,
 }
 
 impl From<sqlx::Error> for Error {
@@ -133,7 +137,11 @@ impl Store {
         } else {
             Self::open_sqlite(db).await?
         };
-        Ok(Self { db, blobs: None })
+        Ok(Self {
+            db,
+            blobs: None,
+            collect_soon: Default::default(),
+        })
     }
 
     /// [`Store::open`], with new rows' large bytes in the object store `blobs` names (see
@@ -146,6 +154,17 @@ impl Store {
             b.mark().await?;
         }
         Ok(Self { blobs, ..store })
+    }
+
+    /// The same store, its object store's calls timed out and retried as `retry` says.
+    pub fn with_retry(self, retry: blobs::Retry) -> Self {
+        let blobs = self.blobs.map(|b| b.with_retry(retry));
+        Self { blobs, ..self }
+    }
+
+    /// Whether large bytes go to an object store.
+    pub fn has_blobs(&self) -> bool {
+        self.blobs.is_some()
     }
 
     /// Several processes may start at once on an empty database: sqlx's migrator holds a
@@ -191,15 +210,36 @@ impl Store {
         Ok(Db::Sqlite(pool))
     }
 
-    /// Ready when the database (and the object store, with `--blobs`) answer.
+    /// Ready when the database (and the object store, with `--blobs`) answer, each asked
+    /// once and for [`blobs::PING_TIMEOUT`] at most: a probe answers while either hangs, and
+    /// its error names the one that did not answer.
     pub async fn ping(&self) -> Result<()> {
-        on_db!(self, pool, D => {
-            sqlx::query("SELECT 1").execute(pool).await?;
-        });
-        if let Some(b) = &self.blobs {
-            b.ping().await?;
+        let db = async {
+            on_db!(self, pool, D => {
+                sqlx::query("SELECT 1").execute(pool).await?;
+            });
+            Ok::<(), Error>(())
+        };
+        match tokio::time::timeout(blobs::PING_TIMEOUT, db).await {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => return Err(Error::Storage(format!("database: {e}"))),
+            Err(_) => {
+                return Err(Error::Storage(format!(
+                    "database: no answer within {} s",
+                    blobs::PING_TIMEOUT.as_secs()
+                )));
+            }
         }
-        Ok(())
+        self.ping_blobs().await
+    }
+
+    /// Ready when the object store answers (always, without `--blobs`): a worker asks before
+    /// it claims a job, so that an outage of the store leaves queued jobs queued.
+    pub async fn ping_blobs(&self) -> Result<()> {
+        match &self.blobs {
+            Some(b) => b.ping().await,
+            None => Ok(()),
+        }
     }
 }
 

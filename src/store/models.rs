@@ -3,9 +3,10 @@
 
 use serde::Serialize;
 
-use super::blobs::{Kind, Placed};
+use super::blobs::Kind;
 use super::dialect::{Dialect, begin_write};
 use super::queue::{Claimed, fence, fenced};
+use super::refs::Placed;
 use super::{Store, new_id, now_rfc3339, row, sha256_hex, verified};
 use crate::error::{Error, Result};
 use crate::records::Warning;
@@ -130,6 +131,7 @@ impl Store {
             }
             insert_row!(D, tx, &model_id, Some(&c.job.id), m, placed)?;
             tx.commit().await?;
+            self.wake_collector();
             Ok(Some(model_id))
         })
     }

@@ -1,12 +1,16 @@
 //! The queue's worker side: atomic claim (counting dead workers), leases with heartbeats,
 //! fencing of every worker write by (job, attempt, owner), checkpoints, and the ends of a job.
 
+use std::time::Duration;
+
 use sqlx::Row;
 
-use super::blobs::{Kind, Placed};
+use super::blobs::Kind;
 use super::dialect::{Dialect, begin_write, owned_sql};
 use super::jobs::{JobRow, row, sql};
+use super::refs::Placed;
 use super::{Store, now_rfc3339, sha256_hex, verified};
+use crate::backoff::Backoff;
 use crate::error::{Error, Result};
 use crate::records::JobState;
 use crate::records::Metric;
@@ -108,7 +112,8 @@ impl Store {
                     worker_deaths = worker_deaths + CASE WHEN state = 'running' THEN 1 ELSE 0 END,
                     lease_expires_ms = {NOW_MS} + $2, heartbeat_ms = {NOW_MS},
                     started_at = COALESCE(started_at, $3)
-                 WHERE id = (SELECT id FROM jobs WHERE state = 'queued'
+                 WHERE id = (SELECT id FROM jobs
+                             WHERE (state = 'queued' AND (not_before_ms IS NULL OR not_before_ms <= {NOW_MS}))
                                 OR (state = 'running' AND lease_expires_ms < {NOW_MS})
                              ORDER BY seq LIMIT 1 {SKIP_LOCKED})
                  RETURNING {COLUMNS}",
@@ -226,7 +231,11 @@ impl Store {
     ) -> Result<Option<Option<String>>> {
         on_db!(self, pool, D => {
             let mut tx = begin_write(pool).await?;
-            let text = format!("UPDATE jobs SET checkpoint_epoch = $1 WHERE {}", fence(1));
+            // A stored checkpoint ends a run of storage failures (see `retry_later`).
+            let text = format!(
+                "UPDATE jobs SET checkpoint_epoch = $1, infra_since_ms = NULL WHERE {}",
+                fence(1)
+            );
             let updated = fenced(sqlx::query(owned_sql::<D>(text)).bind(epoch), c)
                 .execute(&mut *tx)
                 .await?;
@@ -300,23 +309,82 @@ impl Store {
             )
             .execute(pool)
             .await?;
+            self.wake_collector();
             Ok(r.rows_affected() == 1)
         })
     }
 
-    /// Gives a held job back to the queue (graceful shutdown, or an infrastructure failure
-    /// that may succeed on retry).
-    pub async fn release_job(&self, c: &Claimed, infra_failure: bool) -> Result<bool> {
+    /// Gives a held job back to the queue (graceful shutdown).
+    pub async fn release_job(&self, c: &Claimed) -> Result<bool> {
         on_db!(self, pool, D => {
             let text = format!(
-                "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL,
-                    infra_failures = infra_failures + $1 WHERE {}",
-                fence(1)
+                "UPDATE jobs SET state = 'queued', lease_owner = NULL, lease_expires_ms = NULL WHERE {}",
+                fence(0)
             );
-            let r = fenced(sqlx::query(owned_sql::<D>(text)).bind(infra_failure as i64), c)
-                .execute(pool)
-                .await?;
+            let r = fenced(sqlx::query(owned_sql::<D>(text)), c).execute(pool).await?;
             Ok(r.rows_affected() == 1)
+        })
+    }
+
+    /// Gives a held job back after a storage failure, to be claimed again after a backoff
+    /// wait; or fails it when its storage has been failing for `patience` (counted from the
+    /// first failure since it last stored a checkpoint), so that a long outage is measured in
+    /// time, not in tries made in a burst. None when the lease was lost.
+    pub async fn retry_later(
+        &self,
+        c: &Claimed,
+        backoff: Backoff,
+        patience: Duration,
+        error: &str,
+    ) -> Result<Option<JobState>> {
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let text = format!(
+                "SELECT infra_failures, infra_since_ms, {{NOW_MS}} FROM jobs WHERE {}",
+                fence(0)
+            );
+            let Some(r) = fenced(sqlx::query(owned_sql::<D>(text)), c)
+                .fetch_optional(&mut *tx)
+                .await?
+            else {
+                return Ok(None);
+            };
+            let (failures, since, now): (i64, Option<i64>, i64) =
+                (r.try_get(0)?, r.try_get(1)?, r.try_get(2)?);
+            let since = since.unwrap_or(now);
+            let failing = Duration::from_millis((now - since).max(0) as u64);
+            let state = if failing >= patience {
+                let msg = format!(
+                    "storage failed for {} s ({} times); last error: {error}",
+                    failing.as_secs(),
+                    failures + 1
+                );
+                let text = format!(
+                    "UPDATE jobs SET state = 'failed', error = $1, finished_at = $2,
+                        infra_failures = infra_failures + 1, lease_owner = NULL,
+                        lease_expires_ms = NULL WHERE {}",
+                    fence(2)
+                );
+                let q = sqlx::query(owned_sql::<D>(text)).bind(msg).bind(now_rfc3339());
+                fenced(q, c).execute(&mut *tx).await?;
+                JobState::Failed
+            } else {
+                let wait = backoff.delay(failures.clamp(0, 30) as u32).as_millis() as i64;
+                let text = format!(
+                    "UPDATE jobs SET state = 'queued', infra_failures = infra_failures + 1,
+                        infra_since_ms = $1, not_before_ms = {{NOW_MS}} + $2,
+                        lease_owner = NULL, lease_expires_ms = NULL WHERE {}",
+                    fence(2)
+                );
+                let q = sqlx::query(owned_sql::<D>(text)).bind(since).bind(wait);
+                fenced(q, c).execute(&mut *tx).await?;
+                JobState::Queued
+            };
+            tx.commit().await?;
+            if state == JobState::Failed {
+                self.wake_collector();
+            }
+            Ok(Some(state))
         })
     }
 
@@ -335,17 +403,6 @@ impl Store {
             .execute(pool)
             .await?;
             Ok(r.rows_affected())
-        })
-    }
-
-    pub async fn infra_failures(&self, job_id: &str) -> Result<i64> {
-        on_db!(self, pool, D => {
-            Ok(
-                sqlx::query_scalar("SELECT infra_failures FROM jobs WHERE id = $1")
-                    .bind(job_id)
-                    .fetch_one(pool)
-                    .await?,
-            )
         })
     }
 }

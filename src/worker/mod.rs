@@ -18,13 +18,18 @@ use tracing::{info, warn};
 use crate::app::App;
 use crate::app::jobs::JobSpec;
 use crate::backend::{self, Backend, Precision};
+use crate::backoff::Backoff;
 use crate::error::{Error, Result};
 use crate::records::{JobState, Metric};
 use crate::store::{Claimed, Lease, NewModel};
 use crate::train::{TrainState, Trainer};
 
-/// Infrastructure failures (storage errors) a job survives before it is failed.
-const MAX_INFRA_RETRIES: i64 = 3;
+/// A job given back after a storage failure waits this long before it is claimed again,
+/// doubling with each failure in a row (`--storage-patience-secs` says when it fails).
+const JOB_BACKOFF: Backoff = Backoff::new(Duration::from_secs(2), Duration::from_secs(60));
+
+/// How long a worker waits before asking an unreachable object store again, doubling.
+const STORE_BACKOFF: Backoff = Backoff::new(Duration::from_millis(500), Duration::from_secs(15));
 
 /// How a claimed job ended, as far as this worker is concerned.
 #[derive(Debug, Clone, PartialEq)]
@@ -36,7 +41,7 @@ pub enum Outcome {
     Released,
     /// Another attempt owns the job now; this worker stopped without writing.
     LeaseLost,
-    /// A storage failure; the job went back to the queue (or failed after repeated failures).
+    /// A storage failure; the job went back to the queue, to be claimed after a backoff wait.
     Retried,
 }
 
@@ -51,10 +56,28 @@ struct Flags {
 /// Runs workers until `shutdown` turns true; each returns after its current job reached an
 /// epoch end and was checkpointed and released.
 pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<bool>) {
+    let mut store_down = 0;
     loop {
-        let poll = poll_interval();
+        let mut poll = poll_interval();
         if *shutdown.borrow() {
             return;
+        }
+        // No job is claimed while the object store does not answer: it would only fail.
+        if let Err(e) = app.store.ping_blobs().await {
+            if store_down == 0 {
+                warn!(error = %e, worker = %owner, "the object store is unreachable; claiming no job until it answers");
+            }
+            let wait = STORE_BACKOFF.delay(store_down);
+            store_down += 1;
+            tokio::select! {
+                _ = tokio::time::sleep(wait) => {}
+                _ = shutdown.changed() => {}
+            }
+            continue;
+        }
+        if store_down > 0 {
+            info!(worker = %owner, "the object store answers again");
+            store_down = 0;
         }
         match app
             .store
@@ -85,7 +108,11 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
             }
             Err(e) => {
                 warn!(error = %e, "claiming a job failed");
-                tokio::time::sleep(poll).await;
+                poll = STORE_BACKOFF.delay(0).max(poll);
+                tokio::select! {
+                    _ = tokio::time::sleep(poll) => {}
+                    _ = shutdown.changed() => {}
+                }
             }
         }
     }
@@ -173,8 +200,9 @@ fn spawn_shutdown_watch(mut shutdown: watch::Receiver<bool>, flags: &Arc<Flags>)
     })
 }
 
-/// Ends a job whose training returned an error: cancelled, retried after a storage fault (at
-/// most [`MAX_INFRA_RETRIES`] times), or failed with the error's message.
+/// Ends a job whose training returned an error: cancelled, given back after a storage fault
+/// (claimed again after a backoff wait, or failed once storage has failed it for
+/// `--storage-patience-secs`), or failed with the error's message.
 async fn end_with_error(app: &App, claimed: &Claimed, e: Error) -> Result<Outcome> {
     let store = &app.store;
     Ok(match e {
@@ -183,14 +211,15 @@ async fn end_with_error(app: &App, claimed: &Claimed, e: Error) -> Result<Outcom
             Outcome::Cancelled
         }
         Error::Storage(msg) => {
-            let failures = store.infra_failures(&claimed.job.id).await.unwrap_or(0) + 1;
-            if failures > MAX_INFRA_RETRIES {
-                let msg = format!("storage failed {failures} times; last error: {msg}");
-                store.end_job(claimed, JobState::Failed, Some(&msg)).await?;
-                Outcome::Failed(msg)
-            } else {
-                store.release_job(claimed, true).await?;
-                Outcome::Retried
+            let patience = app.settings.worker.storage_patience();
+            warn!(job = %claimed.job.id, error = %msg, "storage failed; the job goes back to the queue");
+            match store
+                .retry_later(claimed, JOB_BACKOFF, patience, &msg)
+                .await?
+            {
+                Some(JobState::Failed) => Outcome::Failed(msg),
+                Some(_) => Outcome::Retried,
+                None => Outcome::LeaseLost,
             }
         }
         e => {
@@ -329,6 +358,6 @@ fn release(
             &trainer.checkpoint().to_bytes(),
         ))?;
     }
-    rt.block_on(app.store.release_job(c, false))?;
+    rt.block_on(app.store.release_job(c))?;
     Ok(Outcome::Released)
 }

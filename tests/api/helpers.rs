@@ -84,7 +84,8 @@ pub async fn spawn_app_on(app: &TestApp, workers: usize) -> TestApp {
     spawn_on(app.db.clone(), settings, tempfile::tempdir().unwrap()).await
 }
 
-async fn spawn_on(db: String, mut settings: Settings, dir: tempfile::TempDir) -> TestApp {
+/// The service with these settings on `db` (its addresses replaced by port 0), keeping `dir`.
+pub async fn spawn_on(db: String, mut settings: Settings, dir: tempfile::TempDir) -> TestApp {
     settings.worker.db = db.clone();
     settings.worker.blobs = settings.worker.blobs.or_else(|| blobs_for(&db));
     let running = start(Settings {

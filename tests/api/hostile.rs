@@ -340,7 +340,7 @@ async fn a_checkpoint_past_the_last_epoch_is_corrupt() {
     let id = job["id"].as_str().unwrap().to_string();
     let c = store.claim_job("forger", 60_000, 3).await.unwrap().unwrap();
     assert!(store.save_checkpoint(&c, 99, b"{}").await.unwrap());
-    assert!(store.release_job(&c, false).await.unwrap());
+    assert!(store.release_job(&c).await.unwrap());
     let worker = spawn_app_on(&app, 1).await;
     let done = app.wait_job(&id, 60, final_state).await;
     assert_eq!(done["state"], "failed", "{done}");

@@ -21,6 +21,11 @@ impl Proc {
     /// lease and checkpoints every 2 epochs, so that a killed worker's job is reclaimed soon
     /// and resumes from a recent checkpoint.
     pub fn spawn(command: &str, db: &str, args: &[&str]) -> Proc {
+        Proc::spawn_env(command, db, args, &[])
+    }
+
+    /// [`Proc::spawn`] with these environment variables set too.
+    pub fn spawn_env(command: &str, db: &str, args: &[&str], env: &[(&str, &str)]) -> Proc {
         let blobs = crate::helpers::blobs_for(db).map(|b| ["--blobs".to_string(), b]);
         let common = ["--db", db, "--lease-secs", "2", "--checkpoint-every", "2"];
         let mut child = Command::new(env!("CARGO_BIN_EXE_graybox"))
@@ -29,6 +34,7 @@ impl Proc {
             .args(blobs.iter().flatten())
             .args(args)
             .env("RUST_LOG", "warn,graybox=info")
+            .envs(env.iter().copied())
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
@@ -136,6 +142,18 @@ impl Server {
         self.client.post(&format!("{}{path}", self.base), body)
     }
 
+    /// A request that must be answered within `timeout`: its status and JSON body.
+    pub fn call(
+        &self,
+        method: reqwest::Method,
+        path: &str,
+        body: Option<&Value>,
+        timeout: Duration,
+    ) -> (u16, Value) {
+        let url = format!("{}{path}", self.base);
+        self.client.call(method, &url, body, timeout)
+    }
+
     /// Polls job `id` until `done` holds (or panics after `secs`).
     pub fn wait(&self, id: &str, secs: u64, done: impl Fn(&Value) -> bool) -> Value {
         let deadline = Instant::now() + Duration::from_secs(secs);
@@ -215,6 +233,27 @@ mod http {
         pub fn bytes(&self, url: &str) -> Vec<u8> {
             let r = self.send(self.inner.get(url));
             self.rt.block_on(r.bytes()).unwrap().to_vec()
+        }
+
+        /// A request answered within `timeout` (or panics): its status and JSON body (null
+        /// when it has none).
+        pub fn call(
+            &self,
+            method: reqwest::Method,
+            url: &str,
+            body: Option<&serde_json::Value>,
+            timeout: std::time::Duration,
+        ) -> (u16, serde_json::Value) {
+            let mut request = self.inner.request(method, url).timeout(timeout);
+            if let Some(body) = body {
+                request = request.json(body);
+            }
+            // Sent inside the runtime: a request's timeout starts its timer when sent.
+            let r = self.rt.block_on(async { request.send().await });
+            let r = r.unwrap_or_else(|e| panic!("{url}: no answer within {timeout:?}: {e}"));
+            let status = r.status().as_u16();
+            let text = self.rt.block_on(r.text()).unwrap();
+            (status, serde_json::from_str(&text).unwrap_or_default())
         }
 
         pub fn post(&self, url: &str, body: &serde_json::Value) -> serde_json::Value {

@@ -26,13 +26,18 @@ pub fn probes() -> Router<RestState> {
         .route("/metrics", get(metrics))
 }
 
-/// Ready when the database answers.
+/// Ready when the database (and the object store, with `--blobs`) answer within a couple of
+/// seconds; the message names the one that did not.
 async fn ready(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
     s.app.ready().await.map_err(|e| {
+        let why = match e {
+            crate::error::Error::Storage(why) => why,
+            e => e.to_string(),
+        };
         ApiError::new(
             StatusCode::SERVICE_UNAVAILABLE,
             "unavailable",
-            format!("database unavailable: {e}"),
+            format!("not ready: {why}"),
         )
     })?;
     Ok(axum::Json(json!({"status": "ready"})))
@@ -41,6 +46,6 @@ async fn ready(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
 async fn metrics(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
     Ok((
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        s.app.metrics_text().await?,
+        s.app.metrics_text().await,
     ))
 }

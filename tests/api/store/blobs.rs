@@ -3,10 +3,12 @@
 //! bytes and deleted with the last of them; rows stored inline before keep being served.
 
 use std::path::Path;
+use std::time::Duration;
 
 use graybox::error::Error;
 use graybox::records::JobState;
 use graybox::store::Store;
+use graybox::store::blobs::Retry;
 
 use super::rows::model;
 use super::{TestStore, queued_job, small_dataset};
@@ -46,8 +48,15 @@ async fn rows_point_at_objects_that_two_rows_may_share_and_the_last_deletes() {
     let trained = b.finish_job(&c, model(&file), &[]).await.unwrap().unwrap();
     assert_eq!(objects(dir.path(), "models"), [sha(&file)]);
     b.delete_model(&uploaded.id).await.unwrap();
+    b.collect().await.unwrap();
     assert_eq!(b.model_file(&trained).await.unwrap(), Some(file.clone()));
     b.delete_model(&trained).await.unwrap();
+    assert_eq!(
+        objects(dir.path(), "models"),
+        [sha(&file)],
+        "deleted by the collector"
+    );
+    b.collect().await.unwrap();
     assert!(
         objects(dir.path(), "models").is_empty(),
         "the last row took it"
@@ -62,7 +71,37 @@ async fn rows_point_at_objects_that_two_rows_may_share_and_the_last_deletes() {
     assert_eq!(objects(dir.path(), "datasets").len(), before.len() + 1);
     assert_eq!(b.load_dataset(&row.id).await.unwrap(), Some(ds));
     b.delete_dataset(&row.id).await.unwrap();
+    b.collect().await.unwrap();
     assert_eq!(objects(dir.path(), "datasets"), before);
+}
+
+/// A write the store refused gives its reference back even though the store also refuses
+/// deletes then (before, the release was rolled back with the failed delete, and the object
+/// written later for the same bytes outlived every row).
+#[tokio::test]
+async fn a_refused_write_leaves_no_reference_behind() {
+    let s = TestStore::new().await;
+    let dir = tempfile::tempdir().unwrap();
+    let quick = Retry {
+        timeout: Duration::from_secs(5),
+        retry_for: Duration::ZERO,
+    };
+    let b = with_blobs(&s, dir.path()).await.with_retry(quick);
+    // A file where the datasets' directory goes: every write and delete under it fails.
+    let datasets = dir.path().join("datasets");
+    std::fs::write(&datasets, b"in the way").unwrap();
+    let ds = small_dataset(3);
+    match b.insert_dataset(None, &ds).await {
+        Err(Error::Storage(m)) => assert!(m.contains("object store"), "{m}"),
+        other => panic!("{other:?}"),
+    }
+    assert!(b.collect().await.is_err(), "the store refuses deletes too");
+    std::fs::remove_file(&datasets).unwrap();
+    let (row, _) = b.insert_dataset(None, &ds).await.unwrap();
+    assert_eq!(objects(dir.path(), "datasets").len(), 1);
+    b.delete_dataset(&row.id).await.unwrap();
+    assert_eq!(b.collect().await.unwrap(), 1);
+    assert!(objects(dir.path(), "datasets").is_empty());
 }
 
 #[tokio::test]
@@ -79,18 +118,24 @@ async fn a_replaced_or_fenced_out_checkpoint_leaves_no_object_behind() {
                 .unwrap()
         );
     }
+    b.collect().await.unwrap();
     assert_eq!(objects(dir.path(), "checkpoints"), [sha(&[3; 64])]);
     // Its lease expires and another worker takes the job: the old holder's checkpoint is
     // refused and its object removed; the last committed one stays.
     tokio::time::sleep(std::time::Duration::from_millis(50)).await;
     let new = b.claim_job("b", 600_000, 3).await.unwrap().unwrap();
     assert!(!b.save_checkpoint(&c, 4, &[4; 64]).await.unwrap());
+    b.collect().await.unwrap();
     assert_eq!(objects(dir.path(), "checkpoints"), [sha(&[3; 64])]);
     assert_eq!(
         b.load_checkpoint(&job.id).await.unwrap(),
         Some((3, vec![3; 64]))
     );
+    // Once the job ends nothing resumes from its checkpoint: row and object go.
     assert!(b.end_job(&new, JobState::Succeeded, None).await.unwrap());
+    assert_eq!(b.collect().await.unwrap(), 1);
+    assert!(objects(dir.path(), "checkpoints").is_empty());
+    assert_eq!(b.load_checkpoint(&job.id).await.unwrap(), None);
 }
 
 #[tokio::test]
@@ -131,21 +176,29 @@ async fn inline_rows_stay_served_beside_object_rows_and_need_the_store_they_name
     ));
 }
 
-/// Readiness asks the store for the marker every process writes at start: a store that lost
-/// it (a deleted bucket or prefix answers every read as a missing object) is not ready.
+/// Readiness asks the store for the marker every process writes at start, and writes it
+/// anew when it is missing: a store that lost it is ready again; one that refuses the write
+/// (a deleted bucket answers every read as a missing object) is not, and says so.
 #[tokio::test]
-async fn readiness_needs_the_stores_marker() {
+async fn readiness_writes_a_missing_marker_anew() {
     let s = TestStore::new().await;
     let dir = tempfile::tempdir().unwrap();
     let b = with_blobs(&s, dir.path()).await;
     b.ping().await.unwrap();
     std::fs::remove_dir_all(dir.path().join("graybox")).unwrap();
+    b.ping().await.unwrap();
+    assert!(dir.path().join("graybox/ready").exists());
+    std::fs::remove_dir_all(dir.path().join("graybox")).unwrap();
+    std::fs::write(dir.path().join("graybox"), b"in the way").unwrap();
     match b.ping().await {
-        Err(Error::Storage(m)) => assert!(m.contains("graybox/ready"), "{m}"),
+        Err(Error::Storage(m)) => {
+            assert!(
+                m.contains("object store") && m.contains("graybox/ready"),
+                "{m}"
+            )
+        }
         other => panic!("{other:?}"),
     }
-    // Opening it again writes the marker anew.
-    with_blobs(&s, dir.path()).await.ping().await.unwrap();
 }
 
 #[tokio::test]

@@ -5,6 +5,7 @@
 use std::collections::HashSet;
 use std::time::Duration;
 
+use graybox::backoff::Backoff;
 use graybox::error::Error;
 use graybox::records::{JobState, Metric, Warning};
 use graybox::store::{Claimed, Lease, Submitted};
@@ -218,7 +219,7 @@ async fn an_expired_lease_is_reclaimed_counted_and_its_old_holder_fenced_out() {
         s.finish_job(&old, model(b"stale"), &[]).await.unwrap(),
         None
     );
-    assert!(!s.release_job(&old, false).await.unwrap());
+    assert!(!s.release_job(&old).await.unwrap());
     assert!(
         !s.end_job(&old, JobState::Failed, Some("stale"))
             .await
@@ -254,7 +255,7 @@ async fn a_job_whose_workers_keep_dying_fails_at_the_cap() {
     }
     // A graceful release is no death: the count stays at one.
     let c = s.claim_job("w", LEASE_MS, 3).await.unwrap().unwrap();
-    assert!(s.release_job(&c, false).await.unwrap());
+    assert!(s.release_job(&c).await.unwrap());
     let c = s.claim_job("w", SHORT_MS, 3).await.unwrap().unwrap();
     assert_eq!(c.attempt, 4);
     expire().await;
@@ -307,12 +308,11 @@ async fn cancelling_ends_a_queued_job_and_asks_a_running_one() {
 }
 
 #[tokio::test]
-async fn jobs_given_back_are_claimed_again_and_infrastructure_failures_are_counted() {
+async fn jobs_given_back_are_claimed_again() {
     let s = TestStore::new().await;
     let job = queued_job(&s, 1, None).await;
     let c = s.claim_job("proc-w0", LEASE_MS, 3).await.unwrap().unwrap();
-    assert!(s.release_job(&c, true).await.unwrap());
-    assert_eq!(s.infra_failures(&job.id).await.unwrap(), 1);
+    assert!(s.release_job(&c).await.unwrap());
     let c = s.claim_job("proc-w0", LEASE_MS, 3).await.unwrap().unwrap();
     assert_eq!(c.attempt, 2);
     // A forced shutdown gives back what an owner holds without naming the attempt.
@@ -323,7 +323,56 @@ async fn jobs_given_back_are_claimed_again_and_infrastructure_failures_are_count
         JobState::Queued
     );
     assert!(!s.record_epoch(&c, &metric(1), None).await.unwrap());
-    assert_eq!(s.infra_failures(&job.id).await.unwrap(), 1);
+}
+
+/// A storage failure gives the job back to be claimed after a backoff wait, not at once;
+/// the job fails only once its storage has been failing for the patience, counted from the
+/// first failure since its last stored checkpoint.
+#[tokio::test]
+async fn storage_failures_are_waited_out_and_counted_over_time() {
+    let s = TestStore::new().await;
+    let job = queued_job(&s, 1, None).await;
+    let hour = Duration::from_secs(3600);
+    // Waits of 1 to 2 s: long beside a claim's round trip, so "not yet" is not a race.
+    let wait = Backoff::new(Duration::from_secs(2), Duration::from_secs(2));
+    let c = s.claim_job("w", LEASE_MS, 3).await.unwrap().unwrap();
+    let state = s.retry_later(&c, wait, hour, "down").await.unwrap();
+    assert_eq!(state, Some(JobState::Queued));
+    assert!(
+        s.claim_job("w", LEASE_MS, 3).await.unwrap().is_none(),
+        "claimed during its wait"
+    );
+    assert_eq!(
+        s.retry_later(&c, wait, hour, "down").await.unwrap(),
+        None,
+        "fenced"
+    );
+    tokio::time::sleep(Duration::from_millis(2100)).await;
+    let c = s.claim_job("w", LEASE_MS, 3).await.unwrap().unwrap();
+    assert_eq!((c.job.id.as_str(), c.attempt), (job.id.as_str(), 2));
+
+    // Patience 1 s: a stored checkpoint ends the run of failures, so the next one starts a
+    // new run; a run longer than the patience fails the job, saying so.
+    let now = Backoff::new(Duration::from_millis(1), Duration::from_millis(1));
+    let second = Duration::from_secs(1);
+    tokio::time::sleep(Duration::from_millis(1100)).await;
+    assert!(s.save_checkpoint(&c, 1, &[1; 16]).await.unwrap());
+    let state = s.retry_later(&c, now, second, "down").await.unwrap();
+    assert_eq!(
+        state,
+        Some(JobState::Queued),
+        "the checkpoint began a new run"
+    );
+    tokio::time::sleep(Duration::from_millis(1100)).await;
+    let c = s.claim_job("w", LEASE_MS, 3).await.unwrap().unwrap();
+    let state = s.retry_later(&c, now, second, "still down").await.unwrap();
+    assert_eq!(state, Some(JobState::Failed));
+    let failed = s.get_job(&job.id).await.unwrap().unwrap();
+    let error = failed.error.clone().unwrap_or_default();
+    assert!(
+        error.contains("storage failed for ") && error.contains("still down"),
+        "{error}"
+    );
 }
 
 #[tokio::test]
