@@ -200,7 +200,7 @@ const ROUTES: &[Route] = &[
     Route(
         "get",
         "/readyz",
-        "Readiness (the database answers)",
+        "Readiness (the database and the object store answer, each within 2 s)",
         None,
         &[],
     ),

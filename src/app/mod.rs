@@ -42,7 +42,7 @@ pub struct App {
 }
 
 impl App {
-    /// Ready when the database answers.
+    /// Ready when the database (and the object store, with `--blobs`) answer, within seconds.
     pub async fn ready(&self) -> Result<()> {
         self.store.ping().await
     }

@@ -20,6 +20,9 @@ struct Histogram {
     sum: f64,
 }
 
+/// Jobs by state.
+type JobCounts = Vec<(JobState, i64)>;
+
 #[derive(Default)]
 pub struct Telemetry {
     requests: Mutex<BTreeMap<(String, String, u16), u64>>,
@@ -30,7 +33,7 @@ pub struct Telemetry {
     /// Store reads made to follow jobs' progress (server-sent events), all subscribers together.
     pub job_polls: AtomicU64,
     /// The jobs by state as last read from the database, and when.
-    job_counts: Mutex<Option<(Instant, Vec<(JobState, i64)>)>>,
+    job_counts: Mutex<Option<(Instant, JobCounts)>>,
     /// Held while the job counts are read: one read at a time, however many scrapes.
     pub counting: tokio::sync::Mutex<()>,
 }
@@ -60,7 +63,7 @@ impl Telemetry {
         h.sum += seconds;
     }
 
-    pub fn set_job_counts(&self, jobs: Vec<(JobState, i64)>) {
+    pub fn set_job_counts(&self, jobs: JobCounts) {
         *self.job_counts.lock().expect("telemetry lock") = Some((Instant::now(), jobs));
     }
 

@@ -12,8 +12,8 @@ use crate::service::signal;
 pub struct WorkerArgs {
     #[command(flatten)]
     pub settings: WorkerSettings,
-    /// Answer GET /healthz (alive), /readyz (the database answers) and /metrics on this
-    /// address (`graybox health --http ADDR` asks it). Without it the worker opens no port;
+    /// Answer GET /healthz (alive), /readyz (the database and the object store answer) and
+    /// /metrics on this address (`graybox health --http ADDR` asks it). Without it the worker opens no port;
     /// its exit status tells instead: 0 after SIGTERM or ctrl-c, 1 if the database cannot be
     /// opened or a training worker failed.
     #[arg(long, env = "GRAYBOX_WORKER_HEALTH")]

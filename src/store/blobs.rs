@@ -175,7 +175,8 @@ impl Blobs {
         Fut: Future<Output = Result<Try<T>>>,
     {
         let start = Instant::now();
-        for retry in 0.. {
+        let mut retry = 0;
+        loop {
             let error = match self.once(what, self.retry.timeout, call()).await {
                 Ok(Try::Done(t)) => return Ok(t),
                 Ok(Try::Again(e)) | Err(e) => e,
@@ -186,8 +187,8 @@ impl Blobs {
             }
             tracing::debug!(what, error = %error, ?wait, "object store call failed; retrying");
             tokio::time::sleep(wait).await;
+            retry = retry.saturating_add(1);
         }
-        unreachable!("the tries end by returning")
     }
 
     /// One try of `call`, abandoned after `timeout`.

@@ -25,7 +25,10 @@ function showError(form, err, fallback) {
       slot.closest(".field").querySelector("input, select, textarea")?.focus();
       return;
     }
-    name = name.replace(/(\.[^.[]*|\[[^\]]*\])$/, "");
+    // One segment off the end; a name with none left to take (an API field the form has no
+    // place for, such as "body") ends the search instead of being tried forever.
+    const shorter = name.replace(/(\.[^.[]*|\[[^\]]*\])$/, "");
+    name = shorter === name ? "" : shorter;
   }
   fallback.replaceChildren(errorBox(err.field ? `${err.field}: ${err.message}` : err));
 }
