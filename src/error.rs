@@ -51,6 +51,19 @@ pub enum Error {
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
 impl Error {
+    /// What a client is told: the error's text, except for a storage fault, where it learns
+    /// which shared service failed, never that service's address or its own error text (the
+    /// log has both).
+    pub fn public_message(&self) -> String {
+        match self {
+            Error::Storage(detail) if detail.starts_with("object store") => {
+                "the object store is unavailable; try again later".into()
+            }
+            Error::Storage(_) => "the database is unavailable; try again later".into(),
+            e => e.to_string(),
+        }
+    }
+
     pub fn invalid(field: impl Into<String>, message: impl fmt::Display) -> Self {
         Error::Invalid {
             field: field.into(),

@@ -167,6 +167,9 @@ const MB: usize = 1 << 20;
 /// An hour: longer is no grace but a hang (and a deadline far enough away overflows a clock).
 pub const MAX_SHUTDOWN_GRACE_SECS: u64 = 3600;
 
+/// A day: the longest lease (a job whose worker died waits for its lease to expire).
+pub const MAX_LEASE_SECS: u64 = 24 * 3600;
+
 /// A week: the most any of the waits the settings name may be (a longer one is a hang, and
 /// a deadline far enough away overflows a clock).
 pub const MAX_WAIT_SECS: u64 = 7 * 24 * 3600;
@@ -276,6 +279,12 @@ impl WorkerSettings {
             ("job-threads", self.job_threads.unwrap_or(1)),
             ("blobs-timeout-secs", self.blobs_timeout_secs as usize),
         ])?;
+        if self.lease_secs > MAX_LEASE_SECS {
+            return Err(Error::invalid(
+                "lease-secs",
+                format!("must be at most {MAX_LEASE_SECS} (a dead worker's job waits that long)"),
+            ));
+        }
         for (flag, secs) in [
             ("blobs-timeout-secs", self.blobs_timeout_secs),
             ("blobs-retry-secs", self.blobs_retry_secs),
@@ -356,6 +365,29 @@ mod tests {
             let err = s(1, Some(bad)).validate().unwrap_err().to_string();
             assert!(err.contains("job-threads"), "{err}");
         }
+    }
+
+    #[test]
+    fn every_duration_is_bounded() {
+        let bad = |set: &dyn Fn(&mut WorkerSettings), flag: &str| {
+            let mut s = WorkerSettings::default();
+            set(&mut s);
+            let err = s.validate().unwrap_err().to_string();
+            assert!(err.contains(flag), "{flag}: {err}");
+        };
+        for v in [MAX_LEASE_SECS + 1, 9_200_000_000_000_000, u64::MAX] {
+            bad(&|s| s.lease_secs = v, "lease-secs");
+        }
+        for v in [MAX_WAIT_SECS + 1, u64::MAX] {
+            bad(&|s| s.blobs_timeout_secs = v, "blobs-timeout-secs");
+            bad(&|s| s.blobs_retry_secs = v, "blobs-retry-secs");
+            bad(&|s| s.storage_patience_secs = v, "storage-patience-secs");
+        }
+        bad(&|s| s.blobs_timeout_secs = 0, "blobs-timeout-secs");
+        let mut longest = WorkerSettings::default();
+        longest.lease_secs = MAX_LEASE_SECS;
+        longest.storage_patience_secs = MAX_WAIT_SECS;
+        longest.validate().unwrap();
     }
 
     #[test]

@@ -262,6 +262,13 @@ impl Dataset {
                     ),
                 ));
             }
+            if steps == 0 {
+                return Err(Error::Unprocessable {
+                    field: format!("trajectories[{k}]"),
+                    message: "is empty: a trajectory needs at least one input (and two states)"
+                        .into(),
+                });
+            }
             lengths.push(steps);
             for t in 0..steps {
                 let push = |f: &mut Vec<Value>, r: &Vec<f64>| f.push(Value::from(r.clone()));

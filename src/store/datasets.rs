@@ -148,6 +148,9 @@ impl Store {
     }
 
     pub async fn get_dataset(&self, id: &str) -> Result<Option<DatasetRow>> {
+        if !super::could_be_id(id) {
+            return Ok(None);
+        }
         on_db!(self, pool, D => {
             let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM datasets WHERE id = $1"))
                 .bind(id)
@@ -158,6 +161,9 @@ impl Store {
     }
 
     pub async fn load_dataset(&self, id: &str) -> Result<Option<Dataset>> {
+        if !super::could_be_id(id) {
+            return Ok(None);
+        }
         type Stored = (i64, i64, f64, i64, Vec<u8>, Option<String>, Option<String>);
         let r: Option<Stored> = on_db!(self, pool, D => {
             sqlx::query_as(
@@ -185,6 +191,9 @@ impl Store {
     /// The trajectory lengths a dataset was uploaded with: None when there is no such
     /// dataset, Some(None) when it was uploaded flat.
     pub async fn dataset_trajectories(&self, id: &str) -> Result<Option<Option<Vec<usize>>>> {
+        if !super::could_be_id(id) {
+            return Ok(None);
+        }
         on_db!(self, pool, D => {
             let r: Option<Option<String>> =
                 sqlx::query_scalar("SELECT trajectories FROM datasets WHERE id = $1")

@@ -16,6 +16,9 @@ macro_rules! delete_row {
     }};
     (@delete $pool:expr, $table:literal, $what:literal, $id:expr, $returning:literal $(, $users:literal)?) => {{
         let id: &str = $id;
+        if !$crate::store::could_be_id(id) {
+            return Err(Error::NotFound(format!(concat!($what, " {}"), id.escape_debug())));
+        }
         let mut tx = $crate::store::dialect::begin_write($pool).await?;
         $(
             let users: i64 = sqlx::query_scalar($users).bind(id).fetch_one(&mut *tx).await?;

@@ -108,27 +108,35 @@ impl Store {
                 ("validation_dataset_id", new.validation_dataset_id.as_ref()),
             ] {
                 let Some(id) = id else { continue };
-                let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM datasets WHERE id = $1")
-                    .bind(id)
-                    .fetch_one(&mut *tx)
-                    .await?;
+                let found: i64 = if super::could_be_id(id) {
+                    sqlx::query_scalar("SELECT COUNT(*) FROM datasets WHERE id = $1")
+                        .bind(id)
+                        .fetch_one(&mut *tx)
+                        .await?
+                } else {
+                    0
+                };
                 if found == 0 {
                     return Err(Error::Unprocessable {
                         field: field.into(),
-                        message: format!("dataset {id} does not exist"),
+                        message: format!("dataset {} does not exist", id.escape_debug()),
                     });
                 }
             }
             // Likewise for the template against a concurrent DELETE of it.
             if let Some(id) = &new.template_id {
-                let found: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM templates WHERE id = $1")
-                    .bind(id)
-                    .fetch_one(&mut *tx)
-                    .await?;
+                let found: i64 = if super::could_be_id(id) {
+                    sqlx::query_scalar("SELECT COUNT(*) FROM templates WHERE id = $1")
+                        .bind(id)
+                        .fetch_one(&mut *tx)
+                        .await?
+                } else {
+                    0
+                };
                 if found == 0 {
                     return Err(Error::Unprocessable {
                         field: "template".into(),
-                        message: format!("template {id} does not exist"),
+                        message: format!("template {} does not exist", id.escape_debug()),
                     });
                 }
             }
@@ -154,6 +162,9 @@ impl Store {
     }
 
     pub async fn get_job(&self, id: &str) -> Result<Option<JobRow>> {
+        if !super::could_be_id(id) {
+            return Ok(None);
+        }
         on_db!(self, pool, D => {
             let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM jobs WHERE id = $1"))
                 .bind(id)
@@ -212,6 +223,9 @@ impl Store {
     /// → the cancel flag, which the worker sees at its next heartbeat. A finished job is a
     /// conflict.
     pub async fn cancel_job(&self, id: &str) -> Result<JobRow> {
+        if !super::could_be_id(id) {
+            return Err(Error::NotFound(format!("job {}", id.escape_debug())));
+        }
         on_db!(self, pool, D => {
             let mut tx = begin_write(pool).await?;
             let r = sqlx::query(sql::<D>("UPDATE jobs SET
@@ -242,6 +256,9 @@ impl Store {
     }
 
     pub async fn metrics(&self, job_id: &str, after_epoch: i64) -> Result<Vec<Metric>> {
+        if !super::could_be_id(job_id) {
+            return Ok(Vec::new());
+        }
         on_db!(self, pool, D => {
             Ok(sqlx::query_as(
                 "SELECT epoch, train_loss, val_loss, val_horizon_loss, seconds FROM metrics

@@ -80,6 +80,13 @@ fn row<R: sqlx::Row, T: for<'r> sqlx::FromRow<'r, R>>(r: &R) -> Result<T> {
     Ok(T::from_row(r)?)
 }
 
+/// Whether `id` could name a row. Ids are graybox's own (`prefix_hex`), so one that is empty,
+/// very long or holds a control character names none, and is answered as missing before the
+/// database is asked (PostgreSQL refuses a NUL in text with an error, not "no row").
+pub(crate) fn could_be_id(id: &str) -> bool {
+    !id.is_empty() && id.len() <= 256 && !id.chars().any(char::is_control)
+}
+
 pub fn new_id(prefix: &str) -> String {
     format!("{prefix}_{}", uuid::Uuid::new_v4().simple())
 }

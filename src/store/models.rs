@@ -172,6 +172,9 @@ impl Store {
     }
 
     pub async fn get_model(&self, id: &str) -> Result<Option<ModelRow>> {
+        if !super::could_be_id(id) {
+            return Ok(None);
+        }
         on_db!(self, pool, D => {
             let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM models WHERE id = $1"))
                 .bind(id)
@@ -183,6 +186,9 @@ impl Store {
 
     /// The model file (`.gbx` bytes), verified against its checksum.
     pub async fn model_file(&self, id: &str) -> Result<Option<Vec<u8>>> {
+        if !super::could_be_id(id) {
+            return Ok(None);
+        }
         let r: Option<(Vec<u8>, String, Option<String>)> = on_db!(self, pool, D => {
             sqlx::query_as("SELECT file, sha256, blob_key FROM models WHERE id = $1")
                 .bind(id)

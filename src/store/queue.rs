@@ -272,6 +272,9 @@ impl Store {
 
     /// The last committed checkpoint (epoch, bytes), verified against its checksum.
     pub async fn load_checkpoint(&self, job_id: &str) -> Result<Option<(i64, Vec<u8>)>> {
+        if !super::could_be_id(job_id) {
+            return Ok(None);
+        }
         type Stored = (i64, Vec<u8>, String, Option<String>);
         let r: Option<Stored> = on_db!(self, pool, D => {
             sqlx::query_as("SELECT epoch, state, sha256, blob_key FROM checkpoints WHERE job_id = $1")

@@ -77,6 +77,9 @@ impl Store {
     }
 
     pub async fn get_template(&self, id: &str) -> Result<Option<TemplateRow>> {
+        if !super::could_be_id(id) {
+            return Ok(None);
+        }
         on_db!(self, pool, D => {
             let r = sqlx::query(sql::<D>("SELECT {COLUMNS} FROM templates WHERE id = $1"))
                 .bind(id)

@@ -871,3 +871,58 @@ async fn errors_echo_a_bounded_part_of_huge_input() {
     assert_eq!(app.get("/healthz").await.0, 200);
     app.stop().await;
 }
+
+/// An id with a control character names nothing, on either backend: 404 on a path, 422 naming
+/// the body's field, never the database's refusal (PostgreSQL refuses a NUL in text, which was
+/// a 503 carrying the database's own error text, and clients retry a 503).
+#[tokio::test]
+async fn ids_with_control_characters_are_missing_not_a_database_fault() {
+    let app = spawn_app(0).await;
+    let ds = app.upload(&dataset(8, 3)).await;
+    let mut cases = Vec::new();
+    for id in ["x%00y", "%01", "job_%7F"] {
+        for (method, path) in [
+            ("GET", format!("/v1/datasets/{id}")),
+            ("DELETE", format!("/v1/datasets/{id}")),
+            ("GET", format!("/v1/jobs/{id}")),
+            ("GET", format!("/v1/jobs/{id}/metrics")),
+            ("POST", format!("/v1/jobs/{id}/cancel")),
+            ("GET", format!("/v1/models/{id}")),
+            ("GET", format!("/v1/models/{id}/checkpoint")),
+            ("DELETE", format!("/v1/models/{id}")),
+            ("GET", format!("/v1/templates/{id}")),
+            ("DELETE", format!("/v1/templates/{id}")),
+        ] {
+            cases.push(case(
+                "an id with a control character",
+                method,
+                path,
+                None,
+                404,
+                "not_found",
+                None,
+            ));
+        }
+    }
+    let mut body = |field: &'static str, set: &dyn Fn(&mut Value)| {
+        let mut v = job_body(&ds, "MVF", 2);
+        set(&mut v);
+        cases.push(case(
+            "a body id with NUL",
+            "POST",
+            "/v1/jobs",
+            Some(v),
+            422,
+            "unprocessable",
+            Some(field),
+        ));
+    };
+    body("dataset_id", &|v| v["dataset_id"] = json!("ds_\u{0}1"));
+    body("validation_dataset_id", &|v| {
+        v["validation_dataset_id"] = json!("ds_\u{0}")
+    });
+    for c in &cases {
+        run(&app, c).await;
+    }
+    app.stop().await;
+}

@@ -136,6 +136,15 @@ fn an_object_store_outage_fails_no_job_and_changes_no_result() {
     assert_eq!(status, 503, "{body}");
     let message = body["error"]["message"].as_str().unwrap_or_default();
     assert!(message.contains("object store"), "{body}");
+    // An upload meanwhile is refused after its retries, naming the store, not its address.
+    let upload = dataset(16, 63);
+    let (status, body) = api.call(Method::POST, "/v1/datasets", Some(&upload), OUTAGE);
+    assert_eq!(status, 503, "{body}");
+    let message = body["error"]["message"].as_str().unwrap_or_default();
+    assert!(
+        message.contains("object store") && !message.contains("127.0.0.1"),
+        "{body}"
+    );
     std::thread::sleep(OUTAGE / 2);
     let during: Vec<Value> = ids.iter().map(job).collect();
     proxy.set(Mode::Pass);

@@ -226,3 +226,26 @@ async fn bad_replay_requests_name_the_field() {
         }
     }
 }
+
+/// An empty trajectory (one state, no input) is refused at upload, naming it, wherever it
+/// stands: first, it made a replay of index 0 wrap its index arithmetic (a 500); in the middle,
+/// it replayed the trajectory before it as "recorded".
+#[tokio::test]
+async fn empty_trajectories_are_refused_naming_them() {
+    let app = spawn_app(0).await;
+    let full = trajectory(&[[0.1, 0.0], [0.1, -0.1]], &[0.0]);
+    let empty = trajectory(&[[0.3, 0.0]], &[]);
+    for (trajectories, field) in [
+        (vec![empty.clone(), full.clone()], "trajectories[0]"),
+        (
+            vec![full.clone(), empty.clone(), full.clone()],
+            "trajectories[1]",
+        ),
+    ] {
+        let body = json!({"dt": DT, "trajectories": trajectories});
+        let (status, refused) = app.post("/v1/datasets", &body).await;
+        assert_eq!(status, 422, "{refused}");
+        assert_eq!(refused["error"]["field"], field, "{refused}");
+    }
+    app.stop().await;
+}

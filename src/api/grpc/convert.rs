@@ -16,7 +16,10 @@ use crate::error::Error;
 impl From<Error> for Status {
     fn from(e: Error) -> Self {
         // The message quotes the field and what the caller sent: bounded like REST's.
-        let msg = bounded(e.to_string(), MESSAGE_LIMIT);
+        let msg = bounded(e.public_message(), MESSAGE_LIMIT);
+        if let Error::Storage(detail) = &e {
+            tracing::error!(error = %detail, "storage unavailable");
+        }
         match e {
             Error::Invalid { .. } | Error::Unprocessable { .. } => Status::invalid_argument(msg),
             Error::NotFound(_) => Status::not_found(msg),

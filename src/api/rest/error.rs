@@ -54,7 +54,8 @@ impl ApiError {
 
 impl From<Error> for ApiError {
     fn from(e: Error) -> Self {
-        let message = e.to_string();
+        let message = e.public_message();
+        let detail = e.to_string();
         let (status, code, field) = match e {
             Error::Invalid { field, message } => {
                 return Self {
@@ -77,11 +78,11 @@ impl From<Error> for ApiError {
             }
             Error::DeadlineExceeded(_) => (StatusCode::GATEWAY_TIMEOUT, "deadline_exceeded", None),
             Error::Storage(_) => {
-                tracing::error!(error = %message, "storage unavailable");
+                tracing::error!(error = %detail, "storage unavailable");
                 (StatusCode::SERVICE_UNAVAILABLE, "unavailable", None)
             }
             Error::Internal(_) | Error::Training(_) | Error::Io(_) | Error::Corrupt { .. } => {
-                tracing::error!(error = %message, "internal error");
+                tracing::error!(error = %detail, "internal error");
                 (StatusCode::INTERNAL_SERVER_ERROR, "internal", None)
             }
         };

@@ -30,14 +30,11 @@ pub fn probes() -> Router<RestState> {
 /// seconds; the message names the one that did not.
 async fn ready(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
     s.app.ready().await.map_err(|e| {
-        let why = match e {
-            crate::error::Error::Storage(why) => why,
-            e => e.to_string(),
-        };
+        tracing::warn!(error = %e, "not ready");
         ApiError::new(
             StatusCode::SERVICE_UNAVAILABLE,
             "unavailable",
-            format!("not ready: {why}"),
+            format!("not ready: {}", e.public_message()),
         )
     })?;
     Ok(axum::Json(json!({"status": "ready"})))

@@ -133,6 +133,13 @@ impl App {
                 ),
             ));
         }
+        // Stored before uploads refused them: an empty trajectory has no state to start from.
+        if seg.length == 0 {
+            return Err(Error::Unprocessable {
+                field: "index".into(),
+                message: format!("trajectory {index} of dataset {dataset_id} is empty"),
+            });
+        }
         let max = self.settings.max_rollout_steps;
         if seg.length > max {
             return Err(Error::ResourceExhausted(format!(
