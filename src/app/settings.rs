@@ -384,9 +384,11 @@ mod tests {
             bad(&|s| s.storage_patience_secs = v, "storage-patience-secs");
         }
         bad(&|s| s.blobs_timeout_secs = 0, "blobs-timeout-secs");
-        let mut longest = WorkerSettings::default();
-        longest.lease_secs = MAX_LEASE_SECS;
-        longest.storage_patience_secs = MAX_WAIT_SECS;
+        let longest = WorkerSettings {
+            lease_secs: MAX_LEASE_SECS,
+            storage_patience_secs: MAX_WAIT_SECS,
+            ..WorkerSettings::default()
+        };
         longest.validate().unwrap();
     }
 
