@@ -29,6 +29,10 @@ pub enum Error {
     /// The database failed; callers may retry.
     #[error("storage error: {0}")]
     Storage(String),
+    /// The service is at a bound its requests share (memory for data being read, calls
+    /// waiting to compute): the same request may well succeed in a moment.
+    #[error("{0}")]
+    Busy(String),
     /// Training diverged or produced non-finite values.
     #[error("training failed: {0}")]
     Training(String),

@@ -5,6 +5,7 @@ pub mod datasets;
 pub mod events;
 pub mod inference;
 pub mod jobs;
+pub mod memory;
 pub mod models;
 pub mod requests;
 pub mod settings;
@@ -39,6 +40,10 @@ pub struct App {
     pub heavy: Arc<inference::Heavy>,
     /// Admission of rollout chunks, a share of its own.
     pub streaming: Arc<inference::Heavy>,
+    /// Memory for request bodies and datasets being read (`--max-inflight-body-mb`).
+    pub memory: Arc<memory::MemoryBudget>,
+    /// Datasets loaded for reads, shared by the requests reading each at once.
+    pub reads: Arc<inference::reads::SharedReads>,
 }
 
 impl App {
@@ -76,6 +81,10 @@ impl App {
             all_jobs: Arc::default(),
             heavy: Arc::new(inference::Heavy::new(settings.max_heavy_calls)),
             streaming: Arc::new(inference::Heavy::streaming(settings.max_heavy_calls)),
+            memory: Arc::new(memory::MemoryBudget::new(
+                settings.max_inflight_body_bytes(),
+            )),
+            reads: Arc::default(),
             settings: Arc::new(settings),
         }
     }

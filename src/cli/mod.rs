@@ -131,6 +131,7 @@ pub fn exit_code(result: Result<()>, health: bool) -> ExitCode {
         | Error::Cancelled
         | Error::Io(_)
         | Error::Storage(_)
+        | Error::Busy(_)
         | Error::DeadlineExceeded(_)
         | Error::Internal(_) => 1,
     })

@@ -5,6 +5,7 @@
 
 use super::Evaluator;
 use crate::data::Dataset;
+use crate::data::trajectories::Segment;
 use crate::error::{Error, Result};
 use crate::model::file::ModelFile;
 pub use crate::model::report::HorizonError;
@@ -39,10 +40,15 @@ pub fn check_horizons(horizons: &[usize], max_steps: usize) -> Result<Vec<usize>
 /// How many model steps [`horizon_errors`] takes: each window start rolled out as far as the
 /// longest horizon its trajectory allows.
 pub fn cost(ds: &Dataset, longest: usize) -> usize {
-    ds.segments()
+    segments_cost(&ds.segments(), longest)
+}
+
+/// [`cost`] from the trajectories' boundaries alone (known without the rows when uploaded).
+pub fn segments_cost(segments: &[Segment], longest: usize) -> usize {
+    segments
         .iter()
         .flat_map(|s| (0..s.length).map(move |i| (s.length - i).min(longest)))
-        .sum()
+        .fold(0usize, usize::saturating_add)
 }
 
 /// The errors at each of `horizons` (checked, sorted), or None when `stop` says so between

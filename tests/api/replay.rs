@@ -249,3 +249,36 @@ async fn empty_trajectories_are_refused_naming_them() {
     }
     app.stop().await;
 }
+
+/// A replay is checked before its dataset's rows are read: with the rows' object gone (so
+/// that reading them fails), an index out of range is still refused naming `index`; only a
+/// replay that passes its checks reads them (and meets the missing object). Before, every
+/// replay loaded the whole dataset first, so a hundred of them at once held a hundred copies.
+#[tokio::test]
+async fn a_replay_is_checked_before_its_rows_are_read() {
+    let blobs = tempfile::tempdir().unwrap();
+    let mut settings = test_settings();
+    settings.worker.workers = 0;
+    settings.worker.blobs = Some(format!("file://{}", blobs.path().display()));
+    let app = spawn_configured(settings).await;
+    let u = vec![0.2; 10];
+    let xs = recording([0.3, 0.0], &u);
+    let ds = app
+        .upload(&json!({"dt": DT, "trajectories": [trajectory(&xs, &u)]}))
+        .await;
+    let model = pendulum_model(&app).await;
+    for object in std::fs::read_dir(blobs.path().join("datasets")).unwrap() {
+        std::fs::remove_file(object.unwrap().path()).unwrap();
+    }
+    let rollout =
+        |index: usize| format!("/v1/models/{model}/rollout?dataset_id={ds}&index={index}");
+    let (status, refused) = app.get(&rollout(1)).await;
+    assert_eq!(
+        (status, &refused["error"]["field"]),
+        (400, &json!("index")),
+        "{refused}"
+    );
+    let (status, failed) = app.get(&rollout(0)).await;
+    assert_eq!(status, 500, "the read meets the missing object: {failed}");
+    app.stop().await;
+}

@@ -3,14 +3,18 @@ followed through its events to the end, the model's file down and up again, temp
 replay and error-against-horizon as arrays, and every refusal as a GrayboxError carrying the
 server's code, field and status."""
 
+import http.server
 import json
 import subprocess
+import threading
+import time
 import urllib.request
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+import conftest
 from conftest import serve
 from graybox_client import GrayboxError, RestClient
 
@@ -113,3 +117,100 @@ def test_refusals_are_graybox_errors_with_code_field_and_status(rest):
     with pytest.raises(GrayboxError) as e:
         RestClient("127.0.0.1:9").datasets()  # nothing listens on the discard port
     assert e.value.code == "unavailable" and e.value.status is None, e.value
+
+
+def queued_job(g: RestClient, graybox_bin, tmp) -> dict:
+    """A tiny job (2 epochs on 160 transitions: seconds once a worker takes it), queued."""
+    doc = pendulum_swings(graybox_bin, tmp)
+    ds = g.upload_trajectories(doc["trajectories"], dt=doc["dt"])
+    job = g.submit_job(ds["id"], "W-B", template="pendulum", training={"epochs": 2})
+    assert job["state"] == "queued", job
+    return job
+
+
+def test_wait_gives_up_at_its_timeout_on_a_job_no_worker_takes(tmp_path, graybox_bin):
+    with serve(graybox_bin, tmp_path, "--workers", "0", name="no-workers serve") as s:
+        g = RestClient(s.rest.base)
+        job = queued_job(g, graybox_bin, tmp_path)
+        start = time.monotonic()
+        with pytest.raises(GrayboxError) as e:
+            g.wait(job["id"], timeout=3)
+        elapsed = time.monotonic() - start
+    assert e.value.code == "deadline_exceeded" and "queued" in e.value.message, e.value
+    # Generous, but it must tell 3 s from the 15 s a wait that ignored its timeout took here:
+    # the stream of a queued job is silent but for the service's keep-alive every 15 s.
+    assert elapsed < 10, elapsed
+
+
+def test_wait_follows_a_job_across_a_restart_of_the_service(tmp_path, graybox_bin, monkeypatch):
+    outcome = {}
+
+    def follow(g: RestClient, job_id: str) -> None:
+        try:
+            outcome["job"] = g.wait(job_id, timeout=120)
+        except Exception as e:  # the test's thread reports it; the assertion names it
+            outcome["error"] = e
+
+    with serve(graybox_bin, tmp_path, "--workers", "0", name="restarting serve") as s:
+        g = RestClient(s.rest.base)
+        job = queued_job(g, graybox_bin, tmp_path)
+        waiter = threading.Thread(target=follow, args=(g, job["id"]), daemon=True)
+        waiter.start()
+        time.sleep(1)  # wait is following the queued job's stream when the service stops
+        ports = [s.http_port, s.grpc_port]
+    time.sleep(2)  # down: connections refused
+    assert waiter.is_alive(), outcome
+    # The same ports (where the client follows) and the same database (`tmp_path`), now with
+    # a worker, which runs the queued job.
+    monkeypatch.setattr(conftest, "free_ports", lambda k: ports)
+    with serve(graybox_bin, tmp_path, "--workers", "1", name="restarted serve"):
+        waiter.join(120)
+    assert "error" not in outcome, outcome
+    assert outcome["job"]["id"] == job["id"] and outcome["job"]["state"] == "succeeded", outcome
+
+
+@pytest.mark.parametrize("stream", ["closed at once", "silent"])
+def test_wait_pauses_between_streams_and_keeps_its_timeout(stream):
+    """A fake service of the test's own, not graybox: it answers the job as queued and its
+    event stream either closes at once (a busy loop of reconnections if `wait` does not pause)
+    or sends nothing (a wait as long as the client's 60 s socket timeout if `wait` reads with
+    it). A real service produces neither: its stream opens with the job's state and sends a
+    keep-alive every 15 s."""
+    opens, stop = [], threading.Event()
+
+    class Fake(http.server.BaseHTTPRequestHandler):
+        def do_GET(self):
+            if self.path.endswith("/events"):
+                opens.append(time.monotonic())
+                self.send_response(200)
+                self.send_header("content-type", "text/event-stream")
+                self.send_header("connection", "close")
+                self.end_headers()
+                if stream == "silent":
+                    stop.wait(90)
+                return
+            body = json.dumps({"id": "job_fake", "state": "queued"}).encode()
+            self.send_response(200)
+            self.send_header("content-type", "application/json")
+            self.send_header("content-length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def log_message(self, *args):
+            pass
+
+    fake = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Fake)
+    threading.Thread(target=fake.serve_forever, daemon=True).start()
+    try:
+        g = RestClient(f"127.0.0.1:{fake.server_address[1]}")
+        start = time.monotonic()
+        with pytest.raises(GrayboxError) as e:
+            g.wait("job_fake", timeout=2)
+        elapsed = time.monotonic() - start
+    finally:
+        stop.set()
+        fake.shutdown()
+        fake.server_close()
+    assert e.value.code == "deadline_exceeded", e.value
+    assert 1 <= len(opens) < 50, len(opens)  # thousands without pauses
+    assert elapsed < 30, elapsed  # generous: it only has to tell 2 s from 60 s

@@ -9,7 +9,9 @@ As with gRPC, the server validates: a bad request reaches it and comes back with
 
 from __future__ import annotations
 
+import http.client
 import json
+import random
 import sys
 import time
 import urllib.error
@@ -24,6 +26,7 @@ from .client import GrayboxError
 
 PathLike = Union[str, Path]
 FINAL = ("succeeded", "failed", "cancelled")
+PAUSE_MIN, PAUSE_MAX = 0.2, 5.0  # seconds between `wait`'s attempts to follow a job again
 
 
 def _rows(a: Any, what: str, width: Optional[int] = None) -> list:
@@ -58,8 +61,9 @@ class RestClient:
 
     def request(self, method: str, path: str, body: Any = None, raw: Optional[bytes] = None,
                 content_type: str = "application/json", query: Optional[dict] = None,
-                parse: bool = True) -> Any:
-        """One request: the JSON answer (bytes with `parse=False`, None for 204)."""
+                parse: bool = True, timeout: Optional[float] = None) -> Any:
+        """One request: the JSON answer (bytes with `parse=False`, None for 204). `timeout`:
+        seconds for this one (default: the client's)."""
         url = self.base + path
         q = {k: v for k, v in (query or {}).items() if v is not None}
         if q:
@@ -68,13 +72,10 @@ class RestClient:
         req = urllib.request.Request(url, data=data, method=method, headers=self._headers(
             content_type if data is not None else None))
         try:
-            with urllib.request.urlopen(req, timeout=self.timeout) as r:
+            with urllib.request.urlopen(req, timeout=timeout or self.timeout) as r:
                 answer, status = r.read(), r.status
-        except urllib.error.HTTPError as e:
-            raise _error(e.code, e.read()) from None
-        except urllib.error.URLError as e:
-            raise GrayboxError("unavailable", f"cannot reach graybox at {self.base}: "
-                               f"{e.reason}") from None
+        except (OSError, http.client.HTTPException) as e:
+            raise self._failure(e) from None
         if not parse:
             return answer
         item = json.loads(answer) if answer else None
@@ -84,6 +85,15 @@ class RestClient:
             # stored before (the item as it was).
             item.setdefault("created", status == 201)
         return item
+
+    def _failure(self, e: Exception) -> GrayboxError:
+        """A failed urlopen as a GrayboxError: the REST error of an HTTP answer, else
+        `unavailable` (refused or unresolved, and also a connection closed or timed out before
+        the whole answer came: a restarting service does both)."""
+        if isinstance(e, urllib.error.HTTPError):
+            return _error(e.code, e.read())
+        return GrayboxError("unavailable", f"cannot reach graybox at {self.base}: "
+                            f"{getattr(e, 'reason', e)}")
 
     def _headers(self, content_type: Optional[str]) -> dict:
         h = {"accept": "application/json"}
@@ -189,48 +199,71 @@ class RestClient:
         """Follows the job's event stream until it ends and returns the finished job (any
         final state: check `state`). `progress`: True prints a line per epoch to stderr, a
         function is called with each epoch's figures (`epoch`, `train_loss`, `val_loss`, …).
-        A dropped stream (a restarting service) is followed again; `timeout` seconds in all
-        raise `deadline_exceeded`."""
+        A stream that drops or ends early, and a service that cannot be reached or answers
+        `unavailable` (restarting), are followed again after a pause growing from 0.2 s to
+        5 s; other errors (`not_found`, `unauthorized`, …) raise. `timeout` seconds in all
+        raise `deadline_exceeded`; without it the wait has no end."""
         report = _printer(job_id) if progress is True else (progress or None)
         end = None if timeout is None else time.monotonic() + timeout
         reported = 0  # a stream followed again replays the epochs from the first
+        state, pause = "unknown", PAUSE_MIN
         while True:
-            job = self.job(job_id)
-            if job["state"] in FINAL:
-                return job
+            # No read may wait past the deadline: a silent stream would keep the caller for
+            # the whole socket timeout. (The floor lets a last look at the deadline answer.)
+            limit = self.timeout if end is None else min(self.timeout,
+                                                         max(end - time.monotonic(), 0.1))
             try:
-                for kind, data in self._events(f"/v1/jobs/{job_id}/events", end):
+                job = self.request("GET", f"/v1/jobs/{job_id}", timeout=limit)
+                state = job["state"]
+                if state in FINAL:
+                    return job
+                for kind, data in self._events(f"/v1/jobs/{job_id}/events", end, limit):
+                    pause = PAUSE_MIN  # the service answers: a later drop is retried soon
                     if kind == "progress" and report and data["epoch"] > reported:
                         reported = data["epoch"]
                         report(data)
-                    elif kind == "state" and data["state"] in FINAL:
-                        return data
-            except (OSError, ValueError):
-                time.sleep(1.0)  # the stream dropped: read the job again and follow anew
-            if end is not None and time.monotonic() > end:
-                raise GrayboxError("deadline_exceeded", f"job {job_id} still "
-                                   f"{self.job(job_id)['state']} after {timeout} s")
+                    elif kind == "state":
+                        state = data["state"]
+                        if state in FINAL:
+                            return data
+            except GrayboxError as e:
+                if e.code != "unavailable" and e.status not in (502, 503):
+                    raise
+            left = None if end is None else end - time.monotonic()
+            if left is not None and left <= 0:
+                raise GrayboxError("deadline_exceeded",
+                                   f"job {job_id} still {state} after {timeout} s")
+            # The stream ended, dropped or fell silent, or the service is away: pause before
+            # reading the job again, so that a stream closed at once is not a busy loop; the
+            # jitter keeps the clients of a restarted service from coming back in step.
+            nap = pause * random.uniform(0.5, 1.0)
+            time.sleep(nap if left is None else min(nap, left))
+            pause = min(2 * pause, PAUSE_MAX)
 
-    def _events(self, path: str, end: Optional[float]) -> Iterator[tuple]:
-        """Server-sent events as (event, parsed data) until the stream ends or `end` passes."""
+    def _events(self, path: str, end: Optional[float], limit: float) -> Iterator[tuple]:
+        """Server-sent events as (event, parsed data) until the stream ends, drops, is silent
+        for `limit` seconds or `end` passes."""
         req = urllib.request.Request(self.base + path, headers=self._headers(None))
         try:
-            r = urllib.request.urlopen(req, timeout=self.timeout)
-        except urllib.error.HTTPError as e:
-            raise _error(e.code, e.read()) from None
+            r = urllib.request.urlopen(req, timeout=limit)
+        except (OSError, http.client.HTTPException) as e:
+            raise self._failure(e) from None
         with r:
             kind, data = "message", []
-            for line in r:
-                line = line.decode().rstrip("\r\n")
-                if line.startswith("event:"):
-                    kind = line[6:].strip()
-                elif line.startswith("data:"):
-                    data.append(line[5:].strip())
-                elif not line and data:
-                    yield kind, json.loads("".join(data))
-                    kind, data = "message", []
-                if end is not None and time.monotonic() > end:
-                    return
+            try:
+                for line in r:
+                    line = line.decode().rstrip("\r\n")
+                    if line.startswith("event:"):
+                        kind = line[6:].strip()
+                    elif line.startswith("data:"):
+                        data.append(line[5:].strip())
+                    elif not line and data:
+                        yield kind, json.loads("".join(data))
+                        kind, data = "message", []
+                    if end is not None and time.monotonic() > end:
+                        return
+            except (OSError, http.client.HTTPException, ValueError):
+                return  # dropped, timed out or garbled: the caller reads the job again
 
     # ---------- models ----------
 

@@ -26,7 +26,7 @@ impl From<Error> for Status {
             Error::FailedPrecondition(_) | Error::Conflict(_) => Status::failed_precondition(msg),
             Error::ResourceExhausted(_) => Status::resource_exhausted(msg),
             Error::Cancelled => Status::cancelled(msg),
-            Error::Storage(_) => Status::unavailable(msg),
+            Error::Storage(_) | Error::Busy(_) => Status::unavailable(msg),
             Error::DeadlineExceeded(_) => Status::deadline_exceeded(msg),
             Error::Internal(_) | Error::Training(_) | Error::Io(_) | Error::Corrupt { .. } => {
                 Status::internal(msg)

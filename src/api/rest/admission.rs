@@ -2,46 +2,17 @@
 //! parsing its body will cost before a byte of it is read, or gets 503 with `Retry-After`.
 //! Without this, 50 concurrent 200 MB uploads each held their body and its parse at once.
 
-use std::sync::Arc;
-
 use axum::extract::{Request, State};
-use axum::http::{StatusCode, header};
+use axum::http::header;
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
-use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
 use super::RestState;
-use super::error::ApiError;
+use super::error::{ApiError, RETRY_AFTER_SECS};
 use crate::app::uploads::BodyKind;
-
-/// Seconds a refused upload is told to wait: about what one large upload takes to parse.
-const RETRY_AFTER_SECS: u64 = 2;
 
 /// The body limit of routes that take no document.
 pub const SMALL_BODY_LIMIT: usize = crate::app::uploads::SMALL_BODY;
-
-/// Budget units: 1 MiB each (a semaphore counts in u32).
-const UNIT: usize = 1 << 20;
-
-/// The budget every body in flight shares, in MiB.
-pub struct BodyBudget {
-    permits: Arc<Semaphore>,
-}
-
-impl BodyBudget {
-    pub fn new(bytes: usize) -> Self {
-        let units = (bytes / UNIT).clamp(1, Semaphore::MAX_PERMITS);
-        Self {
-            permits: Arc::new(Semaphore::new(units)),
-        }
-    }
-
-    /// `cost` bytes of the budget until the permit drops, if they are free now.
-    fn try_reserve(&self, cost: usize) -> Option<OwnedSemaphorePermit> {
-        let units = u32::try_from(cost.div_ceil(UNIT).max(1)).unwrap_or(u32::MAX);
-        self.permits.clone().try_acquire_many_owned(units).ok()
-    }
-}
 
 /// Admits a request's body under the budget before the handler reads it: a declared
 /// `Content-Length` over the route's limit is 413 at once; else the body's cost (declared
@@ -62,18 +33,13 @@ pub async fn admit_body(State(s): State<RestState>, req: Request, next: Next) ->
         return ApiError::too_large(limit).into_response();
     }
     let cost = kind.cost(declared.unwrap_or(limit));
-    let Some(permit) = s.bodies.try_reserve(cost) else {
+    let Some(permit) = s.app.memory.try_reserve(cost) else {
         let message = format!(
-            "request bodies in flight use the upload budget (--max-inflight-body-mb {}); \
-             retry in {RETRY_AFTER_SECS} s",
+            "request bodies and data being read use the in-flight budget \
+             (--max-inflight-body-mb {}); retry in {RETRY_AFTER_SECS} s",
             settings.max_inflight_body_mb
         );
-        let mut response =
-            ApiError::new(StatusCode::SERVICE_UNAVAILABLE, "unavailable", message).into_response();
-        response
-            .headers_mut()
-            .insert(header::RETRY_AFTER, RETRY_AFTER_SECS.into());
-        return response;
+        return ApiError::busy(message).into_response();
     };
     let response = next.run(req).await;
     drop(permit);

@@ -16,7 +16,12 @@ pub struct ApiError {
     pub code: &'static str,
     pub message: String,
     pub field: Option<String>,
+    /// Seconds a client is told to wait before it retries (`Retry-After`).
+    pub retry_after: Option<u64>,
 }
+
+/// Seconds a request refused for a shared bound (memory, waiting calls) is told to wait.
+pub const RETRY_AFTER_SECS: u64 = 2;
 
 impl ApiError {
     pub fn new(status: StatusCode, code: &'static str, message: impl Into<String>) -> Self {
@@ -25,6 +30,15 @@ impl ApiError {
             code,
             message: message.into(),
             field: None,
+            retry_after: None,
+        }
+    }
+
+    /// 503 with `Retry-After`: a bound the requests share was reached, not a fault.
+    pub fn busy(message: impl Into<String>) -> Self {
+        Self {
+            retry_after: Some(RETRY_AFTER_SECS),
+            ..Self::new(StatusCode::SERVICE_UNAVAILABLE, "unavailable", message)
         }
     }
 
@@ -77,6 +91,7 @@ impl From<Error> for ApiError {
                 (StatusCode::CONFLICT, "conflict", None)
             }
             Error::DeadlineExceeded(_) => (StatusCode::GATEWAY_TIMEOUT, "deadline_exceeded", None),
+            Error::Busy(_) => return Self::busy(message),
             Error::Storage(_) => {
                 tracing::error!(error = %detail, "storage unavailable");
                 (StatusCode::SERVICE_UNAVAILABLE, "unavailable", None)
@@ -91,6 +106,7 @@ impl From<Error> for ApiError {
             code,
             message,
             field,
+            retry_after: None,
         }
     }
 }
@@ -102,7 +118,11 @@ impl IntoResponse for ApiError {
         if let Some(f) = self.field {
             err["field"] = json!(bounded(f, FIELD_LIMIT));
         }
-        (self.status, Json(json!({ "error": err }))).into_response()
+        let mut response = (self.status, Json(json!({ "error": err }))).into_response();
+        if let Some(secs) = self.retry_after {
+            (response.headers_mut()).insert(axum::http::header::RETRY_AFTER, secs.into());
+        }
+        response
     }
 }
 

@@ -10,7 +10,6 @@ mod ops;
 mod templates;
 
 use std::collections::HashMap;
-use std::sync::Arc;
 use std::time::Instant;
 
 use axum::Router;
@@ -27,8 +26,6 @@ use error::{ApiError, ApiResult};
 #[derive(Clone)]
 pub struct RestState {
     pub app: App,
-    /// Memory for request bodies being read and parsed (`admission.rs`).
-    bodies: Arc<admission::BodyBudget>,
 }
 
 impl RestState {
@@ -40,10 +37,7 @@ impl RestState {
 
 /// The whole REST router; tests call it with `oneshot` or over a socket.
 pub fn router(app: App) -> Router {
-    let bodies = Arc::new(admission::BodyBudget::new(
-        app.settings.max_inflight_body_bytes(),
-    ));
-    let state = RestState { app, bodies };
+    let state = RestState { app };
     // Each route group reads bodies up to its kind's limit; the rest take small ones.
     let limited = |routes: Router<RestState>, kind: BodyKind| {
         routes.layer(DefaultBodyLimit::max(state.limit(kind)))
@@ -78,11 +72,10 @@ pub fn router(app: App) -> Router {
 /// A worker process's only listener (`graybox worker --health`): `/healthz`, `/readyz` and
 /// `/metrics`, no resources and no token (it carries no data).
 pub fn health_router(app: App) -> Router {
-    let bodies = Arc::new(admission::BodyBudget::new(0));
     Router::new()
         .merge(ops::probes())
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "not_found", "no such route") })
-        .with_state(RestState { app, bodies })
+        .with_state(RestState { app })
 }
 
 async fn authorize(State(s): State<RestState>, req: Request, next: Next) -> Response {

@@ -57,7 +57,7 @@ impl Heavy {
     ) -> Result<T> {
         if self.waiting.fetch_add(1, Ordering::SeqCst) >= self.max_waiting {
             self.waiting.fetch_sub(1, Ordering::SeqCst);
-            return Err(Error::ResourceExhausted(format!(
+            return Err(Error::Busy(format!(
                 "{} heavy inference calls are already waiting; retry later (--max-heavy-calls)",
                 self.max_waiting
             )));

@@ -8,9 +8,11 @@ use serde::{Deserialize, Serialize};
 
 use super::Cost;
 use crate::app::App;
+use crate::data::trajectories;
 use crate::error::{Error, Result};
-use crate::infer::horizons::{HorizonError, check_horizons, cost, horizon_errors};
+use crate::infer::horizons::{HorizonError, check_horizons, cost, horizon_errors, segments_cost};
 use crate::infer::limits::Pass;
+use crate::records::DatasetInfo;
 
 /// How long an evaluation may compute unless the request says otherwise, and at most.
 const DEFAULT_SECONDS: f64 = 60.0;
@@ -73,30 +75,9 @@ impl App {
             ));
         }
         let longest = *horizons.last().expect("checked: at least one");
-        let limit = max_steps.saturating_mul(STEPS_PER_ROLLOUT_STEP);
-        // Cheap bound first: every row rolled out to the longest horizon.
         let rows = info.count as usize;
-        let ds = (self.store.load_dataset(&id).await?)
-            .ok_or_else(|| Error::NotFound(format!("dataset {id}")))?;
-        let ds = if rows.saturating_mul(longest) <= limit {
-            ds
-        } else {
-            let (ds, steps) = tokio::task::spawn_blocking(move || {
-                let steps = cost(&ds, longest);
-                (ds, steps)
-            })
-            .await
-            .map_err(|e| Error::Internal(format!("costing the evaluation failed: {e}")))?;
-            if steps > limit {
-                return Err(Error::ResourceExhausted(format!(
-                    "{steps} model steps (window starts × horizon) is over the limit of {limit} \
-                     (100 × --max-rollout-steps): fewer or shorter horizons, or less data"
-                )));
-            }
-            ds
-        };
         // Every start's state and inputs, its errors at each horizon, and the work of the
-        // chunks being stepped (as Predict counts it).
+        // chunks being stepped (as Predict counts it): admitted before any row is read.
         let row_bytes = 8 * (2 * 2 * n + m) + 16 * horizons.len();
         let work =
             rows.min(2 * eval.chunk_states(Pass::Step)) * eval.work_bytes_per_state(Pass::Step);
@@ -104,12 +85,41 @@ impl App {
             "horizons",
             &Cost {
                 response_bytes: 100 * horizons.len(),
-                memory_bytes: rows * row_bytes + work,
+                memory_bytes: rows.saturating_mul(row_bytes) + work,
             },
         )?;
+        let info: DatasetInfo = info.into();
+        // Cheap bound first: every row rolled out to the longest horizon; then the windows'
+        // own count, from uploaded boundaries without the rows, else from the rows' chains.
+        let limit = max_steps.saturating_mul(STEPS_PER_ROLLOUT_STEP);
+        let mut loaded = None;
+        if rows.saturating_mul(longest) > limit {
+            let steps = match self.store.dataset_trajectories(&id).await?.flatten() {
+                Some(lengths) => segments_cost(&trajectories::from_lengths(&lengths), longest),
+                None => {
+                    let read = self.read_dataset(&info).await?;
+                    let counted = read.clone();
+                    let steps = tokio::task::spawn_blocking(move || cost(&counted.ds, longest))
+                        .await
+                        .map_err(|e| Error::Internal(format!("costing the evaluation: {e}")))?;
+                    loaded = Some(read);
+                    steps
+                }
+            };
+            if steps > limit {
+                return Err(Error::ResourceExhausted(format!(
+                    "{steps} model steps (window starts × horizon) is over the limit of {limit} \
+                     (100 × --max-rollout-steps): fewer or shorter horizons, or less data"
+                )));
+            }
+        }
+        let loaded = match loaded {
+            Some(read) => read,
+            None => self.read_dataset(&info).await?,
+        };
         let items = self
             .heavy_until("evaluation", Some(deadline), move |stop| {
-                horizon_errors(&eval, &ds, &horizons, stop)
+                horizon_errors(&eval, &loaded.ds, &horizons, stop)
             })
             .await?;
         Ok(Evaluation {

@@ -9,6 +9,7 @@ mod admission;
 mod cache;
 mod evaluate;
 mod plan;
+pub mod reads;
 mod replay;
 mod rollout;
 

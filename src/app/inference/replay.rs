@@ -9,6 +9,7 @@ use crate::app::App;
 use crate::data::Dataset;
 use crate::data::trajectories::{self, Segment};
 use crate::error::{Error, Result};
+use crate::records::DatasetInfo;
 
 /// One trajectory's q and q̇ per time step, `[T+1][n]` each.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
@@ -105,15 +106,67 @@ impl App {
         })
     }
 
-    /// The model's replay of trajectory `index` of a dataset.
+    /// The model's replay of trajectory `index` of a dataset. Every check that needs no
+    /// rows comes first; the dataset is read under the memory budget (shared with the other
+    /// requests reading it), and only the trajectory's rows are kept for the rollout.
     pub async fn replay(&self, model_id: &str, dataset_id: &str, index: usize) -> Result<Replay> {
         let eval = self.evaluator(model_id).await?;
-        let ds = self
-            .store
-            .load_dataset(dataset_id)
-            .await?
-            .ok_or_else(|| Error::NotFound(format!("dataset {dataset_id}")))?;
-        let (segments, _) = self.segments(dataset_id, Some(&ds)).await?;
+        let info: DatasetInfo = (self.store.get_dataset(dataset_id).await?)
+            .ok_or_else(|| Error::NotFound(format!("dataset {dataset_id}")))?
+            .into();
+        let (n, m) = (eval.config.n, eval.config.m);
+        if (info.n as usize, info.m as usize) != (n, m) {
+            return Err(Error::invalid(
+                "dataset_id",
+                format!(
+                    "dataset {dataset_id} has n = {}, m = {}; the model has n = {n}, m = {m}",
+                    info.n, info.m
+                ),
+            ));
+        }
+        // Uploaded boundaries are known without the rows; chains are found in them.
+        let uploaded = self.store.dataset_trajectories(dataset_id).await?.flatten();
+        let mut loaded = None;
+        let segments = match uploaded {
+            Some(lengths) => trajectories::from_lengths(&lengths),
+            None => {
+                let read = self.read_dataset(&info).await?;
+                let chains = trajectories::chains(&read.ds);
+                loaded = Some(read);
+                chains
+            }
+        };
+        let seg = self.replayable(&segments, dataset_id, index, n)?;
+        let loaded = match loaded {
+            Some(read) => read,
+            None => self.read_dataset(&info).await?,
+        };
+        let (recorded, inputs) = recorded_segment(&loaded.ds, seg);
+        drop(loaded);
+        let replayed = self
+            .heavy
+            .run(move || replay_segment(&eval, recorded, &inputs, m))
+            .await?;
+        Ok(Replay {
+            model_id: model_id.into(),
+            dataset_id: dataset_id.into(),
+            index,
+            dt: info.dt,
+            t: (0..=seg.length).map(|k| k as f64 * info.dt).collect(),
+            recorded: replayed.0,
+            predicted: replayed.1,
+        })
+    }
+
+    /// Trajectory `index` of `segments` if it can be replayed within the limits, its cost
+    /// admitted.
+    fn replayable(
+        &self,
+        segments: &[Segment],
+        dataset_id: &str,
+        index: usize,
+        n: usize,
+    ) -> Result<Segment> {
         let seg = *segments.get(index).ok_or_else(|| {
             Error::invalid(
                 "index",
@@ -123,16 +176,6 @@ impl App {
                 ),
             )
         })?;
-        let (n, m) = (eval.config.n, eval.config.m);
-        if (ds.n, ds.m) != (n, m) {
-            return Err(Error::invalid(
-                "dataset_id",
-                format!(
-                    "dataset {dataset_id} has n = {}, m = {}; the model has n = {n}, m = {m}",
-                    ds.n, ds.m
-                ),
-            ));
-        }
         // Stored before uploads refused them: an empty trajectory has no state to start from.
         if seg.length == 0 {
             return Err(Error::Unprocessable {
@@ -155,44 +198,46 @@ impl App {
                 memory_bytes: 2 * bytes,
             },
         )?;
-        let dt = ds.dt;
-        let replayed = self
-            .heavy
-            .run(move || replay_segment(&eval, &ds, seg))
-            .await?;
-        Ok(Replay {
-            model_id: model_id.into(),
-            dataset_id: dataset_id.into(),
-            index,
-            dt,
-            t: (0..=seg.length).map(|k| k as f64 * dt).collect(),
-            recorded: replayed.0,
-            predicted: replayed.1,
-        })
+        Ok(seg)
     }
 }
 
-/// The recorded states of `seg` and the model's from its first state with its inputs.
-fn replay_segment(eval: &crate::infer::Evaluator, ds: &Dataset, seg: Segment) -> (Series, Series) {
-    let (n, m) = (ds.n, ds.m);
+/// The recorded states of `seg` (T + 1) and its inputs (T rows of m), copied out of the
+/// dataset so that the rollout does not keep the whole of it.
+fn recorded_segment(ds: &Dataset, seg: Segment) -> (Series, Vec<f64>) {
+    let n = ds.n;
     let row = |a: &[f64], i: usize| a[i * n..(i + 1) * n].to_vec();
     let rows = seg.start..seg.start + seg.length;
     let mut recorded = Series {
         q: rows.clone().map(|i| row(&ds.q, i)).collect(),
         qdot: rows.clone().map(|i| row(&ds.qdot, i)).collect(),
     };
+    // Not empty (`replayable`): the last transition's next state ends the recording.
     let last = seg.start + seg.length - 1;
     recorded.q.push(row(&ds.q_next, last));
     recorded.qdot.push(row(&ds.qdot_next, last));
+    let inputs = ds.u[seg.start * ds.m..(seg.start + seg.length) * ds.m].to_vec();
+    (recorded, inputs)
+}
+
+/// The recording and the model's replay of it from its first state with its `inputs`.
+fn replay_segment(
+    eval: &crate::infer::Evaluator,
+    recorded: Series,
+    inputs: &[f64],
+    m: usize,
+) -> (Series, Series) {
+    let n = recorded.q[0].len();
     let x0: Vec<f64> = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
     let mut predicted = Series {
         q: vec![x0[..n].to_vec()],
         qdot: vec![x0[n..].to_vec()],
     };
+    let steps = recorded.q.len() - 1;
     eval.rollout(
         &x0,
-        seg.length,
-        |t, _| ds.u[(seg.start + t) * m..(seg.start + t + 1) * m].to_vec(),
+        steps,
+        |t, _| inputs[t * m..(t + 1) * m].to_vec(),
         |x, _| {
             predicted.q.push(x[..n].to_vec());
             predicted.qdot.push(x[n..].to_vec());
