@@ -184,3 +184,18 @@ fn bench_horizon_prints_each_horizon() {
             .all(|l| l["samples_per_second"].as_f64().unwrap() > 0.0)
     );
 }
+
+/// `graybox-lab bench reads` prints a real `graybox serve` process's resident set at idle
+/// and at its peak while concurrent replays of a dataset run, and how each was answered.
+#[test]
+fn bench_reads_prints_idle_and_peak_memory() {
+    let lines = json_lines(&["bench", "reads", "--mb", "2", "--concurrent", "4"]);
+    let line = &lines[0];
+    assert_eq!(line["bench"], "reads");
+    assert_eq!(line["statuses"], serde_json::json!({"200": 4}), "{line}");
+    let (idle, peak) = (line["idle_rss_mb"].as_f64(), line["peak_rss_mb"].as_f64());
+    assert!(
+        idle.unwrap() > 0.0 && peak.unwrap() >= idle.unwrap(),
+        "{line}"
+    );
+}

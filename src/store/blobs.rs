@@ -237,8 +237,9 @@ impl Blobs {
                 Err(object_store::Error::NotFound { .. }) => return Ok(Try::Done(None)),
                 Err(e) => return Ok(Try::Again(storage(e))),
             };
-            let bytes = match got.bytes().await {
-                Ok(b) => b.to_vec(),
+            // Into a Vec without a copy when the bytes own their buffer alone.
+            let bytes: Vec<u8> = match got.bytes().await {
+                Ok(b) => b.into(),
                 Err(e) => return Ok(Try::Again(storage(e))),
             };
             if sha256_hex(&bytes) != want {

@@ -43,22 +43,22 @@ pub fn encode(ds: &Dataset) -> Vec<u8> {
 }
 
 fn decode(blob: &[u8], n: usize, m: usize, dt: f64, count: usize) -> Result<Dataset> {
-    let values: Vec<f64> = blob
-        .chunks_exact(8)
-        .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
-        .collect();
     let widths = [n, n, m, n, n];
-    if values.len() != count * widths.iter().sum::<usize>() {
+    let values = count.checked_mul(widths.iter().sum::<usize>());
+    if values.and_then(|v| v.checked_mul(8)) != Some(blob.len()) {
         return Err(Error::corrupt(
             "dataset",
             "stored arrays do not match their dimensions",
         ));
     }
-    let mut rest = values.as_slice();
+    // Each array straight from its bytes: no copy of the whole in between.
+    let mut rest = blob;
     let mut arrays: [Vec<f64>; 5] = Default::default();
     for (a, w) in arrays.iter_mut().zip(widths) {
-        let (head, tail) = rest.split_at(count * w);
-        *a = head.to_vec();
+        let (head, tail) = rest.split_at(8 * count * w);
+        *a = (head.chunks_exact(8))
+            .map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")))
+            .collect();
         rest = tail;
     }
     Dataset::new(dt, n, m, arrays)
@@ -180,6 +180,7 @@ impl Store {
             return Ok(None);
         };
         let ds = decode(&blob, n as usize, m as usize, dt, count as usize)?;
+        drop(blob);
         match lengths.as_deref().map(trajectory_lengths).transpose()? {
             Some(lengths) => (ds.with_trajectories(lengths))
                 .map(Some)

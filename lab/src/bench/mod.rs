@@ -4,6 +4,7 @@ mod events;
 mod horizon;
 mod infer;
 mod queue;
+mod reads;
 mod rigid;
 mod scale;
 
@@ -44,6 +45,9 @@ pub enum BenchCommand {
     Scale(scale::BenchScaleArgs),
     /// Multi-step training's cost: samples/s and seconds per epoch at each horizon.
     Horizon(horizon::BenchHorizonArgs),
+    /// The memory of a `graybox serve` process answering many concurrent replays of one
+    /// large dataset: resident set at idle and at its peak.
+    Reads(reads::BenchReadsArgs),
 }
 
 #[derive(Args, Debug)]
@@ -161,6 +165,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Queue(a) => queue::run(a),
         BenchCommand::Scale(a) => scale::run(a),
         BenchCommand::Horizon(a) => horizon::run(a),
+        BenchCommand::Reads(a) => reads::run(a),
     }
 }
 

@@ -78,3 +78,42 @@ impl Heavy {
         .map_err(|e| Error::Internal(format!("inference task failed: {e}")))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Past its bounded queue a heavy call is told to come back (Busy: 503 with Retry-After,
+    /// UNAVAILABLE), not that it is too large (it was a 413).
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn past_the_queue_a_call_is_busy_not_too_large() {
+        let heavy = Arc::new(Heavy::new(1));
+        let (release, held) = std::sync::mpsc::channel::<()>();
+        let held = Arc::new(std::sync::Mutex::new(held));
+        let running = {
+            let (heavy, held) = (heavy.clone(), held.clone());
+            tokio::spawn(async move { heavy.run(move || held.lock().unwrap().recv()).await })
+        };
+        while heavy.permits.available_permits() > 0 {
+            tokio::task::yield_now().await;
+        }
+        let waiting: Vec<_> = (0..WAITING_PER_PERMIT)
+            .map(|_| {
+                let heavy = heavy.clone();
+                tokio::spawn(async move { heavy.run(|| ()).await })
+            })
+            .collect();
+        while heavy.waiting.load(Ordering::SeqCst) < WAITING_PER_PERMIT {
+            tokio::task::yield_now().await;
+        }
+        match heavy.run(|| ()).await {
+            Err(Error::Busy(m)) => assert!(m.contains("already waiting"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+        release.send(()).unwrap();
+        running.await.unwrap().unwrap().unwrap();
+        for w in waiting {
+            w.await.unwrap().unwrap();
+        }
+    }
+}

@@ -98,10 +98,12 @@ impl App {
                 Some(lengths) => segments_cost(&trajectories::from_lengths(&lengths), longest),
                 None => {
                     let read = self.read_dataset(&info).await?;
-                    let counted = read.clone();
-                    let steps = tokio::task::spawn_blocking(move || cost(&counted.ds, longest))
-                        .await
-                        .map_err(|e| Error::Internal(format!("costing the evaluation: {e}")))?;
+                    let (read, steps) = tokio::task::spawn_blocking(move || {
+                        let steps = cost(read.ds(), longest);
+                        (read, steps)
+                    })
+                    .await
+                    .map_err(|e| Error::Internal(format!("costing the evaluation: {e}")))?;
                     loaded = Some(read);
                     steps
                 }
@@ -119,7 +121,7 @@ impl App {
         };
         let items = self
             .heavy_until("evaluation", Some(deadline), move |stop| {
-                horizon_errors(&eval, &loaded.ds, &horizons, stop)
+                horizon_errors(&eval, loaded.ds(), &horizons, stop)
             })
             .await?;
         Ok(Evaluation {

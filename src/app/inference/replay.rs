@@ -131,7 +131,7 @@ impl App {
             Some(lengths) => trajectories::from_lengths(&lengths),
             None => {
                 let read = self.read_dataset(&info).await?;
-                let chains = trajectories::chains(&read.ds);
+                let chains = trajectories::chains(read.ds());
                 loaded = Some(read);
                 chains
             }
@@ -141,7 +141,7 @@ impl App {
             Some(read) => read,
             None => self.read_dataset(&info).await?,
         };
-        let (recorded, inputs) = recorded_segment(&loaded.ds, seg);
+        let (recorded, inputs) = recorded_segment(loaded.ds(), seg);
         drop(loaded);
         let replayed = self
             .heavy
