@@ -199,9 +199,27 @@ impl App {
             validation_dataset_id: req.validation_dataset_id,
         };
         let (data, val_count) = self.check_datasets(&job).await?;
+        self.check_horizon_fits(&job, &data).await?;
         self.check_job_cost(&job, &data, val_count)?;
         self.check_job_data(&job).await?;
         Ok((job, template_id))
+    }
+
+    /// A multi-step job's horizon against its data's longest trajectory as far as the row
+    /// tells without the rows (uploaded boundaries, else the row count): first, so that a
+    /// horizon no trajectory holds is refused as such, not by the memory its windows would
+    /// take. The rows' own check (chains, the training split) comes with the data checks.
+    async fn check_horizon_fits(&self, job: &JobSpec, data: &DatasetInfo) -> Result<()> {
+        let horizon = job.training.horizon;
+        if horizon <= 1 {
+            return Ok(());
+        }
+        let stored = self.store.dataset_trajectories(&data.id).await?.flatten();
+        let longest = match stored {
+            Some(lengths) => lengths.into_iter().max().unwrap_or(0),
+            None => data.count.max(0) as usize,
+        };
+        crate::train::windows::check_longest(longest, horizon).map_err(Error::unprocessable)
     }
 
     /// The job's datasets exist and fit its model and each other; the training dataset and

@@ -71,6 +71,16 @@ impl Dataset {
             .ok_or_else(|| Error::invalid("body", "expected a JSON object"))?;
         let dt = resolve_dt(obj.get("dt"), dt)?;
         if obj.contains_key("trajectories") {
+            // One form per body: the other's arrays would be silently dropped.
+            if let Some(flat) = FIELDS.iter().find(|f| obj.contains_key(**f)) {
+                return Err(Error::invalid(
+                    "trajectories",
+                    format!(
+                        "a body has either trajectories or the flat arrays (q, qdot, u, \
+                         q_next, qdot_next), not both: this one has trajectories and {flat}"
+                    ),
+                ));
+            }
             return Self::from_trajectories(value, dt);
         }
         Self::from_transitions(obj, dt)

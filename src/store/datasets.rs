@@ -111,6 +111,24 @@ impl Store {
                 .fetch_optional(&mut *tx)
                 .await?;
             if let Some(r) = existing {
+                let stored: Option<String> =
+                    sqlx::query_scalar("SELECT trajectories FROM datasets WHERE sha256 = $1")
+                        .bind(&sha)
+                        .fetch_one(&mut *tx)
+                        .await?;
+                // The same rows with other boundaries are another reading of the data, and
+                // the stored one cannot be changed under the jobs and replays that use it.
+                if let (Some(stored), Some(new)) = (&stored, &lengths)
+                    && stored != new
+                {
+                    let existing: DatasetRow = row(&r)?;
+                    return Err(Error::Conflict(format!(
+                        "these rows are stored already as dataset {} with other trajectory \
+                         boundaries ({} trajectories); delete it first to store them with these",
+                        existing.id,
+                        trajectory_lengths(stored).map_or(0, |l| l.len())
+                    )));
+                }
                 if lengths.is_some() {
                     sqlx::query(
                         "UPDATE datasets SET trajectories = $1 WHERE sha256 = $2 AND trajectories IS NULL",

@@ -66,8 +66,15 @@ pub fn check(ds: &Dataset, horizon: usize) -> Result<()> {
     if horizon == 1 {
         return Ok(());
     }
-    let longest = ds.segments().iter().map(|s| s.length).max().unwrap_or(0);
-    if longest >= horizon {
+    check_longest(
+        ds.segments().iter().map(|s| s.length).max().unwrap_or(0),
+        horizon,
+    )
+}
+
+/// [`check`] given the longest trajectory (or a bound on it, known without the rows).
+pub fn check_longest(longest: usize, horizon: usize) -> Result<()> {
+    if horizon <= 1 || longest >= horizon {
         return Ok(());
     }
     Err(Error::invalid(

@@ -79,3 +79,69 @@ async fn a_multi_step_job_reports_its_horizon_loss_and_its_model_evaluates() {
     );
     app.stop().await;
 }
+
+/// A horizon longer than every trajectory is refused naming `training.horizon`, even where
+/// its windows' memory would be over the limit too (that refusal, naming
+/// `training.batch_size`, came first and sent the user to the wrong field).
+#[tokio::test]
+async fn a_horizon_no_trajectory_holds_is_refused_as_such() {
+    let mut settings = test_settings();
+    settings.worker.workers = 0;
+    settings.max_job_memory_mb = 64;
+    let app = spawn_configured(settings).await;
+    let ds = app.upload(&trajectories(2, 50, 3)).await;
+    let mut body = job_body(&ds, "MVF", 3);
+    body["training"]["horizon"] = json!(1000);
+    body["training"]["batch_size"] = json!(4096);
+    let (status, refused) = app.post("/v1/jobs", &body).await;
+    assert_eq!(status, 422, "{refused}");
+    assert_eq!(refused["error"]["field"], "training.horizon", "{refused}");
+    assert!(
+        refused["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("longest in the training data is 50"),
+        "{refused}"
+    );
+    app.stop().await;
+}
+
+/// One form per body, and one reading of a dataset's rows: a body with both trajectories and
+/// flat arrays is refused (one of them was dropped silently), and the same rows with other
+/// trajectory boundaries are a conflict naming the stored dataset (the new boundaries were
+/// dropped silently); the same boundaries again find the stored dataset.
+#[tokio::test]
+async fn a_dataset_has_one_form_and_one_set_of_boundaries() {
+    let app = spawn_app(0).await;
+    let body = trajectories(2, 10, 4);
+    let mut both = body.clone();
+    both["q"] = json!([[0.0, 0.0]]);
+    let (status, refused) = app.post("/v1/datasets", &both).await;
+    assert_eq!(
+        (status, &refused["error"]["field"]),
+        (400, &json!("trajectories")),
+        "{refused}"
+    );
+    let ds = app.upload(&body).await;
+    let (status, again) = app.post("/v1/datasets", &body).await;
+    assert_eq!((status, &again["id"]), (200, &json!(ds)), "{again}");
+    // The same rows cut at another place: the first trajectory split after 4 of its 10
+    // transitions (4 + 6 + 10 instead of 10 + 10).
+    let first = &body["trajectories"][0];
+    let part = |k: &str, from: usize, to: usize| json!(first[k].as_array().unwrap()[from..to]);
+    let recut = json!({"dt": body["dt"], "trajectories": [
+        {"q": part("q", 0, 5), "qdot": part("qdot", 0, 5), "u": part("u", 0, 4)},
+        {"q": part("q", 4, 11), "qdot": part("qdot", 4, 11), "u": part("u", 4, 10)},
+        body["trajectories"][1],
+    ]});
+    let (status, conflict) = app.post("/v1/datasets", &recut).await;
+    assert_eq!(status, 409, "{conflict}");
+    let message = conflict["error"]["message"].as_str().unwrap();
+    assert!(
+        message.contains(&ds) && message.contains("boundaries"),
+        "{conflict}"
+    );
+    let (_, stored) = app.get(&format!("/v1/datasets/{ds}/trajectories")).await;
+    assert_eq!(stored["count"], 2, "{stored}");
+    app.stop().await;
+}
