@@ -8,9 +8,9 @@
 
 use std::time::{Duration, Instant};
 
-use serde_json::{Value, json};
+use serde_json::Value;
 
-use crate::helpers::{dataset, final_state};
+use crate::helpers::final_state;
 use crate::processes::{Proc, Server, fresh_db};
 
 const JOBS: usize = 12;
@@ -19,21 +19,7 @@ const MODELS: [&str; 4] = ["MVF", "MV", "naive", "W-B"];
 
 /// The twelve jobs (four models, three seeds), submitted in order; their ids.
 fn submit_all(s: &Server) -> Vec<String> {
-    let d = s.post("/v1/datasets", &dataset(1024, 51));
-    let v = s.post("/v1/datasets", &dataset(128, 52));
-    (0..JOBS)
-        .map(|i| {
-            let body = json!({"dataset_id": d["id"], "validation_dataset_id": v["id"],
-                "model": MODELS[i % MODELS.len()], "template": "double_pendulum",
-                "training": {"epochs": EPOCHS, "batch_size": 64, "lr": 0.003,
-                             "seed": i / MODELS.len()}});
-            let job = s.post("/v1/jobs", &body);
-            job["id"]
-                .as_str()
-                .unwrap_or_else(|| panic!("{job}"))
-                .to_string()
-        })
-        .collect()
+    s.submit_batch(&MODELS, JOBS, EPOCHS, (1024, 51))
 }
 
 /// A small deterministic generator for the kill schedule (xorshift64*).

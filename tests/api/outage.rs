@@ -53,21 +53,7 @@ fn api_node(proxy: &FaultProxy, db: &str, args: &[&str]) -> Server {
 
 /// The jobs (three models, two seeds), submitted in order; their ids.
 fn submit_all(s: &Server) -> Vec<String> {
-    let d = s.post("/v1/datasets", &dataset(512, 61));
-    let v = s.post("/v1/datasets", &dataset(128, 62));
-    (0..JOBS)
-        .map(|i| {
-            let body = json!({"dataset_id": d["id"], "validation_dataset_id": v["id"],
-                "model": MODELS[i % MODELS.len()], "template": "double_pendulum",
-                "training": {"epochs": EPOCHS, "batch_size": 64, "lr": 0.003,
-                             "seed": i / MODELS.len()}});
-            let job = s.post("/v1/jobs", &body);
-            job["id"]
-                .as_str()
-                .unwrap_or_else(|| panic!("{job}"))
-                .to_string()
-        })
-        .collect()
+    s.submit_batch(&MODELS, JOBS, EPOCHS, (512, 61))
 }
 
 /// The keys of the objects under `db`'s prefix whose kind is `kind` (read straight from the

@@ -167,6 +167,34 @@ impl Server {
         }
     }
 
+    /// A batch of jobs on one dataset of `rows` (seed `seed`) with a validation dataset of
+    /// 128 (seed `seed + 1`): `jobs` of `epochs`, their models in turn from `models`, seed 0
+    /// for the first round of models, 1 for the next, …; their ids, in submission order.
+    pub fn submit_batch(
+        &self,
+        models: &[&str],
+        jobs: usize,
+        epochs: i64,
+        (rows, seed): (usize, u64),
+    ) -> Vec<String> {
+        let d = self.post("/v1/datasets", &crate::helpers::dataset(rows, seed));
+        let v = self.post("/v1/datasets", &crate::helpers::dataset(128, seed + 1));
+        (0..jobs)
+            .map(|i| {
+                let body = serde_json::json!({"dataset_id": d["id"],
+                    "validation_dataset_id": v["id"], "model": models[i % models.len()],
+                    "template": "double_pendulum",
+                    "training": {"epochs": epochs, "batch_size": 64, "lr": 0.003,
+                                 "seed": i / models.len()}});
+                let job = self.post("/v1/jobs", &body);
+                job["id"]
+                    .as_str()
+                    .unwrap_or_else(|| panic!("{job}"))
+                    .to_string()
+            })
+            .collect()
+    }
+
     /// The model file a finished job made.
     pub fn model_file(&self, job: &Value) -> ModelFile {
         let id = job["model_id"].as_str().unwrap();

@@ -12,7 +12,6 @@ use crate::data::trajectories;
 use crate::error::{Error, Result};
 use crate::infer::horizons::{HorizonError, check_horizons, cost, horizon_errors, segments_cost};
 use crate::infer::limits::Pass;
-use crate::records::DatasetInfo;
 
 /// How long an evaluation may compute unless the request says otherwise, and at most.
 const DEFAULT_SECONDS: f64 = 60.0;
@@ -63,17 +62,7 @@ impl App {
         let eval = self.evaluator(model_id).await?;
         let (n, m) = (eval.config.n, eval.config.m);
         let id = req.dataset_id.clone();
-        let info = (self.store.get_dataset(&id).await?)
-            .ok_or_else(|| Error::NotFound(format!("dataset {id}")))?;
-        if (info.n as usize, info.m as usize) != (n, m) {
-            return Err(Error::invalid(
-                "dataset_id",
-                format!(
-                    "dataset {id} has n = {}, m = {}; the model has n = {n}, m = {m}",
-                    info.n, info.m
-                ),
-            ));
-        }
+        let info = self.dataset_for_model(&id, (n, m)).await?;
         let longest = *horizons.last().expect("checked: at least one");
         let rows = info.count as usize;
         // Every start's state and inputs, its errors at each horizon, and the work of the
@@ -88,7 +77,6 @@ impl App {
                 memory_bytes: rows.saturating_mul(row_bytes) + work,
             },
         )?;
-        let info: DatasetInfo = info.into();
         // Cheap bound first: every row rolled out to the longest horizon; then the windows'
         // own count, from uploaded boundaries without the rows, else from the rows' chains.
         let limit = max_steps.saturating_mul(STEPS_PER_ROLLOUT_STEP);

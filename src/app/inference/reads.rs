@@ -79,6 +79,28 @@ pub fn load_cost(info: &DatasetInfo) -> usize {
 }
 
 impl App {
+    /// The row of a dataset a model is to read (a replay, an evaluation): 404 when it does
+    /// not exist, 400 naming `dataset_id` when its shape is not the model's (n, m).
+    pub(crate) async fn dataset_for_model(
+        &self,
+        id: &str,
+        (n, m): (usize, usize),
+    ) -> Result<DatasetInfo> {
+        let info: DatasetInfo = (self.store.get_dataset(id).await?)
+            .ok_or_else(|| Error::NotFound(format!("dataset {id}")))?
+            .into();
+        if (info.n as usize, info.m as usize) != (n, m) {
+            return Err(Error::invalid(
+                "dataset_id",
+                format!(
+                    "dataset {id} has n = {}, m = {}; the model has n = {n}, m = {m}",
+                    info.n, info.m
+                ),
+            ));
+        }
+        Ok(info)
+    }
+
     /// The arrays of the dataset `info` describes, for a read: the copy other requests are
     /// reading already, or loaded now under the memory budget (503 with `Retry-After` while
     /// its share is not free; 413 for a dataset that could never fit the budget).

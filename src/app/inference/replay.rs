@@ -9,7 +9,6 @@ use crate::app::App;
 use crate::data::Dataset;
 use crate::data::trajectories::{self, Segment};
 use crate::error::{Error, Result};
-use crate::records::DatasetInfo;
 
 /// One trajectory's q and q̇ per time step, `[T+1][n]` each.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
@@ -111,19 +110,8 @@ impl App {
     /// requests reading it), and only the trajectory's rows are kept for the rollout.
     pub async fn replay(&self, model_id: &str, dataset_id: &str, index: usize) -> Result<Replay> {
         let eval = self.evaluator(model_id).await?;
-        let info: DatasetInfo = (self.store.get_dataset(dataset_id).await?)
-            .ok_or_else(|| Error::NotFound(format!("dataset {dataset_id}")))?
-            .into();
         let (n, m) = (eval.config.n, eval.config.m);
-        if (info.n as usize, info.m as usize) != (n, m) {
-            return Err(Error::invalid(
-                "dataset_id",
-                format!(
-                    "dataset {dataset_id} has n = {}, m = {}; the model has n = {n}, m = {m}",
-                    info.n, info.m
-                ),
-            ));
-        }
+        let info = self.dataset_for_model(dataset_id, (n, m)).await?;
         // Uploaded boundaries are known without the rows; chains are found in them.
         let uploaded = self.store.dataset_trajectories(dataset_id).await?.flatten();
         let mut loaded = None;
