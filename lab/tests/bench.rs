@@ -199,3 +199,24 @@ fn bench_reads_prints_idle_and_peak_memory() {
         "{line}"
     );
 }
+
+/// `graybox-lab bench uploads` prints, for each JSON form and where the bytes go, a real
+/// `graybox serve` process's peak memory per body byte beside what its admission reserves.
+#[test]
+fn bench_uploads_prints_each_form_and_store() {
+    let lines = json_lines(&["bench", "uploads", "--mb", "1"]);
+    let runs: Vec<(&str, &str)> = (lines.iter())
+        .map(|l| (l["form"].as_str().unwrap(), l["bytes_in"].as_str().unwrap()))
+        .collect();
+    let want = [
+        ("flat", "rows"),
+        ("flat", "object store"),
+        ("trajectories", "rows"),
+    ];
+    assert_eq!(runs[..3], want, "{lines:?}");
+    assert_eq!(runs[3], ("trajectories", "object store"), "{lines:?}");
+    for l in &lines {
+        assert!(l["peak_per_body_byte"].as_f64().unwrap() > 0.0, "{l}");
+        assert_eq!(l["reserved_per_body_byte"], 10.0, "{l}");
+    }
+}

@@ -36,7 +36,7 @@ pub struct Settings {
     pub max_template_mb: usize,
     /// Memory all request bodies in flight may take while read and parsed, in MiB (each
     /// reserves its size times its kind's measured cost; past it: 503 with Retry-After).
-    #[arg(long, env = "GRAYBOX_MAX_INFLIGHT_BODY_MB", default_value_t = 1024)]
+    #[arg(long, env = "GRAYBOX_MAX_INFLIGHT_BODY_MB", default_value_t = 1536)]
     pub max_inflight_body_mb: usize,
     /// Longest gRPC Rollout (and Tvlqr horizon), in steps.
     #[arg(long, env = "GRAYBOX_MAX_ROLLOUT_STEPS", default_value_t = 100_000)]

@@ -46,16 +46,18 @@ impl BodyKind {
 
     /// Peak memory of handling a body of `bytes`: the body, its parsed form and what is
     /// built and stored from it. Measured as the process's peak RSS over one upload, per body
-    /// byte: a JSON dataset 5.5×, a CSV one 3.4×, a model file 5.3×, a template document
-    /// 5.0×; a template's checks also take up to ~30 MB whatever its size (a document of
-    /// 10⁵ nodes is 0.2 MB).
+    /// byte (`graybox-lab bench uploads` for datasets): a JSON dataset 6.9–8.9× in either
+    /// form, its bytes in the rows or in an object store (the parsed JSON document dominates),
+    /// so 10×; a CSV one 3.4×, a model file 5.3×, a template document 5.0×, so 6×; a
+    /// template's checks also take up to ~30 MB whatever its size (a document of 10⁵ nodes
+    /// is 0.2 MB).
     pub fn cost(self, bytes: usize) -> usize {
-        let floor = if self == BodyKind::Template {
-            32 << 20
-        } else {
-            0
+        let (per_byte, floor) = match self {
+            BodyKind::Dataset => (10, 0),
+            BodyKind::Template => (6, 32 << 20),
+            BodyKind::Model | BodyKind::Small => (6, 0),
         };
-        bytes.saturating_mul(6).max(floor)
+        bytes.saturating_mul(per_byte).max(floor)
     }
 
     /// The most one body of this kind reserves.

@@ -55,6 +55,21 @@ struct Trajectory {
     u: Vec<Vec<f64>>,
 }
 
+/// Every row of `rows` has `width` values (those of the first trajectory's first row), or an
+/// error naming the first that does not.
+fn same_widths(rows: &[Vec<f64>], width: usize, field: String) -> Result<()> {
+    match rows.iter().position(|r| r.len() != width) {
+        None => Ok(()),
+        Some(t) => Err(Error::invalid(
+            format!("{field}[{t}]"),
+            format!(
+                "has {} values; the rows before it have {width}",
+                rows[t].len()
+            ),
+        )),
+    }
+}
+
 impl Dataset {
     /// Parses either JSON form (transitions, or trajectories). `dt` is the caller's Δt, for a
     /// file without one (or to check against the file's).
@@ -247,14 +262,19 @@ impl Dataset {
     }
 
     /// Trajectories → transitions (x_t, u_t, x_{t+1}).
+    /// The trajectory form, read straight into the five arrays: each trajectory is read in
+    /// place (no copy of its JSON) and its rows appended as numbers, so the body's parsed
+    /// form is the one large thing alive beside the arrays.
     fn from_trajectories(value: &Value, dt: f64) -> Result<Self> {
+        use serde::Deserialize;
         let trajs = value["trajectories"]
             .as_array()
             .ok_or_else(|| Error::invalid("trajectories", "must be an array of {q, qdot, u}"))?;
-        let mut fields: [Vec<Value>; 5] = Default::default();
+        let mut arrays: [Vec<f64>; 5] = Default::default();
+        let mut widths = None;
         let mut lengths = Vec::with_capacity(trajs.len());
         for (k, t) in trajs.iter().enumerate() {
-            let tr: Trajectory = serde_json::from_value(t.clone()).map_err(|e| {
+            let tr = Trajectory::deserialize(t).map_err(|e| {
                 Error::invalid(
                     format!("trajectories[{k}]"),
                     format!("expected {{q, qdot, u}} arrays of number rows: {e}"),
@@ -279,22 +299,22 @@ impl Dataset {
                         .into(),
                 });
             }
-            lengths.push(steps);
+            let (n, m) = *widths.get_or_insert((tr.q[0].len(), tr.u[0].len()));
+            let field = |f: &str| format!("trajectories[{k}].{f}");
+            same_widths(&tr.q, n, field("q"))?;
+            same_widths(&tr.qdot, n, field("qdot"))?;
+            same_widths(&tr.u, m, field("u"))?;
             for t in 0..steps {
-                let push = |f: &mut Vec<Value>, r: &Vec<f64>| f.push(Value::from(r.clone()));
-                push(&mut fields[0], &tr.q[t]);
-                push(&mut fields[1], &tr.qdot[t]);
-                push(&mut fields[2], &tr.u[t]);
-                push(&mut fields[3], &tr.q[t + 1]);
-                push(&mut fields[4], &tr.qdot[t + 1]);
+                arrays[0].extend_from_slice(&tr.q[t]);
+                arrays[1].extend_from_slice(&tr.qdot[t]);
+                arrays[2].extend_from_slice(&tr.u[t]);
+                arrays[3].extend_from_slice(&tr.q[t + 1]);
+                arrays[4].extend_from_slice(&tr.qdot[t + 1]);
             }
+            lengths.push(steps);
         }
-        let obj = FIELDS
-            .iter()
-            .zip(fields)
-            .map(|(name, f)| ((*name).to_string(), Value::Array(f)))
-            .collect();
-        Self::from_transitions(&obj, dt)?.with_trajectories(lengths)
+        let (n, m) = widths.unwrap_or((0, 0));
+        Self::new(dt, n, m, arrays)?.with_trajectories(lengths)
     }
 }
 

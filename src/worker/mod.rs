@@ -56,28 +56,19 @@ struct Flags {
 /// Runs workers until `shutdown` turns true; each returns after its current job reached an
 /// epoch end and was checkpointed and released.
 pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<bool>) {
-    let mut store_down = 0;
+    let mut store = StoreGate::default();
     loop {
         let mut poll = poll_interval();
         if *shutdown.borrow() {
             return;
         }
         // No job is claimed while the object store does not answer: it would only fail.
-        if let Err(e) = app.store.ping_blobs().await {
-            if store_down == 0 {
-                warn!(error = %e, worker = %owner, "the object store is unreachable; claiming no job until it answers");
-            }
-            let wait = STORE_BACKOFF.delay(store_down);
-            store_down += 1;
+        if let Some(wait) = store.closed(&app, &owner).await {
             tokio::select! {
                 _ = tokio::time::sleep(wait) => {}
                 _ = shutdown.changed() => {}
             }
             continue;
-        }
-        if store_down > 0 {
-            info!(worker = %owner, "the object store answers again");
-            store_down = 0;
         }
         match app
             .store
@@ -93,6 +84,9 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
                 info!(job = %id, attempt = claimed.attempt, worker = %owner, "claimed a job");
                 match run_claimed(&app, claimed, shutdown.clone()).await {
                     Ok(outcome) => {
+                        if outcome == Outcome::Retried {
+                            store.recheck();
+                        }
                         info!(job = %id, ?outcome, worker = %owner, "job left the worker")
                     }
                     Err(e) => {
@@ -115,6 +109,53 @@ pub async fn run_worker(app: App, owner: String, mut shutdown: watch::Receiver<b
                 }
             }
         }
+    }
+}
+
+/// How long a worker trusts the object store's last answer before it asks again: an idle
+/// worker polls the queue five times a second, and need not ask the store each time.
+const STORE_TRUSTED_FOR: Duration = Duration::from_secs(5);
+
+/// Whether a worker may claim: the object store answered lately, or answers now.
+#[derive(Default)]
+struct StoreGate {
+    answered: Option<std::time::Instant>,
+    /// Pings in a row that failed.
+    down: u32,
+}
+
+impl StoreGate {
+    /// None when the store answers (lately or now); else how long to wait before asking it
+    /// again.
+    async fn closed(&mut self, app: &App, owner: &str) -> Option<Duration> {
+        if self
+            .answered
+            .is_some_and(|t| t.elapsed() < STORE_TRUSTED_FOR)
+        {
+            return None;
+        }
+        match app.store.ping_blobs().await {
+            Ok(()) => {
+                if self.down > 0 {
+                    info!(worker = %owner, "the object store answers again");
+                }
+                (self.answered, self.down) = (Some(std::time::Instant::now()), 0);
+                None
+            }
+            Err(e) => {
+                if self.down == 0 {
+                    warn!(error = %e, worker = %owner, "the object store is unreachable; claiming no job until it answers");
+                }
+                self.answered = None;
+                self.down = self.down.saturating_add(1);
+                Some(STORE_BACKOFF.delay(self.down - 1))
+            }
+        }
+    }
+
+    /// A job just failed on storage: ask the store before the next claim.
+    fn recheck(&mut self) {
+        self.answered = None;
     }
 }
 
@@ -213,8 +254,10 @@ async fn end_with_error(app: &App, claimed: &Claimed, e: Error) -> Result<Outcom
         Error::Storage(msg) => {
             let patience = app.settings.worker.storage_patience();
             warn!(job = %claimed.job.id, error = %msg, "storage failed; the job goes back to the queue");
+            // The job's error is shown to users: which service failed, not its address.
+            let public = Error::Storage(msg.clone()).public_message();
             match store
-                .retry_later(claimed, JOB_BACKOFF, patience, &msg)
+                .retry_later(claimed, JOB_BACKOFF, patience, &public)
                 .await?
             {
                 Some(JobState::Failed) => Outcome::Failed(msg),

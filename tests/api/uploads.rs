@@ -52,12 +52,12 @@ async fn bodies_past_the_budget_are_refused_before_they_are_read() {
         max_body_mb: 4,
         max_model_mb: 4,
         max_template_mb: 1,
-        max_inflight_body_mb: 40,
+        max_inflight_body_mb: 60,
         ..test_settings()
     };
     let budget = settings.max_inflight_body_bytes();
     let dataset = 4 << 20;
-    // Two 4 MB datasets reserve 48 MB of the 40: the second does not fit beside the first.
+    // Two 4 MB datasets reserve 80 MB of the 60: the second does not fit beside the first.
     assert!(
         2 * BodyKind::Dataset.cost(dataset) > budget && BodyKind::Dataset.cost(dataset) < budget
     );
@@ -107,7 +107,7 @@ fn a_budget_smaller_than_one_body_is_refused_at_start() {
     };
     let err = settings.validate().unwrap_err().to_string();
     assert!(
-        err.contains("max-inflight-body-mb") && err.contains("600"),
+        err.contains("max-inflight-body-mb") && err.contains("1000"),
         "{err}"
     );
 }

@@ -3,10 +3,12 @@
 mod events;
 mod horizon;
 mod infer;
+mod process;
 mod queue;
 mod reads;
 mod rigid;
 mod scale;
+mod uploads;
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -48,6 +50,9 @@ pub enum BenchCommand {
     /// The memory of a `graybox serve` process answering many concurrent replays of one
     /// large dataset: resident set at idle and at its peak.
     Reads(reads::BenchReadsArgs),
+    /// The memory one dataset upload takes per body byte, for each JSON form, its bytes in
+    /// the database's rows and in an object store, beside what the admission reserves.
+    Uploads(uploads::BenchUploadsArgs),
 }
 
 #[derive(Args, Debug)]
@@ -166,6 +171,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Scale(a) => scale::run(a),
         BenchCommand::Horizon(a) => horizon::run(a),
         BenchCommand::Reads(a) => reads::run(a),
+        BenchCommand::Uploads(a) => uploads::run(a),
     }
 }
 
