@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use serde_json::Value;
 
 use crate::helpers::final_state;
-use crate::processes::{Proc, Server, fresh_db};
+use crate::processes::{Proc, Server, fresh_db, undisturbed};
 
 const JOBS: usize = 12;
 const EPOCHS: i64 = 20;
@@ -45,16 +45,7 @@ fn env_or(name: &str, default: u64) -> u64 {
 fn killed_workers_lose_no_job_and_change_no_result() {
     let dir = tempfile::tempdir().unwrap();
     let reference = dir.path().join("reference.db");
-    let reference = Server::start(reference.to_str().unwrap(), 2);
-    let rids = submit_all(&reference);
-    let want: Vec<_> = (rids.iter())
-        .map(|id| reference.wait(id, 600, final_state))
-        .map(|job| {
-            assert_eq!(job["state"], "succeeded", "{job}");
-            reference.model_file(&job).params
-        })
-        .collect();
-    reference.sigterm();
+    let want = undisturbed(reference.to_str().unwrap(), submit_all);
 
     let db = fresh_db(&dir.path().join("chaos"));
     let worker = || Proc::spawn("worker", &db, &["--workers", "1", "--max-attempts", "100"]);

@@ -11,7 +11,7 @@ use serde_json::{Value, json};
 
 use crate::faults::{FaultProxy, Mode, ONE_REQUEST_PER_CONNECTION, endpoint_addr};
 use crate::helpers::{blobs_for, dataset, final_state};
-use crate::processes::{Proc, Server, fresh_db};
+use crate::processes::{Proc, Server, fresh_db, undisturbed};
 
 const JOBS: usize = 6;
 const EPOCHS: i64 = 24;
@@ -80,15 +80,7 @@ fn an_object_store_outage_fails_no_job_and_changes_no_result() {
         return;
     };
     let dir = tempfile::tempdir().unwrap();
-    let reference = Server::start(&fresh_db(&dir.path().join("reference")), 2);
-    let want: Vec<_> = (submit_all(&reference).iter())
-        .map(|id| reference.wait(id, 600, final_state))
-        .map(|job| {
-            assert_eq!(job["state"], "succeeded", "{job}");
-            reference.model_file(&job).params
-        })
-        .collect();
-    reference.sigterm();
+    let want = undisturbed(&fresh_db(&dir.path().join("reference")), submit_all);
 
     let db = fresh_db(&dir.path().join("outage"));
     let api = api_node(&proxy, &db, &["--blobs-retry-secs", "3"]);

@@ -7,6 +7,7 @@ use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
 use graybox::model::file::ModelFile;
+use graybox::model::params_io::NamedArray;
 use serde_json::Value;
 
 /// A running `graybox` command; its stderr is collected line by line.
@@ -217,6 +218,21 @@ impl Server {
     pub fn sigterm(self) {
         self.proc.sigterm();
     }
+}
+
+/// The parameters of the models of `submit`'s jobs trained undisturbed: `graybox serve` with
+/// two workers on a new database `db`, every job waited for and checked succeeded.
+pub fn undisturbed(db: &str, submit: impl Fn(&Server) -> Vec<String>) -> Vec<Vec<NamedArray>> {
+    let reference = Server::start(db, 2);
+    let want = (submit(&reference).iter())
+        .map(|id| reference.wait(id, 600, crate::helpers::final_state))
+        .map(|job| {
+            assert_eq!(job["state"], "succeeded", "{job}");
+            reference.model_file(&job).params
+        })
+        .collect();
+    reference.sigterm();
+    want
 }
 
 /// A new database for a test that drives processes (see `helpers::fresh_db`); `dir` is
