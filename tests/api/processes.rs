@@ -106,6 +106,15 @@ impl Proc {
     }
 }
 
+/// A test that fails leaves no process behind (the processes of one that passes have exited
+/// already: killing a waited-for child sends nothing).
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
 /// `graybox serve` and a client of its REST API.
 pub struct Server {
     pub proc: Proc,

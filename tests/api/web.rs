@@ -42,6 +42,16 @@ async fn the_page_loads_without_a_token_and_the_api_still_needs_one() {
         .await
         .unwrap();
     assert_eq!(r.status().as_u16(), 200);
+    // Where the page's files are is where a person may look for the page: sent to it.
+    let no_follow = reqwest::Client::builder()
+        .redirect(reqwest::redirect::Policy::none())
+        .build()
+        .unwrap();
+    for path in ["/ui", "/ui/"] {
+        let r = no_follow.get(app.url(path)).send().await.unwrap();
+        assert_eq!(r.status().as_u16(), 308, "{path}");
+        assert_eq!(r.headers()["location"], "/", "{path}");
+    }
     // Not a way around the token: only the page's own files are open.
     let r = app
         .client

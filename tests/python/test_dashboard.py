@@ -121,6 +121,12 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     assert rows.nth(0).get_attribute("data-job") == jobs["MVF"]
     wb = page.locator(f'tr[data-job="{jobs["W-B"]}"]').inner_text()
     assert "W-B at lr 1e-09" in wb and "recorded" in wb and ds["id"] not in wb, wb
+    # Loaded afresh, the page lists them newest first too (its rows came reversed from the
+    # second one on: the list's index was taken for "put it at the top").
+    page.reload()
+    page.wait_for_selector(f'tr[data-job="{jobs["W-B"]}"]')
+    order = [rows.nth(i).get_attribute("data-job") for i in range(rows.count())]
+    assert order == [jobs["MVF"], jobs["W-B"]], order
     page.screenshot(path=str(tmp_path / "jobs.png"), full_page=True)
 
     # A job's loss chart: one point per epoch.

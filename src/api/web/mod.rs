@@ -39,7 +39,7 @@ pub async fn security_headers(mut resp: Response) -> Response {
 
 /// Files served without a token: the page needs them before it can ask for one.
 pub fn is_open(path: &str) -> bool {
-    path == "/" || path == "/favicon.ico" || path.starts_with("/ui/")
+    path == "/" || path == "/favicon.ico" || path == "/ui" || path.starts_with("/ui/")
 }
 
 const FILES: [(&str, &str, &str); 7] = [
@@ -127,4 +127,13 @@ pub fn routes<S: Clone + Send + Sync + 'static>() -> Router<S> {
             )
         })
         .route("/ui/defaults.js", script)
+        // The page's files are under /ui/: a person who types that finds the page.
+        .route(
+            "/ui",
+            get(|| async { axum::response::Redirect::permanent("/") }),
+        )
+        .route(
+            "/ui/",
+            get(|| async { axum::response::Redirect::permanent("/") }),
+        )
 }

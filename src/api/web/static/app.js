@@ -336,7 +336,8 @@ async function jobsView(view) {
     tokens[p + 1] = data.next_page_token || undefined;
     rows.clear();
     tbody.replaceChildren();
-    data.items.forEach(renderRow);
+    // Not forEach(renderRow): its index would be renderRow's atTop, reversing the page.
+    data.items.forEach((job) => renderRow(job));
     prev.disabled = page === 0;
     next.disabled = !data.next_page_token;
     status.textContent = data.items.length ? `Page ${page + 1}` : "No jobs yet.";
