@@ -28,9 +28,4 @@ impl MemoryBudget {
         let units = u32::try_from(cost.div_ceil(UNIT).max(1)).unwrap_or(u32::MAX);
         self.permits.clone().try_acquire_many_owned(units).ok()
     }
-
-    /// MiB free now (for tests and metrics).
-    pub fn free_mib(&self) -> usize {
-        self.permits.available_permits()
-    }
 }

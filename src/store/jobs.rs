@@ -77,6 +77,9 @@ pub enum Submitted {
     Existing(JobRow),
 }
 
+const DATASETS_WITH_ID: &str = "SELECT COUNT(*) FROM datasets WHERE id = $1";
+const TEMPLATES_WITH_ID: &str = "SELECT COUNT(*) FROM templates WHERE id = $1";
+
 impl Store {
     pub async fn submit_job(&self, new: NewJob) -> Result<Submitted> {
         on_db!(self, pool, D => {
@@ -101,42 +104,24 @@ impl Store {
                     return Ok(Submitted::Existing(row(&r)?));
                 }
             }
-            // Inside the write transaction, so that a concurrent DELETE of a dataset either runs
-            // first (and this submission fails) or sees this job and refuses.
-            for (field, id) in [
-                ("dataset_id", Some(&new.dataset_id)),
-                ("validation_dataset_id", new.validation_dataset_id.as_ref()),
+            // Inside the write transaction, so that a concurrent DELETE of a dataset or of the
+            // template either runs first (and this submission fails) or sees this job and
+            // refuses.
+            for (field, what, count, id) in [
+                ("dataset_id", "dataset", DATASETS_WITH_ID, Some(&new.dataset_id)),
+                ("validation_dataset_id", "dataset", DATASETS_WITH_ID, new.validation_dataset_id.as_ref()),
+                ("template", "template", TEMPLATES_WITH_ID, new.template_id.as_ref()),
             ] {
                 let Some(id) = id else { continue };
                 let found: i64 = if super::could_be_id(id) {
-                    sqlx::query_scalar("SELECT COUNT(*) FROM datasets WHERE id = $1")
-                        .bind(id)
-                        .fetch_one(&mut *tx)
-                        .await?
+                    sqlx::query_scalar(count).bind(id).fetch_one(&mut *tx).await?
                 } else {
                     0
                 };
                 if found == 0 {
                     return Err(Error::Unprocessable {
                         field: field.into(),
-                        message: format!("dataset {} does not exist", id.escape_debug()),
-                    });
-                }
-            }
-            // Likewise for the template against a concurrent DELETE of it.
-            if let Some(id) = &new.template_id {
-                let found: i64 = if super::could_be_id(id) {
-                    sqlx::query_scalar("SELECT COUNT(*) FROM templates WHERE id = $1")
-                        .bind(id)
-                        .fetch_one(&mut *tx)
-                        .await?
-                } else {
-                    0
-                };
-                if found == 0 {
-                    return Err(Error::Unprocessable {
-                        field: "template".into(),
-                        message: format!("template {} does not exist", id.escape_debug()),
+                        message: format!("{what} {} does not exist", id.escape_debug()),
                     });
                 }
             }

@@ -169,11 +169,6 @@ impl Store {
         Self { blobs, ..self }
     }
 
-    /// Whether large bytes go to an object store.
-    pub fn has_blobs(&self) -> bool {
-        self.blobs.is_some()
-    }
-
     /// Several processes may start at once on an empty database: sqlx's migrator holds a
     /// Postgres advisory lock while it migrates, so the others wait and find it done.
     async fn open_postgres(url: &str) -> Result<Db> {
