@@ -1,9 +1,11 @@
 # Sourced by scripts/test.sh: throwaway services for the tests that run graybox as it runs
 # beyond one machine, each on a free loopback port and stopped when the calling script exits.
 # Nothing assumes a system service.
-# - `start_postgres`: a PostgreSQL cluster in a temporary directory (as the unprivileged
-#   `postgres` user when the script runs as root); sets GRAYBOX_TEST_POSTGRES to its URL,
-#   without a database name.
+# - `start_postgres VENV`: a PostgreSQL cluster in a temporary directory (as the unprivileged
+#   `postgres` user when the script runs as root), accepting TLS with a certificate made for
+#   this run (scripts/pg_certs.py, in the test virtualenv VENV); sets GRAYBOX_TEST_POSTGRES to
+#   its URL, without a database name, and GRAYBOX_TEST_POSTGRES_CA and
+#   GRAYBOX_TEST_POSTGRES_WRONG_CA to the CA that signed the certificate and one that did not.
 # - `start_s3 VENV`: an S3 endpoint (moto's server, installed in the test virtualenv VENV) with
 #   one bucket; sets the AWS_* variables object_store reads, and GRAYBOX_TEST_BLOBS.
 
@@ -45,13 +47,18 @@ start_postgres() {
   local port
   port=$(free_port)
   "${as[@]}" "$initdb" -D "$PG_DIR/data" -A trust -U graybox > "$PG_DIR/initdb.log"
+  mkdir "$PG_DIR/tls"
+  "$1/bin/python" scripts/pg_certs.py "$PG_DIR/tls"
+  if [ "$(id -u)" = 0 ]; then chown -R postgres "$PG_DIR/tls"; fi
   # fsync off: the cluster is thrown away, and the tests kill graybox's processes, never the
   # database's. Each test's service opens a pool of up to 8 connections, and they run at once.
   "${as[@]}" "$pg_ctl" -D "$PG_DIR/data" -l "$PG_DIR/log" -w \
-    -o "-p $port -k $PG_DIR -c listen_addresses=127.0.0.1 -c fsync=off -c max_connections=300" \
+    -o "-p $port -k $PG_DIR -c listen_addresses=127.0.0.1 -c fsync=off -c max_connections=300 \
+      -c ssl=on -c ssl_cert_file=$PG_DIR/tls/server.pem -c ssl_key_file=$PG_DIR/tls/server.key" \
     start > /dev/null
   at_exit stop_postgres
-  export GRAYBOX_TEST_POSTGRES="postgres://graybox@127.0.0.1:$port"
+  export GRAYBOX_TEST_POSTGRES="postgres://graybox@127.0.0.1:$port" \
+    GRAYBOX_TEST_POSTGRES_CA="$PG_DIR/tls/ca.pem" GRAYBOX_TEST_POSTGRES_WRONG_CA="$PG_DIR/tls/wrong-ca.pem"
 }
 
 stop_postgres() {

@@ -41,7 +41,7 @@ fi
 # reads GRAYBOX_TEST_POSTGRES and GRAYBOX_TEST_BLOBS). Same build, nothing recompiles.
 # shellcheck source=scripts/services.sh
 source scripts/services.sh
-start_postgres
+start_postgres "$venv"
 start_s3 "$venv"
 cargo test -p graybox --release --locked --test api
 

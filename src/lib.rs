@@ -21,6 +21,7 @@ pub mod error;
 pub mod infer;
 pub mod model;
 pub mod names;
+pub mod pem;
 pub mod physics;
 pub mod records;
 pub mod rng;

@@ -31,7 +31,7 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         "cli", "service",
     ];
     match layer {
-        "error" | "rng" | "backoff" | "names" | "array" | "backend" | "simd" | "data"
+        "error" | "rng" | "backoff" | "pem" | "names" | "array" | "backend" | "simd" | "data"
         | "records" => ABOVE_GROUND,
         "model" | "infer" | "control" | "sim" => {
             &["train", "app", "store", "worker", "api", "cli", "service"]

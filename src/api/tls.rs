@@ -3,7 +3,6 @@
 //! start-up, and the certificate's validity period checked so that an expired certificate —
 //! which clients that check it refuse — is said in the log instead of starting silently.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use chrono::{DateTime, NaiveDateTime, SecondsFormat, Utc};
@@ -13,8 +12,7 @@ use tracing::warn;
 
 use crate::error::{Error, Result};
 
-/// The most either file may hold: a PEM chain of a dozen 4096-bit certificates is ~25 KB.
-pub const FILE_LIMIT: u64 = 1 << 20;
+pub use crate::pem::FILE_LIMIT;
 
 /// The certificate chain and private key files (PEM) the service presents.
 #[derive(Debug, Clone)]
@@ -37,7 +35,7 @@ impl TlsFiles {
     pub fn load(&self) -> Result<TlsIdentity> {
         let certs = certificates(&self.cert)?;
         warn_outside_validity(&self.cert, &certs[0]);
-        let pem = read_bounded(&self.key, "--tls-key", "tls_key")?;
+        let pem = crate::pem::read_bounded(&self.key, "--tls-key", "tls_key")?;
         let key = PrivateKeyDer::from_pem_slice(&pem).map_err(|e| {
             Error::invalid(
                 "tls_key",
@@ -50,41 +48,7 @@ impl TlsFiles {
 
 /// The certificate chain in a PEM file (at least one certificate), the leaf first.
 pub fn certificates(path: &Path) -> Result<Vec<CertificateDer<'static>>> {
-    let pem = read_bounded(path, "--tls-cert", "tls_cert")?;
-    let certs = CertificateDer::pem_slice_iter(&pem)
-        .collect::<std::result::Result<Vec<_>, _>>()
-        .map_err(|e| Error::invalid("tls_cert", format!("cannot read {}: {e}", path.display())))?;
-    if certs.is_empty() {
-        return Err(Error::invalid("tls_cert", "the file has no certificate"));
-    }
-    Ok(certs)
-}
-
-/// A whole file of at most [`FILE_LIMIT`] bytes; one byte more is read to tell a file at the
-/// limit from a larger one without reading the rest.
-fn read_bounded(path: &Path, flag: &str, field: &str) -> Result<Vec<u8>> {
-    let cannot = |e: std::io::Error| {
-        Error::invalid(
-            field,
-            format!("cannot read {} ({flag}): {e}", path.display()),
-        )
-    };
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .map_err(cannot)?
-        .take(FILE_LIMIT + 1)
-        .read_to_end(&mut bytes)
-        .map_err(cannot)?;
-    if bytes.len() as u64 > FILE_LIMIT {
-        return Err(Error::invalid(
-            field,
-            format!(
-                "{} is larger than the limit of 1 MiB ({FILE_LIMIT} bytes) for {flag}",
-                path.display()
-            ),
-        ));
-    }
-    Ok(bytes)
+    crate::pem::certificates(path, "--tls-cert", "tls_cert")
 }
 
 fn warn_outside_validity(path: &Path, leaf: &CertificateDer<'_>) {

@@ -7,6 +7,7 @@
 mod dialect;
 #[macro_use]
 mod page;
+mod postgres;
 #[macro_use]
 mod delete;
 pub mod blobs;
@@ -140,7 +141,7 @@ impl Store {
     /// path of an SQLite file (created if needed).
     pub async fn open(db: &str) -> Result<Self> {
         let db = if is_postgres(db) {
-            Self::open_postgres(db).await?
+            postgres::open(db).await?
         } else {
             Self::open_sqlite(db).await?
         };
@@ -167,27 +168,6 @@ impl Store {
     pub fn with_retry(self, retry: blobs::Retry) -> Self {
         let blobs = self.blobs.map(|b| b.with_retry(retry));
         Self { blobs, ..self }
-    }
-
-    /// Several processes may start at once on an empty database: sqlx's migrator holds a
-    /// Postgres advisory lock while it migrates, so the others wait and find it done.
-    async fn open_postgres(url: &str) -> Result<Db> {
-        let opts = sqlx::postgres::PgConnectOptions::from_str(url)
-            .map_err(|e| Error::invalid("db", format!("not a usable PostgreSQL URL: {e}")))?;
-        // One connection first: the pool's own attempts would end in "pool timed out" 30 s
-        // later, without the reason (refused, authentication, no such database).
-        use sqlx::Connection;
-        let first = sqlx::PgConnection::connect_with(&opts)
-            .await
-            .map_err(|e| Error::Storage(format!("cannot connect to {}: {e}", redacted(url))))?;
-        first.close().await?;
-        let pool = sqlx::postgres::PgPoolOptions::new()
-            .max_connections(8)
-            .acquire_timeout(Duration::from_secs(30))
-            .connect_with(opts)
-            .await?;
-        sqlx::migrate!("./migrations/postgres").run(&pool).await?;
-        Ok(Db::Postgres(pool))
     }
 
     /// Opens (creating if needed) the database file and applies the migrations.

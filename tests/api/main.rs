@@ -15,6 +15,7 @@ mod model_uploads;
 mod multistep;
 mod nodes;
 mod outage;
+mod pg_tls;
 mod plan_stop;
 mod processes;
 mod readiness;
