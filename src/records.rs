@@ -73,7 +73,12 @@ pub struct Job {
     /// "Multi-step training"); `val_loss` is the one-step loss.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub val_horizon_loss: Option<f64>,
+    /// The best validation loss so far: over windows of `best_val_loss_steps` steps (a
+    /// multi-step job whose validation set has trajectories that long; see `val_horizon_loss`),
+    /// else the one-step loss (`best_val_loss_steps` 1).
     pub best_val_loss: Option<f64>,
+    #[sqlx(skip)]
+    pub best_val_loss_steps: Option<i64>,
     pub attempt: i64,
     pub error: Option<String>,
     pub model_id: Option<String>,

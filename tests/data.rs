@@ -234,3 +234,52 @@ fn paper_data_raises_no_warnings_and_degrees_do() {
         );
     }
 }
+
+/// The README's trajectory recipes (`examples/python/train_swings.py`'s swings, and the
+/// multi-step section's `simulate --trajectories 40 --steps 200 --qdot-range 2 --u-std 30`)
+/// wind a few turns, in radians: no coordinate_span warning, whatever the seed (the check
+/// above keeps firing on degrees).
+#[test]
+fn winding_trajectories_of_the_readme_recipes_raise_no_span_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let recipes: [&[&str]; 2] = [
+        &["--trajectories", "20", "--steps", "200", "--u-std", "30"],
+        &[
+            "--trajectories",
+            "40",
+            "--steps",
+            "200",
+            "--qdot-range",
+            "2",
+            "--u-std",
+            "30",
+        ],
+    ];
+    for (r, flags) in recipes.iter().enumerate() {
+        for seed in 0..6 {
+            let out = dir.path().join(format!("r{r}-{seed}.json"));
+            let seed = seed.to_string();
+            let args = [
+                "simulate",
+                "--system",
+                "double_pendulum",
+                "--seed",
+                &seed,
+                "--out",
+            ];
+            let done = std::process::Command::new(env!("CARGO_BIN_EXE_graybox"))
+                .args(args)
+                .arg(&out)
+                .args(*flags)
+                .output()
+                .unwrap();
+            assert!(done.status.success(), "{done:?}");
+            let ds = Dataset::load(&out, None).unwrap();
+            let spans: Vec<_> = (ds.warnings().into_iter())
+                .filter(|w| w.code == "coordinate_span")
+                .map(|w| w.message)
+                .collect();
+            assert!(spans.is_empty(), "{flags:?} seed {seed}: {spans:?}");
+        }
+    }
+}

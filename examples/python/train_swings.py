@@ -27,7 +27,11 @@ with RestClient(api) as g:
                        validation_dataset_id=val["id"],
                        training={"epochs": epochs, "horizon": 10, "one_step_epochs": epochs // 2})
     job = g.wait(job["id"], progress=True)  # a line per epoch on stderr
-    print(f"{job['name']}: {job['state']}, best val loss {job['best_val_loss']:.4f}")
+    # The loss that picked the kept epoch: over 10-step windows of the validation swings.
+    print(f"{job['name']}: {job['state']}, best val loss {job['best_val_loss']:.4f} "
+          f"over {job['best_val_loss_steps']}-step windows")
+    for w in job["warnings"]:  # the training checks' findings (README "Training warnings")
+        print("warning:", w["message"])
 
     for e in g.evaluate(job["model_id"], val["id"], horizons=[10, 50, 100]):
         print(f"after {e['seconds']:.1f} s: median |q̂ − q| {e['position_median']:.4f} rad")

@@ -49,6 +49,8 @@ def follow(g: RestClient, job_id: str, label: str) -> dict:
         print(f"  {label}: epoch {m['epoch']}, val {m.get('val_loss')}", end="\r", file=sys.stderr)
     job = g.wait(job_id, progress=show)
     print(f"  {label}: {job['state']} after {job['epoch']} epochs", file=sys.stderr)
+    for w in job.get("warnings") or []:
+        print(f"  {label}: warning: {w['message']}", file=sys.stderr)
     if job["state"] != "succeeded":
         sys.exit(f"{label} did not succeed: {job.get('error')}")
     return job

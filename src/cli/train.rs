@@ -167,7 +167,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
     if let Some(w) = trainer.stiffness_warning() {
         eprintln!("warning: {}", w.message);
     }
-    let progress = EpochProgress::new(a.epochs as u64);
+    let progress = EpochProgress::new(a.epochs as u64, a.horizon);
     trainer.run(&AtomicBool::new(false), |m, _| progress.epoch(m))?;
     progress.finish();
     let file = trainer.model_file();
@@ -205,10 +205,12 @@ struct EpochProgress {
     bar: Option<indicatif::ProgressBar>,
     last_line: std::cell::Cell<Option<Instant>>,
     total: u64,
+    /// The run's horizon, which names the windowed validation loss.
+    horizon: usize,
 }
 
 impl EpochProgress {
-    fn new(total: u64) -> Self {
+    fn new(total: u64, horizon: usize) -> Self {
         let bar = std::io::stderr().is_terminal().then(|| {
             let b = indicatif::ProgressBar::new(total);
             b.set_style(
@@ -224,14 +226,19 @@ impl EpochProgress {
             bar,
             last_line: std::cell::Cell::new(None),
             total,
+            horizon,
         }
     }
 
     fn epoch(&self, m: &crate::model::report::EpochMetrics) {
-        let msg = match m.val_loss {
-            Some(v) => format!("train {:.4e} val {:.4e}", m.train_loss, v),
-            None => format!("train {:.4e}", m.train_loss),
-        };
+        let mut msg = format!("train {:.4e}", m.train_loss);
+        if let Some(v) = m.val_loss {
+            msg += &format!(" val {v:.4e}");
+        }
+        // The loss that picks the kept epoch of a multi-step run.
+        if let Some(v) = m.val_horizon_loss {
+            msg += &format!(" val {}-step {v:.4e}", self.horizon);
+        }
         match &self.bar {
             Some(b) => {
                 b.set_position(m.epoch as u64);

@@ -8,10 +8,15 @@ use std::f64::consts::PI;
 use super::Dataset;
 use crate::records::Warning;
 
-/// A coordinate whose values span more than four turns is most likely in degrees (±180 spans
-/// 360) or an angle unwrapped over a long log; the templates and networks expect radians in a
-/// few turns. The paper's data spans 2π.
+/// A coordinate whose values span more than four turns, and whose middle half (between the
+/// quartiles) spans more than two, is most likely in degrees (±180 spans 360, its middle half
+/// 180) or an angle unwrapped over a long log; the templates and networks expect radians in a
+/// few turns. The paper's data spans 2π. Trajectories that wind (swings of 2 s from
+/// |q̇| ≤ 10 rad/s, as `graybox simulate --trajectories` makes them) reach 40 rad from end to
+/// end, but their middle half stays under 6 rad: most of the time is spent near the start.
 pub const SPAN_MAX: f64 = 8.0 * PI;
+/// The middle half's bound (see [`SPAN_MAX`]).
+pub const MIDDLE_SPAN_MAX: f64 = 4.0 * PI;
 
 /// The velocities must be the derivative of the positions at this Δt: RMS of
 /// (q′ − q)/Δt − (q̇ + q̇′)/2 over the larger of the two sides' RMS. Consistent data is near 0
@@ -48,17 +53,34 @@ impl Dataset {
         let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
             (lo.min(v), hi.max(v))
         });
-        (hi - lo > SPAN_MAX).then(|| {
+        if hi - lo <= SPAN_MAX {
+            return None;
+        }
+        let (q1, q3) = self.quartiles(i);
+        (q3 - q1 > MIDDLE_SPAN_MAX).then(|| {
             Warning::new(
                 "coordinate_span",
                 Some(format!("q[{i}]")),
                 format!(
-                    "q[{i}] spans {:.4} (from {lo:.4} to {hi:.4}), more than four turns (8π): \
-                     angles must be in radians and wrapped to a few turns",
-                    hi - lo
+                    "q[{i}] spans {:.4} (from {lo:.4} to {hi:.4}) and its middle half {:.4} \
+                     (from {q1:.4} to {q3:.4}), more than four and two turns: angles must be \
+                     in radians and wrapped to a few turns",
+                    hi - lo,
+                    q3 - q1
                 ),
             )
         })
+    }
+
+    /// The first and third quartiles of coordinate `i` over q and q′ (the values at a quarter
+    /// and three quarters of the sorted list), found by selection, not a full sort.
+    fn quartiles(&self, i: usize) -> (f64, f64) {
+        let mut v: Vec<f64> = (self.coordinate(&self.q, i))
+            .chain(self.coordinate(&self.q_next, i))
+            .collect();
+        let last = v.len() - 1;
+        let mut at = |k: usize| *v.select_nth_unstable_by(k, f64::total_cmp).1;
+        (at(last / 4), at(3 * last / 4))
     }
 
     fn velocity_warning(&self, i: usize) -> Option<Warning> {

@@ -64,6 +64,11 @@ pub struct TrainReport {
     /// there is no validation set).
     pub best_epoch: usize,
     pub best_val_loss: Option<f64>,
+    /// The steps of the windows `best_val_loss` is taken over: the run's horizon when its
+    /// validation set has windows that long (a multi-step run), else 1 (the one-step loss).
+    /// Absent in earlier files and without a validation set.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub best_val_loss_steps: Option<usize>,
     pub stopped_early: bool,
     pub seconds: f64,
     pub samples_per_second: f64,

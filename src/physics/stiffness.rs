@@ -159,10 +159,11 @@ pub fn warning(
     let step = format!("a step of at most {:.3e} s", limit * s.tau);
     Some(match (t, s.eps, s.tau_without_coulomb) {
         (Template::Urdf(u), Some(eps), _) => format!(
-            "{head}: set the URDF document's \"coulomb_eps\" to at least {} (now {}: a smoother \
-             Coulomb friction that this step resolves), or take {step}",
-            round_up(eps),
-            u.doc.coulomb_eps
+            "{head}: set coulomb_eps to at least {eps} (now {}: a smoother Coulomb friction that \
+             this step resolves) — in the URDF file, <graybox coulomb_eps=\"{eps}\"/> inside \
+             <robot>; in a template document, \"coulomb_eps\": {eps} — or take {step}",
+            u.doc.coulomb_eps,
+            eps = round_up(eps),
         ),
         (Template::Urdf(_), None, Some(rest)) if rest > s.tau => format!(
             "{head}: even without the Coulomb friction the damping's time constant is {rest:.3e} \

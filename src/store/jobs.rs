@@ -55,6 +55,13 @@ where
         .to_string();
     job.info.training = submitted["training"].clone();
     job.info.name = submitted["name"].as_str().map(String::from);
+    // A multi-step job validates on windows of its horizon when its set has them, and then
+    // reports their losses in val_horizon_loss beside the one-step val_loss.
+    let steps = match job.info.val_horizon_loss {
+        Some(_) => submitted["training"]["horizon"].as_i64().unwrap_or(1),
+        None => 1,
+    };
+    job.info.best_val_loss_steps = job.info.best_val_loss.map(|_| steps);
     Ok(job)
 }
 

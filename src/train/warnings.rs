@@ -4,6 +4,7 @@
 
 use std::collections::BTreeMap;
 
+use super::windows::Windows;
 use crate::data::Dataset;
 use crate::model::report::EpochMetrics;
 use crate::records::Warning;
@@ -20,28 +21,50 @@ pub const MOVED_REL: f64 = 1e-6;
 /// An angle (`periodic[j]`) is compared as the model's loss compares it, 2(1 − cos Δ), so
 /// that wrapped data (a jump of 2π) does not make the bar too easy.
 pub fn zero_acceleration_loss(ds: &Dataset, lambda: f64, periodic: &[bool]) -> f64 {
+    zero_acceleration_window_loss(ds, &Windows::one_step(ds.count()), lambda, periodic)
+}
+
+/// The same bar over `windows`, as a multi-step run's loss is taken: from each window's first
+/// state, q̈ = 0 rolled out for the window's steps (step k: q + (k+1)Δt·q̇, q̇), each step's
+/// error against the data weighted as the run weighs it. One-step windows give
+/// [`zero_acceleration_loss`].
+pub fn zero_acceleration_window_loss(
+    ds: &Dataset,
+    windows: &Windows,
+    lambda: f64,
+    periodic: &[bool],
+) -> f64 {
+    let n = ds.n;
     let mut total = 0.0;
-    for (k, (&q1, &v1)) in ds.q_next.iter().zip(&ds.qdot_next).enumerate() {
-        let (q, v) = (ds.q[k], ds.qdot[k]);
-        let dq = q1 - (q + v * ds.dt);
-        let dv = v1 - v;
-        let position = if periodic.get(k % ds.n).copied().unwrap_or(false) {
-            2.0 * (1.0 - dq.cos())
-        } else {
-            dq * dq
-        };
-        total += position + lambda * dv * dv;
+    for &start in &windows.starts {
+        for (k, w) in windows.weights.iter().enumerate() {
+            let (row, ahead) = ((start + k) * n, (k + 1) as f64 * ds.dt);
+            for j in 0..n {
+                let (q, v) = (ds.q[start * n + j], ds.qdot[start * n + j]);
+                let dq = ds.q_next[row + j] - (q + v * ahead);
+                let dv = ds.qdot_next[row + j] - v;
+                let position = if periodic.get(j).copied().unwrap_or(false) {
+                    2.0 * (1.0 - dq.cos())
+                } else {
+                    dq * dq
+                };
+                total += w * (position + lambda * dv * dv);
+            }
+        }
     }
-    total / ds.count() as f64
+    total / windows.count().max(1) as f64
 }
 
 /// What a run's checks look at.
 pub struct RunSummary<'a> {
     pub history: &'a [EpochMetrics],
-    /// The kept model's loss on the validation set (training set without one).
+    /// The kept model's loss on the validation set (training set without one): over windows
+    /// of the run's horizon when the set has them, else one-step.
     pub best_loss: f64,
-    /// The zero-acceleration loss on the same set.
+    /// The zero-acceleration loss on the same set and the same windows.
     pub baseline: f64,
+    /// The steps of those windows (1: the one-step loss).
+    pub steps: usize,
     /// Used physical values at the start and now, by name.
     pub initial_physical: Option<&'a BTreeMap<String, f64>>,
     pub physical: &'a BTreeMap<String, f64>,
@@ -60,10 +83,21 @@ pub fn training_warnings(r: &RunSummary) -> Vec<Warning> {
             "no_better_than_zero_acceleration",
             None,
             format!(
-                "the best loss {:.4e} is not below {:.4e}, the loss of predicting no \
-                 acceleration at all (q' = q + qdot·dt, qdot' = qdot): the model has learned \
+                "the best {}loss {:.4e} is not below {:.4e}, the loss of predicting no \
+                 acceleration at all (q' = q + qdot·dt, qdot' = qdot){}: the model has learned \
                  nothing usable; check the data's units and dt, or train longer",
-                r.best_loss, r.baseline
+                if r.steps > 1 {
+                    format!("{}-step ", r.steps)
+                } else {
+                    String::new()
+                },
+                r.best_loss,
+                r.baseline,
+                if r.steps > 1 {
+                    " over the same windows"
+                } else {
+                    ""
+                },
             ),
         ));
     }
@@ -159,6 +193,39 @@ mod tests {
         v.iter().map(|(k, v)| (k.to_string(), *v)).collect()
     }
 
+    /// Under a constant acceleration a from rest at t = 0, q̈ = 0 rolled out from t₀ for
+    /// k + 1 steps misses q by a((k+1)Δt)²/2 and q̇ by a(k+1)Δt, wherever the window starts:
+    /// the H-step bar is Σ_k w_k (that² + λ·that²), and the one-step bar is its k = 0 term.
+    #[test]
+    fn the_zero_acceleration_bar_over_windows_matches_constant_acceleration() {
+        let (a, dt, lambda, rows) = (2.0, 0.1, 0.5, 20);
+        let t = |k: usize| k as f64 * dt;
+        let ds = Dataset {
+            n: 1,
+            m: 1,
+            dt,
+            q: (0..rows).map(|k| 0.5 * a * t(k) * t(k)).collect(),
+            qdot: (0..rows).map(|k| a * t(k)).collect(),
+            u: vec![0.0; rows],
+            q_next: (1..=rows).map(|k| 0.5 * a * t(k) * t(k)).collect(),
+            qdot_next: (1..=rows).map(|k| a * t(k)).collect(),
+            trajectories: Some(vec![rows]),
+        };
+        let miss = |k: usize| {
+            let s = (k + 1) as f64 * dt;
+            (0.5 * a * s * s).powi(2) + lambda * (a * s).powi(2)
+        };
+        let one = zero_acceleration_loss(&ds, lambda, &[false]);
+        assert!((one - miss(0)).abs() < 1e-12, "{one}");
+        let windows = Windows::of(&ds, 5, 0.9);
+        assert_eq!(windows.count(), rows - 4);
+        let want: f64 = (0..5).map(|k| windows.weights[k] * miss(k)).sum();
+        let got = zero_acceleration_window_loss(&ds, &windows, lambda, &[false]);
+        // Sums of a few hundred terms of size ~1: equal to rounding.
+        assert!((got - want).abs() < 1e-12 * want, "{got} vs {want}");
+        assert!(got > 5.0 * one, "the longer windows set a higher bar");
+    }
+
     #[test]
     fn a_learning_run_raises_nothing() {
         let h = history(&[1.0, 0.5, 0.2, 0.1, 0.05]);
@@ -167,6 +234,7 @@ mod tests {
             history: &h,
             best_loss: 0.05,
             baseline: 3.0,
+            steps: 1,
             initial_physical: Some(&p0),
             physical: &p1,
             identified: None,
@@ -182,6 +250,7 @@ mod tests {
             history: &h,
             best_loss: 4.0,
             baseline: 3.0,
+            steps: 1,
             initial_physical: Some(&p0),
             physical: &p0,
             identified: None,
@@ -208,6 +277,7 @@ mod tests {
                 history: &h,
                 best_loss: 0.05,
                 baseline: 3.0,
+                steps: 1,
                 initial_physical: Some(&p0),
                 physical: &p0,
                 identified,
@@ -232,6 +302,7 @@ mod tests {
             history: &h,
             best_loss: 1.0,
             baseline: 3.0,
+            steps: 1,
             initial_physical: Some(&p0),
             physical: &p0,
             identified: None,

@@ -33,6 +33,8 @@ async fn a_multi_step_job_reports_its_horizon_loss_and_its_model_evaluates() {
         .await;
     assert_eq!(done["state"], "succeeded", "{done}");
     assert!(done["val_horizon_loss"].as_f64().is_some(), "{done}");
+    // best_val_loss is the loss over 4-step windows, and says so.
+    assert_eq!(done["best_val_loss_steps"], 4, "{done}");
     let (_, metrics) = app
         .get(&format!("/v1/jobs/{}/metrics", job["id"].as_str().unwrap()))
         .await;
@@ -47,6 +49,7 @@ async fn a_multi_step_job_reports_its_horizon_loss_and_its_model_evaluates() {
     // The held-out trajectory (one of 30 transitions) reports the error at the horizons it
     // is long enough for.
     let (_, view) = app.get(&format!("/v1/models/{model}")).await;
+    assert_eq!(view["metrics"]["best_val_loss_steps"], 4, "{view}");
     let at: Vec<u64> = (view["metrics"]["horizon_errors"].as_array())
         .unwrap_or_else(|| panic!("{view}"))
         .iter()

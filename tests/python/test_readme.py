@@ -113,6 +113,13 @@ def test_python_example(walkthrough):
     # REST: trained from Python with its progress shown, evaluated, saved, a refusal named.
     assert "MVF, 10-step windows: succeeded" in out, out
     assert r.stderr.count(": epoch ") == 6, r.stderr
+    # Which loss is which: best_val_loss is over 10-step windows and says so; the progress
+    # lines name the windowed loss beside the one-step one; and the training checks compare
+    # it with q̈ = 0 over the same windows (it was held against the one-step bar and every
+    # multi-step run "learned nothing").
+    assert re.search(r"best val loss [\d.]+ over 10-step windows", out), out
+    assert r.stderr.count(", val 10-step ") == 6, r.stderr
+    assert "learned nothing" not in out, out
     assert re.search(r"after 1\.0 s: median \|q̂ − q\| [\d.]+ rad", out), out
     assert Path(ids["WORK"], "mvf-windows.gbx").is_file()
     assert "refused: 422 training.epochs must be between" in out, out

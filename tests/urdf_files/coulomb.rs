@@ -319,7 +319,7 @@ fn the_cli_warns_on_stderr() {
         for args in runs {
             let (ok, stderr) = graybox(&args);
             assert!(ok, "{args:?}: {stderr}");
-            let warned = stderr.matches("coulomb_eps").count();
+            let warned = stderr.matches("too stiff for a step").count();
             // train says it as it starts and again in its report's warnings.
             let want = match (stiff, args[0]) {
                 (false, _) => 0,
@@ -329,4 +329,37 @@ fn the_cli_warns_on_stderr() {
             assert_eq!(warned, want, "{args:?}: {stderr}");
         }
     }
+}
+
+/// The warning says where the setting goes with a line to copy: put inside `<robot>`, the
+/// `<graybox coulomb_eps>` it quotes makes the same file steppable (as the document's field
+/// does); a document and a file that disagree are refused naming the field.
+#[test]
+fn the_warnings_one_line_fix_in_the_urdf_file_cures_it() {
+    let urdf = arm4_with_friction(0.0, 1.0);
+    let t = Template::from_document(&doc(&urdf, None)).unwrap();
+    let (p, dt) = (t.defaults(), 0.01);
+    let says = warning(&t, &p, dt, Integrator::Rk4, &[]).expect("stiff");
+    let start = says.find("<graybox ").expect(&says);
+    let line = &says[start..start + says[start..].find("/>").unwrap() + 2];
+    assert!(says.contains("inside <robot>"), "{says}");
+    let fixed = urdf.replacen("</robot>", &format!("{line}</robot>"), 1);
+    let cured = Template::from_document(&doc(&fixed, None)).unwrap();
+    assert!(eps_of(&cured) > 0.01, "{line}");
+    assert!(
+        warning(&cured, &p, dt, Integrator::Rk4, &[]).is_none(),
+        "{line}"
+    );
+    // The document may say the same, not something else.
+    let same = Template::from_document(&doc(&fixed, Some(eps_of(&cured)))).unwrap();
+    assert_eq!(eps_of(&same), eps_of(&cured));
+    match Template::from_document(&doc(&fixed, Some(0.5))) {
+        Err(Error::Unprocessable { field, message }) => {
+            assert_eq!(field, "coulomb_eps");
+            assert!(message.contains("<graybox coulomb_eps>"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+    let zero = urdf.replacen("</robot>", r#"<graybox coulomb_eps="0"/></robot>"#, 1);
+    assert!(Template::from_document(&doc(&zero, None)).is_err());
 }

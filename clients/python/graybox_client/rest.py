@@ -198,12 +198,14 @@ class RestClient:
              timeout: Optional[float] = None) -> dict:
         """Follows the job's event stream until it ends and returns the finished job (any
         final state: check `state`). `progress`: True prints a line per epoch to stderr, a
-        function is called with each epoch's figures (`epoch`, `train_loss`, `val_loss`, …).
+        function is called with each epoch's figures (`epoch`, `train_loss`, `val_loss`, and a
+        multi-step job's `val_horizon_loss`, its validation loss over windows of its horizon:
+        the loss that picks the kept epoch and becomes `best_val_loss`).
         A stream that drops or ends early, and a service that cannot be reached or answers
         `unavailable` (restarting), are followed again after a pause growing from 0.2 s to
         5 s; other errors (`not_found`, `unauthorized`, …) raise. `timeout` seconds in all
         raise `deadline_exceeded`; without it the wait has no end."""
-        report = _printer(job_id) if progress is True else (progress or None)
+        report = None if progress is True else (progress or None)
         end = None if timeout is None else time.monotonic() + timeout
         reported = 0  # a stream followed again replays the epochs from the first
         state, pause = "unknown", PAUSE_MIN
@@ -215,6 +217,8 @@ class RestClient:
             try:
                 job = self.request("GET", f"/v1/jobs/{job_id}", timeout=limit)
                 state = job["state"]
+                if progress is True and report is None:
+                    report = _printer(job_id, (job.get("training") or {}).get("horizon", 1))
                 if state in FINAL:
                     return job
                 for kind, data in self._events(f"/v1/jobs/{job_id}/events", end, limit):
@@ -345,9 +349,12 @@ def _error(status: int, body: bytes) -> GrayboxError:
                         status=status)
 
 
-def _printer(job_id: str) -> Callable[[dict], None]:
+def _printer(job_id: str, horizon: int) -> Callable[[dict], None]:
+    """A line per epoch; a multi-step job's windowed validation loss named by its steps."""
     def report(m: dict) -> None:
-        val = m.get("val_loss")
+        val, windows = m.get("val_loss"), m.get("val_horizon_loss")
         print(f"{job_id}: epoch {m['epoch']}, train {m['train_loss']:.4e}"
-              + (f", val {val:.4e}" if val is not None else ""), file=sys.stderr)
+              + (f", val {val:.4e}" if val is not None else "")
+              + (f", val {horizon}-step {windows:.4e}" if windows is not None else ""),
+              file=sys.stderr)
     return report

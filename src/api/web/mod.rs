@@ -42,7 +42,7 @@ pub fn is_open(path: &str) -> bool {
     path == "/" || path == "/favicon.ico" || path == "/ui" || path.starts_with("/ui/")
 }
 
-const FILES: [(&str, &str, &str); 7] = [
+const FILES: [(&str, &str, &str); 9] = [
     (
         "/",
         "text/html; charset=utf-8",
@@ -57,6 +57,16 @@ const FILES: [(&str, &str, &str); 7] = [
         "/ui/forms.js",
         "text/javascript; charset=utf-8",
         include_str!("static/forms.js"),
+    ),
+    (
+        "/ui/jobs.js",
+        "text/javascript; charset=utf-8",
+        include_str!("static/jobs.js"),
+    ),
+    (
+        "/ui/models.js",
+        "text/javascript; charset=utf-8",
+        include_str!("static/models.js"),
     ),
     (
         "/ui/style.css",

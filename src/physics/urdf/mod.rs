@@ -7,6 +7,7 @@ mod mimic;
 pub mod parameters;
 pub mod read;
 pub mod rigid;
+mod settings;
 pub mod term;
 pub mod tree;
 pub mod xml;

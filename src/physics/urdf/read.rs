@@ -79,6 +79,9 @@ pub struct Robot {
     pub line: usize,
     pub links: Vec<Link>,
     pub joints: Vec<Joint>,
+    /// graybox's own setting in the file, `<graybox coulomb_eps="…"/>` under `<robot>`
+    /// (other URDF readers skip an element they do not know).
+    pub coulomb_eps: Option<f64>,
 }
 
 impl Link {
@@ -211,7 +214,7 @@ pub fn read(text: &str) -> Result<Robot> {
         match (st.path.len(), parent, name.as_slice()) {
             (0, _, _) if st.robot.is_some() => {
                 return Err(bad(format!(
-                    "a second root element <{element}> at line {line}: a URDF is one <st.robot>"
+                    "a second root element <{element}> at line {line}: a URDF is one <robot>"
                 )));
             }
             (0, _, b"robot") => {
@@ -223,7 +226,7 @@ pub fn read(text: &str) -> Result<Robot> {
             }
             (0, _, _) => {
                 return Err(bad(format!(
-                    "the document's root element is <{element}> at line {line}; a URDF's is <st.robot>"
+                    "the document's root element is <{element}> at line {line}; a URDF's is <robot>"
                 )));
             }
             (1, _, b"link") => {
@@ -235,6 +238,11 @@ pub fn read(text: &str) -> Result<Robot> {
                 });
             }
             (1, _, b"joint") => st.joint = Some(start_joint(&tag, line)?),
+            (1, _, b"graybox") => {
+                if let Some(r) = st.robot.as_mut() {
+                    r.coulomb_eps = Some(tag.number("coulomb_eps", None)?);
+                }
+            }
             (2, Some(b"link"), b"inertial") if !st.had_inertial => {
                 (st.in_inertial, st.had_inertial) = (opens, true);
                 if let Some(l) = st.link.as_mut() {
@@ -257,13 +265,13 @@ pub fn read(text: &str) -> Result<Robot> {
         if opens {
             st.path.push(name);
         } else if st.path.len() == 1 {
-            // `<st.link name="x"/>` and `<st.joint …/>` end where they start.
+            // `<link name="x"/>` and `<joint …/>` end where they start.
             st.path.push(name);
             st.close()?;
         }
     }
     st.robot
-        .ok_or_else(|| bad("the document has no <st.robot> element"))
+        .ok_or_else(|| bad("the document has no <robot> element"))
 }
 
 fn named(tag: &Tag, what: &str, line: usize) -> Result<String> {

@@ -23,7 +23,7 @@ use super::rigid;
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::names::name_problem;
-use crate::physics::params::{PHYSICAL_MAX, POSITIVE_MIN, ParamInfo, physical_problem};
+use crate::physics::params::{ParamInfo, physical_problem};
 use crate::physics::scalar::Scalar;
 
 /// The template document (kept whole: a model file embeds it, and the export rewrites its
@@ -136,22 +136,13 @@ impl UrdfTemplate {
         if let Some(m) = doc.gravity.iter().find_map(|&g| physical_problem(g, false)) {
             return Err(bad("gravity", format!("each component {m}")));
         }
-        // 1/ε scales q̇ in f32 training too: no smaller ε than a positive parameter's.
-        let eps = doc.coulomb_eps;
-        if !(eps.is_finite() && (POSITIVE_MIN..=PHYSICAL_MAX).contains(&eps)) {
-            return Err(bad(
-                "coulomb_eps",
-                format!(
-                    "must be a velocity in [{POSITIVE_MIN:e}, {PHYSICAL_MAX:e}] (rad/s or m/s, \
-                     the scale of the Coulomb term tanh(q̇/ε)), got {eps}"
-                ),
-            ));
-        }
+        super::settings::check_coulomb_eps(doc.coulomb_eps)?;
         if let Some(m) = name_problem(&doc.name) {
             return Err(bad("name", m));
         }
         // The robot's name, when it is taken, passed the same rule in `Tree::parse`.
         let tree = Tree::parse(&doc.urdf, max_dof)?;
+        doc.coulomb_eps = super::settings::coulomb_eps(doc.coulomb_eps, &tree)?;
         if doc.name.trim().is_empty() {
             doc.name = tree.robot.clone();
         }

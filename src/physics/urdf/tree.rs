@@ -72,6 +72,8 @@ pub struct Tree {
     pub bodies: Vec<Body>,
     /// The body of each coordinate: every body whose joint is not a mimic joint.
     pub coordinates: Vec<usize>,
+    /// The file's `<graybox coulomb_eps>`, when it has one (`settings.rs`).
+    pub coulomb_eps: Option<f64>,
 }
 
 pub(super) fn bad(message: impl Into<String>) -> Error {
@@ -225,6 +227,7 @@ impl Tree {
             robot: robot.name.clone(),
             bodies: vec![],
             coordinates: vec![],
+            coulomb_eps: robot.coulomb_eps,
         };
         let visited = tree.walk(&robot, &links, root)?;
         if visited.len() != robot.links.len() {

@@ -14,7 +14,7 @@ use burn::tensor::Device;
 use super::adam::{Adam, AdamState};
 use super::setup::{TrainConfig, prepare};
 use super::shards;
-use super::warnings::zero_acceleration_loss;
+use super::warnings::zero_acceleration_window_loss;
 use super::windows::Windows;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
@@ -44,9 +44,9 @@ pub struct Trainer {
     /// (`TrainConfig::one_step_epochs`).
     train_rows: Windows,
     val: Option<Validation>,
-    /// The zero-acceleration loss on the set that picks the best epoch (validation, else
-    /// training), for the training checks.
-    baseline: f64,
+    /// The zero-acceleration loss on the set and windows that pick the best epoch
+    /// (validation, else training), and the windows' steps, for the training checks.
+    baseline: (f64, usize),
     /// The threads that run a batch's shards (`TrainState::shards`).
     pool: Option<rayon::ThreadPool>,
     /// The physical parameters' raw bounds, kept after every step (`Params::projected`):
@@ -105,19 +105,24 @@ impl Trainer {
         val: Option<&Dataset>,
     ) -> Self {
         let c = &model.config;
-        let baseline = zero_acceleration_loss(val.unwrap_or(train), c.lambda, &c.periodic);
         // A fixed parameter's value now is its start: it never moves (a resumed run's too).
         let bounds =
             (c.template().zip(model.raw_physical())).and_then(|(t, raw)| bounds(t.params(), &raw));
         let (horizon, discount) = (state.train.horizon, state.train.discount);
+        let train_windows = Windows::of(train, horizon, discount);
+        let val = val.map(|v| Validation::new(v, horizon, discount));
+        let baseline = match &val {
+            Some(v) => baseline(&v.ds, v.horizon.as_ref().unwrap_or(&v.one_step), &model),
+            None => baseline(train, &train_windows, &model),
+        };
         Self {
             state,
             model,
             adam,
             train: HostData::new(train),
-            train_windows: Windows::of(train, horizon, discount),
+            train_windows,
             train_rows: Windows::one_step(train.count()),
-            val: val.map(|v| Validation::new(v, horizon, discount)),
+            val,
             baseline,
             pool: None,
             bounds,
@@ -186,9 +191,9 @@ impl Trainer {
             ..self.state.train.clone()
         };
         cfg.validate()?;
-        self.baseline = zero_acceleration_loss(data, c.lambda, &c.periodic);
         self.train = HostData::new(data);
         self.train_windows = Windows::of(data, cfg.horizon, cfg.discount);
+        self.baseline = baseline(data, &self.train_windows, &self.model);
         self.train_rows = Windows::one_step(data.count());
         self.val = None;
         let s = &mut self.state;
@@ -216,6 +221,12 @@ impl Trainer {
     /// The best validation loss so far (`None` without a validation set or before epoch 1).
     pub fn best_val_loss(&self) -> Option<f64> {
         (self.val.is_some() && self.state.epoch > 0).then_some(self.state.best_loss)
+    }
+
+    /// The steps of the windows [`Trainer::best_val_loss`] is taken over (1: one-step).
+    pub fn best_val_loss_steps(&self) -> Option<usize> {
+        (self.best_val_loss().and(self.val.as_ref()))
+            .map(|v| v.horizon.as_ref().map_or(1, Windows::horizon))
     }
 
     pub fn stopped_early(&self) -> bool {
@@ -324,6 +335,14 @@ impl Trainer {
 
 /// The validation set: its one-step loss (comparable across every job), and for a multi-step
 /// run the loss over its windows of the run's horizon when it has any.
+/// The zero-acceleration loss of `ds` over `windows` with `model`'s loss weights, and the
+/// windows' steps.
+fn baseline(ds: &Dataset, windows: &Windows, model: &Model) -> (f64, usize) {
+    let c = &model.config;
+    let loss = zero_acceleration_window_loss(ds, windows, c.lambda, &c.periodic);
+    (loss, windows.horizon())
+}
+
 struct Validation {
     /// The set itself, for the error against horizon at the end (`model_file`).
     ds: Dataset,

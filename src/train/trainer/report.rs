@@ -76,6 +76,7 @@ impl Trainer {
             val_loss: last.and_then(|h| h.val_loss),
             best_epoch: self.state.best_epoch,
             best_val_loss: self.best_val_loss(),
+            best_val_loss_steps: self.best_val_loss_steps(),
             stopped_early: self.stopped_early(),
             seconds,
             samples_per_second: if self.state.train_seconds > 0.0 {
@@ -118,7 +119,8 @@ impl Trainer {
         training_warnings(&RunSummary {
             history: &self.state.history,
             best_loss: self.state.best_loss,
-            baseline: self.baseline,
+            baseline: self.baseline.0,
+            steps: self.baseline.1,
             initial_physical: self.state.initial_physical.as_ref(),
             physical: &physical,
             identified,

@@ -1,6 +1,7 @@
 // graybox dashboard: one page over the JSON API. Views are chosen by the URL's hash
 // (#/jobs, #/jobs/ID, #/new, #/compare/ID,ID, #/models, #/models/ID, #/datasets, #/templates;
-// the forms that change things are in forms.js); one stream
+// the jobs' views are in jobs.js, the models' in models.js, the forms that change things and
+// the datasets' and templates' views in forms.js); one stream
 // (GET /v1/events, read with fetch so that it can carry the token) keeps every view live.
 // Each chart's element carries the data it draws in `data-series` (JSON), for tests and
 // for anyone who wants the numbers.
@@ -116,6 +117,12 @@ function warningsBox(warnings, id, title) {
 }
 
 const fmtLoss = (v) => (v === null || v === undefined ? "–" : Number(v).toExponential(3));
+// A best validation loss and the steps it is over (`best_val_loss_steps` of a job or a
+// model's metrics: H for a multi-step job's loss over H-step windows; 1, or absent from an
+// older service, for the one-step loss, which needs no note).
+const stepsNote = (steps) => (Number.isInteger(steps) && steps > 1 ? `${steps}-step` : "");
+const bestLossLabel = (steps) => (stepsNote(steps) ? `best val loss (${stepsNote(steps)})` : "best val loss");
+const fmtBestLoss = (v, steps) => (stepsNote(steps) && v !== null && v !== undefined ? `${fmtLoss(v)} (${stepsNote(steps)})` : fmtLoss(v));
 const fmtTime = (s) => (s ? new Date(s).toLocaleString() : "–");
 // In tables: month, day and time, which fit a column (the full time is the cell's title).
 const fmtShort = (s) => (s ? new Date(s).toLocaleString(undefined, { month: "short", day: "numeric", hour: "2-digit", minute: "2-digit" }) : "–");
@@ -135,6 +142,24 @@ function errorBox(e) {
 
 function factList(pairs) {
   return el("dl", { class: "facts" }, pairs.flatMap(([k, v]) => [el("dt", { text: k }), el("dd", {}, v)]));
+}
+
+// A dataset as people know it: its name, with its id beside it in small print (and as the
+// title); the id alone for a dataset without a name, or one no longer stored.
+function datasetRef(id, names) {
+  if (!id) return "–";
+  const name = names?.get(id);
+  if (!name) return el("span", { class: "dataset-ref", title: id, text: id });
+  return el("span", { class: "dataset-ref", title: id },
+    el("span", { class: "dataset-name", text: name }), " ", el("span", { class: "muted small", text: id }));
+}
+
+// The names of the datasets `ids` (id → name; a deleted or unnamed dataset has none).
+async function loadDatasetNames(ids) {
+  const names = new Map();
+  await Promise.all([...new Set(ids.filter(Boolean))].map((id) => api("GET", `/v1/datasets/${id}`)
+    .then((d) => { if (d?.name) names.set(id, d.name); }, () => { /* shown by its id */ })));
+  return names;
 }
 
 // ---------- charts ----------
@@ -262,409 +287,6 @@ async function route() {
   }
 }
 window.addEventListener("hashchange", route);
-
-// Jobs: a page of the list, live; filter by state; select to compare.
-async function jobsView(view) {
-  const params = new URLSearchParams(location.hash.split("?")[1] || "");
-  const filter = params.get("state") || "";
-  const tokens = [""];
-  let datasetNames = null;
-  let page = 0;
-  const selected = new Set();
-  const rows = new Map();
-
-  const compare = el("button", { type: "button", disabled: true, onclick: () => {
-    location.hash = `#/compare/${[...selected].join(",")}`;
-  } }, "Compare selected");
-  const stateSelect = el("select", { id: "state-filter", onchange: (e) => {
-    location.hash = e.target.value ? `#/jobs?state=${e.target.value}` : "#/jobs";
-  } }, ["", "queued", "running", "succeeded", "failed", "cancelled"].map((s) =>
-    el("option", { value: s, selected: s === filter, text: s || "all" })));
-  const prev = el("button", { type: "button", class: "secondary", onclick: () => load(page - 1) }, "Previous page");
-  const next = el("button", { type: "button", class: "secondary", onclick: () => load(page + 1) }, "Next page");
-  const tbody = el("tbody");
-  const status = el("p", { class: "muted", "aria-live": "polite" });
-  view.append(
-    el("h1", { text: "Jobs" }),
-    el("div", { class: "toolbar" }, el("a", { class: "button", href: "#/new", id: "new-job" }, "New job"),
-      el("label", { for: "state-filter", text: "State" }), stateSelect, compare, prev, next),
-    el("div", { class: "table-wrap" }, el("table", { id: "jobs-table" },
-      el("caption", { class: "muted", text: "Training jobs, newest first" }),
-      el("thead", {}, el("tr", {}, ["", "job", "state", "model", "dataset", "progress", "best val loss", "created", "duration", ""]
-        .map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined }, h ? h : el("span", { class: "muted", text: i ? "actions" : "select" }))))),
-      tbody)),
-    status);
-
-  function renderRow(job, atTop = false) {
-    const box = el("input", { type: "checkbox", "aria-label": `select ${job.id}`, checked: selected.has(job.id),
-      onchange: (e) => { e.target.checked ? selected.add(job.id) : selected.delete(job.id); compare.disabled = selected.size < 1; } });
-    const bar = el("progress", { max: job.epochs || 1, value: job.epoch, "aria-label": `${job.epoch} of ${job.epochs} epochs` });
-    const cancel = isActive(job)
-      ? el("button", { type: "button", class: "secondary", onclick: async (e) => {
-          e.target.disabled = true;
-          try { renderRow(await api("POST", `/v1/jobs/${job.id}/cancel`)); } catch (err) { status.replaceChildren(errorBox(err)); e.target.disabled = false; }
-        } }, "Cancel")
-      : "";
-    const tr = el("tr", { "data-job": job.id, "data-state": job.state },
-      el("td", {}, box),
-      el("td", { class: "name" }, el("a", { href: `#/jobs/${job.id}`, text: job.name || job.id }), job.name ? el("div", { class: "muted small", text: job.id }) : ""),
-      el("td", {}, stateBadge(job.state)),
-      el("td", { text: job.model }),
-      el("td", { class: "name" }, datasetNames?.get(job.dataset_id) || el("span", { class: "muted", text: job.dataset_id })),
-      el("td", {}, bar, ` ${job.epoch}/${job.epochs}`),
-      el("td", { class: "num", text: fmtLoss(job.best_val_loss) }),
-      timeCell(job.created_at),
-      el("td", { class: "num", text: duration(job) }),
-      el("td", {}, cancel));
-    const old = rows.get(job.id);
-    if (old) old.replaceWith(tr); else if (atTop) tbody.prepend(tr); else tbody.append(tr);
-    rows.set(job.id, tr);
-  }
-
-  async function load(p) {
-    if (p < 0 || tokens[p] === undefined) return;
-    // Datasets by name, read once per visit: what the table shows for each job's dataset.
-    if (!datasetNames) {
-      datasetNames = new Map();
-      for (const d of (await api("GET", "/v1/datasets?page_size=1000")).items) if (d.name) datasetNames.set(d.id, d.name);
-    }
-    const q = new URLSearchParams({ page_size: PAGE_SIZE });
-    if (tokens[p]) q.set("page_token", tokens[p]);
-    if (filter) q.set("state", filter);
-    const data = await api("GET", `/v1/jobs?${q}`);
-    page = p;
-    tokens[p + 1] = data.next_page_token || undefined;
-    rows.clear();
-    tbody.replaceChildren();
-    // Not forEach(renderRow): its index would be renderRow's atTop, reversing the page.
-    data.items.forEach((job) => renderRow(job));
-    prev.disabled = page === 0;
-    next.disabled = !data.next_page_token;
-    status.textContent = data.items.length ? `Page ${page + 1}` : "No jobs yet.";
-  }
-
-  onLeave(events.on((type, job) => {
-    if (type === "resync") { load(page); return; }
-    if (type !== "job") return;
-    const matches = !filter || job.state === filter;
-    if (rows.has(job.id)) {
-      if (matches) renderRow(job); else { rows.get(job.id).remove(); rows.delete(job.id); }
-    } else if (matches && page === 0) {
-      renderRow(job, true); // the newest job belongs at the top of the first page
-      status.textContent = `Page ${page + 1}`;
-      if (rows.size > PAGE_SIZE) load(0); // the page's last row and the next page's start moved
-    }
-  }));
-  await load(0);
-}
-
-// Loss curves of one job, live; smoothing and the x-axis are the person's choice.
-async function jobView(view, id) {
-  let job = await api("GET", `/v1/jobs/${id}`);
-  let metrics = (await api("GET", `/v1/jobs/${id}/metrics`)).items;
-  const head = el("div");
-  const chartHost = el("div", { id: "loss-chart", role: "img", "aria-label": "training and validation loss per epoch" });
-  const smooth = el("input", { type: "range", id: "smoothing", min: 0, max: 0.99, step: 0.01, value: 0.6 });
-  const smoothValue = el("output", { for: "smoothing", text: "0.60" });
-  const xAxis = el("select", { id: "x-axis" }, el("option", { value: "epoch", text: "epoch" }), el("option", { value: "time", text: "wall time (s)" }));
-  const settings = el("div");
-
-  function drawHead() {
-    head.replaceChildren(
-      el("h1", { text: job.name ? `Job ${job.name}` : `Job ${job.id}` }),
-      factList([
-        ["id", job.id],
-        ["state", stateBadge(job.state)],
-        ["model", job.model],
-        ["dataset", job.dataset_id],
-        ["validation", job.validation_dataset_id || "held out from the dataset"],
-        ["progress", `${job.epoch} / ${job.epochs} epochs`],
-        ["best val loss", fmtLoss(job.best_val_loss)],
-        ["created", fmtTime(job.created_at)],
-        ["duration", duration(job)],
-        ["trained model", job.model_id ? el("a", { href: `#/models/${job.model_id}`, text: job.model_id }) : "–"],
-      ]),
-      job.error ? el("div", { class: "error", role: "alert", id: "job-error", text: `This job failed: ${job.error}` }) : "",
-      warningsBox(job.warnings, "job-warnings", "Training warnings:"));
-    settings.replaceChildren(el("h2", { text: "Training settings" }), factList(Object.entries(job.training || {}).map(([k, v]) => [k, v === null ? "–" : String(v)])));
-  }
-  function draw() {
-    const w = Number(smooth.value);
-    smoothValue.textContent = w.toFixed(2);
-    let t = 0;
-    const x = xAxis.value === "epoch" ? metrics.map((m) => m.epoch) : metrics.map((m) => (t += m.seconds));
-    const train = metrics.map((m) => m.train_loss);
-    const val = metrics.map((m) => (m.val_loss === null ? null : m.val_loss));
-    const series = { train: ema(train, w), validation: ema(val, w) };
-    // A multi-step job: its validation loss over windows of its horizon too.
-    const horizon = metrics.map((m) => m.val_horizon_loss ?? null);
-    const horizonName = `validation, ${job.training?.horizon ?? "H"} steps`;
-    if (horizon.some((v) => v !== null)) series[horizonName] = ema(horizon, w);
-    chart(chartHost, {
-      x, xLabel: xAxis.value === "epoch" ? "epoch" : "wall time (s)", yLabel: "loss (log scale)", logY: true,
-      series,
-    });
-    chartHost.dataset.raw = JSON.stringify({ train, validation: val });
-  }
-  smooth.addEventListener("input", draw);
-  xAxis.addEventListener("change", draw);
-  view.append(head, el("div", { class: "card" },
-    el("div", { class: "toolbar" },
-      el("label", { for: "smoothing", text: "Smoothing" }), smooth, smoothValue,
-      el("label", { for: "x-axis", text: "x-axis" }), xAxis),
-    chartHost), settings);
-  drawHead();
-  draw();
-  onLeave(events.on(async (type, j) => {
-    if (type !== "job" || j.id !== id) return;
-    job = j;
-    metrics = (await api("GET", `/v1/jobs/${id}/metrics`)).items;
-    drawHead();
-    draw();
-  }));
-}
-
-// Several jobs' validation curves on one chart, and their settings side by side.
-async function compareView(view, ids) {
-  view.append(el("h1", { text: `Compare ${ids.length} jobs` }));
-  if (!ids.length) { view.append(el("p", { text: "Select jobs in the Jobs table first." })); return; }
-  const jobs = await Promise.all(ids.map((id) => api("GET", `/v1/jobs/${id}`)));
-  const metrics = await Promise.all(ids.map((id) => api("GET", `/v1/jobs/${id}/metrics`).then((m) => m.items)));
-  const epochs = Math.max(0, ...metrics.map((m) => m.length ? m[m.length - 1].epoch : 0));
-  const x = Array.from({ length: epochs }, (_, i) => i + 1);
-  const series = {};
-  jobs.forEach((job, k) => {
-    const byEpoch = new Map(metrics[k].map((m) => [m.epoch, m.val_loss ?? m.train_loss]));
-    series[`${job.id} (${job.model})`] = x.map((e) => byEpoch.get(e) ?? null);
-  });
-  const host = el("div", { id: "compare-chart", role: "img", "aria-label": "validation loss per epoch of each job" });
-  view.append(el("div", { class: "card" }, el("h2", { text: "Validation loss" }), host));
-  chart(host, { x, series, xLabel: "epoch", yLabel: "validation loss (log scale)", logY: true });
-  const keys = [...new Set(jobs.flatMap((j) => Object.keys(j.training || {})))];
-  const row = (label, f) => el("tr", {}, el("th", { scope: "row", text: label }), jobs.map((j, k) => el("td", {}, f(j, k))));
-  view.append(el("h2", { text: "Settings and results" }), el("div", { class: "table-wrap" }, el("table", { id: "compare-table" },
-    el("thead", {}, el("tr", {}, el("th", { scope: "col", text: "" }), jobs.map((j) => el("th", { scope: "col" }, el("a", { href: `#/jobs/${j.id}`, text: j.id }))))),
-    el("tbody", {},
-      row("model", (j) => j.model),
-      row("state", (j) => stateBadge(j.state)),
-      row("dataset", (j) => j.dataset_id),
-      keys.map((key) => row(key, (j) => String(j.training?.[key] ?? "–"))),
-      row("epochs run", (j) => String(j.epoch)),
-      row("best val loss", (j) => fmtLoss(j.best_val_loss)),
-      row("final train loss", (j) => fmtLoss(j.train_loss)),
-      row("duration", (j) => duration(j))))));
-  // The trained models' median open-loop error on one dataset, a line each.
-  const trained = jobs.filter((j) => j.model_id).map((j) => ({ id: j.model_id, label: `${j.id} (${j.model})` }));
-  if (!trained.length) return;
-  const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items;
-  const dsSelect = el("select", { id: "compare-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
-  dsSelect.value = jobs[0].dataset_id;
-  horizonPanel(view, trained, dsSelect, el("label", { for: "compare-dataset", text: "Trajectories" }), dsSelect);
-}
-
-async function modelsView(view) {
-  const tbody = el("tbody");
-  const empty = el("p", { class: "muted" });
-  async function load() {
-    const data = await api("GET", `/v1/models?page_size=${PAGE_SIZE}`);
-    tbody.replaceChildren(...data.items.map((m) => el("tr", { "data-model": m.id },
-      el("td", { class: "name" }, el("a", { href: `#/models/${m.id}`, text: m.name }), el("div", { class: "muted small", text: m.id })),
-      el("td", { text: m.origin }),
-      el("td", { class: "num", text: m.n }), el("td", { class: "num", text: m.m }), el("td", { class: "num", text: m.dt }),
-      el("td", { class: "num", text: fmtLoss(m.metrics?.best_val_loss) }), timeCell(m.created_at))));
-    empty.textContent = data.items.length ? "" : "No models yet: they appear when a job succeeds, or upload a model file.";
-  }
-  view.append(el("h1", { text: "Models" }), el("div", { class: "table-wrap" }, el("table", { id: "models-table" },
-    el("thead", {}, el("tr", {}, ["model", "origin", "n", "m", "Δt", "best val loss", "created"].map((h, i) =>
-      el("th", { scope: "col", class: i === 6 ? "hide-narrow" : undefined, text: h })))), tbody)),
-  empty, modelUploadForm(load));
-  await load();
-}
-
-// A model: what it is, what it learned, and its replay of recorded trajectories.
-async function modelView(view, id) {
-  const m = await api("GET", `/v1/models/${id}`);
-  const isUrdf = JSON.stringify(m.spec).includes('"kind":"urdf"');
-  const notice = el("div", { role: "alert", id: "model-alert" });
-  const buttons = el("div", { class: "toolbar" },
-    el("button", { type: "button", onclick: () => download(`/v1/models/${id}/checkpoint`, `${id}.gbx`).catch((e) => notice.replaceChildren(errorBox(e))) }, "Download model (.gbx)"),
-    isUrdf ? el("button", { type: "button", onclick: () => download(`/v1/models/${id}/urdf`, `${id}.urdf`).catch((e) => notice.replaceChildren(errorBox(e))) }, "Download URDF") : "",
-    deleteButton(`/v1/models/${m.id}`, `model ${m.name}`, notice, () => { location.hash = "#/models"; }));
-  const physical = Object.entries(m.physical_parameters || {});
-  const identifiable = Array.isArray(m.identifiable) ? m.identifiable : [];
-  view.append(...[
-    el("h1", { text: `Model ${m.name}` }), buttons, notice,
-    warningsBox(m.metrics?.warnings, "model-warnings", "Training warnings:"),
-    el("div", { class: "card" }, factList([
-      ["id", m.id], ["origin", m.origin],
-      ["job", m.job_id ? el("a", { href: `#/jobs/${m.job_id}`, text: m.job_id }) : "uploaded"],
-      ["n (coordinates)", `${m.n}: ${coordinateNames(m).join(", ")}`], ["m (inputs)", String(m.m)], ["Δt", `${m.dt} s`],
-      ["best val loss", fmtLoss(m.metrics?.best_val_loss)], ["epochs", String(m.metrics?.epochs ?? "–")],
-      ["created", fmtTime(m.created_at)],
-    ])),
-    el("h2", { text: "Spec" }), specView(m.spec),
-    physical.length ? [
-      el("h2", { text: "Learned physical parameters" }),
-      el("div", { class: "table-wrap" }, el("table", { id: "physical-table" },
-        el("thead", {}, el("tr", {}, el("th", { scope: "col", text: "parameter" }), el("th", { scope: "col", text: "value" }))),
-        el("tbody", {}, physical.map(([k, v]) => el("tr", {}, el("td", { text: k }), el("td", { class: "num", text: Number(v).toPrecision(6) })))))),
-      identifiable.length ? [el("h3", { text: "Identifiable combinations" }), el("ul", {}, identifiable.map((c) => el("li", { text: `${c.name} = ${Number(c.value).toPrecision(6)}` })))] : "",
-      m.identifiability ? el("p", { class: "muted", text: m.identifiability }) : "",
-    ] : ""].flat(Infinity));
-  await replayPanel(view, m);
-}
-
-// The spec as JSON, a template's document (a URDF's XML, long) shortened in place and shown
-// whole, collapsed, below.
-function specView(spec) {
-  const docs = [];
-  const shown = JSON.stringify(spec, (key, v) => {
-    if (typeof v !== "string" || v.length < 300) return v;
-    docs.push(v);
-    return `⟨document ${docs.length}: ${v.split("\n").length} lines, below⟩`;
-  }, 2);
-  return [el("pre", { id: "model-spec", text: shown }), docs.map((d, i) => el("details", { class: "document", id: `spec-document-${i + 1}` },
-    el("summary", { text: `Document ${i + 1} (${d.trimStart().startsWith("<") ? "URDF" : "text"}, ${d.split("\n").length} lines)` }),
-    el("pre", { text: d })))];
-}
-
-const coordinateNames = (m) => m.coordinates || Array.from({ length: m.n }, (_, i) => `q${i + 1}`);
-
-async function replayPanel(view, m) {
-  const names = coordinateNames(m);
-  const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items.filter((d) => d.n === m.n && d.m === m.m);
-  const dsSelect = el("select", { id: "replay-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
-  const trSelect = el("select", { id: "replay-index" });
-  const status = el("div", { role: "alert", id: "replay-alert" });
-  const charts = el("div", { class: "charts", id: "replay-charts" });
-  const go = el("button", { type: "button", id: "replay-button" }, "Replay");
-  view.append(el("h2", { text: "Rollout against data" }), el("p", { class: "muted",
-    text: "The model predicts a recorded trajectory from its first state with its recorded inputs; recorded and predicted q and q̇ over time." }));
-  if (!datasets.length) { view.append(el("p", { text: `No dataset with n = ${m.n}, m = ${m.m}.` })); return; }
-  view.append(el("div", { class: "toolbar" },
-    el("label", { for: "replay-dataset", text: "Dataset" }), dsSelect,
-    el("label", { for: "replay-index", text: "Trajectory" }), trSelect, go), status, charts);
-
-  async function loadTrajectories() {
-    const list = await api("GET", `/v1/datasets/${dsSelect.value}/trajectories?page_size=1000`);
-    // Longest first: a single transition says little about a model.
-    const items = list.items.slice().sort((a, b) => b.length - a.length);
-    trSelect.replaceChildren(...items.map((t) => el("option", { value: t.index, text: `#${t.index} (${t.length} steps)` })));
-  }
-  async function replay() {
-    status.replaceChildren();
-    try {
-      const r = await api("GET", `/v1/models/${m.id}/rollout?dataset_id=${encodeURIComponent(dsSelect.value)}&index=${trSelect.value}`);
-      charts.replaceChildren();
-      for (const key of ["q", "qdot"]) {
-        for (let i = 0; i < m.n; i++) {
-          // Coordinates by their names: a URDF's joints, a formula's coordinates.
-          const label = key === "q" ? names[i] : `${names[i]} rate`;
-          const host = el("div", { class: "replay-chart", "data-variable": `${key}${i}`, role: "img", "aria-label": `${label}, recorded and predicted` });
-          charts.append(el("figure", {}, el("figcaption", { text: label }), host));
-          chart(host, {
-            x: r.t, xLabel: "time (s)", yLabel: label, dashed: ["predicted"],
-            series: { recorded: r.recorded[key].map((row) => row[i]), predicted: r.predicted[key].map((row) => row[i]) },
-          });
-        }
-      }
-    } catch (e) {
-      status.replaceChildren(errorBox(e));
-    }
-  }
-  dsSelect.addEventListener("change", () => loadTrajectories().then(replay));
-  go.addEventListener("click", replay);
-  await loadTrajectories();
-  await replay();
-  horizonPanel(view, [{ id: m.id, label: m.id }], dsSelect);
-}
-
-// Open-loop error against prediction time on the chosen dataset's trajectories
-// (POST /v1/models/{id}/evaluate), both axes logarithmic: one model's median and mean, or
-// each compared model's median. `models`: [{id, label}].
-function horizonPanel(view, models, dsSelect, ...controls) {
-  const horizons = [1, 2, 5, 10, 20, 50, 100, 200, 500];
-  const host = el("div", { id: "horizon-chart", role: "img", "aria-label": "open-loop error against prediction time" });
-  const status = el("div", { role: "alert", id: "horizon-alert" });
-  const go = el("button", { type: "button", id: "horizon-button" }, "Evaluate");
-  view.append(el("h2", { text: "Error against horizon" }), el("p", { class: "muted",
-    text: "From every state of the dataset's trajectories, the model predicts open loop under the recorded inputs; the median and mean error of q after each horizon (angles on the circle)." }),
-    el("div", { class: "toolbar" }, ...controls, go), status, host);
-  go.addEventListener("click", async () => {
-    status.replaceChildren();
-    try {
-      const body = { dataset_id: dsSelect.value, horizons };
-      const found = await Promise.all(models.map((m) => api("POST", `/v1/models/${m.id}/evaluate`, body)));
-      // The same dataset for every model: the same horizons have windows.
-      const items = found.map((r) => r.items.filter((e) => e.windows > 0));
-      const series = models.length === 1
-        ? { median: items[0].map((e) => e.position_median), mean: items[0].map((e) => e.position_mean) }
-        : Object.fromEntries(models.map((m, k) => [m.label, items[k].map((e) => e.position_median)]));
-      chart(host, {
-        x: items[0].map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)",
-        logX: true, logY: true, series,
-      });
-    } catch (e) {
-      status.replaceChildren(errorBox(e));
-    }
-  });
-}
-
-// Datasets: the list and an upload form (JSON or CSV files).
-async function datasetsView(view) {
-  const tbody = el("tbody");
-  const message = el("div", { role: "alert", id: "upload-alert" });
-  const done = el("p", { "aria-live": "polite", id: "upload-status", class: "muted" });
-  const warned = el("div");
-  const file = el("input", { type: "file", id: "upload-file", accept: ".json,.csv,application/json,text/csv", required: true });
-  const name = el("input", { type: "text", id: "upload-name", placeholder: "optional" });
-  const dt = el("input", { type: "number", id: "upload-dt", step: "any", min: "0", placeholder: "from the file (needed for CSV)" });
-  const form = el("form", { class: "stack card", id: "upload-form" },
-    el("h2", { text: "Upload a dataset" }),
-    el("label", { for: "upload-file", text: "File (transitions or trajectories as JSON, or CSV)" }), file,
-    el("label", { for: "upload-name", text: "Name" }), name,
-    el("label", { for: "upload-dt", text: "Δt (s)" }), dt,
-    el("div", {}, el("button", { type: "submit" }, "Upload")), message, done, warned);
-  form.addEventListener("submit", async (e) => {
-    e.preventDefault();
-    message.replaceChildren();
-    done.textContent = "";
-    warned.replaceChildren();
-    const f = file.files[0];
-    if (!f) { message.textContent = "Choose a file first."; return; }
-    const q = new URLSearchParams();
-    if (name.value) q.set("name", name.value);
-    if (dt.value) q.set("dt", dt.value);
-    const csv = f.name.toLowerCase().endsWith(".csv");
-    try {
-      const d = await api("POST", `/v1/datasets?${q}`, f, csv ? "text/csv" : "application/json");
-      done.textContent = d.created ? `Uploaded ${d.id} (${d.count} transitions).` : `Already stored as ${d.id}.`;
-      warned.replaceChildren(warningsBox(d.warnings, "upload-warnings", "Check the data before training on it:"));
-      form.reset();
-      await load();
-    } catch (err) {
-      message.textContent = err.field ? `${err.field}: ${err.message}` : err.message;
-    }
-  });
-  const listStatus = el("div", { role: "alert", id: "datasets-alert" });
-  async function load() {
-    const data = await api("GET", `/v1/datasets?page_size=${PAGE_SIZE}`);
-    tbody.replaceChildren(...data.items.map((d) => el("tr", { "data-dataset": d.id },
-      el("td", { class: "name" }, el("span", { class: "dataset-name", text: d.name || "–" }), el("div", { class: "muted small", text: d.id })),
-      el("td", { class: "num", text: d.n }), el("td", { class: "num", text: d.m }),
-      el("td", { class: "num", text: d.count }), el("td", { class: "num", text: d.dt }),
-      el("td", { class: "num", text: `${((d.count * (4 * d.n + d.m) * 8) / 1024).toFixed(1)} KiB` }),
-      el("td", { class: "wrap" }, d.warnings?.length ? el("details", { class: "warnings" },
-        el("summary", { text: `⚠ ${d.warnings.length} warning${d.warnings.length > 1 ? "s" : ""}` }),
-        el("ul", {}, d.warnings.map((w) => el("li", { text: `${w.field ? `${w.field}: ` : ""}${w.message}` })))) : "–"),
-      timeCell(d.created_at),
-      el("td", {}, deleteButton(`/v1/datasets/${d.id}`, `dataset ${d.name || d.id}`, listStatus, load)))));
-  }
-  view.append(el("h1", { text: "Datasets" }), form, listStatus, el("div", { class: "table-wrap" }, el("table", { id: "datasets-table" },
-    el("thead", {}, el("tr", {}, ["dataset", "n", "m", "count", "Δt", "size", "warnings", "created", ""].map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined, text: h })))),
-    tbody)));
-  await load();
-}
 
 events.start();
 route();

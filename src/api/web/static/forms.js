@@ -243,3 +243,59 @@ async function templatesView(view) {
         el("th", { scope: "col", class: i === 5 ? "hide-narrow" : undefined, text: h })))), tbody)));
   await load();
 }
+
+// Datasets: the list and an upload form (JSON or CSV files).
+async function datasetsView(view) {
+  const tbody = el("tbody");
+  const message = el("div", { role: "alert", id: "upload-alert" });
+  const done = el("p", { "aria-live": "polite", id: "upload-status", class: "muted" });
+  const warned = el("div");
+  const file = el("input", { type: "file", id: "upload-file", accept: ".json,.csv,application/json,text/csv", required: true });
+  const name = el("input", { type: "text", id: "upload-name", placeholder: "optional" });
+  const dt = el("input", { type: "number", id: "upload-dt", step: "any", min: "0", placeholder: "from the file (needed for CSV)" });
+  const form = el("form", { class: "stack card", id: "upload-form" },
+    el("h2", { text: "Upload a dataset" }),
+    el("label", { for: "upload-file", text: "File (transitions or trajectories as JSON, or CSV)" }), file,
+    el("label", { for: "upload-name", text: "Name" }), name,
+    el("label", { for: "upload-dt", text: "Δt (s)" }), dt,
+    el("div", {}, el("button", { type: "submit" }, "Upload")), message, done, warned);
+  form.addEventListener("submit", async (e) => {
+    e.preventDefault();
+    message.replaceChildren();
+    done.textContent = "";
+    warned.replaceChildren();
+    const f = file.files[0];
+    if (!f) { message.textContent = "Choose a file first."; return; }
+    const q = new URLSearchParams();
+    if (name.value) q.set("name", name.value);
+    if (dt.value) q.set("dt", dt.value);
+    const csv = f.name.toLowerCase().endsWith(".csv");
+    try {
+      const d = await api("POST", `/v1/datasets?${q}`, f, csv ? "text/csv" : "application/json");
+      done.textContent = d.created ? `Uploaded ${d.id} (${d.count} transitions).` : `Already stored as ${d.id}.`;
+      warned.replaceChildren(warningsBox(d.warnings, "upload-warnings", "Check the data before training on it:"));
+      form.reset();
+      await load();
+    } catch (err) {
+      message.textContent = err.field ? `${err.field}: ${err.message}` : err.message;
+    }
+  });
+  const listStatus = el("div", { role: "alert", id: "datasets-alert" });
+  async function load() {
+    const data = await api("GET", `/v1/datasets?page_size=${PAGE_SIZE}`);
+    tbody.replaceChildren(...data.items.map((d) => el("tr", { "data-dataset": d.id },
+      el("td", { class: "name" }, el("span", { class: "dataset-name", text: d.name || "–" }), el("div", { class: "muted small", text: d.id })),
+      el("td", { class: "num", text: d.n }), el("td", { class: "num", text: d.m }),
+      el("td", { class: "num", text: d.count }), el("td", { class: "num", text: d.dt }),
+      el("td", { class: "num", text: `${((d.count * (4 * d.n + d.m) * 8) / 1024).toFixed(1)} KiB` }),
+      el("td", { class: "wrap" }, d.warnings?.length ? el("details", { class: "warnings" },
+        el("summary", { text: `⚠ ${d.warnings.length} warning${d.warnings.length > 1 ? "s" : ""}` }),
+        el("ul", {}, d.warnings.map((w) => el("li", { text: `${w.field ? `${w.field}: ` : ""}${w.message}` })))) : "–"),
+      timeCell(d.created_at),
+      el("td", {}, deleteButton(`/v1/datasets/${d.id}`, `dataset ${d.name || d.id}`, listStatus, load)))));
+  }
+  view.append(el("h1", { text: "Datasets" }), form, listStatus, el("div", { class: "table-wrap" }, el("table", { id: "datasets-table" },
+    el("thead", {}, el("tr", {}, ["dataset", "n", "m", "count", "Δt", "size", "warnings", "created", ""].map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined, text: h })))),
+    tbody)));
+  await load();
+}

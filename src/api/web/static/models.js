@@ -1,0 +1,227 @@
+// graybox dashboard, the models: the list (#/models) and one model (#/models/ID) with its
+// error against horizon and its replay of recorded trajectories. Loaded before app.js,
+// whose helpers (el, api, chart, …) these functions use when called.
+"use strict";
+
+async function modelsView(view) {
+  const tbody = el("tbody");
+  const empty = el("p", { class: "muted" });
+  async function load() {
+    const data = await api("GET", `/v1/models?page_size=${PAGE_SIZE}`);
+    tbody.replaceChildren(...data.items.map((m) => el("tr", { "data-model": m.id },
+      el("td", { class: "name" }, el("a", { href: `#/models/${m.id}`, text: m.name }), el("div", { class: "muted small", text: m.id })),
+      el("td", { text: m.origin }),
+      el("td", { class: "num", text: m.n }), el("td", { class: "num", text: m.m }), el("td", { class: "num", text: m.dt }),
+      el("td", { class: "num", text: fmtBestLoss(m.metrics?.best_val_loss, m.metrics?.best_val_loss_steps) }), timeCell(m.created_at))));
+    empty.textContent = data.items.length ? "" : "No models yet: they appear when a job succeeds, or upload a model file.";
+  }
+  view.append(el("h1", { text: "Models" }), el("div", { class: "table-wrap" }, el("table", { id: "models-table" },
+    el("thead", {}, el("tr", {}, ["model", "origin", "n", "m", "Δt", "best val loss", "created"].map((h, i) =>
+      el("th", { scope: "col", class: i === 6 ? "hide-narrow" : undefined, text: h })))), tbody)),
+  empty, modelUploadForm(load));
+  await load();
+}
+
+// A model: what it is, what it learned, its error against horizon and its replay of recorded
+// trajectories.
+async function modelView(view, id) {
+  const m = await api("GET", `/v1/models/${id}`);
+  const isUrdf = JSON.stringify(m.spec).includes('"kind":"urdf"');
+  const notice = el("div", { role: "alert", id: "model-alert" });
+  const buttons = el("div", { class: "toolbar" },
+    el("button", { type: "button", onclick: () => download(`/v1/models/${id}/checkpoint`, `${id}.gbx`).catch((e) => notice.replaceChildren(errorBox(e))) }, "Download model (.gbx)"),
+    isUrdf ? el("button", { type: "button", onclick: () => download(`/v1/models/${id}/urdf`, `${id}.urdf`).catch((e) => notice.replaceChildren(errorBox(e))) }, "Download URDF") : "",
+    deleteButton(`/v1/models/${m.id}`, `model ${m.name}`, notice, () => { location.hash = "#/models"; }));
+  const physical = Object.entries(m.physical_parameters || {});
+  const identifiable = Array.isArray(m.identifiable) ? m.identifiable : [];
+  view.append(...[
+    el("h1", { text: `Model ${m.name}` }), buttons, notice,
+    warningsBox(m.metrics?.warnings, "model-warnings", "Training warnings:"),
+    el("div", { class: "card" }, factList([
+      ["id", m.id], ["origin", m.origin],
+      ["job", m.job_id ? el("a", { href: `#/jobs/${m.job_id}`, text: m.job_id }) : "uploaded"],
+      ["n (coordinates)", `${m.n}: ${coordinateNames(m).join(", ")}`], ["m (inputs)", String(m.m)], ["Δt", `${m.dt} s`],
+      [bestLossLabel(m.metrics?.best_val_loss_steps), fmtLoss(m.metrics?.best_val_loss)], ["epochs", String(m.metrics?.epochs ?? "–")],
+      ["created", fmtTime(m.created_at)],
+    ])),
+    el("h2", { text: "Spec" }), specView(m.spec),
+    physical.length ? [
+      el("h2", { text: "Learned physical parameters" }),
+      el("div", { class: "table-wrap" }, el("table", { id: "physical-table" },
+        el("thead", {}, el("tr", {}, el("th", { scope: "col", text: "parameter" }), el("th", { scope: "col", text: "value" }))),
+        el("tbody", {}, physical.map(([k, v]) => el("tr", {}, el("td", { text: k }), el("td", { class: "num", text: Number(v).toPrecision(6) })))))),
+      identifiable.length ? [el("h3", { text: "Identifiable combinations" }), el("ul", {}, identifiable.map((c) => el("li", { text: `${c.name} = ${Number(c.value).toPrecision(6)}` })))] : "",
+      m.identifiability ? el("p", { class: "muted", text: m.identifiability }) : "",
+    ] : ""].flat(Infinity));
+  await replayPanel(view, m);
+}
+
+// The spec as JSON, a template's document (a URDF's XML, long) shortened in place and shown
+// whole, collapsed, below.
+function specView(spec) {
+  const docs = [];
+  const shown = JSON.stringify(spec, (key, v) => {
+    if (typeof v !== "string" || v.length < 300) return v;
+    docs.push(v);
+    return `⟨document ${docs.length}: ${v.split("\n").length} lines, below⟩`;
+  }, 2);
+  return [el("pre", { id: "model-spec", text: shown }), docs.map((d, i) => el("details", { class: "document", id: `spec-document-${i + 1}` },
+    el("summary", { text: `Document ${i + 1} (${d.trimStart().startsWith("<") ? "URDF" : "text"}, ${d.split("\n").length} lines)` }),
+    el("pre", { text: d })))];
+}
+
+const coordinateNames = (m) => m.coordinates || Array.from({ length: m.n }, (_, i) => `q${i + 1}`);
+
+// The dataset's trajectories a model can be rolled along (two steps or more), longest first;
+// none for a dataset of independent transitions (`graybox simulate --count`, rows whose next
+// state is no other row's state), whose every "trajectory" is a single step.
+async function rolloutTrajectories(dataset) {
+  const found = [];
+  let token = "";
+  do {
+    const q = new URLSearchParams({ page_size: 1000 });
+    if (token) q.set("page_token", token);
+    const list = await api("GET", `/v1/datasets/${dataset.id}/trajectories?${q}`);
+    // Each transition is in one trajectory: as many trajectories as transitions, all single.
+    if (list.count >= dataset.count) return [];
+    found.push(...list.items.filter((t) => t.length > 1));
+    token = list.next_page_token;
+  } while (token && !found.length);
+  return found.sort((a, b) => b.length - a.length);
+}
+
+async function replayPanel(view, m) {
+  const names = coordinateNames(m);
+  const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items.filter((d) => d.n === m.n && d.m === m.m);
+  const dsSelect = el("select", { id: "replay-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
+  // First the data its training held out, else the data it trained on (the newest dataset
+  // may have nothing to do with this model).
+  const job = m.job_id ? await api("GET", `/v1/jobs/${m.job_id}`).catch(() => null) : null;
+  const own = [job?.validation_dataset_id, job?.dataset_id].find((id) => datasets.some((d) => d.id === id));
+  if (own) dsSelect.value = own;
+  const trLabel = el("label", { for: "replay-index", text: "Trajectory" });
+  const trSelect = el("select", { id: "replay-index" });
+  const status = el("div", { role: "alert", id: "replay-alert" });
+  const note = el("p", { class: "note", role: "status", id: "replay-note" });
+  const charts = el("div", { class: "charts", id: "replay-charts" });
+  const go = el("button", { type: "button", id: "replay-button" }, "Replay");
+  view.append(el("h2", { text: "Rollout against data" }), el("p", { class: "muted",
+    text: "The model predicts a recorded trajectory from its first state with its recorded inputs; recorded and predicted q and q̇ over time." }));
+  if (!datasets.length) {
+    view.append(el("p", { text: `No dataset with n = ${m.n}, m = ${m.m}.` }));
+    horizonPanel(view, [], null, { stored: m.metrics?.horizon_errors });
+    return;
+  }
+  view.append(el("div", { class: "toolbar" },
+    el("label", { for: "replay-dataset", text: "Dataset" }), dsSelect, trLabel, trSelect, go), note, status, charts);
+  const evaluate = horizonPanel(view, [{ id: m.id, label: m.id }], dsSelect, { stored: m.metrics?.horizon_errors });
+
+  // Trajectories to choose from, or, for independent transitions, why there are none.
+  async function loadTrajectories() {
+    const d = datasets.find((x) => x.id === dsSelect.value);
+    const items = await rolloutTrajectories(d);
+    if (dsSelect.value !== d.id) return false; // another dataset was chosen meanwhile
+    trSelect.replaceChildren(...items.map((t) => el("option", { value: t.index, text: `#${t.index} (${t.length} steps)` })));
+    const usable = items.length > 0;
+    for (const e of [trLabel, trSelect, go, charts]) e.hidden = !usable;
+    evaluate.disabled = !usable;
+    if (!usable) charts.replaceChildren();
+    note.textContent = usable ? "" : `The dataset “${d.name || d.id}” holds independent transitions, not trajectories: each of its ` +
+      `${d.count} transitions starts from its own state, so the model has nothing to be rolled along. Rollouts need ` +
+      "trajectories: upload the data as trajectories (a dataset file in the trajectory form, or rows in time order " +
+      "whose next state is the following row's state) to replay it or evaluate the model's error against horizon.";
+    return usable;
+  }
+  async function replay() {
+    status.replaceChildren();
+    try {
+      const r = await api("GET", `/v1/models/${m.id}/rollout?dataset_id=${encodeURIComponent(dsSelect.value)}&index=${trSelect.value}`);
+      charts.replaceChildren();
+      for (const key of ["q", "qdot"]) {
+        for (let i = 0; i < m.n; i++) {
+          // Coordinates by their names: a URDF's joints, a formula's coordinates.
+          const label = key === "q" ? names[i] : `${names[i]} rate`;
+          const host = el("div", { class: "replay-chart", "data-variable": `${key}${i}`, role: "img", "aria-label": `${label}, recorded and predicted` });
+          charts.append(el("figure", {}, el("figcaption", { text: label }), host));
+          chart(host, {
+            x: r.t, xLabel: "time (s)", yLabel: label, dashed: ["predicted"],
+            series: { recorded: r.recorded[key].map((row) => row[i]), predicted: r.predicted[key].map((row) => row[i]) },
+          });
+        }
+      }
+    } catch (e) {
+      status.replaceChildren(errorBox(e));
+    }
+  }
+  async function show() {
+    status.replaceChildren();
+    try {
+      if (await loadTrajectories()) await replay();
+    } catch (e) {
+      status.replaceChildren(errorBox(e));
+    }
+  }
+  dsSelect.addEventListener("change", show);
+  go.addEventListener("click", replay);
+  await show();
+}
+
+// Open-loop error against prediction time, both axes logarithmic: first what the training
+// measured on its validation trajectories (`stored`, a model's metrics.horizon_errors), then,
+// on request, on the chosen dataset's trajectories (POST /v1/models/{id}/evaluate): one
+// model's median and mean, or each compared model's median. `models`: [{id, label}]; without
+// `dsSelect`, the stored figures alone. Returns the Evaluate button.
+function horizonPanel(view, models, dsSelect, { controls = [], stored = [] } = {}) {
+  view.append(el("h2", { text: "Error against horizon" }));
+  if (stored?.length) storedHorizonErrors(view, stored);
+  if (!dsSelect) return null;
+  const horizons = [1, 2, 5, 10, 20, 50, 100, 200, 500];
+  const host = el("div", { id: "horizon-chart", role: "img", "aria-label": "open-loop error against prediction time" });
+  const status = el("div", { role: "alert", id: "horizon-alert" });
+  const go = el("button", { type: "button", id: "horizon-button" }, "Evaluate");
+  view.append(el("p", { class: "muted",
+    text: "From every state of the dataset's trajectories, the model predicts open loop under the recorded inputs; the median and mean error of q after each horizon (angles on the circle)." }),
+    el("div", { class: "toolbar" }, ...controls, go), status, host);
+  go.addEventListener("click", async () => {
+    status.replaceChildren();
+    try {
+      const body = { dataset_id: dsSelect.value, horizons };
+      const found = await Promise.all(models.map((m) => api("POST", `/v1/models/${m.id}/evaluate`, body)));
+      // The same dataset for every model: the same horizons have windows.
+      const items = found.map((r) => r.items.filter((e) => e.windows > 0));
+      const series = models.length === 1
+        ? { median: items[0].map((e) => e.position_median), mean: items[0].map((e) => e.position_mean) }
+        : Object.fromEntries(models.map((m, k) => [m.label, items[k].map((e) => e.position_median)]));
+      chart(host, {
+        x: items[0].map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)",
+        logX: true, logY: true, series,
+      });
+    } catch (e) {
+      status.replaceChildren(errorBox(e));
+    }
+  });
+  return go;
+}
+
+// The stored errors as they are: a chart of q's median and mean, and every figure in a table.
+function storedHorizonErrors(view, errors) {
+  const host = el("div", { id: "model-horizon-chart", role: "img",
+    "aria-label": "open-loop error against prediction time on the validation trajectories, at the end of training" });
+  const columns = [["horizon", "steps"], ["seconds", "time (s)"], ["windows", "windows"], ["diverged", "diverged"],
+    ["position_median", "|q̂ − q| median"], ["position_mean", "|q̂ − q| mean"],
+    ["velocity_median", "|q̂̇ − q̇| median"], ["velocity_mean", "|q̂̇ − q̇| mean"]];
+  // Counts as they are; errors to 4 digits (null: no windows, or an infinite error).
+  const fmt = (v) => (v === null || v === undefined ? "–" : Number.isInteger(v) ? String(v) : Number(v).toPrecision(4));
+  const table = el("table", { id: "model-horizon-table" },
+    el("caption", { class: "muted", text: "Error after each horizon, from every state of the validation trajectories" }),
+    el("thead", {}, el("tr", {}, columns.map(([, h]) => el("th", { scope: "col", text: h })))),
+    el("tbody", {}, errors.map((e) => el("tr", { "data-horizon": e.horizon },
+      columns.map(([k]) => el("td", { class: "num", text: fmt(e[k]) }))))));
+  view.append(el("div", { class: "card", id: "model-horizon" },
+    el("h3", { text: "At the end of training, on the validation trajectories" }), host,
+    el("div", { class: "table-wrap" }, table)));
+  chart(host, {
+    x: errors.map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)", logX: true, logY: true,
+    series: { median: errors.map((e) => e.position_median), mean: errors.map((e) => e.position_mean) },
+  });
+}

@@ -1,0 +1,45 @@
+//! graybox's settings of a robot beyond what URDF says: `coulomb_eps`, the ε of the Coulomb
+//! term tanh(q̇/ε), given in the template document (`"coulomb_eps": 0.2`) or in the URDF
+//! file itself (`<graybox coulomb_eps="0.2"/>` under `<robot>`), so that a robot file
+//! carries what makes its friction steppable wherever it goes (a template upload, `--template
+//! arm.urdf`).
+
+use super::template::COULOMB_EPS;
+use super::tree::Tree;
+use crate::error::{Error, Result};
+use crate::physics::params::{PHYSICAL_MAX, POSITIVE_MIN};
+
+fn bad(message: String) -> Error {
+    Error::Unprocessable {
+        field: "coulomb_eps".into(),
+        message,
+    }
+}
+
+/// 1/ε scales q̇ in f32 training too: no smaller ε than a positive parameter's.
+pub fn check_coulomb_eps(eps: f64) -> Result<()> {
+    if eps.is_finite() && (POSITIVE_MIN..=PHYSICAL_MAX).contains(&eps) {
+        return Ok(());
+    }
+    Err(bad(format!(
+        "must be a velocity in [{POSITIVE_MIN:e}, {PHYSICAL_MAX:e}] (rad/s or m/s, the scale of \
+         the Coulomb term tanh(q̇/ε)), got {eps}"
+    )))
+}
+
+/// The ε a robot runs with: the document's, else the file's `<graybox coulomb_eps>`, else
+/// the default. A document and a file that both set it must agree (the default in a document
+/// is its absence).
+pub fn coulomb_eps(from_doc: f64, tree: &Tree) -> Result<f64> {
+    let Some(in_file) = tree.coulomb_eps else {
+        return Ok(from_doc);
+    };
+    if from_doc != COULOMB_EPS && from_doc != in_file {
+        return Err(bad(format!(
+            "the document says {from_doc} and the URDF's <graybox coulomb_eps> says \
+             {in_file}: give it in one place"
+        )));
+    }
+    check_coulomb_eps(in_file)?;
+    Ok(in_file)
+}
