@@ -4,6 +4,8 @@ use std::process::{Command, Output};
 
 #[path = "cli/formula_limits.rs"]
 mod formula_limits;
+#[path = "cli/messages.rs"]
+mod messages;
 
 fn graybox(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_graybox"))

@@ -16,10 +16,14 @@ use crate::train::trainer::evaluate;
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
+    /// A model file (.gbx) that `train` or `model` wrote, or the service served.
     #[arg(long)]
     pub model: PathBuf,
+    /// Dataset: JSON transitions or trajectories, or CSV (README, "Dataset files").
     #[arg(long)]
     pub data: PathBuf,
+    /// Δt in seconds, for data files without one (CSV, or JSON without "dt"); a file's own dt
+    /// that disagrees is an error.
     #[arg(long)]
     pub dt: Option<f64>,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
@@ -36,6 +40,7 @@ pub struct EvalArgs {
 
 #[derive(Args, Debug)]
 pub struct InspectArgs {
+    /// A model file (.gbx) that `train` or `model` wrote, or the service served.
     #[arg(long)]
     pub model: PathBuf,
 }

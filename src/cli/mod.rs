@@ -32,6 +32,18 @@ use crate::physics::urdf::UrdfTemplate;
 pub fn template_arg(arg: &str) -> Result<Template> {
     let urdf = arg.ends_with(".urdf");
     if !arg.ends_with(".json") && !urdf {
+        // No built-in's name has a dot or a slash: this was meant as a file.
+        if arg.contains(['.', '/']) {
+            return Err(Error::invalid(
+                "template",
+                format!(
+                    "'{arg}' is not a built-in template ({}), and a template file is \
+                     recognised by its extension: .json (a template document) or .urdf (a \
+                     URDF robot)",
+                    Template::ALL.map(|t| t.name().to_string()).join(", ")
+                ),
+            ));
+        }
         return Template::parse(arg);
     }
     let text = std::fs::read_to_string(arg)

@@ -26,6 +26,7 @@ pub struct ModelArgs {
     /// rk4, euler or midpoint.
     #[arg(long, default_value = "rk4")]
     pub integrator: String,
+    /// Where to write the model file (.gbx).
     #[arg(long)]
     pub out: PathBuf,
 }

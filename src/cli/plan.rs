@@ -18,6 +18,7 @@ use crate::model::file::{ModelFile, write_atomic};
 
 #[derive(Args, Debug)]
 pub struct PlanArgs {
+    /// A model file (.gbx) that `train` or `model` wrote, or the service served.
     #[arg(long)]
     pub model: PathBuf,
     /// The start state, 2n comma-separated values (q then q̇).
@@ -62,6 +63,7 @@ pub struct PlanArgs {
     /// Return the best plan so far after this many milliseconds (0: no limit).
     #[arg(long, default_value_t = 0)]
     pub time_limit_ms: u64,
+    /// Where to write the plan (JSON: x, u, K, costs, goal_error; a summary goes to stdout).
     #[arg(long)]
     pub out: PathBuf,
 }

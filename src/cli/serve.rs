@@ -22,16 +22,26 @@ pub fn serve(settings: Settings) -> Result<()> {
         let running = crate::service::start(settings).await?;
         let scheme = if tls { "https" } else { "http" };
         eprintln!(
-            "graybox: REST on {scheme}://{}, gRPC on {}{}",
+            "graybox: REST on {scheme}://{}, gRPC on {}{}; dashboard: {scheme}://{}/",
             running.http_addr,
             running.grpc_addr,
-            if tls { " (TLS)" } else { "" }
+            if tls { " (TLS)" } else { "" },
+            browsable(running.http_addr)
         );
         signal().await;
         announce_stop(grace);
         announce_forced(running.shutdown_by(until_forced(grace)).await);
         Ok(())
     })
+}
+
+/// The address a browser on this machine opens: a wildcard bind (`0.0.0.0`, `::`) is not one.
+fn browsable(addr: std::net::SocketAddr) -> String {
+    if addr.ip().is_unspecified() {
+        format!("localhost:{}", addr.port())
+    } else {
+        addr.to_string()
+    }
 }
 
 /// Runs a service process's future on a runtime with the capped blocking pool, and exits

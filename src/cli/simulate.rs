@@ -32,8 +32,10 @@ pub struct SimulateArgs {
     pub hold: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// The time step of each transition, seconds.
     #[arg(long, default_value_t = 0.01)]
     pub dt: f64,
+    /// Where to write the dataset (JSON; a summary goes to stdout).
     #[arg(long)]
     pub out: PathBuf,
     /// Physical parameters, e.g. m1=10,l2=0.8 (others keep their defaults).

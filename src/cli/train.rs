@@ -43,6 +43,7 @@ pub struct TrainArgs {
     /// Initial physical values, e.g. m1=13,l2=0.8.
     #[arg(long)]
     pub init: Option<String>,
+    /// Where to write the trained model file (.gbx).
     #[arg(long)]
     pub out: PathBuf,
     #[arg(long, default_value_t = 500)]

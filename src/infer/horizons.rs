@@ -17,7 +17,8 @@ pub const END_OF_TRAINING: [usize; 4] = [1, 10, 50, 100];
 /// The most horizons one evaluation reports.
 pub const MAX_HORIZONS: usize = 32;
 
-/// Horizons must be 1 or more, at most [`MAX_HORIZONS`] of them; returned sorted, each once.
+/// Horizons must be 1 or more (at most `max_steps`: the service's `--max-rollout-steps`;
+/// `usize::MAX` for no bound), at most [`MAX_HORIZONS`] of them; returned sorted, each once.
 pub fn check_horizons(horizons: &[usize], max_steps: usize) -> Result<Vec<usize>> {
     if horizons.is_empty() || horizons.len() > MAX_HORIZONS {
         return Err(Error::invalid(
@@ -28,7 +29,13 @@ pub fn check_horizons(horizons: &[usize], max_steps: usize) -> Result<Vec<usize>
     if let Some(h) = horizons.iter().find(|h| !(1..=max_steps).contains(*h)) {
         return Err(Error::invalid(
             "horizons",
-            format!("{h} is not a number of steps in 1..={max_steps}"),
+            match max_steps {
+                usize::MAX => format!("{h} is not a number of steps: each must be 1 or more"),
+                _ => format!(
+                    "{h} is not a number of steps in 1..={max_steps} (at most the service's \
+                     --max-rollout-steps)"
+                ),
+            },
         ));
     }
     let mut sorted = horizons.to_vec();

@@ -138,6 +138,16 @@ impl ModelFile {
     }
 
     pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
+        // XML where a model file's JSON should be: most likely a robot's URDF, which is a
+        // template, not a model.
+        if bytes.trim_ascii_start().starts_with(b"<") {
+            return Err(Error::corrupt(
+                "model file",
+                "this is XML (a URDF?), not a graybox model file (JSON, .gbx): a URDF is a \
+                 template, given as --template robot.urdf to `graybox model` (a model of it \
+                 with its values), `train`, `simulate`; or POST /v1/templates",
+            ));
+        }
         let f: ModelFile =
             serde_json::from_slice(bytes).map_err(|e| Error::corrupt("model file", e))?;
         if ![FORMAT, FORMAT_EMBEDDED_TEMPLATE].contains(&f.format.as_str()) {

@@ -13,10 +13,12 @@ use std::future::Future;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use object_store::aws::{AmazonS3Builder, S3ConditionalPut};
+use object_store::aws::{AmazonS3Builder, AmazonS3ConfigKey, S3ConditionalPut};
 use object_store::local::LocalFileSystem;
 use object_store::path::Path;
-use object_store::{ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload, RetryConfig};
+use object_store::{
+    ClientConfigKey, ObjectStore, ObjectStoreExt, PutMode, PutOptions, PutPayload, RetryConfig,
+};
 
 use super::sha256_hex;
 use crate::backoff::Backoff;
@@ -97,6 +99,24 @@ fn storage(e: object_store::Error) -> Error {
 }
 
 /// What one try of a call came to: done, or failed in a way another try may not repeat.
+/// Why the client would refuse the endpoint the environment names: a plain `http://` one
+/// (a MinIO or moto in a private network) needs `AWS_ALLOW_HTTP`, and without it every call
+/// fails with the HTTP client's bare "builder error".
+fn plain_http_refused(s3: &AmazonS3Builder) -> Option<String> {
+    let endpoint = s3.get_config_value(&AmazonS3ConfigKey::Endpoint)?;
+    let allowed = s3
+        .get_config_value(&AmazonS3ConfigKey::Client(ClientConfigKey::AllowHttp))
+        .is_some_and(|v| {
+            ["1", "true", "on", "yes", "y"].contains(&v.to_ascii_lowercase().as_str())
+        });
+    (endpoint.starts_with("http://") && !allowed).then(|| {
+        format!(
+            "the endpoint {endpoint} (AWS_ENDPOINT) is plain HTTP, which the client refuses \
+             unless AWS_ALLOW_HTTP=true is set too (or use an https:// endpoint)"
+        )
+    })
+}
+
 enum Try<T> {
     Done(T),
     Again(Error),
@@ -127,7 +147,11 @@ impl Blobs {
         let _ = tokio_rustls::rustls::crypto::ring::default_provider().install_default();
         // Create-if-absent through If-None-Match, which S3 and the S3-compatible stores
         // answer; without it the crate refuses PutMode::Create on S3.
-        let s3 = AmazonS3Builder::from_env()
+        let s3 = AmazonS3Builder::from_env();
+        if let Some(why) = plain_http_refused(&s3) {
+            return Err(bad(&why));
+        }
+        let s3 = s3
             .with_bucket_name(bucket)
             .with_conditional_put(S3ConditionalPut::ETagMatch)
             .with_retry(RetryConfig {

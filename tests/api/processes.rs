@@ -224,6 +224,11 @@ impl Server {
             .collect()
     }
 
+    /// The body of a GET of `url`.
+    pub fn bytes(&self, url: &str) -> Vec<u8> {
+        self.client.bytes(url)
+    }
+
     pub fn sigterm(self) {
         self.proc.sigterm();
     }

@@ -18,6 +18,8 @@ async fn the_page_loads_without_a_token_and_the_api_still_needs_one() {
         ("/", "text/html", "<script src=\"/ui/app.js\">"),
         ("/ui/app.js", "text/javascript", "/v1/events"),
         ("/ui/forms.js", "text/javascript", "/v1/jobs"),
+        ("/ui/jobs.js", "text/javascript", "/v1/jobs"),
+        ("/ui/models.js", "text/javascript", "/v1/models"),
         ("/ui/defaults.js", "text/javascript", "GRAYBOX_DEFAULTS"),
         ("/ui/style.css", "text/css", "--accent"),
         ("/ui/uPlot.iife.min.js", "text/javascript", "uPlot"),
@@ -137,4 +139,21 @@ async fn the_job_form_starts_from_the_services_defaults() {
         d["templates"],
         serde_json::json!(["double_pendulum", "pendulum", "cartpole"])
     );
+}
+
+/// `graybox serve` says where the dashboard is as it starts, and that address serves it.
+#[test]
+fn serve_prints_the_dashboards_address() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = crate::processes::fresh_db(dir.path());
+    let mut server = crate::processes::Server::start(&db, 0);
+    let line = (server.proc.logs().iter())
+        .find(|l| l.starts_with("graybox: REST on "))
+        .cloned()
+        .unwrap();
+    let url = line.rsplit("dashboard: ").next().unwrap();
+    assert_eq!(url, format!("{}/", server.base), "{line}");
+    let page = String::from_utf8(server.bytes(url)).unwrap();
+    assert!(page.contains("<script src=\"/ui/app.js\">"), "{page}");
+    server.sigterm();
 }

@@ -114,6 +114,15 @@ def test_refusals_are_graybox_errors_with_code_field_and_status(rest):
     g.cancel(busy["id"])
     assert g.wait(busy["id"], timeout=120)["state"] == "cancelled"
     g.delete_dataset(ds["id"])
+    # A CSV file has no time step: the call says to pass dt, as Python, before any upload;
+    # with it, the file is stored.
+    csv = Path(tmp) / "log.csv"
+    csv.write_text("q0,qdot0,u0,q_next0,qdot_next0\n0.1,0.0,0.5,0.1005,0.098\n")
+    with pytest.raises(GrayboxError) as e:
+        g.upload_dataset_file(csv)
+    assert e.value.field == "dt" and "upload_dataset_file(" in e.value.message, e.value
+    assert "dt=0.01" in e.value.message, e.value
+    assert g.upload_dataset_file(csv, dt=0.01, name="log")["count"] == 1
     with pytest.raises(GrayboxError) as e:
         RestClient("127.0.0.1:9").datasets()  # nothing listens on the discard port
     assert e.value.code == "unavailable" and e.value.status is None, e.value

@@ -137,9 +137,17 @@ class RestClient:
 
     def upload_dataset_file(self, path: PathLike, name: Optional[str] = None,
                             dt: Optional[float] = None) -> dict:
-        """A dataset file as `graybox simulate` writes it (JSON), or CSV (needs `dt`)."""
+        """A dataset file as `graybox simulate` writes it (JSON, which carries its own `dt`),
+        or CSV (a file ending in .csv; columns q0…, qdot0…, u0…, q_next0…, qdot_next0…, README
+        "Dataset files"), which has no time step of its own: give it as `dt` (seconds), e.g.
+        `upload_dataset_file("log.csv", dt=0.01)`. A JSON file's `dt`, when given, must agree
+        with the file's."""
         path = Path(path)
         csv = path.suffix.lower() == ".csv"
+        if csv and dt is None:
+            raise GrayboxError("invalid_argument", f"{path.name} is CSV, which carries no time "
+                               f"step: give it in seconds, upload_dataset_file({str(path)!r}, "
+                               f"dt=0.01)", field="dt")
         return self.request("POST", "/v1/datasets", raw=path.read_bytes(),
                             content_type="text/csv" if csv else "application/json",
                             query={"name": name, "dt": dt})
