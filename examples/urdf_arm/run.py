@@ -13,18 +13,20 @@ This script
 5. writes the identified robot as URDF (`GET /v1/models/{id}/urdf`).
 
 Run the service first (`cargo run --release -- serve`), then, from the repository, with the
-Python client installed (README "Python client": `python3 -m venv .venv && .venv/bin/pip
-install ./clients/python`):
+Python client installed (`bash scripts/test.sh` makes `.venv` with it; README "Python client"
+for your own):
 
     .venv/bin/python examples/urdf_arm/run.py                 # ~10 min on 2 cores
-    .venv/bin/python examples/urdf_arm/run.py --epochs 20     # a quick look
+    .venv/bin/python examples/urdf_arm/run.py --epochs 20     # a quick look (or EPOCHS=20)
 
-`graybox` must be on PATH (or pass --graybox): it simulates the data.
+It simulates the data with `graybox`: the one on PATH, else the repository's build
+(target/release/graybox), or --graybox.
 """
 
 import argparse
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -33,6 +35,7 @@ from pathlib import Path
 from graybox_client import GrayboxError, RestClient
 
 HERE = Path(__file__).resolve().parent
+BUILT = HERE.parents[1] / "target" / "release" / "graybox"
 
 # How the true arm differs from arm.urdf (parameter names as in the template): these masses
 # and centres of mass are this many times the file's, and these joints have Coulomb friction.
@@ -76,11 +79,15 @@ def zero_acceleration_loss(data: dict) -> float:
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--api", default=os.environ.get("GRAYBOX_HTTP", "127.0.0.1:8080"))
-    p.add_argument("--graybox", default="graybox", help="the graybox command")
-    p.add_argument("--epochs", type=int, default=600)
+    p.add_argument("--graybox", default=shutil.which("graybox") or str(BUILT),
+                   help="the graybox command (default: on PATH, else target/release/graybox)")
+    p.add_argument("--epochs", type=int, default=int(os.environ.get("EPOCHS", "600")))
     p.add_argument("--count", type=int, default=1024, help="training transitions")
     p.add_argument("--out", type=Path, default=Path("identified_arm.urdf"))
     a = p.parse_args()
+    if not (shutil.which(a.graybox) or Path(a.graybox).is_file()):
+        sys.exit(f"no graybox command at {a.graybox}: build it (cargo build --release) or pass "
+                 "--graybox PATH")
     try:
         run(RestClient(a.api), a)
     except GrayboxError as e:

@@ -82,6 +82,14 @@ async fn tls_as_the_url_asks_for_it() {
     drop(store);
 }
 
+/// Why opening `url` fails (it must).
+async fn refused(url: &str) -> String {
+    match Store::open(url).await {
+        Ok(_) => panic!("{url} opened"),
+        Err(e) => e.to_string(),
+    }
+}
+
 #[tokio::test]
 async fn a_certificate_the_url_does_not_trust_is_refused_saying_why() {
     let Some((server, ca, wrong)) = cluster() else {
@@ -89,15 +97,15 @@ async fn a_certificate_the_url_does_not_trust_is_refused_saying_why() {
     };
     let (_, at_ip) = database(&server, "127.0.0.1").await;
     let (_, at_name) = database(&server, "localhost").await;
-    let refused = [
+    let untrusted = [
         // Signed by another CA.
         format!("{at_name}?sslmode=verify-full&sslrootcert={wrong}"),
         format!("{at_ip}?sslmode=verify-ca&sslrootcert={wrong}"),
         // The right CA, but the certificate does not name 127.0.0.1.
         format!("{at_ip}?sslmode=verify-full&sslrootcert={ca}"),
     ];
-    for url in refused {
-        let err = Store::open(&url).await.err().expect(&url).to_string();
+    for url in untrusted {
+        let err = refused(&url).await;
         assert!(
             err.contains("cannot connect to") && err.contains("verify-full also"),
             "{url}: {err}"
@@ -116,7 +124,7 @@ async fn a_certificate_the_url_does_not_trust_is_refused_saying_why() {
         (empty.to_str().unwrap(), "has no PEM certificate"),
     ] {
         let url = format!("{at_name}?sslmode=verify-full&sslrootcert={file}");
-        let err = Store::open(&url).await.err().expect(file).to_string();
+        let err = refused(&url).await;
         assert!(
             err.contains(file) && err.contains(says) && err.contains("sslrootcert"),
             "{err}"

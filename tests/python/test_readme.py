@@ -1,9 +1,12 @@
-"""README.md, as written, works: its curl walkthrough, its command-line example and its Python
-example run verbatim (the fenced blocks tagged `readme-test:<name>`, the blocks of one name
-as one script) against the release binary, and what the README says they print holds.
+"""README.md, as written, works: its curl walkthrough, its command-line example, its Python
+example and its robot example run verbatim (the fenced blocks tagged `readme-test:<name>`,
+the blocks of one name as one script, in order) against the release binary, and what the
+README says they print holds. Every shell block is tagged: `readme-test:<name>`, or
+`readme-skip: <why>` (a command that never exits, needs a container engine, or names
+placeholder hosts), and no command hides in an indented block.
 
 The walkthroughs take the service's address from GRAYBOX_HTTP / GRAYBOX_GRPC as the README
-says; the test sets those to its own server's free ports. The Docker section is not run.
+says; the test sets those to its own server's free ports.
 """
 
 import json
@@ -19,6 +22,12 @@ from conftest import serve
 
 ROOT = Path(__file__).resolve().parents[2]
 FENCE = re.compile(r"^```(\w+) readme-test:(\w+)\n(.*?)^```$", re.S | re.M)
+ANY_FENCE = re.compile(r"^```(.*?)\n(.*?)^```$", re.S | re.M)
+SHELLS = {"sh", "bash", "shell", "console", "zsh"}
+# The first word of a command a reader would run (an indented line starting so is a shell
+# block without a fence, hence without a tag).
+COMMAND = re.compile(r"^ {4,}(cargo|graybox|graybox-lab|python3?|\.venv/|curl|docker|bash|"
+                     r"export|cd|target/|pip|openssl) ", re.M)
 
 
 def blocks(name: str) -> tuple[str, str]:
@@ -145,9 +154,12 @@ def test_command_line_example(graybox_bin):
     evals = [j for j in json_lines(done.stdout) if isinstance(j, dict) and "loss" in j]
     assert evals and evals[0]["count"] == 1024
     # W-B identifies the ratios the README lists.
-    inspected = [j for j in json.loads("[" + _objects(done.stdout) + "]") if "identifiable" in j]
+    inspected = [j for j in json.loads("[" + _objects(done.stdout) + "]")
+                 if "identifiable" in j and j.get("template") == "double_pendulum"]
     names = {c["name"] for c in inspected[-1]["identifiable"]}
     assert {"m1/m2", "l1/l2", "g/l1"} <= names, names
+    # The formula-template example trains W-B on the cart-pole from its document.
+    assert '"name":"cartpole"' in (work / "m.gbx").read_text().replace(" ", "")
     # The Control example: the swing-up on the true double pendulum reaches the top.
     plan = json.loads((work / "swing-up.json").read_text())
     assert plan["goal_error"] < 0.1 and len(plan["u"]) == 21, plan["goal_error"]
@@ -195,3 +207,40 @@ def test_every_serve_flag_is_in_the_readme_table(graybox_bin):
         default = re.search(r"\[default: ([^\]]+)\]", entry)
         if default:
             assert default.group(1).split()[0] in table[flag], (flag, default.group(1), table[flag])
+
+
+def test_every_shell_block_is_tagged_to_run_or_skip():
+    """A shell block the test does not run must say why; an untagged one (or a command in an
+    indented block, which cannot carry a tag) fails, so a new walkthrough is run or excused."""
+    readme = (ROOT / "README.md").read_text()
+    untagged = []
+    for info, body in ANY_FENCE.findall(readme):
+        lang, _, tag = info.partition(" ")
+        if lang not in SHELLS and lang != "":
+            continue
+        run = re.fullmatch(r"readme-test:\w+", tag)
+        skip = re.fullmatch(r"readme-skip: \S.{5,}", tag)
+        if not (run or skip):
+            untagged.append(f"```{info}\n{body.splitlines()[0] if body else ''}")
+    outside = ANY_FENCE.sub("", readme)
+    untagged += [f"indented: {m.group(0).strip()}" for m in COMMAND.finditer(outside)]
+    assert not untagged, "README shell blocks without readme-test:/readme-skip: " + \
+        "\n".join(untagged)
+
+
+def test_the_robot_example_runs_as_written(walkthrough):
+    """The URDF example's block, verbatim from the repository with the service running and
+    nothing else set up (no graybox on PATH: the script finds the build), shortened by EPOCHS
+    as the README says; it identifies the arm and writes the robot where it says."""
+    _, env, done = walkthrough
+    assert done.returncode == 0, done.stderr
+    lang, script = blocks("urdf")
+    assert lang == "sh"
+    bare = os.pathsep.join(p for p in env["PATH"].split(os.pathsep)
+                           if not Path(p, "graybox").exists())
+    r = run_sh(script, {**env, "PATH": bare, "EPOCHS": "3"}, timeout=900)
+    assert r.returncode == 0, f"stdout:\n{r.stdout}\nstderr:\n{r.stderr}"
+    assert "| upper_arm.mass | 1.500 | 1.950 |" in r.stdout, r.stdout
+    written = re.search(r"(/\S+/identified_arm\.urdf)", r.stdout + r.stderr)
+    assert written and Path(written.group(1)).is_file(), r.stdout
+    assert "too stiff" not in r.stderr, r.stderr
