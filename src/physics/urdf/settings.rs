@@ -4,10 +4,13 @@
 //! carries what makes its friction steppable wherever it goes (a template upload, `--template
 //! arm.urdf`).
 
-use super::template::COULOMB_EPS;
 use super::tree::Tree;
 use crate::error::{Error, Result};
 use crate::physics::params::{PHYSICAL_MAX, POSITIVE_MIN};
+
+/// The default ε of the Coulomb term tanh(q̇/ε) (`UrdfDoc::coulomb_eps`): 0.01 rad/s or m/s,
+/// a smooth sign that is within 1% of ±1 beyond 0.03.
+pub const COULOMB_EPS: f64 = 0.01;
 
 fn bad(message: String) -> Error {
     Error::Unprocessable {

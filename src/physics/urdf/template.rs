@@ -75,9 +75,7 @@ pub const KIND: &str = "urdf";
 /// would take 64 times the QR's time and 16 times its memory per report).
 pub const BASE_PARAMETERS_MAX_BODIES: usize = 64;
 
-/// The default ε of the Coulomb term tanh(q̇/ε) (`UrdfDoc::coulomb_eps`): 0.01 rad/s or m/s,
-/// a smooth sign that is within 1% of ±1 beyond 0.03.
-pub const COULOMB_EPS: f64 = 0.01;
+pub use super::settings::COULOMB_EPS;
 
 /// What an identification can and cannot tell, said wherever a URDF model's values are shown.
 pub const IDENTIFIABILITY: &str = "motion data determines only combinations of the inertial \
