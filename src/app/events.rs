@@ -49,15 +49,22 @@ impl Feeds {
 impl App {
     /// A receiver of every job's changes: each job as it is after a change of state, epoch
     /// or losses, and every job submitted after the call.
-    pub fn follow_all_jobs(&self) -> broadcast::Receiver<Job> {
+    pub async fn follow_all_jobs(&self) -> Result<broadcast::Receiver<Job>> {
+        if let Some(tx) = self.all_jobs.tx.lock().expect("all-jobs lock").as_ref() {
+            return Ok(tx.subscribe());
+        }
+        // The newest job is read before the call returns, not by the poller when it first
+        // runs: a job submitted in between and finished before the first poll would have
+        // been neither new nor active to it, and never sent.
+        let after = self.store.max_job_seq().await?;
         let mut slot = self.all_jobs.tx.lock().expect("all-jobs lock");
         if let Some(tx) = slot.as_ref() {
-            return tx.subscribe();
+            return Ok(tx.subscribe());
         }
         let (tx, rx) = broadcast::channel(ALL_JOBS_BACKLOG);
         *slot = Some(tx.clone());
-        tokio::spawn(poll_all(self.clone(), tx));
-        rx
+        tokio::spawn(poll_all(self.clone(), tx, after));
+        Ok(rx)
     }
 
     /// A receiver of `id`'s progress, joining the job's poller or starting it.
@@ -124,8 +131,7 @@ async fn poll(app: App, id: String, tx: watch::Sender<JobProgress>) {
 
 /// Reads what changed every `POLL` and sends it; stops when nobody listens (checked under the
 /// lock subscribers take, so none joins a poller that is stopping).
-async fn poll_all(app: App, tx: broadcast::Sender<Job>) {
-    let mut after = app.store.max_job_seq().await.unwrap_or(0);
+async fn poll_all(app: App, tx: broadcast::Sender<Job>, mut after: i64) {
     let mut seen: HashMap<String, Job> = HashMap::new();
     loop {
         tokio::time::sleep(POLL).await;

@@ -119,7 +119,11 @@ async fn subscribe(app: &App, phase: Phase, jobs: &[String], n: usize) -> Result
     let mut s = Subscribed::default();
     match phase {
         Phase::Idle => {}
-        Phase::AllJobs => s._all_jobs = (0..n).map(|_| app.follow_all_jobs()).collect(),
+        Phase::AllJobs => {
+            for _ in 0..n {
+                s._all_jobs.push(app.follow_all_jobs().await?);
+            }
+        }
         Phase::OneJob | Phase::OwnJob => {
             for i in 0..n {
                 let job = if matches!(phase, Phase::OneJob) { 0 } else { i };

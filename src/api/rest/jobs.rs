@@ -34,8 +34,8 @@ pub fn routes() -> Router<RestState> {
 /// Server-sent events of every job: `job` with the job as it is after each change (state,
 /// epoch, losses) and for each new job; `resync` when this subscriber fell behind and should
 /// read the list again. One store poller serves every subscriber.
-async fn all_events(State(s): State<RestState>) -> impl IntoResponse {
-    let rx = s.app.follow_all_jobs();
+async fn all_events(State(s): State<RestState>) -> ApiResult<impl IntoResponse> {
+    let rx = s.app.follow_all_jobs().await?;
     let stream = futures_util::stream::unfold(rx, |mut rx| async move {
         let event = match rx.recv().await {
             Ok(job) => Event::default().event("job").json_data(&job).expect("json"),
@@ -46,7 +46,7 @@ async fn all_events(State(s): State<RestState>) -> impl IntoResponse {
         };
         Some((Ok::<_, Infallible>(event), rx))
     });
-    Sse::new(stream).keep_alive(KeepAlive::default())
+    Ok(Sse::new(stream).keep_alive(KeepAlive::default()))
 }
 
 async fn submit(
