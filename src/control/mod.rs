@@ -2,6 +2,7 @@
 //! policy it defines, and trajectory optimisation (iLQR with control bounds).
 
 pub mod boxqp;
+pub mod dircol;
 pub mod linalg;
 pub mod plan;
 mod plan_request;
