@@ -241,3 +241,130 @@ fn batched_linearize_equals_single_points() {
         }
     }
 }
+
+/// The continuous dynamics direct collocation constrains by: f = (q̇, q̈) with q̈ the model's
+/// acceleration as Predict reports it, and its Jacobian against central differences of f
+/// (tolerance as for Linearize above), for every kind of part, batched.
+#[test]
+fn continuous_dynamics_and_its_jacobian_match_predict_and_central_differences() {
+    use graybox::control::dircol::Continuous;
+    let dev = f64_device();
+    for (name, spec, n, m, periodic) in cases().into_iter().filter(|c| {
+        c.0.starts_with("MVF/")
+            || c.0.starts_with("W-B")
+            || c.0.starts_with("naive/d")
+            || c.0.contains("periodic")
+    }) {
+        let (_, eval) = build(spec, n, m, periodic, &dev);
+        let (q, qd, u) = paper_samples(n, m, 40, 11);
+        let x: Vec<f64> = (0..q.len())
+            .flat_map(|i| [q[i].clone(), qd[i].clone()].concat())
+            .collect();
+        let u: Vec<f64> = u.concat();
+        let f = eval.derivative(&x, &u);
+        let acc = eval.predict(&x, &u, true).1.unwrap();
+        let nx = 2 * n;
+        for (i, row) in f.chunks(nx).enumerate() {
+            assert_eq!(row[..n], x[i * nx + n..(i + 1) * nx], "{name}: q̇");
+            assert!(
+                rel_err(&row[n..], &acc[i * n..(i + 1) * n]) < 1e-12,
+                "{name}: q̈"
+            );
+        }
+        let (a, b) = eval.derivative_jacobian(&x, &u);
+        let h = 1e-6;
+        for i in [0, 17, 39] {
+            let (xi, ui) = (&x[i * nx..(i + 1) * nx], &u[i * m..(i + 1) * m]);
+            let columns = central_columns(&|x, u| eval.derivative(x, u), xi, ui, h);
+            for (k, fd) in columns.iter().enumerate() {
+                let exact = column(&a[i], &b[i], k);
+                assert!(
+                    rel_err(&exact, fd) < 1e-6,
+                    "{name} row {i} direction {k}: {exact:?} vs {fd:?}"
+                );
+            }
+        }
+    }
+}
+
+/// A robot on the recursive algorithms (arm4, with friction): f's q̈ equals Predict's (which
+/// takes the recursive path) and its Jacobian (dual numbers through the generic path) matches
+/// central differences.
+#[test]
+fn a_robots_continuous_dynamics_match_its_recursive_path() {
+    use graybox::control::dircol::Continuous;
+    use graybox::physics::integrator::Integrator;
+    let urdf = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/urdf/arm4.urdf"
+    ))
+    .unwrap();
+    let t = Template::from_document(&serde_json::json!({"kind": "urdf", "urdf": urdf})).unwrap();
+    let file = ModelFile::from_template(&t, &t.defaults(), 0.01, Integrator::Rk4).unwrap();
+    let eval = Evaluator::from_file(&file).unwrap();
+    let (n, m) = (eval.config.n, eval.config.m);
+    let (q, qd, u) = paper_samples(n, m, 5, 4);
+    let x: Vec<f64> = (0..5)
+        .flat_map(|i| [q[i].clone(), qd[i].clone()].concat())
+        .collect();
+    let u: Vec<f64> = u.concat().iter().map(|v| v * 0.05).collect();
+    let f = eval.derivative(&x, &u);
+    let acc = eval.predict(&x, &u, true).1.unwrap();
+    let nx = 2 * n;
+    for i in 0..5 {
+        assert!(rel_err(&f[i * nx + n..(i + 1) * nx], &acc[i * n..(i + 1) * n]) < 1e-9);
+    }
+    let (a, b) = eval.derivative_jacobian(&x[..nx], &u[..m]);
+    let h = 1e-6;
+    let columns = central_columns(&|x, u| eval.derivative(x, u), &x[..nx], &u[..m], h);
+    for (k, fd) in columns.iter().enumerate() {
+        let exact = column(&a[0], &b[0], k);
+        assert!(
+            rel_err(&exact, fd) < 1e-6,
+            "direction {k}: {exact:?} vs {fd:?}"
+        );
+    }
+}
+
+/// Central differences of `f` at (x, u), one column per direction: x's, then u's.
+fn central_columns(
+    f: &dyn Fn(&[f64], &[f64]) -> Vec<f64>,
+    x: &[f64],
+    u: &[f64],
+    h: f64,
+) -> Vec<Vec<f64>> {
+    (0..x.len() + u.len())
+        .map(|k| {
+            let (mut xp, mut xm, mut up, mut um) = (x.to_vec(), x.to_vec(), u.to_vec(), u.to_vec());
+            if k < x.len() {
+                xp[k] += h;
+                xm[k] -= h;
+            } else {
+                up[k - x.len()] += h;
+                um[k - x.len()] -= h;
+            }
+            let (fp, fm) = (f(&xp, &up), f(&xm, &um));
+            fp.iter()
+                .zip(&fm)
+                .map(|(p, m)| (p - m) / (2.0 * h))
+                .collect()
+        })
+        .collect()
+}
+
+/// Column `k` of [A B].
+fn column(
+    a: &graybox::control::linalg::Mat,
+    b: &graybox::control::linalg::Mat,
+    k: usize,
+) -> Vec<f64> {
+    (0..a.rows)
+        .map(|r| {
+            if k < a.cols {
+                a.at(r, k)
+            } else {
+                b.at(r, k - a.cols)
+            }
+        })
+        .collect()
+}

@@ -6,6 +6,7 @@
 //! Weights come from the model file (Burn's layout: Linear weights `[in, out]`).
 
 pub mod col;
+mod continuous;
 pub mod horizons;
 pub mod jet;
 pub mod limits;
@@ -29,7 +30,6 @@ use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::Structure;
-use crate::physics::dual::Dual;
 use crate::physics::dynamics::acceleration;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 use crate::physics::scalar::Scalar;
@@ -315,25 +315,7 @@ impl Evaluator {
 
     /// Per sample, per output coordinate, the row [∂x'_i/∂x, ∂x'_i/∂u].
     fn jacobian_rows<C: Column>(&self, x: Vec<C>, u: Vec<C>) -> Vec<f64> {
-        let (nx, dirs) = (x.len(), x.len() + u.len());
-        let var = |k: usize, c: C| {
-            let one = c.lift(1.0);
-            Dual::variable(c, k, dirs, one)
-        };
-        let xd: Vec<Dual<C>> = x.into_iter().enumerate().map(|(k, c)| var(k, c)).collect();
-        let ud: Vec<Dual<C>> = u
-            .into_iter()
-            .enumerate()
-            .map(|(k, c)| var(nx + k, c))
-            .collect();
-        let y = self.step(&xd, &ud);
-        (0..y[0].v.rows())
-            .flat_map(|b| {
-                y.iter().flat_map(move |yi| {
-                    (0..dirs).map(move |k| yi.tangent(k).map_or(0.0, |t| t.get(b)))
-                })
-            })
-            .collect()
+        continuous::dual_rows(x, u, |x, u| self.step(x, u))
     }
 
     /// Runs `f` over a batch in chunks whose intermediate work is bounded (see [`limits`]),

@@ -1,0 +1,87 @@
+//! The model's continuous dynamics ẋ = f(x, u) = (q̇, q̈(q, q̇, u)) and its exact Jacobians,
+//! for direct collocation (`control::dircol`), which constrains knot states by f rather than
+//! by the integrator's one-step map. The Jacobians are dual numbers pushed through q̈ alone,
+//! as Linearize pushes them through a whole step.
+
+use super::Evaluator;
+use super::col::{Col, Column};
+use super::limits::Pass;
+use super::{columns, to_rows};
+use crate::control::dircol::Continuous;
+use crate::control::linalg::Mat;
+use crate::physics::dual::Dual;
+
+impl Evaluator {
+    /// f at each row of `[B, 2n]` states and `[B, m]` inputs: q̇, then q̈.
+    fn derivative_rows<C: Column>(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        let (n, m) = (self.config.n, self.config.m);
+        let xc: Vec<C> = columns(x, 2 * n);
+        let uc: Vec<C> = columns(u, m);
+        let acc = self.accel(&xc[..n], &xc[n..], &uc);
+        let mut cols = xc[n..].to_vec();
+        cols.extend(acc);
+        to_rows(&cols)
+    }
+
+    /// Per row, per output coordinate of f, the row [∂f_i/∂x, ∂f_i/∂u].
+    fn derivative_jacobian_rows<C: Column>(&self, x: Vec<C>, u: Vec<C>) -> Vec<f64> {
+        let n = self.config.n;
+        dual_rows(x, u, |x, u| {
+            let mut f = x[n..].to_vec();
+            f.extend(self.accel(&x[..n], &x[n..], u));
+            f
+        })
+    }
+}
+
+/// `f`'s Jacobian at each row of the columns `x` and `u`: every coordinate a dual variable
+/// (x's then u's directions); per row, per output, the row [∂f_i/∂x, ∂f_i/∂u].
+pub(super) fn dual_rows<C: Column>(
+    x: Vec<C>,
+    u: Vec<C>,
+    f: impl FnOnce(&[Dual<C>], &[Dual<C>]) -> Vec<Dual<C>>,
+) -> Vec<f64> {
+    let (nx, dirs) = (x.len(), x.len() + u.len());
+    let var = |k: usize, c: C| {
+        let one = c.lift(1.0);
+        Dual::variable(c, k, dirs, one)
+    };
+    let xd: Vec<Dual<C>> = x.into_iter().enumerate().map(|(k, c)| var(k, c)).collect();
+    let ud: Vec<Dual<C>> = (u.into_iter().enumerate())
+        .map(|(k, c)| var(nx + k, c))
+        .collect();
+    let y = f(&xd, &ud);
+    (0..y[0].v.rows())
+        .flat_map(|b| {
+            y.iter()
+                .flat_map(move |yi| (0..dirs).map(move |k| yi.tangent(k).map_or(0.0, |t| t.get(b))))
+        })
+        .collect()
+}
+
+impl Continuous for Evaluator {
+    fn nx(&self) -> usize {
+        2 * self.config.n
+    }
+    fn m(&self) -> usize {
+        self.config.m
+    }
+    fn derivative(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        let parts = self.split(x, u, Pass::Step, &|| false, |x, u| {
+            self.derivative_rows::<Col>(x, u)
+        });
+        parts.expect("never stopped").concat()
+    }
+    fn derivative_jacobian(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let parts = self.split(x, u, Pass::Linearize, &|| false, |x, u| {
+            self.derivative_jacobian_rows(columns::<Col>(x, nx), columns(u, m))
+        });
+        let (mut a, mut b) = (Vec::with_capacity(x.len() * nx), Vec::new());
+        for row in parts.expect("never stopped").concat().chunks(nx + m) {
+            a.extend(&row[..nx]);
+            b.extend(&row[nx..]);
+        }
+        self.jacobians(a, b)
+    }
+}
