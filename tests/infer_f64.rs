@@ -275,7 +275,7 @@ fn continuous_dynamics_and_its_jacobian_match_predict_and_central_differences() 
         let h = 1e-6;
         for i in [0, 17, 39] {
             let (xi, ui) = (&x[i * nx..(i + 1) * nx], &u[i * m..(i + 1) * m]);
-            let columns = central_columns(&|x, u| eval.derivative(x, u), xi, ui, h);
+            let columns = central_columns(|x, u| eval.derivative(x, u), xi, ui, h);
             for (k, fd) in columns.iter().enumerate() {
                 let exact = column(&a[i], &b[i], k);
                 assert!(
@@ -316,7 +316,7 @@ fn a_robots_continuous_dynamics_match_its_recursive_path() {
     }
     let (a, b) = eval.derivative_jacobian(&x[..nx], &u[..m]);
     let h = 1e-6;
-    let columns = central_columns(&|x, u| eval.derivative(x, u), &x[..nx], &u[..m], h);
+    let columns = central_columns(|x, u| eval.derivative(x, u), &x[..nx], &u[..m], h);
     for (k, fd) in columns.iter().enumerate() {
         let exact = column(&a[0], &b[0], k);
         assert!(
@@ -328,7 +328,7 @@ fn a_robots_continuous_dynamics_match_its_recursive_path() {
 
 /// Central differences of `f` at (x, u), one column per direction: x's, then u's.
 fn central_columns(
-    f: &dyn Fn(&[f64], &[f64]) -> Vec<f64>,
+    f: impl Fn(&[f64], &[f64]) -> Vec<f64>,
     x: &[f64],
     u: &[f64],
     h: f64,
