@@ -8,9 +8,10 @@ use clap::Args;
 use serde_json::json;
 
 use crate::control::linalg::Mat;
+use crate::control::make_plan;
 use crate::control::plan::{
-    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, PlanRequest,
-    check_horizon, plan,
+    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, Method, PlanRequest,
+    check_horizon,
 };
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
@@ -63,6 +64,14 @@ pub struct PlanArgs {
     /// Return the best plan so far after this many milliseconds (0: no limit).
     #[arg(long, default_value_t = 0)]
     pub time_limit_ms: u64,
+    /// ilqr (single shooting on the model's one-step map) or dircol (direct collocation on
+    /// its continuous dynamics); docs/control.md says when to pick which.
+    #[arg(long, default_value = "ilqr")]
+    pub method: String,
+    /// dircol's initial states: `line` (straight from x0 to the goal) or a JSON file of T+1
+    /// rows of 2n values (default: the rollout of zero inputs).
+    #[arg(long)]
+    pub x_init: Option<String>,
     /// Where to write the plan (JSON: x, u, K, costs, goal_error; a summary goes to stdout).
     #[arg(long)]
     pub out: PathBuf,
@@ -114,6 +123,12 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
         u_min: bound("u_min", &a.u_min)?,
         u_max: bound("u_max", &a.u_max)?,
         u_init: None,
+        x_init: a
+            .x_init
+            .as_deref()
+            .map(|s| initial_states(s, a, nx))
+            .transpose()?,
+        method: Method::parse(&a.method)?,
         max_iterations: a.max_iterations,
         tolerance: a.tolerance,
         restarts: a.restarts,
@@ -122,6 +137,40 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
             .then(|| Instant::now().checked_add(Duration::from_millis(a.time_limit_ms)))
             .flatten(),
     })
+}
+
+/// `--x-init`: `line`, or a JSON file's `[[…2n values], …]` rows.
+fn initial_states(text: &str, a: &PlanArgs, nx: usize) -> Result<Mat> {
+    let rows = usize::try_from(a.horizon)
+        .unwrap_or(usize::MAX)
+        .saturating_add(1);
+    if text == "line" {
+        let (x0, goal) = (values("x0", &a.x0, nx)?, values("goal", &a.goal, nx)?);
+        let data = (0..rows).flat_map(|k| {
+            let s = k as f64 / (rows - 1) as f64;
+            x0.iter()
+                .zip(&goal)
+                .map(move |(a, b)| a + s * (b - a))
+                .collect::<Vec<_>>()
+        });
+        return Ok(Mat::new(rows, nx, data.collect()));
+    }
+    let bytes = std::fs::read(text)
+        .map_err(|e| Error::invalid("x_init", format!("cannot read {text}: {e}")))?;
+    let parsed: Vec<Vec<f64>> = serde_json::from_slice(&bytes).map_err(|e| {
+        Error::invalid(
+            "x_init",
+            format!("{text} is not a JSON list of rows of numbers: {e}"),
+        )
+    })?;
+    let cols = parsed.first().map_or(0, Vec::len);
+    if let Some(i) = parsed.iter().position(|r| r.len() != cols) {
+        return Err(Error::invalid(
+            "x_init",
+            format!("row {i} has {} values, row 0 has {cols}", parsed[i].len()),
+        ));
+    }
+    Ok(Mat::new(parsed.len(), cols, parsed.concat()))
 }
 
 pub(super) fn run(a: PlanArgs) -> Result<()> {
@@ -135,7 +184,7 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
         eprintln!("warning: {}", w.message);
     }
     let started = Instant::now();
-    let p = plan(&eval, &req, &|| false)?;
+    let p = make_plan(&eval, &req, &|| false)?;
     let seconds = started.elapsed().as_secs_f64();
     let rows =
         |v: &[f64], w: usize| -> Vec<Vec<f64>> { v.chunks(w).map(<[f64]>::to_vec).collect() };
@@ -144,6 +193,8 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
         "x": rows(&p.x, nx), "u": rows(&p.u, m), "K": k, "cost": p.cost, "costs": p.costs,
         "iterations": p.iterations, "converged": p.converged, "goal_error": p.goal_error,
         "dt": eval.config.dt, "u_min": req.u_min, "u_max": req.u_max, "seconds": seconds,
+        "method": p.method.name(), "constraint_violation": p.constraint_violation,
+        "rollout_deviation": p.rollout_deviation,
     });
     write_atomic(
         &a.out,
@@ -151,8 +202,9 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
     )?;
     println!(
         "{}",
-        json!({"out": a.out, "cost": p.cost, "iterations": p.iterations,
-               "converged": p.converged, "goal_error": p.goal_error, "seconds": seconds})
+        json!({"out": a.out, "method": p.method.name(), "cost": p.cost,
+               "iterations": p.iterations, "converged": p.converged, "goal_error": p.goal_error,
+               "constraint_violation": p.constraint_violation, "seconds": seconds})
     );
     Ok(())
 }

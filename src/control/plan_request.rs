@@ -16,6 +16,38 @@ pub const MAX_RESTARTS: usize = 1000;
 /// default: the plan's arrays grow with it (a billion steps aborted on allocation).
 pub const DEFAULT_MAX_PLAN_HORIZON: usize = 10_000;
 
+/// How a plan is made (docs/control.md): iLQR on the one-step map, or direct collocation on
+/// the continuous dynamics.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Method {
+    #[default]
+    Ilqr,
+    Dircol,
+}
+
+impl Method {
+    pub const NAMES: [&str; 2] = ["ilqr", "dircol"];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Ilqr => "ilqr",
+            Method::Dircol => "dircol",
+        }
+    }
+
+    /// From its name; empty is the default (iLQR). An unknown one names the field.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "" | "ilqr" => Ok(Method::Ilqr),
+            "dircol" => Ok(Method::Dircol),
+            other => Err(Error::invalid(
+                "method",
+                format!("unknown method {other:?}; expected one of ilqr, dircol"),
+            )),
+        }
+    }
+}
+
 /// What to plan: the one request type that `graybox plan`, the gRPC `Plan` call and the lab
 /// build. Arrays are row-major; `u_init` is `[T, m]`.
 #[derive(Debug, Clone)]
@@ -29,6 +61,10 @@ pub struct PlanRequest {
     pub u_min: Option<Vec<f64>>,
     pub u_max: Option<Vec<f64>>,
     pub u_init: Option<Mat>,
+    /// Collocation's initial states `[T+1, nx]` (its first row is x0's place and is replaced
+    /// by x0); absent, the rollout of the initial inputs. iLQR refuses it.
+    pub x_init: Option<Mat>,
+    pub method: Method,
     /// 0: no iteration; the plan is the rollout of the best start, with its gains.
     pub max_iterations: usize,
     pub tolerance: f64,
@@ -53,6 +89,8 @@ impl PlanRequest {
             u_min: None,
             u_max: None,
             u_init: None,
+            x_init: None,
+            method: Method::Ilqr,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             tolerance: DEFAULT_TOLERANCE,
             restarts: 0,
@@ -139,6 +177,27 @@ pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
             ));
         }
         finite("u_init", &u.data, req.horizon.saturating_mul(m))?;
+    }
+    if let Some(x) = &req.x_init {
+        if req.method != Method::Dircol {
+            return Err(Error::invalid(
+                "x_init",
+                "only direct collocation (method dircol) takes initial states; iLQR's \
+                 states are the rollout of its inputs",
+            ));
+        }
+        if x.rows != req.horizon.saturating_add(1) || x.cols != nx {
+            return Err(Error::invalid(
+                "x_init",
+                format!(
+                    "needs [{}, {nx}] (the horizon + 1, 2n), got [{}, {}]",
+                    req.horizon.saturating_add(1),
+                    x.rows,
+                    x.cols
+                ),
+            ));
+        }
+        finite("x_init", &x.data, x.rows.saturating_mul(nx))?;
     }
     if !(req.tolerance.is_finite() && req.tolerance >= 0.0) {
         return Err(Error::invalid("tolerance", "must be a finite number ≥ 0"));

@@ -66,6 +66,9 @@ impl Continuous for Evaluator {
     fn m(&self) -> usize {
         self.config.m
     }
+    fn dt(&self) -> f64 {
+        self.config.dt
+    }
     fn derivative(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
         let parts = self.split(x, u, Pass::Step, &|| false, |x, u| {
             self.derivative_rows::<Col>(x, u)

@@ -10,7 +10,7 @@ use crate::api::echo::{MESSAGE_LIMIT, bounded};
 use crate::app::views::ModelView;
 use crate::array::Array;
 use crate::control::linalg::Mat;
-use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, PlanRequest};
+use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, Method, PlanRequest};
 use crate::error::Error;
 
 impl From<Error> for Status {
@@ -81,6 +81,10 @@ pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
         u_init: (r.u_init)
             .map(|a| matrix("u_init", "u_init", Some(a)))
             .transpose()?,
+        x_init: (r.x_init)
+            .map(|a| matrix("x_init", "x_init", Some(a)))
+            .transpose()?,
+        method: Method::parse(&r.method)?,
         max_iterations: r
             .max_iterations
             .map_or(DEFAULT_MAX_ITERATIONS, |v| v as usize),

@@ -158,6 +158,9 @@ impl Dynamics for DynamicsService {
             iterations: p.iterations as u32,
             converged: p.converged,
             goal_error: p.goal_error,
+            method: p.method.name().to_string(),
+            constraint_violation: p.constraint_violation,
+            rollout_deviation: p.rollout_deviation,
         }))
     }
 

@@ -181,19 +181,20 @@ impl App {
         if small {
             f(&|| false).ok_or_else(|| Error::Internal(format!("the {what} stopped by itself")))
         } else {
-            self.heavy_until(what, deadline, f).await
+            self.heavy_until(what, deadline, |stop| f(stop)).await
         }
     }
 
     /// `f` as a heavy call, given a `stop` that turns true at the caller's deadline or when
     /// the caller goes away; `f` returns `None` when it stopped. A computation that never
     /// asked once held its permit long after its caller had given up, so every loop a request
-    /// drives polls it. The answer leaves at the deadline, not at `f`'s next check.
+    /// drives polls it. The answer leaves at the deadline, not at `f`'s next check. `stop` is
+    /// `Sync` so that a solver running code of its own may poll it from a second thread.
     async fn heavy_until<T: Send + 'static>(
         &self,
         what: &str,
         deadline: Option<Instant>,
-        f: impl FnOnce(&dyn Fn() -> bool) -> Option<T> + Send + 'static,
+        f: impl FnOnce(&(dyn Fn() -> bool + Sync)) -> Option<T> + Send + 'static,
     ) -> Result<T> {
         let gone = Arc::new(AtomicBool::new(false));
         let _guard = Gone(gone.clone());

@@ -6,7 +6,8 @@ use std::time::Instant;
 
 use super::Cost;
 use crate::app::App;
-use crate::control::plan::{Plan, PlanRequest, check_horizon, plan, validate};
+use crate::control::make_plan;
+use crate::control::plan::{Plan, PlanRequest, check_horizon, validate};
 use crate::error::{Error, Result};
 use crate::infer::limits::Pass;
 
@@ -43,7 +44,7 @@ impl App {
         )?;
         // The solver polls `stop` at every time step of every pass (`control::plan`).
         self.heavy_until("plan", deadline, move |stop| {
-            match plan(eval.as_ref(), &req, stop) {
+            match make_plan(eval.as_ref(), &req, stop) {
                 Err(Error::Cancelled) => None,
                 done => Some(done),
             }

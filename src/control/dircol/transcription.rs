@@ -1,17 +1,26 @@
-//! Hermite–Simpson collocation in its separated form: each interval's midpoint state and
-//! input are variables of their own, with two defects per interval,
+//! Hermite–Simpson collocation in its separated form, with the inputs held over each interval
+//! as the model's one-step map holds them (zero-order hold): interval k's input u_k drives f at
+//! its start, its midpoint and its end, and its midpoint state x_c is a variable of its own.
+//! Two defects per interval,
 //!
-//!   Simpson:  x_{k+1} − x_k − h/6 (f_k + 4 f_c + f_{k+1}) = 0
-//!   Hermite:  x_c − (x_k + x_{k+1})/2 − h/8 (f_k − f_{k+1}) = 0,
+//!   Simpson:  x_{k+1} − x_k − h/6 (f_s + 4 f_c + f_e) = 0
+//!   Hermite:  x_c − (x_k + x_{k+1})/2 − h/8 (f_s − f_e) = 0,
 //!
-//! f_k = f(x_k, u_k), f_c = f(x_c, u_c). Separated rather than compressed (x_c eliminated):
-//! each defect then touches only its own interval's variables through f's Jacobians at
-//! single points, so the constraint Jacobian is block-banded with small dense blocks, which
-//! a sparse solver factors in time linear in T; the compressed form saves the midpoint
-//! states but couples each f_c to both knots through a chain rule.
+//! f_s = f(x_k, u_k), f_c = f(x_c, u_k), f_e = f(x_{k+1}, u_k). Separated rather than
+//! compressed (x_c eliminated): each defect then touches only its own interval's variables
+//! through f's Jacobians at single points, so the constraint Jacobian is block-banded with
+//! small dense blocks, which a sparse solver factors in time linear in T; the compressed form
+//! saves the midpoint states but couples each f_c to both knots through a chain rule.
 //!
-//! Variables are ordered knot by knot, `[x_0, u_0, x_c0, u_c0, x_1, u_1, …, x_T, u_T]`, so
-//! that the KKT system's bandwidth is one interval's.
+//! Held inputs rather than inputs interpolated between knots: the collocated trajectory then
+//! approximates the very ODE the one-step map integrates, so a plan's inputs are the ones the
+//! map (and a tracking controller) applies, its cost is iLQR's term for term with no
+//! midpoint or final input left uncosted, and the rollout of its inputs departs from its
+//! states only by the two integrators' differences. The price is a third evaluation of f per
+//! interval (at x_{k+1} under u_k as well as under u_{k+1}).
+//!
+//! Variables are ordered knot by knot, `[x_0, u_0, x_c0, x_1, u_1, x_c1, …, x_T]`, so that the
+//! KKT system's bandwidth is one interval's.
 
 use super::Continuous;
 use crate::control::linalg::Mat;
@@ -21,14 +30,14 @@ use crate::control::linalg::Mat;
 pub struct Layout {
     pub nx: usize,
     pub m: usize,
-    /// Intervals (T): T + 1 knots, T midpoints.
+    /// Intervals (T): T + 1 knots, T inputs, T midpoints.
     pub intervals: usize,
 }
 
 impl Layout {
-    /// One interval's variables: a knot and a midpoint, each a state and an input.
+    /// One interval's variables: its knot state, its input and its midpoint state.
     fn stride(&self) -> usize {
-        2 * (self.nx + self.m)
+        2 * self.nx + self.m
     }
     pub fn x(&self, k: usize) -> usize {
         k * self.stride()
@@ -39,12 +48,9 @@ impl Layout {
     pub fn xc(&self, k: usize) -> usize {
         self.u(k) + self.m
     }
-    pub fn uc(&self, k: usize) -> usize {
-        self.xc(k) + self.nx
-    }
-    /// Decision variables: T intervals, then the last knot.
+    /// Decision variables: T intervals, then the last knot's state.
     pub fn len(&self) -> usize {
-        self.x(self.intervals) + self.nx + self.m
+        self.x(self.intervals) + self.nx
     }
     pub fn is_empty(&self) -> bool {
         self.len() == 0
@@ -54,78 +60,95 @@ impl Layout {
         2 * self.nx * self.intervals
     }
 
-    /// The knot states and inputs `[T+1, nx]`, `[T+1, m]`, then the midpoints' `[T, nx]`,
-    /// `[T, m]`: the points f is needed at, in the batches [`Continuous`] takes.
-    fn points(&self, z: &[f64]) -> ([Vec<f64>; 2], [Vec<f64>; 2]) {
-        let gather = |at: &dyn Fn(usize) -> usize, width: usize, count: usize| -> Vec<f64> {
-            (0..count)
-                .flat_map(|k| z[at(k)..at(k) + width].iter().copied())
-                .collect()
-        };
-        let knots = self.intervals + 1;
-        (
-            [
-                gather(&|k| self.x(k), self.nx, knots),
-                gather(&|k| self.u(k), self.m, knots),
-            ],
-            [
-                gather(&|k| self.xc(k), self.nx, self.intervals),
-                gather(&|k| self.uc(k), self.m, self.intervals),
-            ],
-        )
+    /// The points f is needed at, as one batch `[3T, nx]`, `[3T, m]`: every interval's start,
+    /// then every midpoint, then every end, each under the interval's input.
+    fn points(&self, z: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let t = self.intervals;
+        let (mut x, mut u) = (
+            Vec::with_capacity(3 * t * self.nx),
+            Vec::with_capacity(3 * t * self.m),
+        );
+        for at in [
+            |l: &Self, k| l.x(k),
+            |l: &Self, k| l.xc(k),
+            |l: &Self, k| l.x(k + 1),
+        ] {
+            for k in 0..t {
+                x.extend_from_slice(&z[at(self, k)..][..self.nx]);
+                u.extend_from_slice(&z[self.u(k)..][..self.m]);
+            }
+        }
+        (x, u)
     }
 }
 
 /// The defects at `z`, interval by interval: Simpson's nx rows, then Hermite's.
 pub fn defects(sys: &dyn Continuous, l: &Layout, z: &[f64], h: f64) -> Vec<f64> {
-    let ([xk, uk], [xc, uc]) = l.points(z);
-    let (fk, fc) = (sys.derivative(&xk, &uk), sys.derivative(&xc, &uc));
-    let nx = l.nx;
+    let (x, u) = l.points(z);
+    let f = sys.derivative(&x, &u);
+    let (nx, t) = (l.nx, l.intervals);
     let mut out = Vec::with_capacity(l.defects());
-    for k in 0..l.intervals {
-        let (x0, x1) = (&z[l.x(k)..l.x(k) + nx], &z[l.x(k + 1)..l.x(k + 1) + nx]);
-        let mid = &z[l.xc(k)..l.xc(k) + nx];
-        let (f0, f1, fm) = (
-            &fk[k * nx..][..nx],
-            &fk[(k + 1) * nx..][..nx],
-            &fc[k * nx..][..nx],
+    for k in 0..t {
+        let (x0, x1) = (&z[l.x(k)..][..nx], &z[l.x(k + 1)..][..nx]);
+        let mid = &z[l.xc(k)..][..nx];
+        let (fs, fc, fe) = (
+            &f[k * nx..][..nx],
+            &f[(t + k) * nx..][..nx],
+            &f[(2 * t + k) * nx..][..nx],
         );
-        out.extend((0..nx).map(|i| x1[i] - x0[i] - h / 6.0 * (f0[i] + 4.0 * fm[i] + f1[i])));
-        out.extend((0..nx).map(|i| mid[i] - 0.5 * (x0[i] + x1[i]) - h / 8.0 * (f0[i] - f1[i])));
+        out.extend((0..nx).map(|i| x1[i] - x0[i] - h / 6.0 * (fs[i] + 4.0 * fc[i] + fe[i])));
+        out.extend((0..nx).map(|i| mid[i] - 0.5 * (x0[i] + x1[i]) - h / 8.0 * (fs[i] - fe[i])));
     }
     out
 }
 
 /// The defects' Jacobian at `z` as (row, column, value) triplets, exact from f's Jacobians;
-/// rows as [`defects`] orders them. Every entry of every block is listed, zeros too, so that
-/// the pattern is the same at every `z` and a solver's symbolic factorisation is reused.
+/// rows as [`defects`] orders them, no (row, column) twice. Every entry of every block is
+/// listed, zeros too, so that the pattern is the same at every `z` and a solver's symbolic
+/// factorisation is reused.
 pub fn defect_jacobian(
     sys: &dyn Continuous,
     l: &Layout,
     z: &[f64],
     h: f64,
 ) -> Vec<(usize, usize, f64)> {
-    let ([xk, uk], [xc, uc]) = l.points(z);
-    let ((ak, bk), (ac, bc)) = (
-        sys.derivative_jacobian(&xk, &uk),
-        sys.derivative_jacobian(&xc, &uc),
-    );
-    let mut out = vec![];
-    for k in 0..l.intervals {
+    let (x, u) = l.points(z);
+    let (a, b) = sys.derivative_jacobian(&x, &u);
+    let t = l.intervals;
+    let mut out = Vec::with_capacity(l.intervals * 2 * l.nx * (4 * l.nx + l.m));
+    for k in 0..t {
         let (simpson, hermite) = (2 * l.nx * k, 2 * l.nx * k + l.nx);
-        // Simpson: ∂/∂x_k = −I − h/6 A_k, ∂/∂x_c = −4h/6 A_c, ∂/∂x_{k+1} = I − h/6 A_{k+1}.
-        block(&mut out, simpson, l.x(k), &ak[k], -h / 6.0, -1.0);
-        block(&mut out, simpson, l.u(k), &bk[k], -h / 6.0, 0.0);
-        block(&mut out, simpson, l.xc(k), &ac[k], -4.0 * h / 6.0, 0.0);
-        block(&mut out, simpson, l.uc(k), &bc[k], -4.0 * h / 6.0, 0.0);
-        block(&mut out, simpson, l.x(k + 1), &ak[k + 1], -h / 6.0, 1.0);
-        block(&mut out, simpson, l.u(k + 1), &bk[k + 1], -h / 6.0, 0.0);
-        // Hermite: ∂/∂x_k = −I/2 − h/8 A_k, ∂/∂x_c = I, ∂/∂x_{k+1} = −I/2 + h/8 A_{k+1}.
-        block(&mut out, hermite, l.x(k), &ak[k], -h / 8.0, -0.5);
-        block(&mut out, hermite, l.u(k), &bk[k], -h / 8.0, 0.0);
+        let (s, c, e) = (k, t + k, 2 * t + k);
+        // Simpson: ∂/∂x_k = −I − h/6 A_s, ∂/∂x_c = −4h/6 A_c, ∂/∂x_{k+1} = I − h/6 A_e,
+        // ∂/∂u_k = −h/6 (B_s + 4 B_c + B_e).
+        block(&mut out, simpson, l.x(k), &a[s], -h / 6.0, -1.0);
+        let bs = combine(&[
+            (&b[s], -h / 6.0),
+            (&b[c], -4.0 * h / 6.0),
+            (&b[e], -h / 6.0),
+        ]);
+        block(&mut out, simpson, l.u(k), &bs, 1.0, 0.0);
+        block(&mut out, simpson, l.xc(k), &a[c], -4.0 * h / 6.0, 0.0);
+        block(&mut out, simpson, l.x(k + 1), &a[e], -h / 6.0, 1.0);
+        // Hermite: ∂/∂x_k = −I/2 − h/8 A_s, ∂/∂x_c = I, ∂/∂x_{k+1} = −I/2 + h/8 A_e,
+        // ∂/∂u_k = −h/8 (B_s − B_e).
+        block(&mut out, hermite, l.x(k), &a[s], -h / 8.0, -0.5);
+        let bh = combine(&[(&b[s], -h / 8.0), (&b[e], h / 8.0)]);
+        block(&mut out, hermite, l.u(k), &bh, 1.0, 0.0);
         out.extend((0..l.nx).map(|i| (hermite + i, l.xc(k) + i, 1.0)));
-        block(&mut out, hermite, l.x(k + 1), &ak[k + 1], h / 8.0, -0.5);
-        block(&mut out, hermite, l.u(k + 1), &bk[k + 1], h / 8.0, 0.0);
+        block(&mut out, hermite, l.x(k + 1), &a[e], h / 8.0, -0.5);
+    }
+    out
+}
+
+/// Σ scale · matrix.
+fn combine(terms: &[(&Mat, f64)]) -> Mat {
+    let (rows, cols) = (terms[0].0.rows, terms[0].0.cols);
+    let mut out = Mat::zeros(rows, cols);
+    for (m, s) in terms {
+        for (o, v) in out.data.iter_mut().zip(&m.data) {
+            *o += s * v;
+        }
     }
     out
 }
@@ -174,6 +197,9 @@ mod tests {
         }
         fn m(&self) -> usize {
             2
+        }
+        fn dt(&self) -> f64 {
+            0.1
         }
         fn derivative(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
             x.chunks(4)
@@ -247,9 +273,9 @@ mod tests {
                 );
             }
         }
-        // Every block listed, zeros too: 2 defects × (4 state blocks + 4 input blocks) per
-        // interval, less the Hermite defect's input block at the midpoint, plus its identity.
-        let per_interval = 2 * 4 * (3 * 4 + 3 * 2) - 4 * 2 - 4 * 4 + 4;
+        // Every block listed, zeros too: Simpson's three state blocks and one input block,
+        // Hermite's two state blocks, its input block and its identity at the midpoint.
+        let per_interval = 4 * (3 * 4 + 2) + 4 * (2 * 4 + 2) + 4;
         assert_eq!(
             defect_jacobian(&TwoPendulums, &l, &z, h).len(),
             5 * per_interval
@@ -267,6 +293,9 @@ mod tests {
             }
             fn m(&self) -> usize {
                 1
+            }
+            fn dt(&self) -> f64 {
+                0.05
             }
             fn derivative(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
                 x.chunks(2).zip(u).flat_map(|(x, u)| [x[1], *u]).collect()
@@ -295,6 +324,8 @@ mod tests {
                 z[l.xc(k)..l.xc(k) + 2].copy_from_slice(&state((k as f64 + 0.5) * h));
             }
         }
+        // Every variable has one place: 8 intervals of (x_k, u_k, x_c), then x_T.
+        assert_eq!(l.len(), 8 * 5 + 2);
         let worst = defects(&DoubleIntegrator, &l, &z, h)
             .iter()
             .fold(0.0f64, |m, d| m.max(d.abs()));

@@ -7,7 +7,7 @@ use crate::error::Result;
 
 impl<D: Dynamics> Planner<'_, D> {
     /// The open-loop rollout of `u` from x0.
-    pub(super) fn rollout(&self, u: Vec<f64>) -> Result<Trajectory> {
+    pub(in crate::control) fn rollout(&self, u: Vec<f64>) -> Result<Trajectory> {
         let (nx, m) = (self.sys.nx(), self.sys.m());
         let mut x = self.req.x0.clone();
         for s in 0..self.req.horizon {

@@ -26,8 +26,8 @@ mod forward;
 use std::time::Instant;
 
 pub use super::plan_request::{
-    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, MAX_RESTARTS, PlanRequest,
-    check_horizon, validate,
+    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, MAX_RESTARTS, Method,
+    PlanRequest, check_horizon, validate,
 };
 
 use super::linalg::Mat;
@@ -48,7 +48,11 @@ pub trait Dynamics {
 
 /// A plan: states `[T+1, nx]`, inputs `[T, m]`, TVLQR gains along it with the request's
 /// weights, its cost, the cost of the initial guess and after every accepted iteration
-/// (non-increasing), and whether it converged.
+/// (non-increasing for iLQR; collocation's merit, not its cost, decreases), whether it
+/// converged, and the method that made it. Collocation's states satisfy the continuous
+/// dynamics up to `constraint_violation` (its largest defect) and depart from the one-step
+/// map's rollout of its inputs by up to `rollout_deviation`; both are 0 for iLQR, whose plan
+/// is that rollout.
 #[derive(Debug, Clone)]
 pub struct Plan {
     pub x: Vec<f64>,
@@ -59,6 +63,9 @@ pub struct Plan {
     pub iterations: usize,
     pub converged: bool,
     pub goal_error: f64,
+    pub method: Method,
+    pub constraint_violation: f64,
+    pub rollout_deviation: f64,
 }
 
 const STEP_SIZES: usize = 10;
@@ -74,7 +81,7 @@ pub(super) struct Bounds {
 }
 
 impl Bounds {
-    fn clamp(&self, u: &mut [f64]) {
+    pub(super) fn clamp(&self, u: &mut [f64]) {
         let m = self.lo.len();
         for (i, v) in u.iter_mut().enumerate() {
             *v = v.max(self.lo[i % m]).min(self.hi[i % m]);
@@ -89,8 +96,19 @@ impl Bounds {
 pub(super) struct Trajectory {
     pub(super) x: Vec<f64>,
     pub(super) u: Vec<f64>,
-    cost: f64,
+    pub(super) cost: f64,
     jacobians: Option<(Vec<Mat>, Vec<Mat>)>,
+}
+
+impl Trajectory {
+    pub(super) fn new(x: Vec<f64>, u: Vec<f64>, cost: f64) -> Self {
+        Self {
+            x,
+            u,
+            cost,
+            jacobians: None,
+        }
+    }
 }
 
 /// The planner for one request on one system.
@@ -98,7 +116,7 @@ pub(super) struct Planner<'a, D: Dynamics> {
     pub(super) sys: &'a D,
     pub(super) req: &'a PlanRequest,
     pub(super) bounds: Bounds,
-    stop: &'a dyn Fn() -> bool,
+    pub(super) stop: &'a dyn Fn() -> bool,
 }
 
 /// A locally optimal plan (the best of `1 + restarts` starts), or an error naming the field
@@ -107,22 +125,11 @@ pub(super) struct Planner<'a, D: Dynamics> {
 /// that never checked it once held its thread for billions of starts: when it says so the
 /// call ends with `Error::Cancelled` (a caller's deadline or cancellation). The request's own
 /// time limit instead returns the best plan so far.
+///
+/// This is iLQR whatever `req.method` says; `control::make_plan` follows the method.
 pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> Result<Plan> {
     validate(req, sys.nx(), sys.m())?;
-    let m = sys.m();
-    let bounds = Bounds {
-        lo: req
-            .u_min
-            .clone()
-            .unwrap_or_else(|| vec![f64::NEG_INFINITY; m]),
-        hi: req.u_max.clone().unwrap_or_else(|| vec![f64::INFINITY; m]),
-    };
-    let p = Planner {
-        sys,
-        req,
-        bounds,
-        stop,
-    };
+    let p = Planner::new(sys, req, stop);
     let mut rng = Rng::derive(req.seed, 0x91_A2);
     let mut best: Option<(Trajectory, Vec<f64>, bool)> = None;
     for start in 0..=req.restarts {
@@ -145,7 +152,21 @@ pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> 
     p.finish(t, costs, converged)
 }
 
-impl<D: Dynamics> Planner<'_, D> {
+impl<'a, D: Dynamics> Planner<'a, D> {
+    pub(super) fn new(sys: &'a D, req: &'a PlanRequest, stop: &'a dyn Fn() -> bool) -> Self {
+        let m = sys.m();
+        let bounds = Bounds {
+            lo: (req.u_min.clone()).unwrap_or_else(|| vec![f64::NEG_INFINITY; m]),
+            hi: (req.u_max.clone()).unwrap_or_else(|| vec![f64::INFINITY; m]),
+        };
+        Planner {
+            sys,
+            req,
+            bounds,
+            stop,
+        }
+    }
+
     pub(super) fn check(&self) -> Result<()> {
         if (self.stop)() {
             Err(Error::Cancelled)
@@ -154,14 +175,14 @@ impl<D: Dynamics> Planner<'_, D> {
         }
     }
 
-    fn out_of_time(&self) -> bool {
+    pub(super) fn out_of_time(&self) -> bool {
         self.req.time_limit.is_some_and(|t| Instant::now() >= t)
     }
 
     /// Start 0 is `u_init` (zeros by default); restart k draws every input uniformly within the
     /// bounds when both are given, else from N(0, σ²) with σ the largest |u_init| (1 when
     /// u_init is zero); all clipped to the bounds.
-    fn initial_guess(&self, start: usize, rng: &mut Rng) -> Vec<f64> {
+    pub(super) fn initial_guess(&self, start: usize, rng: &mut Rng) -> Vec<f64> {
         let (t, m) = (self.req.horizon, self.sys.m());
         let given = (self.req.u_init.as_ref()).map_or_else(|| vec![0.0; t * m], |u| u.data.clone());
         let mut u = if start == 0 {
@@ -206,7 +227,7 @@ impl<D: Dynamics> Planner<'_, D> {
         quadratic(&self.req.r, u[s * m..(s + 1) * m].to_vec())
     }
 
-    fn cost(&self, x: &[f64], u: &[f64]) -> f64 {
+    pub(super) fn cost(&self, x: &[f64], u: &[f64]) -> f64 {
         let t = self.req.horizon;
         let j = (0..t)
             .map(|s| self.state_cost(x, s) + self.input_cost(u, s))
@@ -217,7 +238,7 @@ impl<D: Dynamics> Planner<'_, D> {
 
     /// What made `t`'s cost non-finite: its first state that is not finite (the model
     /// diverged), else its first cost term that overflowed.
-    fn not_finite(&self, t: &Trajectory) -> Error {
+    pub(super) fn not_finite(&self, t: &Trajectory) -> Error {
         let (nx, horizon) = (self.sys.nx(), self.req.horizon);
         let starts = match self.req.restarts {
             0 => "the initial guess".to_string(),
@@ -342,7 +363,12 @@ impl<D: Dynamics> Planner<'_, D> {
     }
 
     /// The plan to return: TVLQR gains along it with the request's weights.
-    fn finish(&self, mut t: Trajectory, costs: Vec<f64>, converged: bool) -> Result<Plan> {
+    pub(super) fn finish(
+        &self,
+        mut t: Trajectory,
+        costs: Vec<f64>,
+        converged: bool,
+    ) -> Result<Plan> {
         let (nx, horizon) = (self.sys.nx(), self.req.horizon);
         let (a, b) = self.linearized(&mut t)?;
         let bad = |m: &Mat| m.data.iter().any(|v| !v.is_finite());
@@ -373,6 +399,9 @@ impl<D: Dynamics> Planner<'_, D> {
             costs,
             converged: converged && !self.out_of_time(),
             goal_error,
+            method: Method::Ilqr,
+            constraint_violation: 0.0,
+            rollout_deviation: 0.0,
         })
     }
 }
