@@ -6,6 +6,8 @@ use std::process::{Command, Output};
 mod formula_limits;
 #[path = "cli/messages.rs"]
 mod messages;
+#[path = "cli/plan_methods.rs"]
+mod plan_methods;
 
 fn graybox(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_graybox"))

@@ -249,6 +249,48 @@ def test_plan_end_to_end(client, models):
     assert e.value.code == "INVALID_ARGUMENT" and "Q" in e.value.message
 
 
+def test_plan_by_direct_collocation(server, client, models):
+    """method="dircol" on a served model: the swing-up converges with its defects met, within
+    the bounds, with Tvlqr's gains along it, and tracked by them on the model it ends where
+    the plan ends; the default method is iLQR's answer; bad methods and initial states are
+    INVALID_ARGUMENT naming the field; the caller's deadline ends a long one. (This model,
+    trained for two epochs, cannot swing up within the bounds by either method: both plans
+    end ~3 away from the goal at the same cost.)"""
+    Q, R, Qf = np.diag([1, 1, 0.1, 0.1]), 1e-4 * np.eye(2), np.diag([1000, 1000, 100, 100.0])
+    goal = np.array([np.pi, 0, 0, 0])
+    bounds = dict(u_min=[-120, -120], u_max=[120, 120])
+    line = np.linspace(np.zeros(4), goal, 22)
+    p = client.plan(models.wb, np.zeros(4), goal, 21, Q, R, Qf, method="dircol", x_init=line,
+                    **bounds)
+    assert p.method == "dircol" and p.converged, p
+    assert p.x.shape == (22, 4) and p.u.shape == (21, 2) and p.K.shape == (21, 2, 4)
+    assert p.constraint_violation < 1e-6 and np.all(np.abs(p.u) <= 120)
+    assert p.goal_error == pytest.approx(np.linalg.norm(p.x[-1] - goal), rel=1e-12)
+    K, _ = client.tvlqr(models.wb, p.x, p.u, Q, R, Qf)
+    assert rel(p.K, K) < 1e-12
+    xs = client.rollout(models.wb, p.x[0], policy=(p.x, p.u, p.K))
+    # TVLQR absorbs collocation's departure from the one-step map (rollout_deviation):
+    # 0.05 rad and 0.2 rad/s, the issue's bounds on a tracked end.
+    end = xs[-1] - p.x[-1]
+    assert np.all(np.abs(end[:2]) < 0.05) and np.all(np.abs(end[2:]) < 0.2), end
+    assert p.rollout_deviation > 0
+
+    default = client.plan(models.wb, np.zeros(4), goal, 21, Q, R, Qf, **bounds)
+    ilqr = client.plan(models.wb, np.zeros(4), goal, 21, Q, R, Qf, method="ilqr", **bounds)
+    assert default.method == "ilqr" and np.array_equal(default.u, ilqr.u)
+    assert default.constraint_violation == 0 and default.rollout_deviation == 0
+    for kwargs, field in [(dict(method="shooting"), "method"),
+                          (dict(method="dircol", x_init=np.zeros((21, 4))), "x_init"),
+                          (dict(x_init=np.zeros((22, 4))), "x_init")]:
+        with pytest.raises(GrayboxError) as e:
+            client.plan(models.wb, np.zeros(4), goal, 21, Q, R, Qf, **kwargs)
+        assert e.value.code == "INVALID_ARGUMENT" and field in e.value.message, e.value
+    with Client(server.grpc_target, timeout=0.2) as c:
+        with pytest.raises(GrayboxError) as e:
+            c.plan(models.wb, np.zeros(4), goal, 2000, Q, R, Qf, restarts=50, method="dircol")
+        assert e.value.code == "DEADLINE_EXCEEDED", e.value
+
+
 def test_plan_time_limit_and_deadline(server, models):
     Q, R, Qf = np.diag([1, 1, 0.1, 0.1]), 1e-4 * np.eye(2), np.diag([1000, 1000, 100, 100.0])
     goal = [np.pi, 0, 0, 0]

@@ -58,8 +58,10 @@ class ModelInfo:
 class PlanResult:
     """A Plan response: states `x` [T+1, 2n], inputs `u` [T, m], TVLQR gains `K` [T, m, 2n]
     along them (u = ū − K(x − x̄)), the `cost`, `costs` (the initial guess's, then after each
-    accepted iteration; non-increasing), `iterations`, `converged` and `goal_error`
-    (‖x_T − goal‖₂)."""
+    accepted iteration; non-increasing for iLQR), `iterations`, `converged`, `goal_error`
+    (‖x_T − goal‖₂), the `method` that made it, and for direct collocation its largest defect
+    (`constraint_violation`) and how far the model's one-step rollout of `u` strays from `x`
+    (`rollout_deviation`); both 0 for iLQR."""
 
     x: np.ndarray
     u: np.ndarray
@@ -69,6 +71,9 @@ class PlanResult:
     iterations: int
     converged: bool
     goal_error: float
+    method: str = "ilqr"
+    constraint_violation: float = 0.0
+    rollout_deviation: float = 0.0
 
 
 def to_array(a: Any) -> pb.Array:
@@ -248,26 +253,34 @@ class Client:
 
     def plan(self, model_id: str, x0, goal, horizon: int, Q, R, Qf, u_min=None, u_max=None,
              u_init=None, max_iterations: int = 200, tolerance: float = 1e-6, restarts: int = 0,
-             seed: int = 0, time_limit_ms: int = 0) -> PlanResult:
+             seed: int = 0, time_limit_ms: int = 0, method: str = "ilqr",
+             x_init=None) -> PlanResult:
         """A trajectory of `horizon` steps from x0 toward `goal` minimizing
         Σ (x_t−g)ᵀQ(x_t−g) + u_tᵀRu_t + (x_T−g)ᵀQf(x_T−g) with u_min ≤ u_t ≤ u_max (None:
         unbounded), by iLQR with input bounds on the model, and TVLQR gains along it.
         `u_init` [T, m] is the first guess (zeros by default); `restarts` (at most 1000) adds
         that many randomised guesses (uniform within the bounds) and keeps the best;
         `max_iterations=0` runs no iteration (the best guess's rollout with its gains);
-        `time_limit_ms` returns the best so far with converged = False."""
+        `time_limit_ms` returns the best so far with converged = False. `method` is "ilqr"
+        (shooting on the model's one-step map) or "dircol" (direct collocation on its
+        continuous dynamics), whose initial states `x_init` [T+1, 2n] may be given (default:
+        the rollout of `u_init`)."""
         flat = lambda v: [] if v is None else np.asarray(v, dtype=np.float64).ravel().tolist()
         req = pb.PlanRequest(
             model_id=model_id, x0=flat(x0), goal=flat(goal), horizon=horizon,
             q=to_array(Q), r=to_array(R), qf=to_array(Qf), u_min=flat(u_min), u_max=flat(u_max),
             max_iterations=max_iterations, tolerance=tolerance, restarts=restarts, seed=seed,
-            time_limit_ms=time_limit_ms)
+            time_limit_ms=time_limit_ms, method=method)
         if u_init is not None:
             req.u_init.CopyFrom(to_array(u_init))
+        if x_init is not None:
+            req.x_init.CopyFrom(to_array(x_init))
         r = self._call(self.stub.Plan, req)
         return PlanResult(x=from_array(r.x), u=from_array(r.u), K=from_array(r.k), cost=r.cost,
                           costs=np.asarray(r.costs), iterations=r.iterations,
-                          converged=r.converged, goal_error=r.goal_error)
+                          converged=r.converged, goal_error=r.goal_error, method=r.method,
+                          constraint_violation=r.constraint_violation,
+                          rollout_deviation=r.rollout_deviation)
 
     def get_model(self, model_id: str) -> ModelInfo:
         """A model, by its id or by the id of the job that trained it."""

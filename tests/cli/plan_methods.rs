@@ -1,0 +1,79 @@
+//! `graybox plan --method`: direct collocation from the command line, its initial states, and
+//! what it says about a method or initial states it cannot use.
+
+use super::{graybox, json, tmp};
+
+#[test]
+fn plan_by_direct_collocation_from_the_command_line() {
+    let m = tmp("dircol.gbx");
+    json(&graybox(&[
+        "model",
+        "--template",
+        "pendulum",
+        "--dt",
+        "0.05",
+        "--out",
+        &m,
+    ]));
+    let p = tmp("dircol.json");
+    let plan = |extra: &[&str]| {
+        let mut args = vec![
+            "plan",
+            "--model",
+            &m,
+            "--x0",
+            "0,0",
+            "--goal",
+            "3.14159,0",
+            "--horizon",
+            "30",
+            "--u-min",
+            "-20",
+            "--u-max",
+            "20",
+            "--out",
+            &p,
+        ];
+        args.extend_from_slice(extra);
+        graybox(&args)
+    };
+    for extra in [
+        vec!["--method", "dircol"],
+        vec!["--method", "dircol", "--x-init", "line"],
+    ] {
+        let summary = json(&plan(&extra));
+        assert_eq!(summary["method"], "dircol", "{summary}");
+        assert_eq!(summary["converged"], true, "{summary}");
+        assert!(summary["goal_error"].as_f64().unwrap() < 0.1, "{summary}");
+        let written: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();
+        assert!(
+            written["constraint_violation"].as_f64().unwrap() < 1e-6,
+            "{written}"
+        );
+        assert!(
+            written["rollout_deviation"].as_f64().unwrap() >= 0.0,
+            "{written}"
+        );
+        assert_eq!(written["u"].as_array().unwrap().len(), 30);
+    }
+    let summary = json(&plan(&[]));
+    assert_eq!(summary["method"], "ilqr", "{summary}");
+
+    let rows = tmp("short-x-init.json");
+    std::fs::write(&rows, "[[0, 0], [1, 0]]").unwrap();
+    for (extra, wanted) in [
+        (vec!["--method", "shooting"], "ilqr, dircol"),
+        (vec!["--method", "dircol", "--x-init", &rows], "[31, 2]"),
+        (
+            vec!["--method", "dircol", "--x-init", "/nonexistent.json"],
+            "cannot read",
+        ),
+        (vec!["--x-init", "line"], "dircol"),
+    ] {
+        let out = plan(&extra);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{extra:?}: {err}");
+        assert!(err.contains(wanted), "{extra:?}: {err}");
+    }
+}
