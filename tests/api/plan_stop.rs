@@ -36,6 +36,7 @@ fn plan_req(model: &str, horizon: u64, max_iterations: u32, restarts: u32) -> pb
         restarts,
         seed: 0,
         time_limit_ms: 0,
+        ..Default::default()
     }
 }
 
@@ -105,6 +106,13 @@ async fn plans_without_iterations_or_with_many_restarts_end_at_their_deadline() 
         );
         small_calls_succeed(&app, &model).await;
     }
+    // Direct collocation spends its time inside QP solves, which hear the deadline too.
+    let dircol = pb::PlanRequest {
+        method: "dircol".into(),
+        ..plan_req(&model, 2000, 200, 1000)
+    };
+    assert_eq!(twice(&app, dircol).await, [Code::DeadlineExceeded; 2]);
+    small_calls_succeed(&app, &model).await;
     app.stop().await;
 }
 

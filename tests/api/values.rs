@@ -189,6 +189,7 @@ async fn plans_that_go_non_finite_are_refused_saying_where() {
         restarts: 0,
         seed: 0,
         time_limit_ms: 0,
+        ..Default::default()
     };
     let status = c.plan(plan(vec![1e300, 0.0, 0.0, 0.0])).await.unwrap_err();
     assert_eq!(status.code(), Code::InvalidArgument, "{status:?}");

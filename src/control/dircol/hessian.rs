@@ -8,7 +8,7 @@
 //! iterations); Powell's damping keeps every block positive semidefinite, so the QP stays
 //! convex where the true curvature is not.
 
-use super::transcription::Layout;
+use super::transcription::{Entry, Layout};
 
 pub(super) struct Curvature {
     /// Per interval, the dense `[e, e]` block over v_k, e = 3nx + m; zero until learned.
@@ -31,7 +31,7 @@ impl Curvature {
         &mut self,
         l: &Layout,
         (from, to): (&[f64], &[f64]),
-        (jac_from, jac_to): (&[(usize, usize, f64)], &[(usize, usize, f64)]),
+        (jac_from, jac_to): (&[Entry], &[Entry]),
         lambda: &[f64],
     ) {
         let e = self.size;
@@ -50,7 +50,7 @@ impl Curvature {
     }
 
     /// Per interval, v_k's part of Jᵀλ (`[T, e]`).
-    fn gradients(&self, l: &Layout, jac: &[(usize, usize, f64)], lambda: &[f64]) -> Vec<f64> {
+    fn gradients(&self, l: &Layout, jac: &[Entry], lambda: &[f64]) -> Vec<f64> {
         let e = self.size;
         let mut g = vec![0.0; l.intervals * e];
         for &(i, j, v) in jac {
@@ -82,7 +82,7 @@ fn damped_bfgs(b: &mut [f64], e: usize, s: &[f64], y: &[f64]) {
     }
     let bs: Vec<f64> = (0..e).map(|i| dot(&b[i * e..(i + 1) * e], s)).collect();
     let sbs = dot(s, &bs);
-    if !(sbs > 1e-300) {
+    if sbs.is_nan() || sbs <= 1e-300 {
         return;
     }
     let theta = if sy >= 0.2 * sbs {
@@ -94,7 +94,7 @@ fn damped_bfgs(b: &mut [f64], e: usize, s: &[f64], y: &[f64]) {
         .map(|i| theta * y[i] + (1.0 - theta) * bs[i])
         .collect();
     let sr = dot(s, &r);
-    if !(sr > 0.0) {
+    if sr.is_nan() || sr <= 0.0 {
         return;
     }
     for i in 0..e {

@@ -20,7 +20,7 @@ use clarabel::solver::{
 };
 
 use super::hessian::Curvature;
-use super::transcription::Layout;
+use super::transcription::{Entry, Layout};
 use crate::control::plan::PlanRequest;
 
 /// What the QP gives: the step and the defect rows' multipliers.
@@ -58,7 +58,7 @@ pub(super) struct Subproblem<'a> {
     pub z: &'a [f64],
     pub gradient: &'a [f64],
     pub defects: &'a [f64],
-    pub jacobian: &'a [(usize, usize, f64)],
+    pub jacobian: &'a [Entry],
     pub lo: &'a [f64],
     pub hi: &'a [f64],
     pub curvature: &'a Curvature,

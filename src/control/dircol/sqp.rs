@@ -13,7 +13,7 @@
 
 use super::hessian::Curvature;
 use super::qp::{Outcome, Subproblem, Until};
-use super::transcription::{defect_jacobian, defects};
+use super::transcription::{Entry, defect_jacobian, defects};
 use super::{Collocation, Continuous};
 use crate::control::plan::Dynamics;
 use crate::error::Result;
@@ -76,7 +76,7 @@ impl<S: Dynamics + Continuous> Collocation<'_, S> {
         let mut curvature = Curvature::new(&self.layout);
         // The last iterate's point and Jacobian, and the last QP's multipliers: what the
         // curvature learns from once the next Jacobian is known.
-        let mut previous: Option<(Vec<f64>, Vec<(usize, usize, f64)>)> = None;
+        let mut previous: Option<(Vec<f64>, Vec<Entry>)> = None;
         let mut lambda: Vec<f64> = vec![];
         let done = |cur, costs, converged| {
             Ok(Run {

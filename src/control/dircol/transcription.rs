@@ -25,6 +25,9 @@
 use super::Continuous;
 use crate::control::linalg::Mat;
 
+/// One entry of a sparse matrix: (row, column, value).
+pub type Entry = (usize, usize, f64);
+
 /// Where each variable of a T-interval transcription sits in the decision vector.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Layout {
@@ -106,12 +109,7 @@ pub fn defects(sys: &dyn Continuous, l: &Layout, z: &[f64], h: f64) -> Vec<f64> 
 /// rows as [`defects`] orders them, no (row, column) twice. Every entry of every block is
 /// listed, zeros too, so that the pattern is the same at every `z` and a solver's symbolic
 /// factorisation is reused.
-pub fn defect_jacobian(
-    sys: &dyn Continuous,
-    l: &Layout,
-    z: &[f64],
-    h: f64,
-) -> Vec<(usize, usize, f64)> {
+pub fn defect_jacobian(sys: &dyn Continuous, l: &Layout, z: &[f64], h: f64) -> Vec<Entry> {
     let (x, u) = l.points(z);
     let (a, b) = sys.derivative_jacobian(&x, &u);
     let t = l.intervals;
@@ -154,14 +152,7 @@ fn combine(terms: &[(&Mat, f64)]) -> Mat {
 }
 
 /// `scale · a + identity · I` at (row, col) (`identity` is 0 for the inputs' blocks).
-fn block(
-    out: &mut Vec<(usize, usize, f64)>,
-    row: usize,
-    col: usize,
-    a: &Mat,
-    scale: f64,
-    identity: f64,
-) {
+fn block(out: &mut Vec<Entry>, row: usize, col: usize, a: &Mat, scale: f64, identity: f64) {
     for i in 0..a.rows {
         for j in 0..a.cols {
             let diagonal = if i == j { identity } else { 0.0 };
@@ -233,7 +224,7 @@ mod tests {
         }
     }
 
-    fn dense(l: &Layout, triplets: &[(usize, usize, f64)]) -> Vec<f64> {
+    fn dense(l: &Layout, triplets: &[Entry]) -> Vec<f64> {
         let mut out = vec![0.0; l.defects() * l.len()];
         for &(i, j, v) in triplets {
             out[i * l.len() + j] += v;

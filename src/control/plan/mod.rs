@@ -6,11 +6,11 @@
 //! ```
 //!
 //! Method: iLQR with control bounds (Tassa, Mansard & Todorov 2014, "Control-limited
-//! differential dynamic programming"). Why this and not direct collocation: it needs only f
-//! and its exact Jacobians (A_t, B_t), which the f64 evaluator already gives (`Linearize`, dual
-//! numbers), every iterate is a rollout of the model and so dynamically feasible by
-//! construction, and the bounds become a box QP of m variables per step (`boxqp`) rather than
-//! an NLP over all states. The backward pass is a Riccati recursion on the quadratic model of
+//! differential dynamic programming"). Why this is the default and direct collocation
+//! (`control::dircol`) the option: it needs only f and its exact Jacobians (A_t, B_t), which
+//! the f64 evaluator already gives (`Linearize`, dual numbers), every iterate is a rollout of
+//! the model and so dynamically feasible by construction, and the bounds become a box QP of m
+//! variables per step (`boxqp`) rather than an NLP over all states. The backward pass is a Riccati recursion on the quadratic model of
 //! the cost-to-go with a Levenberg–Marquardt term μI on Q_uu (raised when a Q_uu is not
 //! positive definite or no step improves, lowered after a success, starting at 0 so that a
 //! linear-quadratic problem is solved exactly in one iteration). Regularizing Q_uu rather

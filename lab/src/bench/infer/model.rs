@@ -9,7 +9,8 @@ use serde_json::json;
 
 use super::{summary, time_calls};
 use graybox::control::linalg::Mat;
-use graybox::control::plan::{PlanRequest, plan};
+use graybox::control::make_plan;
+use graybox::control::plan::{Method, PlanRequest};
 use graybox::error::Result;
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
@@ -105,20 +106,30 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
         .with_effort_limits(&eval.effort_limits());
     // A model that diverges under the plan's first guess (a stiff robot at too long a step)
     // still has its other figures: the plan's is its error.
-    let p = match plan(&eval, &req, &|| false) {
-        Ok(p) => p,
-        Err(e) => {
-            let error = json!({"bench": "model_plan_reach_100", "horizon": HORIZON,
-                               "error": e.to_string()});
-            println!("{}", with(error));
-            return Ok(());
-        }
-    };
-    let times = time_calls(10, || {
-        std::hint::black_box(plan(&eval, &req, &|| false).expect("plans"));
-    });
-    let extra = json!({"horizon": HORIZON, "iterations": p.iterations,
-                       "converged": p.converged, "goal_error": p.goal_error});
-    println!("{}", summary("model_plan_reach_100", times, with(extra)));
+    for method in [Method::Ilqr, Method::Dircol] {
+        let req = PlanRequest {
+            method,
+            ..req.clone()
+        };
+        let bench = match method {
+            Method::Ilqr => "model_plan_reach_100",
+            Method::Dircol => "model_plan_reach_100_dircol",
+        };
+        let p = match make_plan(&eval, &req, &|| false) {
+            Ok(p) => p,
+            Err(e) => {
+                let error = json!({"bench": bench, "horizon": HORIZON, "error": e.to_string()});
+                println!("{}", with(error));
+                continue;
+            }
+        };
+        let times = time_calls(10, || {
+            std::hint::black_box(make_plan(&eval, &req, &|| false).expect("plans"));
+        });
+        let extra = json!({"horizon": HORIZON, "iterations": p.iterations,
+                           "converged": p.converged, "goal_error": p.goal_error,
+                           "cost": p.cost, "constraint_violation": p.constraint_violation});
+        println!("{}", summary(bench, times, with(extra)));
+    }
     Ok(())
 }

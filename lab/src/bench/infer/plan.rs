@@ -1,12 +1,14 @@
 //! `Plan` figures: the paper's swing-up of the double pendulum (the true system as a model,
-//! Δt = 0.1 s, |u| ≤ 120) over horizons of 21 and 200 steps, in process and over gRPC.
+//! Δt = 0.1 s, |u| ≤ 120) over horizons of 21 and 200 steps, by iLQR and by direct
+//! collocation, in process and over gRPC.
 
 use serde_json::json;
 
 use super::{summary, time_calls};
 use graybox::api::grpc::pb::{self, dynamics_client::DynamicsClient};
 use graybox::control::linalg::Mat;
-use graybox::control::plan::{PlanRequest, plan};
+use graybox::control::make_plan;
+use graybox::control::plan::{Method, PlanRequest};
 use graybox::error::{Error, Result};
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
@@ -38,20 +40,32 @@ fn swing_up(horizon: usize) -> PlanRequest {
     }
 }
 
+/// iLQR's figures keep their names; collocation's add `_dircol`.
+fn name(prefix: &str, method: Method, h: usize) -> String {
+    match method {
+        Method::Ilqr => format!("{prefix}_plan_swing_up_{h}"),
+        Method::Dircol => format!("{prefix}_plan_swing_up_{h}_dircol"),
+    }
+}
+
 pub(super) fn in_process() -> Result<()> {
     let eval = Evaluator::from_file(&true_double_pendulum())?;
     for h in HORIZONS {
-        let req = swing_up(h);
-        let p = plan(&eval, &req, &|| false)?;
-        let times = time_calls(CALLS, || {
-            std::hint::black_box(plan(&eval, &req, &|| false).expect("plans"));
-        });
-        let extra = json!({"iterations": p.iterations, "converged": p.converged,
-                           "goal_error": p.goal_error, "cost": p.cost});
-        println!(
-            "{}",
-            summary(&format!("evaluator_plan_swing_up_{h}"), times, extra)
-        );
+        for method in [Method::Ilqr, Method::Dircol] {
+            let req = PlanRequest {
+                method,
+                ..swing_up(h)
+            };
+            let p = make_plan(&eval, &req, &|| false)?;
+            let times = time_calls(CALLS, || {
+                std::hint::black_box(make_plan(&eval, &req, &|| false).expect("plans"));
+            });
+            let extra = json!({"iterations": p.iterations, "converged": p.converged,
+                               "goal_error": p.goal_error, "cost": p.cost,
+                               "constraint_violation": p.constraint_violation,
+                               "rollout_deviation": p.rollout_deviation});
+            println!("{}", summary(&name("evaluator", method, h), times, extra));
+        }
     }
     Ok(())
 }
@@ -66,9 +80,13 @@ pub(super) async fn over_grpc(url: &str, model: &str) -> Result<()> {
             data,
         })
     };
-    for h in HORIZONS {
+    for (h, method) in HORIZONS
+        .into_iter()
+        .flat_map(|h| [(h, Method::Ilqr), (h, Method::Dircol)])
+    {
         let r = swing_up(h);
         let req = pb::PlanRequest {
+            method: method.name().into(),
             model_id: model.into(),
             x0: r.x0,
             goal: r.goal,
@@ -97,10 +115,7 @@ pub(super) async fn over_grpc(url: &str, model: &str) -> Result<()> {
         let extra = json!({"iterations": p.iterations, "converged": p.converged,
                            "goal_error": p.goal_error,
                            "transport": "gRPC round trip on loopback, one client"});
-        println!(
-            "{}",
-            summary(&format!("grpc_plan_swing_up_{h}"), times, extra)
-        );
+        println!("{}", summary(&name("grpc", method, h), times, extra));
     }
     Ok(())
 }
