@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from conftest import rel
+from dp_reference import PARAMS, dp_accel, dp_rk4
 from graybox_client import Client, GrayboxError
 
-PARAMS = ["m1", "m2", "l1", "l2", "g", "b1", "b2", "eta1", "eta2"]
 X = np.array([[0.3, -0.6, 2.0, -1.0], [1.2, 0.4, -3.0, 0.5], [-2.0, 2.5, 0.1, 4.0]])
 U = np.array([[15.0, -40.0], [0.0, 0.0], [-60.0, 25.0]])
 
@@ -23,36 +23,6 @@ def relp(a, b) -> float:
     a, b = np.asarray(a), np.asarray(b)
     assert a.shape == b.shape, (a.shape, b.shape)
     return float(np.max(np.abs(a - b)) / np.max(np.abs(b)))
-
-
-def dp_accel(p, q, qd, u):
-    """The paper's double pendulum (rods), written out as in tests/common/mod.rs; batched."""
-    m1, m2, l1, l2, g, b1, b2, e1, e2 = p
-    i1, i2 = m1 * l1 * l1 / 3, m2 * l2 * l2 / 3
-    c2 = np.cos(q[:, 1])
-    m11 = i1 + i2 + m2 * l1 * l1 + m2 * l1 * l2 * c2
-    m12 = i2 + 0.5 * m2 * l1 * l2 * c2
-    m22 = i2
-    h = m2 * l1 * l2 * np.sin(q[:, 1])
-    cor1 = -h * qd[:, 0] * qd[:, 1] - 0.5 * h * qd[:, 1] ** 2
-    cor2 = 0.5 * h * qd[:, 0] ** 2
-    s1, s12 = np.sin(q[:, 0]), np.sin(q[:, 0] + q[:, 1])
-    dv1 = 0.5 * m1 * g * l1 * s1 + m2 * g * (l1 * s1 + 0.5 * l2 * s12)
-    dv2 = 0.5 * m2 * g * l2 * s12
-    r1 = b1 * u[:, 0] + e1 * qd[:, 0] - cor1 - dv1
-    r2 = b2 * u[:, 1] + e2 * qd[:, 1] - cor2 - dv2
-    det = m11 * m22 - m12 * m12
-    return np.column_stack([(m22 * r1 - m12 * r2) / det, (-m12 * r1 + m11 * r2) / det])
-
-
-def dp_rk4(p, x, u, dt):
-    def f(x):
-        return np.hstack([x[:, 2:], dp_accel(p, x[:, :2], x[:, 2:], u)])
-    k1 = f(x)
-    k2 = f(x + dt / 2 * k1)
-    k3 = f(x + dt / 2 * k2)
-    k4 = f(x + dt * k3)
-    return x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
 def riccati(A, B, Q, R, Qf):
