@@ -291,6 +291,38 @@ fn bad_inputs_name_their_field() {
         method,
         ..swing_up(10)
     };
+    let bounded = |x_min: Vec<f64>, x_max: Vec<f64>, method| PlanRequest {
+        x_min: Some(x_min),
+        x_max: Some(x_max),
+        method,
+        ..swing_up(10)
+    };
+    for (req, field, says) in [
+        (
+            bounded(vec![-1.0; 4], vec![1.0; 4], Method::Ilqr),
+            "x_min",
+            "dircol",
+        ),
+        (
+            bounded(vec![-1.0; 3], vec![1.0; 4], Method::Dircol),
+            "x_min",
+            "4 values",
+        ),
+        (
+            bounded(vec![1.0; 4], vec![0.5; 4], Method::Dircol),
+            "x_min",
+            "above",
+        ),
+        (
+            bounded(vec![0.5; 4], vec![1.0; 4], Method::Dircol),
+            "x0",
+            "outside",
+        ),
+    ] {
+        let (got, message) = refused(make_plan(&eval, &req, &|| false));
+        assert_eq!(got, field, "{message}");
+        assert!(message.contains(says), "{message}");
+    }
     for (x, method, says) in [
         (Mat::zeros(10, 4), Method::Dircol, "[11, 4]"),
         (Mat::zeros(11, 3), Method::Dircol, "[11, 4]"),
@@ -327,10 +359,51 @@ fn a_straight_line_start_converges() {
     assert!(p.goal_error < 0.05, "{}", p.goal_error);
 }
 
+/// State bounds hold at every knot: the swing-up with its joint speeds capped at 3 rad/s
+/// (uncapped, it spins faster).
+#[test]
+fn state_bounds_hold_at_every_knot() {
+    let eval = true_double_pendulum();
+    let free = run(&eval, &dircol(swing_up(21)));
+    let fastest = |p: &Plan| (p.x.chunks(4)).fold(0.0f64, |m, x| m.max(x[2].abs()).max(x[3].abs()));
+    assert!(fastest(&free) > 4.0, "{}", fastest(&free));
+    let inf = f64::INFINITY;
+    let req = dircol(PlanRequest {
+        x_min: Some(vec![-inf, -inf, -3.0, -3.0]),
+        x_max: Some(vec![inf, inf, 3.0, 3.0]),
+        ..swing_up(21)
+    });
+    let p = run(&eval, &req);
+    assert!(
+        p.converged && p.constraint_violation <= DEFECT_TOLERANCE,
+        "{:e}",
+        p.constraint_violation
+    );
+    // The QP's bounds hold to its tolerance, 1e-8.
+    assert!(fastest(&p) <= 3.0 + 1e-8, "{}", fastest(&p));
+}
+
+/// A pendulum held still at 1 rad with |u| ≤ 0.1 and |q̇| ≤ 0.01 cannot be: gravity needs
+/// ~100 N·m there. Every QP is infeasible, and the answer says so (not converged, its
+/// violation) rather than hanging or failing.
+#[test]
+fn an_infeasible_plan_says_it_is_infeasible() {
+    let eval = true_double_pendulum();
+    let req = dircol(PlanRequest {
+        x0: vec![1.0, 0.0, 0.0, 0.0],
+        x_min: Some(vec![-10.0, -10.0, -0.01, -0.01]),
+        x_max: Some(vec![10.0, 10.0, 0.01, 0.01]),
+        u_min: Some(vec![-0.1; 2]),
+        u_max: Some(vec![0.1; 2]),
+        ..swing_up(21)
+    });
+    let p = run(&eval, &req);
+    assert!(!p.converged);
+    assert!(p.constraint_violation > 0.1, "{:e}", p.constraint_violation);
+}
+
 /// Few iterations leave the defects unmet: the answer says so (not converged, its violation)
-/// rather than hanging or failing. Bounds on the inputs alone never make collocation
-/// infeasible (any inputs have states that solve the dynamics), so this is how a request ends
-/// unsolved.
+/// rather than hanging or failing.
 #[test]
 fn an_unfinished_plan_says_it_is_unfinished() {
     let eval = true_double_pendulum();

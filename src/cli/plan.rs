@@ -72,6 +72,13 @@ pub struct PlanArgs {
     /// rows of 2n values (default: the rollout of zero inputs).
     #[arg(long)]
     pub x_init: Option<String>,
+    /// dircol's lower state bounds, 2n values (`inf`/`-inf`: none on that coordinate), on
+    /// every state after x0.
+    #[arg(long, allow_hyphen_values = true)]
+    pub x_min: Option<String>,
+    /// dircol's upper state bounds, 2n values.
+    #[arg(long, allow_hyphen_values = true)]
+    pub x_max: Option<String>,
     /// Where to write the plan (JSON: x, u, K, costs, goal_error; a summary goes to stdout).
     #[arg(long)]
     pub out: PathBuf,
@@ -127,6 +134,12 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
             .x_init
             .as_deref()
             .map(|s| initial_states(s, a, nx))
+            .transpose()?,
+        x_min: (a.x_min.as_deref())
+            .map(|s| values("x_min", s, nx))
+            .transpose()?,
+        x_max: (a.x_max.as_deref())
+            .map(|s| values("x_max", s, nx))
             .transpose()?,
         method: Method::parse(&a.method)?,
         max_iterations: a.max_iterations,

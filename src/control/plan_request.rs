@@ -64,6 +64,10 @@ pub struct PlanRequest {
     /// Collocation's initial states `[T+1, nx]` (its first row is x0's place and is replaced
     /// by x0); absent, the rollout of the initial inputs. iLQR refuses it.
     pub x_init: Option<Mat>,
+    /// Collocation's state bounds, `[nx]` each, on every knot and midpoint after x0 (±∞: none
+    /// on that coordinate). iLQR refuses them.
+    pub x_min: Option<Vec<f64>>,
+    pub x_max: Option<Vec<f64>>,
     pub method: Method,
     /// 0: no iteration; the plan is the rollout of the best start, with its gains.
     pub max_iterations: usize,
@@ -90,6 +94,8 @@ impl PlanRequest {
             u_max: None,
             u_init: None,
             x_init: None,
+            x_min: None,
+            x_max: None,
             method: Method::Ilqr,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             tolerance: DEFAULT_TOLERANCE,
@@ -178,13 +184,10 @@ pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
         }
         finite("u_init", &u.data, req.horizon.saturating_mul(m))?;
     }
+    check_state_bounds(req, nx)?;
     if let Some(x) = &req.x_init {
         if req.method != Method::Dircol {
-            return Err(Error::invalid(
-                "x_init",
-                "only direct collocation (method dircol) takes initial states; iLQR's \
-                 states are the rollout of its inputs",
-            ));
+            return Err(only_dircol("x_init"));
         }
         if x.rows != req.horizon.saturating_add(1) || x.cols != nx {
             return Err(Error::invalid(
@@ -209,6 +212,48 @@ pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Only collocation has the states as variables: iLQR's are the rollout of its inputs.
+fn only_dircol(field: &str) -> Error {
+    Error::invalid(
+        field,
+        "only direct collocation (method dircol) takes initial states or state bounds; \
+         iLQR's states are the rollout of its inputs",
+    )
+}
+
+/// x_min and x_max: collocation's, each [nx], ordered, and x0 within them.
+fn check_state_bounds(req: &PlanRequest, nx: usize) -> Result<()> {
+    for (name, bound) in [("x_min", &req.x_min), ("x_max", &req.x_max)] {
+        if let Some(b) = bound {
+            if req.method != Method::Dircol {
+                return Err(only_dircol(name));
+            }
+            check_bound(name, b, nx)?;
+        }
+    }
+    let lo = req
+        .x_min
+        .clone()
+        .unwrap_or_else(|| vec![f64::NEG_INFINITY; nx]);
+    let hi = req.x_max.clone().unwrap_or_else(|| vec![f64::INFINITY; nx]);
+    if let Some(i) = (0..nx).find(|&i| lo[i] > hi[i]) {
+        return Err(Error::invalid(
+            "x_min",
+            format!("x_min[{i}] = {} is above x_max[{i}] = {}", lo[i], hi[i]),
+        ));
+    }
+    match (0..nx).find(|&i| !(lo[i]..=hi[i]).contains(&req.x0[i])) {
+        Some(i) => Err(Error::invalid(
+            "x0",
+            format!(
+                "x0[{i}] = {} is outside the state bounds [{}, {}]",
+                req.x0[i], lo[i], hi[i]
+            ),
+        )),
+        None => Ok(()),
+    }
 }
 
 /// A bound may be ±∞ on a component (unbounded there) but not NaN.

@@ -108,6 +108,8 @@ pub fn linear_request(t: usize) -> PlanRequest {
         u_max: None,
         u_init: None,
         x_init: None,
+        x_min: None,
+        x_max: None,
         method: Default::default(),
         max_iterations: 50,
         tolerance: 1e-9,

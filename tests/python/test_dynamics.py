@@ -251,7 +251,9 @@ def test_plan_by_direct_collocation(server, client, models):
     assert default.constraint_violation == 0 and default.rollout_deviation == 0
     for kwargs, field in [(dict(method="shooting"), "method"),
                           (dict(method="dircol", x_init=np.zeros((21, 4))), "x_init"),
-                          (dict(x_init=np.zeros((22, 4))), "x_init")]:
+                          (dict(x_init=np.zeros((22, 4))), "x_init"),
+                          (dict(x_min=-np.ones(4), x_max=np.ones(4)), "x_min"),
+                          (dict(method="dircol", x_min=np.ones(4)), "x0")]:
         with pytest.raises(GrayboxError) as e:
             client.plan(models.wb, np.zeros(4), goal, 21, Q, R, Qf, **kwargs)
         assert e.value.code == "INVALID_ARGUMENT" and field in e.value.message, e.value

@@ -254,7 +254,7 @@ class Client:
     def plan(self, model_id: str, x0, goal, horizon: int, Q, R, Qf, u_min=None, u_max=None,
              u_init=None, max_iterations: int = 200, tolerance: float = 1e-6, restarts: int = 0,
              seed: int = 0, time_limit_ms: int = 0, method: str = "ilqr",
-             x_init=None) -> PlanResult:
+             x_init=None, x_min=None, x_max=None) -> PlanResult:
         """A trajectory of `horizon` steps from x0 toward `goal` minimizing
         Σ (x_t−g)ᵀQ(x_t−g) + u_tᵀRu_t + (x_T−g)ᵀQf(x_T−g) with u_min ≤ u_t ≤ u_max (None:
         unbounded), by iLQR with input bounds on the model, and TVLQR gains along it.
@@ -264,13 +264,14 @@ class Client:
         `time_limit_ms` returns the best so far with converged = False. `method` is "ilqr"
         (shooting on the model's one-step map) or "dircol" (direct collocation on its
         continuous dynamics), whose initial states `x_init` [T+1, 2n] may be given (default:
-        the rollout of `u_init`)."""
+        the rollout of `u_init`), and bounds on every state after x0, `x_min`/`x_max` [2n]
+        (±inf: none on that coordinate)."""
         flat = lambda v: [] if v is None else np.asarray(v, dtype=np.float64).ravel().tolist()
         req = pb.PlanRequest(
             model_id=model_id, x0=flat(x0), goal=flat(goal), horizon=horizon,
             q=to_array(Q), r=to_array(R), qf=to_array(Qf), u_min=flat(u_min), u_max=flat(u_max),
             max_iterations=max_iterations, tolerance=tolerance, restarts=restarts, seed=seed,
-            time_limit_ms=time_limit_ms, method=method)
+            time_limit_ms=time_limit_ms, method=method, x_min=flat(x_min), x_max=flat(x_max))
         if u_init is not None:
             req.u_init.CopyFrom(to_array(u_init))
         if x_init is not None:

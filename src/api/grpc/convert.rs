@@ -84,6 +84,8 @@ pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
         x_init: (r.x_init)
             .map(|a| matrix("x_init", "x_init", Some(a)))
             .transpose()?,
+        x_min: bound(r.x_min),
+        x_max: bound(r.x_max),
         method: Method::parse(&r.method)?,
         max_iterations: r
             .max_iterations

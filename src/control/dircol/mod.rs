@@ -35,6 +35,31 @@ pub trait Continuous {
     fn derivative_jacobian(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>);
 }
 
+/// Bounds on every state after x0 (±∞ where none).
+pub(super) struct StateBounds {
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+}
+
+impl StateBounds {
+    /// Σ over bounded states of how far each lies outside, and the largest such distance.
+    fn violation(&self, l: &Layout, z: &[f64]) -> (f64, f64) {
+        let states = (1..=l.intervals)
+            .map(|k| l.x(k))
+            .chain((0..l.intervals).map(|k| l.xc(k)));
+        let (mut sum, mut worst) = (0.0f64, 0.0f64);
+        for at in states {
+            for i in 0..l.nx {
+                let v = z[at + i];
+                let out = (v - self.hi[i]).max(self.lo[i] - v).max(0.0);
+                sum += out;
+                worst = worst.max(out);
+            }
+        }
+        (sum, worst)
+    }
+}
+
 /// The collocation of one request on one system; iLQR's planner lends it the request's
 /// bounds, initial inputs, cost, rollout and the answer's gains.
 pub(super) struct Collocation<'a, S: Dynamics + Continuous> {
@@ -42,6 +67,7 @@ pub(super) struct Collocation<'a, S: Dynamics + Continuous> {
     req: &'a PlanRequest,
     layout: Layout,
     h: f64,
+    states: StateBounds,
     planner: Planner<'a, S>,
 }
 
@@ -65,6 +91,10 @@ pub fn plan<S: Dynamics + Continuous>(
             intervals: req.horizon,
         },
         h: sys.dt(),
+        states: StateBounds {
+            lo: (req.x_min.clone()).unwrap_or_else(|| vec![f64::NEG_INFINITY; Dynamics::nx(sys)]),
+            hi: (req.x_max.clone()).unwrap_or_else(|| vec![f64::INFINITY; Dynamics::nx(sys)]),
+        },
         planner: Planner::new(sys, req, stop),
     };
     let until = Until {

@@ -5,6 +5,7 @@
 //! subject to C(z) d = −c(z)          (the defects, linearized)
 //!            d_{x_0} = 0              (x_0 is the request's and stays so)
 //!            lo − u_k ≤ d_{u_k} ≤ hi − u_k   (finite bounds only)
+//!            x_min − x ≤ d_x ≤ x_max − x     (every knot after x_0 and every midpoint)
 //! ```
 //!
 //! W is the cost's block-diagonal weight (Q, R, 0 at a midpoint, Q_f at the last knot), so 2W
@@ -19,14 +20,18 @@ use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
 
+use super::StateBounds;
 use super::hessian::Curvature;
 use super::transcription::{Entry, Layout};
 use crate::control::plan::PlanRequest;
 
-/// What the QP gives: the step and the defect rows' multipliers.
+/// What the QP gives: the step, the defect rows' multipliers and the largest multiplier of a
+/// constraint the merit weighs (a defect's or a state bound's; x_0 and the input bounds hold
+/// at every iterate).
 pub(super) struct Step {
     pub d: Vec<f64>,
     pub multipliers: Vec<f64>,
+    pub largest: f64,
 }
 
 pub(super) enum Outcome {
@@ -61,20 +66,20 @@ pub(super) struct Subproblem<'a> {
     pub jacobian: &'a [Entry],
     pub lo: &'a [f64],
     pub hi: &'a [f64],
+    pub states: &'a StateBounds,
     pub curvature: &'a Curvature,
     pub rho: f64,
+    /// The interior point's tolerance on gap and feasibility.
+    pub tolerance: f64,
 }
-
-/// Interior-point tolerances (clarabel's defaults, stated): a QP's error is the SQP's next
-/// step's to correct, so the last iterates, not each QP, set the answer's accuracy.
-const QP_TOLERANCE: f64 = 1e-8;
 
 impl Subproblem<'_> {
     /// A fresh interior-point solve. Reusing one solver with its data updated in place (the
     /// pattern is the same at every iterate) was measured no faster and, its equilibration
     /// frozen at the first iterate, took more SQP iterations (101 against 65 at T = 21).
     pub(super) fn solve(&self, until: &Until) -> Outcome {
-        let (p, (a, b, equalities, inequalities)) = (self.hessian(), self.constraints());
+        let (p, (a, b, [equalities, inequalities, states_from])) =
+            (self.hessian(), self.constraints());
         let mut cones = vec![SupportedConeT::ZeroConeT(equalities)];
         if inequalities > 0 {
             cones.push(SupportedConeT::NonnegativeConeT(inequalities));
@@ -82,10 +87,14 @@ impl Subproblem<'_> {
         let settings = DefaultSettingsBuilder::default()
             .verbose(false)
             .presolve_enable(false)
-            .tol_gap_abs(QP_TOLERANCE)
-            .tol_gap_rel(QP_TOLERANCE)
-            .tol_feas(QP_TOLERANCE)
+            .tol_gap_abs(self.tolerance)
+            .tol_gap_rel(self.tolerance)
+            .tol_feas(self.tolerance)
             .max_threads(1)
+            // Refinement was 45% of a solve (a profile of the 200-step swing-up: its
+            // triangular solves and KKT products); the SQP's next step corrects what it would
+            // have, and without it the swing-ups converge in as many iterations.
+            .iterative_refinement_enable(false)
             .build()
             .expect("valid settings");
         let Ok(mut solver) = DefaultSolver::new(&p, self.gradient, &a, &b, &cones, settings) else {
@@ -99,6 +108,9 @@ impl Subproblem<'_> {
             SolverStatus::Solved | SolverStatus::AlmostSolved => Outcome::Solved(Step {
                 d: s.x.clone(),
                 multipliers: s.z[..self.layout.defects()].to_vec(),
+                largest: (s.z[..self.layout.defects()].iter())
+                    .chain(&s.z[states_from..])
+                    .fold(0.0f64, |m, v| m.max(v.abs())),
             }),
             SolverStatus::CallbackTerminated | SolverStatus::MaxTime => Outcome::Stopped,
             _ => Outcome::Failed,
@@ -137,8 +149,9 @@ impl Subproblem<'_> {
     }
 
     /// A and b of `A d + s = b`: the defects and x_0 as equalities (s = 0), then the finite
-    /// bounds as inequalities (s ≥ 0); and the count of each.
-    fn constraints(&self) -> (CscMatrix<f64>, Vec<f64>, usize, usize) {
+    /// bounds as inequalities (s ≥ 0), the inputs' then the states'; the count of each kind
+    /// and the first row of the states' bounds.
+    fn constraints(&self) -> (CscMatrix<f64>, Vec<f64>, [usize; 3]) {
         let l = self.layout;
         let mut t = Triplets::default();
         for &(i, j, v) in self.jacobian {
@@ -163,8 +176,27 @@ impl Subproblem<'_> {
                 }
             }
         }
+        // Every state after x_0 (fixed): the knots' and the midpoints'.
+        let states_from = b.len();
+        let states = (1..=l.intervals)
+            .map(|k| l.x(k))
+            .chain((0..l.intervals).map(|k| l.xc(k)));
+        for at in states {
+            for i in 0..l.nx {
+                let z = self.z[at + i];
+                if self.states.hi[i].is_finite() {
+                    t.push(b.len(), at + i, 1.0);
+                    b.push(self.states.hi[i] - z);
+                }
+                if self.states.lo[i].is_finite() {
+                    t.push(b.len(), at + i, -1.0);
+                    b.push(z - self.states.lo[i]);
+                }
+            }
+        }
         let inequalities = b.len() - equalities;
-        (t.matrix(b.len(), l.len()), b, equalities, inequalities)
+        let counts = [equalities, inequalities, states_from];
+        (t.matrix(b.len(), l.len()), b, counts)
     }
 }
 

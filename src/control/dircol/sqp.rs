@@ -26,6 +26,11 @@ pub const DEFECT_TOLERANCE: f64 = 1e-8;
 /// swing-up at T = 21 and 200: 1e-2 took 65 and 57 iterations, 1e-3 81 and 96, 1e-1
 /// converged to a worse plan at T = 21.
 const CURVATURE_FROM: f64 = 1e-2;
+/// The QPs' interior-point tolerance on gap and feasibility (clarabel's default, stated): a
+/// QP's error is the next SQP step's to correct, so the last iterates, not each QP, set the
+/// answer's accuracy. Looser QPs while the defects are large (1e-5 above 1e-4) saved ~15% at
+/// T = 200 and nothing at T = 21: not worth a second knob.
+const QP_TOLERANCE: f64 = 1e-8;
 const RHO_MIN: f64 = 1e-8;
 const RHO_MAX: f64 = 1e10;
 /// Step lengths tried: 1, ½, …, 2⁻¹⁵.
@@ -33,13 +38,15 @@ const BACKTRACKS: i32 = 16;
 /// Armijo's sufficient-decrease fraction.
 const ARMIJO: f64 = 1e-4;
 
-/// An iterate: the decision vector, its cost, its defects and the largest of them.
+/// An iterate: the decision vector, its cost, its defects, the largest violation of any
+/// constraint (a defect, or a state outside its bounds) and the ℓ1 norm of all violations.
 #[derive(Clone)]
 pub(super) struct Iterate {
     pub z: Vec<f64>,
     pub cost: f64,
     pub defects: Vec<f64>,
     pub violation: f64,
+    pub infeasibility: f64,
 }
 
 /// Where one start ended: its last iterate, the cost after each accepted step, whether it
@@ -53,18 +60,16 @@ pub(super) struct Run {
 impl<S: Dynamics + Continuous> Collocation<'_, S> {
     pub(super) fn iterate(&self, z: Vec<f64>) -> Iterate {
         let c = defects(self.sys, &self.layout, &z, self.h);
-        let violation = c.iter().fold(0.0f64, |m, d| m.max(d.abs()));
+        let (outside, worst_outside) = self.states.violation(&self.layout, &z);
+        let worst = c.iter().fold(worst_outside, |m, d| m.max(d.abs()));
         // A NaN defect reads as infinitely violated, never as met.
-        let violation = if violation.is_nan() || c.iter().any(|d| d.is_nan()) {
-            f64::INFINITY
-        } else {
-            violation
-        };
+        let nan = c.iter().any(|d| d.is_nan()) || outside.is_nan();
         Iterate {
             cost: self.cost(&z),
+            infeasibility: c.iter().map(|d| d.abs()).sum::<f64>() + outside,
             z,
             defects: c,
-            violation,
+            violation: if nan { f64::INFINITY } else { worst },
         }
     }
 
@@ -107,8 +112,10 @@ impl<S: Dynamics + Continuous> Collocation<'_, S> {
                 jacobian: &jacobian,
                 lo: &self.planner.bounds.lo,
                 hi: &self.planner.bounds.hi,
+                states: &self.states,
                 curvature: &curvature,
                 rho,
+                tolerance: QP_TOLERANCE,
             };
             let step = match qp.solve(until) {
                 Outcome::Solved(step) => step,
@@ -125,7 +132,7 @@ impl<S: Dynamics + Continuous> Collocation<'_, S> {
                 }
             };
             let slope: f64 = gradient.iter().zip(&step.d).map(|(g, d)| g * d).sum();
-            let l1: f64 = cur.defects.iter().map(|c| c.abs()).sum();
+            let l1 = cur.infeasibility;
             // The QP's first-order change of J is within the tolerance of J and the defects
             // are met: a KKT point of the NLP (d → 0 there).
             if cur.violation <= DEFECT_TOLERANCE
@@ -133,15 +140,14 @@ impl<S: Dynamics + Continuous> Collocation<'_, S> {
             {
                 return done(cur, costs, true);
             }
-            let largest = step.multipliers.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            nu = nu.max(1.1 * largest + 1e-6);
+            nu = nu.max(1.1 * step.largest + 1e-6);
             let derivative = slope - nu * l1;
             match self.line_search(&cur, &step.d, nu, derivative)? {
                 Some((next, full)) => {
                     previous = Some((cur.z.clone(), jacobian));
                     lambda = step.multipliers;
                     let before = cur.cost + nu * l1;
-                    let after = next.cost + nu * next.defects.iter().map(|c| c.abs()).sum::<f64>();
+                    let after = next.cost + nu * next.infeasibility;
                     cur = next;
                     costs.push(cur.cost);
                     rho = if full && rho <= RHO_MIN {
@@ -179,7 +185,7 @@ impl<S: Dynamics + Continuous> Collocation<'_, S> {
         nu: f64,
         derivative: f64,
     ) -> Result<Option<(Iterate, bool)>> {
-        let merit = |it: &Iterate| it.cost + nu * it.defects.iter().map(|c| c.abs()).sum::<f64>();
+        let merit = |it: &Iterate| it.cost + nu * it.infeasibility;
         let start = merit(cur);
         for i in 0..BACKTRACKS {
             self.planner.check()?;
