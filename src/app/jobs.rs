@@ -13,8 +13,8 @@ use crate::error::{Error, Result};
 use crate::model::spec::ModelSpec;
 use crate::records::{DatasetInfo, Job, JobState, Metric};
 use crate::store::{NewJob, Submitted};
+use crate::train::TrainConfig;
 use crate::train::setup::physical_init;
-use crate::train::{TrainConfig, budget};
 
 /// The body of POST /v1/jobs.
 #[derive(Debug, Deserialize, utoipa::ToSchema)]
@@ -261,65 +261,6 @@ impl App {
         Ok((data, v.count as usize))
     }
 
-    /// Refuses a job over the service's limits (422 naming the field and the estimate),
-    /// before it is queued.
-    /// The job's size, memory and checkpoint against the service's limits, each refusal
-    /// naming the field to change.
-    fn check_job_cost(&self, job: &JobSpec, data: &DatasetInfo, val_count: usize) -> Result<()> {
-        let s = &self.settings;
-        let n = data.n as usize;
-        let refuse = |field: &str, message: String| {
-            Err(Error::Unprocessable {
-                field: field.into(),
-                message,
-            })
-        };
-        if n > s.max_dof {
-            return refuse(
-                "dataset_id",
-                format!(
-                    "the dataset has n = {n} coordinates; this service trains at most {} (--max-dof)",
-                    s.max_dof
-                ),
-            );
-        }
-        let (est, batch) = job_estimate(job, data, val_count);
-        if est.params > s.max_model_params {
-            return refuse(
-                "model",
-                format!(
-                    "the model would have {} trainable parameters, over the limit of {} \
-                     (--max-model-params); use narrower or fewer hidden layers",
-                    est.params, s.max_model_params
-                ),
-            );
-        }
-        if est.checkpoint_bytes > budget::STORE_MAX_BLOB {
-            return refuse(
-                "model",
-                format!(
-                    "the model's checkpoint would take about {} MB, more than the store holds ({} MB)",
-                    est.checkpoint_bytes >> 20,
-                    budget::STORE_MAX_BLOB >> 20
-                ),
-            );
-        }
-        if est.peak_bytes > s.max_job_memory_bytes() {
-            return refuse(
-                "training.batch_size",
-                format!(
-                    "training would take about {} MB at its peak (batch {batch}{}), over the \
-                     limit of {} MB (--max-job-memory-mb); lower batch_size{} or the network widths",
-                    est.peak_bytes >> 20,
-                    horizon_note(job.training.horizon, " windows of horizon "),
-                    s.max_job_memory_bytes() >> 20,
-                    horizon_note(job.training.horizon, ", horizon ")
-                ),
-            );
-        }
-        Ok(())
-    }
-
     /// The scalings training derives from the data must be finite (values near the f64
     /// range overflow them), else the job would "succeed" with a model that cannot answer.
     async fn check_job_data(&self, job: &JobSpec) -> Result<()> {
@@ -391,45 +332,6 @@ impl App {
         let items = self.store.list_jobs(state, before, size).await?;
         let next = super::paging::next("jobs", &items, size, |j| j.seq);
         Ok((items.into_iter().map(Job::from).collect(), next))
-    }
-}
-
-/// The job's estimated cost and its effective batch: a batch larger than the training set is
-/// the whole set.
-fn job_estimate(
-    job: &JobSpec,
-    data: &DatasetInfo,
-    val_count: usize,
-) -> (budget::JobEstimate, usize) {
-    let (n, m) = (data.n as usize, data.m as usize);
-    let count = data.count as usize;
-    let train = if job.validation_dataset_id.is_some() {
-        count
-    } else {
-        count - (count as f64 * job.training.val_fraction) as usize
-    };
-    let batch = job.training.batch_size.min(train.max(1));
-    // Physical parameters exist only when some part is white-box (`Model::init`).
-    let physical = match job.spec.template() {
-        Some(t) if !job.spec.white_box_parts().is_empty() => t.params().len(),
-        _ => 0,
-    };
-    // A bad `periodic` is refused by the data check; here it counts as no angles.
-    let angles = crate::train::setup::periodic(&job.spec, &job.training, n)
-        .map_or(0, |p| p.iter().filter(|&&a| a).count());
-    let dims = budget::Dims { n, m, angles };
-    // A window keeps every step's integrator stages for the backward pass.
-    let steps = batch.saturating_mul(job.training.horizon);
-    let est = budget::estimate(&job.spec, dims, steps, count + val_count, physical);
-    (est, batch)
-}
-
-/// `prefix` and the horizon when it is over 1, else nothing.
-fn horizon_note(horizon: usize, prefix: &str) -> String {
-    if horizon > 1 {
-        format!("{prefix}{horizon}")
-    } else {
-        String::new()
     }
 }
 

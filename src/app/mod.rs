@@ -4,6 +4,7 @@
 pub mod datasets;
 pub mod events;
 pub mod inference;
+mod job_cost;
 pub mod jobs;
 pub mod memory;
 pub mod models;

@@ -3,6 +3,7 @@
 //! and end the job (or give it back on shutdown). Every write is fenced by (job, attempt).
 
 mod pool;
+mod train;
 
 pub use pool::{Pool, Stopped};
 
@@ -16,13 +17,10 @@ use tokio::task::JoinHandle;
 use tracing::{info, warn};
 
 use crate::app::App;
-use crate::app::jobs::JobSpec;
-use crate::backend::{self, Backend, Precision};
 use crate::backoff::Backoff;
 use crate::error::{Error, Result};
-use crate::records::{JobState, Metric};
-use crate::store::{Claimed, Lease, NewModel};
-use crate::train::{TrainState, Trainer};
+use crate::records::JobState;
+use crate::store::{Claimed, Lease};
 
 /// A job given back after a storage failure waits this long before it is claimed again,
 /// doubling with each failure in a row (`--storage-patience-secs` says when it fails).
@@ -185,7 +183,7 @@ pub async fn run_claimed(
     let result = {
         let (app, claimed, flags) = (app.clone(), claimed.clone(), flags.clone());
         let handle = Handle::current();
-        tokio::task::spawn_blocking(move || train_job(&app, &claimed, &flags, &handle))
+        tokio::task::spawn_blocking(move || train::train_job(&app, &claimed, &flags, &handle))
             .await
             .unwrap_or_else(|e| {
                 Err(Error::Training(format!(
@@ -271,136 +269,4 @@ async fn end_with_error(app: &App, claimed: &Claimed, e: Error) -> Result<Outcom
             Outcome::Failed(msg)
         }
     })
-}
-
-/// The blocking part: build or resume the trainer, run epochs (recording each, with a
-/// checkpoint every `--checkpoint-every`), then store the model; progress goes through the
-/// runtime handle. Every write is fenced: a lost lease ends it without writing.
-fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> Result<Outcome> {
-    let spec = JobSpec::from_json(&c.job.request)?;
-    let mut trainer = build_trainer(app, c, &spec, rt)?;
-    if trainer.epoch() == 0
-        && let Some(w) = trainer.stiffness_warning()
-    {
-        warn!(job = %c.job.id, code = %w.code, "{}", w.message);
-    }
-    let every = app.settings.worker.checkpoint_epochs();
-    let mut checkpointed = trainer.epoch();
-    let lost = || {
-        flags.lost.store(true, Ordering::Relaxed);
-        Ok(Outcome::LeaseLost)
-    };
-    while !trainer.finished() {
-        if flags.shutdown.load(Ordering::Relaxed) {
-            return release(app, c, &trainer, checkpointed, rt);
-        }
-        let m = trainer.run_epoch(&flags.cancel)?;
-        app.telemetry.epochs_trained.fetch_add(1, Ordering::Relaxed);
-        let row = Metric {
-            epoch: m.epoch as i64,
-            train_loss: m.train_loss,
-            val_loss: m.val_loss,
-            val_horizon_loss: m.val_horizon_loss,
-            seconds: m.seconds,
-        };
-        if !rt.block_on(app.store.record_epoch(c, &row, trainer.best_val_loss()))? {
-            return lost();
-        }
-        if trainer.epoch() % every == 0 && !trainer.finished() {
-            let bytes = trainer.checkpoint().to_bytes();
-            let epoch = trainer.epoch() as i64;
-            if !rt.block_on(app.store.save_checkpoint(c, epoch, &bytes))? {
-                return lost();
-            }
-            checkpointed = trainer.epoch();
-        }
-    }
-    match rt.block_on(store_model(app, c, &spec, &trainer))? {
-        Some(id) => Ok(Outcome::Succeeded(id)),
-        None => lost(),
-    }
-}
-
-/// A new trainer for the job, or the one its last checkpoint holds (refused as corrupt when
-/// the checkpoint claims an epoch past the job's last).
-fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<Trainer> {
-    let load = |id: &str| -> Result<crate::data::Dataset> {
-        rt.block_on(app.store.load_dataset(id))?
-            .ok_or_else(|| Error::invalid("dataset_id", format!("dataset {id} was deleted")))
-    };
-    let data = load(&spec.dataset_id)?;
-    let val = spec
-        .validation_dataset_id
-        .as_deref()
-        .map(load)
-        .transpose()?;
-    let device = backend::device(Backend::Flex, Precision::F32)?.autodiff();
-    let trainer = match rt.block_on(app.store.load_checkpoint(&c.job.id))? {
-        Some((epoch, _)) if epoch > c.job.epochs => Err(Error::corrupt(
-            "checkpoint",
-            format!(
-                "its epoch {epoch} is past the job's {} epochs",
-                c.job.epochs
-            ),
-        )),
-        Some((epoch, bytes)) => {
-            info!(job = %c.job.id, epoch, "resuming from checkpoint");
-            let state = TrainState::from_bytes(&bytes)?;
-            Trainer::resume(state, &data, val.as_ref(), &device)
-        }
-        None => Trainer::new(
-            &spec.model_name,
-            spec.spec.clone(),
-            &spec.init,
-            &data,
-            val.as_ref(),
-            spec.training.clone(),
-            &device,
-        ),
-    }?;
-    trainer.with_threads(app.settings.worker.job_threads())
-}
-
-/// The trained model and the job's success in one fenced transaction; None when the lease
-/// was lost. A model file with a non-finite number is an error instead.
-async fn store_model(
-    app: &App,
-    c: &Claimed,
-    spec: &JobSpec,
-    trainer: &Trainer,
-) -> Result<Option<String>> {
-    let file = trainer.model_file();
-    let report = file.report.as_ref().expect("trained files carry a report");
-    let warnings = report.warnings.clone();
-    let report = serde_json::to_string(report).expect("json");
-    let spec_json = serde_json::to_string(&file.config.spec).expect("json");
-    let model = NewModel {
-        name: spec.display_name(),
-        n: file.config.n as i64,
-        m: file.config.m as i64,
-        dt: file.config.dt,
-        spec: &spec_json,
-        report: &report,
-        file: &file.to_bytes()?,
-    };
-    app.store.finish_job(c, model, &warnings).await
-}
-
-/// Shutdown: checkpoint at this epoch end (unless just taken) and give the job back.
-fn release(
-    app: &App,
-    c: &Claimed,
-    trainer: &Trainer,
-    checkpointed: usize,
-    rt: &Handle,
-) -> Result<Outcome> {
-    if trainer.epoch() > checkpointed {
-        rt.block_on(app.store.save_checkpoint(
-            c,
-            trainer.epoch() as i64,
-            &trainer.checkpoint().to_bytes(),
-        ))?;
-    }
-    rt.block_on(app.store.release_job(c))?;
-    Ok(Outcome::Released)
 }

@@ -71,7 +71,10 @@ fn plan_by_direct_collocation_from_the_command_line() {
         ),
         (vec!["--x-init", "line"], "dircol"),
         (vec!["--x-min", "-inf,-1"], "x_min"),
-        (vec!["--method", "dircol", "--x-min", "1,0", "--x-max", "2,1"], "outside"),
+        (
+            vec!["--method", "dircol", "--x-min", "1,0", "--x-max", "2,1"],
+            "outside",
+        ),
     ] {
         let out = plan(&extra);
         let err = String::from_utf8_lossy(&out.stderr);
