@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use serde_json::json;
 
+use crate::control::dircol::straight_line;
 use crate::control::linalg::Mat;
 use crate::control::make_plan;
 use crate::control::plan::{
@@ -159,14 +160,7 @@ fn initial_states(text: &str, a: &PlanArgs, nx: usize) -> Result<Mat> {
         .saturating_add(1);
     if text == "line" {
         let (x0, goal) = (values("x0", &a.x0, nx)?, values("goal", &a.goal, nx)?);
-        let data = (0..rows).flat_map(|k| {
-            let s = k as f64 / (rows - 1) as f64;
-            x0.iter()
-                .zip(&goal)
-                .map(move |(a, b)| a + s * (b - a))
-                .collect::<Vec<_>>()
-        });
-        return Ok(Mat::new(rows, nx, data.collect()));
+        return Ok(Mat::new(rows, nx, straight_line(&x0, &goal, rows - 1)));
     }
     let bytes = std::fs::read(text)
         .map_err(|e| Error::invalid("x_init", format!("cannot read {text}: {e}")))?;

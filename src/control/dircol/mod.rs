@@ -19,7 +19,7 @@ use self::qp::Until;
 use self::sqp::Run;
 use self::transcription::Layout;
 use super::linalg::Mat;
-use super::plan::{Dynamics, Method, Plan, PlanRequest, Planner, Trajectory, validate};
+use super::plan::{Bounds, Dynamics, Method, Plan, PlanRequest, Planner, Trajectory, validate};
 use crate::error::Result;
 use crate::rng::Rng;
 
@@ -35,29 +35,19 @@ pub trait Continuous {
     fn derivative_jacobian(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>);
 }
 
-/// Bounds on every state after x0 (±∞ where none).
-pub(super) struct StateBounds {
-    lo: Vec<f64>,
-    hi: Vec<f64>,
-}
-
-impl StateBounds {
-    /// Σ over bounded states of how far each lies outside, and the largest such distance.
-    fn violation(&self, l: &Layout, z: &[f64]) -> (f64, f64) {
-        let states = (1..=l.intervals)
-            .map(|k| l.x(k))
-            .chain((0..l.intervals).map(|k| l.xc(k)));
-        let (mut sum, mut worst) = (0.0f64, 0.0f64);
-        for at in states {
-            for i in 0..l.nx {
-                let v = z[at + i];
-                let out = (v - self.hi[i]).max(self.lo[i] - v).max(0.0);
-                sum += out;
-                worst = worst.max(out);
-            }
+/// Σ over the bounded states after x0 of how far each lies outside its bounds, and the
+/// largest such distance.
+fn outside(states: &Bounds, l: &Layout, z: &[f64]) -> (f64, f64) {
+    let (mut sum, mut worst) = (0.0f64, 0.0f64);
+    for at in l.free_states() {
+        for i in 0..l.nx {
+            let v = z[at + i];
+            let out = (v - states.hi[i]).max(states.lo[i] - v).max(0.0);
+            sum += out;
+            worst = worst.max(out);
         }
-        (sum, worst)
     }
+    (sum, worst)
 }
 
 /// The collocation of one request on one system; iLQR's planner lends it the request's
@@ -67,7 +57,8 @@ pub(super) struct Collocation<'a, S: Dynamics + Continuous> {
     req: &'a PlanRequest,
     layout: Layout,
     h: f64,
-    states: StateBounds,
+    /// On every state after x0 (±∞ where none).
+    states: Bounds,
     planner: Planner<'a, S>,
 }
 
@@ -91,10 +82,7 @@ pub fn plan<S: Dynamics + Continuous>(
             intervals: req.horizon,
         },
         h: sys.dt(),
-        states: StateBounds {
-            lo: (req.x_min.clone()).unwrap_or_else(|| vec![f64::NEG_INFINITY; Dynamics::nx(sys)]),
-            hi: (req.x_max.clone()).unwrap_or_else(|| vec![f64::INFINITY; Dynamics::nx(sys)]),
-        },
+        states: Bounds::new(&req.x_min, &req.x_max, Dynamics::nx(sys)),
         planner: Planner::new(sys, req, stop),
     };
     let until = Until {
@@ -228,7 +216,7 @@ fn better(a: &Run, b: &Run) -> bool {
 }
 
 /// `[T+1, nx]` states evenly from `from` to `to`.
-fn straight_line(from: &[f64], to: &[f64], horizon: usize) -> Vec<f64> {
+pub fn straight_line(from: &[f64], to: &[f64], horizon: usize) -> Vec<f64> {
     (0..=horizon)
         .flat_map(|k| {
             let s = k as f64 / horizon as f64;

@@ -20,10 +20,9 @@ use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, SolverStatus, SupportedConeT,
 };
 
-use super::StateBounds;
 use super::hessian::Curvature;
 use super::transcription::{Entry, Layout};
-use crate::control::plan::PlanRequest;
+use crate::control::plan::{Bounds, PlanRequest};
 
 /// What the QP gives: the step, the defect rows' multipliers and the largest multiplier of a
 /// constraint the merit weighs (a defect's or a state bound's; x_0 and the input bounds hold
@@ -64,9 +63,8 @@ pub(super) struct Subproblem<'a> {
     pub gradient: &'a [f64],
     pub defects: &'a [f64],
     pub jacobian: &'a [Entry],
-    pub lo: &'a [f64],
-    pub hi: &'a [f64],
-    pub states: &'a StateBounds,
+    pub inputs: &'a Bounds,
+    pub states: &'a Bounds,
     pub curvature: &'a Curvature,
     pub rho: f64,
     /// The interior point's tolerance on gap and feasibility.
@@ -164,39 +162,33 @@ impl Subproblem<'_> {
         }
         let equalities = b.len();
         for k in 0..l.intervals {
-            for i in 0..l.m {
-                let (at, u) = (l.u(k) + i, self.z[l.u(k) + i]);
-                if self.hi[i].is_finite() {
-                    t.push(b.len(), at, 1.0);
-                    b.push(self.hi[i] - u);
-                }
-                if self.lo[i].is_finite() {
-                    t.push(b.len(), at, -1.0);
-                    b.push(u - self.lo[i]);
-                }
-            }
+            self.box_rows((&mut t, &mut b), l.u(k), self.inputs);
         }
-        // Every state after x_0 (fixed): the knots' and the midpoints'.
         let states_from = b.len();
-        let states = (1..=l.intervals)
-            .map(|k| l.x(k))
-            .chain((0..l.intervals).map(|k| l.xc(k)));
-        for at in states {
-            for i in 0..l.nx {
-                let z = self.z[at + i];
-                if self.states.hi[i].is_finite() {
-                    t.push(b.len(), at + i, 1.0);
-                    b.push(self.states.hi[i] - z);
-                }
-                if self.states.lo[i].is_finite() {
-                    t.push(b.len(), at + i, -1.0);
-                    b.push(z - self.states.lo[i]);
-                }
-            }
+        for at in l.free_states() {
+            self.box_rows((&mut t, &mut b), at, self.states);
         }
         let inequalities = b.len() - equalities;
         let counts = [equalities, inequalities, states_from];
         (t.matrix(b.len(), l.len()), b, counts)
+    }
+}
+
+impl Subproblem<'_> {
+    /// Rows `d_i ≤ hi_i − z_i` and `−d_i ≤ z_i − lo_i` for the finite bounds of the variables
+    /// from `at` on.
+    fn box_rows(&self, (t, b): (&mut Triplets, &mut Vec<f64>), at: usize, bounds: &Bounds) {
+        for (i, (lo, hi)) in bounds.lo.iter().zip(&bounds.hi).enumerate() {
+            let z = self.z[at + i];
+            if hi.is_finite() {
+                t.push(b.len(), at + i, 1.0);
+                b.push(hi - z);
+            }
+            if lo.is_finite() {
+                t.push(b.len(), at + i, -1.0);
+                b.push(z - lo);
+            }
+        }
     }
 }
 

@@ -60,7 +60,7 @@ pub(super) struct Run {
 impl<S: Dynamics + Continuous> Collocation<'_, S> {
     pub(super) fn iterate(&self, z: Vec<f64>) -> Iterate {
         let c = defects(self.sys, &self.layout, &z, self.h);
-        let (outside, worst_outside) = self.states.violation(&self.layout, &z);
+        let (outside, worst_outside) = super::outside(&self.states, &self.layout, &z);
         let worst = c.iter().fold(worst_outside, |m, d| m.max(d.abs()));
         // A NaN defect reads as infinitely violated, never as met.
         let nan = c.iter().any(|d| d.is_nan()) || outside.is_nan();
@@ -110,8 +110,7 @@ impl<S: Dynamics + Continuous> Collocation<'_, S> {
                 gradient: &gradient,
                 defects: &cur.defects,
                 jacobian: &jacobian,
-                lo: &self.planner.bounds.lo,
-                hi: &self.planner.bounds.hi,
+                inputs: &self.planner.bounds,
                 states: &self.states,
                 curvature: &curvature,
                 rho,

@@ -58,6 +58,12 @@ impl Layout {
     pub fn is_empty(&self) -> bool {
         self.len() == 0
     }
+    /// Where every state after x_0 (which is fixed) starts: the knots', then the midpoints'.
+    pub fn free_states(&self) -> impl Iterator<Item = usize> + '_ {
+        (1..=self.intervals)
+            .map(|k| self.x(k))
+            .chain((0..self.intervals).map(|k| self.xc(k)))
+    }
     /// Defects: two states' worth per interval.
     pub fn defects(&self) -> usize {
         2 * self.nx * self.intervals

@@ -81,6 +81,14 @@ pub(super) struct Bounds {
 }
 
 impl Bounds {
+    /// Either side unbounded where not given.
+    pub(super) fn new(lo: &Option<Vec<f64>>, hi: &Option<Vec<f64>>, len: usize) -> Self {
+        Self {
+            lo: lo.clone().unwrap_or_else(|| vec![f64::NEG_INFINITY; len]),
+            hi: hi.clone().unwrap_or_else(|| vec![f64::INFINITY; len]),
+        }
+    }
+
     pub(super) fn clamp(&self, u: &mut [f64]) {
         let m = self.lo.len();
         for (i, v) in u.iter_mut().enumerate() {
@@ -154,15 +162,10 @@ pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> 
 
 impl<'a, D: Dynamics> Planner<'a, D> {
     pub(super) fn new(sys: &'a D, req: &'a PlanRequest, stop: &'a dyn Fn() -> bool) -> Self {
-        let m = sys.m();
-        let bounds = Bounds {
-            lo: (req.u_min.clone()).unwrap_or_else(|| vec![f64::NEG_INFINITY; m]),
-            hi: (req.u_max.clone()).unwrap_or_else(|| vec![f64::INFINITY; m]),
-        };
         Planner {
             sys,
             req,
-            bounds,
+            bounds: Bounds::new(&req.u_min, &req.u_max, sys.m()),
             stop,
         }
     }
