@@ -14,7 +14,7 @@ use graybox::error::Error;
 
 use common::gauss_solve;
 use common::plans::{
-    batch_least_squares, linear_model, linear_request, reference_step, swing_up,
+    batch_least_squares, linear_model, linear_request, swing_up, track_swing_up,
     true_double_pendulum,
 };
 
@@ -200,17 +200,7 @@ fn the_swing_up_converges_and_its_gains_track_it_on_the_true_system() {
         p.u.iter().all(|u| u.abs() <= 120.0),
         "an input leaves its bounds"
     );
-    let mut x = req.x0.clone();
-    for t in 0..21 {
-        let k = &p.gains.k[t];
-        let u: Vec<f64> = (0..2)
-            .map(|i| {
-                let fb: f64 = (0..4).map(|j| k.at(i, j) * (x[j] - p.x[t * 4 + j])).sum();
-                (p.u[t * 2 + i] - fb).clamp(-120.0, 120.0)
-            })
-            .collect();
-        x = reference_step(&x, &u, 0.1);
-    }
+    let x = track_swing_up(&p, &req.x0);
     for i in 0..2 {
         assert!((x[i] - req.goal[i]).abs() < 0.05, "tracked end {x:?}");
         assert!(x[2 + i].abs() < 0.2, "tracked end {x:?}");

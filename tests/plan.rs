@@ -12,7 +12,7 @@ use graybox::physics::integrator::Integrator;
 use graybox::physics::templates::Template;
 
 use common::plans::{
-    batch_least_squares, diag, linear_model, linear_request, reference_step, swing_up,
+    batch_least_squares, diag, linear_model, linear_request, swing_up, track_swing_up,
     true_double_pendulum,
 };
 
@@ -56,17 +56,8 @@ fn swing_up_reaches_the_top_and_its_gains_track_the_true_system() {
     );
 
     // Tracking with the plan's own gains on the reference system from a perturbed start.
-    let mut x: Vec<f64> = p.x[..4].iter().map(|v| v + 0.01).collect();
-    for t in 0..21 {
-        let u: Vec<f64> = (0..2)
-            .map(|i| {
-                let k = &p.gains.k[t];
-                let fb: f64 = (0..4).map(|j| k.at(i, j) * (x[j] - p.x[t * 4 + j])).sum();
-                (p.u[t * 2 + i] - fb).clamp(-120.0, 120.0)
-            })
-            .collect();
-        x = reference_step(&x, &u, 0.1);
-    }
+    let start: Vec<f64> = p.x[..4].iter().map(|v| v + 0.01).collect();
+    let x = track_swing_up(&p, &start);
     for i in 0..2 {
         assert!((x[i] - req.goal[i]).abs() < 0.1, "tracked end {x:?}");
         assert!(x[2 + i].abs() < 0.5, "tracked end {x:?}");

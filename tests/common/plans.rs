@@ -2,7 +2,7 @@
 //! and a linear-quadratic problem with its batch least-squares answer.
 
 use graybox::control::linalg::Mat;
-use graybox::control::plan::{Dynamics, PlanRequest};
+use graybox::control::plan::{Dynamics, Plan, PlanRequest};
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
 use graybox::model::spec::ModelSpec;
@@ -97,26 +97,37 @@ pub fn linear_model(dt: f64) -> Evaluator {
 
 /// From a displaced state to another over `t` steps, unbounded, with weights on everything.
 pub fn linear_request(t: usize) -> PlanRequest {
+    let weights = [
+        diag(&[2.0, 1.0, 0.3, 0.2]),
+        diag(&[0.05, 0.1]),
+        diag(&[20.0, 10.0, 3.0, 2.0]),
+    ];
     PlanRequest {
-        x0: vec![0.5, -0.3, 0.1, 0.2],
-        goal: vec![0.2, 0.4, 0.0, 0.0],
-        horizon: t,
-        q: diag(&[2.0, 1.0, 0.3, 0.2]),
-        r: diag(&[0.05, 0.1]),
-        qf: diag(&[20.0, 10.0, 3.0, 2.0]),
-        u_min: None,
-        u_max: None,
-        u_init: None,
-        x_init: None,
-        x_min: None,
-        x_max: None,
-        method: Default::default(),
         max_iterations: 50,
         tolerance: 1e-9,
-        restarts: 0,
-        seed: 0,
-        time_limit: None,
+        ..PlanRequest::new(
+            vec![0.5, -0.3, 0.1, 0.2],
+            vec![0.2, 0.4, 0.0, 0.0],
+            t,
+            weights,
+        )
     }
+}
+
+/// The end of the swing-up `p` (T steps, |u| ≤ 120) tracked from `x0` by its own gains on
+/// the closed-form RK4.
+pub fn track_swing_up(p: &Plan, x0: &[f64]) -> Vec<f64> {
+    let mut x = x0.to_vec();
+    for (t, k) in p.gains.k.iter().enumerate() {
+        let u: Vec<f64> = (0..2)
+            .map(|i| {
+                let fb: f64 = (0..4).map(|j| k.at(i, j) * (x[j] - p.x[t * 4 + j])).sum();
+                (p.u[t * 2 + i] - fb).clamp(-120.0, 120.0)
+            })
+            .collect();
+        x = reference_step(&x, &u, 0.1);
+    }
+    x
 }
 
 /// The discrete LQ optimum's inputs `[T, m]` of the linear model's one-step map, by batch
