@@ -9,6 +9,29 @@ mod messages;
 #[path = "cli/plan_methods.rs"]
 mod plan_methods;
 
+/// `graybox plan` of the pendulum's swing-up (T = 30, |u| ≤ 20) on `model`, and `extra`.
+fn plan_swing_up(model: &str, out: &str, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "plan",
+        "--model",
+        model,
+        "--x0",
+        "0,0",
+        "--goal",
+        "3.14159,0",
+        "--horizon",
+        "30",
+        "--u-min",
+        "-20",
+        "--u-max",
+        "20",
+        "--out",
+        out,
+    ];
+    args.extend_from_slice(extra);
+    graybox(&args)
+}
+
 fn graybox(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_graybox"))
         .args(args)
@@ -174,23 +197,7 @@ fn model_writes_a_white_box_model_that_plans() {
     );
     assert!(info.get("training").is_none(), "{info}");
     let p = tmp("plan.json");
-    let summary = json(&graybox(&[
-        "plan",
-        "--model",
-        &m,
-        "--x0",
-        "0,0",
-        "--goal",
-        "3.14159,0",
-        "--horizon",
-        "30",
-        "--u-min",
-        "-20",
-        "--u-max",
-        "20",
-        "--out",
-        &p,
-    ]));
+    let summary = json(&plan_swing_up(&m, &p, &[]));
     assert!(summary["goal_error"].as_f64().unwrap() < 0.1, "{summary}");
     let plan: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&p).unwrap()).unwrap();

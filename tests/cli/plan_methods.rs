@@ -1,7 +1,7 @@
 //! `graybox plan --method`: direct collocation from the command line, its initial states, and
 //! what it says about a method or initial states it cannot use.
 
-use super::{graybox, json, tmp};
+use super::{graybox, json, plan_swing_up, tmp};
 
 #[test]
 fn plan_by_direct_collocation_from_the_command_line() {
@@ -16,27 +16,7 @@ fn plan_by_direct_collocation_from_the_command_line() {
         &m,
     ]));
     let p = tmp("dircol.json");
-    let plan = |extra: &[&str]| {
-        let mut args = vec![
-            "plan",
-            "--model",
-            &m,
-            "--x0",
-            "0,0",
-            "--goal",
-            "3.14159,0",
-            "--horizon",
-            "30",
-            "--u-min",
-            "-20",
-            "--u-max",
-            "20",
-            "--out",
-            &p,
-        ];
-        args.extend_from_slice(extra);
-        graybox(&args)
-    };
+    let plan = |extra: &[&str]| plan_swing_up(&m, &p, extra);
     for extra in [
         vec!["--method", "dircol"],
         vec!["--method", "dircol", "--x-init", "line"],
