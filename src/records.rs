@@ -103,6 +103,12 @@ pub struct Metric {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub val_horizon_loss: Option<f64>,
     pub seconds: f64,
+    /// An ensemble's: the members' standard deviation of `train_loss` and `val_loss`, which
+    /// are then the members' means (README "Ensembles and uncertainty").
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub train_loss_std: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub val_loss_std: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, serde::Deserialize, utoipa::ToSchema)]

@@ -2,6 +2,8 @@
 //! evaluates, backends agree, resume equals an uninterrupted run, failures are reported.
 
 mod common;
+#[path = "training/ensemble.rs"]
+mod ensemble;
 
 use std::sync::atomic::AtomicBool;
 

@@ -48,8 +48,9 @@ impl App {
             return refuse(
                 "model",
                 format!(
-                    "the model's checkpoint would take about {} MB, more than the store holds ({} MB)",
+                    "the model's checkpoint would take about {} MB{}, more than the store holds ({} MB)",
                     est.checkpoint_bytes >> 20,
+                    members_note(job.training.ensemble),
                     budget::STORE_MAX_BLOB >> 20
                 ),
             );
@@ -58,10 +59,11 @@ impl App {
             return refuse(
                 "training.batch_size",
                 format!(
-                    "training would take about {} MB at its peak (batch {batch}{}), over the \
+                    "training would take about {} MB at its peak (batch {batch}{}{}), over the \
                      limit of {} MB (--max-job-memory-mb); lower batch_size{} or the network widths",
                     est.peak_bytes >> 20,
                     horizon_note(job.training.horizon, " windows of horizon "),
+                    members_note(job.training.ensemble),
                     s.max_job_memory_bytes() >> 20,
                     horizon_note(job.training.horizon, ", horizon ")
                 ),
@@ -98,7 +100,16 @@ fn job_estimate(
     // A window keeps every step's integrator stages for the backward pass.
     let steps = batch.saturating_mul(job.training.horizon);
     let est = budget::estimate(&job.spec, dims, steps, count + val_count, physical);
-    (est, batch)
+    (est.of_members(job.training.ensemble), batch)
+}
+
+/// The members an estimate counts, when more than one.
+fn members_note(members: usize) -> String {
+    if members > 1 {
+        format!(", {members} ensemble members")
+    } else {
+        String::new()
+    }
 }
 
 /// `prefix` and the horizon when it is over 1, else nothing.

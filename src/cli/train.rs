@@ -15,7 +15,7 @@ use crate::model::file::write_atomic;
 use crate::model::spec::ModelSpec;
 use crate::physics::integrator::Integrator;
 use crate::sim::parse_pairs;
-use crate::train::{TrainConfig, Trainer};
+use crate::train::{Ensemble, TrainConfig};
 
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -87,6 +87,14 @@ pub struct TrainArgs {
     /// Learning rate of the epochs on windows (--horizon > 1) [default: --lr].
     #[arg(long)]
     pub window_lr: Option<f64>,
+    /// Members of an ensemble (1–32), each from its own seed (README "Ensembles and
+    /// uncertainty"); the model file holds them all.
+    #[arg(long, default_value_t = 1)]
+    pub ensemble: usize,
+    /// Train every member of an ensemble on all the training data instead of its own
+    /// bootstrap resample.
+    #[arg(long)]
+    pub no_bootstrap: bool,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
@@ -158,18 +166,23 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
         discount: a.discount,
         one_step_epochs: a.one_step_epochs,
         window_lr: a.window_lr,
+        ensemble: a.ensemble,
+        bootstrap: !a.no_bootstrap,
     };
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;
     let device = backend::device(a.backend, a.precision)?.autodiff();
     let threads = a.threads.unwrap_or_else(crate::train::shards::cores);
-    let mut trainer = Trainer::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?
+    let mut trainer = Ensemble::new(&name, spec, &init, &data, val.as_ref(), cfg, &device)?
         .with_threads(threads)?;
     if let Some(w) = trainer.stiffness_warning() {
         eprintln!("warning: {}", w.message);
     }
     let progress = EpochProgress::new(a.epochs as u64, a.horizon);
-    trainer.run(&AtomicBool::new(false), |m, _| progress.epoch(m))?;
+    let cancel = AtomicBool::new(false);
+    while !trainer.finished() {
+        progress.epoch(&trainer.run_epoch(&cancel)?.mean);
+    }
     progress.finish();
     let file = trainer.model_file();
     file.save(&a.out)?;

@@ -26,6 +26,9 @@ pub const FORMAT: &str = "graybox.model/1";
 /// The format of files that embed a template's document (a formula template or a URDF).
 pub const FORMAT_EMBEDDED_TEMPLATE: &str = "graybox.model/2";
 
+/// The format of an ensemble's files (any template): its members' parameters in `members`.
+pub const FORMAT_ENSEMBLE: &str = "graybox.model/3";
+
 /// The format a file with this configuration is written in.
 fn format_of(config: &ModelConfig) -> &'static str {
     match config.template() {
@@ -44,6 +47,10 @@ pub struct ModelFile {
     /// Set for a model made from a template's equations instead of trained (`graybox model`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub made: Option<Made>,
+    /// An ensemble's members after the first (`params` is member 0's), in member order;
+    /// empty for a single model ([`FORMAT_ENSEMBLE`] files only).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub members: Vec<Vec<NamedArray>>,
 }
 
 /// How a model that was not trained was made: a template's equations with these values.
@@ -62,7 +69,39 @@ impl ModelFile {
             params,
             report,
             made: None,
+            members: vec![],
         }
+    }
+
+    /// The ensemble of these single-model files (one configuration, trained together) with
+    /// the ensemble's report; one file stays what it is.
+    pub fn ensemble(mut files: Vec<ModelFile>, report: Option<TrainReport>) -> Self {
+        assert!(!files.is_empty(), "an ensemble has a member");
+        let mut first = files.remove(0);
+        if files.is_empty() {
+            return first;
+        }
+        first.format = FORMAT_ENSEMBLE.to_string();
+        first.members = files.into_iter().map(|f| f.params).collect();
+        first.report = report;
+        first
+    }
+
+    /// Members: 1 for a single model.
+    pub fn member_count(&self) -> usize {
+        1 + self.members.len()
+    }
+
+    /// Member `k` as a single model's file (without the ensemble's report).
+    pub fn member(&self, k: usize) -> ModelFile {
+        let mut file = Self::new(self.config.clone(), self.params.clone(), None);
+        if k > 0 {
+            file.params = self.members[k - 1].clone();
+        } else {
+            file.report = self.report.clone().filter(|_| self.members.is_empty());
+        }
+        file.made = self.made.clone();
+        file
     }
 
     /// The white-box model of a template with the given physical values: "the true system"
@@ -124,9 +163,8 @@ impl ModelFile {
                 "the model's scalings are not finite; the data's values are out of range".into(),
             ));
         }
-        if let Some(a) = self
-            .params
-            .iter()
+        if let Some(a) = (self.params.iter())
+            .chain(self.members.iter().flatten())
             .find(|a| a.values.iter().any(|v| !v.is_finite()))
         {
             return Err(Error::Training(format!(
@@ -150,11 +188,18 @@ impl ModelFile {
         }
         let f: ModelFile =
             serde_json::from_slice(bytes).map_err(|e| Error::corrupt("model file", e))?;
-        if ![FORMAT, FORMAT_EMBEDDED_TEMPLATE].contains(&f.format.as_str()) {
+        let known = [FORMAT, FORMAT_EMBEDDED_TEMPLATE, FORMAT_ENSEMBLE];
+        if !known.contains(&f.format.as_str()) {
+            return Err(Error::corrupt(
+                "model file",
+                format!("format '{}' is not one of {}", f.format, known.join(", ")),
+            ));
+        }
+        if !f.members.is_empty() && f.format != FORMAT_ENSEMBLE {
             return Err(Error::corrupt(
                 "model file",
                 format!(
-                    "format '{}' is not {FORMAT} or {FORMAT_EMBEDDED_TEMPLATE}",
+                    "format '{}' has no members (an ensemble is {FORMAT_ENSEMBLE})",
                     f.format
                 ),
             ));

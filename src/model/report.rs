@@ -87,6 +87,55 @@ pub struct TrainReport {
     /// The training checks' findings (`train::warnings`); absent in earlier files.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<Warning>,
+    /// An ensemble's members, and its physical values' spread (README "Ensembles and
+    /// uncertainty"); the fields above are then the members' means. Absent for one model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ensemble: Option<EnsembleReport>,
+}
+
+/// What an ensemble's report adds: each member's own figures and the physical values'
+/// spread across members.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EnsembleReport {
+    pub members: Vec<MemberReport>,
+    /// Each physical parameter's mean and standard deviation across the members: bootstrap
+    /// error bars when the members trained on resamples.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub physical_parameters: BTreeMap<String, Spread>,
+}
+
+/// One member's figures in an ensemble's report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MemberReport {
+    pub best_epoch: usize,
+    pub best_val_loss: Option<f64>,
+    pub train_loss: f64,
+    pub val_loss: Option<f64>,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub physical_parameters: BTreeMap<String, f64>,
+}
+
+/// A mean and a standard deviation across an ensemble's members.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Spread {
+    pub mean: f64,
+    pub std: f64,
+}
+
+impl Spread {
+    /// The mean and the sample standard deviation (divided by K − 1: K is small, and the
+    /// members are K draws of what training could have given; 0 for one value).
+    pub fn of(values: &[f64]) -> Self {
+        let k = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / k;
+        let ss: f64 = values.iter().map(|v| (v - mean).powi(2)).sum();
+        let std = if values.len() > 1 {
+            (ss / (k - 1.0)).sqrt()
+        } else {
+            0.0
+        };
+        Self { mean, std }
+    }
 }
 
 /// The parameters that the white-box parts use, by name.

@@ -253,7 +253,8 @@ impl Store {
         }
         on_db!(self, pool, D => {
             Ok(sqlx::query_as(
-                "SELECT epoch, train_loss, val_loss, val_horizon_loss, seconds FROM metrics
+                "SELECT epoch, train_loss, val_loss, val_horizon_loss, seconds, train_loss_std,
+                    val_loss_std FROM metrics
                  WHERE job_id = $1 AND epoch > $2 ORDER BY epoch",
             )
             .bind(job_id)

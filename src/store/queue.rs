@@ -188,11 +188,13 @@ impl Store {
                 return Ok(false);
             }
             sqlx::query(
-                "INSERT INTO metrics (job_id, epoch, train_loss, val_loss, seconds, val_horizon_loss)
-                 VALUES ($1, $2, $3, $4, $5, $6)
+                "INSERT INTO metrics (job_id, epoch, train_loss, val_loss, seconds, val_horizon_loss,
+                    train_loss_std, val_loss_std)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8)
                  ON CONFLICT (job_id, epoch) DO UPDATE SET train_loss = excluded.train_loss,
                     val_loss = excluded.val_loss, seconds = excluded.seconds,
-                    val_horizon_loss = excluded.val_horizon_loss",
+                    val_horizon_loss = excluded.val_horizon_loss,
+                    train_loss_std = excluded.train_loss_std, val_loss_std = excluded.val_loss_std",
             )
             .bind(&c.job.id)
             .bind(m.epoch)
@@ -200,6 +202,8 @@ impl Store {
             .bind(m.val_loss)
             .bind(m.seconds)
             .bind(m.val_horizon_loss)
+            .bind(m.train_loss_std)
+            .bind(m.val_loss_std)
             .execute(&mut *tx)
             .await?;
             tx.commit().await?;

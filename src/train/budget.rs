@@ -28,6 +28,24 @@ pub struct JobEstimate {
     pub peak_bytes: usize,
     /// The checkpoint's size, bytes.
     pub checkpoint_bytes: usize,
+    /// Of `peak_bytes`, the data's, which an ensemble's members share.
+    pub data_bytes: usize,
+}
+
+impl JobEstimate {
+    /// The cost of an ensemble of `members` such models trained on the same data: each
+    /// member's tape, parameters and checkpoint, the data once. (Members side by side keep
+    /// as many tapes live as there are threads; counting every member's keeps the limit
+    /// independent of the worker that claims the job.)
+    pub fn of_members(self, members: usize) -> Self {
+        let own = self.peak_bytes.saturating_sub(self.data_bytes);
+        Self {
+            params: self.params,
+            peak_bytes: own.saturating_mul(members).saturating_add(self.data_bytes),
+            checkpoint_bytes: self.checkpoint_bytes.saturating_mul(members),
+            data_bytes: self.data_bytes,
+        }
+    }
 }
 
 /// A network's (parameters, Σ layer widths) for `d_in` → `hidden` → `d_out`.
@@ -125,5 +143,6 @@ pub fn estimate(
             .saturating_add(data)
             .saturating_add(state),
         checkpoint_bytes: params.saturating_mul(CHECKPOINT_BYTES_PER_PARAM),
+        data_bytes: data,
     }
 }

@@ -3,11 +3,13 @@
 
 pub mod adam;
 pub mod budget;
+pub mod ensemble;
 pub mod setup;
 pub mod shards;
 pub mod trainer;
 pub mod warnings;
 pub mod windows;
 
+pub use ensemble::{Ensemble, Parallelism};
 pub use setup::TrainConfig;
-pub use trainer::{TrainState, Trainer};
+pub use trainer::{TrainState, Trainer, member_seed};

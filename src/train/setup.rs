@@ -49,6 +49,21 @@ pub struct TrainConfig {
     /// files when unset).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub window_lr: Option<f64>,
+    /// Members of an ensemble (README "Ensembles and uncertainty"), trained together from
+    /// seeds derived from `seed`; 1 trains one model (and is left out of files).
+    #[serde(skip_serializing_if = "is_one")]
+    pub ensemble: usize,
+    /// Whether each member of an ensemble trains on its own bootstrap resample of the
+    /// training windows (left out of files when true, the default).
+    #[serde(skip_serializing_if = "is_true")]
+    pub bootstrap: bool,
+}
+
+/// The most members an ensemble may have: each costs a model's training and inference.
+pub const MAX_ENSEMBLE: usize = 32;
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -84,6 +99,8 @@ impl Default for TrainConfig {
             discount: 1.0,
             one_step_epochs: 0,
             window_lr: None,
+            ensemble: 1,
+            bootstrap: true,
         }
     }
 }
@@ -135,6 +152,12 @@ impl TrainConfig {
             return bad(
                 "one_step_epochs",
                 "must be less than epochs (the epochs after it train on windows of horizon)",
+            );
+        }
+        if !(1..=MAX_ENSEMBLE).contains(&self.ensemble) {
+            return bad(
+                "ensemble",
+                &format!("must be between 1 and {MAX_ENSEMBLE} members"),
             );
         }
         if self.patience == Some(0) {

@@ -48,6 +48,25 @@ pub fn cores() -> usize {
     std::thread::available_parallelism().map_or(1, usize::from)
 }
 
+/// A pool of `threads` training threads; None for 1 (the caller's thread runs the shards).
+pub fn pool(threads: usize) -> Result<Option<std::sync::Arc<rayon::ThreadPool>>> {
+    if !(1..=MAX_THREADS).contains(&threads) {
+        return Err(Error::invalid(
+            "threads",
+            format!("must be between 1 and {MAX_THREADS}"),
+        ));
+    }
+    if threads == 1 {
+        return Ok(None);
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .thread_name(|i| format!("graybox-train-{i}"))
+        .build()
+        .map_err(|e| Error::Training(format!("could not start {threads} threads: {e}")))?;
+    Ok(Some(std::sync::Arc::new(pool)))
+}
+
 /// How many shards a batch of `rows` gets when a run uses `shards` of at least `min_rows`.
 pub fn shard_count(shards: usize, rows: usize, min_rows: usize) -> usize {
     shards.min(rows / min_rows).max(1)

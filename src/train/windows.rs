@@ -42,6 +42,15 @@ impl Windows {
     pub fn count(&self) -> usize {
         self.starts.len()
     }
+
+    /// A bootstrap resample: as many windows, drawn from these with replacement.
+    pub fn resample(&self, rng: &mut crate::rng::Rng) -> Self {
+        let n = self.count();
+        Self {
+            starts: (0..n).map(|_| self.starts[rng.below(n)]).collect(),
+            weights: self.weights.clone(),
+        }
+    }
 }
 
 /// The rows where a window of `horizon` transitions fits inside its segment.

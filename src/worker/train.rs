@@ -14,7 +14,8 @@ use crate::backend::{self, Backend, Precision};
 use crate::error::{Error, Result};
 use crate::records::Metric;
 use crate::store::{Claimed, NewModel};
-use crate::train::{TrainState, Trainer};
+use crate::train::Ensemble;
+use crate::train::ensemble::EnsembleEpoch;
 
 /// The blocking part: build or resume the trainer, run epochs (recording each, with a
 /// checkpoint every `--checkpoint-every`), then store the model; progress goes through the
@@ -37,7 +38,7 @@ pub(super) fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> R
         if flags.shutdown.load(Ordering::Relaxed) {
             return release(app, c, &trainer, checkpointed, rt);
         }
-        let m = trainer.run_epoch(&flags.cancel)?;
+        let EnsembleEpoch { mean: m, std } = trainer.run_epoch(&flags.cancel)?;
         app.telemetry.epochs_trained.fetch_add(1, Ordering::Relaxed);
         let row = Metric {
             epoch: m.epoch as i64,
@@ -45,12 +46,14 @@ pub(super) fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> R
             val_loss: m.val_loss,
             val_horizon_loss: m.val_horizon_loss,
             seconds: m.seconds,
+            train_loss_std: std.map(|s| s.train_loss),
+            val_loss_std: std.and_then(|s| s.val_loss),
         };
         if !rt.block_on(app.store.record_epoch(c, &row, trainer.best_val_loss()))? {
             return lost();
         }
         if trainer.epoch() % every == 0 && !trainer.finished() {
-            let bytes = trainer.checkpoint().to_bytes();
+            let bytes = trainer.checkpoint();
             let epoch = trainer.epoch() as i64;
             if !rt.block_on(app.store.save_checkpoint(c, epoch, &bytes))? {
                 return lost();
@@ -66,7 +69,7 @@ pub(super) fn train_job(app: &App, c: &Claimed, flags: &Flags, rt: &Handle) -> R
 
 /// A new trainer for the job, or the one its last checkpoint holds (refused as corrupt when
 /// the checkpoint claims an epoch past the job's last).
-fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<Trainer> {
+fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<Ensemble> {
     let load = |id: &str| -> Result<crate::data::Dataset> {
         rt.block_on(app.store.load_dataset(id))?
             .ok_or_else(|| Error::invalid("dataset_id", format!("dataset {id} was deleted")))
@@ -88,10 +91,9 @@ fn build_trainer(app: &App, c: &Claimed, spec: &JobSpec, rt: &Handle) -> Result<
         )),
         Some((epoch, bytes)) => {
             info!(job = %c.job.id, epoch, "resuming from checkpoint");
-            let state = TrainState::from_bytes(&bytes)?;
-            Trainer::resume(state, &data, val.as_ref(), &device)
+            Ensemble::resume(&bytes, &data, val.as_ref(), &device)
         }
-        None => Trainer::new(
+        None => Ensemble::new(
             &spec.model_name,
             spec.spec.clone(),
             &spec.init,
@@ -110,7 +112,7 @@ async fn store_model(
     app: &App,
     c: &Claimed,
     spec: &JobSpec,
-    trainer: &Trainer,
+    trainer: &Ensemble,
 ) -> Result<Option<String>> {
     let file = trainer.model_file();
     let report = file.report.as_ref().expect("trained files carry a report");
@@ -133,16 +135,15 @@ async fn store_model(
 fn release(
     app: &App,
     c: &Claimed,
-    trainer: &Trainer,
+    trainer: &Ensemble,
     checkpointed: usize,
     rt: &Handle,
 ) -> Result<Outcome> {
     if trainer.epoch() > checkpointed {
-        rt.block_on(app.store.save_checkpoint(
-            c,
-            trainer.epoch() as i64,
-            &trainer.checkpoint().to_bytes(),
-        ))?;
+        rt.block_on(
+            app.store
+                .save_checkpoint(c, trainer.epoch() as i64, &trainer.checkpoint()),
+        )?;
     }
     rt.block_on(app.store.release_job(c))?;
     Ok(Outcome::Released)

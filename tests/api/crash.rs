@@ -111,3 +111,49 @@ fn kill_and_sigterm_resume_from_checkpoints_and_match_an_uninterrupted_run() {
     assert_eq!(last.metric_epochs(&id), (1..=24).collect::<Vec<_>>());
     last.sigterm();
 }
+
+/// An ensemble of 3, killed after its first checkpoints, resumes with every member where it
+/// was: the finished file's members equal an uninterrupted run's, and its metrics carry the
+/// members' spread.
+#[test]
+fn a_killed_ensemble_resumes_every_member_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let setup = |s: &Server| -> String {
+        let d = s.post("/v1/datasets", &trajectories(8, 64, 31));
+        let body = json!({"dataset_id": d["id"], "model": "MVF",
+                          "training": {"epochs": 16, "batch_size": 64, "ensemble": 3}});
+        let job = s.post("/v1/jobs", &body);
+        job["id"].as_str().unwrap().to_string()
+    };
+    let reference = Server::start(dir.path().join("ref.db").to_str().unwrap(), 1);
+    let rid = setup(&reference);
+    let rjob = reference.wait(&rid, 300, final_state);
+    assert_eq!(rjob["state"], "succeeded", "{rjob}");
+    let want = reference.model_file(&rjob);
+    assert_eq!(want.member_count(), 3);
+    reference.sigterm();
+
+    let db = fresh_db(&dir.path().join("crash"));
+    let first = Server::start(&db, 1);
+    let id = setup(&first);
+    let before = first.wait(&id, 120, |j| j["checkpoint_epoch"].as_i64() >= Some(2));
+    assert_ne!(before["state"], "succeeded", "killed too late");
+    first.proc.kill();
+    let second = Server::start(&db, 1);
+    let done = second.wait(&id, 300, final_state);
+    assert_eq!(done["state"], "succeeded", "{done}");
+    assert_eq!(done["attempt"], 2);
+    let got = second.model_file(&done);
+    assert_eq!(got.params, want.params, "member 0");
+    assert_eq!(got.members, want.members, "members 1 and 2");
+    let metrics = second.get(&format!("/v1/jobs/{id}/metrics"));
+    let spread: Vec<&Value> = (metrics["items"].as_array().unwrap().iter())
+        .map(|m| &m["train_loss_std"])
+        .collect();
+    assert!(
+        spread.iter().all(|s| s.as_f64().is_some_and(|s| s > 0.0)),
+        "{spread:?}"
+    );
+    assert_eq!(second.metric_epochs(&id), (1..=16).collect::<Vec<_>>());
+    second.sigterm();
+}

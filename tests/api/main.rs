@@ -4,6 +4,7 @@ mod chaos;
 mod cluster;
 mod crash;
 mod datasets;
+mod ensemble;
 mod errors;
 mod faults;
 mod formula_limits;

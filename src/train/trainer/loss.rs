@@ -147,7 +147,7 @@ impl Trainer {
         let k = self.shards_of(batch.len());
         let weights = &self.windows().weights;
         let shard = |idx: &[usize], model: &Model| {
-            let loss = (self.train)
+            let loss = (self.data.train)
                 .window_loss_sum(model, idx, weights, &model.device())
                 .div_scalar(rows);
             let value = scalar(loss.clone());
@@ -156,7 +156,7 @@ impl Trainer {
         if k == 1 {
             return shard(batch, &self.model);
         }
-        let results = shards::map_pieces(&shards::split(batch, k), self.pool.as_ref(), |idx| {
+        let results = shards::map_pieces(&shards::split(batch, k), self.pool.as_deref(), |idx| {
             let model = self
                 .model
                 .with_params(shards::fresh_leaves(self.model.params.clone()));

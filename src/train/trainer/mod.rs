@@ -6,6 +6,7 @@ mod loss;
 mod report;
 mod state;
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -18,9 +19,9 @@ use super::warnings::zero_acceleration_window_loss;
 use super::windows::Windows;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
-use crate::model::Model;
 use crate::model::report::EpochMetrics;
 use crate::model::spec::ModelSpec;
+use crate::model::{Model, ModelConfig};
 use crate::physics::params::bounds;
 use crate::rng::Rng;
 
@@ -37,21 +38,70 @@ pub struct Trainer {
     state: TrainState,
     model: Model,
     adam: Adam,
-    train: HostData,
-    /// The training windows of the run's horizon (every row, for the one-step loss).
+    /// The sets every member of the run trains and validates on, shared by an ensemble's.
+    data: Arc<RunData>,
+    /// The training windows of the run's horizon (every row, for the one-step loss), an
+    /// ensemble member's bootstrap resample of them.
     train_windows: Windows,
     /// Every row on its own, for the one-step epochs of a curriculum
-    /// (`TrainConfig::one_step_epochs`).
+    /// (`TrainConfig::one_step_epochs`), or a member's resample of the rows.
     train_rows: Windows,
+    /// The threads that run a batch's shards (`TrainState::shards`).
+    pool: Option<Arc<rayon::ThreadPool>>,
+    /// The physical parameters' raw bounds, kept after every step (`Params::projected`):
+    /// minimums, and fixed parameters held at their values.
+    bounds: Option<(Vec<f64>, Vec<f64>)>,
+}
+
+/// What a run trains and validates on, built once however many members train on it.
+pub(super) struct RunData {
+    train: HostData,
+    /// The training set's windows of the run's horizon, and its row count.
+    windows: Windows,
+    rows: usize,
     val: Option<Validation>,
     /// The zero-acceleration loss on the set and windows that pick the best epoch
     /// (validation, else training), and the windows' steps, for the training checks.
     baseline: (f64, usize),
-    /// The threads that run a batch's shards (`TrainState::shards`).
-    pool: Option<rayon::ThreadPool>,
-    /// The physical parameters' raw bounds, kept after every step (`Params::projected`):
-    /// minimums, and fixed parameters held at their values.
-    bounds: Option<(Vec<f64>, Vec<f64>)>,
+    /// `fingerprint` of the training and validation sets.
+    fingerprint: u64,
+}
+
+impl RunData {
+    pub(super) fn new(
+        train: &Dataset,
+        val: Option<&Dataset>,
+        cfg: &TrainConfig,
+        model: &ModelConfig,
+    ) -> Self {
+        let (horizon, discount) = (cfg.horizon, cfg.discount);
+        let windows = Windows::of(train, horizon, discount);
+        let validation = val.map(|v| Validation::new(v, horizon, discount));
+        let baseline = match &validation {
+            Some(v) => baseline(&v.ds, v.horizon.as_ref().unwrap_or(&v.one_step), model),
+            None => baseline(train, &windows, model),
+        };
+        Self {
+            train: HostData::new(train),
+            windows,
+            rows: train.count(),
+            val: validation,
+            baseline,
+            fingerprint: fingerprint(train, val),
+        }
+    }
+}
+
+/// The stream of a member's bootstrap resamples (derived from its seed).
+const BOOTSTRAP_STREAM: u64 = 0xB0_075;
+
+/// The seed of ensemble member `k`: the job's own for member 0 (so that one member is the
+/// single model the same job would train), an independent stream of it for the others.
+pub fn member_seed(seed: u64, k: usize) -> u64 {
+    if k == 0 {
+        return seed;
+    }
+    Rng::derive(seed, 0xE_5E3B_0000 + k as u64).next_u64()
 }
 
 impl Trainer {
@@ -67,14 +117,29 @@ impl Trainer {
         device: &Device,
     ) -> Result<Self> {
         let (config, physical, train_ds, val_ds) = prepare(&spec, init, data, val, &cfg)?;
-        let model = Model::init(config, physical, cfg.seed, device)?;
+        let run = Arc::new(RunData::new(&train_ds, val_ds.as_ref(), &cfg, &config));
+        Self::member(model_name, (config, physical), run, cfg, 0, device)
+    }
+
+    /// Member `k` of a new run on `data`: its own initialization and data order from
+    /// [`member_seed`], and in an ensemble its own bootstrap resample.
+    pub(super) fn member(
+        model_name: &str,
+        (config, physical): (ModelConfig, Option<Vec<f64>>),
+        data: Arc<RunData>,
+        cfg: TrainConfig,
+        k: usize,
+        device: &Device,
+    ) -> Result<Self> {
+        let seed = member_seed(cfg.seed, k);
+        let model = Model::init(config, physical, seed, device)?;
         let state = TrainState {
             model_name: model_name.to_string(),
             config: model.config.clone(),
             epoch: 0,
             params: vec![],
             adam: AdamState::default(),
-            rng: Rng::derive(cfg.seed, 0x05_40F),
+            rng: Rng::derive(seed, 0x05_40F),
             train: cfg,
             best_epoch: 0,
             best_loss: f64::INFINITY,
@@ -83,47 +148,37 @@ impl Trainer {
             stale_epochs: 0,
             train_seconds: 0.0,
             samples_seen: 0,
-            data_fingerprint: fingerprint(&train_ds, val_ds.as_ref()),
+            data_fingerprint: data.fingerprint,
             initial_physical: used_physical_values(&model),
             shards: 1,
+            member: k,
         };
-        Ok(Self::start(
-            state,
-            model,
-            Adam::default(),
-            &train_ds,
-            val_ds.as_ref(),
-        ))
+        Ok(Self::start(state, model, Adam::default(), data))
     }
 
     /// A run at `state` with its live parameters and moments, on its data.
-    fn start(
-        state: TrainState,
-        model: Model,
-        adam: Adam,
-        train: &Dataset,
-        val: Option<&Dataset>,
-    ) -> Self {
+    fn start(state: TrainState, model: Model, adam: Adam, data: Arc<RunData>) -> Self {
         let c = &model.config;
         // A fixed parameter's value now is its start: it never moves (a resumed run's too).
         let bounds =
             (c.template().zip(model.raw_physical())).and_then(|(t, raw)| bounds(t.params(), &raw));
-        let (horizon, discount) = (state.train.horizon, state.train.discount);
-        let train_windows = Windows::of(train, horizon, discount);
-        let val = val.map(|v| Validation::new(v, horizon, discount));
-        let baseline = match &val {
-            Some(v) => baseline(&v.ds, v.horizon.as_ref().unwrap_or(&v.one_step), &model),
-            None => baseline(train, &train_windows, &model),
-        };
+        let mut train_windows = data.windows.clone();
+        let mut train_rows = Windows::one_step(data.rows);
+        let t = &state.train;
+        if t.ensemble > 1 && t.bootstrap {
+            // Re-derived from the seed on every start, so a resumed member trains on the
+            // resample it started with and a checkpoint never stores it.
+            let mut rng = Rng::derive(member_seed(t.seed, state.member), BOOTSTRAP_STREAM);
+            train_rows = train_rows.resample(&mut rng);
+            train_windows = train_windows.resample(&mut rng);
+        }
         Self {
             state,
             model,
             adam,
-            train: HostData::new(train),
+            data,
             train_windows,
-            train_rows: Windows::one_step(train.count()),
-            val,
-            baseline,
+            train_rows,
             pool: None,
             bounds,
         }
@@ -132,26 +187,18 @@ impl Trainer {
     /// Runs on `threads` threads (1, the default, runs on the caller's thread). A new run
     /// splits each batch into that many shards; a resumed one keeps its checkpoint's split.
     pub fn with_threads(mut self, threads: usize) -> Result<Self> {
-        if !(1..=shards::MAX_THREADS).contains(&threads) {
-            return Err(Error::invalid(
-                "threads",
-                format!("must be between 1 and {}", shards::MAX_THREADS),
-            ));
-        }
-        if self.state.samples_seen == 0 {
-            self.state.shards = threads;
-        }
-        self.pool = if threads > 1 {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .thread_name(|i| format!("graybox-train-{i}"))
-                .build()
-                .map_err(|e| Error::Training(format!("could not start {threads} threads: {e}")))?;
-            Some(pool)
-        } else {
-            None
-        };
+        let pool = shards::pool(threads)?;
+        self.use_pool(pool, threads);
         Ok(self)
+    }
+
+    /// Runs its shards on `pool` (None: the caller's thread), splitting a new run's batches
+    /// into `shards`.
+    pub(super) fn use_pool(&mut self, pool: Option<Arc<rayon::ThreadPool>>, shards: usize) {
+        if self.state.samples_seen == 0 {
+            self.state.shards = shards;
+        }
+        self.pool = pool;
     }
 
     /// Shards per batch (what the results depend on, see `TrainState::shards`).
@@ -191,14 +238,12 @@ impl Trainer {
             ..self.state.train.clone()
         };
         cfg.validate()?;
-        self.train = HostData::new(data);
-        self.train_windows = Windows::of(data, cfg.horizon, cfg.discount);
-        self.baseline = baseline(data, &self.train_windows, &self.model);
+        self.data = Arc::new(RunData::new(data, None, &cfg, &self.model.config));
+        self.train_windows = self.data.windows.clone();
         self.train_rows = Windows::one_step(data.count());
-        self.val = None;
         let s = &mut self.state;
         s.train = cfg;
-        s.data_fingerprint = fingerprint(data, None);
+        s.data_fingerprint = self.data.fingerprint;
         s.best_loss = f64::INFINITY;
         s.best_params = self.model.params.export();
         s.stale_epochs = 0;
@@ -220,12 +265,12 @@ impl Trainer {
 
     /// The best validation loss so far (`None` without a validation set or before epoch 1).
     pub fn best_val_loss(&self) -> Option<f64> {
-        (self.val.is_some() && self.state.epoch > 0).then_some(self.state.best_loss)
+        (self.data.val.is_some() && self.state.epoch > 0).then_some(self.state.best_loss)
     }
 
     /// The steps of the windows [`Trainer::best_val_loss`] is taken over (1: one-step).
     pub fn best_val_loss_steps(&self) -> Option<usize> {
-        (self.best_val_loss().and(self.val.as_ref()))
+        (self.best_val_loss().and(self.data.val.as_ref()))
             .map(|v| v.horizon.as_ref().map_or(1, Windows::horizon))
     }
 
@@ -278,11 +323,11 @@ impl Trainer {
         s.samples_seen += (windows * horizon) as u64;
         let train_loss = total / windows as f64;
         let valid = self.model.valid();
-        let loss =
-            |v: &HostData, w: &Windows| mean_loss(&valid, v, w, s.shards, self.pool.as_ref());
-        let val_loss = (self.val.as_ref()).map(|v| loss(&v.data, &v.one_step));
-        let val_horizon_loss =
-            (self.val.as_ref()).and_then(|v| v.horizon.as_ref().map(|w| loss(&v.data, w)));
+        let pool = self.pool.as_deref();
+        let loss = |v: &HostData, w: &Windows| mean_loss(&valid, v, w, s.shards, pool);
+        let val = self.data.val.as_ref();
+        let val_loss = val.map(|v| loss(&v.data, &v.one_step));
+        let val_horizon_loss = val.and_then(|v| v.horizon.as_ref().map(|w| loss(&v.data, w)));
         if let Some(v) = (val_loss.iter().chain(&val_horizon_loss)).find(|v| !v.is_finite()) {
             return Err(Error::Training(format!(
                 "the validation loss became non-finite ({v}) at epoch {epoch}"
@@ -333,16 +378,15 @@ impl Trainer {
     }
 }
 
-/// The validation set: its one-step loss (comparable across every job), and for a multi-step
-/// run the loss over its windows of the run's horizon when it has any.
 /// The zero-acceleration loss of `ds` over `windows` with `model`'s loss weights, and the
 /// windows' steps.
-fn baseline(ds: &Dataset, windows: &Windows, model: &Model) -> (f64, usize) {
-    let c = &model.config;
+fn baseline(ds: &Dataset, windows: &Windows, c: &ModelConfig) -> (f64, usize) {
     let loss = zero_acceleration_window_loss(ds, windows, c.lambda, &c.periodic);
     (loss, windows.horizon())
 }
 
+/// The validation set: its one-step loss (comparable across every job), and for a multi-step
+/// run the loss over its windows of the run's horizon when it has any.
 struct Validation {
     /// The set itself, for the error against horizon at the end (`model_file`).
     ds: Dataset,

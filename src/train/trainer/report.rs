@@ -96,6 +96,7 @@ impl Trainer {
             history: self.state.history.clone(),
             horizon_errors: vec![],
             warnings,
+            ensemble: None,
         }
     }
 
@@ -109,7 +110,11 @@ impl Trainer {
     /// At q = 0 and the first few states of the training data.
     fn stiffness_at(&self, values: &[(String, f64)]) -> Option<Warning> {
         let values: Vec<f64> = values.iter().map(|(_, v)| *v).collect();
-        stiffness_of(&self.model.config, &values, &self.train.configurations(8))
+        stiffness_of(
+            &self.model.config,
+            &values,
+            &self.data.train.configurations(8),
+        )
     }
 
     /// The training checks on the run so far; `identified`: the parameters in some
@@ -119,23 +124,28 @@ impl Trainer {
         training_warnings(&RunSummary {
             history: &self.state.history,
             best_loss: self.state.best_loss,
-            baseline: self.baseline.0,
-            steps: self.baseline.1,
+            baseline: self.data.baseline.0,
+            steps: self.data.baseline.1,
             initial_physical: self.state.initial_physical.as_ref(),
             physical: &physical,
             identified,
         })
     }
 
-    /// The best parameters as a model file, with the report: with validation trajectories,
-    /// the report includes the model's open-loop error against horizon on them.
-    pub fn model_file(&self) -> ModelFile {
-        let mut file = ModelFile::new(
+    /// The best parameters as a model file, with the report.
+    pub fn best_file(&self) -> ModelFile {
+        ModelFile::new(
             self.model.config.clone(),
             self.state.best_params.clone(),
             Some(self.report()),
-        );
-        let errors = (self.val.as_ref()).map(|v| end_of_training(&file, &v.ds));
+        )
+    }
+
+    /// The best parameters as a model file, with the report: with validation trajectories,
+    /// the report includes the model's open-loop error against horizon on them.
+    pub fn model_file(&self) -> ModelFile {
+        let mut file = self.best_file();
+        let errors = (self.data.val.as_ref()).map(|v| end_of_training(&file, &v.ds));
         if let (Some(Ok(errors)), Some(report)) = (errors, file.report.as_mut()) {
             report.horizon_errors = errors;
         }

@@ -8,7 +8,9 @@ use std::collections::BTreeMap;
 use burn::tensor::Device;
 use serde::{Deserialize, Serialize};
 
-use super::Trainer;
+use std::sync::Arc;
+
+use super::{RunData, Trainer};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::params_io::{NamedArray, import};
@@ -47,6 +49,14 @@ pub struct TrainState {
     /// earlier versions, which trained on one thread).
     #[serde(default = "one")]
     pub shards: usize,
+    /// Which member of an ensemble this is (`train::ensemble`): its seed and bootstrap
+    /// resample derive from it. 0, a single model's, is left out.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub member: usize,
+}
+
+fn is_zero(k: &usize) -> bool {
+    *k == 0
 }
 
 fn one() -> usize {
@@ -86,7 +96,17 @@ impl Trainer {
         device: &Device,
     ) -> Result<Self> {
         let (train_ds, val_ds) = split_data(data, val, &state.train)?;
-        if fingerprint(&train_ds, val_ds.as_ref()) != state.data_fingerprint {
+        let run = RunData::new(&train_ds, val_ds.as_ref(), &state.train, &state.config);
+        Self::resume_on(state, Arc::new(run), device)
+    }
+
+    /// Continues member `state.member` of a run on `data`, the run's sets.
+    pub(in crate::train) fn resume_on(
+        state: TrainState,
+        data: Arc<RunData>,
+        device: &Device,
+    ) -> Result<Self> {
+        if data.fingerprint != state.data_fingerprint {
             return Err(Error::invalid(
                 "checkpoint",
                 "was taken on other data than the data given",
@@ -103,7 +123,7 @@ impl Trainer {
             shards: state.shards.max(1),
             ..state
         };
-        Ok(Self::start(state, model, adam, &train_ds, val_ds.as_ref()))
+        Ok(Self::start(state, model, adam, data))
     }
 
     pub fn checkpoint(&self) -> TrainState {

@@ -1,0 +1,4 @@
+-- Ensembles: the members' standard deviation of each epoch's losses beside their mean
+-- (NULL for a single model).
+ALTER TABLE metrics ADD COLUMN train_loss_std REAL;
+ALTER TABLE metrics ADD COLUMN val_loss_std REAL;

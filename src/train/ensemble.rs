@@ -1,0 +1,339 @@
+//! Ensembles (README "Ensembles and uncertainty"): K members of one model configuration,
+//! each with its own seed and bootstrap resample of the training windows, trained in lockstep
+//! one epoch at a time on one data split, checkpointed and stored together. One member is a
+//! single model's run, byte for byte: its checkpoints and its model file are a `Trainer`'s.
+//!
+//! Members, not a batch's rows, are the unit of parallelism when there are at least as many
+//! members as threads (`Parallelism`): each member then runs on one thread with one shard,
+//! and what a member computes never depends on which thread runs it.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+
+use burn::tensor::Device;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::setup::{TrainConfig, prepare, split_data};
+use super::shards;
+use super::trainer::{RunData, TrainState, Trainer};
+use crate::data::Dataset;
+use crate::error::{Error, Result};
+use crate::model::file::ModelFile;
+use crate::model::report::{EnsembleReport, EpochMetrics, MemberReport, Spread, TrainReport};
+use crate::model::spec::ModelSpec;
+use crate::records::Warning;
+
+/// What runs on a job's threads: whole members side by side, or one member's batch split
+/// into shards, the members one after another.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Parallelism {
+    Members,
+    Rows,
+}
+
+impl Parallelism {
+    /// Members when there are at least as many as threads (`graybox-lab bench ensemble`).
+    pub fn default_for(members: usize, threads: usize) -> Self {
+        if members > 1 && members >= threads {
+            Self::Members
+        } else {
+            Self::Rows
+        }
+    }
+}
+
+pub struct Ensemble {
+    members: Vec<Trainer>,
+    /// The threads members run on side by side (`Parallelism::Members`).
+    pool: Option<Arc<rayon::ThreadPool>>,
+}
+
+/// An ensemble's checkpoint: every member's (one member's is a `TrainState` alone).
+#[derive(Serialize, Deserialize)]
+struct EnsembleState {
+    /// First, so that a checkpoint's bytes say what they are by their first field.
+    members: Vec<TrainState>,
+}
+
+/// How an ensemble checkpoint's JSON starts (`EnsembleState`'s first field).
+const ENSEMBLE_CHECKPOINT: &[u8] = b"{\"members\":";
+
+/// An epoch of the ensemble: the members' mean losses and their standard deviations (None
+/// for one member).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnsembleEpoch {
+    pub mean: EpochMetrics,
+    pub std: Option<LossSpread>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LossSpread {
+    pub train_loss: f64,
+    pub val_loss: Option<f64>,
+    pub val_horizon_loss: Option<f64>,
+}
+
+impl Ensemble {
+    /// A new run of `cfg.ensemble` members (see `Trainer::new`).
+    pub fn new(
+        model_name: &str,
+        spec: ModelSpec,
+        init: &[(String, f64)],
+        data: &Dataset,
+        val: Option<&Dataset>,
+        cfg: TrainConfig,
+        device: &Device,
+    ) -> Result<Self> {
+        let (config, physical, train_ds, val_ds) = prepare(&spec, init, data, val, &cfg)?;
+        let run = Arc::new(RunData::new(&train_ds, val_ds.as_ref(), &cfg, &config));
+        let members = (0..cfg.ensemble)
+            .map(|k| {
+                let start = (config.clone(), physical.clone());
+                Trainer::member(model_name, start, run.clone(), cfg.clone(), k, device)
+            })
+            .collect::<Result<_>>()?;
+        Ok(Self {
+            members,
+            pool: None,
+        })
+    }
+
+    /// Continues a run from its checkpoint's bytes, on the data it started with.
+    pub fn resume(
+        bytes: &[u8],
+        data: &Dataset,
+        val: Option<&Dataset>,
+        device: &Device,
+    ) -> Result<Self> {
+        let states = if bytes.starts_with(ENSEMBLE_CHECKPOINT) {
+            let state: EnsembleState =
+                serde_json::from_slice(bytes).map_err(|e| Error::corrupt("checkpoint", e))?;
+            state.members
+        } else {
+            vec![TrainState::from_bytes(bytes)?]
+        };
+        let Some(first) = states.first() else {
+            return Err(Error::corrupt("checkpoint", "it has no members"));
+        };
+        if states.len() != first.train.ensemble
+            || states.iter().enumerate().any(|(k, s)| s.member != k)
+        {
+            return Err(Error::corrupt(
+                "checkpoint",
+                "its members do not match its ensemble size",
+            ));
+        }
+        let (train_ds, val_ds) = split_data(data, val, &first.train)?;
+        let run = Arc::new(RunData::new(
+            &train_ds,
+            val_ds.as_ref(),
+            &first.train,
+            &first.config,
+        ));
+        let members = (states.into_iter())
+            .map(|s| Trainer::resume_on(s, run.clone(), device))
+            .collect::<Result<_>>()?;
+        Ok(Self {
+            members,
+            pool: None,
+        })
+    }
+
+    /// Runs on `threads` threads, members or rows side by side as `Parallelism::default_for`.
+    pub fn with_threads(self, threads: usize) -> Result<Self> {
+        let unit = Parallelism::default_for(self.members.len(), threads);
+        self.with_parallelism(threads, unit)
+    }
+
+    /// Runs on `threads` threads, `unit` side by side. A resumed run keeps its checkpoint's
+    /// shards (what its results depend on) whichever unit it runs by.
+    pub fn with_parallelism(mut self, threads: usize, unit: Parallelism) -> Result<Self> {
+        let pool = shards::pool(threads)?;
+        match unit {
+            Parallelism::Members => {
+                self.members.iter_mut().for_each(|m| m.use_pool(None, 1));
+                self.pool = pool;
+            }
+            Parallelism::Rows => {
+                (self.members.iter_mut()).for_each(|m| m.use_pool(pool.clone(), threads));
+                self.pool = None;
+            }
+        }
+        Ok(self)
+    }
+
+    pub fn members(&self) -> &[Trainer] {
+        &self.members
+    }
+
+    /// Epochs completed (the most any member has: one that stopped early waits for the rest).
+    pub fn epoch(&self) -> usize {
+        self.members.iter().map(Trainer::epoch).max().unwrap_or(0)
+    }
+
+    pub fn finished(&self) -> bool {
+        self.members.iter().all(Trainer::finished)
+    }
+
+    /// The members' mean best validation loss (None without a validation set).
+    pub fn best_val_loss(&self) -> Option<f64> {
+        mean(self.members.iter().map(Trainer::best_val_loss))
+    }
+
+    /// One epoch of every member not yet finished. A member's failure fails the ensemble,
+    /// naming the member; `cancel` stops every member at its next batch.
+    pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EnsembleEpoch> {
+        let start = std::time::Instant::now();
+        let run = |t: &mut Trainer| match t.finished() {
+            true => Ok(None),
+            false => t.run_epoch(cancel).map(Some),
+        };
+        let results: Vec<Result<Option<EpochMetrics>>> = match &self.pool {
+            Some(pool) => pool.install(|| self.members.par_iter_mut().map(run).collect()),
+            None => self.members.iter_mut().map(run).collect(),
+        };
+        let single = self.members.len() == 1;
+        let mut ran = vec![];
+        for (k, r) in results.into_iter().enumerate() {
+            match r {
+                Ok(m) => ran.extend(m),
+                Err(Error::Training(why)) if !single => {
+                    return Err(Error::Training(format!("member {k}: {why}")));
+                }
+                Err(e) => return Err(e),
+            }
+        }
+        if single {
+            return Ok(EnsembleEpoch {
+                mean: ran[0],
+                std: None,
+            });
+        }
+        let mut epoch = summary(&ran);
+        epoch.mean.epoch = self.epoch();
+        epoch.mean.seconds = start.elapsed().as_secs_f64();
+        Ok(epoch)
+    }
+
+    /// The checkpoint's bytes: one member's are its `TrainState`'s.
+    pub fn checkpoint(&self) -> Vec<u8> {
+        if let [one] = self.members.as_slice() {
+            return one.checkpoint().to_bytes();
+        }
+        let members = self.members.iter().map(Trainer::checkpoint).collect();
+        serde_json::to_vec(&EnsembleState { members }).expect("train states serialize")
+    }
+
+    /// The stiffness warning of member 0's template forces (the members start alike).
+    pub fn stiffness_warning(&self) -> Option<Warning> {
+        self.members[0].stiffness_warning()
+    }
+
+    /// Every member's best parameters in one file, with the ensemble's report.
+    pub fn model_file(&self) -> ModelFile {
+        if let [one] = self.members.as_slice() {
+            return one.model_file();
+        }
+        let files: Vec<ModelFile> = self.members.iter().map(Trainer::best_file).collect();
+        let reports: Vec<&TrainReport> = (files.iter())
+            .map(|f| f.report.as_ref().expect("trained files carry a report"))
+            .collect();
+        let report = ensemble_report(&reports);
+        ModelFile::ensemble(files.clone(), Some(report))
+    }
+}
+
+/// The mean of the values when every one is known.
+fn mean(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
+    let v: Option<Vec<f64>> = values.collect();
+    v.filter(|v| !v.is_empty()).map(|v| Spread::of(&v).mean)
+}
+
+/// The members' mean and spread of one epoch's losses.
+fn summary(ran: &[EpochMetrics]) -> EnsembleEpoch {
+    let spread = |f: &dyn Fn(&EpochMetrics) -> Option<f64>| -> Option<Spread> {
+        let v: Option<Vec<f64>> = ran.iter().map(f).collect();
+        v.filter(|v| !v.is_empty()).map(|v| Spread::of(&v))
+    };
+    let train = spread(&|m| Some(m.train_loss)).expect("a member ran");
+    let val = spread(&|m| m.val_loss);
+    let val_h = spread(&|m| m.val_horizon_loss);
+    EnsembleEpoch {
+        mean: EpochMetrics {
+            epoch: ran.iter().map(|m| m.epoch).max().unwrap_or(0),
+            train_loss: train.mean,
+            val_loss: val.map(|s| s.mean),
+            val_horizon_loss: val_h.map(|s| s.mean),
+            seconds: 0.0,
+        },
+        std: Some(LossSpread {
+            train_loss: train.std,
+            val_loss: val.map(|s| s.std),
+            val_horizon_loss: val_h.map(|s| s.std),
+        }),
+    }
+}
+
+/// The ensemble's report: member 0's, with the members' mean losses, mean physical values,
+/// mean history (by epoch, over the members that ran it), every member's warnings once per
+/// code, and the members' own figures with the physical values' spread.
+fn ensemble_report(reports: &[&TrainReport]) -> TrainReport {
+    let mut r = reports[0].clone();
+    let of = |f: &dyn Fn(&TrainReport) -> Option<f64>| mean(reports.iter().map(|r| f(r)));
+    r.train_loss = of(&|r| Some(r.train_loss)).unwrap_or(f64::NAN);
+    r.val_loss = of(&|r| r.val_loss);
+    r.best_val_loss = of(&|r| r.best_val_loss);
+    r.seconds = reports.iter().map(|r| r.seconds).sum();
+    r.epochs = reports.iter().map(|r| r.epochs).max().unwrap_or(0);
+    r.stopped_early = reports.iter().all(|r| r.stopped_early);
+    let mut physical = BTreeMap::new();
+    for name in r.physical_parameters.keys() {
+        let values: Vec<f64> = reports
+            .iter()
+            .map(|m| m.physical_parameters[name])
+            .collect();
+        physical.insert(name.clone(), Spread::of(&values));
+    }
+    r.physical_parameters = physical.iter().map(|(k, s)| (k.clone(), s.mean)).collect();
+    for (i, c) in r.identifiable.iter_mut().enumerate() {
+        let same = |m: &&&TrainReport| m.identifiable.get(i).is_some_and(|o| o.name == c.name);
+        if reports.iter().all(|m| same(&m)) {
+            c.value = of(&|m| Some(m.identifiable[i].value)).unwrap_or(c.value);
+        }
+    }
+    r.history = (1..=r.epochs)
+        .filter_map(|e| {
+            let ran: Vec<EpochMetrics> = (reports.iter())
+                .filter_map(|m| m.history.iter().find(|h| h.epoch == e).copied())
+                .collect();
+            (!ran.is_empty()).then(|| {
+                let mut s = summary(&ran).mean;
+                s.seconds = ran.iter().map(|m| m.seconds).sum();
+                s
+            })
+        })
+        .collect();
+    r.warnings = vec![];
+    for w in reports.iter().flat_map(|m| &m.warnings) {
+        if !r.warnings.iter().any(|o| o.code == w.code) {
+            r.warnings.push(w.clone());
+        }
+    }
+    r.ensemble = Some(EnsembleReport {
+        members: reports.iter().map(|m| member_report(m)).collect(),
+        physical_parameters: physical,
+    });
+    r
+}
+
+fn member_report(r: &TrainReport) -> MemberReport {
+    MemberReport {
+        best_epoch: r.best_epoch,
+        best_val_loss: r.best_val_loss,
+        train_loss: r.train_loss,
+        val_loss: r.val_loss,
+        physical_parameters: r.physical_parameters.clone(),
+    }
+}

@@ -1,0 +1,231 @@
+//! Ensembles: one member is a single model's run byte for byte; members differ by their
+//! seeds and resamples; an ensemble resumes bit for bit, whichever unit its threads run by;
+//! cancel stops every member; the model file holds every member.
+
+use std::sync::atomic::AtomicBool;
+
+use graybox::error::Error;
+use graybox::model::file::{FORMAT_ENSEMBLE, ModelFile};
+use graybox::model::spec::ModelSpec;
+use graybox::physics::templates::Template;
+use graybox::train::{Ensemble, Parallelism, TrainConfig, TrainState, Trainer};
+
+use super::{data, flex, quick};
+
+fn ensemble(k: usize, bootstrap: bool, epochs: usize) -> TrainConfig {
+    TrainConfig {
+        ensemble: k,
+        bootstrap,
+        ..quick(epochs)
+    }
+}
+
+fn mvf() -> ModelSpec {
+    ModelSpec::named("MVF", None).unwrap()
+}
+
+fn run(e: &mut Ensemble) {
+    let never = AtomicBool::new(false);
+    while !e.finished() {
+        e.run_epoch(&never).unwrap();
+    }
+}
+
+#[test]
+fn one_member_is_a_single_models_run_byte_for_byte() {
+    let train = data(&Template::DoublePendulum, 96, 11);
+    let never = AtomicBool::new(false);
+    let mut single = Trainer::new("MVF", mvf(), &[], &train, None, quick(3), &flex()).unwrap();
+    let mut one = Ensemble::new("MVF", mvf(), &[], &train, None, quick(3), &flex()).unwrap();
+    single.run_epoch(&never).unwrap();
+    one.run_epoch(&never).unwrap();
+    assert!(
+        without_times(&one.checkpoint()) == without_times(&single.checkpoint().to_bytes()),
+        "the same checkpoint"
+    );
+    single.run(&never, |_, _| {}).unwrap();
+    run(&mut one);
+    let (a, b) = (single.model_file(), one.model_file());
+    assert_eq!(
+        a.format, b.format,
+        "one member writes a single model's format"
+    );
+    assert!(without_times(&a.to_bytes().unwrap()) == without_times(&b.to_bytes().unwrap()));
+}
+
+/// JSON bytes with every measured time ("seconds", "train_seconds", "samples_per_second")
+/// set to 0: two runs differ in nothing else.
+fn without_times(bytes: &[u8]) -> String {
+    fn walk(v: &mut serde_json::Value) {
+        match v {
+            serde_json::Value::Object(o) => {
+                for (k, x) in o.iter_mut() {
+                    if ["seconds", "train_seconds", "samples_per_second"].contains(&k.as_str()) {
+                        *x = serde_json::json!(0);
+                    } else {
+                        walk(x);
+                    }
+                }
+            }
+            serde_json::Value::Array(a) => a.iter_mut().for_each(walk),
+            _ => {}
+        }
+    }
+    let mut v: serde_json::Value = serde_json::from_slice(bytes).unwrap();
+    walk(&mut v);
+    v.to_string()
+}
+
+#[test]
+fn members_differ_by_seed_and_by_resample() {
+    let train = data(&Template::DoublePendulum, 96, 12);
+    let single = {
+        let mut t = Trainer::new("MVF", mvf(), &[], &train, None, quick(2), &flex()).unwrap();
+        t.run(&AtomicBool::new(false), |_, _| {}).unwrap();
+        t.model().params.export()
+    };
+    let params = |bootstrap| {
+        let cfg = ensemble(3, bootstrap, 2);
+        let mut e = Ensemble::new("MVF", mvf(), &[], &train, None, cfg, &flex()).unwrap();
+        run(&mut e);
+        let members = e.members().iter().map(|m| m.model().params.export());
+        members.collect::<Vec<_>>()
+    };
+    // Without resamples member 0 has the job's seed: it is the single model.
+    let same_data = params(false);
+    assert_eq!(same_data[0], single);
+    assert_ne!(same_data[1], same_data[0], "member 1 has its own seed");
+    assert_ne!(same_data[2], same_data[1], "member 2 has its own seed");
+    // With them, member 0 starts as the single model but sees other rows.
+    let resampled = params(true);
+    assert_ne!(resampled[0], single, "member 0 trains on a resample");
+    assert_ne!(resampled[1], same_data[1]);
+}
+
+/// A checkpoint after 2 of 4 epochs, resumed (on members side by side where the first part
+/// ran members one after another with two shards each), ends with the uninterrupted run's
+/// file, byte for byte.
+#[test]
+fn an_ensemble_resumes_bit_for_bit_whichever_unit_its_threads_run() {
+    let train = data(&Template::DoublePendulum, 512, 13);
+    let val = data(&Template::DoublePendulum, 64, 14);
+    let cfg = TrainConfig {
+        batch_size: 256,
+        ..ensemble(3, true, 4)
+    };
+    let start = || {
+        Ensemble::new("MVF", mvf(), &[], &train, Some(&val), cfg.clone(), &flex())
+            .unwrap()
+            .with_parallelism(2, Parallelism::Rows)
+            .unwrap()
+    };
+    let mut full = start();
+    run(&mut full);
+    let mut first = start();
+    let never = AtomicBool::new(false);
+    for _ in 0..2 {
+        let epoch = first.run_epoch(&never).unwrap();
+        let std = epoch.std.expect("an ensemble's epoch has a spread");
+        assert!(std.train_loss > 0.0 && std.val_loss.unwrap() > 0.0);
+    }
+    let bytes = first.checkpoint();
+    drop(first);
+    let mut resumed = Ensemble::resume(&bytes, &train, Some(&val), &flex())
+        .unwrap()
+        .with_parallelism(2, Parallelism::Members)
+        .unwrap();
+    assert_eq!(resumed.epoch(), 2);
+    assert!(
+        resumed.checkpoint() == bytes,
+        "the checkpoint was restored in full"
+    );
+    run(&mut resumed);
+    let (a, b) = (full.model_file(), resumed.model_file());
+    assert!(without_times(&a.to_bytes().unwrap()) == without_times(&b.to_bytes().unwrap()));
+    let member = |bytes: &[u8], k: usize| {
+        let text = std::str::from_utf8(bytes).unwrap();
+        let v: serde_json::Value = serde_json::from_str(text).unwrap();
+        TrainState::from_bytes(v["members"][k].to_string().as_bytes()).unwrap()
+    };
+    assert_eq!(member(&bytes, 2).member, 2);
+    assert_eq!(
+        member(&bytes, 0).shards,
+        2,
+        "the first part split its batches"
+    );
+    assert!(
+        Ensemble::resume(
+            &bytes,
+            &data(&Template::DoublePendulum, 512, 99),
+            Some(&val),
+            &flex()
+        )
+        .is_err(),
+        "a resume on other data is refused"
+    );
+}
+
+#[test]
+fn cancel_stops_every_member_and_bad_sizes_are_refused() {
+    let train = data(&Template::DoublePendulum, 64, 15);
+    let mut e = Ensemble::new(
+        "MVF",
+        mvf(),
+        &[],
+        &train,
+        None,
+        ensemble(3, true, 2),
+        &flex(),
+    )
+    .unwrap()
+    .with_threads(2)
+    .unwrap();
+    let err = e.run_epoch(&AtomicBool::new(true)).unwrap_err();
+    assert!(matches!(err, Error::Cancelled), "{err}");
+    assert!(e.members().iter().all(|m| m.epoch() == 0));
+    for k in [0, 33] {
+        let err = Ensemble::new(
+            "MVF",
+            mvf(),
+            &[],
+            &train,
+            None,
+            ensemble(k, true, 2),
+            &flex(),
+        )
+        .err()
+        .unwrap();
+        assert!(err.to_string().contains("training.ensemble"), "{err}");
+    }
+}
+
+/// The file holds every member and reads back as the same members; a white-box ensemble's
+/// report gives each physical parameter's mean and spread across its members.
+#[test]
+fn the_model_file_holds_every_member_and_the_physical_spread() {
+    let train = data(&Template::DoublePendulum, 128, 16);
+    let spec = ModelSpec::named("W-B", Some(Template::DoublePendulum)).unwrap();
+    let init = [("m1".to_string(), 12.0)];
+    let cfg = ensemble(3, true, 3);
+    let mut e = Ensemble::new("W-B", spec, &init, &train, None, cfg, &flex()).unwrap();
+    run(&mut e);
+    let file = ModelFile::from_bytes(&e.model_file().to_bytes().unwrap()).unwrap();
+    assert_eq!(file.format, FORMAT_ENSEMBLE);
+    assert_eq!(file.member_count(), 3);
+    for (k, m) in e.members().iter().enumerate() {
+        assert_eq!(file.member(k).params, m.model_file().params, "member {k}");
+    }
+    let report = file.report.unwrap();
+    let spread = report.ensemble.as_ref().unwrap();
+    assert_eq!(spread.members.len(), 3);
+    let m1: Vec<f64> = (spread.members.iter())
+        .map(|m| m.physical_parameters["m1"])
+        .collect();
+    let s = spread.physical_parameters["m1"];
+    let mean = m1.iter().sum::<f64>() / 3.0;
+    let var = m1.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / 2.0;
+    // The same sums in another order: equal to rounding.
+    assert!((s.mean - mean).abs() <= 1e-12 * mean.abs() && s.std > 0.0);
+    assert!((s.std - var.sqrt()).abs() <= 1e-9 * s.std);
+    assert_eq!(report.physical_parameters["m1"], s.mean);
+}
