@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::model::file::Made;
-use crate::model::report::{HorizonError, Identified, TrainReport};
+use crate::model::report::{EnsembleReport, HorizonError, Identified, TrainReport};
 use crate::records::Warning;
 use crate::store::ModelRow;
 
@@ -80,6 +80,10 @@ struct Metrics<'a> {
     warnings: &'a [Warning],
     #[serde(skip_serializing_if = "Option::is_none")]
     made: Option<&'a Made>,
+    /// An ensemble's members (their validation losses, physical values) and its physical
+    /// values' mean and spread; absent for a single model.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ensemble: Option<&'a EnsembleReport>,
 }
 
 impl<'a> Metrics<'a> {
@@ -104,6 +108,7 @@ impl<'a> Metrics<'a> {
                 horizon_errors: &r.horizon_errors,
                 warnings: &r.warnings,
                 made: None,
+                ensemble: r.ensemble.as_ref(),
             },
         }
     }

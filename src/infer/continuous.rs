@@ -5,6 +5,7 @@
 
 use super::Evaluator;
 use super::col::{Col, Column};
+use super::ensemble::mean;
 use super::limits::Pass;
 use super::{columns, to_rows};
 use crate::control::dircol::Continuous;
@@ -70,12 +71,25 @@ impl Continuous for Evaluator {
         self.config.dt
     }
     fn derivative(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        if let Some(members) = self.ensemble() {
+            return mean(members.iter().map(|e| e.derivative(x, u)));
+        }
         let parts = self.split(x, u, Pass::Step, &|| false, |x, u| {
             self.derivative_rows::<Col>(x, u)
         });
         parts.expect("never stopped").concat()
     }
     fn derivative_jacobian(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
+        if let Some(members) = self.ensemble() {
+            let each: Vec<_> = members
+                .iter()
+                .map(|e| e.derivative_jacobian(x, u))
+                .collect();
+            let flat = |m: &[Mat]| m.iter().flat_map(|m| m.data.clone()).collect::<Vec<f64>>();
+            let a = mean(each.iter().map(|(a, _)| flat(a)));
+            let b = mean(each.iter().map(|(_, b)| flat(b)));
+            return self.jacobians(a, b);
+        }
         let (nx, m) = (2 * self.config.n, self.config.m);
         let parts = self.split(x, u, Pass::Linearize, &|| false, |x, u| {
             self.derivative_jacobian_rows(columns::<Col>(x, nx), columns(u, m))

@@ -7,12 +7,15 @@
 
 pub mod col;
 mod continuous;
+mod ensemble;
 pub mod horizons;
 pub mod jet;
 pub mod limits;
 mod nets;
 mod rigid;
 mod weights;
+
+use std::sync::Arc;
 
 use jet::Jet;
 pub use nets::Mlp64;
@@ -49,16 +52,28 @@ pub struct Evaluator {
     weights: Weights,
     /// A URDF model's robot for the recursive algorithms (`rigid`), at its physical values.
     recursive: Option<featherstone::RigidBodyModel>,
+    /// An ensemble's members, each a single model (member 0's weights are also this one's);
+    /// None for a single model. The batched entry points answer with their mean (`ensemble`).
+    members: Option<Arc<[Evaluator]>>,
 }
 
 impl Evaluator {
     pub fn from_file(file: &ModelFile) -> Result<Self> {
-        let weights = Weights::from_file(file)?;
-        Ok(Self {
-            recursive: rigid::recursive_model(&file.config, &weights),
-            config: file.config.clone(),
-            weights,
-        })
+        let one = |file: &ModelFile| -> Result<Self> {
+            let weights = Weights::from_file(file)?;
+            Ok(Self {
+                recursive: rigid::recursive_model(&file.config, &weights),
+                config: file.config.clone(),
+                weights,
+                members: None,
+            })
+        };
+        let mut eval = one(file)?;
+        if file.member_count() > 1 {
+            let members = (0..file.member_count()).map(|k| one(&file.member(k)));
+            eval.members = Some(members.collect::<Result<Vec<_>>>()?.into());
+        }
+        Ok(eval)
     }
 
     /// q̈ for a batch given as columns: q and q̇ n coordinates, u m coordinates, each a whole
@@ -245,6 +260,9 @@ impl Evaluator {
         want_accel: bool,
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
+        if let Some(members) = &self.members {
+            return ensemble::mean_prediction(members, x, u, want_accel, stop);
+        }
         let parts = self.split(x, u, Pass::Step, stop, |x, u| {
             if self.recursive.is_some() {
                 self.predict_each(x, u, want_accel)
@@ -290,6 +308,9 @@ impl Evaluator {
         u: &[f64],
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
+        if let Some(members) = &self.members {
+            return ensemble::mean_linearization(members, x, u, stop);
+        }
         let (nx, m) = (2 * self.config.n, self.config.m);
         let parts = self.split(x, u, Pass::Linearize, stop, |x, u| {
             let recursive = (self.recursive.as_ref()).and_then(|model| {
@@ -404,7 +425,7 @@ impl Evaluator {
         let mut x = x0.to_vec();
         for t in 0..steps {
             let u = input(t, &x);
-            x = self.step(&x[..], &u);
+            x = self.mean_step(&x[..], &u);
             if !emit(&x, &u) {
                 return;
             }

@@ -34,6 +34,10 @@ impl Evaluator {
     /// benchmark compares them with.
     pub fn assembled(mut self) -> Self {
         self.recursive = None;
+        if let Some(members) = &self.members {
+            let assembled = members.iter().map(|m| m.clone().assembled());
+            self.members = Some(assembled.collect::<Vec<_>>().into());
+        }
         self
     }
 

@@ -175,6 +175,7 @@ async fn a_long_potential_is_stored_trained_and_served() {
             x: arr(&[64, 2], vec![0.2; 128]),
             u: arr(&[64, 1], vec![0.1; 64]),
             want_accel: true,
+            members: false,
         })
         .await
         .unwrap()

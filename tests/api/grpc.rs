@@ -136,6 +136,7 @@ async fn dynamics_rpcs_against_independent_references() {
                         x: arr(&[1, 4], xx),
                         u: arr(&[1, 2], uu),
                         want_accel: false,
+                        members: false,
                     };
                     c.predict(r)
                         .await
@@ -228,6 +229,7 @@ async fn dynamics_rpcs_against_independent_references() {
         x: arr(shape, x),
         u: arr(&[1, 2], vec![0.0, 0.0]),
         want_accel: false,
+        members: false,
     };
     let code =
         |r: Result<tonic::Response<pb::PredictResponse>, tonic::Status>| r.unwrap_err().code();

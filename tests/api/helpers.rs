@@ -235,5 +235,6 @@ pub fn predict_req(model: &str, b: usize) -> pb::PredictRequest {
         x: arr(&[b as u64, 4], vec![0.1; 4 * b]),
         u: arr(&[b as u64, 2], vec![1.0; 2 * b]),
         want_accel: false,
+        members: false,
     }
 }

@@ -46,7 +46,7 @@ async fn oversized_calls_are_refused_before_computing() {
     let x = Array::new(&[50_000, 4], vec![0.0; 4 * 50_000]);
     let u = Array::new(&[50_000, 2], vec![0.0; 2 * 50_000]);
     let e = tight
-        .predict(&model, x, u, false, None)
+        .predict(&model, x, u, Default::default(), None)
         .await
         .err()
         .unwrap();
@@ -258,7 +258,10 @@ async fn deleted_models_stop_being_served() {
     let other = App::new(store, Settings::default());
     let x = || Array::new(&[1, 4], vec![0.1; 4]);
     let u = || Array::new(&[1, 2], vec![1.0; 2]);
-    other.predict(&model, x(), u(), false, None).await.unwrap();
+    other
+        .predict(&model, x(), u(), Default::default(), None)
+        .await
+        .unwrap();
     let del = app.client.delete(app.url(&format!("/v1/models/{model}")));
     assert!(del.send().await.unwrap().status().is_success());
     let sweep = graybox::app::inference::CACHE_SWEEP;
@@ -266,7 +269,7 @@ async fn deleted_models_stop_being_served() {
     // The service's sweep runs in its own task; this process runs its sweep as `serve` does.
     other.sweep_model_cache().await.unwrap();
     let e = other
-        .predict(&model, x(), u(), false, None)
+        .predict(&model, x(), u(), Default::default(), None)
         .await
         .err()
         .unwrap();

@@ -229,3 +229,81 @@ fn the_model_file_holds_every_member_and_the_physical_spread() {
     assert!((s.std - var.sqrt()).abs() <= 1e-9 * s.std);
     assert_eq!(report.physical_parameters["m1"], s.mean);
 }
+
+/// The evaluator of an ensemble's file answers with its members' mean: x' against each
+/// member's own evaluator (loaded from its own file), σ against the members' spread computed
+/// here, A and B against the members' own linearizations; rollouts follow the mean step.
+#[test]
+fn an_ensembles_evaluator_answers_with_its_members_mean() {
+    use graybox::infer::Evaluator;
+    let train = data(&Template::DoublePendulum, 128, 17);
+    let mut e = Ensemble::new(
+        "MVF",
+        mvf(),
+        &[],
+        &train,
+        None,
+        ensemble(3, true, 2),
+        &flex(),
+    )
+    .unwrap();
+    run(&mut e);
+    let file = ModelFile::from_bytes(&e.model_file().to_bytes().unwrap()).unwrap();
+    let eval = Evaluator::from_file(&file).unwrap();
+    assert_eq!(eval.member_count(), 3);
+    let own: Vec<Evaluator> = (0..3)
+        .map(|k| Evaluator::from_file(&file.member(k)).unwrap())
+        .collect();
+    let x = [0.3, -0.2, 1.0, 0.5, -1.2, 0.7, 0.1, -2.0];
+    let u = [0.5, -0.5, 1.0, 2.0];
+    let each: Vec<Vec<f64>> = own.iter().map(|m| m.predict(&x, &u, false).0).collect();
+    let (mean, _) = eval.predict(&x, &u, false);
+    let p = eval
+        .predict_members_until(&x, &u, false, &|| false)
+        .unwrap();
+    // Sums of three numbers in another order: equal to a few ulps of the largest.
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * (1.0 + a.abs().max(b.abs()));
+    for i in 0..x.len() {
+        let v: Vec<f64> = each.iter().map(|m| m[i]).collect();
+        let want = v.iter().sum::<f64>() / 3.0;
+        let sd = (v.iter().map(|a| (a - want).powi(2)).sum::<f64>() / 2.0).sqrt();
+        assert!(close(mean[i], want), "{i}: {} vs {want}", mean[i]);
+        assert!(close(p.std[i], sd) && sd > 0.0, "{i}: {} vs {sd}", p.std[i]);
+        assert_eq!(p.mean[i], mean[i], "Predict's mean is the evaluator's");
+        assert_eq!(p.next.iter().map(|m| m[i]).collect::<Vec<_>>(), v);
+    }
+    let (a, b) = eval.linearize_batch(&x, &u);
+    let lin: Vec<(Vec<f64>, Vec<f64>)> = own.iter().map(|m| m.linearize_batch(&x, &u)).collect();
+    for (i, v) in a.iter().enumerate() {
+        assert!(
+            close(*v, lin.iter().map(|l| l.0[i]).sum::<f64>() / 3.0),
+            "A {i}"
+        );
+    }
+    for (i, v) in b.iter().enumerate() {
+        assert!(
+            close(*v, lin.iter().map(|l| l.1[i]).sum::<f64>() / 3.0),
+            "B {i}"
+        );
+    }
+    let mut states = vec![];
+    eval.rollout(
+        &x[..4],
+        2,
+        |_, _| u[..2].to_vec(),
+        |x, _| {
+            states.push(x.to_vec());
+            true
+        },
+    );
+    assert_eq!(states[0], eval.predict(&x[..4], &u[..2], false).0);
+    // One member's evaluator is a single model's.
+    assert_eq!(own[1].member_count(), 1);
+    assert_eq!(
+        own[1]
+            .predict_members_until(&x, &u, false, &|| false)
+            .unwrap()
+            .std,
+        vec![0.0; 8]
+    );
+}

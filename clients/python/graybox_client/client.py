@@ -164,18 +164,31 @@ class Client:
         except grpc.RpcError as e:
             raise GrayboxError(e.code().name, e.details() or "") from None
 
-    def predict(self, model_id: str, x, u, want_accel: bool = False, return_z: bool = False):
+    def predict(self, model_id: str, x, u, want_accel: bool = False, return_z: bool = False,
+                return_std: bool = False, members: bool = False):
         """x' = f(x, u) for x [2n] and u [m], or a batch x [B, 2n] and u [B, m]; with
         `want_accel` also q̈ ([n] or [B, n]) as (x_next, accel); with `return_z` also
-        max_abs_z (a float, or [B]) last: (x_next, z) or (x_next, accel, z)."""
+        max_abs_z (a float, or [B]) last: (x_next, z) or (x_next, accel, z).
+
+        An ensemble's x' and q̈ are its members' means. `return_std` adds, after x' (and q̈),
+        the members' standard deviation of x' per coordinate (zeros for a single model);
+        `members` adds every member's x' ([K, 2n] or [K, B, 2n]) after that."""
         xb, ub, single = _batch(x, u)
         r = self._call(self.stub.Predict, pb.PredictRequest(
-            model_id=model_id, x=to_array(xb), u=to_array(ub), want_accel=want_accel))
+            model_id=model_id, x=to_array(xb), u=to_array(ub), want_accel=want_accel,
+            members=members))
         x_next = from_array(r.x_next)
         out = [x_next[0] if single else x_next]
         if want_accel:
             accel = from_array(r.accel)
             out.append(accel[0] if single else accel)
+        if return_std:
+            # A single model's members agree with themselves: the server sends no spread.
+            std = from_array(r.x_next_std) if r.HasField("x_next_std") else np.zeros_like(x_next)
+            out.append(std[0] if single else std)
+        if members:
+            each = from_array(r.members)
+            out.append(each[:, 0] if single else each)
         if return_z:
             out.append(_z(r.max_abs_z, len(x_next), single))
         return out[0] if len(out) == 1 else tuple(out)

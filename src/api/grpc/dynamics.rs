@@ -10,7 +10,7 @@ use tonic::{Request, Response, Status};
 use super::convert::{model_info, plan_request, take};
 use super::pb::{self, dynamics_server::Dynamics};
 use crate::app::App;
-use crate::app::inference::RolloutInputs;
+use crate::app::inference::{RolloutInputs, Want};
 use crate::array::Array;
 use crate::control::linalg::Mat;
 
@@ -54,15 +54,19 @@ impl Dynamics for DynamicsService {
         let until = deadline(&req);
         let r = req.into_inner();
         let (x, u) = (take("x", r.x)?, take("u", r.u)?);
-        let p = self
-            .app
-            .predict(&r.model_id, x, u, r.want_accel, until)
-            .await?;
+        let want = Want {
+            accel: r.want_accel,
+            members: r.members,
+        };
+        let p = self.app.predict(&r.model_id, x, u, want, until).await?;
         Ok(Response::new(pb::PredictResponse {
             id: r.id,
             x_next: Some(p.next.into()),
             accel: p.accel.map(Into::into),
             max_abs_z: p.max_abs_z,
+            x_next_std: p.std.map(Into::into),
+            members: p.members.map(Into::into),
+            member_count: p.member_count as u32,
         }))
     }
 

@@ -68,12 +68,39 @@ struct Cost {
     memory_bytes: usize,
 }
 
+/// What a Predict asks for besides x': q̈, and an ensemble's every member's x'.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Want {
+    pub accel: bool,
+    pub members: bool,
+}
+
 /// x' `[B, 2n]` (and q̈ `[B, n]` when asked) for a batch, with each row's distance from the
-/// training data.
+/// training data. An ensemble's are the members' means, with their spread.
 pub struct Prediction {
     pub next: Array,
     pub accel: Option<Array>,
     pub max_abs_z: Vec<f64>,
+    /// An ensemble's (or when members were asked for): the members' standard deviation of
+    /// x' per coordinate `[B, 2n]` (0 for a single model).
+    pub std: Option<Array>,
+    /// When asked for: every member's x' `[K, B, 2n]`.
+    pub members: Option<Array>,
+    /// K: 1 for a single model.
+    pub member_count: usize,
+}
+
+impl Prediction {
+    fn of(b: usize, n: usize, next: Vec<f64>, accel: Option<Vec<f64>>, z: Vec<f64>) -> Self {
+        Self {
+            next: Array::new(&[b, 2 * n], next),
+            accel: accel.map(|a| Array::new(&[b, n], a)),
+            max_abs_z: z,
+            std: None,
+            members: None,
+            member_count: 1,
+        }
+    }
 }
 
 /// A `[B, 2n, 2n]` and B `[B, 2n, m]`, with each row's distance from the data.
@@ -219,31 +246,42 @@ impl App {
         id: &str,
         x: Array,
         u: Array,
-        want_accel: bool,
+        want: Want,
         deadline: Option<Instant>,
     ) -> Result<Prediction> {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, &x, &u)?;
         let (n, nx, m) = (eval.config.n, 2 * eval.config.n, eval.config.m);
-        let response_bytes = 8 * b * (nx + 1 + if want_accel { n } else { 0 });
+        let k = eval.member_count();
+        let spread = k > 1 || want.members;
+        // x' (and its σ), q̈, max |z|; every member's x' when asked.
+        let states = 1 + usize::from(spread) + if want.members { k } else { 0 };
+        let response_bytes = 8 * b * (states * nx + 1 + if want.accel { n } else { 0 });
         let work = b.min(2 * eval.chunk_states(Pass::Step)) * eval.work_bytes_per_state(Pass::Step);
+        // Every member's answers are held until their mean is taken.
+        let held = 8 * b * k * (nx + if want.accel { n } else { 0 });
         self.admit(
             "x",
             &Cost {
                 response_bytes,
-                memory_bytes: 8 * b * (nx + m) + 2 * response_bytes + work,
+                memory_bytes: 8 * b * (nx + m) + 2 * response_bytes + held + work,
             },
         )?;
         let (x, u) = (x.data, u.data);
+        let small = b * k <= INLINE_ROWS;
         let out = self
-            .compute(b <= INLINE_ROWS, "prediction", deadline, move |stop| {
-                let (next, accel) = eval.predict_until(&x, &u, want_accel, stop)?;
+            .compute(small, "prediction", deadline, move |stop| {
                 let max_abs_z = eval.max_abs_z(&x, &u);
-                Some(Prediction {
-                    next: Array::new(&[b, nx], next),
-                    accel: accel.map(|a| Array::new(&[b, n], a)),
-                    max_abs_z,
-                })
+                if !spread {
+                    let (next, accel) = eval.predict_until(&x, &u, want.accel, stop)?;
+                    return Some(Prediction::of(b, n, next, accel, max_abs_z));
+                }
+                let p = eval.predict_members_until(&x, &u, want.accel, stop)?;
+                let mut out = Prediction::of(b, n, p.mean, p.accel, max_abs_z);
+                out.member_count = k;
+                out.std = Some(Array::new(&[b, nx], p.std));
+                out.members = (want.members).then(|| Array::new(&[k, b, nx], p.next.concat()));
+                Some(out)
             })
             .await?;
         finite_rows("x", "next state", &out.next.data, nx)?;

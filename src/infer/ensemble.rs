@@ -1,0 +1,134 @@
+//! An ensemble's evaluator (README "Ensembles and uncertainty"): the batched entry points
+//! answer with the members' mean, so every caller (Predict, Linearize, TVLQR, Plan's
+//! dynamics, collocation's continuous dynamics, rollouts, the error against horizon) runs on
+//! the mean dynamics: the average of the members' next states, whose Jacobians are the
+//! average of theirs. A single model's answers never pass through here.
+
+use super::Evaluator;
+
+/// The elementwise mean of equally long vectors, summed in member order.
+pub(super) fn mean(parts: impl Iterator<Item = Vec<f64>>) -> Vec<f64> {
+    let mut k = 0.0;
+    let mut sum: Vec<f64> = vec![];
+    for p in parts {
+        if sum.is_empty() {
+            sum = p;
+        } else {
+            sum.iter_mut().zip(&p).for_each(|(s, v)| *s += v);
+        }
+        k += 1.0;
+    }
+    sum.iter_mut().for_each(|s| *s /= k);
+    sum
+}
+
+/// The members' mean x' (and q̈), or None when `stop` said so.
+pub(super) fn mean_prediction(
+    members: &[Evaluator],
+    x: &[f64],
+    u: &[f64],
+    want_accel: bool,
+    stop: &dyn Fn() -> bool,
+) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
+    let each: Vec<(Vec<f64>, Option<Vec<f64>>)> = (members.iter())
+        .map(|m| m.predict_until(x, u, want_accel, stop))
+        .collect::<Option<_>>()?;
+    let accel = want_accel.then(|| mean(each.iter().filter_map(|e| e.1.clone())));
+    Some((mean(each.into_iter().map(|e| e.0)), accel))
+}
+
+/// The members' mean A and B, or None when `stop` said so.
+pub(super) fn mean_linearization(
+    members: &[Evaluator],
+    x: &[f64],
+    u: &[f64],
+    stop: &dyn Fn() -> bool,
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    let each: Vec<(Vec<f64>, Vec<f64>)> = (members.iter())
+        .map(|m| m.linearize_until(x, u, stop))
+        .collect::<Option<_>>()?;
+    let b = mean(each.iter().map(|e| e.1.clone()));
+    Some((mean(each.into_iter().map(|e| e.0)), b))
+}
+
+/// Each member's predictions and their spread.
+pub struct MemberPredictions {
+    /// Per member, x' `[B, 2n]`.
+    pub next: Vec<Vec<f64>>,
+    /// The members' mean x' and, per coordinate, their sample standard deviation (0 for one
+    /// member; see `model::report::Spread`).
+    pub mean: Vec<f64>,
+    pub std: Vec<f64>,
+    /// The members' mean q̈ `[B, n]`, when asked for.
+    pub accel: Option<Vec<f64>>,
+}
+
+impl MemberPredictions {
+    fn of(next: Vec<Vec<f64>>, accel: Option<Vec<f64>>) -> Self {
+        let k = next.len() as f64;
+        let mean = mean(next.iter().cloned());
+        let mut ss = vec![0.0; mean.len()];
+        for p in &next {
+            for ((s, v), m) in ss.iter_mut().zip(p).zip(&mean) {
+                *s += (v - m).powi(2);
+            }
+        }
+        let std = if next.len() > 1 {
+            ss.iter().map(|s| (s / (k - 1.0)).sqrt()).collect()
+        } else {
+            vec![0.0; mean.len()]
+        };
+        Self {
+            next,
+            mean,
+            std,
+            accel,
+        }
+    }
+}
+
+impl Evaluator {
+    /// An ensemble's members (None for a single model).
+    pub(super) fn ensemble(&self) -> Option<&[Evaluator]> {
+        self.members.as_deref()
+    }
+
+    /// Members: 1 for a single model.
+    pub fn member_count(&self) -> usize {
+        self.members.as_ref().map_or(1, |m| m.len())
+    }
+
+    /// Member `k` as a single model (a single model's member 0 is itself).
+    pub fn member(&self, k: usize) -> &Evaluator {
+        match &self.members {
+            Some(members) => &members[k],
+            None => self,
+        }
+    }
+
+    /// Every member's x' for a batch, with their mean and spread (the mean is what
+    /// `predict_until` answers; a single model's is its own prediction, bit for bit), and the
+    /// mean q̈ when asked; None when `stop` said so.
+    pub fn predict_members_until(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        want_accel: bool,
+        stop: &dyn Fn() -> bool,
+    ) -> Option<MemberPredictions> {
+        let each: Vec<(Vec<f64>, Option<Vec<f64>>)> = (0..self.member_count())
+            .map(|k| self.member(k).predict_until(x, u, want_accel, stop))
+            .collect::<Option<_>>()?;
+        let accel = want_accel.then(|| mean(each.iter().filter_map(|e| e.1.clone())));
+        let next = each.into_iter().map(|e| e.0).collect();
+        Some(MemberPredictions::of(next, accel))
+    }
+
+    /// One step of the mean dynamics for one state (a single model's own step).
+    pub(super) fn mean_step(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        match &self.members {
+            Some(members) => mean(members.iter().map(|m| m.step(x, u))),
+            None => self.step(x, u),
+        }
+    }
+}

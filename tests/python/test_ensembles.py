@@ -1,0 +1,56 @@
+"""Ensembles through the service and graybox_client: a W-B ensemble's Predict against the
+closed-form double pendulum at each member's own learned parameters (the members' mean and
+their spread), and a single model asked for its members."""
+
+import numpy as np
+import pytest
+
+from conftest import rel
+from dp_reference import PARAMS, dp_rk4
+
+
+@pytest.fixture(scope="module")
+def ensemble(server, models):
+    status, job = server.rest.post("/v1/jobs", {
+        "dataset_id": models.dataset_id, "model": "W-B", "template": "double_pendulum",
+        "training": {"epochs": 2, "batch_size": 64, "lr": 0.01, "ensemble": 3}})
+    assert status == 201, job
+    done = server.rest.wait_job(job["id"])
+    assert done["state"] == "succeeded", done
+    return done["model_id"]
+
+
+def test_an_ensembles_predict_is_its_members_mean_with_their_spread(client, ensemble):
+    info = client.get_model(ensemble)
+    members = info.metrics["ensemble"]["members"]
+    assert len(members) == 3
+    rng = np.random.default_rng(2)
+    x = np.column_stack([rng.uniform(-np.pi, np.pi, (8, 2)), rng.uniform(-10, 10, (8, 2))])
+    u = rng.normal(0.0, 50.0, (8, 2))
+    # Each member is the closed form at its own parameters (bootstrap resamples differ).
+    want = np.array([dp_rk4([m["physical_parameters"][k] for k in PARAMS], x, u, info.dt)
+                     for m in members])
+    assert rel(want[0], want[1]) > 1e-6, "the members differ"
+    mean, std, each = client.predict(ensemble, x, u, return_std=True, members=True)
+    assert each.shape == (3, 8, 4) and std.shape == (8, 4)
+    assert rel(each, want) < 1e-9
+    assert rel(mean, want.mean(axis=0)) < 1e-9
+    assert rel(std, want.std(axis=0, ddof=1)) < 1e-6
+    # One state: the batch's first row, and plain predict is the same mean.
+    m0, s0, e0 = client.predict(ensemble, x[0], u[0], return_std=True, members=True)
+    assert e0.shape == (3, 4) and rel(m0, mean[0]) < 1e-12 and rel(s0, std[0]) < 1e-12
+    assert np.array_equal(client.predict(ensemble, x, u), mean)
+    # The report gives each parameter's mean and spread across the members.
+    spread = info.metrics["ensemble"]["physical_parameters"]
+    for k in PARAMS:
+        values = [m["physical_parameters"][k] for m in members]
+        assert rel(spread[k]["mean"], np.mean(values)) < 1e-12
+        assert rel(spread[k]["std"], np.std(values, ddof=1)) < 1e-9
+
+
+def test_a_single_model_is_one_member_with_no_spread(client, models):
+    x, u = np.array([0.3, -0.6, 2.0, -1.0]), np.array([15.0, -40.0])
+    alone = client.predict(models.mvf, x, u)
+    mean, std, each = client.predict(models.mvf, x, u, return_std=True, members=True)
+    assert np.array_equal(mean, alone) and np.array_equal(each, alone[None, :])
+    assert np.array_equal(std, np.zeros(4))
