@@ -1,5 +1,6 @@
 //! `graybox-lab bench …`: the figures the issues ask for, printed as JSON lines on stdout.
 
+mod ensemble;
 mod events;
 mod horizon;
 mod infer;
@@ -45,6 +46,9 @@ pub enum BenchCommand {
     Queue(queue::BenchQueueArgs),
     /// The wall time of a batch of jobs on one worker and on two, one thread each.
     Scale(scale::BenchScaleArgs),
+    /// An ensemble's training wall time against one member's, its threads running whole
+    /// members or each member's shards.
+    Ensemble(ensemble::BenchEnsembleArgs),
     /// Multi-step training's cost: samples/s and seconds per epoch at each horizon.
     Horizon(horizon::BenchHorizonArgs),
     /// The memory of a `graybox serve` process answering many concurrent replays of one
@@ -170,6 +174,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Queue(a) => queue::run(a),
         BenchCommand::Scale(a) => scale::run(a),
         BenchCommand::Horizon(a) => horizon::run(a),
+        BenchCommand::Ensemble(a) => ensemble::run(a),
         BenchCommand::Reads(a) => reads::run(a),
         BenchCommand::Uploads(a) => uploads::run(a),
     }
