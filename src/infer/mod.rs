@@ -8,6 +8,7 @@
 pub mod col;
 mod continuous;
 mod ensemble;
+mod gains;
 pub mod horizons;
 pub mod jet;
 pub mod limits;
@@ -27,7 +28,6 @@ use limits::Pass;
 
 use crate::control::linalg::Mat;
 use crate::control::plan::Dynamics;
-use crate::control::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
@@ -373,44 +373,6 @@ impl Evaluator {
             });
         }
         Some(parts)
-    }
-
-    /// TVLQR gains along a nominal `x̄ [(T+1), 2n]`, `ū [T, m]` (defects ignored).
-    pub fn tvlqr(&self, xbar: &[f64], ubar: &[f64], q: &Mat, r: &Mat, qf: &Mat) -> Result<Gains> {
-        self.tvlqr_until(xbar, ubar, [q, r, qf], &|| false)
-    }
-
-    /// [`Evaluator::tvlqr`], or `Error::Cancelled` when `stop` says so before a chunk of the
-    /// linearization (most of the work).
-    pub fn tvlqr_until(
-        &self,
-        xbar: &[f64],
-        ubar: &[f64],
-        [q, r, qf]: [&Mat; 3],
-        stop: &dyn Fn() -> bool,
-    ) -> Result<Gains> {
-        let (nx, m) = (2 * self.config.n, self.config.m);
-        let t = ubar.len() / m;
-        let (a, b) = self
-            .linearize_until(&xbar[..t * nx], ubar, stop)
-            .ok_or(Error::Cancelled)?;
-        finite_rows("x_bar", "linearization", &a, nx * nx)?;
-        finite_rows("x_bar", "linearization", &b, nx * m)?;
-        let (a, b) = self.jacobians(a, b);
-        tvlqr(&a, &b, q, r, qf)
-    }
-
-    /// Flat `[T, nx, nx]` and `[T, nx, m]` Jacobians as matrices.
-    fn jacobians(&self, a: Vec<f64>, b: Vec<f64>) -> (Vec<Mat>, Vec<Mat>) {
-        let (nx, m) = (2 * self.config.n, self.config.m);
-        (
-            a.chunks(nx * nx)
-                .map(|a| Mat::new(nx, nx, a.to_vec()))
-                .collect(),
-            b.chunks(nx * m)
-                .map(|b| Mat::new(nx, m, b.to_vec()))
-                .collect(),
-        )
     }
 
     /// `steps` states after x0 under inputs `u_t = input(t, x_t)`, each handed to `emit`
