@@ -205,6 +205,11 @@ impl Ensemble {
                 Err(e) => return Err(e),
             }
         }
+        if ran.is_empty() {
+            return Err(Error::FailedPrecondition(
+                "the run has finished: every member has trained its epochs".into(),
+            ));
+        }
         if single {
             return Ok(EnsembleEpoch {
                 mean: ran[0],
@@ -241,7 +246,7 @@ impl Ensemble {
             .map(|f| f.report.as_ref().expect("trained files carry a report"))
             .collect();
         let report = ensemble_report(&reports);
-        ModelFile::ensemble(files.clone(), Some(report))
+        ModelFile::ensemble(files, Some(report))
     }
 }
 
