@@ -32,6 +32,21 @@ fn plan_swing_up(model: &str, out: &str, extra: &[&str]) -> Output {
     graybox(&args)
 }
 
+/// The built-in pendulum as a model at Δt = 0.05 s in the temporary file `name`: its path.
+fn pendulum_model(name: &str) -> String {
+    let m = tmp(name);
+    json(&graybox(&[
+        "model",
+        "--template",
+        "pendulum",
+        "--dt",
+        "0.05",
+        "--out",
+        &m,
+    ]));
+    m
+}
+
 fn graybox(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_graybox"))
         .args(args)
@@ -226,16 +241,7 @@ fn model_writes_a_white_box_model_that_plans() {
 /// naming them; max_iterations 0 plans no iteration.
 #[test]
 fn plan_applies_the_services_limits() {
-    let m = tmp("limits.gbx");
-    json(&graybox(&[
-        "model",
-        "--template",
-        "pendulum",
-        "--dt",
-        "0.05",
-        "--out",
-        &m,
-    ]));
+    let m = pendulum_model("limits.gbx");
     let p = tmp("limits.json");
     let plan = |extra: &[&str]| {
         let mut args = vec![

@@ -15,7 +15,7 @@ use burn::tensor::Device;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::setup::{TrainConfig, prepare, split_data};
+use super::setup::{TrainConfig, split_data};
 use super::shards;
 use super::trainer::{RunData, TrainState, Trainer};
 use crate::data::Dataset;
@@ -86,12 +86,11 @@ impl Ensemble {
         cfg: TrainConfig,
         device: &Device,
     ) -> Result<Self> {
-        let (config, physical, train_ds, val_ds) = prepare(&spec, init, data, val, &cfg)?;
-        let run = Arc::new(RunData::new(&train_ds, val_ds.as_ref(), &cfg, &config));
+        let (start, run) = RunData::prepare(&spec, init, data, val, &cfg)?;
         let members = (0..cfg.ensemble)
             .map(|k| {
-                let start = (config.clone(), physical.clone());
-                Trainer::member(model_name, start, run.clone(), cfg.clone(), k, device)
+                let (start, run) = (start.clone(), run.clone());
+                Trainer::member(model_name, start, run, cfg.clone(), k, device)
             })
             .collect::<Result<_>>()?;
         Ok(Self {

@@ -1,20 +1,11 @@
 //! `graybox plan --method`: direct collocation from the command line, its initial states, and
 //! what it says about a method or initial states it cannot use.
 
-use super::{graybox, json, plan_swing_up, tmp};
+use super::{json, pendulum_model, plan_swing_up, tmp};
 
 #[test]
 fn plan_by_direct_collocation_from_the_command_line() {
-    let m = tmp("dircol.gbx");
-    json(&graybox(&[
-        "model",
-        "--template",
-        "pendulum",
-        "--dt",
-        "0.05",
-        "--out",
-        &m,
-    ]));
+    let m = pendulum_model("dircol.gbx");
     let p = tmp("dircol.json");
     let plan = |extra: &[&str]| plan_swing_up(&m, &p, extra);
     for extra in [

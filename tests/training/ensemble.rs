@@ -24,6 +24,11 @@ fn mvf() -> ModelSpec {
     ModelSpec::named("MVF", None).unwrap()
 }
 
+/// A new MVF ensemble on `train` (no validation set).
+fn mvf_ensemble(train: &graybox::data::Dataset, cfg: TrainConfig) -> Ensemble {
+    Ensemble::new("MVF", mvf(), &[], train, None, cfg, &flex()).unwrap()
+}
+
 fn run(e: &mut Ensemble) {
     let never = AtomicBool::new(false);
     while !e.finished() {
@@ -36,7 +41,7 @@ fn one_member_is_a_single_models_run_byte_for_byte() {
     let train = data(&Template::DoublePendulum, 96, 11);
     let never = AtomicBool::new(false);
     let mut single = Trainer::new("MVF", mvf(), &[], &train, None, quick(3), &flex()).unwrap();
-    let mut one = Ensemble::new("MVF", mvf(), &[], &train, None, quick(3), &flex()).unwrap();
+    let mut one = mvf_ensemble(&train, quick(3));
     single.run_epoch(&never).unwrap();
     one.run_epoch(&never).unwrap();
     assert!(
@@ -86,7 +91,7 @@ fn members_differ_by_seed_and_by_resample() {
     };
     let params = |bootstrap| {
         let cfg = ensemble(3, bootstrap, 2);
-        let mut e = Ensemble::new("MVF", mvf(), &[], &train, None, cfg, &flex()).unwrap();
+        let mut e = mvf_ensemble(&train, cfg);
         run(&mut e);
         let members = e.members().iter().map(|m| m.model().params.export());
         members.collect::<Vec<_>>()
@@ -168,18 +173,9 @@ fn an_ensemble_resumes_bit_for_bit_whichever_unit_its_threads_run() {
 #[test]
 fn cancel_stops_every_member_and_bad_sizes_are_refused() {
     let train = data(&Template::DoublePendulum, 64, 15);
-    let mut e = Ensemble::new(
-        "MVF",
-        mvf(),
-        &[],
-        &train,
-        None,
-        ensemble(3, true, 2),
-        &flex(),
-    )
-    .unwrap()
-    .with_threads(2)
-    .unwrap();
+    let mut e = mvf_ensemble(&train, ensemble(3, true, 2))
+        .with_threads(2)
+        .unwrap();
     let err = e.run_epoch(&AtomicBool::new(true)).unwrap_err();
     assert!(matches!(err, Error::Cancelled), "{err}");
     assert!(e.members().iter().all(|m| m.epoch() == 0));
@@ -237,16 +233,7 @@ fn the_model_file_holds_every_member_and_the_physical_spread() {
 fn an_ensembles_evaluator_answers_with_its_members_mean() {
     use graybox::infer::Evaluator;
     let train = data(&Template::DoublePendulum, 128, 17);
-    let mut e = Ensemble::new(
-        "MVF",
-        mvf(),
-        &[],
-        &train,
-        None,
-        ensemble(3, true, 2),
-        &flex(),
-    )
-    .unwrap();
+    let mut e = mvf_ensemble(&train, ensemble(3, true, 2));
     run(&mut e);
     let file = ModelFile::from_bytes(&e.model_file().to_bytes().unwrap()).unwrap();
     let eval = Evaluator::from_file(&file).unwrap();

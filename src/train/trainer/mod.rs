@@ -67,7 +67,24 @@ pub(super) struct RunData {
     fingerprint: u64,
 }
 
+/// What a new member starts from: the model configuration and initial physical values.
+pub(super) type Start = (ModelConfig, Option<Vec<f64>>);
+
 impl RunData {
+    /// A new run checked and prepared (`setup::prepare`): its members' start, and the data
+    /// they share.
+    pub(super) fn prepare(
+        spec: &ModelSpec,
+        init: &[(String, f64)],
+        data: &Dataset,
+        val: Option<&Dataset>,
+        cfg: &TrainConfig,
+    ) -> Result<(Start, Arc<Self>)> {
+        let (config, physical, train_ds, val_ds) = prepare(spec, init, data, val, cfg)?;
+        let run = Self::new(&train_ds, val_ds.as_ref(), cfg, &config);
+        Ok(((config, physical), Arc::new(run)))
+    }
+
     pub(super) fn new(
         train: &Dataset,
         val: Option<&Dataset>,
@@ -116,16 +133,15 @@ impl Trainer {
         cfg: TrainConfig,
         device: &Device,
     ) -> Result<Self> {
-        let (config, physical, train_ds, val_ds) = prepare(&spec, init, data, val, &cfg)?;
-        let run = Arc::new(RunData::new(&train_ds, val_ds.as_ref(), &cfg, &config));
-        Self::member(model_name, (config, physical), run, cfg, 0, device)
+        let (start, run) = RunData::prepare(&spec, init, data, val, &cfg)?;
+        Self::member(model_name, start, run, cfg, 0, device)
     }
 
     /// Member `k` of a new run on `data`: its own initialization and data order from
     /// [`member_seed`], and in an ensemble its own bootstrap resample.
     pub(super) fn member(
         model_name: &str,
-        (config, physical): (ModelConfig, Option<Vec<f64>>),
+        (config, physical): Start,
         data: Arc<RunData>,
         cfg: TrainConfig,
         k: usize,
