@@ -78,6 +78,7 @@ async fn dynamics_rpcs_against_independent_references() {
             data: us.concat(),
         })),
         chunk: 50,
+        particles: None,
     };
     let mut stream = c.rollout(req).await.unwrap().into_inner();
     let mut got: Vec<f64> = vec![];
@@ -283,6 +284,7 @@ async fn dynamics_rpcs_against_independent_references() {
             data: vec![0.0; 400_002],
         })),
         chunk: 0,
+        particles: None,
     };
     assert_eq!(
         c.rollout(long).await.unwrap_err().code(),

@@ -84,6 +84,7 @@ async fn overflowing_numbers_are_rejected_not_wrapped() {
             data: vec![0.0; 6],
         })),
         chunk: 0,
+        particles: None,
     });
     rollout
         .metadata_mut()

@@ -7,6 +7,7 @@ import pytest
 
 from conftest import rel
 from dp_reference import PARAMS, dp_rk4
+from graybox_client import GrayboxError
 
 
 @pytest.fixture(scope="module")
@@ -54,3 +55,38 @@ def test_a_single_model_is_one_member_with_no_spread(client, models):
     mean, std, each = client.predict(models.mvf, x, u, return_std=True, members=True)
     assert np.array_equal(mean, alone) and np.array_equal(each, alone[None, :])
     assert np.array_equal(std, np.zeros(4))
+
+
+def test_particles_follow_the_members_round_robin(client, ensemble, models):
+    info = client.get_model(ensemble)
+    params = [[m["physical_parameters"][k] for k in PARAMS]
+              for m in info.metrics["ensemble"]["members"]]
+    rng = np.random.default_rng(3)
+    x0, u = np.array([0.3, -0.6, 1.0, -0.5]), rng.normal(0.0, 20.0, (20, 2))
+
+    def closed_form(p):
+        xs = [x0]
+        for t in range(len(u)):
+            xs.append(dp_rk4(p, xs[-1][None, :], u[t][None, :], info.dt)[0])
+        return np.array(xs)
+
+    each = [closed_form(p) for p in params]
+    # Six particles, two per member (particle p follows member p mod 3).
+    particles = np.array([each[p % 3] for p in range(6)])
+    mean, std, applied = client.rollout(ensemble, x0, u=u, particles=6, with_inputs=True)
+    assert mean.shape == std.shape == (21, 4)
+    assert rel(mean, particles.mean(axis=0)) < 1e-9
+    assert rel(std, particles.std(axis=0, ddof=1)) < 1e-6 and std[-1].min() > 0
+    # The particles share the open-loop inputs: their mean is u to rounding.
+    assert np.array_equal(std[0], np.zeros(4)) and rel(applied, u) < 1e-14
+    # Small chunks stream the same particles.
+    chunked, _ = client.rollout(ensemble, x0, u=u, particles=6, chunk=3)
+    assert np.array_equal(chunked, mean)
+    # A single model's particles all follow it: its own rollout, no spread.
+    alone = client.rollout(models.mvf, x0, u=u)
+    same, spread = client.rollout(models.mvf, x0, u=u, particles=4)
+    assert rel(same, alone) < 1e-12 and np.abs(spread).max() <= 1e-12 * np.abs(alone).max()
+    for bad in (0, 1025):
+        with pytest.raises(GrayboxError) as e:
+            client.rollout(ensemble, x0, u=u, particles=bad)
+        assert e.value.code == "INVALID_ARGUMENT" and "particles" in str(e.value), e.value

@@ -194,14 +194,18 @@ class Client:
         return out[0] if len(out) == 1 else tuple(out)
 
     def rollout_chunks(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
-                       chunk: Optional[int] = None, return_z: bool = False) -> Iterator[tuple]:
+                       chunk: Optional[int] = None, return_z: bool = False,
+                       particles: Optional[int] = None) -> Iterator[tuple]:
         """The streamed rollout as it arrives: (index of the chunk's first state, states
         [c, 2n], inputs applied in the chunk [c', m]), with `return_z` also max_abs_z [c'] of
-        each applied input and the state it was applied at. Arguments as `rollout`."""
+        each applied input and the state it was applied at. Arguments as `rollout`; with
+        `particles`, the states are the particles' mean and their spread [c, 2n] comes last."""
         if u is not None and policy is not None:
             raise ValueError("give u or policy, not both")
         req = pb.RolloutRequest(model_id=model_id, chunk=chunk or 0,
                                 x0=np.asarray(x0, dtype=np.float64).ravel().tolist())
+        if particles is not None:
+            req.particles = particles
         if u is not None:
             req.u.CopyFrom(to_array(u))
         elif policy is not None:
@@ -210,35 +214,47 @@ class Client:
         call = self.stub.Rollout(req, timeout=self.timeout, metadata=self.metadata)
         try:
             for c in call:
+                out = [c.start, from_array(c.x), from_array(c.u)]
                 if return_z:
-                    applied = from_array(c.u)
-                    yield c.start, from_array(c.x), applied, _z(c.max_abs_z, len(applied), False)
-                else:
-                    yield c.start, from_array(c.x), from_array(c.u)
+                    out.append(_z(c.max_abs_z, len(out[2]), False))
+                if particles is not None:
+                    out.append(from_array(c.x_std))
+                yield tuple(out)
         except grpc.RpcError as e:
             raise GrayboxError(e.code().name, e.details() or "") from None
         finally:
             call.cancel()  # a caller that stops reading early stops the server's computation
 
     def rollout(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
-                chunk: Optional[int] = None, with_inputs: bool = False, return_z: bool = False):
+                chunk: Optional[int] = None, with_inputs: bool = False, return_z: bool = False,
+                particles: Optional[int] = None):
         """The states x_0..x_T ([T+1, 2n]) from x0 under inputs u [T, m] or a TVLQR policy
         (x_bar [T+1 or T, 2n], u_bar [T, m], K [T, m, 2n]) applying u_t = ū_t − K_t(x_t − x̄_t).
         `chunk` is the states per streamed message (server default 1000, capped so that a
         message stays within 256 KiB); the chunks are joined. `with_inputs` also returns the
         applied inputs [T, m] as (xs, us); `return_z` also max_abs_z [T] of (x_t, u_t) last:
-        (xs, z) or (xs, us, z)."""
-        xs, us, zs, rows = [], [], [], 0
-        for start, x, applied, *z in self.rollout_chunks(model_id, x0, u, policy, chunk, return_z):
+        (xs, z) or (xs, us, z).
+
+        `particles` P (1..1024) propagates P particles, particle p following ensemble member
+        p mod K throughout (TS∞): xs is their mean, and their standard deviation [T+1, 2n]
+        follows it: (xs, std, …); the inputs are the particles' mean, z the largest."""
+        xs, stds, us, zs, rows = [], [], [], [], 0
+        for start, x, applied, *rest in self.rollout_chunks(model_id, x0, u, policy, chunk,
+                                                            return_z, particles):
             if start != rows:
                 raise GrayboxError("DATA_LOSS", f"a chunk starts at state {start}, expected {rows}")
             xs.append(x)
             us.append(applied)
-            zs.extend(z)
+            if return_z:
+                zs.append(rest[0])
+            if particles is not None:
+                stds.append(rest[-1])
             rows += len(x)
         if not xs:
             raise GrayboxError("DATA_LOSS", "the rollout stream ended without states")
         out = [np.concatenate(xs)]
+        if particles is not None:
+            out.append(np.concatenate(stds))
         if with_inputs:
             out.append(np.concatenate(us))
         if return_z:

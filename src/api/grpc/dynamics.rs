@@ -10,7 +10,7 @@ use tonic::{Request, Response, Status};
 use super::convert::{model_info, plan_request, take};
 use super::pb::{self, dynamics_server::Dynamics};
 use crate::app::App;
-use crate::app::inference::{RolloutInputs, Want};
+use crate::app::inference::{RolloutInputs, RolloutShape, Want};
 use crate::array::Array;
 use crate::control::linalg::Mat;
 
@@ -87,10 +87,13 @@ impl Dynamics for DynamicsService {
             },
             None => return Err(Status::invalid_argument("inputs: give u or policy")),
         };
-        let chunk = usize::try_from(r.chunk).unwrap_or(usize::MAX);
+        let shape = RolloutShape {
+            chunk: usize::try_from(r.chunk).unwrap_or(usize::MAX),
+            particles: r.particles.map(|p| p as usize),
+        };
         let rx = self
             .app
-            .rollout(&r.model_id, r.x0, inputs, chunk, until)
+            .rollout(&r.model_id, r.x0, inputs, shape, until)
             .await?;
         let id = r.id;
         let stream = ReceiverStream::new(rx).map(move |c| {
@@ -101,6 +104,7 @@ impl Dynamics for DynamicsService {
                 x: Some(c.x.into()),
                 u: Some(c.u.into()),
                 max_abs_z: c.max_abs_z,
+                x_std: c.x_std.map(Into::into),
             })
         });
         Ok(Response::new(Box::pin(stream)))

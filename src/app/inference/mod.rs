@@ -17,7 +17,7 @@ pub use admission::Heavy;
 pub use cache::{CACHE_SWEEP, ModelCache};
 pub use evaluate::{EvaluateRequest, Evaluation};
 pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
-pub use rollout::{RolloutChunk, RolloutInputs};
+pub use rollout::{MAX_PARTICLES, RolloutChunk, RolloutInputs, RolloutShape};
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -61,6 +61,15 @@ fn square(field: &str, a: Array, dim: usize) -> Result<Mat> {
 const INLINE_ROWS: usize = 4;
 
 const MB: f64 = (1 << 20) as f64;
+
+/// What an ensemble holds of its members' answers, `bytes` each, until their mean is taken
+/// (nothing for a single model).
+fn members_held(eval: &Evaluator, bytes: usize) -> usize {
+    match eval.member_count() {
+        1 => 0,
+        k => k * bytes,
+    }
+}
 
 /// What a call will take, decided before it computes.
 struct Cost {
@@ -259,7 +268,7 @@ impl App {
         let response_bytes = 8 * b * (states * nx + 1 + if want.accel { n } else { 0 });
         let work = b.min(2 * eval.chunk_states(Pass::Step)) * eval.work_bytes_per_state(Pass::Step);
         // Every member's answers are held until their mean is taken.
-        let held = 8 * b * k * (nx + if want.accel { n } else { 0 });
+        let held = members_held(&eval, 8 * b * (nx + if want.accel { n } else { 0 }));
         self.admit(
             "x",
             &Cost {
@@ -302,17 +311,20 @@ impl App {
         let response_bytes = 8 * b * (nx * nx + nx * m + 1);
         let work = b.min(2 * eval.chunk_states(Pass::Linearize))
             * eval.work_bytes_per_state(Pass::Linearize);
-        // The parts, their concatenation, A and B, and the encoded message.
+        // The parts, their concatenation, A and B, and the encoded message (and an
+        // ensemble's members' A and B until their mean is taken).
+        let held = members_held(&eval, 8 * b * (nx * nx + nx * m));
         self.admit(
             "x",
             &Cost {
                 response_bytes,
-                memory_bytes: 8 * b * (nx + m) + 4 * response_bytes + work,
+                memory_bytes: 8 * b * (nx + m) + 4 * response_bytes + work + held,
             },
         )?;
         let (x, u) = (x.data, u.data);
+        let small = b * eval.member_count() == 1;
         let out = self
-            .compute(b == 1, "linearization", deadline, move |stop| {
+            .compute(small, "linearization", deadline, move |stop| {
                 let (a, bm) = eval.linearize_until(&x, &u, stop)?;
                 Some(Linearization {
                     a: Array::new(&[b, nx, nx], a),
@@ -366,7 +378,9 @@ impl App {
             "u_bar",
             &Cost {
                 response_bytes,
-                memory_bytes: 8 * t * (4 * jac + 3 * gains) + work,
+                memory_bytes: 8 * t * (4 * jac + 3 * gains)
+                    + work
+                    + members_held(&eval, 8 * t * jac),
             },
         )?;
         self.heavy_until("tvlqr", deadline, move |stop| {

@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use super::Cost;
+use super::{Cost, members_held};
 use crate::app::App;
 use crate::control::make_plan;
 use crate::control::plan::{Method, Plan, PlanRequest, check_horizon, validate};
@@ -42,7 +42,8 @@ impl App {
                 response_bytes: 8 * ((t + 1) * nx + t * m + t * m * nx + iterations),
                 memory_bytes: t * per_step
                     + t.min(2 * eval.chunk_states(Pass::Linearize))
-                        * eval.work_bytes_per_state(Pass::Linearize),
+                        * eval.work_bytes_per_state(Pass::Linearize)
+                    + members_held(&eval, 8 * (t + 1) * (nx * nx + nx * m)),
             },
         )?;
         // The solver polls `stop` at every time step of every pass (`control::plan`).

@@ -178,6 +178,7 @@ fn requests(model: &str, p: &Problem) -> Requests {
                 data: p.u500.clone(),
             })),
             chunk: ROLLOUT as u64 + 1,
+            particles: None,
             ..Default::default()
         },
         linearize: pb::LinearizeRequest {

@@ -7,6 +7,8 @@ use std::time::Instant;
 
 use tokio::sync::mpsc;
 
+mod particles;
+
 use super::Cost;
 use crate::app::App;
 use crate::array::Array;
@@ -19,6 +21,21 @@ use crate::infer::limits::Pass;
 /// reader stalls holds one chunk in its channel and one being sent, so 600 stalled streams
 /// stay within a few hundred MB.
 const ROLLOUT_CHUNK_BYTES: usize = 256 << 10;
+
+/// The most particles one rollout may propagate.
+pub const MAX_PARTICLES: usize = 1024;
+
+/// Particle steps per computed piece at most: a piece of a many-particle rollout takes about
+/// as long as a plain one's longest (the deadline and the reader are checked between pieces).
+const PIECE_PARTICLE_STEPS: usize = 4096;
+
+/// How a rollout streams: states per chunk (0: the default), and the particles it
+/// propagates (None: one rollout of the mean dynamics).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RolloutShape {
+    pub chunk: usize,
+    pub particles: Option<usize>,
+}
 
 /// The inputs of a rollout as requested: a sequence `[T, m]`, or a feedback policy with
 /// x̄ `[T or T+1, 2n]`, ū `[T, m]` and K `[T, m, 2n]`.
@@ -90,6 +107,8 @@ pub struct RolloutChunk {
     pub u: Array,
     /// T values.
     pub max_abs_z: Vec<f64>,
+    /// With particles: their standard deviation per coordinate `[S, 2n]` (`x` is their mean).
+    pub x_std: Option<Array>,
 }
 
 impl App {
@@ -102,9 +121,19 @@ impl App {
         id: &str,
         x0: Vec<f64>,
         inputs: RolloutInputs,
-        chunk: usize,
+        shape: RolloutShape,
         until: Option<Instant>,
     ) -> Result<mpsc::Receiver<Result<RolloutChunk>>> {
+        if let Some(p) = shape.particles
+            && !(1..=MAX_PARTICLES).contains(&p)
+        {
+            return Err(Error::invalid(
+                "particles",
+                format!(
+                    "must be between 1 and {MAX_PARTICLES} (leave it unset for one rollout of the mean dynamics)"
+                ),
+            ));
+        }
         let eval = self.evaluator(id).await?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
         if x0.len() != nx || x0.iter().any(|v| !v.is_finite()) {
@@ -117,13 +146,23 @@ impl App {
                 "{steps} steps is over the limit of {max} (--max-rollout-steps)"
             )));
         }
-        let row_bytes = 8 * (nx + m + 1);
-        let chunk = if chunk == 0 { 1000 } else { chunk }.clamp(1, ROLLOUT_CHUNK_BYTES / row_bytes);
+        let particles = shape.particles.unwrap_or(0);
+        // A state's mean and spread, its input and z; with particles, a step's states too.
+        let row_bytes = 8 * (nx + m + 1 + if particles > 0 { nx } else { 0 });
+        let chunk = shape.chunk;
+        let mut chunk =
+            if chunk == 0 { 1000 } else { chunk }.clamp(1, ROLLOUT_CHUNK_BYTES / row_bytes);
+        if let Some(steps) = PIECE_PARTICLE_STEPS.checked_div(particles) {
+            chunk = chunk.min(steps.max(1));
+        }
+        let particle_bytes = 8 * particles * (3 * nx + 2 * m + 1);
         self.admit(
             "chunk",
             &Cost {
                 response_bytes: chunk * row_bytes,
-                memory_bytes: 3 * chunk * row_bytes + eval.work_bytes_per_state(Pass::Step),
+                memory_bytes: 3 * chunk * row_bytes
+                    + particle_bytes
+                    + eval.work_bytes_per_state(Pass::Step) * particles.max(1),
             },
         )?;
         let (tx, rx) = mpsc::channel(1);
@@ -133,7 +172,10 @@ impl App {
             inputs: Arc::new(inputs),
             steps,
             chunk,
+            particles,
         };
+        // Every particle starts at x0.
+        let x0 = x0.repeat(particles.max(1));
         tokio::spawn(async move { job.stream(&app, x0, tx, until).await });
         Ok(rx)
     }
@@ -144,6 +186,8 @@ struct Rollout {
     inputs: Arc<Inputs>,
     steps: usize,
     chunk: usize,
+    /// 0: one rollout of the mean dynamics.
+    particles: usize,
 }
 
 /// A computed piece: the chunk, the state to continue from, and the error that ended it.
@@ -175,8 +219,12 @@ impl Rollout {
             let piece = {
                 let (eval, inputs) = (self.eval.clone(), self.inputs.clone());
                 let start = x.clone();
+                let particles = self.particles;
                 app.streaming
-                    .run(move || compute_piece(&eval, &inputs, start, t, take, first))
+                    .run(move || match particles {
+                        0 => compute_piece(&eval, &inputs, start, t, take, first),
+                        _ => particles::piece(&eval, &inputs, start, t, take, first),
+                    })
                     .await
             };
             let (chunk, last, error) = match piece {
@@ -215,6 +263,24 @@ fn deadline_passed() -> Error {
     Error::DeadlineExceeded("the rollout passed its deadline".into())
 }
 
+/// The input of step `t + s` at state `x`.
+fn input_at(inputs: &Inputs, m: usize, t: usize, s: usize, x: &[f64]) -> Vec<f64> {
+    match inputs {
+        Inputs::Open(u) => u[(t + s) * m..(t + s + 1) * m].to_vec(),
+        Inputs::Policy(p) => p.input(t + s, x),
+    }
+}
+
+/// The error of a rollout whose state left the finite numbers at `step`.
+fn diverged(step: usize) -> Error {
+    Error::invalid(
+        "x0",
+        format!(
+            "the state became non-finite at step {step}: the trajectory left what the model can evaluate"
+        ),
+    )
+}
+
 /// `take` steps from state `x` at step `t` (the first piece also carries x0).
 fn compute_piece(
     eval: &Evaluator,
@@ -229,20 +295,11 @@ fn compute_piece(
     let (mut applied, mut from) = (Vec::with_capacity(take * m), Vec::with_capacity(take * nx));
     let mut last = x.clone();
     let mut error = None;
-    let input = |s: usize, x: &[f64]| match inputs {
-        Inputs::Open(u) => u[(t + s) * m..(t + s + 1) * m].to_vec(),
-        Inputs::Policy(p) => p.input(t + s, x),
-    };
+    let input = |s: usize, x: &[f64]| input_at(inputs, m, t, s, x);
     let mut done = 0;
     eval.rollout(&x, take, input, |next, u| {
         if next.iter().any(|v| !v.is_finite()) {
-            error = Some(Error::invalid(
-                "x0",
-                format!(
-                    "the state became non-finite at step {}: the trajectory left what the model can evaluate",
-                    t + done + 1
-                ),
-            ));
+            error = Some(diverged(t + done + 1));
             return false;
         }
         from.extend_from_slice(&last);
@@ -260,6 +317,7 @@ fn compute_piece(
             x: Array::new(&[states.len() / nx, nx], states),
             u: Array::new(&[done, m], applied),
             max_abs_z,
+            x_std: None,
         },
         last,
         error,
