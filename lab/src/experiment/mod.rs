@@ -4,6 +4,7 @@
 //! same command run again continues where it stopped (`out.rs`).
 
 mod data_efficiency;
+mod ensemble;
 mod mbrl;
 mod multistep;
 mod out;
@@ -22,6 +23,7 @@ use graybox::rng::Rng;
 use graybox::sim::{SimConfig, simulate};
 
 pub use data_efficiency::DataEfficiencyArgs;
+pub use ensemble::EnsembleArgs;
 pub use mbrl::MbrlArgs;
 pub use multistep::MultistepArgs;
 pub use rollout::RolloutArgs;
@@ -39,6 +41,9 @@ pub enum ExperimentCommand {
     /// Multi-step (shooting) training: MVF trained on windows of H steps of trajectories
     /// against its open-loop error on held-out trajectories, paired by seed across H.
     Multistep(MultistepArgs),
+    /// Ensembles: calibration of MVF ×5's spread against its true error in and out of the
+    /// training distribution, and W-B ×5's bootstrap error bars against the true parameters.
+    Ensemble(EnsembleArgs),
 }
 
 pub fn run(cmd: ExperimentCommand) -> Result<()> {
@@ -47,6 +52,7 @@ pub fn run(cmd: ExperimentCommand) -> Result<()> {
         ExperimentCommand::Rollout(a) => rollout::run(a),
         ExperimentCommand::Mbrl(a) => mbrl::run(a),
         ExperimentCommand::Multistep(a) => multistep::run(a),
+        ExperimentCommand::Ensemble(a) => ensemble::run(a),
     }
 }
 
