@@ -8,16 +8,16 @@
 //! and what a member computes never depends on which thread runs it.
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use burn::tensor::Device;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::setup::{TrainConfig, split_data};
 use super::shards;
-use super::trainer::{RunData, TrainState, Trainer};
+use super::trainer::{EpochRun, RunData, TrainState, Trainer};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::file::ModelFile;
@@ -190,7 +190,7 @@ impl Ensemble {
             false => t.run_epoch(cancel).map(Some),
         };
         let results: Vec<Result<Option<EpochMetrics>>> = match &self.pool {
-            Some(pool) => pool.install(|| self.members.par_iter_mut().map(run).collect()),
+            Some(pool) => interleaved(pool, &mut self.members, cancel),
             None => self.members.iter_mut().map(run).collect(),
         };
         let single = self.members.len() == 1;
@@ -247,6 +247,65 @@ impl Ensemble {
         let report = ensemble_report(&reports);
         ModelFile::ensemble(files, Some(report))
     }
+}
+
+/// One epoch of every unfinished member on the pool's threads, batch by batch: a thread
+/// takes the member that has waited longest, trains one batch of it (or ends its epoch) and
+/// puts it back. Whole member-epochs would leave a thread idle at the end of every epoch
+/// (5 members on 2 threads: 3 member-epochs long instead of 2.5). A member's steps still run
+/// one at a time, in order, so its numbers do not depend on the threads.
+fn interleaved(
+    pool: &rayon::ThreadPool,
+    members: &mut [Trainer],
+    cancel: &AtomicBool,
+) -> Vec<Result<Option<EpochMetrics>>> {
+    type Slot<'a> = Mutex<(&'a mut Trainer, Option<EpochRun>)>;
+    let waiting: VecDeque<usize> = (0..members.len())
+        .filter(|&k| !members[k].finished())
+        .collect();
+    let results: Vec<Mutex<Result<Option<EpochMetrics>>>> =
+        (0..members.len()).map(|_| Mutex::new(Ok(None))).collect();
+    let slots: Vec<Slot> = members.iter_mut().map(|t| Mutex::new((t, None))).collect();
+    let (queue, failed) = (Mutex::new(waiting), AtomicBool::new(false));
+    pool.scope(|s| {
+        for _ in 0..pool.current_num_threads() {
+            s.spawn(|_| {
+                // A thread that finds no member waiting leaves: the members left are held
+                // by other threads, and there are never more of them later.
+                loop {
+                    // Its own statement: the queue's guard must not live through the batch.
+                    let next = lock(&queue).pop_front();
+                    let Some(k) = next.filter(|_| !failed.load(Ordering::Relaxed)) else {
+                        return;
+                    };
+                    let mut slot = lock(&slots[k]);
+                    let (t, run) = &mut *slot;
+                    let epoch = run.get_or_insert_with(|| t.begin_epoch());
+                    let outcome = match t.train_batch(epoch, cancel) {
+                        Ok(true) => {
+                            drop(slot);
+                            lock(&queue).push_back(k);
+                            continue;
+                        }
+                        Ok(false) => t.end_epoch(run.take().expect("begun")).map(Some),
+                        Err(e) => Err(e),
+                    };
+                    failed.fetch_or(outcome.is_err(), Ordering::Relaxed);
+                    *lock(&results[k]) = outcome;
+                }
+            });
+        }
+    });
+    results
+        .into_iter()
+        .map(|r| r.into_inner().unwrap_or_else(|e| e.into_inner()))
+        .collect()
+}
+
+/// The value behind `m`, whether or not a thread panicked holding it (the panic itself
+/// reaches the caller through the pool's scope).
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// The mean of the values when every one is known.

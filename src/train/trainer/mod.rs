@@ -2,13 +2,13 @@
 //! validation, early stopping that keeps the best-validation parameters, and checkpoints at
 //! epoch boundaries from which a resumed run equals an uninterrupted one.
 
+mod epoch;
 mod loss;
 mod report;
 mod state;
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Instant;
+use std::sync::atomic::AtomicBool;
 
 use burn::tensor::Device;
 
@@ -25,8 +25,9 @@ use crate::model::{Model, ModelConfig};
 use crate::physics::params::bounds;
 use crate::rng::Rng;
 
+pub(in crate::train) use epoch::EpochRun;
+use loss::HostData;
 pub use loss::evaluate;
-use loss::{HostData, mean_loss};
 use report::used_physical_values;
 pub use state::TrainState;
 use state::fingerprint;
@@ -297,78 +298,6 @@ impl Trainer {
 
     pub fn finished(&self) -> bool {
         self.state.epoch >= self.state.train.epochs || self.stopped_early()
-    }
-
-    /// One pass over the shuffled training data, then validation. `cancel` is checked between
-    /// batches.
-    pub fn run_epoch(&mut self, cancel: &AtomicBool) -> Result<EpochMetrics> {
-        let start = Instant::now();
-        let t = &self.state.train;
-        if t.one_step_epochs > 0 && self.state.epoch == t.one_step_epochs && t.horizon > 1 {
-            // The window loss's gradients are larger than the one-step loss's; Adam's second
-            // moments (β₂ = 0.999, ~1000 steps to adapt) would scale the first window steps
-            // by the old, small gradients and overshoot. Fresh moments restart the bias
-            // correction at the new scale.
-            self.adam = Adam::default();
-        }
-        let mut order = self.windows().starts.clone();
-        self.state.rng.shuffle(&mut order);
-        let epoch = self.state.epoch + 1;
-        let mut total = 0.0;
-        for (b, batch) in order.chunks(self.state.train.batch_size).enumerate() {
-            if cancel.load(Ordering::Relaxed) {
-                return Err(Error::Cancelled);
-            }
-            let (value, grads) = self.loss_and_grads(batch);
-            shards::check_learns(&grads)?;
-            if !value.is_finite() {
-                return Err(Error::Training(format!(
-                    "the loss became non-finite ({value}) at epoch {epoch}, batch {b}; try a smaller learning rate"
-                )));
-            }
-            total += value * batch.len() as f64;
-            let lr = self.state.train.lr_at(self.state.epoch);
-            self.model.params = self.adam.step(self.model.params.clone(), &grads, lr);
-            if let Some(bounds) = &self.bounds {
-                self.model.params = self.model.params.clone().projected(bounds);
-            }
-        }
-        let (windows, horizon) = (self.windows().count(), self.windows().horizon());
-        let s = &mut self.state;
-        s.train_seconds += start.elapsed().as_secs_f64();
-        s.samples_seen += (windows * horizon) as u64;
-        let train_loss = total / windows as f64;
-        let valid = self.model.valid();
-        let pool = self.pool.as_deref();
-        let loss = |v: &HostData, w: &Windows| mean_loss(&valid, v, w, s.shards, pool);
-        let val = self.data.val.as_ref();
-        let val_loss = val.map(|v| loss(&v.data, &v.one_step));
-        let val_horizon_loss = val.and_then(|v| v.horizon.as_ref().map(|w| loss(&v.data, w)));
-        if let Some(v) = (val_loss.iter().chain(&val_horizon_loss)).find(|v| !v.is_finite()) {
-            return Err(Error::Training(format!(
-                "the validation loss became non-finite ({v}) at epoch {epoch}"
-            )));
-        }
-        s.epoch = epoch;
-        // A multi-step run keeps the epoch whose rollouts validate best.
-        let criterion = val_horizon_loss.or(val_loss).unwrap_or(train_loss);
-        if criterion < s.best_loss {
-            s.best_loss = criterion;
-            s.best_epoch = epoch;
-            s.best_params = self.model.params.export();
-            s.stale_epochs = 0;
-        } else {
-            s.stale_epochs += 1;
-        }
-        let metrics = EpochMetrics {
-            epoch,
-            train_loss,
-            val_loss,
-            val_horizon_loss,
-            seconds: start.elapsed().as_secs_f64(),
-        };
-        s.history.push(metrics);
-        Ok(metrics)
     }
 
     /// The windows the next epoch trains on.
