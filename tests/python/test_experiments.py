@@ -21,6 +21,7 @@ EXPERIMENTS = {
     "rollout": ("rollouts.png", BLUE),
     "mbrl": ("mbrl.png", BLUE),
     "multistep": ("horizons.png", BLUE),
+    "ensemble": ("sigma_vs_error.png", BLUE),
 }
 
 

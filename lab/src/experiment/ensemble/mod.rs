@@ -167,6 +167,9 @@ pub fn run(a: EnsembleArgs) -> Result<()> {
     let done = (cells.iter())
         .filter(|&&c| trained_earlier(&out, c).is_some())
         .count();
+    if done > 0 {
+        eprintln!("{done} of {} cells finished earlier", cells.len());
+    }
     let progress = Progress::new(cells.len(), done);
     // One ensemble at a time, each on every thread (its members side by side).
     let trained = pool::parallel(&cells, 1, &progress, |&cell, status| {

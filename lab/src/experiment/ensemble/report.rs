@@ -231,7 +231,7 @@ fn bucket_table(s: &SetResult) -> String {
 
 fn bars_table(rows: &[Row]) -> String {
     let mut md = String::from(
-        "| parameter | true | init | mean | σ | \\|error\\| | \\|error\\| / σ | inside ±3σ |\n\
+        "| parameter | true | init | mean | σ | abs. error | abs. error / σ | inside ±3σ |\n\
          |---|---:|---:|---:|---:|---:|---:|---|\n",
     );
     for r in rows {
@@ -317,14 +317,26 @@ fn plot_points(out: &OutDir, in_dist: &Points, ood: &Points) -> Result<()> {
             .draw_series(LineSeries::new([(lo, lo), (hi, hi)], GRAY.stroke_width(2)))?
             .label("error = sigma")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], GRAY.stroke_width(2)));
-        // Out of distribution first: the in-distribution cloud is drawn over it.
+        // Out of distribution first, see-through: the in-distribution cloud is drawn over it,
+        // solid.
         let sets = [
-            (ood, COLORS[1], "out of distribution (qdot ~ U(-20, 20))"),
-            (in_dist, COLORS[0], "in distribution (qdot ~ U(-10, 10))"),
+            (
+                ood,
+                COLORS[1],
+                0.5,
+                "out of distribution (qdot ~ U(-20, 20))",
+            ),
+            (
+                in_dist,
+                COLORS[0],
+                1.0,
+                "in distribution (qdot ~ U(-10, 10))",
+            ),
         ];
-        for (p, color, label) in sets {
-            let dots = (p.sigma.iter().zip(&p.error))
-                .map(move |(&s, &e)| Circle::new((clamp(s), clamp(e)), 2, color.mix(0.5).filled()));
+        for (p, color, opacity, label) in sets {
+            let dots = (p.sigma.iter().zip(&p.error)).map(move |(&s, &e)| {
+                Circle::new((clamp(s), clamp(e)), 2, color.mix(opacity).filled())
+            });
             chart
                 .draw_series(dots)?
                 .label(label)
