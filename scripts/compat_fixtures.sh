@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
-# Regenerates tests/fixtures/compat: model files and a database written by the graybox that
-# built $GRAYBOX_BIN (default target/release/graybox), which later versions must keep reading
-# (tests/compat.rs). Run it only to capture a new format version, never to make a test pass.
+# Writes the missing files of tests/fixtures/compat: model files and a database written by the
+# graybox that built $GRAYBOX_BIN (default target/release/graybox), which later versions must
+# keep reading (tests/compat.rs). Files already there are an earlier version's and are kept:
+# delete one only to capture it again on purpose, never to make a test pass. Run it to capture
+# a new format version (add its file below and to tests/compat.rs's MODELS first).
 #  - mvf.gbx, wb.gbx, naive.gbx: three trained models (2 epochs on simulated data);
+#  - wb-x3.gbx: a W-B ensemble of 3 members (graybox.model/3);
 #  - expected.json: their Predict and Linearize outputs at fixed points, written by
-#    tests/compat.rs in its generator mode (GRAYBOX_WRITE_COMPAT=1) with this version's code;
+#    tests/compat.rs in its generator mode (GRAYBOX_WRITE_COMPAT=1) with this version's code
+#    for the models it has none for;
 #  - running.db: a database whose MVF job was killed (-9) while running, after a checkpoint.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -14,11 +18,15 @@ tmp=$(mktemp -d)
 trap 'kill -9 "${pid:-0}" 2>/dev/null || true; rm -rf "$tmp"' EXIT
 
 "$bin" simulate --system double_pendulum --count 256 --seed 0 --out "$tmp/train.json" > /dev/null
-for spec in mvf:MVF wb:W-B naive:naive; do
-  "$bin" train --data "$tmp/train.json" --model "${spec#*:}" --template double_pendulum \
-    --epochs 2 --batch-size 64 --out "$out/${spec%%:*}.gbx" > /dev/null 2>&1
+for spec in mvf:MVF:1 wb:W-B:1 naive:naive:1 wb-x3:W-B:3; do
+  IFS=: read -r name model members <<< "$spec"
+  [ -e "$out/$name.gbx" ] && continue
+  "$bin" train --data "$tmp/train.json" --model "$model" --template double_pendulum \
+    --epochs 2 --batch-size 64 --ensemble "$members" --out "$out/$name.gbx" > /dev/null 2>&1
 done
 GRAYBOX_WRITE_COMPAT=1 cargo test --release --test compat -- --exact models_predict_as_they_did > /dev/null
+
+[ -e "$out/running.db" ] && { echo "kept $out/running.db"; exit 0; }
 
 db="$tmp/running.db"
 port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])'; }

@@ -32,12 +32,22 @@ def run(cmd, out: Path):
         subprocess.run(cmd, check=True, capture_output=True, text=True)
 
 
-def plan(gb, model: Path, method: str, restarts: int, out: Path) -> dict:
+def plan(gb, model: Path, method: str, restarts: int, out: Path, extra=()) -> dict:
+    """The swing-up planned on `model` (`extra`: more `graybox plan` flags), kept in `out`."""
     run([gb, "plan", "--model", str(model), "--x0", "0,0,0,0",
          "--goal", ",".join(map(str, GOAL)), "--horizon", str(HORIZON),
          "--u-min", f"-{U_MAX},-{U_MAX}", "--u-max", f"{U_MAX},{U_MAX}",
-         "--restarts", str(restarts), "--method", method, "--out", str(out)], out)
+         "--restarts", str(restarts), "--method", method, "--out", str(out), *extra], out)
     return json.loads(out.read_text())
+
+
+def true_system(gb, out: Path) -> tuple[Path, list]:
+    """The true double pendulum's model file in `out`, and its physical values in PARAMS order."""
+    true = out / "true.gbx"
+    made = subprocess.run([gb, "model", "--template", "double_pendulum", "--dt", str(DT),
+                           "--out", str(true)], check=True, capture_output=True, text=True)
+    values = json.loads(made.stdout.strip().splitlines()[-1])["physical_parameters"]
+    return true, [values[k] for k in PARAMS]
 
 
 def track(p: dict, params) -> np.ndarray:
@@ -58,11 +68,7 @@ def main():
     args = a.parse_args()
     out, gb = args.out, args.bin
     out.mkdir(parents=True, exist_ok=True)
-    true = out / "true.gbx"
-    made = subprocess.run([gb, "model", "--template", "double_pendulum", "--dt", str(DT),
-                           "--out", str(true)], check=True, capture_output=True, text=True)
-    values = json.loads(made.stdout.strip().splitlines()[-1])["physical_parameters"]
-    params = [values[k] for k in PARAMS]
+    true, params = true_system(gb, out)
     data, mvf = out / "data.json", out / "mvf.gbx"
     run([gb, "simulate", "--system", "double_pendulum", "--count", "2048", "--dt", str(DT),
          "--seed", "0", "--out", str(data)], data)

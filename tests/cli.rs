@@ -2,6 +2,8 @@
 
 use std::process::{Command, Output};
 
+#[path = "cli/ensemble.rs"]
+mod ensemble;
 #[path = "cli/formula_limits.rs"]
 mod formula_limits;
 #[path = "cli/messages.rs"]

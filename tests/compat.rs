@@ -1,6 +1,8 @@
 //! Compatibility: model files and a database written by an earlier graybox
 //! (tests/fixtures/compat, made by scripts/compat_fixtures.sh) keep working: the models load
 //! and predict bit for bit as they did, and a job killed while running resumes and finishes.
+//! Each format version has its files: graybox.model/1 and /2 (mvf, wb, naive) and an
+//! ensemble's graybox.model/3 (wb-x3).
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -21,31 +23,53 @@ fn points(k: usize, width: usize, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-/// Predict (with q̈) at 5 points and Linearize at 3, as JSON.
+const MODELS: [&str; 4] = ["mvf", "wb", "naive", "wb-x3"];
+
+/// Predict (with q̈) at 5 points and Linearize at 3, as JSON; an ensemble's members' spread
+/// of x' too.
 fn outputs(file: &ModelFile) -> Value {
     let eval = Evaluator::from_file(file).unwrap();
     let (nx, m) = (2 * file.config.n, file.config.m);
     let (x, u) = (points(5, nx, 1), points(5, m, 2));
     let (next, accel) = eval.predict(&x, &u, true);
     let (a, b) = eval.linearize_batch(&x[..3 * nx], &u[..3 * m]);
-    json!({"x_next": next, "accel": accel, "a": a, "b": b})
+    let mut out = json!({"x_next": next, "accel": accel, "a": a, "b": b});
+    if eval.member_count() > 1 {
+        let p = eval
+            .predict_members_until(&x, &u, false, &|| false)
+            .unwrap();
+        out["x_next_std"] = json!(p.std);
+    }
+    out
 }
 
 #[test]
 fn models_predict_as_they_did() {
     let dir = fixtures();
     let mut got = serde_json::Map::new();
-    for name in ["mvf", "wb", "naive"] {
+    for name in MODELS {
         let file = ModelFile::load(&dir.join(format!("{name}.gbx"))).unwrap();
         got.insert(name.into(), outputs(&file));
     }
     let path = dir.join("expected.json");
+    let mut expected: Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     if std::env::var_os("GRAYBOX_WRITE_COMPAT").is_some() {
-        std::fs::write(&path, serde_json::to_string_pretty(&got).unwrap()).unwrap();
+        // Only a new version's files get outputs: the earlier ones' stay what they were.
+        for (name, outs) in got {
+            let known = expected.as_object_mut().unwrap();
+            known.entry(name).or_insert(outs);
+        }
+        std::fs::write(&path, serde_json::to_string_pretty(&expected).unwrap()).unwrap();
         return;
     }
-    let expected: Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
     for (name, outs) in &got {
+        let keys = |v: &Value| v.as_object().unwrap().keys().cloned().collect::<Vec<_>>();
+        assert_eq!(
+            keys(outs),
+            keys(&expected[name]),
+            "{name}: the same outputs"
+        );
         for (what, values) in outs.as_object().unwrap() {
             let (g, e) = (
                 values.as_array().unwrap(),
@@ -68,8 +92,9 @@ fn models_predict_as_they_did() {
 fn files_keep_their_value_names_and_order() {
     use graybox::backend::{Backend, Precision};
     let device = graybox::backend::device(Backend::Flex, Precision::F32).unwrap();
-    for name in ["mvf", "wb", "naive"] {
-        let old = ModelFile::load(&fixtures().join(format!("{name}.gbx"))).unwrap();
+    for name in MODELS {
+        let file = ModelFile::load(&fixtures().join(format!("{name}.gbx"))).unwrap();
+        let old = file.member(file.member_count() - 1);
         let fresh = graybox::model::Model::init(old.config.clone(), None, 7, &device).unwrap();
         let layout =
             |arrays: &[graybox::model::params_io::NamedArray]| -> Vec<(String, Vec<usize>)> {

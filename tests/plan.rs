@@ -3,6 +3,8 @@
 //! problem solved by batch least squares.
 
 mod common;
+#[path = "plan/ensemble.rs"]
+mod ensemble;
 
 use graybox::control::linalg::Mat;
 use graybox::control::plan::{Dynamics, Plan, PlanRequest, plan};

@@ -11,8 +11,8 @@ use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::infer::horizons::{check_horizons, horizon_errors};
 use crate::model::file::ModelFile;
-use crate::model::report::{identifiable, used_physical};
-use crate::train::trainer::evaluate;
+use crate::model::report::{Spread, identifiable, used_physical};
+use crate::train::trainer::{evaluate, evaluate_members};
 
 #[derive(Args, Debug)]
 pub struct EvalArgs {
@@ -52,9 +52,30 @@ pub(super) fn eval(a: EvalArgs) -> Result<()> {
         return eval_horizons(&file, &data, horizons);
     }
     let device = backend::device(a.backend, a.precision)?;
+    if file.member_count() > 1 {
+        return eval_ensemble(&file, &data, &device);
+    }
     let model = file.model(&device)?;
     let loss = evaluate(&model, &data)?;
     println!("{}", json!({"loss": loss, "count": data.count()}));
+    Ok(())
+}
+
+/// An ensemble's loss is its members' mean prediction's (what the service answers), beside
+/// each member's own and how far apart their predictions are.
+fn eval_ensemble(file: &ModelFile, data: &Dataset, device: &burn::tensor::Device) -> Result<()> {
+    let members = (0..file.member_count())
+        .map(|k| file.member(k).model(device))
+        .collect::<Result<Vec<_>>>()?;
+    let e = evaluate_members(&members, data)?;
+    println!(
+        "{}",
+        json!({
+            "loss": e.loss, "count": data.count(), "members": members.len(),
+            "member_loss": Spread::of(&e.member_losses), "member_losses": e.member_losses,
+            "prediction_std": e.prediction_std,
+        })
+    );
     Ok(())
 }
 

@@ -9,10 +9,9 @@ use serde_json::json;
 
 use crate::control::dircol::straight_line;
 use crate::control::linalg::Mat;
-use crate::control::make_plan;
 use crate::control::plan::{
-    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, Method, PlanRequest,
-    check_horizon,
+    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, EnsembleCost, Method,
+    PlanRequest, check_horizon,
 };
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
@@ -69,6 +68,10 @@ pub struct PlanArgs {
     /// its continuous dynamics); docs/control.md says when to pick which.
     #[arg(long, default_value = "ilqr")]
     pub method: String,
+    /// On an ensemble: mean_dynamics (plan on the members' average next state) or mean
+    /// (minimize the members' average cost); README "Ensembles and uncertainty".
+    #[arg(long, default_value = "mean_dynamics")]
+    pub ensemble_cost: String,
     /// dircol's initial states: `line` (straight from x0 to the goal) or a JSON file of T+1
     /// rows of 2n values (default: the rollout of zero inputs).
     #[arg(long)]
@@ -143,6 +146,7 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
             .map(|s| values("x_max", s, nx))
             .transpose()?,
         method: Method::parse(&a.method)?,
+        ensemble_cost: EnsembleCost::parse(&a.ensemble_cost)?,
         max_iterations: a.max_iterations,
         tolerance: a.tolerance,
         restarts: a.restarts,
@@ -191,18 +195,22 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
         eprintln!("warning: {}", w.message);
     }
     let started = Instant::now();
-    let p = make_plan(&eval, &req, &|| false)?;
+    let p = eval.plan(&req, &|| false)?;
     let seconds = started.elapsed().as_secs_f64();
     let rows =
         |v: &[f64], w: usize| -> Vec<Vec<f64>> { v.chunks(w).map(<[f64]>::to_vec).collect() };
     let k: Vec<Vec<Vec<f64>>> = p.gains.k.iter().map(|k| rows(&k.data, nx)).collect();
-    let out = json!({
+    let mut out = json!({
         "x": rows(&p.x, nx), "u": rows(&p.u, m), "K": k, "cost": p.cost, "costs": p.costs,
         "iterations": p.iterations, "converged": p.converged, "goal_error": p.goal_error,
         "dt": eval.config.dt, "u_min": req.u_min, "u_max": req.u_max, "seconds": seconds,
         "method": p.method.name(), "constraint_violation": p.constraint_violation,
         "rollout_deviation": p.rollout_deviation,
     });
+    if let Some(std) = &p.x_std {
+        out["x_std"] = json!(rows(std, nx));
+        out["ensemble_cost"] = json!(req.ensemble_cost.name());
+    }
     write_atomic(
         &a.out,
         serde_json::to_string_pretty(&out).expect("json").as_bytes(),

@@ -3,6 +3,7 @@
 
 pub mod boxqp;
 pub mod dircol;
+pub mod ensemble;
 pub mod linalg;
 pub mod plan;
 mod plan_request;

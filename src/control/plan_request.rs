@@ -48,6 +48,37 @@ impl Method {
     }
 }
 
+/// What a plan on an ensemble minimizes (`control::ensemble`); a single model has one.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum EnsembleCost {
+    /// The cost on the mean dynamics (the members' average next state), as every call uses.
+    #[default]
+    MeanDynamics,
+    /// The members' average cost, every member rolling out the same inputs.
+    Mean,
+}
+
+impl EnsembleCost {
+    /// From its name; empty is the default (the mean dynamics). An unknown one names the field.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "" | "mean_dynamics" => Ok(EnsembleCost::MeanDynamics),
+            "mean" => Ok(EnsembleCost::Mean),
+            other => Err(Error::invalid(
+                "ensemble_cost",
+                format!("unknown ensemble cost {other:?}; expected mean_dynamics or mean"),
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            EnsembleCost::MeanDynamics => "mean_dynamics",
+            EnsembleCost::Mean => "mean",
+        }
+    }
+}
+
 /// What to plan: the one request type that `graybox plan`, the gRPC `Plan` call and the lab
 /// build. Arrays are row-major; `u_init` is `[T, m]`.
 #[derive(Debug, Clone)]
@@ -69,6 +100,8 @@ pub struct PlanRequest {
     pub x_min: Option<Vec<f64>>,
     pub x_max: Option<Vec<f64>>,
     pub method: Method,
+    /// On an ensemble: the mean dynamics' cost or the members' average cost.
+    pub ensemble_cost: EnsembleCost,
     /// 0: no iteration; the plan is the rollout of the best start, with its gains.
     pub max_iterations: usize,
     pub tolerance: f64,
@@ -97,6 +130,7 @@ impl PlanRequest {
             x_min: None,
             x_max: None,
             method: Method::Ilqr,
+            ensemble_cost: EnsembleCost::MeanDynamics,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             tolerance: DEFAULT_TOLERANCE,
             restarts: 0,

@@ -5,6 +5,10 @@
 //! average of theirs. A single model's answers never pass through here.
 
 use super::Evaluator;
+use crate::control::ensemble::mean_std;
+use crate::control::make_plan;
+use crate::control::plan::{Plan, PlanRequest};
+use crate::error::Result;
 
 /// The elementwise mean of equally long vectors, summed in member order.
 pub(super) fn mean(parts: impl Iterator<Item = Vec<f64>>) -> Vec<f64> {
@@ -65,19 +69,7 @@ pub struct MemberPredictions {
 
 impl MemberPredictions {
     fn of(next: Vec<Vec<f64>>, accel: Option<Vec<f64>>) -> Self {
-        let k = next.len() as f64;
-        let mean = mean(next.iter().cloned());
-        let mut ss = vec![0.0; mean.len()];
-        for p in &next {
-            for ((s, v), m) in ss.iter_mut().zip(p).zip(&mean) {
-                *s += (v - m).powi(2);
-            }
-        }
-        let std = if next.len() > 1 {
-            ss.iter().map(|s| (s / (k - 1.0)).sqrt()).collect()
-        } else {
-            vec![0.0; mean.len()]
-        };
+        let (mean, std) = mean_std(&next);
         Self {
             next,
             mean,
@@ -129,6 +121,18 @@ impl Evaluator {
         match &self.members {
             Some(members) => mean(members.iter().map(|m| m.step(x, u))),
             None => self.step(x, u),
+        }
+    }
+}
+
+impl Evaluator {
+    /// A plan by the request's method (`control::make_plan`); an ensemble's also by its
+    /// `ensemble_cost`, with the members' spread along it (`control::ensemble`). A single
+    /// model plans as itself whatever `ensemble_cost` says.
+    pub fn plan(&self, req: &PlanRequest, stop: &(dyn Fn() -> bool + Sync)) -> Result<Plan> {
+        match self.ensemble() {
+            Some(members) => crate::control::ensemble::plan(self, members, req, stop),
+            None => make_plan(self, req, stop),
         }
     }
 }

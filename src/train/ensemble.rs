@@ -245,7 +245,9 @@ impl Ensemble {
             .map(|f| f.report.as_ref().expect("trained files carry a report"))
             .collect();
         let report = ensemble_report(&reports);
-        ModelFile::ensemble(files, Some(report))
+        let mut file = ModelFile::ensemble(files, Some(report));
+        self.members[0].add_horizon_errors(&mut file);
+        file
     }
 }
 

@@ -28,3 +28,68 @@ async fn admission_counts_every_member() {
     assert!(message.contains("32 ensemble members"), "{message}");
     app.stop().await;
 }
+
+/// A model file of tests/fixtures/compat uploaded: its id.
+async fn upload_fixture(app: &crate::helpers::TestApp, name: &str) -> String {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/compat");
+    let bytes = std::fs::read(dir.join(format!("{name}.gbx"))).unwrap();
+    let r = (app.client.post(app.url("/v1/models")).body(bytes))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status().as_u16(), 201);
+    let v: serde_json::Value = r.json().await.unwrap();
+    v["id"].as_str().unwrap().to_string()
+}
+
+/// Serving admits an ensemble's calls with its members' answers counted: near the per-call
+/// budget, the largest batch one model is admitted for is refused on an ensemble of three
+/// (each member's x' is held until their mean is taken), and the ensemble's own largest
+/// batch is refused once every member's x' is also asked back.
+#[tokio::test]
+async fn serving_counts_the_members_answers_near_the_call_budget() {
+    use crate::helpers::{client, predict_req};
+    let mut settings = test_settings();
+    settings.worker.workers = 0;
+    settings.max_call_memory_mb = 1;
+    let app = spawn_configured(settings).await;
+    let (single, ensemble) = (
+        upload_fixture(&app, "wb").await,
+        upload_fixture(&app, "wb-x3").await,
+    );
+    let mut c = client(&app).await;
+    let mut admitted = async |model: &str, b: usize, members: bool| -> bool {
+        let req = graybox::api::grpc::pb::PredictRequest {
+            members,
+            ..predict_req(model, b)
+        };
+        match c.predict(req).await {
+            Ok(_) => true,
+            Err(s) if s.code() == tonic::Code::ResourceExhausted => {
+                assert!(s.message().contains("per-call memory budget"), "{s:?}");
+                false
+            }
+            Err(s) => panic!("{s:?}"),
+        }
+    };
+    // The largest admitted batch, by bisection between an admitted and a refused size.
+    let mut largest = async |model: &str, members: bool| -> usize {
+        let (mut lo, mut hi) = (1usize, 1usize << 16);
+        assert!(admitted(model, lo, members).await && !admitted(model, hi, members).await);
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if admitted(model, mid, members).await {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    };
+    let one = largest(&single, false).await;
+    let three = largest(&ensemble, false).await;
+    let every_member = largest(&ensemble, true).await;
+    assert!(three < one, "{three} vs {one}");
+    assert!(every_member < three, "{every_member} vs {three}");
+    app.stop().await;
+}

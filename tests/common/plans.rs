@@ -61,6 +61,11 @@ pub fn reference_step(x: &[f64], u: &[f64], dt: f64) -> Vec<f64> {
 /// A white-box model whose dynamics are linear: constant mass matrix, quadratic potential,
 /// constant input gain and force.
 pub fn linear_model(dt: f64) -> Evaluator {
+    Evaluator::from_file(&linear_file(dt, 1.0)).unwrap()
+}
+
+/// `linear_model`'s file with its stiffness (the quadratic potential) times `stiffness`.
+pub fn linear_file(dt: f64, stiffness: f64) -> ModelFile {
     let spec: ModelSpec = ModelSpec::parse(
         r#"{"mass": "constant", "potential": "quadratic", "forces": "constant_affine"}"#,
         None,
@@ -86,13 +91,13 @@ pub fn linear_model(dt: f64) -> Evaluator {
     for a in &mut params {
         a.values = match a.name.as_str() {
             "mass_const" => vec![0.3, 0.2, -0.1],
-            "potential_quad" => vec![4.0, 1.0, 2.5],
+            "potential_quad" => vec![4.0 * stiffness, 1.0 * stiffness, 2.5 * stiffness],
             "b_const" => vec![1.0, 0.3, -0.2, 0.8],
             "eta" => vec![-0.2, -0.1],
             other => panic!("unexpected value {other}"),
         };
     }
-    Evaluator::from_file(&ModelFile::new(config, params, None)).unwrap()
+    ModelFile::new(config, params, None)
 }
 
 /// From a displaced state to another over `t` steps, unbounded, with weights on everything.

@@ -90,3 +90,49 @@ def test_particles_follow_the_members_round_robin(client, ensemble, models):
         with pytest.raises(GrayboxError) as e:
             client.rollout(ensemble, x0, u=u, particles=bad)
         assert e.value.code == "INVALID_ARGUMENT" and "particles" in str(e.value), e.value
+
+
+def test_a_plan_minimizes_the_members_mean_cost_when_asked(client, ensemble):
+    info = client.get_model(ensemble)
+    params = [[m["physical_parameters"][k] for k in PARAMS]
+              for m in info.metrics["ensemble"]["members"]]
+    T, goal = 10, np.array([np.pi, 0.0, 0.0, 0.0])
+    Q, R, Qf = np.diag([1, 1, 0.1, 0.1]), 1e-4 * np.eye(2), np.diag([1000, 1000, 100, 100])
+    x0 = np.zeros(4)
+
+    def rollouts(u):
+        """Every member's closed-form rollout of u from x0: [K, T+1, 4]."""
+        out = []
+        for p in params:
+            xs = [x0]
+            for t in range(T):
+                xs.append(dp_rk4(p, xs[-1][None, :], u[t][None, :], info.dt)[0])
+            out.append(xs)
+        return np.array(out)
+
+    def cost(x, u):
+        d = x - goal
+        return (np.einsum("ti,ij,tj->", d[:-1], Q, d[:-1]) + np.einsum("ti,ij,tj->", u, R, u)
+                + d[-1] @ Qf @ d[-1])
+
+    kw = dict(x0=x0, goal=goal, horizon=T, Q=Q, R=R, Qf=Qf, u_min=[-120, -120],
+              u_max=[120, 120], max_iterations=30)
+    plans = {c: client.plan(ensemble, **kw, ensemble_cost=c) for c in ("mean_dynamics", "mean")}
+    for c, p in plans.items():
+        xs = rollouts(p.u)
+        # σ of the members' own rollouts of the plan's inputs (relative 1e-6: the closed form
+        # and the service's evaluator differ in rounding, which σ's differences amplify).
+        assert p.x_std.shape == (T + 1, 4)
+        assert rel(p.x_std, xs.std(axis=0, ddof=1)) < 1e-6, c
+    mean = plans["mean"]
+    xs = rollouts(mean.u)
+    assert rel(mean.x, xs.mean(axis=0)) < 1e-9
+    # Its cost is the members' average cost; the mean dynamics' plan does no better on it, to
+    # the planner's relative tolerance (1e-6: it stops when an iteration gains less).
+    avg = lambda u: np.mean([cost(x, u) for x in rollouts(u)])
+    assert abs(mean.cost - avg(mean.u)) <= 1e-7 * avg(mean.u)
+    assert avg(mean.u) <= avg(plans["mean_dynamics"].u) * (1 + 1e-6)
+    assert mean.K.shape == (T, 2, 4)
+    with pytest.raises(GrayboxError) as e:
+        client.plan(ensemble, **kw, ensemble_cost="median")
+    assert e.value.code == "INVALID_ARGUMENT" and "ensemble_cost" in str(e.value), e.value

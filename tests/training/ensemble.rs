@@ -294,3 +294,85 @@ fn an_ensembles_evaluator_answers_with_its_members_mean() {
         vec![0.0; 8]
     );
 }
+
+/// `eval` of an ensemble (`evaluate_members`): each member's loss is its own `evaluate`; the
+/// ensemble's is the loss of the members' mean prediction, here taken from the f64 evaluator
+/// rather than averaged in Burn; the prediction spread is the evaluator's σ, RMS over rows.
+#[test]
+fn an_ensembles_eval_is_its_mean_predictions_loss() {
+    use burn::tensor::{Tensor, TensorData};
+    use graybox::backend::{Backend, Precision, device};
+    use graybox::infer::Evaluator;
+    use graybox::train::trainer::{evaluate, evaluate_members};
+    let train = data(&Template::DoublePendulum, 128, 17);
+    let mut e = mvf_ensemble(&train, ensemble(3, true, 2));
+    run(&mut e);
+    let file = e.model_file();
+    // This process computes in f32 (fixed per process); the evaluator in f64.
+    let dev = device(Backend::Flex, Precision::F32).unwrap();
+    let models: Vec<_> = (0..3)
+        .map(|k| file.member(k).model(&dev).unwrap())
+        .collect();
+    let test = data(&Template::DoublePendulum, 300, 23);
+    let got = evaluate_members(&models, &test).unwrap();
+    for (k, m) in models.iter().enumerate() {
+        assert_eq!(got.member_losses[k], evaluate(m, &test).unwrap());
+    }
+    let (x, y) = test.states();
+    let eval = Evaluator::from_file(&file).unwrap();
+    let p = eval
+        .predict_members_until(&x, &test.u, false, &|| false)
+        .unwrap();
+    let rows = test.count();
+    let tensor = |v: Vec<f64>| Tensor::<2>::from_data(TensorData::new(v, [rows, 4]), &dev);
+    let sum = models[0].error_sum(tensor(p.mean.clone()), tensor(y));
+    let want = sum.into_data().iter::<f64>().next().unwrap() / rows as f64;
+    // Relative 1e-4: f32 steps (relative error ~1e-7 on states of order 10) against f64 ones,
+    // on errors of order 0.1 after two epochs, squared; a wrong mean (member 0's, or an
+    // unweighted one) is off by percents.
+    assert!(
+        (got.loss - want).abs() <= 1e-4 * want,
+        "{} vs {want}",
+        got.loss
+    );
+    // The mean's squared error is at most the members' mean one (Jensen), and not member 0's.
+    let members_mean = got.member_losses.iter().sum::<f64>() / 3.0;
+    assert!(got.loss <= members_mean && got.loss != got.member_losses[0]);
+    for (i, s) in got.prediction_std.iter().enumerate() {
+        let ms = p.std.iter().skip(i).step_by(4).map(|v| v * v).sum::<f64>() / rows as f64;
+        // Relative 1e-4: the f32 steps' rounding in the members' differences (measured: 2e-6
+        // at worst, on σ of 4e-4).
+        assert!(
+            (s - ms.sqrt()).abs() <= 1e-4 * ms.sqrt() && *s > 0.0,
+            "σ {i}"
+        );
+    }
+}
+
+/// An ensemble validated on trajectories reports its open-loop error against horizon once, on
+/// its mean dynamics (what the service rolls out), not member 0's.
+#[test]
+fn an_ensembles_horizon_errors_are_its_mean_dynamics() {
+    use graybox::infer::Evaluator;
+    use graybox::infer::horizons::horizon_errors;
+    use graybox::sim::double_pendulum_trajectories;
+    let train = double_pendulum_trajectories(3, 20, 5).unwrap();
+    let val = double_pendulum_trajectories(2, 12, 6).unwrap();
+    let cfg = ensemble(3, true, 2);
+    let mut e = Ensemble::new("MVF", mvf(), &[], &train, Some(&val), cfg, &flex()).unwrap();
+    run(&mut e);
+    let file = e.model_file();
+    let found = &file.report.as_ref().unwrap().horizon_errors;
+    let horizons: Vec<usize> = found.iter().map(|h| h.horizon).collect();
+    assert_eq!(horizons, [1, 10], "the horizons 12-step trajectories reach");
+    let on = |f: &ModelFile| {
+        let eval = Evaluator::from_file(f).unwrap();
+        horizon_errors(&eval, &val, &horizons, &|| false).unwrap()
+    };
+    assert_eq!(found, &on(&file));
+    assert_ne!(
+        found,
+        &on(&file.member(0)),
+        "member 0 alone rolls out otherwise"
+    );
+}

@@ -61,7 +61,8 @@ class PlanResult:
     accepted iteration; non-increasing for iLQR), `iterations`, `converged`, `goal_error`
     (‖x_T − goal‖₂), the `method` that made it, and for direct collocation its largest defect
     (`constraint_violation`) and how far the model's one-step rollout of `u` strays from `x`
-    (`rollout_deviation`); both 0 for iLQR."""
+    (`rollout_deviation`); both 0 for iLQR. An ensemble's plan also has `x_std` [T+1, 2n], the
+    members' standard deviation of each state along `u` (None for a single model)."""
 
     x: np.ndarray
     u: np.ndarray
@@ -74,6 +75,7 @@ class PlanResult:
     method: str = "ilqr"
     constraint_violation: float = 0.0
     rollout_deviation: float = 0.0
+    x_std: np.ndarray | None = None
 
 
 def to_array(a: Any) -> pb.Array:
@@ -283,7 +285,7 @@ class Client:
     def plan(self, model_id: str, x0, goal, horizon: int, Q, R, Qf, u_min=None, u_max=None,
              u_init=None, max_iterations: int = 200, tolerance: float = 1e-6, restarts: int = 0,
              seed: int = 0, time_limit_ms: int = 0, method: str = "ilqr",
-             x_init=None, x_min=None, x_max=None) -> PlanResult:
+             x_init=None, x_min=None, x_max=None, ensemble_cost: str = "") -> PlanResult:
         """A trajectory of `horizon` steps from x0 toward `goal` minimizing
         Σ (x_t−g)ᵀQ(x_t−g) + u_tᵀRu_t + (x_T−g)ᵀQf(x_T−g) with u_min ≤ u_t ≤ u_max (None:
         unbounded), by iLQR with input bounds on the model, and TVLQR gains along it.
@@ -294,13 +296,16 @@ class Client:
         (shooting on the model's one-step map) or "dircol" (direct collocation on its
         continuous dynamics), whose initial states `x_init` [T+1, 2n] may be given (default:
         the rollout of `u_init`), and bounds on every state after x0, `x_min`/`x_max` [2n]
-        (±inf: none on that coordinate)."""
+        (±inf: none on that coordinate). On an ensemble, `ensemble_cost` "mean_dynamics" (the
+        default) plans on the members' average next state and "mean" minimizes the members'
+        average cost (x is then their mean state, K their gains for a shared deviation)."""
         flat = lambda v: [] if v is None else np.asarray(v, dtype=np.float64).ravel().tolist()
         req = pb.PlanRequest(
             model_id=model_id, x0=flat(x0), goal=flat(goal), horizon=horizon,
             q=to_array(Q), r=to_array(R), qf=to_array(Qf), u_min=flat(u_min), u_max=flat(u_max),
             max_iterations=max_iterations, tolerance=tolerance, restarts=restarts, seed=seed,
-            time_limit_ms=time_limit_ms, method=method, x_min=flat(x_min), x_max=flat(x_max))
+            time_limit_ms=time_limit_ms, method=method, x_min=flat(x_min), x_max=flat(x_max),
+            ensemble_cost=ensemble_cost)
         if u_init is not None:
             req.u_init.CopyFrom(to_array(u_init))
         if x_init is not None:
@@ -310,7 +315,8 @@ class Client:
                           costs=np.asarray(r.costs), iterations=r.iterations,
                           converged=r.converged, goal_error=r.goal_error, method=r.method,
                           constraint_violation=r.constraint_violation,
-                          rollout_deviation=r.rollout_deviation)
+                          rollout_deviation=r.rollout_deviation,
+                          x_std=from_array(r.x_std) if r.HasField("x_std") else None)
 
     def get_model(self, model_id: str) -> ModelInfo:
         """A model, by its id or by the id of the job that trained it."""

@@ -10,7 +10,9 @@ use crate::api::echo::{MESSAGE_LIMIT, bounded};
 use crate::app::views::ModelView;
 use crate::array::Array;
 use crate::control::linalg::Mat;
-use crate::control::plan::{DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, Method, PlanRequest};
+use crate::control::plan::{
+    DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, EnsembleCost, Method, PlanRequest,
+};
 use crate::error::Error;
 
 impl From<Error> for Status {
@@ -87,6 +89,7 @@ pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
         x_min: bound(r.x_min),
         x_max: bound(r.x_max),
         method: Method::parse(&r.method)?,
+        ensemble_cost: EnsembleCost::parse(&r.ensemble_cost)?,
         max_iterations: r
             .max_iterations
             .map_or(DEFAULT_MAX_ITERATIONS, |v| v as usize),

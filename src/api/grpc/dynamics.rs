@@ -169,6 +169,7 @@ impl Dynamics for DynamicsService {
             method: p.method.name().to_string(),
             constraint_violation: p.constraint_violation,
             rollout_deviation: p.rollout_deviation,
+            x_std: p.x_std.map(|s| Array::new(&[t + 1, nx], s).into()),
         }))
     }
 

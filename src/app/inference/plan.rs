@@ -6,8 +6,7 @@ use std::time::Instant;
 
 use super::{Cost, members_held};
 use crate::app::App;
-use crate::control::make_plan;
-use crate::control::plan::{Method, Plan, PlanRequest, check_horizon, validate};
+use crate::control::plan::{EnsembleCost, Method, Plan, PlanRequest, check_horizon, validate};
 use crate::error::{Error, Result};
 use crate::infer::limits::Pass;
 
@@ -27,6 +26,12 @@ impl App {
         let req = req.with_effort_limits(&eval.effort_limits());
         validate(&req, nx, m)?;
         let t = req.horizon;
+        // The members' average cost plans on all of them stacked: K·nx states.
+        let k = eval.member_count();
+        let nx = match req.ensemble_cost {
+            EnsembleCost::Mean => k * nx,
+            EnsembleCost::MeanDynamics => nx,
+        };
         // Jacobians, the backward pass's matrices and gains, the line search's ten
         // trajectories, the best start's, the returned plan and its message. Restarts add
         // time, not memory (one start is kept besides the current one); the time is the
@@ -47,11 +52,9 @@ impl App {
             },
         )?;
         // The solver polls `stop` at every time step of every pass (`control::plan`).
-        self.heavy_until("plan", deadline, move |stop| {
-            match make_plan(eval.as_ref(), &req, stop) {
-                Err(Error::Cancelled) => None,
-                done => Some(done),
-            }
+        self.heavy_until("plan", deadline, move |stop| match eval.plan(&req, stop) {
+            Err(Error::Cancelled) => None,
+            done => Some(done),
         })
         .await?
     }

@@ -26,8 +26,8 @@ mod forward;
 use std::time::Instant;
 
 pub use super::plan_request::{
-    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, MAX_RESTARTS, Method,
-    PlanRequest, check_horizon, validate,
+    DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, EnsembleCost,
+    MAX_RESTARTS, Method, PlanRequest, check_horizon, validate,
 };
 
 use super::linalg::Mat;
@@ -66,6 +66,9 @@ pub struct Plan {
     pub method: Method,
     pub constraint_violation: f64,
     pub rollout_deviation: f64,
+    /// An ensemble's: the members' standard deviation of each state `[T+1, nx]` along the
+    /// inputs (`control::ensemble`).
+    pub x_std: Option<Vec<f64>>,
 }
 
 const STEP_SIZES: usize = 10;
@@ -405,6 +408,7 @@ impl<'a, D: Dynamics> Planner<'a, D> {
             method: Method::Ilqr,
             constraint_violation: 0.0,
             rollout_deviation: 0.0,
+            x_std: None,
         })
     }
 }

@@ -120,6 +120,18 @@ fn scalar(t: Tensor<1>) -> f64 {
 
 /// The mean loss of a trained model on a dataset (the `eval` command).
 pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
+    check_shape(model, ds)?;
+    let one_step = Windows::one_step(ds.count());
+    Ok(mean_loss(
+        &model.valid(),
+        &HostData::new(ds),
+        &one_step,
+        1,
+        None,
+    ))
+}
+
+fn check_shape(model: &Model, ds: &Dataset) -> Result<()> {
     if ds.n != model.config.n || ds.m != model.config.m {
         return Err(Error::invalid(
             "data",
@@ -129,14 +141,62 @@ pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
             ),
         ));
     }
-    let one_step = Windows::one_step(ds.count());
-    Ok(mean_loss(
-        &model.valid(),
-        &HostData::new(ds),
-        &one_step,
-        1,
-        None,
-    ))
+    Ok(())
+}
+
+/// An ensemble on a dataset (the `eval` command): the one-step loss of the members' mean
+/// prediction (what the service answers), each member's own loss, and the members' standard
+/// deviation of x' per coordinate, root mean square over the rows (divisor K − 1).
+#[derive(Debug, Clone)]
+pub struct EnsembleEval {
+    pub loss: f64,
+    pub member_losses: Vec<f64>,
+    pub prediction_std: Vec<f64>,
+}
+
+pub fn evaluate_members(members: &[Model], ds: &Dataset) -> Result<EnsembleEval> {
+    let first = members.first().expect("an ensemble has a member");
+    check_shape(first, ds)?;
+    let member_losses = (members.iter())
+        .map(|m| evaluate(m, ds))
+        .collect::<Result<Vec<f64>>>()?;
+    let models: Vec<Model> = members.iter().map(Model::valid).collect();
+    let (data, device, k) = (HostData::new(ds), first.device(), members.len() as f64);
+    let all: Vec<usize> = (0..ds.count()).collect();
+    let (mut loss, mut ss) = (0.0, vec![0.0; data.n2]);
+    for rows in all.chunks(4096) {
+        let x = HostData::take(&data.x, data.n2, rows, 0, &device);
+        let u = HostData::take(&data.u, data.m, rows, 0, &device);
+        let each: Vec<Tensor<2>> = (models.iter())
+            .map(|m| m.step(x.clone(), u.clone()))
+            .collect();
+        let mean = (each.iter().skip(1))
+            .fold(each[0].clone(), |a, p| a + p.clone())
+            .div_scalar(k);
+        let y = HostData::take(&data.y, data.n2, rows, 0, &device);
+        loss += scalar(models[0].error_sum(mean.clone(), y));
+        for p in each {
+            let d = (p - mean.clone()).square().sum_dim(0).into_data();
+            ss.iter_mut()
+                .zip(d.iter::<f64>())
+                .for_each(|(s, v)| *s += v);
+        }
+    }
+    let rows = ds.count() as f64;
+    let prediction_std = (ss.iter())
+        .map(|s| {
+            if k > 1.0 {
+                (s / ((k - 1.0) * rows)).sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    Ok(EnsembleEval {
+        loss: loss / rows,
+        member_losses,
+        prediction_std,
+    })
 }
 
 impl Trainer {

@@ -27,7 +27,7 @@ use crate::rng::Rng;
 
 pub(in crate::train) use epoch::EpochRun;
 use loss::HostData;
-pub use loss::evaluate;
+pub use loss::{EnsembleEval, evaluate, evaluate_members};
 use report::used_physical_values;
 pub use state::TrainState;
 use state::fingerprint;

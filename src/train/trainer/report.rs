@@ -145,10 +145,17 @@ impl Trainer {
     /// the report includes the model's open-loop error against horizon on them.
     pub fn model_file(&self) -> ModelFile {
         let mut file = self.best_file();
-        let errors = (self.data.val.as_ref()).map(|v| end_of_training(&file, &v.ds));
+        self.add_horizon_errors(&mut file);
+        file
+    }
+
+    /// With validation trajectories, `file`'s open-loop error against horizon on them in its
+    /// report: an ensemble's file (which this run's data is shared with) measured once, on its
+    /// mean dynamics.
+    pub(crate) fn add_horizon_errors(&self, file: &mut ModelFile) {
+        let errors = (self.data.val.as_ref()).map(|v| end_of_training(file, &v.ds));
         if let (Some(Ok(errors)), Some(report)) = (errors, file.report.as_mut()) {
             report.horizon_errors = errors;
         }
-        file
     }
 }

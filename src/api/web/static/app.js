@@ -164,6 +164,8 @@ async function loadDatasetNames(ids) {
 
 // ---------- charts ----------
 
+// A band's fill: its curve's colour at 20 % opacity (hex alpha).
+const BAND_ALPHA = "33";
 const PALETTE = ["#2457c5", "#d9480f", "#2b8a3e", "#862e9c", "#c92a2a", "#1098ad", "#e67700", "#5c940d"];
 
 // TensorBoard's smoothing: an exponential moving average, debiased for its first points.
@@ -179,11 +181,17 @@ function ema(values, weight) {
 }
 
 // A uPlot chart in `host`: x values and named series; the data drawn is in data-series.
-function chart(host, { x, series, xLabel, yLabel, logY = false, logX = false, dashed = [] }) {
+function chart(host, { x, series, xLabel, yLabel, logY = false, logX = false, dashed = [], bands = [] }) {
   host.replaceChildren();
   host.classList.add("chart");
-  host.dataset.series = JSON.stringify({ x, x_label: xLabel, y_label: yLabel, series });
+  host.dataset.series = JSON.stringify({ x, x_label: xLabel, y_label: yLabel, series, bands });
   const names = Object.keys(series);
+  // A band's edges (an ensemble's mean ± σ) are thin lines in their curve's colour, filled
+  // between; every other curve takes the next colour.
+  const edgeOf = new Map(bands.flatMap((b) => [[b.upper, b.of], [b.lower, b.of]]));
+  const colour = new Map();
+  names.filter((n) => !edgeOf.has(n)).forEach((n, i) => colour.set(n, PALETTE[i % PALETTE.length]));
+  const stroke = (n) => colour.get(edgeOf.get(n) ?? n) ?? PALETTE[0];
   const width = Math.max(280, host.clientWidth || host.parentElement.clientWidth || 600);
   const opts = {
     width, height: 300,
@@ -193,10 +201,13 @@ function chart(host, { x, series, xLabel, yLabel, logY = false, logX = false, da
       // Losses span decades: powers of ten as 1e-3, not as rounded zeros.
       values: logY ? (u, vals) => vals.map((v) => (v === null ? "" : Number(v).toExponential(0))) : undefined,
     }],
-    series: [{ label: xLabel }, ...names.map((name, i) => ({
-      label: name, stroke: PALETTE[i % PALETTE.length], width: 1.5,
+    series: [{ label: xLabel }, ...names.map((name) => ({
+      label: name, stroke: stroke(name), width: edgeOf.has(name) ? 0.5 : 1.5,
       dash: dashed.includes(name) ? [6, 4] : undefined, spanGaps: true,
     }))],
+    bands: bands.map((b) => ({
+      series: [names.indexOf(b.upper) + 1, names.indexOf(b.lower) + 1], fill: stroke(b.of) + BAND_ALPHA,
+    })),
   };
   const clean = (v) => (v === null || !Number.isFinite(v) || (logY && v <= 0) ? null : v);
   const data = [x, ...names.map((n) => series[n].map(clean))];

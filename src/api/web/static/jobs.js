@@ -137,13 +137,23 @@ async function jobView(view, id) {
     const train = metrics.map((m) => m.train_loss);
     const val = metrics.map((m) => (m.val_loss === null ? null : m.val_loss));
     const series = { train: ema(train, w), validation: ema(val, w) };
+    // An ensemble's losses are its members' mean: a band of ± one standard deviation.
+    const bands = [];
+    for (const [name, key, values] of [["train", "train_loss_std", train], ["validation", "val_loss_std", val]]) {
+      const std = metrics.map((m) => m[key] ?? null);
+      if (!std.some((v) => v !== null)) continue;
+      const edge = (sign) => ema(values.map((v, i) => (v === null || std[i] === null ? null : v + sign * std[i])), w);
+      series[`${name} + σ`] = edge(1);
+      series[`${name} − σ`] = edge(-1);
+      bands.push({ of: name, upper: `${name} + σ`, lower: `${name} − σ` });
+    }
     // A multi-step job: its validation loss over windows of its horizon too.
     const horizon = metrics.map((m) => m.val_horizon_loss ?? null);
     const horizonName = `validation, ${job.training?.horizon ?? "H"} steps`;
     if (horizon.some((v) => v !== null)) series[horizonName] = ema(horizon, w);
     chart(chartHost, {
       x, xLabel: xAxis.value === "epoch" ? "epoch" : "wall time (s)", yLabel: "loss (log scale)", logY: true,
-      series,
+      series, bands,
     });
     chartHost.dataset.raw = JSON.stringify({ train, validation: val });
   }

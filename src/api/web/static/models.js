@@ -47,13 +47,66 @@ async function modelView(view, id) {
     el("h2", { text: "Spec" }), specView(m.spec),
     physical.length ? [
       el("h2", { text: "Learned physical parameters" }),
-      el("div", { class: "table-wrap" }, el("table", { id: "physical-table" },
-        el("thead", {}, el("tr", {}, el("th", { scope: "col", text: "parameter" }), el("th", { scope: "col", text: "value" }))),
-        el("tbody", {}, physical.map(([k, v]) => el("tr", {}, el("td", { text: k }), el("td", { class: "num", text: Number(v).toPrecision(6) })))))),
+      physicalTable(physical, m.metrics?.ensemble?.physical_parameters),
       identifiable.length ? [el("h3", { text: "Identifiable combinations" }), el("ul", {}, identifiable.map((c) => el("li", { text: `${c.name} = ${Number(c.value).toPrecision(6)}` })))] : "",
       m.identifiability ? el("p", { class: "muted", text: m.identifiability }) : "",
-    ] : ""].flat(Infinity));
+    ] : "",
+    membersTable(m.metrics?.ensemble?.members)].flat(Infinity));
   await replayPanel(view, m);
+}
+
+// One value per parameter; an ensemble's members' mean with its bootstrap error bar (± one
+// standard deviation across the members), drawn to scale beside it.
+function physicalTable(physical, spread) {
+  // One scale for every bar: the widest ± 3σ fills its cell.
+  const rels = Object.values(spread || {}).map((s) => (s.mean ? s.std / Math.abs(s.mean) : 0));
+  const scale = Math.max(1e-9, ...rels.map((r) => 3 * r));
+  const head = spread
+    ? ["parameter", "mean", "± σ", "σ / |mean|", `error bar: ± σ dark, ± 3σ light (half-width ${(100 * scale).toPrecision(2)} % of the mean)`]
+    : ["parameter", "value"];
+  const row = ([k, v]) => {
+    const s = spread?.[k];
+    if (!s) return el("tr", {}, el("td", { text: k }), el("td", { class: "num", text: Number(v).toPrecision(6) }));
+    const rel = s.mean ? s.std / Math.abs(s.mean) : null;
+    return el("tr", { "data-parameter": k }, el("td", { text: k }),
+      el("td", { class: "num", text: Number(s.mean).toPrecision(6) }),
+      el("td", { class: "num", text: Number(s.std).toPrecision(3) }),
+      el("td", { class: "num", text: rel === null ? "–" : `${(100 * rel).toFixed(2)} %` }),
+      el("td", {}, errorBar(rel, scale)));
+  };
+  return el("div", { class: "table-wrap" }, el("table", { id: "physical-table" },
+    el("thead", {}, el("tr", {}, head.map((h) => el("th", { scope: "col", text: h })))),
+    el("tbody", {}, physical.map(row))));
+}
+
+// A bar for ± σ (dark) inside ± 3σ (light) of σ / |mean| = `rel`, the cell's half-width
+// being `scale` of the mean.
+function errorBar(rel, scale) {
+  if (rel === null) return "";
+  const pct = (k) => Math.min(50, (50 * k * rel) / scale);
+  const box = el("div", { class: "errorbar", title: `± ${(100 * rel).toFixed(2)} % of the mean` });
+  // Through the style object: the Content-Security-Policy forbids style attributes.
+  const span = (k) => {
+    const e = el("span", { class: `errorbar-${k}` });
+    e.style.left = `${50 - pct(k)}%`;
+    e.style.width = `${2 * pct(k)}%`;
+    return e;
+  };
+  box.append(span(3), span(1), el("span", { class: "errorbar-mean" }));
+  return box;
+}
+
+// An ensemble's members: each one's best validation loss and epoch.
+function membersTable(members) {
+  if (!members?.length) return "";
+  return [el("h2", { text: `Ensemble: ${members.length} members` }),
+    el("p", { class: "muted", text: "Each member trained on its own bootstrap resample (or all the data) from its own seed; the service answers with their mean and spread." }),
+    el("div", { class: "table-wrap" }, el("table", { id: "members-table" },
+      el("thead", {}, el("tr", {}, ["member", "best epoch", "best val loss", "final train loss"].map((h) => el("th", { scope: "col", text: h })))),
+      el("tbody", {}, members.map((r, k) => el("tr", {}, el("td", { text: String(k) }),
+        el("td", { class: "num", text: String(r.best_epoch) }),
+        el("td", { class: "num", text: fmtLoss(r.best_val_loss) }),
+        el("td", { class: "num", text: fmtLoss(r.train_loss) }))))))];
 }
 
 // The spec as JSON, a template's document (a URDF's XML, long) shortened in place and shown
