@@ -22,6 +22,7 @@ pub mod parts;
 pub mod scalar;
 pub mod scaling;
 pub mod stiffness;
+pub mod tape;
 pub mod templates;
 pub mod urdf;
 
