@@ -2,6 +2,8 @@
 //! type per process, so every test in this binary runs in f64.
 
 mod common;
+#[path = "numerics_f64/fused.rs"]
+mod fused;
 #[path = "numerics_f64/rigid.rs"]
 mod rigid;
 

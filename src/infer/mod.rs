@@ -20,7 +20,7 @@ use std::sync::Arc;
 
 use jet::Jet;
 pub use nets::Mlp64;
-use nets::{Columns, JetNets, NetOutputs, input_jet, periodic_full_jet, periodic_q_jet};
+use nets::{JetNets, NetOutputs, input_jet, periodic_full_jet, periodic_q_jet};
 use weights::{Components, Forces, Weights};
 
 use col::{Col, Column, Lanes};
@@ -32,7 +32,7 @@ use crate::error::{Error, Result};
 use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
-use crate::physics::assembly::Structure;
+use crate::physics::assembly::{Columns, Structure};
 use crate::physics::dynamics::acceleration;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 use crate::physics::scalar::Scalar;

@@ -7,9 +7,8 @@ use super::col::Lanes;
 use super::jet::Jet;
 use crate::error::{Error, Result};
 use crate::model::params_io::NamedArray;
-use crate::physics::assembly::{Inputs, Networks};
+use crate::physics::assembly::Networks;
 use crate::physics::dual::Dual;
-use crate::physics::scalar::Scalar;
 use crate::physics::scaling::Scaling;
 
 /// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
@@ -184,28 +183,6 @@ impl<S: Lanes> Networks<S> for JetNets<'_, S> {
     }
     fn force(&self, j: usize) -> S {
         S::read(self.outs.force.as_ref().expect("force outputs"), 0, j)
-    }
-}
-
-/// A batch's inputs, already columns.
-pub(super) struct Columns<'a, S> {
-    pub(super) q: &'a [S],
-    pub(super) qd: &'a [S],
-    pub(super) u: &'a [S],
-}
-
-impl<S: Scalar> Inputs<S> for Columns<'_, S> {
-    fn q(&self) -> &[S] {
-        self.q
-    }
-    fn qd(&self) -> &[S] {
-        self.qd
-    }
-    fn u(&self) -> &[S] {
-        self.u
-    }
-    fn one(&self) -> S {
-        self.q[0].lift(1.0)
     }
 }
 

@@ -2,6 +2,7 @@
 //! q̈ = M⁻¹(F − c − ∂V/∂q), one-step prediction by an integrator, and the loss.
 
 pub mod file;
+mod fused;
 mod init;
 pub mod mlp;
 pub mod params;
@@ -404,6 +405,9 @@ impl Model {
 
     /// One step of the model's integrator: x = [q, q̇] `[batch, 2n]`, u `[batch, m]`.
     pub fn step(&self, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
+        if let Some(f) = &self.consts.fused {
+            return self.fused_step(f, x, u);
+        }
         let n = self.config.n;
         self.config
             .integrator

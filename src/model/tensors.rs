@@ -27,6 +27,8 @@ pub(super) struct Consts {
     pub(super) periodic: Option<Periodic>,
     /// Forward dynamics by the recursive algorithms, when M is a URDF template's.
     pub(super) rigid: Option<RowFn>,
+    /// The whole step as one op (`model::fused`), when the model was asked to train so.
+    pub(super) fused: Option<RowFn>,
 }
 
 /// What angles need: their networks' inputs are (sin q, cos q), their loss 2(1 − cos Δ).
@@ -86,6 +88,7 @@ impl Consts {
                 ),
             }),
             rigid: super::rigid::ForwardDynamics::of(c),
+            fused: None,
         }
     }
 

@@ -34,6 +34,28 @@ pub trait Inputs<S> {
     fn one(&self) -> S;
 }
 
+/// A batch's inputs, already columns (the f64 evaluator's, the fused step's).
+pub struct Columns<'a, S> {
+    pub q: &'a [S],
+    pub qd: &'a [S],
+    pub u: &'a [S],
+}
+
+impl<S: Scalar> Inputs<S> for Columns<'_, S> {
+    fn q(&self) -> &[S] {
+        self.q
+    }
+    fn qd(&self) -> &[S] {
+        self.qd
+    }
+    fn u(&self) -> &[S] {
+        self.u
+    }
+    fn one(&self) -> S {
+        self.q[0].lift(1.0)
+    }
+}
+
 /// A trainable value that is not a network output: a constant in inference, a tracked
 /// tensor in training.
 pub trait Coef<S>: Clone {

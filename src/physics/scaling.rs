@@ -8,6 +8,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::dual::Dual;
+use super::scalar::Scalar;
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Scaling {
     pub q_mean: Vec<f64>,
@@ -72,5 +75,51 @@ impl Scaling {
     /// Output scale of a potential network: ∂V/∂q should be O(force) when q moves by O(σ_q).
     pub fn potential_scale(&self) -> f64 {
         self.mean_force_scale() * self.mean_q_std()
+    }
+}
+
+/// The networks' inputs as values of any number type (the fused training step's; the Burn
+/// and f64 paths build the same inputs in their own form).
+impl Scaling {
+    /// The input from q: standardized, an angle (`angles[k]`) as (sin q_k, cos q_k); with
+    /// `inner`, each input carries its ∂/∂q as n tangents.
+    pub fn q_features<S: Scalar>(&self, q: &[S], angles: &[bool], inner: bool) -> Vec<Dual<S>> {
+        let n = q.len();
+        let mut out = vec![];
+        for (k, qk) in q.iter().enumerate() {
+            let with = |v: S, d: S| -> Dual<S> {
+                if !inner {
+                    return Dual::constant(v);
+                }
+                let mut t: Vec<Option<S>> = vec![None; n];
+                t[k] = Some(d);
+                Dual::new(v, t)
+            };
+            if angles.get(k).copied().unwrap_or(false) {
+                let (sin, cos) = (qk.sin(), qk.cos());
+                out.push(with(sin.clone(), cos.clone()));
+                out.push(with(cos, -sin));
+            } else {
+                let inv = 1.0 / self.q_std[k];
+                out.push(with(qk.shift(-self.q_mean[k]).scale(inv), qk.lift(inv)));
+            }
+        }
+        out
+    }
+
+    /// The input from [q, q̇, u]: q's as [`Scaling::q_features`] gives it, then q̇ and u
+    /// standardized.
+    pub fn full_features<S: Scalar>(&self, q: &[S], qd: &[S], u: &[S], angles: &[bool]) -> Vec<S> {
+        let mut out: Vec<S> = (self.q_features(q, angles, false).into_iter())
+            .map(|d| d.v)
+            .collect();
+        let standardized = |x: &[S], mean: &[f64], std: &[f64]| -> Vec<S> {
+            (x.iter().zip(mean.iter().zip(std)))
+                .map(|(x, (m, s))| x.shift(-m).scale(1.0 / s))
+                .collect()
+        };
+        out.extend(standardized(qd, &self.qdot_mean, &self.qdot_std));
+        out.extend(standardized(u, &self.u_mean, &self.u_std));
+        out
     }
 }

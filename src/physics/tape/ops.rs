@@ -234,3 +234,16 @@ impl Scalar for Var {
         self.with(r)
     }
 }
+
+/// A trainable value on the tape (a parameter node, or one computed from parameters).
+impl crate::physics::assembly::Coef<Var> for Var {
+    fn times(&self, x: &Var) -> Var {
+        self.clone() * x.clone()
+    }
+    fn value(&self, _like: &Var) -> Var {
+        self.clone()
+    }
+    fn mul_div(&self, mul: f64, div: f64) -> Self {
+        self.scale(mul / div)
+    }
+}

@@ -1,0 +1,147 @@
+//! One block of rows' step recorded on a tape: the model's parameters as tape values (the
+//! networks' layers by their place in the flat parameter row, every other value one
+//! parameter node each), the networks as tape nodes, and the rest the generic assembly,
+//! dynamics and integrator run on [`Var`].
+
+use std::cell::RefCell;
+use std::rc::Rc;
+
+use super::Layout;
+use crate::model::ModelConfig;
+use crate::model::spec::ModelSpec;
+use crate::physics::assembly::{Columns, Networks, Structure, Values};
+use crate::physics::dual::Dual;
+use crate::physics::dynamics::acceleration;
+use crate::physics::scalar::Scalar;
+use crate::physics::tape::{Layer, Tape, Var, mlp};
+
+/// The tape's view of the parameters.
+struct Recorded {
+    mass_const: Option<Vec<Var>>,
+    potential_quad: Option<Vec<Var>>,
+    b_const: Option<Vec<Var>>,
+    eta: Option<Vec<Var>>,
+    /// Natural values (positive ones exponentiated), unless the file holds them as they are.
+    physical: Option<Vec<Var>>,
+}
+
+/// The networks' outputs for the block.
+struct TapeNets {
+    mass: Option<Vec<Dual<Var>>>,
+    potential: Option<Dual<Var>>,
+    force: Option<Vec<Dual<Var>>>,
+}
+
+impl Networks<Var> for TapeNets {
+    fn mass(&self, j: usize) -> Dual<Var> {
+        self.mass.as_ref().expect("mass outputs")[j].clone()
+    }
+    fn potential_grad(&self, k: usize) -> Var {
+        let v = self.potential.as_ref().expect("potential outputs");
+        v.tangent(k).cloned().unwrap_or_else(|| v.v.lift(0.0))
+    }
+    fn force(&self, j: usize) -> Var {
+        self.force.as_ref().expect("force outputs")[j].v.clone()
+    }
+}
+
+/// x' of the block's states `x` (2n columns) under inputs `u` (m columns).
+pub(super) fn step(
+    config: &ModelConfig,
+    layout: &Layout,
+    tape: &Rc<RefCell<Tape>>,
+    x: &[Var],
+    u: &[Var],
+) -> Vec<Var> {
+    let n = config.n;
+    let values = record_values(config, layout, tape);
+    config
+        .integrator
+        .step(&x.to_vec(), config.dt, |x: &Vec<Var>| {
+            let (q, qd) = x.split_at(n);
+            let mut dx = qd.to_vec();
+            dx.extend(accel(config, layout, &values, q, qd, u));
+            dx
+        })
+}
+
+fn record_values(config: &ModelConfig, layout: &Layout, tape: &Rc<RefCell<Tape>>) -> Recorded {
+    let vars = |name: &str| -> Option<Vec<Var>> {
+        let (at, len) = layout.array(name)?;
+        Some((at..at + len).map(|i| Var::param(tape, i)).collect())
+    };
+    let physical = match (vars("physical"), config.template()) {
+        (Some(raw), Some(t)) => Some(t.natural(&raw)),
+        (None, _) => vars("physical_values"),
+        (Some(raw), None) => Some(raw),
+    };
+    Recorded {
+        mass_const: vars("mass_const"),
+        potential_quad: vars("potential_quad"),
+        b_const: vars("b_const"),
+        eta: vars("eta"),
+        physical,
+    }
+}
+
+/// q̈ of the block: the naive network, or the structure assembled from the spec.
+fn accel(
+    config: &ModelConfig,
+    layout: &Layout,
+    r: &Recorded,
+    q: &[Var],
+    qd: &[Var],
+    u: &[Var],
+) -> Vec<Var> {
+    let sc = &config.scaling;
+    let angles = &config.periodic;
+    let full = || -> Vec<Dual<Var>> {
+        (sc.full_features(q, qd, u, angles).into_iter())
+            .map(Dual::constant)
+            .collect()
+    };
+    let net = |name: &str, x: &[Dual<Var>], dirs: usize| -> Option<Vec<Dual<Var>>> {
+        let layers: &[Layer] = layout.net(name)?;
+        Some(mlp(layers, x, dirs))
+    };
+    let ModelSpec::Structured {
+        mass,
+        potential,
+        forces,
+        ..
+    } = &config.spec
+    else {
+        let out = net("naive", &full(), 0).expect("a naive model's network");
+        return (out.into_iter().enumerate())
+            .map(|(j, o)| o.v.scale(sc.acc_std[j]).shift(sc.acc_mean[j]))
+            .collect();
+    };
+    let n = config.n;
+    let q_in = sc.q_features(q, angles, true);
+    let nets = TapeNets {
+        mass: net("mass_net", &q_in, n),
+        potential: net("potential_net", &q_in, n).map(|mut v| v.remove(0)),
+        force: net("force_net", &full(), 0).or_else(|| {
+            let plain: Vec<Dual<Var>> = (sc.q_features(q, angles, false).into_iter()).collect();
+            net("b_net", &plain, 0)
+        }),
+    };
+    let structure = Structure {
+        mass,
+        potential,
+        forces,
+        template: config.template(),
+        scaling: sc,
+        values: Values {
+            mass_const: r.mass_const.as_deref(),
+            potential_quad: r.potential_quad.as_deref(),
+            b_const: r.b_const.as_deref(),
+            eta: r.eta.as_deref(),
+            physical: r.physical.as_deref(),
+        },
+        n,
+        m: config.m,
+    };
+    let t = structure.terms(&nets, &Columns { q, qd, u });
+    acceleration(&t.l, t.grad_v, t.forces, qd)
+}
