@@ -16,8 +16,9 @@ use std::path::{Path, PathBuf};
 fn may_import(layer: &str, dep: &str) -> bool {
     match layer {
         // The mechanics stand on these alone: no Burn (`backend`, and the `burn` crate, checked
-        // by `physics_is_free_of_burn`), no dataset, no record.
-        "physics" => ["error", "rng", "names", "physics"].contains(&dep),
+        // by `physics_is_free_of_burn`), no dataset, no record; `simd`'s kernels are plain
+        // math on slices (the tape's tanh).
+        "physics" => ["error", "rng", "names", "simd", "physics"].contains(&dep),
         _ => !forbidden(layer).contains(&dep),
     }
 }

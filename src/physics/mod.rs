@@ -3,7 +3,7 @@
 //! `parts`, `mass_matrix`, `scaling`), integrators, dual numbers for ∂/∂q, and the white-box
 //! systems with their physical parameters: built-in templates, formula templates and URDF
 //! robots. Training runs it on Burn column tensors (`model`), inference, simulation and
-//! control on f64 and dual numbers. It imports only `error`, `rng` and the name rule of
+//! control on f64 and dual numbers. It imports only `error`, `rng`, `simd`'s elementwise kernels and the name rule of
 //! `records`; the math behind it is in docs/dynamics.md and docs/robots.md.
 
 pub mod assembly;

@@ -118,7 +118,7 @@ fn forward_layer(
     if tanh {
         for zo in z.chunks_mut(width) {
             let (v, tangents) = zo.split_at_mut(rows);
-            v.iter_mut().for_each(|v| *v = v.tanh());
+            crate::simd::tanh_in_place(v);
             for t in tangents.chunks_mut(rows) {
                 t.iter_mut()
                     .zip(v.iter())
@@ -136,12 +136,58 @@ fn pre_activation(x: &[f64], params: &[f64], l: &Layer, rows: usize, dirs: usize
     let mut z = vec![0.0; l.d_out * width];
     for (o, zo) in z.chunks_mut(width).enumerate() {
         zo[..rows].fill(params[l.b + o]);
-        for (i, xi) in x.chunks(width).enumerate() {
-            let wio = w[i * l.d_out + o];
-            zo.iter_mut().zip(xi).for_each(|(z, x)| *z += wio * x);
-        }
     }
+    // Z += Wᵀ X: W is [d_in, d_out] row-major, so Wᵀ's rows step by 1 and its columns by d_out.
+    gemm(
+        (l.d_out, l.d_in, width),
+        (w, 1, l.d_out),
+        (x, width, 1),
+        (&mut z, width, 1),
+    );
     z
+}
+
+/// C += A·B for A `m × k`, B `k × n` and C `m × n`, each given with its row and column
+/// strides.
+fn gemm(
+    (m, k, n): (usize, usize, usize),
+    (a, rsa, csa): (&[f64], usize, usize),
+    (b, rsb, csb): (&[f64], usize, usize),
+    (c, rsc, csc): (&mut [f64], usize, usize),
+) {
+    let last = |rows: usize, cols: usize, rs: usize, cs: usize| {
+        if rows == 0 || cols == 0 {
+            0
+        } else {
+            (rows - 1) * rs + (cols - 1) * cs + 1
+        }
+    };
+    assert!(a.len() >= last(m, k, rsa, csa) && b.len() >= last(k, n, rsb, csb));
+    assert!(
+        c.len() >= last(m, n, rsc, csc),
+        "gemm: operands fit their shapes"
+    );
+    let s = |v: usize| v as isize;
+    // SAFETY: the asserts above keep every element the strides reach inside its slice, and C
+    // is a unique borrow that A and B cannot alias.
+    unsafe {
+        matrixmultiply::dgemm(
+            m,
+            k,
+            n,
+            1.0,
+            a.as_ptr(),
+            s(rsa),
+            s(csa),
+            b.as_ptr(),
+            s(rsb),
+            s(csb),
+            1.0,
+            c.as_mut_ptr(),
+            s(rsc),
+            s(csc),
+        );
+    }
 }
 
 impl Node {
@@ -217,14 +263,23 @@ fn layer_back(
     width: usize,
 ) -> Vec<f64> {
     let w = &t.params[l.w..l.w + l.d_in * l.d_out];
-    let mut dx = vec![0.0; l.d_in * width];
     for (o, dzo) in dz.chunks(width).enumerate() {
         d_params[l.b + o] += dzo[..rows].iter().sum::<f64>();
-        for (i, (xi, dxi)) in x.chunks(width).zip(dx.chunks_mut(width)).enumerate() {
-            d_params[l.w + i * l.d_out + o] += xi.iter().zip(dzo).map(|(a, b)| a * b).sum::<f64>();
-            let wio = w[i * l.d_out + o];
-            dxi.iter_mut().zip(dzo).for_each(|(d, g)| *d += wio * g);
-        }
     }
+    // ∂W += X ∂Zᵀ ([d_in, d_out]), ∂X = W ∂Z ([d_in, width]).
+    let dw = &mut d_params[l.w..l.w + l.d_in * l.d_out];
+    gemm(
+        (l.d_in, width, l.d_out),
+        (x, width, 1),
+        (dz, 1, width),
+        (dw, l.d_out, 1),
+    );
+    let mut dx = vec![0.0; l.d_in * width];
+    gemm(
+        (l.d_in, l.d_out, width),
+        (w, l.d_out, 1),
+        (dz, width, 1),
+        (&mut dx, width, 1),
+    );
     dx
 }
