@@ -96,26 +96,20 @@ pub(super) fn periodic_q_jet<C: Lanes>(
     outer: usize,
 ) -> Jet {
     let n = q.len();
-    let width = n + angles.iter().filter(|&&a| a).count();
-    let mut jet = Jet::zeros(q[0].rows(), width, if inner { n } else { 0 }, outer);
-    let mut j = 0;
-    for (k, qk) in q.iter().enumerate() {
-        if angles.get(k).copied().unwrap_or(false) {
-            let (sin, cos) = (qk.sin(), qk.cos());
-            if inner {
-                cos.write(&mut jet, k + 1, j);
-                (-sin.clone()).write(&mut jet, k + 1, j + 1);
+    // The features and their ∂/∂q as the fused step builds them, written into the jet.
+    let features = sc.q_features(q, angles, inner);
+    let mut jet = Jet::zeros(
+        q[0].rows(),
+        features.len(),
+        if inner { n } else { 0 },
+        outer,
+    );
+    for (j, f) in features.iter().enumerate() {
+        f.v.write(&mut jet, 0, j);
+        for (k, t) in f.d.iter().enumerate() {
+            if let Some(t) = t {
+                t.write(&mut jet, k + 1, j);
             }
-            sin.write(&mut jet, 0, j);
-            cos.write(&mut jet, 0, j + 1);
-            j += 2;
-        } else {
-            let inv = 1.0 / sc.q_std[k];
-            qk.shift(-sc.q_mean[k]).scale(inv).write(&mut jet, 0, j);
-            if inner {
-                qk.lift(inv).write(&mut jet, k + 1, j);
-            }
-            j += 1;
         }
     }
     jet
