@@ -4,6 +4,8 @@
 mod common;
 #[path = "training/ensemble.rs"]
 mod ensemble;
+#[path = "training/fused.rs"]
+mod fused;
 
 use std::sync::atomic::AtomicBool;
 

@@ -6,7 +6,7 @@
 mod rows;
 mod tanh;
 
-pub use rows::{RowFn, RowFunction, row_map};
+pub use rows::{Kept, RowFn, RowFunction, row_map};
 pub use tanh::tanh;
 
 use burn::tensor::{Device, FloatDType};

@@ -11,8 +11,9 @@
 // NdArray is deprecated upstream and selectable here on purpose (docs/training.md#why-ndarray-stays-selectable).
 #![allow(deprecated)]
 
+use std::any::Any;
 use std::fmt::Debug;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
@@ -23,6 +24,30 @@ use burn::backend::{
     Autodiff, Backend, DType, Dispatch, Flex, NdArray, TensorMetadata, backend_extension,
 };
 use burn::tensor::{Tensor, TensorData};
+
+/// What a [`RowFunction`]'s forward pass keeps for its backward pass beyond the rows, the
+/// parameters and the outputs (a tape, say), taken once by the backward pass.
+#[derive(Clone, Default)]
+pub struct Kept(Arc<Mutex<Option<Box<dyn Any + Send>>>>);
+
+impl Kept {
+    pub fn new(value: impl Any + Send) -> Self {
+        Self(Arc::new(Mutex::new(Some(Box::new(value)))))
+    }
+
+    /// The kept value, if there is one of type `T` not taken yet.
+    pub fn take<T: Any>(&self) -> Option<T> {
+        let mut slot = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let value = slot.take()?.downcast::<T>().ok()?;
+        Some(*value)
+    }
+}
+
+impl Debug for Kept {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Kept")
+    }
+}
 
 /// f(row; params) for every row of a batch, and its vector–Jacobian product.
 pub trait RowFunction: Send + Sync + Debug {
@@ -41,6 +66,22 @@ pub trait RowFunction: Send + Sync + Debug {
         out: &[f64],
         g: &[f64],
     ) -> (Vec<f64>, Vec<f64>);
+    /// [`forward`](Self::forward) for a pass that will be differentiated: also what the
+    /// backward pass may reuse (nothing, unless a function overrides this).
+    fn forward_keeping(&self, rows: &[f64], params: &[f64]) -> (Vec<f64>, Kept) {
+        (self.forward(rows, params), Kept::default())
+    }
+    /// [`backward`](Self::backward) with what [`forward_keeping`](Self::forward_keeping) kept.
+    fn backward_kept(
+        &self,
+        _kept: &Kept,
+        rows: &[f64],
+        params: &[f64],
+        out: &[f64],
+        g: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        self.backward(rows, params, out, g)
+    }
 }
 
 /// A [`RowFunction`] as the op's argument.
@@ -90,21 +131,28 @@ struct Saved {
     rows: Vec<f64>,
     params: Vec<f64>,
     out: Vec<f64>,
+    kept: Kept,
     rows_shape: [usize; 2],
     params_shape: [usize; 2],
 }
 
-/// Runs `f` on the host; returns the output tensor and what a backward pass needs.
+/// Runs `f` on the host; returns the output tensor and what a backward pass needs (with
+/// what `f` keeps for it when `tracked`).
 fn run<B: Backend>(
     f: RowFn,
     rows: FloatTensor<B>,
     params: FloatTensor<B>,
+    tracked: bool,
 ) -> (FloatTensor<B>, Saved) {
     let (dtype, device) = (rows.dtype(), rows.device());
     let rows_shape: [usize; 2] = rows.shape().dims();
     let params_shape: [usize; 2] = params.shape().dims();
     let (rows, params) = (host::<B>(rows), host::<B>(params));
-    let out = f.0.forward(&rows, &params);
+    let (out, kept) = if tracked {
+        f.0.forward_keeping(&rows, &params)
+    } else {
+        (f.0.forward(&rows, &params), Kept::default())
+    };
     let width = f.0.output_width();
     let t = tensor::<B>(out.clone(), [rows_shape[0], width], dtype, &device);
     let saved = Saved {
@@ -112,6 +160,7 @@ fn run<B: Backend>(
         rows,
         params,
         out,
+        kept,
         rows_shape,
         params_shape,
     };
@@ -120,13 +169,13 @@ fn run<B: Backend>(
 
 impl RowOps for Flex {
     fn row_map(f: RowFn, rows: FloatTensor<Self>, params: FloatTensor<Self>) -> FloatTensor<Self> {
-        run::<Self>(f, rows, params).0
+        run::<Self>(f, rows, params, false).0
     }
 }
 
 impl RowOps for NdArray {
     fn row_map(f: RowFn, rows: FloatTensor<Self>, params: FloatTensor<Self>) -> FloatTensor<Self> {
-        run::<Self>(f, rows, params).0
+        run::<Self>(f, rows, params, false).0
     }
 }
 
@@ -140,7 +189,8 @@ impl<B: Backend> Backward<B, 2> for RowMapBackward {
         let g = grads.consume::<B>(&ops.node);
         let (dtype, device) = (g.dtype(), g.device());
         let s = ops.state;
-        let (d_rows, d_params) = s.f.0.backward(&s.rows, &s.params, &s.out, &host::<B>(g));
+        let g = host::<B>(g);
+        let (d_rows, d_params) = (s.f.0).backward_kept(&s.kept, &s.rows, &s.params, &s.out, &g);
         let [rows, params] = ops.parents;
         if let Some(node) = rows {
             grads.register::<B>(node.id, tensor::<B>(d_rows, s.rows_shape, dtype, &device));
@@ -160,7 +210,8 @@ impl<B: Backend + RowOps, C: CheckpointStrategy> RowOps for Autodiff<B, C> {
             .stateful()
         {
             OpsKind::Tracked(prep) => {
-                let (out, saved) = run::<B>(f, rows.into_primitive(), params.into_primitive());
+                let (out, saved) =
+                    run::<B>(f, rows.into_primitive(), params.into_primitive(), true);
                 prep.finish(saved, out)
             }
             OpsKind::UnTracked(prep) => prep.finish(B::row_map(

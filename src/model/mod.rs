@@ -153,13 +153,17 @@ impl Model {
         Ok(Self::from_parts(config, params, device))
     }
 
+    /// The model of `config` with `params`, on the fused step when its spec takes it
+    /// (`ModelSpec::fused`).
     pub fn from_parts(config: ModelConfig, params: Params, device: &Device) -> Self {
         let consts = Consts::new(&config, device);
-        Self {
+        let fused = config.spec.fused();
+        let model = Self {
             config,
             params,
             consts,
-        }
+        };
+        if fused { model.fused() } else { model }
     }
 
     /// This model with other values for its parameters (same config and constants).
@@ -179,7 +183,12 @@ impl Model {
     pub fn valid(&self) -> Self {
         let params = self.params.valid();
         let device = self.device().without_autodiff();
-        Self::from_parts(self.config.clone(), params, &device)
+        let valid = Self::from_parts(self.config.clone(), params, &device);
+        if self.is_fused() {
+            valid
+        } else {
+            valid.graph()
+        }
     }
 
     /// Physical parameter values as tensors `[1, 1]` (positive ones exponentiated).

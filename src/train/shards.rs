@@ -40,6 +40,12 @@ pub fn min_shard_rows(spec: &crate::model::spec::ModelSpec) -> usize {
     }
 }
 
+/// The most rows one piece of a batch gets on the fused step: a piece's tapes (kept from its
+/// forward pass for its backward pass) then stay in a core's cache, where a whole batch's
+/// would stream from memory (`graybox-lab bench step`, MVF on one thread: 97k samples/s at
+/// 512 rows, 81k at 2048, 82k at 4096).
+pub const MAX_FUSED_PIECE_ROWS: usize = 512;
+
 /// The most threads one training may ask for: more is a typo, not a machine.
 pub const MAX_THREADS: usize = 256;
 
@@ -70,6 +76,19 @@ pub fn pool(threads: usize) -> Result<Option<std::sync::Arc<rayon::ThreadPool>>>
 /// How many shards a batch of `rows` gets when a run uses `shards` of at least `min_rows`.
 pub fn shard_count(shards: usize, rows: usize, min_rows: usize) -> usize {
     shards.min(rows / min_rows).max(1)
+}
+
+/// How many pieces a batch of `rows` of `model` is split into when a run uses `shards`: its
+/// shards, and on the fused step more pieces than threads for a large batch (each thread
+/// runs its pieces one after another; see [`MAX_FUSED_PIECE_ROWS`]). Like the shard count,
+/// it depends on nothing but the run's recorded shards, the batch and the model.
+pub fn piece_count(shards: usize, rows: usize, model: &crate::model::Model) -> usize {
+    let k = shard_count(shards, rows, min_shard_rows(&model.config.spec));
+    if model.is_fused() {
+        k.max(rows.div_ceil(MAX_FUSED_PIECE_ROWS))
+    } else {
+        k
+    }
 }
 
 /// `items` in `k` contiguous pieces whose lengths differ by at most one.

@@ -5,25 +5,28 @@
 //! parameters as one flat row in their visiting order (the model file's order) and hands
 //! back its gradient, which Burn's autodiff splits into the parameter tensors.
 //!
-//! The backward pass records the block again rather than keeping every block's tape from
-//! the forward pass: a tape is megabytes, a batch has many blocks, and recording costs one
-//! forward pass.
+//! A forward pass that will be differentiated keeps every block's tape for the backward
+//! pass (recording again would cost a second forward pass); one that will not recycles
+//! each block's storage as soon as its outputs are read.
 
 mod record;
 
-use std::rc::Rc;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::Tensor;
 
 use super::{Model, ModelConfig};
-use crate::backend::{RowFn, RowFunction, row_map};
-use crate::physics::tape::{Layer, Tape, Var};
+use crate::backend::{Kept, RowFn, RowFunction, row_map};
+use crate::physics::tape::{Buffers, Gradients, Layer, Params, Precision, Ref, Tape, Var};
 
 /// Rows per tape: enough that a node's loop dwarfs its bookkeeping, few enough that a
 /// block's tape stays in cache-sized pieces.
 const BLOCK: usize = 128;
+
+/// Tapes' storage kept for reuse: a batch's blocks (a forward pass keeps them all for its
+/// backward pass) up to 64 · 128 rows without allocating.
+const POOL: usize = 64;
 
 /// Where each of the model's values sits in the flat parameter row.
 #[derive(Debug, Clone)]
@@ -80,18 +83,25 @@ impl Layout {
 pub(super) struct FusedStep {
     config: ModelConfig,
     layout: Layout,
+    precision: Precision,
+    /// Finished tapes' storage, for the next ones.
+    pool: Mutex<Vec<Buffers>>,
+}
+
+/// One block's finished tape: where its inputs and outputs are on it.
+struct Block {
+    tape: Tape,
+    inputs: Vec<Ref>,
+    outputs: Vec<Ref>,
 }
 
 impl FusedStep {
-    /// Records `rows` on a fresh tape: the tape, the input variables and x'.
-    fn record(
-        &self,
-        rows: &[f64],
-        params: &Rc<[f64]>,
-    ) -> (Rc<std::cell::RefCell<Tape>>, Vec<Var>, Vec<Var>) {
+    /// Records `rows` on a fresh tape.
+    fn record(&self, rows: &[f64], params: &Arc<Params>) -> Block {
         let width = self.input_width();
         let count = rows.len() / width;
-        let tape = Tape::new(count, params.clone());
+        let buffers = self.pool.lock().ok().and_then(|mut p| p.pop());
+        let tape = Tape::new(count, params.clone(), buffers.unwrap_or_default());
         let inputs: Vec<Var> = (0..width)
             .map(|j| Var::input(&tape, rows.iter().skip(j).step_by(width).copied().collect()))
             .collect();
@@ -103,7 +113,83 @@ impl FusedStep {
             &inputs[..nx],
             &inputs[nx..],
         );
-        (tape, inputs, out)
+        let block_inputs = inputs.iter().map(Var::id).collect();
+        let outputs = out.iter().map(Var::id).collect();
+        drop((inputs, out));
+        Block {
+            tape: Tape::finish(tape),
+            inputs: block_inputs,
+            outputs,
+        }
+    }
+
+    fn recycle(&self, tape: Tape, grads: Option<Gradients>) {
+        if let Ok(mut pool) = self.pool.lock()
+            && pool.len() < POOL
+        {
+            pool.push(tape.into_buffers(grads));
+        }
+    }
+
+    /// The block's outputs, row-major, appended to `out`.
+    fn outputs(block: &Block, out: &mut Vec<f64>) {
+        let cols: Vec<&[f64]> = block
+            .outputs
+            .iter()
+            .map(|&r| block.tape.values(r))
+            .collect();
+        for k in 0..block.tape.rows() {
+            out.extend(cols.iter().map(|c| c[k % c.len()]));
+        }
+    }
+
+    fn params(&self, params: &[f64]) -> Arc<Params> {
+        Params::new(params.to_vec(), self.precision)
+    }
+
+    /// Every block of `rows`, recorded.
+    fn blocks(&self, rows: &[f64], params: &Arc<Params>) -> Vec<Block> {
+        let w = self.input_width();
+        rows.chunks(BLOCK * w)
+            .map(|b| self.record(b, params))
+            .collect()
+    }
+
+    /// ∂L/∂rows and ∂L/∂θ from the recorded `blocks` and ∂L/∂x' `g`; the blocks' storage
+    /// goes back to the pool.
+    fn gradients(&self, blocks: Vec<Block>, g: &[f64], params: usize) -> (Vec<f64>, Vec<f64>) {
+        let (w, nx) = (self.input_width(), self.output_width());
+        let mut d_rows = Vec::with_capacity(g.len() / nx * w);
+        let mut d_params = vec![0.0; params];
+        for (mut block, gb) in blocks.into_iter().zip(g.chunks(BLOCK * nx)) {
+            let count = block.tape.rows();
+            let seeds: Vec<Vec<f64>> = (0..nx)
+                .map(|j| {
+                    let col = gb.iter().skip(j).step_by(nx).copied();
+                    // An output every row shares takes the rows' seeds summed.
+                    match block.tape.values(block.outputs[j]).len() {
+                        1 => vec![col.sum()],
+                        _ => col.collect(),
+                    }
+                })
+                .collect();
+            let pairs: Vec<(Ref, &[f64])> = block
+                .outputs
+                .iter()
+                .zip(&seeds)
+                .map(|(&r, s)| (r, &s[..]))
+                .collect();
+            let grads = block.tape.gradients(&pairs);
+            let d: Vec<&[f64]> = (block.inputs.iter())
+                .map(|&r| block.tape.adjoint(&grads, r))
+                .collect();
+            for k in 0..count {
+                d_rows.extend(d.iter().map(|d| d[k % d.len()]));
+            }
+            (d_params.iter_mut().zip(&grads.params)).for_each(|(a, g)| *a += g);
+            self.recycle(block.tape, Some(grads));
+        }
+        (d_rows, d_params)
     }
 }
 
@@ -117,18 +203,23 @@ impl RowFunction for FusedStep {
     }
 
     fn forward(&self, rows: &[f64], params: &[f64]) -> Vec<f64> {
-        let params: Rc<[f64]> = Rc::from(params);
-        let (w, nx) = (self.input_width(), self.output_width());
-        let mut out = Vec::with_capacity(rows.len() / w * nx);
+        let params = self.params(params);
+        let w = self.input_width();
+        let mut out = Vec::with_capacity(rows.len() / w * self.output_width());
         for block in rows.chunks(BLOCK * w) {
-            let (_, _, x) = self.record(block, &params);
-            let cols: Vec<Vec<f64>> = x.iter().map(Var::values).collect();
-            let count = block.len() / w;
-            for k in 0..count {
-                out.extend(cols.iter().map(|c| c[k % c.len()]));
-            }
+            let block = self.record(block, &params);
+            Self::outputs(&block, &mut out);
+            self.recycle(block.tape, None);
         }
         out
+    }
+
+    fn forward_keeping(&self, rows: &[f64], params: &[f64]) -> (Vec<f64>, Kept) {
+        let params = self.params(params);
+        let blocks = self.blocks(rows, &params);
+        let mut out = Vec::with_capacity(rows.len() / self.input_width() * self.output_width());
+        blocks.iter().for_each(|b| Self::outputs(b, &mut out));
+        (out, Kept::new(blocks))
     }
 
     fn backward(
@@ -138,40 +229,22 @@ impl RowFunction for FusedStep {
         _out: &[f64],
         g: &[f64],
     ) -> (Vec<f64>, Vec<f64>) {
-        let params: Rc<[f64]> = Rc::from(params);
-        let (w, nx) = (self.input_width(), self.output_width());
-        let mut d_rows = vec![0.0; rows.len()];
-        let mut d_params = vec![0.0; params.len()];
-        for (b, (block, gb)) in rows.chunks(BLOCK * w).zip(g.chunks(BLOCK * nx)).enumerate() {
-            let (tape, inputs, x) = self.record(block, &params);
-            let count = block.len() / w;
-            let seeds: Vec<Vec<f64>> = (0..nx)
-                .map(|j| {
-                    let col: Vec<f64> = gb.iter().skip(j).step_by(nx).copied().collect();
-                    // An output every row shares takes the rows' seeds summed.
-                    if x[j].values().len() == 1 {
-                        vec![col.iter().sum()]
-                    } else {
-                        col
-                    }
-                })
-                .collect();
-            let t = tape.borrow();
-            let pairs: Vec<(&Var, &[f64])> =
-                x.iter().zip(&seeds).map(|(v, s)| (v, &s[..])).collect();
-            let grads = t.gradients(&pairs);
-            for (j, v) in inputs.iter().enumerate() {
-                let d = grads.of(v);
-                for k in 0..count {
-                    d_rows[(b * BLOCK + k) * w + j] = d[k % d.len()];
-                }
-            }
-            d_params
-                .iter_mut()
-                .zip(&grads.params)
-                .for_each(|(a, g)| *a += g);
+        let p = self.params(params);
+        self.gradients(self.blocks(rows, &p), g, params.len())
+    }
+
+    fn backward_kept(
+        &self,
+        kept: &Kept,
+        rows: &[f64],
+        params: &[f64],
+        out: &[f64],
+        g: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        match kept.take::<Vec<Block>>() {
+            Some(blocks) => self.gradients(blocks, g, params.len()),
+            None => self.backward(rows, params, out, g),
         }
-        (d_rows, d_params)
     }
 }
 
@@ -187,15 +260,35 @@ impl ModuleVisitor for Flatten {
 }
 
 impl Model {
+    /// Whether its step is the fused one.
+    pub fn is_fused(&self) -> bool {
+        self.consts.fused.is_some()
+    }
+
+    /// The same model on Burn's op-by-op graph rather than the fused step (the reference
+    /// the fused step is checked and measured against).
+    pub fn graph(mut self) -> Self {
+        self.consts.fused = None;
+        self
+    }
+
     /// The same model training through the fused step (its forward and backward passes on
     /// the host tape) instead of Burn's op-by-op graph. URDF models on the recursive
     /// algorithms keep their own op.
     pub fn fused(mut self) -> Self {
         if self.consts.rigid.is_none() {
-            let layout = Layout::of(&self);
+            let mut flat = Flatten(vec![]);
+            self.params.visit(&mut flat);
+            // The networks compute in the process's precision; the rest of the step in f64.
+            let precision = match flat.0.first().map(|t| t.dtype()) {
+                Some(burn::tensor::DType::F64) => Precision::F64,
+                _ => Precision::F32,
+            };
             let step = FusedStep {
                 config: self.config.clone(),
-                layout,
+                layout: Layout::of(&self),
+                precision,
+                pool: Mutex::new(vec![]),
             };
             self.consts.fused = Some(RowFn(Arc::new(step)));
         }

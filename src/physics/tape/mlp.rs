@@ -10,9 +10,14 @@
 //!
 //! The ∂s term is the second derivative of the network: the gradient of its input
 //! derivatives. A layer's value and tangents sit side by side as one `[width, (1 + dirs) ·
-//! rows]` block, so each product with W is one pass over it.
+//! rows]` block, so each product with W is one pass over it. The blocks live in the tape's
+//! arena of the networks' precision ([`Net`]); only the last layer's outputs join the f64
+//! values.
 
-use super::{Op, Ref, Slot, Tape, Var};
+use std::fmt::Debug;
+use std::ops::{Add, AddAssign, Mul, Sub};
+
+use super::{Op, Params, Precision, Ref, Tape, Var};
 use crate::physics::dual::Dual;
 
 /// One layer's place in the parameters: W `[d_in, d_out]` row-major from `w`, b from `b`.
@@ -30,10 +35,88 @@ pub(super) struct Node {
     dirs: usize,
     /// Input i's value (d = 0) and tangents at `i · (1 + dirs) + d`; `None`: zero.
     inputs: Vec<Option<Ref>>,
-    /// Where each layer's input block starts in the arena (the last layer's output is the
-    /// node's own slot).
+    /// Where each layer's input block starts in the networks' arena, and last, where the
+    /// outputs' block does.
     blocks: Vec<usize>,
 }
+
+/// A float the networks compute in: its arena on the tape, its copy of the parameters and
+/// its matrix product.
+pub(super) trait Net:
+    Copy + Debug + Default + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + AddAssign
+{
+    const ONE: Self;
+    const TWO: Self;
+    fn of(x: f64) -> Self;
+    fn wide(self) -> f64;
+    fn tanh_in_place(z: &mut [Self]);
+    /// The f64 values, this precision's arena and parameters.
+    fn parts(t: &mut Tape) -> (&[f64], &mut Vec<Self>, &[Self]);
+    fn arena(t: &Tape) -> &[Self];
+    fn params(p: &Params) -> &[Self];
+    /// C += A·B by matrixmultiply's kernel for this float.
+    ///
+    /// # Safety
+    /// Every element the shapes and strides reach lies inside its operand, and C aliases
+    /// neither A nor B ([`gemm`] checks this).
+    unsafe fn mm(
+        mkn: (usize, usize, usize),
+        a: (*const Self, isize, isize),
+        b: (*const Self, isize, isize),
+        c: (*mut Self, isize, isize),
+    );
+}
+
+macro_rules! net_float {
+    ($t:ty, $arena:ident, $params:ident, $mm:path, $tanh:path) => {
+        impl Net for $t {
+            const ONE: Self = 1.0;
+            const TWO: Self = 2.0;
+            fn of(x: f64) -> Self {
+                x as $t
+            }
+            fn wide(self) -> f64 {
+                self as f64
+            }
+            fn tanh_in_place(z: &mut [Self]) {
+                $tanh(z)
+            }
+            fn parts(t: &mut Tape) -> (&[f64], &mut Vec<Self>, &[Self]) {
+                (&t.vals, &mut t.$arena, &t.params.$params)
+            }
+            fn arena(t: &Tape) -> &[Self] {
+                &t.$arena
+            }
+            fn params(p: &Params) -> &[Self] {
+                &p.$params
+            }
+            unsafe fn mm(
+                (m, k, n): (usize, usize, usize),
+                (a, rsa, csa): (*const Self, isize, isize),
+                (b, rsb, csb): (*const Self, isize, isize),
+                (c, rsc, csc): (*mut Self, isize, isize),
+            ) {
+                // SAFETY: the caller's contract.
+                unsafe { $mm(m, k, n, 1.0, a, rsa, csa, b, rsb, csb, 1.0, c, rsc, csc) }
+            }
+        }
+    };
+}
+
+net_float!(
+    f32,
+    net32,
+    narrow,
+    matrixmultiply::sgemm,
+    crate::simd::tanh_in_place_f32
+);
+net_float!(
+    f64,
+    net64,
+    values,
+    matrixmultiply::dgemm,
+    crate::simd::tanh_in_place
+);
 
 /// The network `layers` (tanh between them) of `x`, whose tangents beyond `dirs` are
 /// ignored: its outputs with `dirs` tangents each.
@@ -41,53 +124,31 @@ pub fn mlp(layers: &[Layer], x: &[Dual<Var>], dirs: usize) -> Vec<Dual<Var>> {
     let tape = x[0].v.tape.clone();
     let r = {
         let mut t = tape.borrow_mut();
-        let rows = t.rows;
-        let width = (1 + dirs) * rows;
-        let mut inputs = Vec::with_capacity(x.len() * (1 + dirs));
-        let mut blocks = vec![t.vals.len()];
-        for xi in x {
-            for d in 0..=dirs {
-                let r = if d == 0 {
-                    Some(&xi.v)
-                } else {
-                    xi.tangent(d - 1)
-                }
-                .map(|v| v.r);
-                inputs.push(r);
-                let col: Vec<f64> = match r {
-                    Some(r) => {
-                        let c = t.col(r);
-                        (0..rows).map(|k| c[k % c.len()]).collect()
+        let inputs: Vec<Option<Ref>> = (x.iter())
+            .flat_map(|xi| {
+                (0..=dirs).map(move |d| {
+                    if d == 0 {
+                        Some(&xi.v)
+                    } else {
+                        xi.tangent(d - 1)
                     }
-                    None => vec![0.0; rows],
-                };
-                t.vals.extend(col);
-            }
-        }
-        let (last, hidden) = layers.split_last().expect("a network has layers");
-        for layer in hidden {
-            let at = *blocks.last().expect("an input block");
-            let x = &t.vals[at..at + layer.d_in * width];
-            let y = forward_layer(x, &t.params, layer, rows, dirs, true);
-            blocks.push(t.vals.len());
-            t.vals.extend(y);
-        }
-        let at = *blocks.last().expect("an input block");
-        let y = forward_layer(
-            &t.vals[at..at + last.d_in * width],
-            &t.params,
-            last,
-            rows,
-            dirs,
-            false,
-        );
-        let node = Node {
-            layers: layers.to_vec(),
-            dirs,
-            inputs,
-            blocks,
+                    .map(|v| v.r)
+                })
+            })
+            .collect();
+        let node = match t.params.precision {
+            Precision::F32 => record::<f32>(&mut t, layers, inputs, dirs),
+            Precision::F64 => record::<f64>(&mut t, layers, inputs, dirs),
         };
-        t.push(Op::Mlp(Box::new(node)), rows, last.d_out * (1 + dirs), y)
+        let rows = t.rows;
+        let cols = layers[layers.len() - 1].d_out * (1 + dirs);
+        let start = t.vals.len();
+        let out = node.blocks[layers.len()];
+        match t.params.precision {
+            Precision::F32 => widen::<f32>(&mut t, out, cols * rows),
+            Precision::F64 => widen::<f64>(&mut t, out, cols * rows),
+        }
+        t.node(Op::Mlp(Box::new(node)), start, rows, cols)
     };
     (0..layers[layers.len() - 1].d_out)
         .map(|o| {
@@ -103,57 +164,87 @@ pub fn mlp(layers: &[Layer], x: &[Dual<Var>], dirs: usize) -> Vec<Dual<Var>> {
         .collect()
 }
 
-/// z = Wᵀx (+ b on the values), then tanh on the values and s ⊙ z_d on the tangents when
-/// `tanh`: the layer's output block from its input block `x` `[d_in, (1 + dirs) · rows]`.
-fn forward_layer(
-    x: &[f64],
-    params: &[f64],
-    l: &Layer,
-    rows: usize,
-    dirs: usize,
-    tanh: bool,
-) -> Vec<f64> {
-    let mut z = pre_activation(x, params, l, rows, dirs);
-    let width = (1 + dirs) * rows;
-    if tanh {
-        for zo in z.chunks_mut(width) {
-            let (v, tangents) = zo.split_at_mut(rows);
-            crate::simd::tanh_in_place(v);
-            for t in tangents.chunks_mut(rows) {
-                t.iter_mut()
-                    .zip(v.iter())
-                    .for_each(|(t, y)| *t *= 1.0 - y * y);
-            }
-        }
-    }
-    z
+/// Appends `len` values of the networks' arena from `at` to the f64 values.
+fn widen<T: Net>(t: &mut Tape, at: usize, len: usize) {
+    let start = t.vals.len();
+    t.vals.resize(start + len, 0.0);
+    let (src, out) = (T::arena(t)[at..at + len].to_vec(), &mut t.vals[start..]);
+    (out.iter_mut().zip(src)).for_each(|(o, v)| *o = v.wide());
 }
 
-/// Wᵀx with b added to the values (not the tangents): `[d_out, (1 + dirs) · rows]`.
-fn pre_activation(x: &[f64], params: &[f64], l: &Layer, rows: usize, dirs: usize) -> Vec<f64> {
+/// The network's forward pass into the arena of `T`: the input block, then every layer's.
+fn record<T: Net>(t: &mut Tape, layers: &[Layer], inputs: Vec<Option<Ref>>, dirs: usize) -> Node {
+    let rows = t.rows;
+    let slots: Vec<_> = inputs.iter().map(|r| r.map(|r| t.slot(r))).collect();
+    let (vals, arena, params) = T::parts(t);
+    let mut blocks = vec![arena.len()];
+    for s in slots {
+        match s {
+            Some(s) if s.len == rows => {
+                arena.extend(vals[s.start..s.start + rows].iter().map(|&v| T::of(v)))
+            }
+            Some(s) => arena.extend(std::iter::repeat_n(T::of(vals[s.start]), rows)),
+            None => arena.resize(arena.len() + rows, T::default()),
+        }
+    }
     let width = (1 + dirs) * rows;
-    let w = &params[l.w..l.w + l.d_in * l.d_out];
-    let mut z = vec![0.0; l.d_out * width];
+    for (l, layer) in layers.iter().enumerate() {
+        let at = arena.len();
+        arena.resize(at + layer.d_out * width, T::default());
+        let (head, z) = arena.split_at_mut(at);
+        let x = &head[blocks[l]..blocks[l] + layer.d_in * width];
+        forward_layer(x, z, params, layer, rows, width, l + 1 < layers.len());
+        blocks.push(at);
+    }
+    Node {
+        layers: layers.to_vec(),
+        dirs,
+        inputs,
+        blocks,
+    }
+}
+
+/// z = Wᵀx (+ b on the values), then tanh on the values and s ⊙ z_d on the tangents when
+/// `tanh`: the layer's output block `z` (zeroed) from its input block `x`, both
+/// `[·, (1 + dirs) · rows]`.
+fn forward_layer<T: Net>(
+    x: &[T],
+    z: &mut [T],
+    params: &[T],
+    l: &Layer,
+    rows: usize,
+    width: usize,
+    tanh: bool,
+) {
     for (o, zo) in z.chunks_mut(width).enumerate() {
         zo[..rows].fill(params[l.b + o]);
     }
     // Z += Wᵀ X: W is [d_in, d_out] row-major, so Wᵀ's rows step by 1 and its columns by d_out.
+    let w = &params[l.w..l.w + l.d_in * l.d_out];
     gemm(
         (l.d_out, l.d_in, width),
         (w, 1, l.d_out),
         (x, width, 1),
-        (&mut z, width, 1),
+        (z, width, 1),
     );
-    z
+    if tanh {
+        for zo in z.chunks_mut(width) {
+            let (v, tangents) = zo.split_at_mut(rows);
+            T::tanh_in_place(v);
+            for t in tangents.chunks_mut(rows) {
+                (t.iter_mut().zip(v.iter())).for_each(|(t, &y)| *t = *t * (T::ONE - y * y));
+            }
+        }
+    }
 }
 
 /// C += A·B for A `m × k`, B `k × n` and C `m × n`, each given with its row and column
 /// strides.
-fn gemm(
+fn gemm<T: Net>(
     (m, k, n): (usize, usize, usize),
-    (a, rsa, csa): (&[f64], usize, usize),
-    (b, rsb, csb): (&[f64], usize, usize),
-    (c, rsc, csc): (&mut [f64], usize, usize),
+    (a, rsa, csa): (&[T], usize, usize),
+    (b, rsb, csb): (&[T], usize, usize),
+    (c, rsc, csc): (&mut [T], usize, usize),
 ) {
     let last = |rows: usize, cols: usize, rs: usize, cs: usize| {
         if rows == 0 || cols == 0 {
@@ -162,31 +253,22 @@ fn gemm(
             (rows - 1) * rs + (cols - 1) * cs + 1
         }
     };
-    assert!(a.len() >= last(m, k, rsa, csa) && b.len() >= last(k, n, rsb, csb));
     assert!(
-        c.len() >= last(m, n, rsc, csc),
+        a.len() >= last(m, k, rsa, csa)
+            && b.len() >= last(k, n, rsb, csb)
+            && c.len() >= last(m, n, rsc, csc),
         "gemm: operands fit their shapes"
     );
     let s = |v: usize| v as isize;
-    // SAFETY: the asserts above keep every element the strides reach inside its slice, and C
-    // is a unique borrow that A and B cannot alias.
+    // SAFETY: the assert keeps every element the strides reach inside its slice, and C is a
+    // unique borrow that A and B cannot alias.
     unsafe {
-        matrixmultiply::dgemm(
-            m,
-            k,
-            n,
-            1.0,
-            a.as_ptr(),
-            s(rsa),
-            s(csa),
-            b.as_ptr(),
-            s(rsb),
-            s(csb),
-            1.0,
-            c.as_mut_ptr(),
-            s(rsc),
-            s(csc),
-        );
+        T::mm(
+            (m, k, n),
+            (a.as_ptr(), s(rsa), s(csa)),
+            (b.as_ptr(), s(rsb), s(csb)),
+            (c.as_mut_ptr(), s(rsc), s(csc)),
+        )
     }
 }
 
@@ -199,87 +281,89 @@ impl Node {
         d_params: &mut [f64],
         own: &super::Node,
     ) {
-        let rows = t.rows;
+        match t.params.precision {
+            Precision::F32 => self.backward_in::<f32>(t, adj, d_params, own),
+            Precision::F64 => self.backward_in::<f64>(t, adj, d_params, own),
+        }
+    }
+
+    fn backward_in<T: Net>(
+        &self,
+        t: &Tape,
+        adj: &mut [f64],
+        d_params: &mut [f64],
+        own: &super::Node,
+    ) {
+        let (rows, arena, w) = (t.rows, T::arena(t), T::params(&t.params));
         let width = (1 + self.dirs) * rows;
-        let Slot { start, .. } = own.slot;
+        let start = own.slot.start;
+        let mut dy: Vec<T> = (adj[start..start + own.cols * rows].iter())
+            .map(|&g| T::of(g))
+            .collect();
+        let (mut dx, mut dw) = (Vec::new(), Vec::new());
         let last = self.layers.len() - 1;
-        let mut dy = adj[start..start + own.cols * rows].to_vec();
         for (l, layer) in self.layers.iter().enumerate().rev() {
-            let x = &t.vals[self.blocks[l]..self.blocks[l] + layer.d_in * width];
-            let dz = if l == last {
-                dy
-            } else {
+            let at = self.blocks[l];
+            let x = &arena[at..at + layer.d_in * width];
+            if l != last {
                 let at = self.blocks[l + 1];
-                let y = &t.vals[at..at + layer.d_out * width];
-                let z = pre_activation(x, &t.params, layer, rows, self.dirs);
-                tanh_back(&dy, y, &z, rows, width)
-            };
-            dy = layer_back(x, &dz, t, d_params, layer, rows, width);
+                tanh_back(&mut dy, &arena[at..at + layer.d_out * width], rows, width);
+            }
+            for (o, dzo) in dy.chunks(width).enumerate() {
+                d_params[layer.b + o] += dzo[..rows].iter().map(|v| v.wide()).sum::<f64>();
+            }
+            // ∂W = X ∂Zᵀ ([d_in, d_out]), ∂X = W ∂Z ([d_in, width]).
+            let (d_in, d_out) = (layer.d_in, layer.d_out);
+            dw.clear();
+            dw.resize(d_in * d_out, T::default());
+            gemm(
+                (d_in, width, d_out),
+                (x, width, 1),
+                (&dy, 1, width),
+                (&mut dw, d_out, 1),
+            );
+            (d_params[layer.w..layer.w + dw.len()].iter_mut().zip(&dw))
+                .for_each(|(p, g)| *p += g.wide());
+            dx.clear();
+            dx.resize(d_in * width, T::default());
+            let wl = &w[layer.w..layer.w + d_in * d_out];
+            gemm(
+                (d_in, d_out, width),
+                (wl, d_out, 1),
+                (&dy, width, 1),
+                (&mut dx, width, 1),
+            );
+            std::mem::swap(&mut dy, &mut dx);
         }
         for (r, dx) in self.inputs.iter().zip(dy.chunks(rows)) {
             let Some(r) = r else { continue };
             let s = t.slot(*r);
             if s.len == rows {
-                (adj[s.start..s.start + rows].iter_mut().zip(dx)).for_each(|(a, g)| *a += g);
+                (adj[s.start..s.start + rows].iter_mut().zip(dx)).for_each(|(a, g)| *a += g.wide());
             } else {
-                adj[s.start] += dx.iter().sum::<f64>();
+                adj[s.start] += dx.iter().map(|v| v.wide()).sum::<f64>();
             }
         }
     }
 }
 
-/// ∂z from ∂y through y = tanh z and y_d = (1 − y²) z_d.
-fn tanh_back(dy: &[f64], y: &[f64], z: &[f64], rows: usize, width: usize) -> Vec<f64> {
-    let mut dz = vec![0.0; dy.len()];
-    for ((dzo, dyo), (yo, zo)) in dz
-        .chunks_mut(width)
-        .zip(dy.chunks(width))
-        .zip(y.chunks(width).zip(z.chunks(width)))
-    {
-        let (v, s) = (&yo[..rows], |k: usize| 1.0 - yo[k] * yo[k]);
-        let mut ds = vec![0.0; rows];
-        for d in 1..width / rows {
+/// ∂y → ∂z in place, through y = tanh z and y_d = s ⊙ z_d (s = 1 − y²). The second-derivative
+/// term s ⊙ ∂s = Σ_d ∂y_d ⊙ z_d ⊙ s = Σ_d ∂y_d ⊙ y_d needs only the layer's outputs, so the
+/// backward pass never recomputes the pre-activations.
+fn tanh_back<T: Net>(dy: &mut [T], y: &[T], rows: usize, width: usize) {
+    let mut sds = vec![T::default(); rows];
+    for (g, yo) in dy.chunks_mut(width).zip(y.chunks(width)) {
+        let (gv, gt) = g.split_at_mut(rows);
+        let (v, yt) = yo.split_at(rows);
+        sds.fill(T::default());
+        for (gd, yd) in gt.chunks_mut(rows).zip(yt.chunks(rows)) {
             for k in 0..rows {
-                let (g, zk) = (dyo[d * rows + k], zo[d * rows + k]);
-                dzo[d * rows + k] = s(k) * g;
-                ds[k] += g * zk;
+                sds[k] += gd[k] * yd[k];
+                gd[k] = (T::ONE - v[k] * v[k]) * gd[k];
             }
         }
         for k in 0..rows {
-            dzo[k] = s(k) * (dyo[k] - 2.0 * v[k] * ds[k]);
+            gv[k] = (T::ONE - v[k] * v[k]) * gv[k] - T::TWO * v[k] * sds[k];
         }
     }
-    dz
-}
-
-/// ∂W and ∂b accumulated from the layer's input block `x` and ∂z; returns ∂x.
-fn layer_back(
-    x: &[f64],
-    dz: &[f64],
-    t: &Tape,
-    d_params: &mut [f64],
-    l: &Layer,
-    rows: usize,
-    width: usize,
-) -> Vec<f64> {
-    let w = &t.params[l.w..l.w + l.d_in * l.d_out];
-    for (o, dzo) in dz.chunks(width).enumerate() {
-        d_params[l.b + o] += dzo[..rows].iter().sum::<f64>();
-    }
-    // ∂W += X ∂Zᵀ ([d_in, d_out]), ∂X = W ∂Z ([d_in, width]).
-    let dw = &mut d_params[l.w..l.w + l.d_in * l.d_out];
-    gemm(
-        (l.d_in, width, l.d_out),
-        (x, width, 1),
-        (dz, 1, width),
-        (dw, l.d_out, 1),
-    );
-    let mut dx = vec![0.0; l.d_in * width];
-    gemm(
-        (l.d_in, l.d_out, width),
-        (w, l.d_out, 1),
-        (dz, width, 1),
-        (&mut dx, width, 1),
-    );
-    dx
 }

@@ -3,19 +3,68 @@
 //! [`Scalar`] operation on a [`Var`] is one node, and [`Tape::gradients`] walks the nodes
 //! backwards once. The model's equations are written over `Scalar` already, so recording
 //! them needs no second copy of the math; the networks, whose layers would be thousands of
-//! scalar nodes, are one node each (`mlp.rs`) with their own backward pass.
+//! scalar nodes, are one node each (`mlp.rs`) with their own backward pass, computed in the
+//! training's precision ([`Precision`]); the rest (a few hundred values per row) stays f64.
 //!
 //! A node costs a `Vec` push and an `Rc` clone; its arithmetic is a loop over the block's
-//! rows (hundreds), so the bookkeeping is a small share of the work. Values live in one
-//! arena, so recording allocates only when the arena grows.
+//! rows (hundreds), so the bookkeeping is a small share of the work. Values live in arenas
+//! that one tape hands to the next ([`Buffers`]), so recording allocates only while they grow.
 
 mod mlp;
 mod ops;
 
 use std::cell::RefCell;
 use std::rc::Rc;
+use std::sync::Arc;
 
 pub use mlp::{Layer, mlp};
+
+/// The precision the networks compute in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Precision {
+    F32,
+    F64,
+}
+
+/// What a tape differentiates with respect to, with the networks' copy in their precision.
+#[derive(Debug)]
+pub struct Params {
+    values: Vec<f64>,
+    narrow: Vec<f32>,
+    precision: Precision,
+}
+
+impl Params {
+    pub fn new(values: Vec<f64>, precision: Precision) -> Arc<Self> {
+        let narrow = match precision {
+            Precision::F32 => values.iter().map(|&v| v as f32).collect(),
+            Precision::F64 => vec![],
+        };
+        Arc::new(Self {
+            values,
+            narrow,
+            precision,
+        })
+    }
+
+    pub fn len(&self) -> usize {
+        self.values.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.values.is_empty()
+    }
+}
+
+/// A tape's storage, passed from a finished tape to the next one.
+#[derive(Debug, Default)]
+pub struct Buffers {
+    nodes: Vec<Node>,
+    vals: Vec<f64>,
+    net32: Vec<f32>,
+    net64: Vec<f64>,
+    adj: Vec<f64>,
+}
 
 /// Where a node's value lives in the arena: `cols` columns of `len` numbers each (`len` is
 /// the block's rows, or 1 for a value every row shares).
@@ -46,9 +95,9 @@ struct Node {
     cols: usize,
 }
 
-/// Column `col` of node `node`.
+/// Column `col` of node `node`: a value on a finished tape.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct Ref {
+pub struct Ref {
     node: u32,
     col: u32,
 }
@@ -57,9 +106,14 @@ struct Ref {
 #[derive(Debug)]
 pub struct Tape {
     rows: usize,
-    params: Rc<[f64]>,
+    params: Arc<Params>,
     nodes: Vec<Node>,
     vals: Vec<f64>,
+    /// The networks' layer blocks, in their precision.
+    net32: Vec<f32>,
+    net64: Vec<f64>,
+    /// Storage for the next [`Tape::gradients`].
+    spare: Vec<f64>,
 }
 
 /// A value on a tape: a column of the block's rows, or one shared number.
@@ -69,23 +123,56 @@ pub struct Var {
     r: Ref,
 }
 
-/// What [`Tape::gradients`] gives: every node's adjoint, read by variable, and ∂/∂θ.
+/// What [`Tape::gradients`] gives: every node's adjoint (read by [`Tape::adjoint`]) and ∂/∂θ.
 #[derive(Debug)]
 pub struct Gradients {
     adj: Vec<f64>,
-    slots: Vec<(Slot, usize)>,
     pub params: Vec<f64>,
 }
 
 impl Tape {
-    /// An empty tape for a block of `rows` rows, differentiating with respect to `params`.
-    pub fn new(rows: usize, params: Rc<[f64]>) -> Rc<RefCell<Self>> {
+    /// An empty tape for a block of `rows` rows, differentiating with respect to `params`,
+    /// storing into `buffers` (emptied first).
+    pub fn new(rows: usize, params: Arc<Params>, buffers: Buffers) -> Rc<RefCell<Self>> {
+        let Buffers {
+            mut nodes,
+            mut vals,
+            mut net32,
+            mut net64,
+            adj,
+        } = buffers;
+        nodes.clear();
+        vals.clear();
+        net32.clear();
+        net64.clear();
         Rc::new(RefCell::new(Self {
             rows,
             params,
-            nodes: Vec::with_capacity(1024),
-            vals: Vec::with_capacity(1 << 16),
+            nodes,
+            vals,
+            net32,
+            net64,
+            spare: adj,
         }))
+    }
+
+    /// The tape once recording is done and no [`Var`] on it is left.
+    pub fn finish(tape: Rc<RefCell<Self>>) -> Self {
+        match Rc::try_unwrap(tape) {
+            Ok(t) => t.into_inner(),
+            Err(_) => panic!("every variable on a tape is dropped before it is finished"),
+        }
+    }
+
+    /// Its storage, for the next tape.
+    pub fn into_buffers(self, grads: Option<Gradients>) -> Buffers {
+        Buffers {
+            nodes: self.nodes,
+            vals: self.vals,
+            net32: self.net32,
+            net64: self.net64,
+            adj: grads.map_or(self.spare, |g| g.adj),
+        }
     }
 
     pub fn rows(&self) -> usize {
@@ -102,6 +189,36 @@ impl Tape {
     ) -> Ref {
         let start = self.vals.len();
         self.vals.extend(values);
+        self.node(op, start, len, cols)
+    }
+
+    fn slot(&self, r: Ref) -> Slot {
+        let n = &self.nodes[r.node as usize];
+        Slot {
+            start: n.slot.start + r.col as usize * n.slot.len,
+            len: n.slot.len,
+        }
+    }
+
+    fn col(&self, r: Ref) -> &[f64] {
+        let s = self.slot(r);
+        &self.vals[s.start..s.start + s.len]
+    }
+
+    /// A recorded value: one per row, or one shared.
+    pub fn values(&self, r: Ref) -> &[f64] {
+        self.col(r)
+    }
+
+    /// ∂L/∂`r` from `grads` (of this tape): one number per row, or one for a shared value.
+    pub fn adjoint<'g>(&self, grads: &'g Gradients, r: Ref) -> &'g [f64] {
+        let s = self.slot(r);
+        &grads.adj[s.start..s.start + s.len]
+    }
+
+    /// Appends node `op` whose `cols` columns of `len` values the caller has just written
+    /// at the end of the arena, from `start`.
+    fn node(&mut self, op: Op, start: usize, len: usize, cols: usize) -> Ref {
         debug_assert_eq!(
             self.vals.len() - start,
             len * cols,
@@ -118,25 +235,14 @@ impl Tape {
         }
     }
 
-    fn slot(&self, r: Ref) -> Slot {
-        let n = &self.nodes[r.node as usize];
-        Slot {
-            start: n.slot.start + r.col as usize * n.slot.len,
-            len: n.slot.len,
-        }
-    }
-
-    fn col(&self, r: Ref) -> &[f64] {
-        let s = self.slot(r);
-        &self.vals[s.start..s.start + s.len]
-    }
-
-    /// The adjoints of `seeds` (each a variable and ∂L/∂ it, one number per row or one for a
+    /// The adjoints of `seeds` (each a value and ∂L/∂ it, one number per row or one for a
     /// shared value) carried back to every node: ∂L/∂ each input and each parameter.
-    pub fn gradients(&self, seeds: &[(&Var, &[f64])]) -> Gradients {
-        let mut adj = vec![0.0; self.vals.len()];
-        for (v, g) in seeds {
-            let s = self.slot(v.r);
+    pub fn gradients(&mut self, seeds: &[(Ref, &[f64])]) -> Gradients {
+        let mut adj = std::mem::take(&mut self.spare);
+        adj.clear();
+        adj.resize(self.vals.len(), 0.0);
+        for (r, g) in seeds {
+            let s = self.slot(*r);
             assert_eq!(
                 g.len(),
                 s.len,
@@ -144,27 +250,18 @@ impl Tape {
             );
             (adj[s.start..s.start + s.len].iter_mut().zip(*g)).for_each(|(a, g)| *a += g);
         }
-        let mut params = vec![0.0; self.params.len()];
-        for (i, node) in self.nodes.iter().enumerate().rev() {
+        let t: &Tape = self;
+        let mut params = vec![0.0; t.params.len()];
+        for (i, node) in t.nodes.iter().enumerate().rev() {
             match &node.op {
                 Op::Input | Op::Const => {}
                 Op::Param(p) => params[*p] += adj[node.slot.start],
-                Op::Unary(a, f) => ops::unary_back(self, &mut adj, i, *a, *f),
-                Op::Binary(a, b, f) => ops::binary_back(self, &mut adj, i, *a, *b, *f),
-                Op::Mlp(m) => m.backward(self, &mut adj, &mut params, node),
+                Op::Unary(a, f) => ops::unary_back(t, &mut adj, i, *a, *f),
+                Op::Binary(a, b, f) => ops::binary_back(t, &mut adj, i, *a, *b, *f),
+                Op::Mlp(m) => m.backward(t, &mut adj, &mut params, node),
             }
         }
-        let slots = self.nodes.iter().map(|n| (n.slot, n.cols)).collect();
-        Gradients { adj, slots, params }
-    }
-}
-
-impl Gradients {
-    /// ∂L/∂`v`: one number per row (or one for a shared value).
-    pub fn of(&self, v: &Var) -> &[f64] {
-        let (slot, _) = self.slots[v.r.node as usize];
-        let start = slot.start + v.r.col as usize * slot.len;
-        &self.adj[start..start + slot.len]
+        Gradients { adj, params }
     }
 }
 
@@ -187,7 +284,7 @@ impl Var {
     pub fn param(tape: &Rc<RefCell<Tape>>, i: usize) -> Self {
         let r = {
             let mut t = tape.borrow_mut();
-            let v = t.params[i];
+            let v = t.params.values[i];
             t.push(Op::Param(i), 1, 1, [v])
         };
         Self {
@@ -199,6 +296,11 @@ impl Var {
     /// Its values: one per row, or one shared.
     pub fn values(&self) -> Vec<f64> {
         self.tape.borrow().col(self.r).to_vec()
+    }
+
+    /// Where it sits on its tape, to read once the tape is finished.
+    pub fn id(&self) -> Ref {
+        self.r
     }
 
     fn with(&self, r: Ref) -> Self {

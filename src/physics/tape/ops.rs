@@ -5,7 +5,7 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-use super::{Op, Ref, Tape, Var};
+use super::{Op, Ref, Slot, Tape, Var};
 use crate::physics::scalar::Scalar;
 
 #[derive(Debug, Clone, Copy)]
@@ -81,20 +81,6 @@ impl Binary {
             Binary::Atan2 => a.atan2(b),
         }
     }
-
-    /// (∂f/∂a, ∂f/∂b) at (a, b) with output `y`.
-    fn partials(self, a: f64, b: f64, y: f64) -> (f64, f64) {
-        match self {
-            Binary::Add => (1.0, 1.0),
-            Binary::Sub => (1.0, -1.0),
-            Binary::Mul => (b, a),
-            Binary::Div => (1.0 / b, -y / b),
-            Binary::Atan2 => {
-                let r2 = a * a + b * b;
-                (b / r2, -a / r2)
-            }
-        }
-    }
 }
 
 impl Var {
@@ -102,10 +88,12 @@ impl Var {
         let r = {
             let mut t = self.tape.borrow_mut();
             let x = t.slot(self.r);
-            let out: Vec<f64> = (t.vals[x.start..x.start + x.len].iter())
-                .map(|&v| f.apply(v))
-                .collect();
-            t.push(Op::Unary(self.r, f), x.len, 1, out)
+            let start = t.vals.len();
+            t.vals.resize(start + x.len, 0.0);
+            let (src, out) = t.vals.split_at_mut(start);
+            let src = &src[x.start..x.start + x.len];
+            (out.iter_mut().zip(src)).for_each(|(o, &v)| *o = f.apply(v));
+            t.node(Op::Unary(self.r, f), start, x.len, 1)
         };
         self.with(r)
     }
@@ -114,59 +102,146 @@ impl Var {
         debug_assert!(std::rc::Rc::ptr_eq(&self.tape, &o.tape), "both on one tape");
         let r = {
             let mut t = self.tape.borrow_mut();
-            let (a, b) = (t.col(self.r), t.col(o.r));
-            let len = a.len().max(b.len());
-            let out: Vec<f64> = match (a.len(), b.len()) {
-                (x, y) if x == y => a.iter().zip(b).map(|(&a, &b)| f.apply(a, b)).collect(),
-                (1, _) => b.iter().map(|&b| f.apply(a[0], b)).collect(),
-                _ => a.iter().map(|&a| f.apply(a, b[0])).collect(),
-            };
-            t.push(Op::Binary(self.r, o.r, f), len, 1, out)
+            let (sa, sb) = (t.slot(self.r), t.slot(o.r));
+            let len = sa.len.max(sb.len);
+            let start = t.vals.len();
+            t.vals.resize(start + len, 0.0);
+            let (src, out) = t.vals.split_at_mut(start);
+            let (a, b) = (
+                &src[sa.start..sa.start + sa.len],
+                &src[sb.start..sb.start + sb.len],
+            );
+            match (a.len(), b.len()) {
+                (x, y) if x == y => (out.iter_mut().zip(a.iter().zip(b)))
+                    .for_each(|(o, (&a, &b))| *o = f.apply(a, b)),
+                (1, _) => (out.iter_mut().zip(b)).for_each(|(o, &b)| *o = f.apply(a[0], b)),
+                _ => (out.iter_mut().zip(a)).for_each(|(o, &a)| *o = f.apply(a, b[0])),
+            }
+            t.node(Op::Binary(self.r, o.r, f), start, len, 1)
         };
         self.with(r)
     }
 }
 
-/// Adds `g · d(k)` into the adjoint at `at` for every output row k; a shared input (length
-/// 1) takes the sum.
-fn accumulate(
-    adj: &mut [f64],
-    at: usize,
-    len: usize,
-    out: usize,
-    rows: usize,
-    d: impl Fn(usize) -> f64,
-) {
-    if len == rows {
-        for k in 0..rows {
-            adj[at + k] += adj[out + k] * d(k);
+/// A value read by row: a column, or one number every row shares.
+trait Col: Copy {
+    fn at(self, k: usize) -> f64;
+}
+
+#[derive(Clone, Copy)]
+struct Full<'a>(&'a [f64]);
+
+#[derive(Clone, Copy)]
+struct Shared(f64);
+
+impl Col for Full<'_> {
+    #[inline(always)]
+    fn at(self, k: usize) -> f64 {
+        self.0[k]
+    }
+}
+
+impl Col for Shared {
+    #[inline(always)]
+    fn at(self, _: usize) -> f64 {
+        self.0
+    }
+}
+
+/// Adds `g_k · d(k)` into the adjoint of the input at `s` for every output row k (`lo` is
+/// the adjoint below the output's); a shared input takes the sum.
+#[inline(always)]
+fn accumulate(lo: &mut [f64], s: Slot, g: &[f64], d: impl Fn(usize) -> f64) {
+    if s.len == g.len() {
+        let dst = &mut lo[s.start..s.start + g.len()];
+        for k in 0..g.len() {
+            dst[k] += g[k] * d(k);
         }
     } else {
-        let s: f64 = (0..rows).map(|k| adj[out + k] * d(k)).sum();
-        adj[at] += s;
+        lo[s.start] += (0..g.len()).map(|k| g[k] * d(k)).sum::<f64>();
     }
+}
+
+/// The output's adjoint and everything below it (every input's sits lower in the arena).
+fn split(adj: &mut [f64], out: Slot) -> (&mut [f64], &[f64]) {
+    let (lo, hi) = adj.split_at_mut(out.start);
+    (lo, &hi[..out.len])
 }
 
 pub(super) fn unary_back(t: &Tape, adj: &mut [f64], node: usize, a: Ref, f: Unary) {
     let out = t.nodes[node].slot;
     let x = t.slot(a);
-    let (xs, ys) = (&t.vals[x.start..], &t.vals[out.start..]);
-    accumulate(adj, x.start, x.len, out.start, out.len, |k| {
-        f.derivative(xs[k % x.len], ys[k])
-    });
+    let (xs, ys) = (
+        &t.vals[x.start..x.start + x.len],
+        &t.vals[out.start..out.start + out.len],
+    );
+    let (lo, g) = split(adj, out);
+    // One loop per rule, so that each vectorises.
+    macro_rules! rule {
+        (|$x:ident, $y:ident| $d:expr) => {
+            accumulate(lo, x, g, |k| {
+                let ($x, $y) = (xs[k], ys[k]);
+                let _ = ($x, $y);
+                $d
+            })
+        };
+    }
+    match f {
+        Unary::Neg => rule!(|x, y| -1.0),
+        Unary::Scale(c) => rule!(|x, y| c),
+        Unary::Shift(_) => rule!(|x, y| 1.0),
+        Unary::Exp => rule!(|x, y| y),
+        Unary::Tanh => rule!(|x, y| 1.0 - y * y),
+        Unary::Square => rule!(|x, y| 2.0 * x),
+        Unary::Sigmoid => rule!(|x, y| y * (1.0 - y)),
+        _ => rule!(|x, y| f.derivative(x, y)),
+    }
 }
 
 pub(super) fn binary_back(t: &Tape, adj: &mut [f64], node: usize, a: Ref, b: Ref, f: Binary) {
     let out = t.nodes[node].slot;
     let (sa, sb) = (t.slot(a), t.slot(b));
-    let (va, vb, y) = (
-        &t.vals[sa.start..],
-        &t.vals[sb.start..],
-        &t.vals[out.start..],
-    );
-    let at = |k: usize| f.partials(va[k % sa.len], vb[k % sb.len], y[k]);
-    accumulate(adj, sa.start, sa.len, out.start, out.len, |k| at(k).0);
-    accumulate(adj, sb.start, sb.len, out.start, out.len, |k| at(k).1);
+    let col = |s: Slot| &t.vals[s.start..s.start + s.len];
+    let (va, vb, y) = (col(sa), col(sb), col(out));
+    let (lo, g) = split(adj, out);
+    match (sa.len == out.len, sb.len == out.len) {
+        (true, true) => binary_rule(f, lo, g, y, (sa, Full(va)), (sb, Full(vb))),
+        (true, false) => binary_rule(f, lo, g, y, (sa, Full(va)), (sb, Shared(vb[0]))),
+        (false, true) => binary_rule(f, lo, g, y, (sa, Shared(va[0])), (sb, Full(vb))),
+        (false, false) => binary_rule(f, lo, g, y, (sa, Shared(va[0])), (sb, Shared(vb[0]))),
+    }
+}
+
+/// Both inputs' adjoints under rule `f`, one loop per input and rule.
+fn binary_rule<A: Col, B: Col>(
+    f: Binary,
+    lo: &mut [f64],
+    g: &[f64],
+    y: &[f64],
+    (sa, a): (Slot, A),
+    (sb, b): (Slot, B),
+) {
+    macro_rules! rule {
+        (|$a:ident, $b:ident, $y:ident| $da:expr, $db:expr) => {{
+            accumulate(lo, sa, g, |k| {
+                let ($a, $b, $y) = (a.at(k), b.at(k), y[k]);
+                let _ = ($a, $b, $y);
+                $da
+            });
+            accumulate(lo, sb, g, |k| {
+                let ($a, $b, $y) = (a.at(k), b.at(k), y[k]);
+                let _ = ($a, $b, $y);
+                $db
+            });
+        }};
+    }
+    match f {
+        Binary::Add => rule!(|a, b, y| 1.0, 1.0),
+        Binary::Sub => rule!(|a, b, y| 1.0, -1.0),
+        Binary::Mul => rule!(|a, b, y| b, a),
+        Binary::Div => rule!(|a, b, y| 1.0 / b, -y / b),
+        Binary::Atan2 => rule!(|a, b, y| b / (a * a + b * b), -a / (a * a + b * b)),
+    }
 }
 
 macro_rules! operator {

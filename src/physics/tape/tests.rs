@@ -2,9 +2,7 @@
 //! elementwise node with broadcasting, and a network with input tangents (whose gradient
 //! holds the network's second derivatives).
 
-use std::rc::Rc;
-
-use super::{Layer, Tape, Var, mlp};
+use super::{Layer, Params, Precision, Tape, Var, mlp};
 use crate::physics::dual::Dual;
 use crate::physics::scalar::Scalar;
 use crate::rng::Rng;
@@ -19,7 +17,11 @@ fn run(
     g: &[Vec<f64>],
     f: &dyn Fn(&[Var]) -> Vec<Var>,
 ) -> (f64, Vec<Vec<f64>>, Vec<f64>) {
-    let tape = Tape::new(ROWS, Rc::from(params));
+    let tape = Tape::new(
+        ROWS,
+        Params::new(params.to_vec(), Precision::F64),
+        Default::default(),
+    );
     let inputs: Vec<Var> = x.iter().map(|c| Var::input(&tape, c.clone())).collect();
     let out = f(&inputs);
     let value: f64 = (out.iter().zip(g))
@@ -28,13 +30,12 @@ fn run(
             (0..ROWS).map(|k| v[k % v.len()] * g[k]).sum::<f64>()
         })
         .sum();
-    let t = tape.borrow();
     // A shared output stands for every row's: its seed is theirs summed.
     let sums: Vec<[f64; 1]> = g.iter().map(|g| [g.iter().sum()]).collect();
-    let seeds: Vec<(&Var, &[f64])> = (out.iter().zip(g).zip(&sums))
+    let seeds: Vec<(_, &[f64])> = (out.iter().zip(g).zip(&sums))
         .map(|((o, g), s)| {
             (
-                o,
+                o.id(),
                 if o.values().len() == 1 {
                     &s[..]
                 } else {
@@ -43,8 +44,11 @@ fn run(
             )
         })
         .collect();
+    let ids: Vec<_> = inputs.iter().map(Var::id).collect();
+    drop((inputs, out));
+    let mut t = Tape::finish(tape);
     let grads = t.gradients(&seeds);
-    let dx = inputs.iter().map(|v| grads.of(v).to_vec()).collect();
+    let dx = ids.iter().map(|&r| t.adjoint(&grads, r).to_vec()).collect();
     (value, dx, grads.params.clone())
 }
 

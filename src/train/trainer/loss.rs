@@ -100,12 +100,11 @@ pub(super) fn mean_loss(
     pool: Option<&rayon::ThreadPool>,
 ) -> f64 {
     let device = model.device();
-    let min_rows = shards::min_shard_rows(&model.config.spec);
     let chunk = (4096 / windows.horizon()).max(1);
     let total: f64 = (windows.starts)
         .chunks(chunk)
         .flat_map(|c| {
-            let pieces = shards::split(c, shards::shard_count(shards, c.len(), min_rows));
+            let pieces = shards::split(c, shards::piece_count(shards, c.len(), model));
             shards::map_pieces(&pieces, pool, |p| {
                 scalar(data.window_loss_sum(model, p, &windows.weights, &device))
             })

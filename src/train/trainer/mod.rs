@@ -223,13 +223,17 @@ impl Trainer {
         self.state.shards
     }
 
-    /// The shards a batch of `rows` gets (fewer for small batches, see `shards::MIN_SHARD_ROWS`).
+    /// The pieces a batch of `rows` is split into (fewer for small batches, more on the
+    /// fused step for large ones: `shards::piece_count`).
     pub fn shards_of(&self, rows: usize) -> usize {
-        shards::shard_count(self.state.shards, rows, self.min_shard_rows())
+        shards::piece_count(self.state.shards, rows, &self.model)
     }
 
-    fn min_shard_rows(&self) -> usize {
-        shards::min_shard_rows(&self.model.config.spec)
+    /// The same trainer on Burn's op-by-op graph rather than the fused step (`Model::graph`):
+    /// the reference the fused step is checked and measured against.
+    pub fn on_graph(mut self) -> Self {
+        self.model = self.model.graph();
+        self
     }
 
     /// Goes on training the same model on `data` (no validation set) for `epochs` more
