@@ -2,6 +2,7 @@
 
 mod ensemble;
 mod events;
+mod flops;
 mod horizon;
 mod infer;
 mod process;
@@ -117,6 +118,10 @@ pub struct BenchTrainArgs {
     /// Threads per training (default: every core).
     #[arg(long, default_value_t = graybox::train::shards::cores())]
     pub threads: usize,
+    /// Train on Burn's op-by-op graph (`Trainer::on_graph`) instead of the path each model's
+    /// spec takes: the fused step's "before".
+    #[arg(long)]
+    pub graph: bool,
 }
 
 /// A temporary SQLite database file, removed (with its WAL files) on drop.
@@ -229,6 +234,9 @@ fn throughput(
     let never = AtomicBool::new(false);
     let mut trainer =
         Trainer::new(model, spec, &[], train, Some(val), tc, device)?.with_threads(a.threads)?;
+    if a.graph {
+        trainer = trainer.on_graph();
+    }
     trainer.run_epoch(&never)?; // warm-up: allocations, first-touch
     let (wall, cpu, steps) = (Instant::now(), cpu_seconds(), trainer.train_seconds());
     for _ in 0..epochs {
@@ -246,6 +254,7 @@ fn throughput(
                "cpu_per_wall": cpu / wall,
                "threads": a.threads,
                "shards": trainer.shards_of(bs),
+               "fused": trainer.model().is_fused(),
                "cores": graybox::train::shards::cores(),
                "note": "samples_per_second: training steps only (forward, backward, Adam), as \
                         the PyTorch reference is measured; cpu_per_wall: process CPU time over \
@@ -365,11 +374,15 @@ fn bench_step(a: BenchStepArgs) -> Result<()> {
         }
     }
     let k = 1e3 / a.steps as f64;
+    let rate = (a.steps * b) as f64 / (fwd + bwd + opt);
+    let (flops, peak) = (flops::per_sample(&model), flops::sgemm_per_core());
     println!(
         "{}",
         json!({"bench": "train_step", "model": a.model, "fused": model.is_fused(), "batch_size": b, "forward_ms": fwd * k,
-               "backward_ms": bwd * k, "optimizer_ms": opt * k,
-               "samples_per_second": (a.steps * b) as f64 / (fwd + bwd + opt)})
+               "backward_ms": bwd * k, "optimizer_ms": opt * k, "samples_per_second": rate,
+               "network_mflop_per_sample": flops / 1e6, "network_gflops": rate * flops / 1e9,
+               "sgemm_gflops_per_core": peak / 1e9, "share_of_sgemm": rate * flops / peak,
+               "note": "network_gflops: the networks' forward and backward FLOPs at this rate (elementwise work left out); share_of_sgemm: of one core's f32 sgemm rate on 256 × 256 matrices"})
     );
     Ok(())
 }
