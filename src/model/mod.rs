@@ -163,7 +163,7 @@ impl Model {
             params,
             consts,
         };
-        if fused { model.fused() } else { model }
+        model.on_path(fused)
     }
 
     /// This model with other values for its parameters (same config and constants).
@@ -183,12 +183,7 @@ impl Model {
     pub fn valid(&self) -> Self {
         let params = self.params.valid();
         let device = self.device().without_autodiff();
-        let valid = Self::from_parts(self.config.clone(), params, &device);
-        if self.is_fused() {
-            valid
-        } else {
-            valid.graph()
-        }
+        Self::from_parts(self.config.clone(), params, &device).on_path(self.is_fused())
     }
 
     /// Physical parameter values as tensors `[1, 1]` (positive ones exponentiated).

@@ -260,6 +260,11 @@ impl ModuleVisitor for Flatten {
 }
 
 impl Model {
+    /// The same model on the fused step when `fused`, else on Burn's graph.
+    pub fn on_path(self, fused: bool) -> Self {
+        if fused { self.fused() } else { self.graph() }
+    }
+
     /// Whether its step is the fused one.
     pub fn is_fused(&self) -> bool {
         self.consts.fused.is_some()
