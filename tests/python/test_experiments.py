@@ -106,6 +106,26 @@ def test_quick_run_writes_its_results_and_a_rerun_resumes(lab_bin, tmp_path, nam
     assert rerun["invocations"] == 2 and rerun["started"] == run["started"]
 
 
+def test_mbrl_plans_with_either_planner(lab_bin, tmp_path):
+    """DIRCOL (the paper's planner) by default, iLQR on request; run.json and results.md say
+    which, and the reference is the better of both on the true model, the same for either."""
+    refs = {}
+    for planner, args in [("dircol", []), ("ilqr", ["--planner", "ilqr"])]:
+        out = tmp_path / planner
+        experiment(lab_bin, "mbrl", "--quick", *args, "--out", str(out))
+        run = json.loads((out / "run.json").read_text())
+        assert run["settings"]["planner"] == planner, run["settings"]
+        md = (out / "results.md").read_text()
+        name = {"dircol": "DIRCOL", "ilqr": "iLQR"}[planner]
+        assert f"Planner on the learned models: {name}." in md, md
+        cells = [json.loads(line) for line in (out / "cells.jsonl").read_text().splitlines()]
+        refs[planner] = next(c["value"] for c in cells if c["key"] == "reference")
+        episodes = [c["value"] for c in cells if c["key"].startswith("MVB/")]
+        assert len(episodes) == 2 and all(e["plan_cost"] is not None for e in episodes), episodes
+    assert refs["dircol"] == refs["ilqr"], refs
+    assert refs["dircol"]["planner"] in ("DIRCOL", "iLQR")
+
+
 def test_a_run_cut_short_recomputes_only_its_missing_cells(lab_bin, tmp_path):
     out = tmp_path / "de"
     experiment(lab_bin, "data-efficiency", "--quick", "--out", str(out))

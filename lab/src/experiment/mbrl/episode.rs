@@ -13,7 +13,6 @@ use super::{DT, Episode, HORIZON, MbrlSettings};
 use crate::experiment::out::OutDir;
 use crate::experiment::pool::{Progress, Status};
 use graybox::backend::{self, Backend, Precision};
-use graybox::control::plan::plan;
 use graybox::data::Dataset;
 use graybox::error::{Error, Result};
 use graybox::infer::Evaluator;
@@ -95,11 +94,8 @@ pub(super) fn run_one(
         status.show(&format!("{what}: planning"));
         let learned = Evaluator::from_file(&trainer.model_file())?;
         let (before, planned_on) = (trainer.checkpoint(), data.count());
-        let planned = plan(
-            &learned,
-            &s.request(seed.wrapping_mul(1000) + e as u64),
-            &|| false,
-        );
+        let request = s.request(s.planner, seed.wrapping_mul(1000) + e as u64);
+        let planned = learned.plan(&request, &|| false);
         let mut rng = Rng::derive(seed, 0xE915_0DE0 + e as u64);
         let (score_now, explored, plan_cost, converged, error) = match &planned {
             Ok(p) => {

@@ -3,8 +3,9 @@
 //! system, add the episode to the data, train on, repeat.
 //!
 //! The system is the true template as a model (Δt = 0.1, RK4): `Plan`, `Linearize` and the
-//! rollouts all use one map. The paper plans with direct collocation; graybox plans with iLQR
-//! on the same cost at every step (docs/control.md#swing-up-task-and-cost).
+//! rollouts all use one map. The planner is direct collocation, as the paper's (`--planner
+//! dircol`, the default), or iLQR on the same cost (`--planner ilqr`,
+//! docs/control.md#swing-up-task-and-cost).
 
 mod episode;
 mod report;
@@ -12,14 +13,14 @@ mod system;
 
 use std::path::PathBuf;
 
-use clap::Args;
+use clap::{Args, ValueEnum};
 use serde::{Deserialize, Serialize};
 
 use super::out::OutDir;
 use super::pool::{self, Progress};
 use super::{model_seeds, models_arg, seeds_arg};
 use graybox::control::linalg::Mat;
-use graybox::control::plan::PlanRequest;
+use graybox::control::plan::{Method, PlanRequest};
 use graybox::error::Result;
 
 use episode::run_one;
@@ -43,6 +44,32 @@ const SOLVED: f64 = 1.1;
 /// one such transition makes a model's loss overflow. 5× the paper's training velocities; no
 /// state of a stored run before the bound existed came near it.
 const STATE_BOUND: f64 = 50.0;
+
+/// How a plan is made, on the learned model and on the true one alike.
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Planner {
+    /// Direct collocation (the paper's).
+    Dircol,
+    /// iLQR on the same cost.
+    Ilqr,
+}
+
+impl Planner {
+    fn name(self) -> &'static str {
+        match self {
+            Planner::Dircol => "DIRCOL",
+            Planner::Ilqr => "iLQR",
+        }
+    }
+
+    fn method(self) -> Method {
+        match self {
+            Planner::Dircol => Method::Dircol,
+            Planner::Ilqr => Method::Ilqr,
+        }
+    }
+}
 
 #[derive(Args, Debug)]
 pub struct MbrlArgs {
@@ -69,9 +96,12 @@ pub struct MbrlArgs {
     /// --quick].
     #[arg(long)]
     pub restarts: Option<usize>,
-    /// iLQR iterations per start [default: 200; 30 with --quick].
+    /// Iterations per start (iLQR's, or DIRCOL's SQP) [default: 200; 30 with --quick].
     #[arg(long)]
     pub max_iterations: Option<usize>,
+    /// The planner on the learned models.
+    #[arg(long, value_enum, default_value_t = Planner::Dircol)]
+    pub planner: Planner,
     #[command(flatten)]
     pub run: pool::RunArgs,
 }
@@ -91,6 +121,7 @@ struct MbrlSettings {
     q: [f64; 4],
     qf: [f64; 4],
     r: [f64; 2],
+    planner: Planner,
     restarts: usize,
     max_iterations: usize,
     exploration_std: f64,
@@ -127,6 +158,7 @@ impl MbrlSettings {
             q: Q,
             qf: Q.map(|v| QF_SCALE * v),
             r: [R; 2],
+            planner: a.planner,
             restarts: a.restarts.unwrap_or(if q { 1 } else { 8 }),
             max_iterations: a.max_iterations.unwrap_or(if q { 30 } else { 200 }).max(1),
             exploration_std: EXPLORATION_STD,
@@ -142,9 +174,11 @@ impl MbrlSettings {
         [Mat::diag(&self.q), Mat::diag(&self.r), Mat::diag(&self.qf)]
     }
 
-    fn request(&self, seed: u64) -> PlanRequest {
+    /// The swing-up's plan request for `planner`.
+    fn request(&self, planner: Planner, seed: u64) -> PlanRequest {
         let goal = vec![std::f64::consts::PI, 0.0, 0.0, 0.0];
         PlanRequest {
+            method: planner.method(),
             u_min: Some(vec![-U_MAX; 2]),
             u_max: Some(vec![U_MAX; 2]),
             max_iterations: self.max_iterations,
@@ -194,12 +228,13 @@ mod infinite_as_null {
     }
 }
 
-/// The reference: the pipeline on the true model.
+/// The reference: the pipeline on the true model, with the planner that scored best there.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct Reference {
     score: f64,
     plan_cost: f64,
     converged: bool,
+    planner: String,
 }
 
 pub fn run(a: MbrlArgs) -> Result<()> {
@@ -215,8 +250,8 @@ pub fn run(a: MbrlArgs) -> Result<()> {
         }
     };
     eprintln!(
-        "reference score (plan on the true model): {:.4} m",
-        reference.score
+        "reference score (plan on the true model, {}): {:.4} m",
+        reference.planner, reference.score
     );
     let runs = model_seeds(&s.models, &s.seeds);
     let progress = Progress::new(runs.len() * s.episodes, 0);

@@ -38,10 +38,15 @@ pub(super) fn report(
     let mut md = String::from("# Model-based RL of the swing-up (paper §V-D)\n\n");
     md += &format!(
         "Score: mean distance (m) of the end effector to the upright point over the noise-free \
-         evaluation rollout (lower is better). Reference, the same pipeline planned on the true \
-         model: **{:.4} m**. Solved: score ≤ {SOLVED} × reference = {target:.4} m. Q = diag{:?}, \
+         evaluation rollout (lower is better). Planner on the learned models: {}. Reference, the \
+         same pipeline planned on the true model (the better of DIRCOL and iLQR there: {}): \
+         **{:.4} m**. Solved: score ≤ {SOLVED} × reference = {target:.4} m. Q = diag{:?}, \
          R = {R}·I, Q_f = {QF_SCALE}·Q, |u| ≤ {U_MAX}, horizon {HORIZON} × {DT} s, {} restarts.\n\n",
-        reference.score, s.q, s.restarts
+        s.planner.name(),
+        reference.planner,
+        reference.score,
+        s.q,
+        s.restarts
     );
     md += "| model | seed | first episode within 10% | best score | last score |\n|---|---|---|---|---|\n";
     for m in &s.models {

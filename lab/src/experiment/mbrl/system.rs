@@ -3,8 +3,8 @@
 //! reference (the plan on the true model) and every episode go through this same code, so
 //! that their scores compare.
 
-use super::{DT, EXPLORATION_STD, HORIZON, MbrlSettings, Reference, STATE_BOUND, U_MAX};
-use graybox::control::plan::{Plan, plan};
+use super::{DT, EXPLORATION_STD, HORIZON, MbrlSettings, Planner, Reference, STATE_BOUND, U_MAX};
+use graybox::control::plan::Plan;
 use graybox::control::policy::Policy;
 use graybox::control::tvlqr::Gains;
 use graybox::data::Dataset;
@@ -26,14 +26,25 @@ pub(super) fn system() -> Result<Evaluator> {
     )?)
 }
 
+/// The pipeline on the true model with either planner, the better score kept: "solved" is
+/// measured against the best the pipeline does with the true dynamics (a learned model once
+/// beat the iLQR plan on the true one).
 pub(super) fn reference(s: &MbrlSettings, sys: &Evaluator) -> Result<Reference> {
-    let p = plan(sys, &s.request(0), &|| false)?;
-    let states = track(sys, &p.x, &p.u, &p.gains);
-    Ok(Reference {
-        score: score(&states),
-        plan_cost: p.cost,
-        converged: p.converged,
-    })
+    let mut best: Option<Reference> = None;
+    for planner in [Planner::Dircol, Planner::Ilqr] {
+        let p = sys.plan(&s.request(planner, 0), &|| false)?;
+        let states = track(sys, &p.x, &p.u, &p.gains);
+        let r = Reference {
+            score: score(&states),
+            plan_cost: p.cost,
+            converged: p.converged,
+            planner: planner.name().to_string(),
+        };
+        if best.as_ref().is_none_or(|b| r.score < b.score) {
+            best = Some(r);
+        }
+    }
+    Ok(best.expect("two planners ran"))
 }
 
 /// The first episode, the same for every model of a seed: u ~ N(0, 120²) clipped to ±120.
