@@ -7,8 +7,8 @@ mod fused;
 #[path = "numerics_f64/rigid.rs"]
 mod rigid;
 
-use burn::module::{Module, ModuleVisitor, Param};
-use burn::tensor::{Device, Gradients, Tensor};
+use burn::module::Module;
+use burn::tensor::{Device, Tensor};
 use common::*;
 use graybox::backend::{Backend, Precision, device};
 use graybox::model::mlp::Mlp;
@@ -307,22 +307,6 @@ fn integrators_have_their_order() {
             "{}: ratio {ratio}, expected ~{want}",
             integ.name()
         );
-    }
-}
-
-struct GradCollector<'a> {
-    grads: &'a Gradients,
-    out: Vec<Vec<f64>>,
-}
-
-impl ModuleVisitor for GradCollector<'_> {
-    fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-        let t = p.val();
-        let numel = t.dims().iter().product();
-        self.out.push(match t.grad(self.grads) {
-            Some(g) => g.into_data().iter::<f64>().collect(),
-            None => vec![0.0; numel],
-        });
     }
 }
 

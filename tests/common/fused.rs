@@ -4,56 +4,16 @@
 //! template's V and F, a periodic model, the naive network, n = 2, 3 and 6, and each
 //! integrator; and a training run's best validation loss on either path.
 
-use burn::module::{Module, ModuleVisitor, Param};
-use burn::tensor::{Device, Gradients, Tensor};
+use burn::tensor::Device;
 
-use super::{PAPER, config, perturb, tensor};
+use super::{PAPER, config, perturb, random_loss_and_gradients};
 use graybox::data::Dataset;
 use graybox::model::Model;
 use graybox::model::spec::ModelSpec;
 use graybox::physics::integrator::Integrator;
 use graybox::physics::templates::Template;
-use graybox::rng::Rng;
 use graybox::sim::{SimConfig, simulate};
 use graybox::train::{TrainConfig, Trainer};
-
-struct Collect<'a> {
-    grads: &'a Gradients,
-    out: Vec<Vec<f64>>,
-}
-
-impl ModuleVisitor for Collect<'_> {
-    fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
-        let t = p.val();
-        let numel = t.dims().iter().product();
-        self.out.push(match t.grad(self.grads) {
-            Some(g) => g.into_data().iter::<f64>().collect(),
-            None => vec![0.0; numel],
-        });
-    }
-}
-
-/// The one-step loss on 17 random rows (more than one tape block would hold is not needed:
-/// blocks are independent) and each parameter tensor's gradient.
-fn loss_and_gradients(model: &Model, dev: &Device) -> (f64, Vec<Vec<f64>>) {
-    let (n, m) = (model.config.n, model.config.m);
-    let mut r = Rng::new(8);
-    let mut draw = |w: usize, s: f64| -> Vec<Vec<f64>> {
-        (0..17)
-            .map(|_| (0..w).map(|_| r.uniform_in(-s, s)).collect())
-            .collect()
-    };
-    let (x, u, y) = (draw(2 * n, 2.0), draw(m, 5.0), draw(2 * n, 2.0));
-    let loss: Tensor<1> = model.loss_sum(tensor(&x, dev), tensor(&u, dev), tensor(&y, dev));
-    let value = loss.clone().into_data().iter::<f64>().next().unwrap();
-    let grads = loss.backward();
-    let mut gc = Collect {
-        grads: &grads,
-        out: vec![],
-    };
-    model.params.visit(&mut gc);
-    (value, gc.out)
-}
 
 /// ‖a − b‖ / ‖b‖ (0 when both are zero).
 fn relative(a: &[f64], b: &[f64]) -> f64 {
@@ -162,8 +122,9 @@ pub fn fused_matches_graph(dev: &Device, tol: f64) {
         }
         let burn = perturb(&Model::init(c, None, 5, &dev).unwrap(), &dev).graph();
         let fused = burn.clone().fused();
-        let (v_ref, g_ref) = loss_and_gradients(&burn, &dev);
-        let (v, g) = loss_and_gradients(&fused, &dev);
+        // 17 rows: blocks of the tape are independent, so one (partial) block covers the math.
+        let (v_ref, g_ref) = random_loss_and_gradients(&burn, &dev, 17);
+        let (v, g) = random_loss_and_gradients(&fused, &dev, 17);
         assert!(
             (v - v_ref).abs() <= tol * v_ref.abs(),
             "{what}: loss {v} vs {v_ref}"

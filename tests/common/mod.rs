@@ -5,7 +5,8 @@ pub mod fused;
 pub mod plans;
 pub mod urdf;
 
-use burn::tensor::{Device, Tensor, TensorData};
+use burn::module::{Module, ModuleVisitor, Param};
+use burn::tensor::{Device, Gradients, Tensor, TensorData};
 use graybox::model::params_io::import;
 use graybox::model::spec::ModelSpec;
 use graybox::model::{Model, ModelConfig};
@@ -161,4 +162,44 @@ pub fn perturb(model: &Model, dev: &Device) -> Model {
         .collect();
     let params = import(model.params.clone(), &arrays, dev).unwrap();
     Model::from_parts(model.config.clone(), params, dev)
+}
+
+/// Every parameter tensor's gradient in `grads`, flattened, in the module's visiting order
+/// (zeros for one the loss does not reach).
+pub struct GradCollector<'a> {
+    pub grads: &'a Gradients,
+    pub out: Vec<Vec<f64>>,
+}
+
+impl ModuleVisitor for GradCollector<'_> {
+    fn visit_float<const D: usize>(&mut self, p: &Param<Tensor<D>>) {
+        let t = p.val();
+        let numel = t.dims().iter().product();
+        self.out.push(match t.grad(self.grads) {
+            Some(g) => g.into_data().iter::<f64>().collect(),
+            None => vec![0.0; numel],
+        });
+    }
+}
+
+/// One step's loss on `rows` random rows (|x| ≤ 2, |u| ≤ 5, targets like x) and each
+/// parameter tensor's gradient.
+pub fn random_loss_and_gradients(model: &Model, dev: &Device, rows: usize) -> (f64, Vec<Vec<f64>>) {
+    let (n, m) = (model.config.n, model.config.m);
+    let mut r = Rng::new(8);
+    let mut draw = |w: usize, s: f64| -> Vec<Vec<f64>> {
+        (0..rows)
+            .map(|_| (0..w).map(|_| r.uniform_in(-s, s)).collect())
+            .collect()
+    };
+    let (x, u, y) = (draw(2 * n, 2.0), draw(m, 5.0), draw(2 * n, 2.0));
+    let loss: Tensor<1> = model.loss_sum(tensor(&x, dev), tensor(&u, dev), tensor(&y, dev));
+    let value = loss.clone().into_data().iter::<f64>().next().unwrap();
+    let grads = loss.backward();
+    let mut gc = GradCollector {
+        grads: &grads,
+        out: vec![],
+    };
+    model.params.visit(&mut gc);
+    (value, gc.out)
 }

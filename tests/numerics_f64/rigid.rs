@@ -45,31 +45,10 @@ fn tree_with_mimic() -> String {
     tree.replace("</robot>", finger)
 }
 
-/// Every parameter array's gradient, flattened, in the module's order.
-fn gradients(model: &Model, loss: Tensor<1>) -> Vec<f64> {
-    let grads = loss.backward();
-    let mut gc = GradCollector {
-        grads: &grads,
-        out: vec![],
-    };
-    model.params.visit(&mut gc);
-    gc.out.concat()
-}
-
-/// One RK4 step's loss on 12 random rows (|x| ≤ 2, |u| ≤ 5) and every gradient.
+/// One RK4 step's loss on 12 random rows (|x| ≤ 2, |u| ≤ 5) and every gradient, flattened.
 fn loss_and_gradients(model: &Model, dev: &Device) -> (f64, Vec<f64>) {
-    let (n, m) = (model.config.n, model.config.m);
-    let mut r = Rng::new(8);
-    let mut draw = |w: usize, s: f64| -> Vec<Vec<f64>> {
-        (0..12)
-            .map(|_| (0..w).map(|_| r.uniform_in(-s, s)).collect())
-            .collect()
-    };
-    let (x, u, y) = (draw(2 * n, 2.0), draw(m, 5.0), draw(2 * n, 2.0));
-    let (x, u, y) = (tensor(&x, dev), tensor(&u, dev), tensor(&y, dev));
-    let loss = model.loss_sum(x, u, y);
-    let value = loss.clone().into_data().iter::<f64>().next().unwrap();
-    (value, gradients(model, loss))
+    let (value, g) = random_loss_and_gradients(model, dev, 12);
+    (value, g.concat())
 }
 
 /// max |a − b| over max |b|, NaN if any difference is.
