@@ -113,6 +113,16 @@ impl Ensemble {
         } else {
             vec![TrainState::from_bytes(bytes)?]
         };
+        Self::resume_states(states, data, val, device)
+    }
+
+    /// Continues a run from its members' states (`Ensemble::states`).
+    pub fn resume_states(
+        states: Vec<TrainState>,
+        data: &Dataset,
+        val: Option<&Dataset>,
+        device: &Device,
+    ) -> Result<Self> {
         let Some(first) = states.first() else {
             return Err(Error::corrupt("checkpoint", "it has no members"));
         };
@@ -161,6 +171,21 @@ impl Ensemble {
             }
         }
         Ok(self)
+    }
+
+    /// Goes on training every member on `data` for `epochs` more epochs (`Trainer::extend`):
+    /// the members share the grown data, each on its own resample of it.
+    pub fn extend(&mut self, data: &Dataset, epochs: usize, batch_size: usize) -> Result<()> {
+        // Each member's own: one that stopped early has trained fewer epochs.
+        let cfgs: Vec<TrainConfig> = (self.members.iter())
+            .map(|m| m.extended(data, epochs, batch_size))
+            .collect::<Result<_>>()?;
+        let first = &self.members[0];
+        let run = Arc::new(RunData::new(data, None, &cfgs[0], &first.model().config));
+        for (m, cfg) in self.members.iter_mut().zip(cfgs) {
+            m.extend_on(run.clone(), cfg);
+        }
+        Ok(())
     }
 
     pub fn members(&self) -> &[Trainer] {
@@ -221,13 +246,20 @@ impl Ensemble {
         Ok(epoch)
     }
 
+    /// Every member's state, in order: what `checkpoint` holds.
+    pub fn states(&self) -> Vec<TrainState> {
+        self.members.iter().map(Trainer::checkpoint).collect()
+    }
+
     /// The checkpoint's bytes: one member's are its `TrainState`'s.
     pub fn checkpoint(&self) -> Vec<u8> {
         if let [one] = self.members.as_slice() {
             return one.checkpoint().to_bytes();
         }
-        let members = self.members.iter().map(Trainer::checkpoint).collect();
-        serde_json::to_vec(&EnsembleState { members }).expect("train states serialize")
+        serde_json::to_vec(&EnsembleState {
+            members: self.states(),
+        })
+        .expect("train states serialize")
     }
 
     /// The stiffness warning of member 0's template forces (the members start alike).

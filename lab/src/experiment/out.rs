@@ -50,6 +50,18 @@ pub struct OutDir {
     started: Instant,
 }
 
+/// The environment variable naming a cell after whose record the process dies, as a kill at
+/// that instant would (the tests' way to stop a run at its least convenient point).
+const KILL_AFTER: &str = "GRAYBOX_LAB_KILL_AFTER";
+
+/// Ends the process at once, without unwinding or flushing, when `KILL_AFTER` names `key`.
+pub fn killed_after(key: &str) {
+    if std::env::var(KILL_AFTER).is_ok_and(|k| k == key) {
+        eprintln!("{KILL_AFTER}={key}: stopping here");
+        std::process::abort();
+    }
+}
+
 fn io(path: &Path, e: std::io::Error) -> Error {
     Error::Io(std::io::Error::new(
         e.kind(),

@@ -122,6 +122,21 @@ pub fn member_seed(seed: u64, k: usize) -> u64 {
     Rng::derive(seed, 0xE_5E3B_0000 + k as u64).next_u64()
 }
 
+/// The windows and rows a run at `state` trains on: `data`'s, or in an ensemble with
+/// bootstrap the member's resample of them. Re-derived from the seed on every start and
+/// every `extend`, so a resumed member trains on the resample it had and a checkpoint never
+/// stores it.
+fn train_sets(state: &TrainState, data: &RunData) -> (Windows, Windows) {
+    let (windows, rows) = (data.windows.clone(), Windows::one_step(data.rows));
+    let t = &state.train;
+    if t.ensemble > 1 && t.bootstrap {
+        let mut rng = Rng::derive(member_seed(t.seed, state.member), BOOTSTRAP_STREAM);
+        let rows = rows.resample(&mut rng);
+        return (windows.resample(&mut rng), rows);
+    }
+    (windows, rows)
+}
+
 impl Trainer {
     /// A new run. Without `val`, `cfg.val_fraction` of `data` is held out (seeded).
     /// `device` must be an autodiff device.
@@ -179,16 +194,7 @@ impl Trainer {
         // A fixed parameter's value now is its start: it never moves (a resumed run's too).
         let bounds =
             (c.template().zip(model.raw_physical())).and_then(|(t, raw)| bounds(t.params(), &raw));
-        let mut train_windows = data.windows.clone();
-        let mut train_rows = Windows::one_step(data.rows);
-        let t = &state.train;
-        if t.ensemble > 1 && t.bootstrap {
-            // Re-derived from the seed on every start, so a resumed member trains on the
-            // resample it started with and a checkpoint never stores it.
-            let mut rng = Rng::derive(member_seed(t.seed, state.member), BOOTSTRAP_STREAM);
-            train_rows = train_rows.resample(&mut rng);
-            train_windows = train_windows.resample(&mut rng);
-        }
+        let (train_windows, train_rows) = train_sets(&state, &data);
         Self {
             state,
             model,
@@ -242,6 +248,21 @@ impl Trainer {
     /// over (losses on other data do not compare). Model-based RL grows its dataset this way
     /// after every episode; a checkpoint taken afterwards resumes with `data`.
     pub fn extend(&mut self, data: &Dataset, epochs: usize, batch_size: usize) -> Result<()> {
+        let run = self.extended(data, epochs, batch_size)?;
+        self.extend_on(
+            Arc::new(RunData::new(data, None, &run, &self.model.config)),
+            run,
+        );
+        Ok(())
+    }
+
+    /// The training settings of `extend`, checked against the model.
+    pub(super) fn extended(
+        &self,
+        data: &Dataset,
+        epochs: usize,
+        batch_size: usize,
+    ) -> Result<TrainConfig> {
         let c = &self.model.config;
         if (data.n, data.m) != (c.n, c.m) || data.dt != c.dt {
             return Err(Error::invalid(
@@ -259,16 +280,20 @@ impl Trainer {
             ..self.state.train.clone()
         };
         cfg.validate()?;
-        self.data = Arc::new(RunData::new(data, None, &cfg, &self.model.config));
-        self.train_windows = self.data.windows.clone();
-        self.train_rows = Windows::one_step(data.count());
+        Ok(cfg)
+    }
+
+    /// `extend` onto prepared data (an ensemble's members share theirs). A member keeps
+    /// training on its own resample, drawn anew from the grown data as a resumed run would.
+    pub(super) fn extend_on(&mut self, data: Arc<RunData>, cfg: TrainConfig) {
         let s = &mut self.state;
         s.train = cfg;
-        s.data_fingerprint = self.data.fingerprint;
+        s.data_fingerprint = data.fingerprint;
         s.best_loss = f64::INFINITY;
         s.best_params = self.model.params.export();
         s.stale_epochs = 0;
-        Ok(())
+        (self.train_windows, self.train_rows) = train_sets(&self.state, &data);
+        self.data = data;
     }
 
     pub fn epoch(&self) -> usize {

@@ -5,9 +5,12 @@
 //! The system is the true template as a model (Δt = 0.1, RK4): `Plan`, `Linearize` and the
 //! rollouts all use one map. The planner is direct collocation, as the paper's (`--planner
 //! dircol`, the default), or iLQR on the same cost (`--planner ilqr`,
-//! docs/control.md#swing-up-task-and-cost).
+//! docs/control.md#swing-up-task-and-cost). A model written `MVB×5` (or `MVBx5`) is an
+//! ensemble of 5 MVB members, each trained on its own bootstrap resample of the data, and
+//! planned on as `--ensemble-cost` says.
 
 mod episode;
+mod plots;
 mod report;
 mod system;
 
@@ -20,8 +23,8 @@ use super::out::OutDir;
 use super::pool::{self, Progress};
 use super::{model_seeds, models_arg, seeds_arg};
 use graybox::control::linalg::Mat;
-use graybox::control::plan::{Method, PlanRequest};
-use graybox::error::Result;
+use graybox::control::plan::{EnsembleCost, Method, PlanRequest};
+use graybox::error::{Error, Result};
 
 use episode::run_one;
 use report::report;
@@ -71,13 +74,73 @@ impl Planner {
     }
 }
 
+/// What a plan on an ensemble minimizes (`control::ensemble`).
+#[derive(ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PlanCost {
+    /// The cost on the members' mean dynamics.
+    MeanDynamics,
+    /// The members' average cost, each rolling out the same inputs.
+    Mean,
+}
+
+impl PlanCost {
+    fn of(self) -> EnsembleCost {
+        match self {
+            PlanCost::MeanDynamics => EnsembleCost::MeanDynamics,
+            PlanCost::Mean => EnsembleCost::Mean,
+        }
+    }
+}
+
+/// Most members an ensemble of the loop may have: each trains every epoch.
+const MAX_MEMBERS: usize = 32;
+
+/// A model of the loop, `MVB` or `MVB×5`: its spec's name and its members.
+fn loop_model(name: &str) -> Result<(&str, usize)> {
+    let split = name
+        .rsplit_once('×')
+        .or_else(|| name.rsplit_once('x'))
+        .and_then(|(base, k)| Some((base, k.parse::<usize>().ok()?)));
+    match split {
+        None => Ok((name, 1)),
+        Some((_, k)) if !(2..=MAX_MEMBERS).contains(&k) => Err(Error::invalid(
+            "models",
+            format!("{name}: an ensemble has 2 to {MAX_MEMBERS} members"),
+        )),
+        Some(split) => Ok(split),
+    }
+}
+
+/// `--models` for the loop: names checked as `models_arg` does, ensembles written `MVB×5`.
+fn loop_models(arg: Option<&str>, default: &[&str]) -> Result<Vec<String>> {
+    let given: Vec<String> = match arg {
+        Some(m) => (m.split(',').map(str::trim))
+            .filter(|s| !s.is_empty())
+            .map(String::from)
+            .collect(),
+        None => default.iter().map(|m| m.to_string()).collect(),
+    };
+    let mut out = vec![];
+    for name in &given {
+        let (base, k) = loop_model(name)?;
+        let base = models_arg(Some(base), &[])?.remove(0);
+        out.push(if k == 1 { base } else { format!("{base}×{k}") });
+    }
+    if out.is_empty() {
+        return Err(Error::invalid("models", "name at least one model"));
+    }
+    Ok(out)
+}
+
 #[derive(Args, Debug)]
 pub struct MbrlArgs {
     /// Directory for results.md, results.csv, mbrl.png, run.json and the runs' states;
     /// running again with the same settings continues every run after its last episode.
     #[arg(long)]
     pub out: PathBuf,
-    /// Models, comma-separated [default: naive,MVF,MVB; MVB with --quick].
+    /// Models, comma-separated; `MVB×5` or `MVBx5` is an ensemble of 5 [default:
+    /// naive,MVF,MVB; MVB with --quick].
     #[arg(long)]
     pub models: Option<String>,
     /// Seeds 0..N [default: 3; 1 with --quick].
@@ -102,6 +165,9 @@ pub struct MbrlArgs {
     /// The planner on the learned models.
     #[arg(long, value_enum, default_value_t = Planner::Dircol)]
     pub planner: Planner,
+    /// What a plan on an ensemble minimizes.
+    #[arg(long, value_enum, default_value_t = PlanCost::MeanDynamics)]
+    pub ensemble_cost: PlanCost,
     #[command(flatten)]
     pub run: pool::RunArgs,
 }
@@ -122,6 +188,9 @@ struct MbrlSettings {
     qf: [f64; 4],
     r: [f64; 2],
     planner: Planner,
+    /// Only when a model is an ensemble (so that runs without one keep their settings).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ensemble: Option<EnsembleSettings>,
     restarts: usize,
     max_iterations: usize,
     exploration_std: f64,
@@ -129,6 +198,13 @@ struct MbrlSettings {
     solved_within: f64,
     backend: &'static str,
     precision: &'static str,
+}
+
+#[derive(Debug, Clone, Serialize)]
+struct EnsembleSettings {
+    cost: PlanCost,
+    /// Each member trains on its own bootstrap resample of the data.
+    bootstrap: bool,
 }
 
 impl MbrlSettings {
@@ -139,7 +215,8 @@ impl MbrlSettings {
         } else {
             &["naive", "MVF", "MVB"]
         };
-        let models = models_arg(a.models.as_deref(), default)?;
+        let models = loop_models(a.models.as_deref(), default)?;
+        let any_ensemble = models.iter().any(|m| m.contains('×'));
         let seeds = seeds_arg(a.seeds, if q { 1 } else { 3 })?;
         Ok(Self {
             system: "double_pendulum (paper values) as a white-box model, dt 0.1, RK4; from (0,0,0,0) to (pi,0,0,0)",
@@ -159,6 +236,10 @@ impl MbrlSettings {
             qf: Q.map(|v| QF_SCALE * v),
             r: [R; 2],
             planner: a.planner,
+            ensemble: any_ensemble.then_some(EnsembleSettings {
+                cost: a.ensemble_cost,
+                bootstrap: true,
+            }),
             restarts: a.restarts.unwrap_or(if q { 1 } else { 8 }),
             max_iterations: a.max_iterations.unwrap_or(if q { 30 } else { 200 }).max(1),
             exploration_std: EXPLORATION_STD,
@@ -184,6 +265,10 @@ impl MbrlSettings {
             max_iterations: self.max_iterations,
             restarts: self.restarts,
             seed,
+            ensemble_cost: self
+                .ensemble
+                .as_ref()
+                .map_or_else(Default::default, |e| e.cost.of()),
             ..PlanRequest::new(vec![0.0; 4], goal, HORIZON, self.weights())
         }
     }
@@ -207,8 +292,17 @@ struct Episode {
     /// Training loss after the episode's training; none when that training diverged.
     train_loss: Option<f64>,
     seconds: f64,
+    /// Of `seconds`: the plan on the learned model, and the training after the episode (none
+    /// in records from before they were measured).
+    #[serde(default)]
+    plan_seconds: Option<f64>,
+    #[serde(default)]
+    train_seconds: Option<f64>,
     /// Why the plan failed, when it did (the episode then explores with random inputs).
     error: Option<String>,
+    /// The plan and what became of it on the system, when there was a plan.
+    #[serde(default)]
+    detail: Option<system::Detail>,
 }
 
 /// A score that may be ∞ in JSON: null stands for it.
@@ -285,7 +379,10 @@ mod tests {
             data_size: 182,
             train_loss: Some(2.0),
             seconds: 3.0,
+            plan_seconds: None,
+            train_seconds: None,
             error: None,
+            detail: None,
         };
         let json = serde_json::to_value(&ep).unwrap();
         assert!(json["score"].is_null());

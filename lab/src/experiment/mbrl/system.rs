@@ -3,6 +3,8 @@
 //! reference (the plan on the true model) and every episode go through this same code, so
 //! that their scores compare.
 
+use serde::{Deserialize, Serialize};
+
 use super::{DT, EXPLORATION_STD, HORIZON, MbrlSettings, Planner, Reference, STATE_BOUND, U_MAX};
 use graybox::control::plan::Plan;
 use graybox::control::policy::Policy;
@@ -14,6 +16,52 @@ use graybox::model::file::ModelFile;
 use graybox::physics::integrator::Integrator;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
+
+/// An episode's plan and what became of it on the system, with the measures of why the two
+/// part: the model's error along the plan, the plan's defects on the true system and on the
+/// model, and an ensemble's spread.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub(super) struct Detail {
+    /// The plan's states `[T+1, 4]` and the system's under TVLQR (f32: they are drawn, and
+    /// every episode's are committed).
+    pub nominal: Vec<f32>,
+    pub achieved: Vec<f32>,
+    /// RMS over the plan's steps of ‖f_model(x̄_t, ū_t) − f_true(x̄_t, ū_t)‖ (rad, rad/s
+    /// together): how wrong the model is where it planned.
+    pub model_error: f64,
+    /// The largest ‖f_true(x̄_t, ū_t) − x̄_{t+1}‖: how far the plan is from one the system can
+    /// follow step by step.
+    pub true_defect: f64,
+    /// The plan's constraint violation on the model (DIRCOL's defects, 0 for iLQR).
+    pub plan_defect: f64,
+    /// The members' mean state standard deviation along the plan (an ensemble's).
+    pub spread: Option<f64>,
+}
+
+impl Detail {
+    pub(super) fn of(sys: &Evaluator, learned: &Evaluator, p: &Plan, achieved: &[f64]) -> Self {
+        let (mut sq, mut defect) = (0.0, 0.0f64);
+        for t in 0..HORIZON {
+            let (x, u) = (&p.x[4 * t..4 * t + 4], &p.u[2 * t..2 * t + 2]);
+            let truth = sys.step(x, u);
+            sq += dist2(&learned.step(x, u), &truth);
+            defect = defect.max(dist2(&truth, &p.x[4 * t + 4..4 * t + 8]).sqrt());
+        }
+        let f32s = |v: &[f64]| v.iter().map(|&x| x as f32).collect();
+        Self {
+            nominal: f32s(&p.x),
+            achieved: f32s(achieved),
+            model_error: (sq / HORIZON as f64).sqrt(),
+            true_defect: defect,
+            plan_defect: p.constraint_violation,
+            spread: (p.x_std.as_ref()).map(|s| s.iter().sum::<f64>() / s.len().max(1) as f64),
+        }
+    }
+}
+
+fn dist2(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(a, b)| (a - b) * (a - b)).sum()
+}
 
 /// The system: the true double pendulum at Δt = 0.1.
 pub(super) fn system() -> Result<Evaluator> {
