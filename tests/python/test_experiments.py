@@ -5,6 +5,7 @@ refused. No test here asserts a research outcome: the quick runs are far too sma
 
 import csv
 import json
+import os
 import subprocess
 from pathlib import Path
 
@@ -120,10 +121,49 @@ def test_mbrl_plans_with_either_planner(lab_bin, tmp_path):
         assert f"Planner on the learned models: {name}." in md, md
         cells = [json.loads(line) for line in (out / "cells.jsonl").read_text().splitlines()]
         refs[planner] = next(c["value"] for c in cells if c["key"] == "reference")
-        episodes = [c["value"] for c in cells if c["key"].startswith("MVB/")]
+        episodes = [c["value"] for c in cells
+                    if c["key"].startswith("MVB/") and "/episode" in c["key"]]
         assert len(episodes) == 2 and all(e["plan_cost"] is not None for e in episodes), episodes
     assert refs["dircol"] == refs["ilqr"], refs
     assert refs["dircol"]["planner"] in ("DIRCOL", "iLQR")
+
+
+def cells(out: Path) -> dict:
+    """The cells of a run, the last record of a key winning (as the experiment reads them)."""
+    lines = (out / "cells.jsonl").read_text().splitlines()
+    return {c["key"]: c["value"] for c in map(json.loads, lines)}
+
+
+def test_mbrl_ensemble_killed_mid_episode_continues_to_the_same_run(lab_bin, tmp_path):
+    """An ensemble (MVBx2) runs the loop and its plans carry the members' spread. Killed
+    right after an episode's record and before its state (the least convenient instant), the
+    run repeats the episode and ends with the records and members of the uninterrupted run."""
+    args = ["mbrl", "--quick", "--models", "MVBx2"]
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    experiment(lab_bin, *args, "--out", str(whole))
+    env = {**os.environ, "GRAYBOX_LAB_KILL_AFTER": "MVB×2/seed0/episode1"}
+    p = subprocess.run([lab_bin, "experiment", *args, "--out", str(cut)], env=env,
+                       capture_output=True, text=True, timeout=300)
+    assert p.returncode != 0 and "stopping here" in p.stderr, p.stderr
+    assert json.loads((cut / "state-MVBx2-seed0.json").read_text())["episodes_done"] == 0
+    experiment(lab_bin, *args, "--out", str(cut))
+
+    def same(record: dict) -> dict:
+        timings = {"seconds", "plan_seconds", "train_seconds"}
+        return {k: v for k, v in record.items() if k not in timings}
+
+    def members(out: Path) -> list:
+        state = json.loads((out / "state-MVBx2-seed0.json").read_text())
+        return [m["params"] for m in state["checkpoint"]]
+
+    a, b = cells(whole), cells(cut)
+    keys = [f"MVB×2/seed0/episode{e}" for e in (1, 2)]
+    for k in keys:
+        assert same(a[k]) == same(b[k]), k
+        assert a[k]["detail"]["spread"] > 0, "an ensemble's plan has a spread"
+    assert len(members(whole)) == 2 and members(whole) == members(cut)
+    assert "MVB×2" in (cut / "results.md").read_text()
+    assert (cut / "scores-MVBx2.png").is_file() and (cut / "trajectories.png").is_file()
 
 
 def test_a_run_cut_short_recomputes_only_its_missing_cells(lab_bin, tmp_path):

@@ -376,3 +376,38 @@ fn an_ensembles_horizon_errors_are_its_mean_dynamics() {
         "member 0 alone rolls out otherwise"
     );
 }
+
+/// Model-based RL grows an ensemble's data after every episode. `extend` keeps each member on
+/// its own resample, drawn from the grown data as a resumed member draws it, so a checkpoint
+/// taken after `extend` resumes to the members the uninterrupted run trains.
+#[test]
+fn an_extended_ensemble_resumes_to_the_same_members() {
+    let first = data(&Template::DoublePendulum, 48, 3);
+    let grown = data(&Template::DoublePendulum, 96, 4);
+    let cfg = TrainConfig {
+        val_fraction: 0.0,
+        ..ensemble(3, true, 2)
+    };
+    let started = || {
+        let mut e = mvf_ensemble(&first, cfg.clone());
+        run(&mut e);
+        e.extend(&grown, 3, grown.count()).unwrap();
+        e
+    };
+    let mut whole = started();
+    run(&mut whole);
+    assert_eq!(whole.epoch(), 5);
+
+    let mut cut = started();
+    cut.run_epoch(&AtomicBool::new(false)).unwrap();
+    let mut resumed = Ensemble::resume_states(cut.states(), &grown, None, &flex()).unwrap();
+    run(&mut resumed);
+    let params = |e: &Ensemble| -> Vec<_> {
+        (e.members().iter())
+            .map(|m| m.model().params.export())
+            .collect()
+    };
+    assert_eq!(params(&whole), params(&resumed));
+    let p = params(&whole);
+    assert!(p[0] != p[1] && p[1] != p[2], "the members differ");
+}

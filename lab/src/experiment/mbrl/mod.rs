@@ -365,6 +365,21 @@ pub fn run(a: MbrlArgs) -> Result<()> {
 mod tests {
     use super::*;
 
+    #[test]
+    fn an_ensemble_is_written_with_its_members() {
+        assert_eq!(loop_model("MVB×5").unwrap(), ("MVB", 5));
+        assert_eq!(loop_model("MVBx5").unwrap(), ("MVB", 5));
+        assert_eq!(loop_model("naive").unwrap(), ("naive", 1));
+        for bad in ["MVBx1", "MVB×33"] {
+            let e = loop_model(bad).unwrap_err().to_string();
+            assert!(e.contains("models") && e.contains(bad), "{e}");
+        }
+        let models = loop_models(Some("naive, MVBx5,MVB×3"), &[]).unwrap();
+        assert_eq!(models, ["naive", "MVB×5", "MVB×3"]);
+        let e = loop_models(Some("XYZx3"), &[]).unwrap_err().to_string();
+        assert!(e.contains("models") && e.contains("XYZ"), "{e}");
+    }
+
     /// An episode whose system left the finite numbers scores ∞; its record must read back
     /// (JSON writes ∞ as null, and a record that does not read back stops the resume).
     #[test]
