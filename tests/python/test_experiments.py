@@ -199,6 +199,11 @@ def test_bad_arguments_name_the_field(lab_bin, tmp_path):
     p = experiment(lab_bin, "mbrl", "--quick", "--seeds", "0", "--out",
                    str(tmp_path / "y"), ok=False)
     assert p.returncode == 2 and "seeds" in p.stderr, p.stderr
+    p = experiment(lab_bin, "mbrl", "--quick", "--lr=0", "--out", str(tmp_path / "y"), ok=False)
+    assert p.returncode == 2 and "lr" in p.stderr, p.stderr
+    p = experiment(lab_bin, "mbrl", "--quick", "--models", "MVBx1", "--out",
+                   str(tmp_path / "y"), ok=False)
+    assert p.returncode == 2 and "MVBx1" in p.stderr, p.stderr
     p = experiment(lab_bin, "multistep", "--quick", "--noise", "0.1", "--out",
                    str(tmp_path / "z"), ok=False)
     assert p.returncode == 2 and "noise" in p.stderr, p.stderr

@@ -35,6 +35,7 @@ const DT: f64 = 0.1;
 const HORIZON: usize = 26;
 const U_MAX: f64 = 120.0;
 const EXPLORATION_STD: f64 = 0.25;
+/// The paper's Adam learning rate.
 const LR: f64 = 3e-4;
 /// The cost's weights: Q on every step, Q_f = 1000 Q on the last state, R on the inputs.
 const Q: [f64; 4] = [1.0, 1.0, 0.1, 0.1];
@@ -133,6 +134,14 @@ fn loop_models(arg: Option<&str>, default: &[&str]) -> Result<Vec<String>> {
     Ok(out)
 }
 
+/// `--lr`, else the paper's: positive and finite.
+fn learning_rate(lr: Option<f64>) -> Result<f64> {
+    match lr.unwrap_or(LR) {
+        lr if lr.is_finite() && lr > 0.0 => Ok(lr),
+        lr => Err(Error::invalid("lr", format!("{lr} is not a positive learning rate"))),
+    }
+}
+
 #[derive(Args, Debug)]
 pub struct MbrlArgs {
     /// Directory for results.md, results.csv, mbrl.png, run.json and the runs' states;
@@ -162,6 +171,9 @@ pub struct MbrlArgs {
     /// Iterations per start (iLQR's, or DIRCOL's SQP) [default: 200; 30 with --quick].
     #[arg(long)]
     pub max_iterations: Option<usize>,
+    /// Adam's learning rate, for every training of the loop [default: 3e-4, the paper's].
+    #[arg(long)]
+    pub lr: Option<f64>,
     /// The planner on the learned models.
     #[arg(long, value_enum, default_value_t = Planner::Dircol)]
     pub planner: Planner,
@@ -230,7 +242,7 @@ impl MbrlSettings {
                 .unwrap_or(if q { 100 } else { 5000 })
                 .max(1),
             episode_epochs: a.episode_epochs.unwrap_or(if q { 20 } else { 1000 }).max(1),
-            lr: LR,
+            lr: learning_rate(a.lr)?,
             batch: "full",
             q: Q,
             qf: Q.map(|v| QF_SCALE * v),
