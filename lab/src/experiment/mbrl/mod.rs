@@ -138,7 +138,10 @@ fn loop_models(arg: Option<&str>, default: &[&str]) -> Result<Vec<String>> {
 fn learning_rate(lr: Option<f64>) -> Result<f64> {
     match lr.unwrap_or(LR) {
         lr if lr.is_finite() && lr > 0.0 => Ok(lr),
-        lr => Err(Error::invalid("lr", format!("{lr} is not a positive learning rate"))),
+        lr => Err(Error::invalid(
+            "lr",
+            format!("{lr} is not a positive learning rate"),
+        )),
     }
 }
 

@@ -56,7 +56,8 @@ pub(super) fn report(
         s.q,
         s.restarts
     );
-    md += "| model | seed | first episode within 10% | best score | last score |\n|---|---|---|---|---|\n";
+    md += "| model | seed | first episode within 10% | best score | last score | last training loss |\n\
+           |---|---|---|---|---|---|\n";
     for m in &s.models {
         for &seed in &s.seeds {
             let run: Vec<&Episode> = eps
@@ -69,7 +70,9 @@ pub(super) fn report(
             );
             let best = run.iter().map(|e| e.score).fold(f64::INFINITY, f64::min);
             let last = run.last().map_or(f64::NAN, |e| e.score);
-            md += &format!("| {m} | {seed} | {first} | {best:.4} | {last:.4} |\n");
+            let loss = (run.iter().rev().find_map(|e| e.train_loss))
+                .map_or_else(|| "–".to_string(), |l| format!("{l:.2e}"));
+            md += &format!("| {m} | {seed} | {first} | {best:.4} | {last:.4} | {loss} |\n");
         }
     }
     md += "\n![score per episode](mbrl.png)\n\n";
