@@ -128,6 +128,19 @@ def test_mbrl_plans_with_either_planner(lab_bin, tmp_path):
     assert refs["dircol"]["planner"] in ("DIRCOL", "iLQR")
 
 
+def test_mbrl_periodic_trains_on_both_angles_as_angles(lab_bin, tmp_path):
+    """--periodic marks both angles of every model of the loop; without it the settings carry
+    no such field, so directories of earlier runs continue."""
+    out = tmp_path / "periodic"
+    experiment(lab_bin, "mbrl", "--quick", "--periodic", "--out", str(out))
+    assert json.loads((out / "run.json").read_text())["settings"]["periodic"] is True
+    state = json.loads((out / "state-MVB-seed0.json").read_text())
+    assert state["checkpoint"]["config"]["periodic"] == [True, True]
+    plain = tmp_path / "plain"
+    experiment(lab_bin, "mbrl", "--quick", "--episodes", "1", "--out", str(plain))
+    assert "periodic" not in json.loads((plain / "run.json").read_text())["settings"]
+
+
 def cells(out: Path) -> dict:
     """The cells of a run, the last record of a key winning (as the experiment reads them)."""
     lines = (out / "cells.jsonl").read_text().splitlines()

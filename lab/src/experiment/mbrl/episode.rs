@@ -102,6 +102,7 @@ pub(super) fn run_one(
                 val_fraction: 0.0,
                 seed,
                 ensemble: members,
+                periodic: if s.periodic { vec![true; 2] } else { vec![] },
                 ..TrainConfig::default()
             };
             let spec = ModelSpec::named(base, Some(Template::DoublePendulum))?;

@@ -177,6 +177,11 @@ pub struct MbrlArgs {
     /// Adam's learning rate, for every training of the loop [default: 3e-4, the paper's].
     #[arg(long)]
     pub lr: Option<f64>,
+    /// Mark both angles periodic: every network sees (sin q, cos q) for q, and the loss's
+    /// position term is blind to whole turns (README "Periodic coordinates"). Not the
+    /// paper's: a change tried against its failures.
+    #[arg(long)]
+    pub periodic: bool,
     /// The planner on the learned models.
     #[arg(long, value_enum, default_value_t = Planner::Dircol)]
     pub planner: Planner,
@@ -198,6 +203,9 @@ struct MbrlSettings {
     initial_epochs: usize,
     episode_epochs: usize,
     lr: f64,
+    /// Only when set (so that runs without it keep their settings).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    periodic: bool,
     batch: &'static str,
     q: [f64; 4],
     qf: [f64; 4],
@@ -246,6 +254,7 @@ impl MbrlSettings {
                 .max(1),
             episode_epochs: a.episode_epochs.unwrap_or(if q { 20 } else { 1000 }).max(1),
             lr: learning_rate(a.lr)?,
+            periodic: a.periodic,
             batch: "full",
             q: Q,
             qf: Q.map(|v| QF_SCALE * v),
