@@ -404,8 +404,9 @@ mod tests {
         assert!(e.contains("models") && e.contains("XYZ"), "{e}");
     }
 
-    /// An episode whose system left the finite numbers scores ∞; its record must read back
-    /// (JSON writes ∞ as null, and a record that does not read back stops the resume).
+    /// An episode whose system left the finite numbers scores ∞ and has NaN and ∞ in its
+    /// detail; its record must read back (JSON writes both as null, and a record that does
+    /// not read back stops the resume).
     #[test]
     fn an_infinite_score_survives_its_record() {
         let ep = Episode {
@@ -427,9 +428,32 @@ mod tests {
         assert!(json["score"].is_null());
         let back: Episode = serde_json::from_value(json).unwrap();
         assert_eq!(back.score, f64::INFINITY);
-        let finite: Episode =
-            serde_json::from_value(serde_json::to_value(Episode { score: 1.5, ..ep }).unwrap())
-                .unwrap();
+        let finite: Episode = serde_json::from_value(
+            serde_json::to_value(Episode {
+                score: 1.5,
+                ..ep.clone()
+            })
+            .unwrap(),
+        )
+        .unwrap();
         assert_eq!(finite.score, 1.5);
+        // And so must the plan's detail, the achieved states gone to ∞ and NaN with it.
+        let detail = system::Detail {
+            nominal: vec![0.0, 1.0],
+            achieved: vec![f32::INFINITY, f32::NAN, 2.0],
+            model_error: f64::NAN,
+            true_defect: f64::INFINITY,
+            plan_defect: 0.5,
+            spread: None,
+        };
+        let json = serde_json::to_value(Episode {
+            detail: Some(detail),
+            ..ep
+        })
+        .unwrap();
+        let back: Episode = serde_json::from_value(json).unwrap();
+        let d = back.detail.unwrap();
+        assert!(d.achieved[0].is_nan() && d.achieved[1].is_nan() && d.achieved[2] == 2.0);
+        assert!(d.model_error.is_nan() && d.true_defect.is_nan() && d.plan_defect == 0.5);
     }
 }

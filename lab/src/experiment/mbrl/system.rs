@@ -20,22 +20,43 @@ use graybox::rng::Rng;
 /// An episode's plan and what became of it on the system, with the measures of why the two
 /// part: the model's error along the plan, the plan's defects on the true system and on the
 /// model, and an ensemble's spread.
+///
+/// A system that left the finite numbers leaves NaN and ∞ here, which JSON writes as null:
+/// every value reads null back as NaN, so that such an episode's record still reads back.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub(super) struct Detail {
     /// The plan's states `[T+1, 4]` and the system's under TVLQR (f32: they are drawn, and
     /// every episode's are committed).
+    #[serde(deserialize_with = "null_as_nan::many")]
     pub nominal: Vec<f32>,
+    #[serde(deserialize_with = "null_as_nan::many")]
     pub achieved: Vec<f32>,
     /// RMS over the plan's steps of ‖f_model(x̄_t, ū_t) − f_true(x̄_t, ū_t)‖ (rad, rad/s
     /// together): how wrong the model is where it planned.
+    #[serde(deserialize_with = "null_as_nan::one")]
     pub model_error: f64,
     /// The largest ‖f_true(x̄_t, ū_t) − x̄_{t+1}‖: how far the plan is from one the system can
     /// follow step by step.
+    #[serde(deserialize_with = "null_as_nan::one")]
     pub true_defect: f64,
     /// The plan's constraint violation on the model (DIRCOL's defects, 0 for iLQR).
+    #[serde(deserialize_with = "null_as_nan::one")]
     pub plan_defect: f64,
     /// The members' mean state standard deviation along the plan (an ensemble's).
     pub spread: Option<f64>,
+}
+
+mod null_as_nan {
+    use serde::{Deserialize, Deserializer};
+
+    pub fn one<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+
+    pub fn many<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f32>, D::Error> {
+        let v = Vec::<Option<f32>>::deserialize(d)?;
+        Ok(v.into_iter().map(|x| x.unwrap_or(f32::NAN)).collect())
+    }
 }
 
 impl Detail {
