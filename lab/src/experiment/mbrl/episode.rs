@@ -9,8 +9,9 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
+use super::args::loop_model;
 use super::system::{Detail, explore, random_episode, random_inputs, score, track};
-use super::{DT, Episode, HORIZON, MbrlSettings, loop_model};
+use super::{DT, Episode, HORIZON, MbrlSettings};
 use crate::experiment::out::OutDir;
 use crate::experiment::pool::{Progress, Status};
 use graybox::backend::{self, Backend, Precision};
