@@ -72,13 +72,7 @@ fn paper_double_pendulum(count: usize, seed: u64, stream: u64) -> Result<Dataset
 /// `--models`, comma-separated (else `default`): at least one, each a model the paper's
 /// double pendulum takes.
 fn models_arg(arg: Option<&str>, default: &[&str]) -> Result<Vec<String>> {
-    let models: Vec<String> = match arg {
-        Some(m) => (m.split(',').map(str::trim))
-            .filter(|s| !s.is_empty())
-            .map(String::from)
-            .collect(),
-        None => default.iter().map(|m| m.to_string()).collect(),
-    };
+    let models = names_arg(arg, default);
     if models.is_empty() {
         return Err(Error::invalid("models", "name at least one model"));
     }
@@ -87,6 +81,17 @@ fn models_arg(arg: Option<&str>, default: &[&str]) -> Result<Vec<String>> {
             .map_err(|e| Error::invalid("models", e.to_string()))?;
     }
     Ok(models)
+}
+
+/// A comma-separated list's names, trimmed, empty ones dropped (else `default`).
+fn names_arg(arg: Option<&str>, default: &[&str]) -> Vec<String> {
+    match arg {
+        Some(m) => (m.split(',').map(str::trim))
+            .filter(|s| !s.is_empty())
+            .map(String::from)
+            .collect(),
+        None => default.iter().map(|m| m.to_string()).collect(),
+    }
 }
 
 /// `--seeds` (else `default`): that many seeds from 0, at least one.

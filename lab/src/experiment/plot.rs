@@ -63,6 +63,37 @@ pub fn png(
     })
 }
 
+/// A chart of f64 against f64 on a PNG's drawing area.
+pub type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// A small panel of an angle against time: [0, `t_end`] s × [`lo`, `hi`] rad, captioned.
+pub fn angle_panel<'a, 'b: 'a>(
+    area: &'a Area<'b>,
+    caption: &str,
+    t_end: f64,
+    (lo, hi): (f64, f64),
+) -> std::result::Result<Chart<'a, 'b>, Box<dyn std::error::Error>> {
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, font(15))
+        .margin(6)
+        .x_label_area_size(28)
+        .y_label_area_size(48)
+        .build_cartesian_2d(0f64..t_end, lo..hi)?;
+    chart
+        .configure_mesh()
+        .light_line_style(WHITE)
+        .x_desc("s")
+        .y_desc("rad")
+        .label_style(font(12))
+        .axis_desc_style(font(12))
+        .draw()?;
+    Ok(chart)
+}
+
 /// A text style in the plots' font.
 pub fn font(size: u32) -> TextStyle<'static> {
     (FAMILY, size).into_font().into()

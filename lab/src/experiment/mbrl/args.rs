@@ -5,7 +5,7 @@ use clap::ValueEnum;
 use serde::Serialize;
 
 use super::LR;
-use crate::experiment::models_arg;
+use crate::experiment::{models_arg, names_arg};
 use graybox::control::plan::{EnsembleCost, Method};
 use graybox::error::{Error, Result};
 
@@ -75,13 +75,7 @@ pub(super) fn loop_model(name: &str) -> Result<(&str, usize)> {
 
 /// `--models` for the loop: names checked as `models_arg` does, ensembles written `MVB×5`.
 pub(super) fn loop_models(arg: Option<&str>, default: &[&str]) -> Result<Vec<String>> {
-    let given: Vec<String> = match arg {
-        Some(m) => (m.split(',').map(str::trim))
-            .filter(|s| !s.is_empty())
-            .map(String::from)
-            .collect(),
-        None => default.iter().map(|m| m.to_string()).collect(),
-    };
+    let given = names_arg(arg, default);
     let mut out = vec![];
     for name in &given {
         let (base, k) = loop_model(name)?;

@@ -6,7 +6,7 @@ use plotters::prelude::*;
 
 use super::{DT, Episode, HORIZON, MbrlSettings, Reference, SOLVED};
 use crate::experiment::out::OutDir;
-use crate::experiment::plot::{self, COLORS};
+use crate::experiment::plot::{self, COLORS, Chart};
 use graybox::error::Result;
 
 /// Light green: the band of scores that count as solved.
@@ -22,12 +22,6 @@ fn top(reference: &Reference, eps: &[Episode]) -> f64 {
     let finite = eps.iter().map(|e| e.score).filter(|v| v.is_finite());
     1.1 * finite.fold(reference.score, f64::max)
 }
-
-type Chart<'a, 'b> = ChartContext<
-    'a,
-    BitMapBackend<'b>,
-    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
->;
 
 /// Axes of score against episode, with the reference line.
 fn score_axes<'a, 'b>(
@@ -195,20 +189,7 @@ pub(super) fn trajectories(out: &OutDir, title: &str, shown: &[&Episode]) -> Res
                 i + 1,
                 ep.score
             );
-            let mut chart = ChartBuilder::on(area)
-                .caption(caption, plot::font(15))
-                .margin(6)
-                .x_label_area_size(28)
-                .y_label_area_size(48)
-                .build_cartesian_2d(0f64..HORIZON as f64 * DT, lo..hi)?;
-            chart
-                .configure_mesh()
-                .light_line_style(WHITE)
-                .x_desc("s")
-                .y_desc("rad")
-                .label_style(plot::font(12))
-                .axis_desc_style(plot::font(12))
-                .draw()?;
+            let mut chart = plot::angle_panel(area, &caption, HORIZON as f64 * DT, (lo, hi))?;
             let goal = if i == 0 { std::f64::consts::PI } else { 0.0 };
             let ends = [(0.0, goal), (HORIZON as f64 * DT, goal)];
             chart.draw_series(LineSeries::new(ends, BLACK.stroke_width(1)))?;

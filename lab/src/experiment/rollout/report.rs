@@ -152,20 +152,8 @@ fn plot_rollouts(
                     });
                 let pad = 0.5 * (hi - lo).max(1.0);
                 let (lo, hi) = (lo - pad, hi + pad);
-                let mut chart = ChartBuilder::on(area)
-                    .caption(format!("trajectory {j}, q{}", i + 1), plot::font(15))
-                    .margin(6)
-                    .x_label_area_size(28)
-                    .y_label_area_size(48)
-                    .build_cartesian_2d(0f64..STEPS as f64 * DT, lo..hi)?;
-                chart
-                    .configure_mesh()
-                    .light_line_style(WHITE)
-                    .x_desc("s")
-                    .y_desc("rad")
-                    .label_style(plot::font(12))
-                    .axis_desc_style(plot::font(12))
-                    .draw()?;
+                let caption = format!("trajectory {j}, q{}", i + 1);
+                let mut chart = plot::angle_panel(area, &caption, STEPS as f64 * DT, (lo, hi))?;
                 // A prediction is drawn until it leaves the plot (or the finite numbers),
                 // and marked with an × where it does, rather than run along the edge.
                 let draw = |chart: &mut ChartContext<'_, _, _>, v: Vec<f64>, color: RGBColor| {
