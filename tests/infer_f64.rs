@@ -2,6 +2,8 @@
 //! differences, in f64.
 
 mod common;
+#[path = "infer_f64/energy.rs"]
+mod energy;
 
 use burn::tensor::Device;
 use common::*;

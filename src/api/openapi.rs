@@ -10,7 +10,9 @@ use utoipa::openapi::{
 use utoipa::{OpenApi as _, ToSchema};
 
 use crate::app::datasets::Uploaded;
-use crate::app::inference::{EvaluateRequest, Evaluation};
+use crate::app::inference::{
+    EnergyRequest, EnergyView, EvaluateRequest, Evaluation, ForcePartView,
+};
 use crate::app::jobs::JobRequest;
 use crate::infer::horizons::HorizonError;
 use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
@@ -26,6 +28,9 @@ use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
     Warning,
     EvaluateRequest,
     Evaluation,
+    EnergyRequest,
+    EnergyView,
+    ForcePartView,
     HorizonError
 )))]
 struct Components;
@@ -165,6 +170,13 @@ const ROUTES: &[Route] = &[
         "/v1/models/{id}/evaluate",
         "Open-loop error against horizon on a trajectory dataset: from every window start, the model rolled out under the recorded inputs; per horizon the median and mean position and velocity errors (README \"Multi-step training\")",
         Some("EvaluateRequest"),
+        &["id"],
+    ),
+    Route(
+        "post",
+        "/v1/models/{id}/energy",
+        "Energy and work at a batch of states: kinetic T, potential V, total E, the power of F, and M q̈ + c + ∇V = F term by term with F's named parts (README \"Energy and power\"); 409 for a naive model, which has none",
+        Some("EnergyRequest"),
         &["id"],
     ),
     Route("delete", "/v1/models/{id}", "Delete a model", None, &["id"]),

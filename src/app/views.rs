@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use crate::model::file::Made;
-use crate::model::report::{EnsembleReport, HorizonError, Identified, TrainReport};
+use crate::model::report::{EnergyReport, EnsembleReport, HorizonError, Identified, TrainReport};
 use crate::records::Warning;
 use crate::store::ModelRow;
 
@@ -84,6 +84,9 @@ struct Metrics<'a> {
     /// values' mean and spread; absent for a single model.
     #[serde(skip_serializing_if = "Option::is_none")]
     ensemble: Option<&'a EnsembleReport>,
+    /// Energy drift and passivity on the training data (README "Energy and power"); null
+    /// for a naive model and one trained before the report existed.
+    energy: Option<&'a EnergyReport>,
 }
 
 impl<'a> Metrics<'a> {
@@ -109,6 +112,7 @@ impl<'a> Metrics<'a> {
                 warnings: &r.warnings,
                 made: None,
                 ensemble: r.ensemble.as_ref(),
+                energy: r.energy.as_ref(),
             },
         }
     }

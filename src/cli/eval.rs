@@ -141,6 +141,9 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
             "train_loss": r.train_loss, "val_loss": r.val_loss, "best_val_loss": r.best_val_loss,
             "seconds": r.seconds,
         });
+        if let Some(energy) = &r.energy {
+            out["energy"] = json!(energy);
+        }
     }
     println!("{}", serde_json::to_string_pretty(&out).expect("json"));
     Ok(())

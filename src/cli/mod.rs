@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+mod energy;
 mod eval;
 mod health;
 mod model;
@@ -83,6 +84,9 @@ pub enum Command {
     Eval(EvalArgs),
     /// Print a model file's spec, dimensions, scalings and physical parameters.
     Inspect(InspectArgs),
+    /// A model file's energies at a dataset's states (T, V, E, the power of F and the split
+    /// of its dynamics), one JSON line each; with --report, its energy drift and passivity.
+    Energy(energy::EnergyArgs),
     /// Write the white-box model of a template with given physical values (no training).
     Model(ModelArgs),
     /// Write a URDF model's identified robot: its URDF with the learned inertial and joint
@@ -155,6 +159,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Train(a) => train::train(a),
         Command::Eval(a) => eval::eval(a),
         Command::Inspect(a) => eval::inspect(a),
+        Command::Energy(a) => energy::energy(a),
         Command::Model(a) => model::model(a),
         Command::ExportUrdf(a) => model::export_urdf(a),
         Command::Plan(a) => plan::run(a),

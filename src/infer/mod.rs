@@ -7,6 +7,8 @@
 
 pub mod col;
 mod continuous;
+mod energy;
+pub mod energy_report;
 mod ensemble;
 mod gains;
 pub mod horizons;
@@ -18,6 +20,7 @@ mod weights;
 
 use std::sync::Arc;
 
+pub use energy::{Energies, NamedPart};
 use jet::Jet;
 pub use nets::Mlp64;
 use nets::{JetNets, NetOutputs, input_jet, periodic_full_jet, periodic_q_jet};
@@ -34,12 +37,8 @@ use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::{Columns, Structure};
 use crate::physics::dynamics::acceleration;
-use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 use crate::physics::scalar::Scalar;
 use crate::physics::urdf::featherstone::{self, forward_dynamics};
-
-/// A structured spec's three parts.
-type Parts<'a> = (&'a MassSpec, &'a PotentialSpec, &'a ForceSpec);
 
 /// Batches at least this large run on two threads: a thread costs ~20–40 µs, a step of 64
 /// states ~0.35 ms on one (measured: 64 states in 0.26 ms split vs 0.35–0.48 ms not).
@@ -55,6 +54,9 @@ pub struct Evaluator {
     /// An ensemble's members, each a single model (member 0's weights are also this one's);
     /// None for a single model. The batched entry points answer with their mean (`ensemble`).
     members: Option<Arc<[Evaluator]>>,
+    /// F without the parts the spec names damping or friction (the unforced rollouts of the
+    /// energy report, `energy`).
+    without_damping: bool,
 }
 
 impl Evaluator {
@@ -66,6 +68,7 @@ impl Evaluator {
                 config: file.config.clone(),
                 weights,
                 members: None,
+                without_damping: false,
             })
         };
         let mut eval = one(file)?;
@@ -90,92 +93,116 @@ impl Evaluator {
 
     /// q̈, or (`torques`, for a model on the recursive algorithms) the τ it would take.
     fn evaluate<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C], torques: bool) -> Vec<C> {
-        let sc = &self.config.scaling;
-        let outer = q
-            .iter()
-            .chain(qd)
-            .chain(u)
-            .map(Lanes::dirs)
-            .max()
-            .unwrap_or(0);
-        let q_std = || standardize(q, &sc.q_mean, &sc.q_std);
-        let angles = &self.config.periodic;
-        let full = || {
-            if !angles.is_empty() {
-                return periodic_full_jet((q, qd, u), sc, angles, outer);
-            }
-            let mut v = q_std();
-            v.extend(standardize(qd, &sc.qdot_mean, &sc.qdot_std));
-            v.extend(standardize(u, &sc.u_mean, &sc.u_std));
-            input_jet(&v, None, outer)
-        };
-        match (&self.config.spec, &self.weights) {
-            (
-                ModelSpec::Structured {
-                    mass,
-                    potential,
-                    forces,
-                    ..
-                },
-                Weights::Structured(w),
-            ) => {
-                let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
-                let q_jet = |inner: bool| {
-                    if angles.is_empty() {
-                        input_jet(&q_std(), inner.then_some(&inv_std[..]), outer)
-                    } else {
-                        periodic_q_jet(q, sc, angles, inner, outer)
-                    }
-                };
-                let nets = networks(w, q_jet, full);
-                self.structure((mass, potential, forces), w, &nets, (q, qd, u), torques)
-            }
-            (_, Weights::Naive(net)) => {
-                let out = net.jet(&full());
-                (0..self.config.n)
-                    .map(|j| {
-                        C::read(&out, 0, j)
-                            .scale(sc.acc_std[j])
-                            .shift(sc.acc_mean[j])
-                    })
-                    .collect()
-            }
-            (ModelSpec::Naive { .. }, _) => unreachable!("the weights follow the spec"),
+        let structured =
+            self.with_structure((q, qd, u), |s, nets, x| self.structure(s, nets, x, torques));
+        if let Some(out) = structured {
+            return out;
         }
+        let Weights::Naive(net) = &self.weights else {
+            unreachable!("the weights follow the spec")
+        };
+        let sc = &self.config.scaling;
+        let out = net.jet(&self.full_input((q, qd, u)));
+        (0..self.config.n)
+            .map(|j| {
+                C::read(&out, 0, j)
+                    .scale(sc.acc_std[j])
+                    .shift(sc.acc_mean[j])
+            })
+            .collect()
     }
 
-    /// q̈ from the networks' outputs: the structure assembled from the spec (the same
-    /// generic code the Burn path trains with), then the manipulator equation, or forward
-    /// dynamics by the recursive algorithms with τ from the structure (`torques`: τ only).
-    fn structure<S: Lanes>(
+    /// The networks' input from (q, q̇, u): standardized, angles as (sin, cos).
+    fn full_input<C: Lanes>(&self, (q, qd, u): (&[C], &[C], &[C])) -> Jet {
+        let sc = &self.config.scaling;
+        let outer = outer_dirs((q, qd, u));
+        if !self.config.periodic.is_empty() {
+            return periodic_full_jet((q, qd, u), sc, &self.config.periodic, outer);
+        }
+        let mut v = standardize(q, &sc.q_mean, &sc.q_std);
+        v.extend(standardize(qd, &sc.qdot_mean, &sc.qdot_std));
+        v.extend(standardize(u, &sc.u_mean, &sc.u_std));
+        input_jet(&v, None, outer)
+    }
+
+    /// `f` on a structured model's assembly, its networks' outputs on the batch and the
+    /// batch itself; `None` for a naive model.
+    fn with_structure<C: Lanes, T>(
         &self,
-        (mass, potential, forces): Parts,
-        w: &Components,
-        nets: &NetOutputs,
-        (q, qd, u): (&[S], &[S], &[S]),
-        torques: bool,
-    ) -> Vec<S> {
+        (q, qd, u): (&[C], &[C], &[C]),
+        f: impl FnOnce(&Structure<f64>, &JetNets<C>, &Columns<C>) -> T,
+    ) -> Option<T> {
+        let (
+            ModelSpec::Structured {
+                mass,
+                potential,
+                forces,
+                ..
+            },
+            Weights::Structured(w),
+        ) = (&self.config.spec, &self.weights)
+        else {
+            return None;
+        };
+        let (sc, angles) = (&self.config.scaling, &self.config.periodic);
+        let outer = outer_dirs((q, qd, u));
+        let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
+        let q_jet = |inner: bool| {
+            if angles.is_empty() {
+                let q_std = standardize(q, &sc.q_mean, &sc.q_std);
+                input_jet(&q_std, inner.then_some(&inv_std[..]), outer)
+            } else {
+                periodic_q_jet(q, sc, angles, inner, outer)
+            }
+        };
+        let outputs = networks(w, q_jet, || self.full_input((q, qd, u)));
         let structure = Structure {
             mass,
             potential,
             forces,
             template: self.config.template(),
-            scaling: &self.config.scaling,
+            scaling: sc,
             values: w.values(),
             n: q.len(),
             m: u.len(),
         };
-        let (nets, x) = (JetNets::new(nets), Columns { q, qd, u });
+        Some(f(
+            &structure,
+            &JetNets::new(&outputs),
+            &Columns { q, qd, u },
+        ))
+    }
+
+    /// q̈ from the networks' outputs: the structure assembled from the spec (the same
+    /// generic code the Burn path trains with), then the manipulator equation, or forward
+    /// dynamics by the recursive algorithms with τ from the structure (`torques`: τ only).
+    /// Without its damping (`without_damping`), F loses the parts the spec names so.
+    fn structure<S: Lanes>(
+        &self,
+        structure: &Structure<f64>,
+        nets: &JetNets<S>,
+        x: &Columns<S>,
+        torques: bool,
+    ) -> Vec<S> {
+        let damping = self.without_damping.then(|| {
+            let parts = structure.force_parts(nets, x).into_iter();
+            let damping = parts.filter(|p| p.dissipation).map(|p| p.values);
+            damping.reduce(|a, b| a.into_iter().zip(b).map(|(a, b)| a + b).collect())
+        });
+        let less = |f: Vec<S>| match damping.clone().flatten() {
+            None => f,
+            Some(d) => f.into_iter().zip(d).map(|(f, d)| f - d).collect(),
+        };
         if let Some(model) = &self.recursive {
-            let tau = structure.rigid_torques(&nets, &x);
+            let tau = less(structure.rigid_torques(nets, x));
             return if torques {
                 tau
             } else {
-                forward_dynamics(model, q, qd, &tau)
+                forward_dynamics(model, x.q, x.qd, &tau)
             };
         }
-        let t = structure.terms(&nets, &x);
-        acceleration(&t.l, t.grad_v, t.forces, qd)
+        let t = structure.terms(nets, x);
+        acceleration(&t.l, t.grad_v, less(t.forces), x.qd)
     }
 
     /// One step of the model's integrator: x = [q, q̇] (2n coordinates), u (m) → x'.
@@ -190,6 +217,16 @@ impl Evaluator {
                 dx
             })
     }
+}
+
+/// The most outer (linearization) directions any input carries.
+fn outer_dirs<C: Lanes>((q, qd, u): (&[C], &[C], &[C])) -> usize {
+    q.iter()
+        .chain(qd)
+        .chain(u)
+        .map(Lanes::dirs)
+        .max()
+        .unwrap_or(0)
 }
 
 /// The structured model's networks on a batch. `q_jet(true)` is the standardized q with

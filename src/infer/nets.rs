@@ -167,12 +167,19 @@ impl<'a, S: Lanes> JetNets<'a, S> {
     }
 }
 
+impl<S: Lanes> JetNets<'_, S> {
+    /// V's network output with its q-tangents.
+    pub(super) fn potential(&self) -> &Dual<S> {
+        self.potential.as_ref().expect("potential outputs")
+    }
+}
+
 impl<S: Lanes> Networks<S> for JetNets<'_, S> {
     fn mass(&self, j: usize) -> Dual<S> {
         dual_at(self.outs.mass.as_ref().expect("mass outputs"), j)
     }
     fn potential_grad(&self, k: usize) -> S {
-        let v = self.potential.as_ref().expect("potential outputs");
+        let v = self.potential();
         v.tangent(k).cloned().unwrap_or_else(|| v.v.lift(0.0))
     }
     fn force(&self, j: usize) -> S {

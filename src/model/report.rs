@@ -91,6 +91,55 @@ pub struct TrainReport {
     /// uncertainty"); the fields above are then the members' means. Absent for one model.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ensemble: Option<EnsembleReport>,
+    /// Energy drift and passivity on the training data (README "Energy and power"); absent
+    /// for a naive model and in earlier files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub energy: Option<EnergyReport>,
+}
+
+/// Whether a model keeps, creates or loses energy where it has data (README "Energy and
+/// power"), measured once on states drawn from a dataset.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct EnergyReport {
+    /// The figures in a sentence, e.g. "creates energy in 12 % of states; unforced rollouts
+    /// drift by 0.4 % of the energy scale in 1000 steps".
+    pub summary: String,
+    /// Unforced rollouts (u = 0, `switched_off` parts removed) from this many states.
+    pub rollouts: usize,
+    /// The parts of F named damping or friction, switched off in the rollouts, so that a
+    /// conservative rest must conserve E.
+    pub switched_off: Vec<String>,
+    /// The states' mean kinetic energy plus the range of V over them: what drift is a share
+    /// of (a potential's constant does not change it). Null when it is 0, and drift is then
+    /// absolute.
+    pub energy_scale: Option<f64>,
+    pub drift: Vec<EnergyDrift>,
+    pub passivity: Passivity,
+}
+
+/// |E(t) − E(0)| / energy scale after `steps` steps of the unforced rollouts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct EnergyDrift {
+    pub steps: usize,
+    /// steps × Δt.
+    pub seconds: f64,
+    /// Over the rollouts that stayed finite; null when none did.
+    pub median: Option<f64>,
+    pub max: Option<f64>,
+    /// Rollouts whose state or energy left the finite numbers.
+    pub diverged: usize,
+}
+
+/// Where the unforced generalized force F(q, q̇, 0) injects energy: q̇ᵀF > 0 beyond rounding
+/// (1e-9 · ‖q̇‖‖F‖). A passive system never does.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+pub struct Passivity {
+    pub states: usize,
+    pub injecting: usize,
+    /// injecting / states.
+    pub share: f64,
+    /// The largest q̇ᵀF(q, q̇, 0) among them (0 when none injects).
+    pub max_power: f64,
 }
 
 /// What an ensemble's report adds: each member's own figures and the physical values'

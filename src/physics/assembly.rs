@@ -127,12 +127,12 @@ impl<'a, P> Structure<'a, P> {
         }
     }
 
-    fn template(&self) -> &'a Template {
+    pub(super) fn template(&self) -> &'a Template {
         self.template
             .expect("validated: white-box parts have a template")
     }
 
-    fn physical<S: Scalar>(&self, like: &S) -> Vec<S>
+    pub(super) fn physical<S: Scalar>(&self, like: &S) -> Vec<S>
     where
         P: Coef<S>,
     {
@@ -267,30 +267,10 @@ impl<'a, P> Structure<'a, P> {
     where
         P: Coef<S>,
     {
-        let (n, m, s) = (self.n, self.m, self.scaling);
-        let b_scale = |k: usize| s.force_scale[k / m] / s.u_std[k % m];
-        let network = || {
-            (0..n)
-                .map(|j| nets.force(j).scale(s.force_scale[j]))
-                .collect::<Vec<_>>()
-        };
         match self.forces {
-            ForceSpec::Mlp { .. } => network(),
-            ForceSpec::ControlAffine { .. } => {
-                let b = (0..n * m)
-                    .map(|k| nets.force(k).scale(b_scale(k)))
-                    .collect();
-                self.affine(b, x)
-            }
-            ForceSpec::ConstantAffine => {
-                let raw = self.values.b_const.expect("constant B");
-                let like = &x.u()[0];
-                let b = raw
-                    .iter()
-                    .enumerate()
-                    .map(|(k, v)| v.mul_div(b_scale(k), 1.0).value(like))
-                    .collect();
-                self.affine(b, x)
+            ForceSpec::Mlp { .. } => self.force_network(nets),
+            ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => {
+                self.affine(self.input_gain(nets, x), x)
             }
             ForceSpec::Template { residual } => {
                 let f = self
@@ -298,9 +278,46 @@ impl<'a, P> Structure<'a, P> {
                     .forces(&self.physical(&x.q()[0]), x.q(), x.qd(), x.u());
                 match residual {
                     None => f,
-                    Some(_) => f.into_iter().zip(network()).map(|(t, r)| t + r).collect(),
+                    Some(_) => (f.into_iter().zip(self.force_network(nets)))
+                        .map(|(t, r)| t + r)
+                        .collect(),
                 }
             }
+        }
+    }
+
+    /// The force network's output in the data's units (a general F, or a template's residual).
+    pub(super) fn force_network<S: Scalar>(&self, nets: &impl Networks<S>) -> Vec<S> {
+        let s = self.scaling;
+        (0..self.n)
+            .map(|j| nets.force(j).scale(s.force_scale[j]))
+            .collect()
+    }
+
+    /// B(q) of a control-affine force, `n·m` row-major in the data's units.
+    pub(super) fn input_gain<S: Scalar>(
+        &self,
+        nets: &impl Networks<S>,
+        x: &impl Inputs<S>,
+    ) -> Vec<S>
+    where
+        P: Coef<S>,
+    {
+        let (n, m, s) = (self.n, self.m, self.scaling);
+        let b_scale = |k: usize| s.force_scale[k / m] / s.u_std[k % m];
+        match self.forces {
+            ForceSpec::ControlAffine { .. } => (0..n * m)
+                .map(|k| nets.force(k).scale(b_scale(k)))
+                .collect(),
+            ForceSpec::ConstantAffine => {
+                let raw = self.values.b_const.expect("constant B");
+                let like = &x.u()[0];
+                raw.iter()
+                    .enumerate()
+                    .map(|(k, v)| v.mul_div(b_scale(k), 1.0).value(like))
+                    .collect()
+            }
+            _ => unreachable!("only a control-affine force has an input gain"),
         }
     }
 
@@ -309,19 +326,29 @@ impl<'a, P> Structure<'a, P> {
     where
         P: Coef<S>,
     {
+        let (bu, damping) = self.affine_parts(b, x);
+        bu.into_iter().zip(damping).map(|(a, d)| a + d).collect()
+    }
+
+    /// B u and η ∘ q̇, apart.
+    pub(super) fn affine_parts<S: Scalar>(&self, b: Vec<S>, x: &impl Inputs<S>) -> (Vec<S>, Vec<S>)
+    where
+        P: Coef<S>,
+    {
         let (n, m, s) = (self.n, self.m, self.scaling);
         let eta = self.values.eta.expect("eta");
         let (u, qd) = (x.u(), x.qd());
-        (0..n)
-            .map(|i| {
-                let bu = (0..m)
-                    .map(|j| b[i * m + j].clone() * u[j].clone())
-                    .reduce(|a, b| a + b)
-                    .expect("m ≥ 1");
-                bu + eta[i]
-                    .mul_div(s.force_scale[i], s.qdot_std[i])
-                    .times(&qd[i])
-            })
-            .collect()
+        let bu = (0..n).map(|i| {
+            (0..m)
+                .map(|j| b[i * m + j].clone() * u[j].clone())
+                .reduce(|a, b| a + b)
+                .expect("m ≥ 1")
+        });
+        let damping = (0..n).map(|i| {
+            eta[i]
+                .mul_div(s.force_scale[i], s.qdot_std[i])
+                .times(&qd[i])
+        });
+        (bu.collect(), damping.collect())
     }
 }

@@ -11,6 +11,7 @@ pub mod documents;
 pub mod dual;
 pub mod dynamics;
 pub mod eigen;
+pub mod energy;
 pub mod formula;
 pub mod formula_template;
 pub mod identify;

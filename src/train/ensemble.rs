@@ -279,6 +279,7 @@ impl Ensemble {
         let report = ensemble_report(&reports);
         let mut file = ModelFile::ensemble(files, Some(report));
         self.members[0].add_horizon_errors(&mut file);
+        self.members[0].add_energy_report(&mut file);
         file
     }
 }

@@ -46,7 +46,9 @@ class Reference:
         self.forces = joint_forces(urdf, coords)
         assert self.model.nv == len(coords)
 
-    def accel(self, q, qd, u):
+    def state(self, q, qd):
+        """Pinocchio's configuration and velocity for graybox's q and q̇, and the order that
+        maps Pinocchio's velocity coordinates back to graybox's."""
         qp, vp = np.zeros(self.model.nq), np.zeros(self.model.nv)
         for name, kind, qi, vi in zip(self.coords, self.kinds, q, qd):
             j = self.model.joints[self.model.getJointId(name)]
@@ -56,12 +58,35 @@ class Reference:
                 qp[j.idx_q] = qi
             vp[j.idx_v] = vi
         order = [self.model.joints[self.model.getJointId(n)].idx_v for n in self.coords]
+        return qp, vp, order
+
+    def mass(self, qp):
         m = pin.crba(self.model, self.data, qp)
-        m = np.triu(m) + np.triu(m, 1).T
+        return np.triu(m) + np.triu(m, 1).T
+
+    def accel(self, q, qd, u):
+        qp, vp, order = self.state(q, qd)
         h = pin.nonLinearEffects(self.model, self.data, qp, vp)
         tau = np.zeros(self.model.nv)
         tau[order] = u + self.forces(qd)
-        return np.linalg.solve(m, tau - h)[order]
+        return np.linalg.solve(self.mass(qp), tau - h)[order]
+
+    def energy(self, q, qd, u):
+        """T, V and the terms of M q̈ + c + g = τ in graybox's coordinates, from Pinocchio's
+        `computeKineticEnergy`, `computePotentialEnergy`, `crba`, `nonLinearEffects` and
+        `computeGeneralizedGravity` (c is nonLinearEffects less gravity)."""
+        qp, vp, order = self.state(q, qd)
+        gravity = pin.computeGeneralizedGravity(self.model, self.data, qp)
+        qdd = np.zeros(self.model.nv)
+        qdd[order] = self.accel(q, qd, u)
+        return {
+            "kinetic": pin.computeKineticEnergy(self.model, self.data, qp, vp),
+            "potential": pin.computePotentialEnergy(self.model, self.data, qp),
+            "inertial": (self.mass(qp) @ qdd)[order],
+            "coriolis": (pin.nonLinearEffects(self.model, self.data, qp, vp) - gravity)[order],
+            "gravity": gravity[order],
+            "friction": self.forces(qd),
+        }
 
     def rk4(self, x, u):
         n = len(self.coords)

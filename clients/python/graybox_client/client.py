@@ -274,6 +274,25 @@ class Client:
         out = (a[0], b[0]) if single else (a, b)
         return (*out, _z(r.max_abs_z, len(a), single)) if return_z else out
 
+    def energy(self, model_id: str, x, u) -> dict:
+        """Energy and work at x [2n] under u [m], or a batch x [B, 2n] and u [B, m]: a dict of
+        `kinetic`, `potential`, `total`, `power` (q̇ᵀF) — floats, or [B] — and the dynamics
+        M q̈ + c + ∇V = F term by term, `inertial`, `coriolis`, `gravity`, `applied` ([n] or
+        [B, n]), with `parts`: F's named parts, {name: [n] or [B, n]}, and `damping`, the
+        names the spec calls damping or friction. A naive model has none: FAILED_PRECONDITION."""
+        xb, ub, single = _batch(x, u)
+        r = self._call(self.stub.Energy, pb.EnergyRequest(
+            model_id=model_id, x=to_array(xb), u=to_array(ub)))
+        pick = (lambda a: a[0]) if single else (lambda a: a)
+        out = {k: pick(np.asarray(getattr(r, k))) for k in ("kinetic", "potential", "total", "power")}
+        if single:
+            out = {k: float(v) for k, v in out.items()}
+        for k in ("inertial", "coriolis", "gravity", "applied"):
+            out[k] = pick(from_array(getattr(r, k)))
+        out["parts"] = {p.name: pick(from_array(p.values)) for p in r.parts}
+        out["damping"] = [p.name for p in r.parts if p.damping]
+        return out
+
     def tvlqr(self, model_id: str, xbar, ubar, Q, R, Qf):
         """TVLQR gains K [T, m, 2n] and cost-to-go S [T+1, 2n, 2n] along x̄ [T+1, 2n],
         ū [T, m], for the cost Σ δxᵀQδx + δuᵀRδu + δx_TᵀQf δx_T (no ½)."""

@@ -325,6 +325,14 @@ class RestClient:
         return self.request("POST", f"/v1/models/{model_id}/evaluate",
                             {"dataset_id": dataset_id, "horizons": list(horizons)})["items"]
 
+    def energy(self, model_id: str, x, u) -> dict:
+        """Energy and work at a batch of states x [B, 2n] under u [B, m]: `kinetic`,
+        `potential`, `total`, `power` ([B]), `inertial`, `coriolis`, `gravity`, `applied`
+        ([B, n]; inertial + coriolis + gravity = applied) and `parts`, F's named parts
+        (dicts of `name`, `damping`, `values` [B, n]). 409 for a naive model."""
+        body = {"x": [list(map(float, r)) for r in x], "u": [list(map(float, r)) for r in u]}
+        return self.request("POST", f"/v1/models/{model_id}/energy", body)
+
     # ---------- templates ----------
 
     def upload_template(self, template: Union[PathLike, dict]) -> dict:

@@ -10,7 +10,7 @@ use tonic::{Request, Response, Status};
 use super::convert::{model_info, plan_request, take};
 use super::pb::{self, dynamics_server::Dynamics};
 use crate::app::App;
-use crate::app::inference::{RolloutInputs, RolloutShape, Want};
+use crate::app::inference::{Energy, RolloutInputs, RolloutShape, Want};
 use crate::array::Array;
 use crate::control::linalg::Mat;
 
@@ -67,6 +67,36 @@ impl Dynamics for DynamicsService {
             x_next_std: p.std.map(Into::into),
             members: p.members.map(Into::into),
             member_count: p.member_count as u32,
+        }))
+    }
+
+    async fn energy(
+        &self,
+        req: Request<pb::EnergyRequest>,
+    ) -> Result<Response<pb::EnergyResponse>, Status> {
+        let until = deadline(&req);
+        let r = req.into_inner();
+        let (x, u) = (take("x", r.x)?, take("u", r.u)?);
+        let Energy { n, energies: e } = self.app.energy(&r.model_id, x, u, until).await?;
+        let b = e.kinetic.len();
+        let array = |v: Vec<f64>| Some(Array::new(&[b, n], v).into());
+        Ok(Response::new(pb::EnergyResponse {
+            id: r.id,
+            kinetic: e.kinetic,
+            potential: e.potential,
+            total: e.total,
+            power: e.power,
+            inertial: array(e.inertial),
+            coriolis: array(e.coriolis),
+            gravity: array(e.gravity),
+            applied: array(e.applied),
+            parts: (e.parts.into_iter())
+                .map(|p| pb::ForcePart {
+                    name: p.name.into(),
+                    damping: p.dissipation,
+                    values: array(p.values),
+                })
+                .collect(),
         }))
     }
 

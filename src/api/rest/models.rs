@@ -8,7 +8,7 @@ use axum::routing::{get, post};
 
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, body_bytes, int_param, json_body, page, stored};
-use crate::app::inference::EvaluateRequest;
+use crate::app::inference::{EnergyRequest, EvaluateRequest};
 use crate::app::requests::parse_body;
 use crate::app::uploads::BodyKind;
 
@@ -20,6 +20,17 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/models/{id}/urdf", get(urdf))
         .route("/v1/models/{id}/rollout", get(rollout))
         .route("/v1/models/{id}/evaluate", post(evaluate))
+        .route("/v1/models/{id}/energy", post(energy))
+}
+
+/// T, V, E, the power of F and the split of the dynamics at a batch of states.
+async fn energy(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> ApiResult<impl IntoResponse> {
+    let req: EnergyRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
+    Ok(axum::Json(s.app.energy_json(&id, req).await?))
 }
 
 /// The model's open-loop error against horizon on a trajectory dataset.

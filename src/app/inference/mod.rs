@@ -7,6 +7,7 @@
 
 mod admission;
 mod cache;
+mod energy;
 mod evaluate;
 mod plan;
 pub mod reads;
@@ -15,6 +16,7 @@ mod rollout;
 
 pub use admission::Heavy;
 pub use cache::{CACHE_SWEEP, ModelCache};
+pub use energy::{Energy, EnergyRequest, EnergyView, ForcePartView};
 pub use evaluate::{EvaluateRequest, Evaluation};
 pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{MAX_PARTICLES, RolloutChunk, RolloutInputs, RolloutShape};

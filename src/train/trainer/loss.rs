@@ -23,6 +23,11 @@ pub(super) struct HostData {
 }
 
 impl HostData {
+    /// The states [q, q̇], `[N, 2n]`.
+    pub(super) fn states(&self) -> &[f64] {
+        &self.x
+    }
+
     pub(super) fn new(ds: &Dataset) -> Self {
         let (x, y) = ds.states();
         Self {

@@ -5,6 +5,8 @@
 use std::collections::BTreeMap;
 
 use super::Trainer;
+use crate::infer::Evaluator;
+use crate::infer::energy_report::REPORT_SEED;
 use crate::infer::horizons::end_of_training;
 use crate::model::Model;
 use crate::model::file::{ModelFile, stiffness_of};
@@ -97,6 +99,7 @@ impl Trainer {
             horizon_errors: vec![],
             warnings,
             ensemble: None,
+            energy: None,
         }
     }
 
@@ -146,7 +149,23 @@ impl Trainer {
     pub fn model_file(&self) -> ModelFile {
         let mut file = self.best_file();
         self.add_horizon_errors(&mut file);
+        self.add_energy_report(&mut file);
         file
+    }
+
+    /// A structured model's energy report on the training states, in `file`'s report (an
+    /// ensemble's measured once, on its mean, like `add_horizon_errors`).
+    pub(crate) fn add_energy_report(&self, file: &mut ModelFile) {
+        let Ok(eval) = Evaluator::from_file(file) else {
+            return;
+        };
+        if eval.check_energy().is_err() {
+            return;
+        }
+        let found = eval.energy_report(self.data.train.states(), REPORT_SEED, &|| false);
+        if let (Ok(Some(energy)), Some(report)) = (found, file.report.as_mut()) {
+            report.energy = Some(energy);
+        }
     }
 
     /// With validation trajectories, `file`'s open-loop error against horizon on them in its

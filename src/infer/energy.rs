@@ -1,0 +1,262 @@
+//! Energy and power of a structured model (docs/energy.md), per state in f64 from the
+//! model's own parts: kinetic T = ½ q̇ᵀM(q)q̇, potential V(q) up to its constant, the power
+//! q̇ᵀF of the generalized forces, and M q̈ + c(q, q̇) + ∇V(q) = F term by term with F's named
+//! parts. A URDF model's come from the recursive algorithms, as its `predict` does (CRBA for
+//! M, RNEA for c and gravity, the articulated-body algorithm for q̈). An ensemble's are its
+//! members' means, term by term, so that its split still sums.
+
+use super::Evaluator;
+use super::nets::JetNets;
+use crate::error::{Error, Result};
+use crate::model::spec::ModelSpec;
+use crate::physics::assembly::{Columns, Structure};
+use crate::physics::dynamics::{Tri, acceleration, coriolis};
+use crate::physics::energy::PotentialValue;
+use crate::physics::urdf::featherstone::{
+    self, RigidBodyModel, crba, forward_dynamics, gravity_torques, kinetic_energy, potential_energy,
+};
+
+/// A batch's energies: per state `[B]`, per coordinate `[B, n]` row-major.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Energies {
+    pub kinetic: Vec<f64>,
+    pub potential: Vec<f64>,
+    pub total: Vec<f64>,
+    /// q̇ᵀF: the rate at which the generalized forces do work.
+    pub power: Vec<f64>,
+    /// M(q) q̈.
+    pub inertial: Vec<f64>,
+    /// c(q, q̇), the Coriolis and centrifugal term.
+    pub coriolis: Vec<f64>,
+    /// ∇V(q).
+    pub gravity: Vec<f64>,
+    /// F(q, q̇, u), the sum of `parts`.
+    pub applied: Vec<f64>,
+    pub parts: Vec<NamedPart>,
+}
+
+/// One named part of F for a batch, `[B, n]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NamedPart {
+    pub name: &'static str,
+    /// Named damping or friction by the spec (see `physics::energy::ForcePart`).
+    pub dissipation: bool,
+    pub values: Vec<f64>,
+}
+
+/// One state's figures.
+struct Row {
+    kinetic: f64,
+    potential: f64,
+    power: f64,
+    inertial: Vec<f64>,
+    coriolis: Vec<f64>,
+    gravity: Vec<f64>,
+    parts: Vec<NamedPart>,
+}
+
+impl<S: super::col::Lanes> PotentialValue<S> for JetNets<'_, S> {
+    fn potential_value(&self) -> S {
+        self.potential().v.clone()
+    }
+}
+
+impl Evaluator {
+    /// A naive model's network predicts q̈ directly: it has no M, V or F to speak of.
+    pub fn check_energy(&self) -> Result<()> {
+        match self.config.spec {
+            ModelSpec::Structured { .. } => Ok(()),
+            ModelSpec::Naive { .. } => Err(Error::FailedPrecondition(
+                "a naive model has no energy: its network predicts q̈ directly, with no mass \
+                 matrix, potential or generalized force to read T, V or the work of F from; \
+                 train a structured model (MVF, MVB, a template) for this call"
+                    .into(),
+            )),
+        }
+    }
+
+    /// How many named parts of F each state's answer has (0 for a naive model).
+    pub fn force_part_count(&self) -> usize {
+        match &self.config.spec {
+            ModelSpec::Structured { forces, .. } => forces.part_count(),
+            ModelSpec::Naive { .. } => 0,
+        }
+    }
+
+    /// The energies of `[B, 2n]` states under `[B, m]` inputs, or `None` when `stop` says so
+    /// (polled every state).
+    pub fn energy_until(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        stop: &dyn Fn() -> bool,
+    ) -> Result<Option<Energies>> {
+        self.check_energy()?;
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let members: Vec<&Evaluator> = match &self.members {
+            Some(members) => members.iter().collect(),
+            None => vec![self],
+        };
+        let mut rows = Vec::with_capacity(x.len() / nx);
+        for (x, u) in x.chunks(nx).zip(u.chunks(m)) {
+            if stop() {
+                return Ok(None);
+            }
+            let each: Vec<Row> = members.iter().map(|e| e.energy_row(x, u)).collect();
+            rows.push(mean_row(each));
+        }
+        Ok(Some(gather(rows)))
+    }
+
+    fn energy_row(&self, x: &[f64], u: &[f64]) -> Row {
+        let (q, qd) = x.split_at(self.config.n);
+        let mut row = self
+            .with_structure((q, qd, u), |s, nets, cols| match &self.recursive {
+                Some(model) => rigid_row(model, s, nets, cols),
+                None => assembled_row(s, nets, cols),
+            })
+            .expect("checked: a structured model");
+        let applied = sum_parts(&row.parts, self.config.n);
+        row.power = qd.iter().zip(applied).map(|(v, f)| v * f).sum();
+        row
+    }
+}
+
+/// T and every term from the assembly: M = L Lᵀ with L's q-derivatives for c.
+fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> Row {
+    let parts = named_parts(s, nets, x);
+    let applied = sum_parts(&parts, s.n);
+    let t = s.terms(nets, x);
+    let l = t.l.map(|e| e.v);
+    let gravity = t.grad_v.clone().unwrap_or_else(|| vec![0.0; s.n]);
+    let qdd = acceleration(&t.l, t.grad_v, applied, x.qd);
+    let w = lower_t_mul(&l, x.qd);
+    Row {
+        power: 0.0,
+        kinetic: 0.5 * w.iter().map(|v| v * v).sum::<f64>(),
+        potential: s.potential_value(nets, x, true),
+        inertial: lower_mul(&l, &lower_t_mul(&l, &qdd)),
+        coriolis: coriolis(&t.l, x.qd),
+        gravity,
+        parts,
+    }
+}
+
+/// A robot's by the recursive algorithms: gravity is RNEA's at q̇ = q̈ = 0 plus the gradient
+/// of whatever potential is not the template's (∇V′ = F − τ, τ the torques the algorithms take).
+fn rigid_row(
+    model: &RigidBodyModel,
+    s: &Structure<f64>,
+    nets: &JetNets<f64>,
+    x: &Columns<f64>,
+) -> Row {
+    let (q, qd) = (x.q, x.qd);
+    let parts = named_parts(s, nets, x);
+    let applied = sum_parts(&parts, s.n);
+    let tau = s.rigid_torques(nets, x);
+    let qdd = forward_dynamics(model, q, qd, &tau);
+    let m = crba(model, q);
+    let rest = applied.iter().zip(&tau).map(|(f, t)| f - t);
+    Row {
+        power: 0.0,
+        kinetic: kinetic_energy(model, q, qd),
+        potential: potential_energy(model, q) + s.potential_value(nets, x, false),
+        inertial: m
+            .iter()
+            .map(|row| row.iter().zip(&qdd).map(|(a, b)| a * b).sum())
+            .collect(),
+        coriolis: featherstone::coriolis(model, q, qd),
+        gravity: gravity_torques(model, q)
+            .into_iter()
+            .zip(rest)
+            .map(|(g, r)| g + r)
+            .collect(),
+        parts,
+    }
+}
+
+fn named_parts(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> Vec<NamedPart> {
+    (s.force_parts(nets, x).into_iter())
+        .map(|p| NamedPart {
+            name: p.name,
+            dissipation: p.dissipation,
+            values: p.values,
+        })
+        .collect()
+}
+
+fn sum_parts(parts: &[NamedPart], n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| parts.iter().map(|p| p.values[i]).sum())
+        .collect()
+}
+
+/// L v for a lower-triangular L.
+fn lower_mul(l: &Tri<f64>, v: &[f64]) -> Vec<f64> {
+    (0..l.n)
+        .map(|a| (0..=a).map(|b| l.get(a, b) * v[b]).sum())
+        .collect()
+}
+
+/// Lᵀ v for a lower-triangular L.
+fn lower_t_mul(l: &Tri<f64>, v: &[f64]) -> Vec<f64> {
+    (0..l.n)
+        .map(|a| (a..l.n).map(|b| l.get(b, a) * v[b]).sum())
+        .collect()
+}
+
+/// The members' mean of each figure (a single model's own).
+fn mean_row(mut rows: Vec<Row>) -> Row {
+    if rows.len() == 1 {
+        return rows.pop().expect("one row");
+    }
+    let k = rows.len() as f64;
+    let mean = |f: &dyn Fn(&Row) -> &[f64]| -> Vec<f64> {
+        let len = f(&rows[0]).len();
+        (0..len)
+            .map(|i| rows.iter().map(|r| f(r)[i]).sum::<f64>() / k)
+            .collect()
+    };
+    let parts = (0..rows[0].parts.len())
+        .map(|p| NamedPart {
+            values: mean(&|r| &r.parts[p].values),
+            ..rows[0].parts[p].clone()
+        })
+        .collect();
+    Row {
+        kinetic: rows.iter().map(|r| r.kinetic).sum::<f64>() / k,
+        power: rows.iter().map(|r| r.power).sum::<f64>() / k,
+        potential: rows.iter().map(|r| r.potential).sum::<f64>() / k,
+        inertial: mean(&|r| &r.inertial),
+        coriolis: mean(&|r| &r.coriolis),
+        gravity: mean(&|r| &r.gravity),
+        parts,
+    }
+}
+
+/// Rows into the batch's arrays.
+fn gather(rows: Vec<Row>) -> Energies {
+    let flat = |f: &dyn Fn(&Row) -> &[f64]| rows.iter().flat_map(|r| f(r).to_vec()).collect();
+    let n = rows.first().map_or(0, |r| r.inertial.len());
+    let applied: Vec<f64> = rows.iter().flat_map(|r| sum_parts(&r.parts, n)).collect();
+    let parts = match rows.first() {
+        None => vec![],
+        Some(first) => (0..first.parts.len())
+            .map(|p| NamedPart {
+                values: flat(&|r| &r.parts[p].values),
+                ..first.parts[p].clone()
+            })
+            .collect(),
+    };
+    Energies {
+        kinetic: rows.iter().map(|r| r.kinetic).collect(),
+        potential: rows.iter().map(|r| r.potential).collect(),
+        total: rows.iter().map(|r| r.kinetic + r.potential).collect(),
+        power: rows.iter().map(|r| r.power).collect(),
+        inertial: flat(&|r| &r.inertial),
+        coriolis: flat(&|r| &r.coriolis),
+        gravity: flat(&|r| &r.gravity),
+        applied,
+        parts,
+    }
+}

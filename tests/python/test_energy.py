@@ -1,0 +1,208 @@
+"""Energy and power (README "Energy and power"): the white-box double pendulum's and UR5's
+energies and every term of their dynamics against independent computations (the pendulum's
+rods in numpy, Pinocchio for UR5), over gRPC, REST and the CLI; a naive model's refusal; bad
+shapes; admission; and the energy report a finished job stores."""
+
+import json
+import subprocess
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dp_reference import dp_energy
+from graybox_client import Client, GrayboxError
+from pinocchio_reference import Reference
+
+ROBOTS = Path(__file__).resolve().parents[2] / "tests" / "fixtures" / "urdf" / "robots"
+# Other values than the template's defaults, every one of them used, damping included.
+DP = {"m1": 2.0, "m2": 3.0, "l1": 0.7, "l2": 1.1, "g": 9.81, "b1": 1.5, "b2": 0.5,
+      "eta1": -0.3, "eta2": -0.2}
+TERMS = ("inertial", "coriolis", "gravity", "applied")
+
+
+def run(server, *args):
+    r = subprocess.run([server.binary, *map(str, args)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return r.stdout
+
+
+def close(got, want):
+    """Both sides are f64 evaluations of the same quantities by different formulas: they agree
+    to rounding (~1e-13 of the largest term); 1e-9 of the reference's size (at least 1) still
+    catches a wrong sign, factor or term, each ≥ 1e-3 relative here. Some terms are exactly 0
+    (a vertical axis's gravity torque), hence the floor of 1."""
+    got, want = np.asarray(got), np.asarray(want)
+    return np.abs(got - want).max() <= 1e-9 * max(1.0, np.abs(want).max())
+
+
+def upload(server, gbx, name):
+    status, model = server.rest.post(f"/v1/models?name={name}", raw=gbx.read_bytes())
+    assert status in (200, 201), model
+    return model["id"]
+
+
+def states(rng, b, n, m, qdot=3.0, u=5.0):
+    x = np.column_stack([rng.uniform(-np.pi, np.pi, (b, n)), rng.uniform(-qdot, qdot, (b, n))])
+    return x, rng.normal(0.0, u, (b, m))
+
+
+@pytest.fixture(scope="module")
+def dp_model(server):
+    gbx = server.tmp / "dp-energy.gbx"
+    sets = ",".join(f"{k}={v!r}" for k, v in DP.items())
+    run(server, "model", "--template", "double_pendulum", "--dt", 0.01, "--set", sets, "--out", gbx)
+    return gbx, upload(server, gbx, "dp-energy")
+
+
+def test_the_double_pendulums_energy_and_terms_are_its_closed_form(server, client, dp_model):
+    gbx, model = dp_model
+    x, u = states(np.random.default_rng(54), 16, 2, 2)
+    got = client.energy(model, x, u)
+    want = dp_energy([DP[k] for k in DP], x[:, :2], x[:, 2:], u)
+    for key in ("kinetic", "potential", "inertial", "coriolis", "gravity"):
+        assert close(got[key], want[key]), key
+    assert close(got["parts"]["input"], want["input"])
+    assert close(got["parts"]["damping"], want["damping"])
+    assert got["damping"] == ["damping"]
+    applied = want["input"] + want["damping"]
+    assert close(got["applied"], applied)
+    assert close(got["total"], want["kinetic"] + want["potential"])
+    assert close(got["power"], (x[:, 2:] * applied).sum(1))
+    # The equation of motion, term by term.
+    assert close(got["inertial"] + got["coriolis"] + got["gravity"], got["applied"])
+    # One state alone is that state's row of a batch.
+    one = client.energy(model, x[3], u[3])
+    assert close(one["kinetic"], got["kinetic"][3]) and close(one["parts"]["input"], got["parts"]["input"][3])
+
+    # REST answers the same numbers.
+    status, rest = server.rest.post(f"/v1/models/{model}/energy", {"x": x.tolist(), "u": u.tolist()})
+    assert status == 200, rest
+    for key in ("kinetic", "potential", "total", "power", *TERMS):
+        assert close(rest[key], got[key]), key
+    assert [(p["name"], p["damping"]) for p in rest["parts"]] == [("input", False), ("damping", True)]
+    assert close(rest["parts"][0]["values"], got["parts"]["input"])
+
+    # And the CLI, from the model file and a dataset of these states.
+    data = server.tmp / "dp-energy-states.json"
+    q_next = np.zeros((16, 2))
+    data.write_text(json.dumps({"dt": 0.01, "q": x[:, :2].tolist(), "qdot": x[:, 2:].tolist(),
+                                "u": u.tolist(), "q_next": q_next.tolist(),
+                                "qdot_next": q_next.tolist()}))
+    lines = [json.loads(l) for l in run(server, "energy", "--model", gbx, "--data", data).splitlines()]
+    assert len(lines) == 16
+    assert close([l["kinetic"] for l in lines], want["kinetic"])
+    assert close([l["parts"]["damping"] for l in lines], want["damping"])
+
+
+@pytest.fixture(scope="module")
+def ur5(server):
+    urdf = ROBOTS / "ur5.urdf"
+    gbx = server.tmp / "ur5-energy.gbx"
+    plain = json.loads(run(server, "model", "--template", urdf, "--dt", 0.01, "--out", gbx))
+    values = plain["physical_parameters"]
+    changed = {k: 1.2 * v for k, v in values.items() if k.endswith(".mass") and v > 0}
+    changed |= {k: 0.1 for k in values if k.endswith(".damping")}
+    changed |= {k: 0.02 for k in values if k.endswith(".friction")}
+    sets = ",".join(f"{k}={v!r}" for k, v in changed.items())
+    run(server, "model", "--template", urdf, "--dt", 0.01, "--set", sets, "--out", gbx)
+    export = server.tmp / "ur5-energy-export.urdf"
+    run(server, "export-urdf", "--model", gbx, "--out", export)
+    info = json.loads(run(server, "inspect", "--model", gbx))
+    kinds = {j.get("name"): j.get("type") for j in ET.fromstring(urdf.read_text()).findall("joint")}
+    coords = info["coordinates"]
+    ref = Reference(export.read_text(), coords, [kinds[c] for c in coords])
+    return upload(server, gbx, "ur5-energy"), ref, info["n"], info["m"]
+
+
+def test_ur5s_energy_and_terms_are_pinocchios(client, ur5):
+    model, ref, n, m = ur5
+    x, u = states(np.random.default_rng(5), 8, n, m, qdot=1.0, u=1.0)
+    got = client.energy(model, x, u)
+    assert set(got["parts"]) == {"input", "friction"} and got["damping"] == ["friction"]
+    for k in range(len(x)):
+        want = ref.energy(x[k, :n], x[k, n:], u[k])
+        for key in ("kinetic", "potential", "inertial", "coriolis", "gravity"):
+            assert close(got[key][k], want[key]), (key, k, got[key][k], want[key])
+        assert close(got["parts"]["friction"][k], want["friction"]), k
+        assert close(got["parts"]["input"][k], u[k]), k
+        terms = got["inertial"][k] + got["coriolis"][k] + got["gravity"][k]
+        assert close(terms, got["applied"][k]), k
+
+
+@pytest.fixture(scope="module")
+def naive_model(server, models):
+    status, job = server.rest.post("/v1/jobs", {
+        "dataset_id": models.dataset_id, "model": "naive",
+        "training": {"epochs": 1, "batch_size": 64}})
+    assert status == 201, job
+    done = server.rest.wait_job(job["id"])
+    assert done["state"] == "succeeded", done
+    return done["model_id"]
+
+
+def test_a_naive_model_has_no_energy(server, client, naive_model):
+    x, u = np.zeros(4), np.zeros(2)
+    with pytest.raises(GrayboxError) as e:
+        client.energy(naive_model, x, u)
+    assert e.value.code == "FAILED_PRECONDITION" and "naive" in e.value.message, e.value
+    status, body = server.rest.post(f"/v1/models/{naive_model}/energy", {"x": [x.tolist()], "u": [u.tolist()]})
+    assert status == 409 and "naive" in body["error"]["message"], body
+    status, model = server.rest.get(f"/v1/models/{naive_model}")
+    assert status == 200 and model["metrics"]["energy"] is None, model
+
+
+@pytest.mark.parametrize("x,u,field", [
+    (np.zeros((2, 3)), np.zeros((2, 2)), "x"),
+    (np.zeros((2, 4)), np.zeros((3, 2)), "u"),
+    (np.zeros((0, 4)), np.zeros((0, 2)), "x"),
+    (np.array([[0.0, np.nan, 0.0, 0.0]]), np.zeros((1, 2)), "x"),
+])
+def test_bad_shapes_are_invalid_arguments_naming_the_field(server, client, dp_model, x, u, field):
+    _, model = dp_model
+    with pytest.raises(GrayboxError) as e:
+        client.energy(model, x, u)
+    assert e.value.code == "INVALID_ARGUMENT" and field in e.value.message, e.value
+
+
+def test_rest_names_ragged_rows_and_unknown_models(server, dp_model):
+    _, model = dp_model
+    status, body = server.rest.post(f"/v1/models/{model}/energy",
+                                    {"x": [[0.0] * 4, [0.0] * 3], "u": [[0.0] * 2] * 2})
+    assert status == 400 and body["error"]["field"] == "x" and "row 1" in body["error"]["message"], body
+    status, body = server.rest.post(f"/v1/models/{model}/energy", {"x": [[0.0] * 4], "v": []})
+    assert status == 422, body
+    status, body = server.rest.post("/v1/models/mdl_nope/energy", {"x": [[0.0] * 4], "u": [[0.0] * 2]})
+    assert status == 404, body
+
+
+def test_a_batch_over_the_message_limit_is_refused_before_it_computes(client, dp_model):
+    _, model = dp_model
+    # 128 bytes of answer per state: 600 000 states answer 77 MB, over the 64 MB limit, in a
+    # request of 29 MB that the limit admits.
+    b = 600_000
+    with pytest.raises(GrayboxError) as e:
+        client.energy(model, np.zeros((b, 4)), np.zeros((b, 2)))
+    assert e.value.code == "RESOURCE_EXHAUSTED" and "--grpc-max-message-mb" in e.value.message, e.value
+
+
+def test_a_finished_job_stores_its_energy_report(server, models):
+    status, wb = server.rest.get(f"/v1/models/{models.wb}")
+    assert status == 200, wb
+    report = wb["metrics"]["energy"]
+    assert report is not None, wb["metrics"]
+    # 256 transitions, a 0.8 split: the report's states are the training rows.
+    assert report["rollouts"] == 64 and 0 < report["passivity"]["states"] <= 256
+    assert [d["steps"] for d in report["drift"]] == [100, 1000]
+    assert report["switched_off"] == ["damping"]
+    # The white-box pendulum without its damping conserves E up to RK4's error at Δt = 0.01.
+    for d in report["drift"]:
+        assert d["diverged"] == 0 and d["median"] < 1e-3, d
+    # η q̇ injects energy exactly where η > 0: none when both trained η are ≤ 0.
+    eta = [wb["metrics"]["physical_parameters"][k] for k in ("eta1", "eta2")]
+    injecting = report["passivity"]["injecting"]
+    assert (injecting == 0) == all(e <= 0 for e in eta), (eta, report)
+    assert ("never creates energy" in report["summary"]) == (injecting == 0), report
+    status, mvf = server.rest.get(f"/v1/models/{models.mvf}")
+    assert status == 200 and mvf["metrics"]["energy"]["switched_off"] == [], mvf["metrics"]
