@@ -11,10 +11,11 @@ use utoipa::{OpenApi as _, ToSchema};
 
 use crate::app::datasets::Uploaded;
 use crate::app::inference::{
-    EnergyRequest, EnergyView, EvaluateRequest, Evaluation, ForcePartView,
+    EnergyReportRequest, EnergyRequest, EnergyView, EvaluateRequest, Evaluation, ForcePartView,
 };
 use crate::app::jobs::JobRequest;
 use crate::infer::horizons::HorizonError;
+use crate::model::report::{EnergyDrift, EnergyReport, Passivity};
 use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
 
 #[derive(utoipa::OpenApi)]
@@ -29,6 +30,10 @@ use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
     EvaluateRequest,
     Evaluation,
     EnergyRequest,
+    EnergyReportRequest,
+    EnergyReport,
+    EnergyDrift,
+    Passivity,
     EnergyView,
     ForcePartView,
     HorizonError
@@ -177,6 +182,13 @@ const ROUTES: &[Route] = &[
         "/v1/models/{id}/energy",
         "Energy and work at a batch of states: kinetic T, potential V, total E, the power of F, and M q̈ + c + ∇V = F term by term with F's named parts (README \"Energy and power\"); 409 for a naive model, which has none",
         Some("EnergyRequest"),
+        &["id"],
+    ),
+    Route(
+        "post",
+        "/v1/models/{id}/energy-report",
+        "The model's energy report on a stored dataset's states (drift of unforced rollouts after 100 and 1000 steps, passivity), stored with the model and shown as metrics.energy (README \"Energy and power\"); 409 for a naive model",
+        Some("EnergyReportRequest"),
         &["id"],
     ),
     Route("delete", "/v1/models/{id}", "Delete a model", None, &["id"]),

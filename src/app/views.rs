@@ -84,8 +84,9 @@ struct Metrics<'a> {
     /// values' mean and spread; absent for a single model.
     #[serde(skip_serializing_if = "Option::is_none")]
     ensemble: Option<&'a EnsembleReport>,
-    /// Energy drift and passivity on the training data (README "Energy and power"); null
-    /// for a naive model and one trained before the report existed.
+    /// Energy drift and passivity on the training data (README "Energy and power"), or the
+    /// report last measured on request against a dataset; null for a naive model and one
+    /// trained before the report existed, until asked for.
     energy: Option<&'a EnergyReport>,
 }
 
@@ -122,8 +123,14 @@ impl From<ModelRow> for ModelView {
     fn from(m: ModelRow) -> Self {
         // The store writes what it was given: a report that does not read is no report.
         let report: Option<StoredReport> = serde_json::from_str(&m.report).unwrap_or(None);
-        let metrics =
+        let mut metrics =
             serde_json::to_value(Metrics::of(report.as_ref())).expect("metrics serialize");
+        // A report measured on request (against a dataset it names) is the latest word.
+        let asked: Option<EnergyReport> =
+            (m.energy.as_deref()).and_then(|e| serde_json::from_str(e).ok());
+        if let Some(energy) = asked {
+            metrics["energy"] = serde_json::to_value(energy).expect("reports serialize");
+        }
         let (physical_parameters, identifiable, identifiability) = match report {
             None => (None, None, None),
             // A model made from a template (no training) states its values in "made".

@@ -59,6 +59,7 @@ impl Evaluator {
             return Ok(None);
         };
         Ok(Some(EnergyReport {
+            dataset_id: None,
             summary: summary(&passivity, drift.last()),
             rollouts: states.len().div_ceil(nx).min(DRIFT_ROLLOUTS),
             switched_off,

@@ -101,6 +101,10 @@ pub struct TrainReport {
 /// power"), measured once on states drawn from a dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
 pub struct EnergyReport {
+    /// The dataset it was measured on when asked for (`POST /v1/models/{id}/energy-report`);
+    /// absent when measured on the training data as the job finished.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dataset_id: Option<String>,
     /// The figures in a sentence, e.g. "creates energy in 12 % of states; unforced rollouts
     /// drift by 0.4 % of the energy scale in 1000 steps".
     pub summary: String,

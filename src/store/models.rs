@@ -29,9 +29,13 @@ pub struct ModelRow {
     pub sha256: String,
     pub created_at: String,
     pub seq: i64,
+    /// JSON of the energy report last measured on request against a dataset (the training
+    /// report carries the one measured on the training data).
+    pub energy: Option<String>,
 }
 
-const COLUMNS: &str = "seq, id, job_id, origin, name, n, m, dt, spec, report, sha256, created_at";
+const COLUMNS: &str =
+    "seq, id, job_id, origin, name, n, m, dt, spec, report, sha256, created_at, energy";
 
 fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::dialect::sql::<D>(s, COLUMNS)
@@ -168,6 +172,20 @@ impl Store {
             let stored = insert_row!(D, tx, &new_id("mdl"), None, m, placed)?;
             tx.commit().await?;
             Ok((stored, true))
+        })
+    }
+
+    /// Stores a model's energy report (JSON) measured on request; false when the model is gone.
+    pub async fn set_model_energy(&self, id: &str, energy: &str) -> Result<bool> {
+        on_db!(self, pool, D => {
+            let mut tx = begin_write(pool).await?;
+            let updated = sqlx::query("UPDATE models SET energy = $1 WHERE id = $2")
+                .bind(energy)
+                .bind(id)
+                .execute(&mut *tx)
+                .await?;
+            tx.commit().await?;
+            Ok(updated.rows_affected() == 1)
         })
     }
 

@@ -206,3 +206,29 @@ def test_a_finished_job_stores_its_energy_report(server, models):
     assert ("never creates energy" in report["summary"]) == (injecting == 0), report
     status, mvf = server.rest.get(f"/v1/models/{models.mvf}")
     assert status == 200 and mvf["metrics"]["energy"]["switched_off"] == [], mvf["metrics"]
+
+
+def test_an_uploaded_models_energy_report_is_measured_on_request_and_stored(server, models, dp_model, naive_model):
+    _, model = dp_model
+    status, before = server.rest.get(f"/v1/models/{model}")
+    assert status == 200 and before["metrics"]["energy"] is None, before["metrics"]
+    status, report = server.rest.post(f"/v1/models/{model}/energy-report",
+                                      {"dataset_id": models.dataset_id})
+    assert status == 200, report
+    assert report["dataset_id"] == models.dataset_id and report["switched_off"] == ["damping"]
+    # Its η are negative (DP above): it never injects; without them it keeps E to RK4's error.
+    assert report["passivity"] == {"states": 256, "injecting": 0, "share": 0.0, "max_power": 0.0}
+    assert all(d["median"] < 1e-3 for d in report["drift"]), report
+    status, after = server.rest.get(f"/v1/models/{model}")
+    assert status == 200 and after["metrics"]["energy"] == report, after["metrics"]
+    with Client(server.grpc_target) as c:
+        assert c.get_model(model).metrics["energy"] == report
+
+    status, body = server.rest.post(f"/v1/models/{naive_model}/energy-report",
+                                    {"dataset_id": models.dataset_id})
+    assert status == 409 and "naive" in body["error"]["message"], body
+    status, body = server.rest.post(f"/v1/models/{model}/energy-report", {"dataset_id": "ds_nope"})
+    assert status == 404, body
+    status, body = server.rest.post(f"/v1/models/{model}/energy-report",
+                                    {"dataset_id": models.dataset_id, "timeout_seconds": 0})
+    assert status == 400 and body["error"]["field"] == "timeout_seconds", body

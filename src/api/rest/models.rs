@@ -8,7 +8,7 @@ use axum::routing::{get, post};
 
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, body_bytes, int_param, json_body, page, stored};
-use crate::app::inference::{EnergyRequest, EvaluateRequest};
+use crate::app::inference::{EnergyReportRequest, EnergyRequest, EvaluateRequest};
 use crate::app::requests::parse_body;
 use crate::app::uploads::BodyKind;
 
@@ -21,6 +21,17 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/models/{id}/rollout", get(rollout))
         .route("/v1/models/{id}/evaluate", post(evaluate))
         .route("/v1/models/{id}/energy", post(energy))
+        .route("/v1/models/{id}/energy-report", post(energy_report))
+}
+
+/// The model's energy report on a stored dataset, stored with the model.
+async fn energy_report(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> ApiResult<impl IntoResponse> {
+    let req: EnergyReportRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
+    Ok(axum::Json(s.app.energy_report(&id, req).await?))
 }
 
 /// T, V, E, the power of F and the split of the dynamics at a batch of states.

@@ -8,6 +8,7 @@
 mod admission;
 mod cache;
 mod energy;
+mod energy_report;
 mod evaluate;
 mod plan;
 pub mod reads;
@@ -17,6 +18,7 @@ mod rollout;
 pub use admission::Heavy;
 pub use cache::{CACHE_SWEEP, ModelCache};
 pub use energy::{Energy, EnergyRequest, EnergyView, ForcePartView};
+pub use energy_report::EnergyReportRequest;
 pub use evaluate::{EvaluateRequest, Evaluation};
 pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{MAX_PARTICLES, RolloutChunk, RolloutInputs, RolloutShape};

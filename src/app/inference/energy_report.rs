@@ -1,0 +1,62 @@
+//! `POST /v1/models/{id}/energy-report`: a model's energy report (`infer::energy_report`)
+//! measured against a stored dataset, for a model with no training data here (an uploaded
+//! file) or on other data than it trained on; stored with the model, and shown in its view.
+
+use std::time::{Duration, Instant};
+
+use serde::Deserialize;
+
+use crate::app::App;
+use crate::error::{Error, Result};
+use crate::infer::energy_report::REPORT_SEED;
+use crate::model::report::EnergyReport;
+
+/// How long a report may compute unless the request says otherwise, and at most: 64
+/// rollouts of 1000 steps and 4096 states take well under a second for MVF, minutes only for
+/// a large robot.
+const DEFAULT_SECONDS: f64 = 120.0;
+const MAX_SECONDS: f64 = 600.0;
+
+#[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EnergyReportRequest {
+    /// A stored dataset of the model's n and m whose states the report draws.
+    pub dataset_id: String,
+    /// Seconds the report may compute (default 120, at most 600): past it, 504.
+    #[serde(default)]
+    pub timeout_seconds: Option<f64>,
+}
+
+impl App {
+    /// The model's energy report on a dataset's states, stored with the model.
+    pub async fn energy_report(&self, id: &str, req: EnergyReportRequest) -> Result<EnergyReport> {
+        let s = req.timeout_seconds.unwrap_or(DEFAULT_SECONDS);
+        if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
+            return Err(Error::invalid(
+                "timeout_seconds",
+                format!("must be in (0, {MAX_SECONDS}]"),
+            ));
+        }
+        let deadline = Instant::now() + Duration::from_secs_f64(s);
+        let eval = self.evaluator(id).await?;
+        eval.check_energy()?;
+        let model = self.resolve_model_row(id).await?;
+        let (n, m) = (eval.config.n, eval.config.m);
+        let info = self.dataset_for_model(&req.dataset_id, (n, m)).await?;
+        // The report's work is fixed (64 rollouts of 1000 steps, at most 4096 states): only
+        // the dataset's memory needs admitting, which reading it does.
+        let loaded = self.read_dataset(&info).await?;
+        let mut report = self
+            .heavy_until("energy report", Some(deadline), move |stop| {
+                let (states, _) = loaded.ds().states();
+                eval.energy_report(&states, REPORT_SEED, stop).transpose()
+            })
+            .await??;
+        report.dataset_id = Some(req.dataset_id);
+        let json = serde_json::to_string(&report).expect("reports serialize");
+        if !self.store.set_model_energy(&model.id, &json).await? {
+            return Err(Error::NotFound(format!("model {}", model.id)));
+        }
+        Ok(report)
+    }
+}
