@@ -190,10 +190,10 @@ fn summary(p: &Passivity, drift: Option<&EnergyDrift>) -> String {
     format!("{creates}{drifts}")
 }
 
-/// A share as a percentage with the digits that matter (1e-9 and 0.4 alike).
+/// A share as a percentage with the digits that matter (1e-9, 0.4 and 2e4 alike).
 fn percent(share: f64) -> String {
     let p = 100.0 * share;
-    if p >= 0.1 {
+    if (0.1..1000.0).contains(&p) {
         format!("{p:.1} %")
     } else {
         format!("{p:.1e} %")

@@ -28,6 +28,8 @@ pub struct Replay {
     pub t: Vec<f64>,
     pub recorded: Series,
     pub predicted: Series,
+    /// The recorded inputs the model was driven with, T rows of m.
+    pub u: Vec<Vec<f64>>,
 }
 
 /// A dataset's trajectories and where their boundaries come from.
@@ -124,13 +126,14 @@ impl App {
                 chains
             }
         };
-        let seg = self.replayable(&segments, dataset_id, index, n)?;
+        let seg = self.replayable(&segments, dataset_id, index, (n, m))?;
         let loaded = match loaded {
             Some(read) => read,
             None => self.read_dataset(&info).await?,
         };
         let (recorded, inputs) = recorded_segment(loaded.ds(), seg);
         drop(loaded);
+        let u = inputs.chunks(m).map(<[f64]>::to_vec).collect();
         let replayed = self
             .heavy
             .run(move || replay_segment(&eval, recorded, &inputs, m))
@@ -143,6 +146,7 @@ impl App {
             t: (0..=seg.length).map(|k| k as f64 * info.dt).collect(),
             recorded: replayed.0,
             predicted: replayed.1,
+            u,
         })
     }
 
@@ -153,7 +157,7 @@ impl App {
         segments: &[Segment],
         dataset_id: &str,
         index: usize,
-        n: usize,
+        (n, m): (usize, usize),
     ) -> Result<Segment> {
         let seg = *segments.get(index).ok_or_else(|| {
             Error::invalid(
@@ -178,7 +182,7 @@ impl App {
                 seg.length
             )));
         }
-        let bytes = 8 * 4 * n * (seg.length + 1);
+        let bytes = 8 * (4 * n + m) * (seg.length + 1);
         self.admit(
             "index",
             &Cost {

@@ -51,8 +51,70 @@ async function modelView(view, id) {
       identifiable.length ? [el("h3", { text: "Identifiable combinations" }), el("ul", {}, identifiable.map((c) => el("li", { text: `${c.name} = ${Number(c.value).toPrecision(6)}` })))] : "",
       m.identifiability ? el("p", { class: "muted", text: m.identifiability }) : "",
     ] : "",
-    membersTable(m.metrics?.ensemble?.members)].flat(Infinity));
+    membersTable(m.metrics?.ensemble?.members), energyReport(m.metrics?.energy)].flat(Infinity));
   await replayPanel(view, m);
+}
+
+// The stored energy report: its sentence, then drift and passivity in a table.
+function energyReport(e) {
+  if (!e) return "";
+  const pct = (v) => (v === null || v === undefined ? "–" : `${(100 * v).toPrecision(2)} %`);
+  const rows = [
+    ...e.drift.map((d) => [`drift after ${d.steps} steps (${d.seconds} s), median / max`, `${pct(d.median)} / ${pct(d.max)}${d.diverged ? ` (${d.diverged} diverged)` : ""}`]),
+    ["creates energy in", `${pct(e.passivity.share)} of ${e.passivity.states} states (largest power ${Number(e.passivity.max_power).toPrecision(3)})`],
+    ["switched off in the rollouts", e.switched_off.length ? e.switched_off.join(", ") : "nothing (no part named damping or friction)"],
+  ];
+  return el("div", { class: "card", id: "model-energy" },
+    el("h2", { text: "Energy" }), el("p", { id: "model-energy-summary", text: `The model ${e.summary}.` }),
+    el("p", { class: "muted", text: `Drift: unforced rollouts from ${e.rollouts} ${e.dataset_id ? `states of dataset ${e.dataset_id}` : "training states"}, |E(t) − E(0)| as a share of their mean kinetic energy plus the range of V. Creates energy: q̇ᵀF(q, q̇, 0) > 0.` }),
+    el("div", { class: "table-wrap" }, el("table", { id: "model-energy-table" },
+      el("tbody", {}, rows.map(([k, v]) => el("tr", {}, el("th", { scope: "row", text: k }), el("td", { text: v })))))));
+}
+
+// Energy along a replay (POST /v1/models/{id}/energy, a few hundred states a call: REST
+// bodies are small): T, V, E and E(0) plus the work of F, whose gap is what the model
+// creates or loses; and per coordinate the terms of M q̈ + c + ∇V = F with F's parts. A naive
+// model has no energy: the charts say so instead.
+async function energyCharts(m, r, dt, host) {
+  const T = r.u.length;
+  const x = (k) => [...r.predicted.q[k], ...r.predicted.qdot[k]];
+  // The state at each step's start and at its end under that step's input, for the work.
+  const rows = [...Array(T).keys()].flatMap((k) => [[x(k), r.u[k]], [x(k + 1), r.u[k]]]);
+  const per = Math.max(2, 2 * Math.floor(20000 / (24 * (2 * m.n + m.m))));
+  const parts = [];
+  for (let s = 0; s < rows.length; s += per) {
+    const chunk = rows.slice(s, s + per);
+    parts.push(await api("POST", `/v1/models/${m.id}/energy`, { x: chunk.map((c) => c[0]), u: chunk.map((c) => c[1]) }));
+  }
+  const all = (key) => parts.flatMap((p) => p[key]);
+  const start = (key) => all(key).filter((_, i) => i % 2 === 0);
+  const atStates = (key) => [...start(key), all(key)[2 * T - 1]];
+  const power = all("power");
+  const work = [0];
+  for (let k = 0; k < T; k++) work.push(work[k] + (dt / 2) * (power[2 * k] + power[2 * k + 1]));
+  const total = atStates("total");
+  const energy = el("div", { id: "energy-chart", role: "img", "aria-label": "kinetic, potential and total energy, and the work of the forces, along the replay" });
+  const figures = el("div", { class: "charts" }, el("figure", {}, el("figcaption", { text: "energy" }), energy));
+  host.replaceChildren(el("h3", { text: "Energy along the replay" }),
+    el("p", { class: "muted", text: "T, V (up to its constant) and E = T + V of the predicted states; E(0) plus the work of the generalized forces (trapezoid rule). Where the two part, the model itself creates or loses energy." }),
+    figures);
+  chart(energy, {
+    x: r.t, xLabel: "time (s)", yLabel: "energy",
+    series: { T: atStates("kinetic"), V: atStates("potential"), E: total, "E(0) + work of F": work.map((w) => total[0] + w) },
+    dashed: ["E(0) + work of F"],
+  });
+  const names = coordinateNames(m);
+  const named = parts[0].parts.map((p) => p.name);
+  for (let i = 0; i < m.n; i++) {
+    const col = (key) => start(key).map((row) => row[i]);
+    const series = { "M q̈": col("inertial"), "c (Coriolis)": col("coriolis"), "∇V (gravity)": col("gravity") };
+    for (const name of named) {
+      series[`F: ${name}`] = parts.flatMap((p) => p.parts.find((q) => q.name === name).values).filter((_, j) => j % 2 === 0).map((row) => row[i]);
+    }
+    const split = el("div", { class: "split-chart", "data-coordinate": String(i), role: "img", "aria-label": `terms of the dynamics of ${names[i]}` });
+    figures.append(el("figure", {}, el("figcaption", { text: `${names[i]}: M q̈ + c + ∇V = F, term by term` }), split));
+    chart(split, { x: r.t.slice(0, T), xLabel: "time (s)", yLabel: "generalized force", series });
+  }
 }
 
 // One value per parameter; an ensemble's members' mean with its bootstrap error bar (± one
@@ -157,6 +219,7 @@ async function replayPanel(view, m) {
   const status = el("div", { role: "alert", id: "replay-alert" });
   const note = el("p", { class: "note", role: "status", id: "replay-note" });
   const charts = el("div", { class: "charts", id: "replay-charts" });
+  const energy = el("div", { id: "replay-energy" });
   const go = el("button", { type: "button", id: "replay-button" }, "Replay");
   view.append(el("h2", { text: "Rollout against data" }), el("p", { class: "muted",
     text: "The model predicts a recorded trajectory from its first state with its recorded inputs; recorded and predicted q and q̇ over time." }));
@@ -166,7 +229,7 @@ async function replayPanel(view, m) {
     return;
   }
   view.append(el("div", { class: "toolbar" },
-    el("label", { for: "replay-dataset", text: "Dataset" }), dsSelect, trLabel, trSelect, go), note, status, charts);
+    el("label", { for: "replay-dataset", text: "Dataset" }), dsSelect, trLabel, trSelect, go), note, status, charts, energy);
   const evaluate = horizonPanel(view, [{ id: m.id, label: m.id }], dsSelect, { stored: m.metrics?.horizon_errors });
 
   // Trajectories to choose from, or, for independent transitions, why there are none.
@@ -176,9 +239,12 @@ async function replayPanel(view, m) {
     if (dsSelect.value !== d.id) return false; // another dataset was chosen meanwhile
     trSelect.replaceChildren(...items.map((t) => el("option", { value: t.index, text: `#${t.index} (${t.length} steps)` })));
     const usable = items.length > 0;
-    for (const e of [trLabel, trSelect, go, charts]) e.hidden = !usable;
+    for (const e of [trLabel, trSelect, go, charts, energy]) e.hidden = !usable;
     evaluate.disabled = !usable;
-    if (!usable) charts.replaceChildren();
+    if (!usable) {
+      charts.replaceChildren();
+      energy.replaceChildren();
+    }
     note.textContent = usable ? "" : `The dataset “${d.name || d.id}” holds independent transitions, not trajectories: each of its ` +
       `${d.count} transitions starts from its own state, so the model has nothing to be rolled along. Rollouts need ` +
       "trajectories: upload the data as trajectories (a dataset file in the trajectory form, or rows in time order " +
@@ -201,6 +267,11 @@ async function replayPanel(view, m) {
             series: { recorded: r.recorded[key].map((row) => row[i]), predicted: r.predicted[key].map((row) => row[i]) },
           });
         }
+      }
+      if (m.spec?.kind === "naive") {
+        energy.replaceChildren(el("p", { class: "muted", id: "energy-note", text: "A naive model predicts q̈ directly: it has no mass matrix, potential or forces to read energy from." }));
+      } else {
+        await energyCharts(m, r, r.dt, energy);
       }
     } catch (e) {
       status.replaceChildren(errorBox(e));
