@@ -1,9 +1,23 @@
 //! Request bodies to the core's types, with errors that name the field and say what to send
 //! in words rather than Rust types.
 
+use std::time::{Duration, Instant};
+
 use serde_json::Value;
 
 use crate::error::{Error, Result};
+
+/// A request's `timeout_seconds` as a deadline from now: `default` when absent, at most `max`.
+pub fn deadline(timeout_seconds: Option<f64>, default: f64, max: f64) -> Result<Instant> {
+    let s = timeout_seconds.unwrap_or(default);
+    if !(s.is_finite() && s > 0.0 && s <= max) {
+        return Err(Error::invalid(
+            "timeout_seconds",
+            format!("must be in (0, {max}]"),
+        ));
+    }
+    Ok(Instant::now() + Duration::from_secs_f64(s))
+}
 
 /// serde's messages with the Rust type names said in words (`expected usize` → `expected a
 /// whole number ≥ 0`), so that an error names what to send, not how it is stored.

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from conftest import serve
-from test_dashboard import browser, series, watch_csp  # noqa: F401  (a fixture, used by name)
+from test_dashboard import browser, series  # noqa: F401  (a fixture, used by name)
+from test_dashboard_pages import page  # noqa: F401  (a fixture, used by name)
 
 
 @pytest.fixture(scope="module")
@@ -40,17 +41,6 @@ def trained(service, graybox_bin):
         status, models[name] = s.rest.get(f"/v1/models/{job['model_id']}")
         assert status == 200
     return ds, models
-
-
-@pytest.fixture
-def page(browser):  # noqa: F811
-    p = browser.new_page(viewport={"width": 1280, "height": 900})
-    errors = []
-    p.on("pageerror", lambda e: errors.append(str(e)))
-    violations = watch_csp(p)
-    yield p
-    p.close()
-    assert errors == [] and violations == [], (errors, violations)
 
 
 def replay(page, base, model, ds):

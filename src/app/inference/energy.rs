@@ -3,12 +3,13 @@
 //! /v1/models/{id}/energy` call it; admitted like Predict (the response and the call's
 //! memory, B states' worth, before it computes) and stopped at its deadline.
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
 use super::{Cost, INLINE_ROWS, check_batch};
 use crate::app::App;
+use crate::app::requests::deadline;
 use crate::array::Array;
 use crate::error::{Error, Result};
 use crate::infer::{Energies, finite_rows};
@@ -84,17 +85,6 @@ fn rows_array(field: &str, rows: Vec<Vec<f64>>) -> Result<Array> {
     Ok(Array::new(&[b, width], rows.concat()))
 }
 
-fn deadline(timeout: Option<f64>) -> Result<Instant> {
-    let s = timeout.unwrap_or(DEFAULT_SECONDS);
-    if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
-        return Err(Error::invalid(
-            "timeout_seconds",
-            format!("must be in (0, {MAX_SECONDS}]"),
-        ));
-    }
-    Ok(Instant::now() + Duration::from_secs_f64(s))
-}
-
 impl App {
     /// The energies of a batch of states `[B, 2n]` under inputs `[B, m]`.
     pub async fn energy(
@@ -134,7 +124,7 @@ impl App {
 
     /// [`App::energy`] for a JSON body.
     pub async fn energy_json(&self, id: &str, req: EnergyRequest) -> Result<EnergyView> {
-        let deadline = deadline(req.timeout_seconds)?;
+        let deadline = deadline(req.timeout_seconds, DEFAULT_SECONDS, MAX_SECONDS)?;
         let (x, u) = (rows_array("x", req.x)?, rows_array("u", req.u)?);
         let Energy { n, energies: e } = self.energy(id, x, u, Some(deadline)).await?;
         let rows = |v: Vec<f64>| v.chunks(n).map(<[f64]>::to_vec).collect::<Vec<_>>();

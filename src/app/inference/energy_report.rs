@@ -2,11 +2,10 @@
 //! measured against a stored dataset, for a model with no training data here (an uploaded
 //! file) or on other data than it trained on; stored with the model, and shown in its view.
 
-use std::time::{Duration, Instant};
-
 use serde::Deserialize;
 
 use crate::app::App;
+use crate::app::requests::deadline;
 use crate::error::{Error, Result};
 use crate::infer::energy_report::REPORT_SEED;
 use crate::model::report::EnergyReport;
@@ -30,14 +29,7 @@ pub struct EnergyReportRequest {
 impl App {
     /// The model's energy report on a dataset's states, stored with the model.
     pub async fn energy_report(&self, id: &str, req: EnergyReportRequest) -> Result<EnergyReport> {
-        let s = req.timeout_seconds.unwrap_or(DEFAULT_SECONDS);
-        if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
-            return Err(Error::invalid(
-                "timeout_seconds",
-                format!("must be in (0, {MAX_SECONDS}]"),
-            ));
-        }
-        let deadline = Instant::now() + Duration::from_secs_f64(s);
+        let deadline = deadline(req.timeout_seconds, DEFAULT_SECONDS, MAX_SECONDS)?;
         let eval = self.evaluator(id).await?;
         eval.check_energy()?;
         let model = self.resolve_model_row(id).await?;

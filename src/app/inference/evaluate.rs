@@ -2,12 +2,11 @@
 //! trajectory dataset (`infer::horizons`), its cost (window starts × horizon) admitted before
 //! it computes, stopped at its deadline.
 
-use std::time::{Duration, Instant};
-
 use serde::{Deserialize, Serialize};
 
 use super::Cost;
 use crate::app::App;
+use crate::app::requests::deadline;
 use crate::data::trajectories;
 use crate::error::{Error, Result};
 use crate::infer::horizons::{HorizonError, check_horizons, cost, horizon_errors, segments_cost};
@@ -41,22 +40,9 @@ pub struct Evaluation {
     pub items: Vec<HorizonError>,
 }
 
-impl EvaluateRequest {
-    fn deadline(&self) -> Result<Instant> {
-        let s = self.timeout_seconds.unwrap_or(DEFAULT_SECONDS);
-        if !(s.is_finite() && s > 0.0 && s <= MAX_SECONDS) {
-            return Err(Error::invalid(
-                "timeout_seconds",
-                format!("must be in (0, {MAX_SECONDS}]"),
-            ));
-        }
-        Ok(Instant::now() + Duration::from_secs_f64(s))
-    }
-}
-
 impl App {
     pub async fn evaluate(&self, model_id: &str, req: EvaluateRequest) -> Result<Evaluation> {
-        let deadline = req.deadline()?;
+        let deadline = deadline(req.timeout_seconds, DEFAULT_SECONDS, MAX_SECONDS)?;
         let max_steps = self.settings.max_rollout_steps;
         let horizons = check_horizons(&req.horizons, max_steps)?;
         let eval = self.evaluator(model_id).await?;
