@@ -17,7 +17,7 @@ use crate::physics::urdf::featherstone::{
 };
 
 /// A batch's energies: per state `[B]`, per coordinate `[B, n]` row-major.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Energies {
     pub kinetic: Vec<f64>,
     pub potential: Vec<f64>,
@@ -97,15 +97,17 @@ impl Evaluator {
             Some(members) => members.iter().collect(),
             None => vec![self],
         };
-        let mut rows = Vec::with_capacity(x.len() / nx);
+        // Each state's figures go straight into the answer's arrays: a batch holds its
+        // answer once, not a row of small vectors per state beside it.
+        let mut out = Energies::default();
         for (x, u) in x.chunks(nx).zip(u.chunks(m)) {
             if stop() {
                 return Ok(None);
             }
             let each: Vec<Row> = members.iter().map(|e| e.energy_row(x, u)).collect();
-            rows.push(mean_row(each));
+            out.push(mean_row(each));
         }
-        Ok(Some(gather(rows)))
+        Ok(Some(out))
     }
 
     fn energy_row(&self, x: &[f64], u: &[f64]) -> Row {
@@ -234,29 +236,28 @@ fn mean_row(mut rows: Vec<Row>) -> Row {
     }
 }
 
-/// Rows into the batch's arrays.
-fn gather(rows: Vec<Row>) -> Energies {
-    let flat = |f: &dyn Fn(&Row) -> &[f64]| rows.iter().flat_map(|r| f(r).to_vec()).collect();
-    let n = rows.first().map_or(0, |r| r.inertial.len());
-    let applied: Vec<f64> = rows.iter().flat_map(|r| sum_parts(&r.parts, n)).collect();
-    let parts = match rows.first() {
-        None => vec![],
-        Some(first) => (0..first.parts.len())
-            .map(|p| NamedPart {
-                values: flat(&|r| &r.parts[p].values),
-                ..first.parts[p].clone()
-            })
-            .collect(),
-    };
-    Energies {
-        kinetic: rows.iter().map(|r| r.kinetic).collect(),
-        potential: rows.iter().map(|r| r.potential).collect(),
-        total: rows.iter().map(|r| r.kinetic + r.potential).collect(),
-        power: rows.iter().map(|r| r.power).collect(),
-        inertial: flat(&|r| &r.inertial),
-        coriolis: flat(&|r| &r.coriolis),
-        gravity: flat(&|r| &r.gravity),
-        applied,
-        parts,
+impl Energies {
+    /// One more state's figures.
+    fn push(&mut self, row: Row) {
+        let n = row.inertial.len();
+        self.kinetic.push(row.kinetic);
+        self.potential.push(row.potential);
+        self.total.push(row.kinetic + row.potential);
+        self.power.push(row.power);
+        self.applied.extend(sum_parts(&row.parts, n));
+        self.inertial.extend(row.inertial);
+        self.coriolis.extend(row.coriolis);
+        self.gravity.extend(row.gravity);
+        if self.parts.is_empty() {
+            self.parts = (row.parts.iter())
+                .map(|p| NamedPart {
+                    values: vec![],
+                    ..p.clone()
+                })
+                .collect();
+        }
+        for (all, p) in self.parts.iter_mut().zip(row.parts) {
+            all.values.extend(p.values);
+        }
     }
 }

@@ -101,7 +101,8 @@ impl App {
         let parts = eval.force_part_count();
         // T, V, E, power; the four terms and the parts, n each.
         let response_bytes = 8 * b * (4 + n * (4 + parts));
-        // Each member's row is held until their mean is taken: a state's worth, per state.
+        // The inputs, the answer's arrays and its message; each member's row of one state
+        // until their mean is taken.
         let row = 8 * (k + 1) * n * (4 + parts);
         self.admit(
             "x",
