@@ -105,6 +105,17 @@ fn plain_cases() -> Vec<(String, ModelSpec, usize, usize)> {
         1,
         1,
     ));
+    // Passive forces: B(q)u − D(q, q̇)q̇, n ≠ m.
+    v.push((
+        "passive/mlp".into(),
+        ModelSpec::parse(
+            r#"{"mass": "mlp", "potential": "mlp", "forces": "passive"}"#,
+            None,
+        )
+        .unwrap(),
+        3,
+        2,
+    ));
     let custom = r#"{"kind":"structured","mass":{"type":"constant"},"potential":{"type":"quadratic"},"forces":{"type":"constant_affine"}}"#;
     v.push((
         "constant/quadratic/constant_affine".into(),

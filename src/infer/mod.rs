@@ -23,8 +23,8 @@ use std::sync::Arc;
 pub use energy::{Energies, NamedPart};
 use jet::Jet;
 pub use nets::Mlp64;
-use nets::{JetNets, NetOutputs, input_jet, periodic_full_jet, periodic_q_jet};
-use weights::{Components, Forces, Weights};
+use nets::{JetNets, input_jet, networks, periodic_full_jet, periodic_q_jet};
+use weights::Weights;
 
 use col::{Col, Column, Lanes};
 use limits::Pass;
@@ -155,7 +155,12 @@ impl Evaluator {
                 periodic_q_jet(q, sc, angles, inner, outer)
             }
         };
-        let outputs = networks(w, q_jet, || self.full_input((q, qd, u)));
+        let outputs = networks(
+            w,
+            q_jet,
+            || self.full_input((q, qd, u)),
+            || self.full_input((q, qd, &[])),
+        );
         let structure = Structure {
             mass,
             potential,
@@ -227,24 +232,6 @@ fn outer_dirs<C: Lanes>((q, qd, u): (&[C], &[C], &[C])) -> usize {
         .map(Lanes::dirs)
         .max()
         .unwrap_or(0)
-}
-
-/// The structured model's networks on a batch. `q_jet(true)` is the standardized q with
-/// its ∂/∂q directions; `full()` the standardized (q, q̇, u).
-fn networks(w: &Components, q_jet: impl Fn(bool) -> Jet, full: impl Fn() -> Jet) -> NetOutputs {
-    let (mass_net, potential_net) = (w.mass_net(), w.potential_net());
-    // M's and V's networks both read q with its ∂/∂q directions: one input jet for both.
-    let q_in = (mass_net.is_some() || potential_net.is_some()).then(|| q_jet(true));
-    let q_in = || q_in.as_ref().expect("built when a network reads it");
-    NetOutputs {
-        mass: mass_net.map(|net| net.jet(q_in())),
-        potential: potential_net.map(|net| net.jet(q_in())),
-        force: match &w.forces {
-            Some(Forces::Net(net)) => Some(net.jet(&full())),
-            Some(Forces::ControlAffine { b_net, .. }) => Some(b_net.jet(&q_jet(false))),
-            _ => None,
-        },
-    }
 }
 
 /// A model can leave its range (states far outside the training data, huge inputs): its

@@ -5,6 +5,7 @@ use std::collections::HashMap;
 
 use super::col::Lanes;
 use super::jet::Jet;
+use super::weights::{Components, Forces};
 use crate::error::{Error, Result};
 use crate::model::params_io::NamedArray;
 use crate::physics::assembly::Networks;
@@ -185,6 +186,9 @@ impl<S: Lanes> Networks<S> for JetNets<'_, S> {
     fn force(&self, j: usize) -> S {
         S::read(self.outs.force.as_ref().expect("force outputs"), 0, j)
     }
+    fn damping(&self, j: usize) -> S {
+        S::read(self.outs.damping.as_ref().expect("damping outputs"), 0, j)
+    }
 }
 
 /// Network outputs of one batch, computed before the structure.
@@ -192,4 +196,34 @@ pub(super) struct NetOutputs {
     pub(super) mass: Option<Jet>,
     pub(super) potential: Option<Jet>,
     pub(super) force: Option<Jet>,
+    pub(super) damping: Option<Jet>,
+}
+
+/// The structured model's networks on a batch. `q_jet(true)` is the standardized q with
+/// its ∂/∂q directions; `full()` the standardized (q, q̇, u), `state()` (q, q̇).
+pub(super) fn networks(
+    w: &Components,
+    q_jet: impl Fn(bool) -> Jet,
+    full: impl Fn() -> Jet,
+    state: impl Fn() -> Jet,
+) -> NetOutputs {
+    let (mass_net, potential_net) = (w.mass_net(), w.potential_net());
+    // M's and V's networks both read q with its ∂/∂q directions: one input jet for both.
+    let q_in = (mass_net.is_some() || potential_net.is_some()).then(|| q_jet(true));
+    let q_in = || q_in.as_ref().expect("built when a network reads it");
+    NetOutputs {
+        mass: mass_net.map(|net| net.jet(q_in())),
+        potential: potential_net.map(|net| net.jet(q_in())),
+        force: match &w.forces {
+            Some(Forces::Net(net)) => Some(net.jet(&full())),
+            Some(Forces::ControlAffine { b_net, .. } | Forces::Passive { b_net, .. }) => {
+                Some(b_net.jet(&q_jet(false)))
+            }
+            _ => None,
+        },
+        damping: match &w.forces {
+            Some(Forces::Passive { damping_net, .. }) => Some(damping_net.jet(&state())),
+            _ => None,
+        },
+    }
 }

@@ -44,6 +44,7 @@ pub(super) enum Potential {
 pub(super) enum Forces {
     Net(Mlp64),
     ControlAffine { b_net: Mlp64, eta: Vec<f64> },
+    Passive { b_net: Mlp64, damping_net: Mlp64 },
     ConstantAffine { b_const: Vec<f64>, eta: Vec<f64> },
 }
 
@@ -206,9 +207,14 @@ impl Weights {
         };
         let force = match &c.forces {
             Some(Forces::Net(net) | Forces::ControlAffine { b_net: net, .. }) => Some(net),
+            Some(Forces::Passive { b_net, .. }) => Some(b_net),
             _ => None,
         };
-        [c.mass_net(), c.potential_net(), force]
+        let damping = match &c.forces {
+            Some(Forces::Passive { damping_net, .. }) => Some(damping_net),
+            _ => None,
+        };
+        [c.mass_net(), c.potential_net(), force, damping]
             .into_iter()
             .flatten()
             .collect()
@@ -259,6 +265,10 @@ fn force_weights(a: &Arrays, spec: &ForceSpec) -> Result<Option<Forces>> {
         ForceSpec::ConstantAffine => Some(Forces::ConstantAffine {
             b_const: a.values(names::B_CONST, n * m)?,
             eta: a.values(names::ETA, n)?,
+        }),
+        ForceSpec::Passive { hidden } => Some(Forces::Passive {
+            b_net: a.net(names::B_NET, a.q_in, hidden, n * m)?,
+            damping_net: a.net(names::DAMPING_NET, a.q_in + n, hidden, n * (n + 1) / 2)?,
         }),
         ForceSpec::Mlp { .. } | ForceSpec::Template { .. } => None,
     })

@@ -5,7 +5,7 @@ use burn::tensor::Device;
 
 use super::mlp::{Mlp, param};
 use super::params::{
-    ConstantAffine, ControlAffine, ForceParams, MassParams, PotentialParams, Values,
+    ConstantAffine, ControlAffine, ForceParams, MassParams, Passive, PotentialParams, Values,
 };
 use crate::physics::mass_matrix;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
@@ -79,6 +79,12 @@ pub(super) fn forces(
         ForceSpec::ControlAffine { hidden } => Some(ForceParams::ControlAffine(ControlAffine {
             b_net: Mlp::init(w.q_in, hidden, n * m, rng, device),
             eta: zeros(n, device),
+        })),
+        // D's factor starts at PyTorch's initialization: damping from the start, which
+        // training shapes (a zero factor would leave only ε).
+        ForceSpec::Passive { hidden } => Some(ForceParams::Passive(Passive {
+            b_net: Mlp::init(w.q_in, hidden, n * m, rng, device),
+            damping_net: Mlp::init(w.q_in + n, hidden, n * (n + 1) / 2, rng, device),
         })),
         ForceSpec::ConstantAffine => {
             // B starts as the (rectangular) identity in scaled units.

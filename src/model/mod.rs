@@ -30,7 +30,7 @@ use crate::physics::templates::Template;
 use crate::rng::Rng;
 use mlp::{Mlp, param};
 pub use params::Params;
-use params::{Components, ForceParams, MassParams, PotentialParams, Values as Trainable};
+use params::{Components, PotentialParams, Values as Trainable};
 use spec::ModelSpec;
 use tensors::{BurnNets, Consts, LazyColumns};
 pub use tensors::{columns, dual_columns};
@@ -314,39 +314,9 @@ impl Model {
         f(&structure, &nets, &inputs)
     }
 
-    /// The structured model's networks on a batch, as columns (M's and V's with their
-    /// q-derivatives, in forward mode).
+    /// The structured model's networks on a batch, as columns.
     fn networks(&self, q: &Tensor<2>, qd: &Tensor<2>, u: &Tensor<2>) -> BurnNets {
-        let (c, p, n) = (&self.consts, self.components(), self.config.n);
-        let with_tangent = || {
-            let (x, dx_dq) = c.q_input(q, true);
-            (x, dx_dq.expect("asked for the tangent"))
-        };
-        BurnNets {
-            mass: match &p.mass {
-                Some(MassParams::Net(net)) => {
-                    let (x, dx_dq) = with_tangent();
-                    let (y, jac) = net.forward_jacobian(x, dx_dq);
-                    Some(tensors::dual_columns(y, jac))
-                }
-                _ => None,
-            },
-            potential_grad: match &p.potential {
-                Some(PotentialParams::Net(net)) => {
-                    let (x, dx_dq) = with_tangent();
-                    let jac = net.jacobian(x, dx_dq);
-                    Some(columns(&jac.reshape([q.dims()[0], n])))
-                }
-                _ => None,
-            },
-            force: match &p.forces {
-                Some(ForceParams::Net(net)) => Some(columns(&net.forward(c.full_input(q, qd, u)))),
-                Some(ForceParams::ControlAffine(f)) => {
-                    Some(columns(&f.b_net.forward(c.q_input(q, false).0)))
-                }
-                _ => None,
-            },
-        }
+        tensors::networks(&self.consts, self.components(), self.config.n, [q, qd, u])
     }
 
     fn components(&self) -> &Components {

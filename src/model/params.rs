@@ -24,6 +24,7 @@ pub mod names {
     pub const POTENTIAL_QUAD: &str = "potential_quad";
     pub const FORCE_NET: &str = "force_net";
     pub const B_NET: &str = "b_net";
+    pub const DAMPING_NET: &str = "damping_net";
     pub const B_CONST: &str = "b_const";
     pub const ETA: &str = "eta";
     pub const PHYSICAL: &str = "physical";
@@ -81,6 +82,15 @@ pub enum ForceParams {
     ControlAffine(ControlAffine),
     /// Bu + ηq̇.
     ConstantAffine(ConstantAffine),
+    /// B_θ(q)u − D_θ(q, q̇)q̇.
+    Passive(Passive),
+}
+
+#[derive(Module, Debug)]
+pub struct Passive {
+    pub b_net: Mlp,
+    /// [q, q̇] → the raw entries of D's factor.
+    pub damping_net: Mlp,
 }
 
 #[derive(Module, Debug)]
@@ -134,6 +144,10 @@ impl Params {
             Some(ForceParams::ConstantAffine(f)) => {
                 out.extend(export_as(names::B_CONST, &f.b_const));
                 out.extend(export_as(names::ETA, &f.eta));
+            }
+            Some(ForceParams::Passive(f)) => {
+                out.extend(export_as(names::B_NET, &f.b_net));
+                out.extend(export_as(names::DAMPING_NET, &f.damping_net));
             }
             None => {}
         }

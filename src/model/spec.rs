@@ -222,7 +222,10 @@ impl ModelSpec {
                 matches!(mass, MassSpec::Mlp { .. })
                     || potential.network().is_some()
                     || forces.network().is_some()
-                    || matches!(forces, ForceSpec::ControlAffine { .. })
+                    || matches!(
+                        forces,
+                        ForceSpec::ControlAffine { .. } | ForceSpec::Passive { .. }
+                    )
             }
         }
     }
@@ -295,7 +298,8 @@ impl ModelSpec {
                 if let Some(hidden) = forces.network() {
                     hidden_ok(hidden, &at("forces", forces.is_residual()))?;
                 }
-                if let ForceSpec::ControlAffine { hidden } = forces {
+                if let ForceSpec::ControlAffine { hidden } | ForceSpec::Passive { hidden } = forces
+                {
                     hidden_ok(hidden, "model.forces.hidden")?;
                 }
                 let parts = self.white_box_parts();

@@ -10,9 +10,15 @@ use crate::physics::templates::Template;
 /// Each part's `type`s, as errors and the README name them.
 const MASS_TYPES: &[&str] = &["mlp", "template", "constant"];
 const POTENTIAL_TYPES: &[&str] = &["mlp", "template", "zero", "quadratic"];
-const FORCE_TYPES: &[&str] = &["mlp", "control_affine", "constant_affine", "template"];
+const FORCE_TYPES: &[&str] = &[
+    "mlp",
+    "control_affine",
+    "constant_affine",
+    "passive",
+    "template",
+];
 /// The types with hidden layers.
-const WITH_HIDDEN: &[&str] = &["mlp", "control_affine"];
+const WITH_HIDDEN: &[&str] = &["mlp", "control_affine", "passive"];
 
 /// The spec, checked and with its shorthands filled in.
 pub(super) fn normalize(v: &Value) -> Result<Value> {
@@ -202,7 +208,7 @@ mod tests {
             (
                 r#"{"mass": "mlp", "potential": "mlp"}"#,
                 "model.forces",
-                "mlp, control_affine, constant_affine, template",
+                "mlp, control_affine, constant_affine, passive, template",
             ),
             (
                 r#"{"mass": "mlp", "potential": 3, "forces": "mlp"}"#,

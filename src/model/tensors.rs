@@ -5,6 +5,7 @@ use burn::tensor::{Device, Tensor, TensorData};
 
 use super::ModelConfig;
 use super::mlp::InputTangent;
+use super::params::{Components, ControlAffine, ForceParams, MassParams, Passive, PotentialParams};
 use crate::backend::RowFn;
 use crate::physics::assembly;
 use crate::physics::dual::Dual;
@@ -158,6 +159,7 @@ pub(super) struct BurnNets {
     pub(super) mass: Option<Vec<Dual<Tensor<2>>>>,
     pub(super) potential_grad: Option<Vec<Tensor<2>>>,
     pub(super) force: Option<Vec<Tensor<2>>>,
+    pub(super) damping: Option<Vec<Tensor<2>>>,
 }
 
 impl assembly::Networks<Tensor<2>> for BurnNets {
@@ -169,6 +171,9 @@ impl assembly::Networks<Tensor<2>> for BurnNets {
     }
     fn force(&self, j: usize) -> Tensor<2> {
         self.force.as_ref().expect("force net")[j].clone()
+    }
+    fn damping(&self, j: usize) -> Tensor<2> {
+        self.damping.as_ref().expect("damping net")[j].clone()
     }
 }
 
@@ -296,5 +301,54 @@ impl Scalar for Tensor<2> {
 impl StateVec for Tensor<2> {
     fn axpy(&self, a: f64, x: &Self) -> Self {
         self.clone() + x.clone().mul_scalar(a)
+    }
+}
+
+/// The structured model's networks on a batch, as columns (M's and V's with their
+/// q-derivatives, in forward mode).
+pub(super) fn networks(
+    c: &Consts,
+    p: &Components,
+    n: usize,
+    [q, qd, u]: [&Tensor<2>; 3],
+) -> BurnNets {
+    let with_tangent = || {
+        let (x, dx_dq) = c.q_input(q, true);
+        (x, dx_dq.expect("asked for the tangent"))
+    };
+    BurnNets {
+        mass: match &p.mass {
+            Some(MassParams::Net(net)) => {
+                let (x, dx_dq) = with_tangent();
+                let (y, jac) = net.forward_jacobian(x, dx_dq);
+                Some(dual_columns(y, jac))
+            }
+            _ => None,
+        },
+        potential_grad: match &p.potential {
+            Some(PotentialParams::Net(net)) => {
+                let (x, dx_dq) = with_tangent();
+                let jac = net.jacobian(x, dx_dq);
+                Some(columns(&jac.reshape([q.dims()[0], n])))
+            }
+            _ => None,
+        },
+        force: match &p.forces {
+            Some(ForceParams::Net(net)) => Some(columns(&net.forward(c.full_input(q, qd, u)))),
+            Some(ForceParams::ControlAffine(ControlAffine { b_net, .. }))
+            | Some(ForceParams::Passive(Passive { b_net, .. })) => {
+                Some(columns(&b_net.forward(c.q_input(q, false).0)))
+            }
+            _ => None,
+        },
+        // [q, q̇]: the full input without its last m columns, u's.
+        damping: match &p.forces {
+            Some(ForceParams::Passive(f)) => {
+                let x = c.full_input(q, qd, u);
+                let width = x.dims()[1] - u.dims()[1];
+                Some(columns(&f.damping_net.forward(x.narrow(1, 0, width))))
+            }
+            _ => None,
+        },
     }
 }

@@ -13,6 +13,11 @@ use super::templates::Template;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 use crate::physics::scaling::Scaling;
 
+/// The floor ε of a passive force's damping D = S(L Lᵀ + εI)S, in the data's scaled units:
+/// D is positive definite even where the network's factor is singular, and 1e-3 of the
+/// scaled force per scaled velocity is far below any damping worth learning.
+pub const PASSIVE_EPS: f64 = 1e-3;
+
 /// The networks' outputs for a batch, read by index; each is asked for only when the spec
 /// has that network.
 pub trait Networks<S> {
@@ -22,6 +27,8 @@ pub trait Networks<S> {
     fn potential_grad(&self, k: usize) -> S;
     /// Output j of the force network (general F, unscaled) or of the B network (B_θ(q)).
     fn force(&self, j: usize) -> S;
+    /// Output j of a passive force's damping network: the raw entries of D's factor.
+    fn damping(&self, j: usize) -> S;
 }
 
 /// The batch's inputs as columns, built when first read: in training, a tracked value that
@@ -272,6 +279,11 @@ impl<'a, P> Structure<'a, P> {
             ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => {
                 self.affine(self.input_gain(nets, x), x)
             }
+            ForceSpec::Passive { .. } => {
+                let bu = self.input_force(self.input_gain(nets, x), x);
+                let d = self.passive_damping(nets, x);
+                bu.into_iter().zip(d).map(|(a, d)| a + d).collect()
+            }
             ForceSpec::Template { residual } => {
                 let f = self
                     .template()
@@ -306,7 +318,7 @@ impl<'a, P> Structure<'a, P> {
         let (n, m, s) = (self.n, self.m, self.scaling);
         let b_scale = |k: usize| s.force_scale[k / m] / s.u_std[k % m];
         match self.forces {
-            ForceSpec::ControlAffine { .. } => (0..n * m)
+            ForceSpec::ControlAffine { .. } | ForceSpec::Passive { .. } => (0..n * m)
                 .map(|k| nets.force(k).scale(b_scale(k)))
                 .collect(),
             ForceSpec::ConstantAffine => {
@@ -335,20 +347,61 @@ impl<'a, P> Structure<'a, P> {
     where
         P: Coef<S>,
     {
-        let (n, m, s) = (self.n, self.m, self.scaling);
+        let s = self.scaling;
         let eta = self.values.eta.expect("eta");
-        let (u, qd) = (x.u(), x.qd());
-        let bu = (0..n).map(|i| {
-            (0..m)
-                .map(|j| b[i * m + j].clone() * u[j].clone())
-                .reduce(|a, b| a + b)
-                .expect("m ≥ 1")
-        });
-        let damping = (0..n).map(|i| {
+        let qd = x.qd();
+        let damping = (0..self.n).map(|i| {
             eta[i]
                 .mul_div(s.force_scale[i], s.qdot_std[i])
                 .times(&qd[i])
         });
-        (bu.collect(), damping.collect())
+        (self.input_force(b, x), damping.collect())
+    }
+
+    /// B u (B `n·m` row-major).
+    pub(super) fn input_force<S: Scalar>(&self, b: Vec<S>, x: &impl Inputs<S>) -> Vec<S> {
+        let (n, m, u) = (self.n, self.m, x.u());
+        (0..n)
+            .map(|i| {
+                (0..m)
+                    .map(|j| b[i * m + j].clone() * u[j].clone())
+                    .reduce(|a, b| a + b)
+                    .expect("m ≥ 1")
+            })
+            .collect()
+    }
+
+    /// −D q̇ of a passive force in the data's units: D = S (L Lᵀ + εI) S with L the damping
+    /// network's factor and S = diag(√(force_scale / q̇_std)), so that q̇ᵀD q̇ = ‖Lᵀw‖² + ε‖w‖²
+    /// ≥ 0 with w = S q̇ whatever the network's weights (docs/energy.md#passive-forces).
+    pub(super) fn passive_damping<S: Scalar>(
+        &self,
+        nets: &impl Networks<S>,
+        x: &impl Inputs<S>,
+    ) -> Vec<S> {
+        let (n, s) = (self.n, self.scaling);
+        let root: Vec<f64> = (0..n)
+            .map(|i| (s.force_scale[i] / s.qdot_std[i]).sqrt())
+            .collect();
+        let w: Vec<S> = (0..n).map(|i| x.qd()[i].scale(root[i])).collect();
+        let l = |i: usize, j: usize| nets.damping(Tri::<()>::index(i, j));
+        // v = Lᵀ w, then L v + ε w.
+        let v: Vec<S> = (0..n)
+            .map(|a| {
+                (a..n)
+                    .map(|b| l(b, a) * w[b].clone())
+                    .reduce(|p, q| p + q)
+                    .expect("n ≥ 1")
+            })
+            .collect();
+        (0..n)
+            .map(|a| {
+                let lv = (0..=a)
+                    .map(|b| l(a, b) * v[b].clone())
+                    .reduce(|p, q| p + q)
+                    .expect("n ≥ 1");
+                -(lv + w[a].scale(PASSIVE_EPS)).scale(root[a])
+            })
+            .collect()
     }
 }

@@ -34,7 +34,9 @@ impl ForceSpec {
     pub fn part_count(&self) -> usize {
         match self {
             ForceSpec::Mlp { .. } => 1,
-            ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => 2,
+            ForceSpec::ControlAffine { .. }
+            | ForceSpec::ConstantAffine
+            | ForceSpec::Passive { .. } => 2,
             ForceSpec::Template { residual } => 2 + usize::from(residual.is_some()),
         }
     }
@@ -100,6 +102,11 @@ impl<P> Structure<'_, P> {
             ForceSpec::Mlp { .. } => vec![part("network", false, self.force_network(nets))],
             ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => {
                 let (bu, damping) = self.affine_parts(self.input_gain(nets, x), x);
+                vec![part("input", false, bu), part("damping", true, damping)]
+            }
+            ForceSpec::Passive { .. } => {
+                let bu = self.input_force(self.input_gain(nets, x), x);
+                let damping = self.passive_damping(nets, x);
                 vec![part("input", false, bu), part("damping", true, damping)]
             }
             ForceSpec::Template { residual } => {

@@ -69,6 +69,13 @@ pub enum ForceSpec {
     },
     /// Constant learned B and diagonal damping: B u + η ∘ q̇.
     ConstantAffine,
+    /// Passive by construction: B_θ(q) u − D_θ(q, q̇) q̇ with B_θ an MLP q → n×m and D
+    /// symmetric positive definite from an MLP [q, q̇] → the n(n+1)/2 entries of a factor
+    /// (docs/energy.md#passive-forces): the unforced force only ever takes energy out.
+    Passive {
+        #[serde(default = "structured_hidden")]
+        hidden: Vec<usize>,
+    },
     Template {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         residual: Option<Residual>,
@@ -111,7 +118,9 @@ impl ForceSpec {
         match self {
             ForceSpec::Mlp { hidden } => Some(hidden),
             ForceSpec::Template { residual } => Residual::hidden(residual),
-            ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => None,
+            ForceSpec::ControlAffine { .. }
+            | ForceSpec::ConstantAffine
+            | ForceSpec::Passive { .. } => None,
         }
     }
 

@@ -100,6 +100,11 @@ fn components(spec: &ModelSpec, d: Dims, physical: usize) -> Vec<(usize, usize)>
             (p + n, w)
         }
         (None, ForceSpec::ConstantAffine) => (n * m + n, 0),
+        (None, ForceSpec::Passive { hidden }) => {
+            let (pb, wb) = mlp(q_in, hidden, n * m);
+            let (pd, wd) = mlp(q_in + n, hidden, tri);
+            (pb + pd, wb + wd)
+        }
         (None, _) => (0, 0),
     };
     vec![mass, potential, forces, (physical, 0)]

@@ -106,6 +106,18 @@ pub fn fused_matches_graph(dev: &Device, tol: f64) {
             true,
         ),
         (
+            "passive periodic",
+            ModelSpec::parse(
+                r#"{"mass": "mlp", "potential": "mlp", "forces": "passive"}"#,
+                None,
+            )
+            .unwrap(),
+            3,
+            2,
+            Integrator::Rk4,
+            true,
+        ),
+        (
             "naive",
             ModelSpec::named("naive", None).unwrap(),
             2,

@@ -5,6 +5,7 @@
 use graybox::infer::Evaluator;
 use graybox::infer::energy_report::REPORT_SEED;
 use graybox::model::file::ModelFile;
+use graybox::model::spec::ModelSpec;
 use graybox::physics::integrator::Integrator;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
@@ -150,4 +151,29 @@ fn the_report_separates_integrator_drift_from_damping_and_injection() {
     // Switched off in the rollouts, the same damping leaves the same drift: it is the
     // conservative rest that is measured.
     assert_eq!(pumping.drift, damped.drift);
+}
+
+#[test]
+fn a_passive_force_never_injects_energy_whatever_its_weights() {
+    let dev = super::f64_device();
+    let spec = r#"{"mass": "mlp", "potential": "mlp", "forces": "passive"}"#;
+    let spec = ModelSpec::parse(spec, None).unwrap();
+    // Random, perturbed weights: nothing trained them to be passive.
+    let (_, eval) = super::build(spec, 2, 2, vec![], &dev);
+    let states = data_states(500);
+    let report = eval
+        .energy_report(&states, REPORT_SEED, &|| false)
+        .unwrap()
+        .unwrap();
+    assert_eq!(report.switched_off, ["damping"]);
+    assert_eq!(report.passivity.injecting, 0, "{report:?}");
+    // Its damping does work at every moving state: q̇ᵀF(q, q̇, 0) = −q̇ᵀD q̇ < 0.
+    let idle = vec![0.0; 2 * 500];
+    let e = eval
+        .energy_until(&states, &idle, &|| false)
+        .unwrap()
+        .unwrap();
+    assert!(e.power.iter().all(|p| *p < 0.0), "{:?}", e.power);
+    let damping = &e.parts[1];
+    assert_eq!((damping.name, damping.dissipation), ("damping", true));
 }

@@ -43,7 +43,14 @@ impl Layout {
             at += a.values.len();
         }
         let mut nets = vec![];
-        for prefix in ["naive", "mass_net", "potential_net", "force_net", "b_net"] {
+        for prefix in [
+            "naive",
+            "mass_net",
+            "potential_net",
+            "force_net",
+            "b_net",
+            "damping_net",
+        ] {
             let layer = |i: usize| -> Option<Layer> {
                 let find = |what: &str| {
                     let name = format!("{prefix}.layers.{i}.{what}");

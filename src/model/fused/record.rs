@@ -30,6 +30,7 @@ struct TapeNets {
     mass: Option<Vec<Dual<Var>>>,
     potential: Option<Dual<Var>>,
     force: Option<Vec<Dual<Var>>>,
+    damping: Option<Vec<Dual<Var>>>,
 }
 
 impl Networks<Var> for TapeNets {
@@ -42,6 +43,9 @@ impl Networks<Var> for TapeNets {
     }
     fn force(&self, j: usize) -> Var {
         self.force.as_ref().expect("force outputs")[j].v.clone()
+    }
+    fn damping(&self, j: usize) -> Var {
+        self.damping.as_ref().expect("damping outputs")[j].v.clone()
     }
 }
 
@@ -124,6 +128,12 @@ fn accel(
         force: net("force_net", &full(), 0).or_else(|| {
             let plain: Vec<Dual<Var>> = (sc.q_features(q, angles, false).into_iter()).collect();
             net("b_net", &plain, 0)
+        }),
+        // [q, q̇]: the full input without u's last m entries.
+        damping: layout.net("damping_net").map(|_| {
+            let mut x = full();
+            x.truncate(x.len() - u.len());
+            net("damping_net", &x, 0).expect("the layout has it")
         }),
     };
     let structure = Structure {
