@@ -106,16 +106,16 @@ pub fn fused_matches_graph(dev: &Device, tol: f64) {
             true,
         ),
         (
-            "passive periodic",
+            "passive",
             ModelSpec::parse(
                 r#"{"mass": "mlp", "potential": "mlp", "forces": "passive"}"#,
                 None,
             )
             .unwrap(),
-            3,
             2,
+            1,
             Integrator::Rk4,
-            true,
+            false,
         ),
         (
             "naive",
