@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The speed figures of URDF models in one sitting (bench-results/*-featherstone.md): graybox's
-# `bench infer --model` (the recursive path, and the template assembly it replaced, printed
+# `bench infer --model` (the multibody path, and the template assembly it replaced, printed
 # beside), the UR5 reach plan as `graybox plan` reports it, and Pinocchio's figures from
 # scripts/pinocchio_bench.py. Usage:
 #   scripts/urdf_speed.sh PYTHON_WITH_PIN [BUILD_DIR]

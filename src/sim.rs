@@ -9,12 +9,11 @@ pub use trajectories::{
 
 use crate::data::Dataset;
 use crate::error::{Error, Result};
-use crate::physics::dual::Dual;
-use crate::physics::dynamics::{Tri, cholesky, constants, dual_vars, white_box_acceleration};
+use crate::physics::dynamics::{constants, white_box_acceleration};
 use crate::physics::integrator::Integrator;
+use crate::physics::multibody;
 use crate::physics::stiffness;
 use crate::physics::templates::Template;
-use crate::physics::urdf::featherstone;
 use crate::records::Warning;
 use crate::rng::Rng;
 
@@ -44,32 +43,27 @@ pub fn configurations(ds: &Dataset, k: usize) -> Vec<Vec<f64>> {
 pub struct TemplateSystem {
     pub template: Template,
     pub params: Vec<f64>,
-    /// A URDF robot for the recursive algorithms (docs/robots.md#recursive-algorithms).
-    recursive: Option<featherstone::RigidBodyModel>,
+    /// A URDF robot for the multibody algorithms (docs/robots.md#multibody-dynamics).
+    multibody: Option<multibody::Model>,
 }
 
 impl TemplateSystem {
     pub fn new(template: Template, params: Vec<f64>) -> Self {
-        let recursive = match &template {
-            Template::Urdf(t) => Some(t.recursive_model(&params, true)),
+        let multibody = match &template {
+            Template::Urdf(t) => Some(t.multibody_model(&params, true)),
             _ => None,
         };
         Self {
             template,
             params,
-            recursive,
+            multibody,
         }
-    }
-
-    pub fn mass_factor(&self, q: &[f64]) -> Tri<Dual<f64>> {
-        let p = constants(&self.params);
-        cholesky(&self.template.mass(&p, &dual_vars(q, &1.0)))
     }
 
     pub fn acceleration(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
         let tau = self.template.forces(&self.params, q, qd, u);
-        if let Some(model) = &self.recursive {
-            return featherstone::forward_dynamics(model, q, qd, &tau);
+        if let Some(model) = &self.multibody {
+            return multibody::forward_dynamics(model, q, qd, &tau);
         }
         let p = constants(&self.params);
         white_box_acceleration(
@@ -83,10 +77,10 @@ impl TemplateSystem {
 
     /// Kinetic and potential energy (T, V).
     pub fn energy(&self, q: &[f64], qd: &[f64]) -> (f64, f64) {
-        if let Some(model) = &self.recursive {
+        if let Some(model) = &self.multibody {
             return (
-                featherstone::kinetic_energy(model, q, qd),
-                featherstone::potential_energy(model, q),
+                multibody::kinetic_energy(model, q, qd),
+                multibody::potential_energy(model, q),
             );
         }
         let m = self.template.mass(&self.params, q);
@@ -221,7 +215,7 @@ pub fn parse_assignments(template: &Template, text: Option<&str>, field: &str) -
     }
     // Values the template cannot take (a URDF body that is not physical, a negative mass)
     // are refused here, naming them under `field`.
-    template.raw(&values).map_err(|e| match e {
+    template.raw_from_physical(&values).map_err(|e| match e {
         Error::Invalid { field: f, message } => Error::Invalid {
             field: f.replacen("init", field, 1),
             message,
@@ -238,7 +232,7 @@ pub fn parse_assignments(template: &Template, text: Option<&str>, field: &str) -
     let q = vec![0.0; template.n()];
     let urdf = matches!(template, Template::Urdf(_));
     if let Some(i) = urdf
-        .then(|| stiffness::singular_coordinate(&template.mass(&values, &q)))
+        .then(|| stiffness::singular_coordinate(&template.mass_at(&values)(&q)))
         .flatten()
     {
         return Err(Error::Unprocessable {

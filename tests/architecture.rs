@@ -99,12 +99,25 @@ fn grouped(s: &str) -> Vec<&str> {
 
 /// Top-level modules a line of the file at `module` refers to.
 fn deps_of_line<'a>(module: &[String], line: &'a str) -> Vec<&'a str> {
+    refs_of_line(module, line, &[])
+}
+
+/// The modules directly inside `within` (a path from the crate root: `[]` for top-level
+/// modules, `["physics"]` for those of `physics`) that a line of the file at `module` refers
+/// to: `crate::<within>::x`, grouped `crate::<within>::{x, y}`, and `super::` paths that climb
+/// to `within` itself.
+fn refs_of_line<'a>(module: &[String], line: &'a str, within: &[&str]) -> Vec<&'a str> {
     let line = code(line);
+    let prefix: String = ["crate"]
+        .iter()
+        .chain(within)
+        .map(|p| format!("{p}::"))
+        .collect();
     let mut out = vec![];
     let mut rest = line;
-    while let Some(i) = rest.find("crate::") {
+    while let Some(i) = rest.find(prefix.as_str()) {
         let before = rest[..i].chars().last();
-        let after = &rest[i + "crate::".len()..];
+        let after = &rest[i + prefix.len()..];
         rest = after;
         if before.is_some_and(|c| c.is_alphanumeric() || c == '_' || c == '$') {
             continue; // `$crate::`, `my_crate::`
@@ -129,7 +142,13 @@ fn deps_of_line<'a>(module: &[String], line: &'a str) -> Vec<&'a str> {
             after = a;
         }
         rest = after;
-        if ups >= module.len() {
+        let lands = ups + within.len();
+        let climbs_to = if within.is_empty() {
+            lands >= module.len()
+        } else {
+            lands == module.len()
+        };
+        if climbs_to {
             if after.starts_with('{') {
                 out.extend(grouped(after));
             } else {
@@ -140,6 +159,11 @@ fn deps_of_line<'a>(module: &[String], line: &'a str) -> Vec<&'a str> {
     out.retain(|d| !d.is_empty() && *d != "self" && *d != "super");
     out
 }
+
+/// What `physics::multibody` (the rigid-body algorithms, built once from any source) may use
+/// of the mechanics: its numbers and the manipulator equation's linear algebra, never a
+/// producer (`urdf`), a template or the assembly, which stand on it instead.
+const MULTIBODY_MAY_USE: &[&str] = &["multibody", "scalar", "dual", "jet", "dynamics"];
 
 /// `file:line: layer imports module` for every forbidden dependency in `src`.
 fn violations(src: &Path) -> Vec<String> {
@@ -162,6 +186,18 @@ fn violations(src: &Path) -> Vec<String> {
                     n + 1,
                     line.trim()
                 ));
+            }
+            if module[..module.len().min(2)] == ["physics", "multibody"] {
+                for dep in refs_of_line(&module, line, &["physics"]) {
+                    if !MULTIBODY_MAY_USE.contains(&dep) {
+                        out.push(format!(
+                            "src/{}:{}: `physics::multibody` must not import `physics::{dep}`: {}",
+                            rel.display(),
+                            n + 1,
+                            line.trim()
+                        ));
+                    }
+                }
             }
             let deps: BTreeSet<&str> = deps_of_line(&module, line).into_iter().collect();
             for dep in deps {
@@ -328,5 +364,30 @@ mod checker {
         assert_eq!(v.len(), 2, "{v:?}");
         assert!(v[0].starts_with("src/physics/mod.rs:4: `physics` must not import `records`"));
         assert!(v[1].starts_with("src/physics/mod.rs:5: `physics` must not import `backend`"));
+    }
+
+    #[test]
+    fn multibody_may_not_import_a_producer_or_the_assembly() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir_all(dir.path().join("physics/multibody/spatial")).unwrap();
+        std::fs::write(
+            dir.path().join("physics/multibody/mod.rs"),
+            "use crate::physics::scalar::Scalar;\nuse crate::physics::{dual::Dual, urdf};\n",
+        )
+        .unwrap();
+        std::fs::write(
+            dir.path().join("physics/multibody/spatial/raw.rs"),
+            "use super::super::super::templates::Template;\nuse super::super::jet::Jet;\n",
+        )
+        .unwrap();
+        let v = violations(dir.path());
+        assert_eq!(v.len(), 2, "{v:?}");
+        assert!(v[0].starts_with(
+            "src/physics/multibody/mod.rs:2: `physics::multibody` must not import `physics::urdf`"
+        ));
+        assert!(v[1].starts_with(
+            "src/physics/multibody/spatial/raw.rs:1: `physics::multibody` must not import \
+             `physics::templates`"
+        ));
     }
 }

@@ -300,11 +300,11 @@ fn continuous_dynamics_and_its_jacobian_match_predict_and_central_differences() 
     }
 }
 
-/// A robot on the recursive algorithms (arm4, with friction): f's q̈ equals Predict's (which
-/// takes the recursive path) and its Jacobian (dual numbers through the generic path) matches
+/// A robot on the multibody algorithms (arm4, with friction): f's q̈ equals Predict's (which
+/// takes the multibody path) and its Jacobian (dual numbers through the generic path) matches
 /// central differences.
 #[test]
-fn a_robots_continuous_dynamics_match_its_recursive_path() {
+fn a_robots_continuous_dynamics_match_its_multibody_path() {
     use graybox::control::dircol::Continuous;
     use graybox::physics::integrator::Integrator;
     let urdf = std::fs::read_to_string(concat!(

@@ -1,29 +1,29 @@
-//! The recursive rigid-body algorithms (docs/robots.md#recursive-algorithms): CRBA's M(q),
+//! The multibody algorithms (docs/robots.md#multibody-dynamics): CRBA's M(q),
 //! RNEA's g(q) and C(q, q̇)q̇ equal Pinocchio's at every fixture state (the same fixtures as
 //! tests/urdf.rs); forward dynamics (ABA, or CRBA + Cholesky with mimic joints) inverts them;
-//! they agree with `urdf::rigid` (M = Σ JᵀIJ, V) for other, random physical inertias; and
+//! they agree with `urdf::assembled` (M = Σ JᵀIJ, V) for other, random physical inertias; and
 //! their dual-number derivatives are central differences'.
 
 use std::f64::consts::PI;
 
 use graybox::physics::dual::Dual;
 use graybox::physics::jet::Jet;
-use graybox::physics::urdf::Tree;
-use graybox::physics::urdf::featherstone::{
-    RigidBodyModel, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
+use graybox::physics::multibody::Inertial;
+use graybox::physics::multibody::{
+    self, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
     forward_dynamics, forward_dynamics_derivatives, gravity_torques, inverse_dynamics,
     kinetic_energy, potential_energy,
 };
-use graybox::physics::urdf::inertia::Inertial;
+use graybox::physics::urdf::Tree;
 use graybox::rng::Rng;
 use serde_json::Value;
 
-#[path = "featherstone/adjoint.rs"]
+#[path = "multibody/adjoint.rs"]
 mod adjoint;
-#[path = "featherstone/base.rs"]
+#[path = "multibody/base.rs"]
 mod base;
 mod common;
-#[path = "featherstone/evaluator.rs"]
+#[path = "multibody/evaluator.rs"]
 mod evaluator;
 use common::urdf::{fixture, flat_matrix, floats, rigid_terms};
 
@@ -76,7 +76,7 @@ fn states(fx: &Value) -> impl Iterator<Item = (Vec<f64>, Vec<f64>, &Value)> {
 fn crba_and_rnea_equal_pinocchio() {
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = RigidBodyModel::new(&tree, gravity(&fx));
+        let model = tree.multibody(gravity(&fx));
         for (s, (q, qd, st)) in states(&fx).enumerate() {
             let m = flat(&crba(&model, &q));
             let m_ref: Vec<f64> = flat_matrix(&st["M"]);
@@ -109,10 +109,10 @@ fn random(rng: &mut Rng, n: usize, scale: f64) -> Vec<f64> {
 }
 
 /// Every fixture robot's model, with its name.
-fn models() -> impl Iterator<Item = (&'static str, RigidBodyModel)> {
+fn models() -> impl Iterator<Item = (&'static str, multibody::Model)> {
     FIXTURES.into_iter().map(|name| {
         let (tree, fx) = fixture(name);
-        (name, RigidBodyModel::new(&tree, gravity(&fx)))
+        (name, tree.multibody(gravity(&fx)))
     })
 }
 
@@ -123,7 +123,7 @@ fn random_state(rng: &mut Rng, n: usize, scale: f64) -> [Vec<f64>; 3] {
 
 /// ‖M q̈ + C q̇ + g − τ‖∞ relative to the size of the terms summed (max(1, |τ|, Σⱼ|Mᵢⱼ q̈ⱼ|)):
 /// a backward-stable solve leaves a residual of a few ε of that whatever M's condition.
-fn residual(model: &RigidBodyModel, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f64 {
+fn residual(model: &multibody::Model, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f64]) -> f64 {
     let m = crba(model, q);
     let b = bias(model, q, qd);
     let mut worst = 0.0f64;
@@ -149,7 +149,7 @@ fn residual(model: &RigidBodyModel, q: &[f64], qd: &[f64], tau: &[f64], qdd: &[f
 fn energies_equal_pinocchio() {
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = RigidBodyModel::new(&tree, gravity(&fx));
+        let model = tree.multibody(gravity(&fx));
         for (s, (q, qd, st)) in states(&fx).enumerate() {
             let t = kinetic_energy(&model, &q, &qd);
             let t_ref = st["T"].as_f64().unwrap();
@@ -174,7 +174,7 @@ fn forward_dynamics_inverts_inverse_dynamics() {
     let mut rng = Rng::new(3);
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = RigidBodyModel::new(&tree, gravity(&fx));
+        let model = tree.multibody(gravity(&fx));
         for (s, (q, qd, _)) in states(&fx).enumerate() {
             let tau = random(&mut rng, q.len(), 10.0);
             let qdd = forward_dynamics(&model, &q, &qd, &tau);
@@ -193,10 +193,10 @@ fn forward_dynamics_inverts_inverse_dynamics() {
 
 /// For random physical inertias (θ ~ N(0, 1) per body: masses e^{2α} from 0.1 to 10, centres
 /// of mass off the axes, full inertia tensors) and random states, CRBA and RNEA agree with
-/// `urdf::rigid`'s M = Σ JᵀIJ, ∂V/∂q and the Coriolis term of ∂M/∂q to 1e-9 of max(1, |ref|)
+/// `urdf::assembled`'s M = Σ JᵀIJ, ∂V/∂q and the Coriolis term of ∂M/∂q to 1e-9 of max(1, |ref|)
 /// (two f64 evaluations of the same mechanics by different formulas).
 #[test]
-fn recursive_algorithms_agree_with_the_jacobian_form() {
+fn multibody_algorithms_agree_with_the_jacobian_form() {
     let mut rng = Rng::new(5);
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
@@ -205,7 +205,7 @@ fn recursive_algorithms_agree_with_the_jacobian_form() {
             let inertias: Vec<Inertial> = (tree.bodies.iter())
                 .map(|_| Inertial::from_theta(&std::array::from_fn(|_| rng.normal())))
                 .collect();
-            let model = RigidBodyModel::with_inertias(&tree, &inertias, g);
+            let model = tree.multibody_with(&inertias, g);
             let n = model.n;
             let q: Vec<f64> = (0..n).map(|_| rng.uniform_in(-PI, PI)).collect();
             let qd = random(&mut rng, n, 2.0);
@@ -232,7 +232,7 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
     let mut rng = Rng::new(9);
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = RigidBodyModel::new(&tree, gravity(&fx));
+        let model = tree.multibody(gravity(&fx));
         for (q, qd, _) in states(&fx).take(4) {
             let n = q.len();
             let tau = random(&mut rng, n, 5.0);
@@ -346,7 +346,7 @@ fn mimic_robot() -> Tree {
 }
 
 /// On the mimic robot, with random inertias, CRBA and RNEA (contracted with G) equal
-/// `urdf::rigid`'s M, ∂V/∂q and Coriolis term to 1e-9 of max(1, |ref|), and forward dynamics
+/// `urdf::assembled`'s M, ∂V/∂q and Coriolis term to 1e-9 of max(1, |ref|), and forward dynamics
 /// (CRBA + Cholesky) inverts them (tolerances as above).
 #[test]
 fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
@@ -358,7 +358,7 @@ fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
         let inertias: Vec<Inertial> = (tree.bodies.iter())
             .map(|_| Inertial::from_theta(&std::array::from_fn(|_| rng.normal())))
             .collect();
-        let model = RigidBodyModel::with_inertias(&tree, &inertias, g);
+        let model = tree.multibody_with(&inertias, g);
         assert!(model.mimic);
         let q: Vec<f64> = (0..3).map(|_| rng.uniform_in(-PI, PI)).collect();
         let qd = random(&mut rng, 3, 2.0);

@@ -4,8 +4,8 @@
 mod common;
 #[path = "numerics_f64/fused.rs"]
 mod fused;
-#[path = "numerics_f64/rigid.rs"]
-mod rigid;
+#[path = "numerics_f64/multibody.rs"]
+mod multibody;
 
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};

@@ -323,7 +323,7 @@ fn gains_that_overflow_name_the_horizon_not_r() {
     assert!(message.contains("overflows"), "{message}");
 }
 
-/// The UR5 of `example-robot-data` (on the recursive algorithms) from q = 0 at rest to
+/// The UR5 of `example-robot-data` (on the multibody algorithms) from q = 0 at rest to
 /// q = (0.5, −1, 1, 0, 0.5, 0) at rest in T = 100 steps of 0.01 s: with no bounds given the
 /// plan keeps |u| within the URDF's effort limits (150 N·m on the big joints, 28 on the
 /// wrist), converges, and ends within 0.05 of the goal (the terminal weight Q_f = 1000 Q

@@ -13,11 +13,11 @@ use graybox::model::file::ModelFile;
 use graybox::model::spec::ModelSpec;
 use graybox::physics::dual::Dual;
 use graybox::physics::integrator::Integrator;
+use graybox::physics::multibody::Inertial;
 use graybox::physics::scalar::Scalar;
 use graybox::physics::templates::Template;
 use graybox::physics::urdf::Tree;
 use graybox::physics::urdf::UrdfTemplate;
-use graybox::physics::urdf::inertia::Inertial;
 use graybox::rng::Rng;
 use graybox::sim::TemplateSystem;
 use graybox::sim::true_step;
@@ -41,7 +41,7 @@ fn err(a: &[f64], b: &[f64]) -> f64 {
         / scale
 }
 
-/// M, g and C q̇ at (q, q̇) of `urdf::rigid` with the tree's own inertias, through θ.
+/// M, g and C q̇ at (q, q̇) of `urdf::assembled` with the tree's own inertias, through θ.
 fn terms(tree: &Tree, gravity: &[f64; 3], q: &[f64], qd: &[f64]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let inertias: Vec<Inertial> = tree.bodies.iter().map(|b| b.inertial.clone()).collect();
     rigid_terms(tree, &inertias, gravity, q, qd)
@@ -206,12 +206,12 @@ fn double_pendulum_urdf_is_the_builtin_template() {
 fn physical_values_round_trip_through_raw() {
     let t = urdf_template("arm4");
     let values = t.defaults();
-    let back = t.natural(&t.raw(&values).unwrap());
+    let back = t.physical_from_raw(&t.raw_from_physical(&values).unwrap());
     assert!(err(&back, &values) < 1e-12, "{back:?} vs {values:?}");
     let mut bad = values.clone();
     let ixx = t.index_of("upper.ixx").unwrap();
     bad[ixx] = 10.0; // far above iyy + izz: breaks the triangle inequality
-    match t.raw(&bad) {
+    match t.raw_from_physical(&bad) {
         Err(graybox::error::Error::Invalid { field, message }) => {
             assert_eq!(field, "init.upper", "{message}");
         }

@@ -71,7 +71,7 @@ fn bench_train_reports_step_throughput_and_cpu() {
     assert_eq!(line["epochs"], 2, "{line}");
 }
 
-/// `graybox-lab bench rigid` on the Panda (a mimic joint: no ABA figure) prints the agreement of
+/// `graybox-lab bench multibody` on the Panda (a mimic joint: no ABA figure) prints the agreement of
 /// the two paths' q̈ and a positive µs per call for each figure, one JSON line each.
 #[test]
 fn bench_rigid_prints_agreement_and_figures() {
@@ -79,8 +79,8 @@ fn bench_rigid_prints_agreement_and_figures() {
         "{}/../tests/fixtures/urdf/robots/panda.urdf",
         env!("CARGO_MANIFEST_DIR")
     );
-    let lines = json_lines(&["bench", "rigid", "--urdf", &urdf, "--calls", "20"]);
-    assert_eq!(lines[0]["bench"], "rigid_agreement");
+    let lines = json_lines(&["bench", "multibody", "--urdf", &urdf, "--calls", "20"]);
+    assert_eq!(lines[0]["bench"], "multibody_agreement");
     assert_eq!(lines[0]["mimic"], true);
     assert!(
         lines[0]["max_rel_diff_qdd"].as_f64().unwrap() < 1e-12,

@@ -6,11 +6,11 @@
 //! per-sample walk through dual numbers (which cost more than the networks at 1024 states).
 //! A single state uses plain `f64` instead, where a column's allocation per operation would
 //! be the cost. Dual numbers over either carry the directions a linearization differentiates
-//! in ("outer" tangents, see [`Jet`]).
+//! in ("outer" tangents, see [`Activations`]).
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-use super::jet::Jet;
+use super::jet::Activations;
 use crate::physics::dual::Dual;
 use crate::physics::scalar::Scalar;
 
@@ -119,9 +119,9 @@ pub trait Column: Scalar {
     /// Coordinate j of row-major `[B, width]` samples.
     fn gather(rows: &[f64], width: usize, j: usize) -> Self;
     /// Stores this coordinate as unit j of the jet's block (o, i).
-    fn write_block(&self, jet: &mut Jet, o: usize, i: usize, j: usize);
+    fn write_block(&self, jet: &mut Activations, o: usize, i: usize, j: usize);
     /// Unit j of the jet's block (o, i).
-    fn read_block(jet: &Jet, o: usize, i: usize, j: usize) -> Self;
+    fn read_block(jet: &Activations, o: usize, i: usize, j: usize) -> Self;
 }
 
 impl Column for f64 {
@@ -135,10 +135,10 @@ impl Column for f64 {
         debug_assert_eq!(rows.len(), width, "one sample");
         rows[j]
     }
-    fn write_block(&self, jet: &mut Jet, o: usize, i: usize, j: usize) {
+    fn write_block(&self, jet: &mut Activations, o: usize, i: usize, j: usize) {
         jet.set(o, i, 0, j, *self);
     }
-    fn read_block(jet: &Jet, o: usize, i: usize, j: usize) -> Self {
+    fn read_block(jet: &Activations, o: usize, i: usize, j: usize) -> Self {
         jet.at(o, i, 0, j)
     }
 }
@@ -153,12 +153,12 @@ impl Column for Col {
     fn gather(rows: &[f64], width: usize, j: usize) -> Self {
         Col(rows.iter().skip(j).step_by(width).copied().collect())
     }
-    fn write_block(&self, jet: &mut Jet, o: usize, i: usize, j: usize) {
+    fn write_block(&self, jet: &mut Activations, o: usize, i: usize, j: usize) {
         for (b, &v) in self.0.iter().enumerate() {
             jet.set(o, i, b, j, v);
         }
     }
-    fn read_block(jet: &Jet, o: usize, i: usize, j: usize) -> Self {
+    fn read_block(jet: &Activations, o: usize, i: usize, j: usize) -> Self {
         Col((0..jet.batch).map(|b| jet.at(o, i, b, j)).collect())
     }
 }
@@ -171,9 +171,9 @@ pub trait Lanes: Scalar {
     fn dirs(&self) -> usize;
     /// Stores this coordinate (value and outer tangents) as unit j of the jet's inner block
     /// i: the value of input j (i = 0) or its ∂/∂q_{i−1}.
-    fn write(&self, jet: &mut Jet, i: usize, j: usize);
+    fn write(&self, jet: &mut Activations, i: usize, j: usize);
     /// Output unit j of the jet's inner block i, with its outer tangents.
-    fn read(jet: &Jet, i: usize, j: usize) -> Self;
+    fn read(jet: &Activations, i: usize, j: usize) -> Self;
 }
 
 impl<C: Column> Lanes for C {
@@ -183,10 +183,10 @@ impl<C: Column> Lanes for C {
     fn dirs(&self) -> usize {
         0
     }
-    fn write(&self, jet: &mut Jet, i: usize, j: usize) {
+    fn write(&self, jet: &mut Activations, i: usize, j: usize) {
         self.write_block(jet, 0, i, j);
     }
-    fn read(jet: &Jet, i: usize, j: usize) -> Self {
+    fn read(jet: &Activations, i: usize, j: usize) -> Self {
         C::read_block(jet, 0, i, j)
     }
 }
@@ -198,7 +198,7 @@ impl<C: Column> Lanes for Dual<C> {
     fn dirs(&self) -> usize {
         self.d.len()
     }
-    fn write(&self, jet: &mut Jet, i: usize, j: usize) {
+    fn write(&self, jet: &mut Activations, i: usize, j: usize) {
         self.v.write_block(jet, 0, i, j);
         // A missing tangent is zero, which the fresh jet already holds.
         for (o, t) in self.d.iter().enumerate() {
@@ -207,7 +207,7 @@ impl<C: Column> Lanes for Dual<C> {
             }
         }
     }
-    fn read(jet: &Jet, i: usize, j: usize) -> Self {
+    fn read(jet: &Activations, i: usize, j: usize) -> Self {
         Dual::new(
             C::read_block(jet, 0, i, j),
             (1..=jet.outer).map(|o| Some(C::read_block(jet, o, i, j))),

@@ -1,7 +1,7 @@
 //! Energy and power of a structured model (docs/energy.md), per state in f64 from the
 //! model's own parts: kinetic T = ½ q̇ᵀM(q)q̇, potential V(q) up to its constant, the power
 //! q̇ᵀF of the generalized forces, and M q̈ + c(q, q̇) + ∇V(q) = F term by term with F's named
-//! parts. A URDF model's come from the recursive algorithms, as its `predict` does (CRBA for
+//! parts. A URDF model's come from the multibody algorithms, as its `predict` does (CRBA for
 //! M, RNEA for c and gravity, the articulated-body algorithm for q̈). An ensemble's are its
 //! members' means, term by term, so that its split still sums.
 
@@ -12,8 +12,8 @@ use crate::model::spec::ModelSpec;
 use crate::physics::assembly::{Columns, Structure};
 use crate::physics::dynamics::{Tri, acceleration, coriolis};
 use crate::physics::energy::PotentialValue;
-use crate::physics::urdf::featherstone::{
-    self, RigidBodyModel, crba, forward_dynamics, gravity_torques, kinetic_energy, potential_energy,
+use crate::physics::multibody::{
+    self, crba, forward_dynamics, gravity_torques, kinetic_energy, potential_energy,
 };
 
 /// A batch's energies: per state `[B]`, per coordinate `[B, n]` row-major.
@@ -113,7 +113,7 @@ impl Evaluator {
     fn energy_row(&self, x: &[f64], u: &[f64]) -> Row {
         let (q, qd) = x.split_at(self.config.n);
         let mut row = self
-            .with_structure((q, qd, u), |s, nets, cols| match &self.recursive {
+            .with_structure((q, qd, u), |s, nets, cols| match &self.multibody {
                 Some(model) => rigid_row(model, s, nets, cols),
                 None => assembled_row(s, nets, cols),
             })
@@ -144,10 +144,10 @@ fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> R
     }
 }
 
-/// A robot's by the recursive algorithms: gravity is RNEA's at q̇ = q̈ = 0 plus the gradient
+/// A robot's by the multibody algorithms: gravity is RNEA's at q̇ = q̈ = 0 plus the gradient
 /// of whatever potential is not the template's (∇V′ = F − τ, τ the torques the algorithms take).
 fn rigid_row(
-    model: &RigidBodyModel,
+    model: &multibody::Model,
     s: &Structure<f64>,
     nets: &JetNets<f64>,
     x: &Columns<f64>,
@@ -155,7 +155,7 @@ fn rigid_row(
     let (q, qd) = (x.q, x.qd);
     let parts = named_parts(s, nets, x);
     let applied = sum_parts(&parts, s.n);
-    let tau = s.rigid_torques(nets, x);
+    let tau = s.multibody_torques(nets, x);
     let qdd = forward_dynamics(model, q, qd, &tau);
     let m = crba(model, q);
     let rest = applied.iter().zip(&tau).map(|(f, t)| f - t);
@@ -167,7 +167,7 @@ fn rigid_row(
             .iter()
             .map(|row| row.iter().zip(&qdd).map(|(a, b)| a * b).sum())
             .collect(),
-        coriolis: featherstone::coriolis(model, q, qd),
+        coriolis: multibody::coriolis(model, q, qd),
         gravity: gravity_torques(model, q)
             .into_iter()
             .zip(rest)

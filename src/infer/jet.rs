@@ -1,6 +1,6 @@
 //! Batched MLP evaluation with derivatives, as matrix products: the inference path's hot loop.
 //!
-//! A [`Jet`] holds a batch's activations together with their derivatives in two sets of
+//! [`Activations`] holds a batch's activations together with their derivatives in two sets of
 //! directions: `inner` ones (∂/∂q, which M's Jacobian and ∇V need) and `outer` ones (∂/∂ε, the
 //! directions a linearization differentiates in), plus the mixed second derivatives ∂²/∂q∂ε
 //! (which is where ∂²M/∂q² and ∇²V come from). Every block is `[batch, width]` and a linear
@@ -18,7 +18,7 @@ use crate::simd::{mad, multiversion, tanh_kernel};
 /// Activations and derivatives of a batch: blocks `[outer + 1][inner + 1][batch][width]`,
 /// block (0, 0) the values.
 #[derive(Debug, Clone)]
-pub struct Jet {
+pub struct Activations {
     pub batch: usize,
     pub width: usize,
     pub inner: usize,
@@ -26,7 +26,7 @@ pub struct Jet {
     pub data: Vec<f64>,
 }
 
-impl Jet {
+impl Activations {
     pub fn zeros(batch: usize, width: usize, inner: usize, outer: usize) -> Self {
         let len = (inner + 1) * (outer + 1) * batch * width;
         Self {
@@ -57,8 +57,8 @@ impl Jet {
     }
 
     /// `self × W + b` (bias on the values only); W row-major `[width, out]`.
-    pub fn linear(&self, w: &[f64], bias: &[f64], out: usize) -> Jet {
-        let mut z = Jet::zeros(self.batch, out, self.inner, self.outer);
+    pub fn linear(&self, w: &[f64], bias: &[f64], out: usize) -> Activations {
+        let mut z = Activations::zeros(self.batch, out, self.inner, self.outer);
         for r in 0..self.batch {
             z.data[r * out..(r + 1) * out].copy_from_slice(bias);
         }
@@ -280,7 +280,7 @@ mod tests {
         use crate::physics::scalar::Scalar;
         // z(q, ε) = a + b q + c ε + d q ε at one unit: the jet's blocks vs Dual<Dual<f64>>.
         let (a, b, c, d) = (0.3, -0.7, 1.1, 0.4);
-        let mut jet = Jet::zeros(1, 1, 1, 1);
+        let mut jet = Activations::zeros(1, 1, 1, 1);
         jet.set(0, 0, 0, 0, a);
         jet.set(0, 1, 0, 0, b);
         jet.set(1, 0, 0, 0, c);

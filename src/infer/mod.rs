@@ -14,14 +14,14 @@ mod gains;
 pub mod horizons;
 pub mod jet;
 pub mod limits;
+mod multibody;
 mod nets;
-mod rigid;
 mod weights;
 
 use std::sync::Arc;
 
 pub use energy::{Energies, NamedPart};
-use jet::Jet;
+use jet::Activations;
 pub use nets::Mlp64;
 use nets::{JetNets, input_jet, networks, periodic_full_jet, periodic_q_jet};
 use weights::Weights;
@@ -37,8 +37,8 @@ use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::{Columns, Structure};
 use crate::physics::dynamics::acceleration;
+use crate::physics::multibody::forward_dynamics;
 use crate::physics::scalar::Scalar;
-use crate::physics::urdf::featherstone::{self, forward_dynamics};
 
 /// Batches at least this large run on two threads: a thread costs ~20–40 µs, a step of 64
 /// states ~0.35 ms on one (measured: 64 states in 0.26 ms split vs 0.35–0.48 ms not).
@@ -49,8 +49,8 @@ const PARALLEL_ROWS: usize = 32;
 pub struct Evaluator {
     pub config: ModelConfig,
     weights: Weights,
-    /// A URDF model's robot for the recursive algorithms (`rigid`), at its physical values.
-    recursive: Option<featherstone::RigidBodyModel>,
+    /// A URDF model's robot for the multibody algorithms, at its physical values.
+    multibody: Option<crate::physics::multibody::Model>,
     /// An ensemble's members, each a single model (member 0's weights are also this one's);
     /// None for a single model. The batched entry points answer with their mean (`ensemble`).
     members: Option<Arc<[Evaluator]>>,
@@ -64,7 +64,7 @@ impl Evaluator {
         let one = |file: &ModelFile| -> Result<Self> {
             let weights = Weights::from_file(file)?;
             Ok(Self {
-                recursive: rigid::recursive_model(&file.config, &weights),
+                multibody: multibody::model_of(&file.config, &weights),
                 config: file.config.clone(),
                 weights,
                 members: None,
@@ -86,12 +86,12 @@ impl Evaluator {
         self.evaluate(q, qd, u, false)
     }
 
-    /// τ = F − ∂V′/∂q of a model on the recursive algorithms (`rigid`), for a batch.
+    /// τ = F − ∂V′/∂q of a model on the multibody algorithms, for a batch.
     fn torques<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C]) -> Vec<C> {
         self.evaluate(q, qd, u, true)
     }
 
-    /// q̈, or (`torques`, for a model on the recursive algorithms) the τ it would take.
+    /// q̈, or (`torques`, for a model on the multibody algorithms) the τ it would take.
     fn evaluate<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C], torques: bool) -> Vec<C> {
         let structured =
             self.with_structure((q, qd, u), |s, nets, x| self.structure(s, nets, x, torques));
@@ -113,7 +113,7 @@ impl Evaluator {
     }
 
     /// The networks' input from (q, q̇, u): standardized, angles as (sin, cos).
-    fn full_input<C: Lanes>(&self, (q, qd, u): (&[C], &[C], &[C])) -> Jet {
+    fn full_input<C: Lanes>(&self, (q, qd, u): (&[C], &[C], &[C])) -> Activations {
         let sc = &self.config.scaling;
         let outer = outer_dirs((q, qd, u));
         if !self.config.periodic.is_empty() {
@@ -180,7 +180,7 @@ impl Evaluator {
 
     /// q̈ from the networks' outputs: the structure assembled from the spec (the same
     /// generic code the Burn path trains with), then the manipulator equation, or forward
-    /// dynamics by the recursive algorithms with τ from the structure (`torques`: τ only).
+    /// dynamics by the multibody algorithms with τ from the structure (`torques`: τ only).
     /// Without its damping (`without_damping`), F loses the parts the spec names so.
     fn structure<S: Lanes>(
         &self,
@@ -198,8 +198,8 @@ impl Evaluator {
             None => f,
             Some(d) => f.into_iter().zip(d).map(|(f, d)| f - d).collect(),
         };
-        if let Some(model) = &self.recursive {
-            let tau = less(structure.rigid_torques(nets, x));
+        if let Some(model) = &self.multibody {
+            let tau = less(structure.multibody_torques(nets, x));
             return if torques {
                 tau
             } else {
@@ -288,7 +288,7 @@ impl Evaluator {
             return ensemble::mean_prediction(members, x, u, want_accel, stop);
         }
         let parts = self.split(x, u, Pass::Step, stop, |x, u| {
-            if self.recursive.is_some() {
+            if self.multibody.is_some() {
                 self.predict_each(x, u, want_accel)
             } else if x.len() == 2 * self.config.n {
                 self.predict_cols::<f64>(x, u, want_accel)
@@ -337,12 +337,12 @@ impl Evaluator {
         }
         let (nx, m) = (2 * self.config.n, self.config.m);
         let parts = self.split(x, u, Pass::Linearize, stop, |x, u| {
-            let recursive = (self.recursive.as_ref()).and_then(|model| {
+            let multibody = (self.multibody.as_ref()).and_then(|model| {
                 let rows = x.chunks(nx).zip(u.chunks(m));
-                rows.map(|(x, u)| self.recursive_jacobian(model, x, u))
+                rows.map(|(x, u)| self.multibody_jacobian(model, x, u))
                     .collect::<Option<Vec<_>>>()
             });
-            if let Some(rows) = recursive {
+            if let Some(rows) = multibody {
                 rows.concat()
             } else if x.len() == nx {
                 self.jacobian_rows(columns::<f64>(x, nx), columns(u, m))

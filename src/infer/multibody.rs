@@ -1,4 +1,4 @@
-//! URDF models on the recursive rigid-body algorithms (docs/robots.md#recursive-algorithms):
+//! URDF models on the multibody algorithms (docs/robots.md#multibody-dynamics):
 //! when M is a URDF template's, q̈ = FD(q, q̇, τ) by the articulated-body algorithm (CRBA and
 //! a Cholesky solve with mimic joints) at the model's physical values, with τ = F − ∂V′/∂q
 //! from the assembly (forces, residual networks, a potential that is not the template's).
@@ -15,25 +15,25 @@ use crate::model::ModelConfig;
 use crate::physics::dual::Dual;
 use crate::physics::dynamics::{Tri, cholesky, solve_llt};
 use crate::physics::jet::Jet;
+use crate::physics::multibody::{Model as Robot, crba, forward_dynamics, id_partials};
 use crate::physics::templates::Template;
-use crate::physics::urdf::featherstone::{RigidBodyModel, crba, forward_dynamics, id_partials};
 
-/// The robot as the recursive algorithms take it, for a structured model whose M is a URDF
+/// The robot as the multibody algorithms take it, for a structured model whose M is a URDF
 /// template's; gravity is in it when V is the template's too.
-pub(super) fn recursive_model(config: &ModelConfig, weights: &Weights) -> Option<RigidBodyModel> {
-    let (t, gravity) = config.spec.recursive()?;
+pub(super) fn model_of(config: &ModelConfig, weights: &Weights) -> Option<Robot> {
+    let (t, gravity) = config.spec.multibody()?;
     let Weights::Structured(w) = weights else {
         return None;
     };
-    Some(t.recursive_model(w.physical.as_deref()?, gravity))
+    Some(t.multibody_model(w.physical.as_deref()?, gravity))
 }
 
 impl Evaluator {
     /// The same model evaluated by the template's M(q) and V(q) assembly instead of the
-    /// recursive algorithms: the reference they are tested against, and the figure a
+    /// multibody algorithms: the reference they are tested against, and the figure a
     /// benchmark compares them with.
     pub fn assembled(mut self) -> Self {
-        self.recursive = None;
+        self.multibody = None;
         if let Some(members) = &self.members {
             let assembled = members.iter().map(|m| m.clone().assembled());
             self.members = Some(assembled.collect::<Vec<_>>().into());
@@ -49,9 +49,9 @@ impl Evaluator {
         }
     }
 
-    /// Whether q̈ comes from the recursive algorithms.
-    pub fn is_recursive(&self) -> bool {
-        self.recursive.is_some()
+    /// Whether q̈ comes from the multibody algorithms.
+    pub fn is_multibody(&self) -> bool {
+        self.multibody.is_some()
     }
 
     /// `predict_cols` state by state in f64: O(n) work each, where batch columns would
@@ -76,9 +76,9 @@ impl Evaluator {
 
     /// Per output coordinate of one state's step, the row [∂x'_i/∂x, ∂x'_i/∂u] (as
     /// `jacobian_rows`); `None` beyond 64 directions (then dual numbers do it).
-    pub(super) fn recursive_jacobian(
+    pub(super) fn multibody_jacobian(
         &self,
-        model: &RigidBodyModel,
+        model: &Robot,
         x: &[f64],
         u: &[f64],
     ) -> Option<Vec<f64>> {
@@ -91,12 +91,7 @@ impl Evaluator {
         })
     }
 
-    fn step_jacobian<const N: usize>(
-        &self,
-        model: &RigidBodyModel,
-        x: &[f64],
-        u: &[f64],
-    ) -> Vec<f64> {
+    fn step_jacobian<const N: usize>(&self, model: &Robot, x: &[f64], u: &[f64]) -> Vec<f64> {
         let (n, dirs) = (self.config.n, x.len() + u.len());
         let xj: Vec<Jet<N>> = (x.iter().enumerate())
             .map(|(k, &v)| Jet::variable(v, k))
@@ -119,7 +114,7 @@ impl Evaluator {
     /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u).
     fn stage<const N: usize>(
         &self,
-        model: &RigidBodyModel,
+        model: &Robot,
         q: &[Jet<N>],
         qd: &[Jet<N>],
         u: &[Jet<N>],

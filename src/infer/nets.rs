@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use super::col::Lanes;
-use super::jet::Jet;
+use super::jet::Activations;
 use super::weights::{Components, Forces};
 use crate::error::{Error, Result};
 use crate::model::params_io::NamedArray;
@@ -54,9 +54,9 @@ impl Mlp64 {
     }
 
     /// The network on a batch with derivatives (see [`jet`]): one matrix product per layer.
-    pub fn jet(&self, input: &Jet) -> Jet {
+    pub fn jet(&self, input: &Activations) -> Activations {
         let last = self.layers.len() - 1;
-        let mut x: Option<Jet> = None;
+        let mut x: Option<Activations> = None;
         for (l, (_, d_out, w, b)) in self.layers.iter().enumerate() {
             let mut z = x.as_ref().unwrap_or(input).linear(w, b, *d_out);
             if l != last {
@@ -70,10 +70,14 @@ impl Mlp64 {
 
 /// A batch's network inputs as a jet: values and outer tangents from the columns; with
 /// `inner_scale`, input k also gets the inner tangent ∂x_k/∂q_k = inner_scale[k].
-pub(super) fn input_jet<C: Lanes>(cols: &[C], inner_scale: Option<&[f64]>, outer: usize) -> Jet {
+pub(super) fn input_jet<C: Lanes>(
+    cols: &[C],
+    inner_scale: Option<&[f64]>,
+    outer: usize,
+) -> Activations {
     let batch = cols[0].rows();
     let inner = inner_scale.map_or(0, <[f64]>::len);
-    let mut jet = Jet::zeros(batch, cols.len(), inner, outer);
+    let mut jet = Activations::zeros(batch, cols.len(), inner, outer);
     for (j, x) in cols.iter().enumerate() {
         x.write(&mut jet, 0, j);
     }
@@ -95,11 +99,11 @@ pub(super) fn periodic_q_jet<C: Lanes>(
     angles: &[bool],
     inner: bool,
     outer: usize,
-) -> Jet {
+) -> Activations {
     let n = q.len();
     // The features and their ∂/∂q as the fused step builds them, written into the jet.
     let features = sc.q_features(q, angles, inner);
-    let mut jet = Jet::zeros(
+    let mut jet = Activations::zeros(
         q[0].rows(),
         features.len(),
         if inner { n } else { 0 },
@@ -122,7 +126,7 @@ pub(super) fn periodic_full_jet<C: Lanes>(
     sc: &Scaling,
     angles: &[bool],
     outer: usize,
-) -> Jet {
+) -> Activations {
     let q_part = periodic_q_jet(q, sc, angles, false, outer);
     let rest: Vec<C> = qd
         .iter()
@@ -130,7 +134,7 @@ pub(super) fn periodic_full_jet<C: Lanes>(
         .chain(u.iter().zip(sc.u_mean.iter().zip(&sc.u_std)))
         .map(|(x, (m, s))| x.shift(-m).scale(1.0 / s))
         .collect();
-    let mut jet = Jet::zeros(q_part.batch, q_part.width + rest.len(), 0, outer);
+    let mut jet = Activations::zeros(q_part.batch, q_part.width + rest.len(), 0, outer);
     for o in 0..=outer {
         for b in 0..q_part.batch {
             for j in 0..q_part.width {
@@ -145,7 +149,7 @@ pub(super) fn periodic_full_jet<C: Lanes>(
 }
 
 /// Output j as a dual number over q (inner tangents), each part a batch coordinate.
-fn dual_at<C: Lanes>(jet: &Jet, j: usize) -> Dual<C> {
+fn dual_at<C: Lanes>(jet: &Activations, j: usize) -> Dual<C> {
     Dual::new(
         C::read(jet, 0, j),
         (1..=jet.inner).map(|i| Some(C::read(jet, i, j))),
@@ -193,19 +197,19 @@ impl<S: Lanes> Networks<S> for JetNets<'_, S> {
 
 /// Network outputs of one batch, computed before the structure.
 pub(super) struct NetOutputs {
-    pub(super) mass: Option<Jet>,
-    pub(super) potential: Option<Jet>,
-    pub(super) force: Option<Jet>,
-    pub(super) damping: Option<Jet>,
+    pub(super) mass: Option<Activations>,
+    pub(super) potential: Option<Activations>,
+    pub(super) force: Option<Activations>,
+    pub(super) damping: Option<Activations>,
 }
 
 /// The structured model's networks on a batch. `q_jet(true)` is the standardized q with
 /// its ∂/∂q directions; `full()` the standardized (q, q̇, u), `state()` (q, q̇).
 pub(super) fn networks(
     w: &Components,
-    q_jet: impl Fn(bool) -> Jet,
-    full: impl Fn() -> Jet,
-    state: impl Fn() -> Jet,
+    q_jet: impl Fn(bool) -> Activations,
+    full: impl Fn() -> Activations,
+    state: impl Fn() -> Activations,
 ) -> NetOutputs {
     let (mass_net, potential_net) = (w.mass_net(), w.potential_net());
     // M's and V's networks both read q with its ∂/∂q directions: one input jet for both.

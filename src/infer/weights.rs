@@ -188,7 +188,9 @@ impl Weights {
             Some(t) if arrays.by_name.contains_key(names::PHYSICAL_VALUES) => {
                 Some(arrays.values(names::PHYSICAL_VALUES, t.params().len())?)
             }
-            Some(t) => Some(t.natural(&arrays.values(names::PHYSICAL, t.params().len())?)),
+            Some(t) => {
+                Some(t.physical_from_raw(&arrays.values(names::PHYSICAL, t.params().len())?))
+            }
             None => None,
         };
         Ok(Weights::Structured(Components {

@@ -225,7 +225,7 @@ impl ModelFile {
         Some(
             match (array(names::PHYSICAL_VALUES), array(names::PHYSICAL)) {
                 (Some(a), _) => a.values.clone(),
-                (None, Some(a)) => t.natural(&a.values),
+                (None, Some(a)) => t.physical_from_raw(&a.values),
                 (None, None) => t.defaults(),
             },
         )

@@ -5,10 +5,10 @@ pub mod file;
 mod fused;
 mod init;
 pub mod mlp;
+mod multibody;
 pub mod params;
 pub mod params_io;
 pub mod report;
-mod rigid;
 mod scaling;
 pub mod spec;
 mod spec_json;
@@ -214,11 +214,11 @@ impl Model {
         if self.components().physical_as_is {
             return raw;
         }
-        t.natural(&raw)
+        t.physical_from_raw(&raw)
     }
 
     /// The physical parameters as the optimiser moves them (host f64): logarithms of the
-    /// positive ones, a URDF body's log-Cholesky factor (`Template::natural`).
+    /// positive ones, a URDF body's log-Cholesky factor (`Template::physical_from_raw`).
     pub fn raw_physical(&self) -> Option<Vec<f64>> {
         let p = self.params.components()?.physical.as_ref()?;
         Some(p.val().into_data().iter::<f64>().collect())
@@ -228,7 +228,11 @@ impl Model {
     pub fn physical_values(&self) -> Option<Vec<(String, f64)>> {
         let (t, raw) = (self.config.template()?, self.raw_physical()?);
         let as_is = self.params.components()?.physical_as_is;
-        let values = if as_is { raw } else { t.natural(&raw) };
+        let values = if as_is {
+            raw
+        } else {
+            t.physical_from_raw(&raw)
+        };
         let names = t.params().iter().map(|info| info.name.to_string());
         Some(names.zip(values).collect())
     }
@@ -240,8 +244,8 @@ impl Model {
             let input = c.full_input(&q, &qd, &u);
             return net.forward(input) * c.acc_std.clone() + c.acc_mean.clone();
         }
-        if let Some(fd) = &self.consts.rigid {
-            return self.rigid_accel(fd, q, qd, u);
+        if let Some(fd) = &self.consts.multibody {
+            return self.multibody_accel(fd, q, qd, u);
         }
         let qd_cols = columns(&qd);
         let p = self.parts(q, qd, u);
@@ -413,5 +417,5 @@ impl Model {
 
 /// Physical values → raw trainable values (`Template::raw`).
 pub fn raw_physical(t: &Template, values: &[f64]) -> Result<Vec<f64>> {
-    t.raw(values)
+    t.raw_from_physical(values)
 }

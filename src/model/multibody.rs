@@ -1,4 +1,4 @@
-//! URDF models in training on the recursive algorithms (docs/robots.md#training-by-the-adjoint):
+//! URDF models in training on the multibody algorithms (docs/robots.md#training-by-the-adjoint):
 //! q̈ = FD(q, q̇, τ; π) as one Burn op per batch ([`row_map`]), forward by the articulated-body
 //! algorithm row by row and backward by forward dynamics' adjoint (λ = M⁻¹ḡ; ∂/∂τ = λ,
 //! ∂/∂π = −Yᵀλ, ∂/∂(q, q̇) by a reverse pass over RNEA), O(n) per state each. τ = F − ∂V′/∂q
@@ -12,24 +12,24 @@ use burn::tensor::Tensor;
 
 use super::{Model, ModelConfig};
 use crate::backend::{RowFn, RowFunction, row_map};
-use crate::physics::urdf::featherstone::adjoint::adjoint_at;
-use crate::physics::urdf::featherstone::regressor::with_parameters;
-use crate::physics::urdf::featherstone::{self, forward_dynamics};
+use crate::physics::multibody::adjoint::adjoint_at;
+use crate::physics::multibody::regressor::with_parameters;
+use crate::physics::multibody::{self, forward_dynamics};
 
 /// Forward dynamics as a row function: a row is [q, q̇, τ], the parameters are π (ten per
-/// body, `featherstone::regressor`), the output q̈.
+/// body, `multibody::regressor`), the output q̈.
 #[derive(Debug)]
 pub(super) struct ForwardDynamics {
     /// The robot's tree; its inertias are replaced by π's on every call.
-    model: featherstone::RigidBodyModel,
+    model: multibody::Model,
 }
 
 impl ForwardDynamics {
-    /// The op of `config`'s robot, when its q̈ comes from the recursive algorithms.
+    /// The op of `config`'s robot, when its q̈ comes from the multibody algorithms.
     pub(super) fn of(config: &ModelConfig) -> Option<RowFn> {
-        let (t, gravity) = config.spec.recursive()?;
+        let (t, gravity) = config.spec.multibody()?;
         let defaults = config.template()?.defaults();
-        let model = t.recursive_model(&defaults, gravity);
+        let model = t.multibody_model(&defaults, gravity);
         Some(RowFn(Arc::new(Self { model })))
     }
 
@@ -79,15 +79,15 @@ impl RowFunction for ForwardDynamics {
 }
 
 impl Model {
-    /// q̈ of a model whose M is a URDF template's, by the recursive algorithms.
-    pub(super) fn rigid_accel(
+    /// q̈ of a model whose M is a URDF template's, by the multibody algorithms.
+    pub(super) fn multibody_accel(
         &self,
         fd: &RowFn,
         q: Tensor<2>,
         qd: Tensor<2>,
         u: Tensor<2>,
     ) -> Tensor<2> {
-        let (t, _) = self.config.spec.recursive().expect("a recursive model");
+        let (t, _) = self.config.spec.multibody().expect("a multibody model");
         let batch = q.dims()[0];
         let (tau, pi) = self.assemble(q.clone(), qd.clone(), u, |s, nets, inputs| {
             let physical = s
@@ -95,7 +95,7 @@ impl Model {
                 .physical
                 .expect("a template's M has physical values");
             (
-                s.rigid_torques(nets, inputs),
+                s.multibody_torques(nets, inputs),
                 t.standard_parameters(physical),
             )
         });
@@ -108,15 +108,15 @@ impl Model {
 }
 
 impl Model {
-    /// The same model on the template's M(q) and V(q) assembly instead of the recursive
+    /// The same model on the template's M(q) and V(q) assembly instead of the multibody
     /// algorithms: the reference training's op is tested against, and a benchmark's baseline.
     pub fn assembled(mut self) -> Self {
-        self.consts.rigid = None;
+        self.consts.multibody = None;
         self
     }
 
-    /// Whether q̈ comes from the recursive algorithms.
-    pub fn is_recursive(&self) -> bool {
-        self.consts.rigid.is_some()
+    /// Whether q̈ comes from the multibody algorithms.
+    pub fn is_multibody(&self) -> bool {
+        self.consts.multibody.is_some()
     }
 }

@@ -49,11 +49,12 @@ impl Scaling {
         let force_scale = match mass {
             None => acc_std.clone(),
             Some((t, p)) => {
+                let mass = t.mass_at(p);
                 let tau: Vec<f64> =
                     ds.q.chunks(n)
                         .zip(acc.chunks(n))
                         .flat_map(|(q, a)| {
-                            let mm = t.mass(p, q);
+                            let mm = mass(q);
                             (0..n)
                                 .map(move |i| (0..n).map(|j| mm[i][j] * a[j]).sum::<f64>())
                                 .collect::<Vec<_>>()

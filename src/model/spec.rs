@@ -230,10 +230,10 @@ impl ModelSpec {
         }
     }
 
-    /// The URDF template whose recursive algorithms give this model's q̈ (its M is the
+    /// The URDF template whose multibody algorithms give this model's q̈ (its M is the
     /// template's), and whether they include gravity (its V is the template's too; otherwise
     /// the model's own V stands in for it).
-    pub fn recursive(&self) -> Option<(&UrdfTemplate, bool)> {
+    pub fn multibody(&self) -> Option<(&UrdfTemplate, bool)> {
         let ModelSpec::Structured {
             mass: MassSpec::Template,
             potential,
@@ -248,12 +248,12 @@ impl ModelSpec {
 
     /// Whether the model trains through the fused step (`model::fused`: the whole one-step
     /// prediction as one op, recorded and differentiated on a host tape): every model with a
-    /// network, except a robot's on the recursive algorithms, which has its own op. A model
+    /// network, except a robot's on the multibody algorithms, which has its own op. A model
     /// without a network stays on Burn's op-by-op graph: its tape is hundreds of scalar
     /// columns per row, which a large batch's kept tapes stream from memory (W-B at batch
     /// 4096: 0.43M samples/s fused against 0.72M on the graph).
     pub fn fused(&self) -> bool {
-        self.has_network() && self.recursive().is_none()
+        self.has_network() && self.multibody().is_none()
     }
 
     pub fn template(&self) -> Option<&Template> {

@@ -26,8 +26,8 @@ pub(super) struct Consts {
     pub(super) loss_w: Tensor<2>,     // [1, 2n] = [1…1, λ…λ]
     /// Present when some coordinate is an angle.
     pub(super) periodic: Option<Periodic>,
-    /// Forward dynamics by the recursive algorithms, when M is a URDF template's.
-    pub(super) rigid: Option<RowFn>,
+    /// Forward dynamics by the multibody algorithms, when M is a URDF template's.
+    pub(super) multibody: Option<RowFn>,
     /// The whole step as one op (`model::fused`), when the model was asked to train so.
     pub(super) fused: Option<RowFn>,
 }
@@ -88,7 +88,7 @@ impl Consts {
                     device,
                 ),
             }),
-            rigid: super::rigid::ForwardDynamics::of(c),
+            multibody: super::multibody::ForwardDynamics::of(c),
             fused: None,
         }
     }

@@ -251,7 +251,11 @@ impl<'a, P> Structure<'a, P> {
     /// gravity itself (the template's V) takes as joint forces; V′ is the rest of V (a
     /// template's residual network, or a whole potential that is not the template's, whose
     /// algorithm then runs without gravity: `gravity_in_template`).
-    pub fn rigid_torques<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Vec<S>
+    pub fn multibody_torques<S: Scalar>(
+        &self,
+        nets: &impl Networks<S>,
+        x: &impl Inputs<S>,
+    ) -> Vec<S>
     where
         P: Coef<S>,
     {

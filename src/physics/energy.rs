@@ -44,7 +44,7 @@ impl ForceSpec {
 
 impl<P> Structure<'_, P> {
     /// V(q) up to its constant, or only what is not the template's (`template: false`, for a
-    /// robot whose gravity the recursive algorithms compute themselves).
+    /// robot whose gravity the multibody algorithms compute themselves).
     pub fn potential_value<S: Scalar>(
         &self,
         nets: &impl PotentialValue<S>,

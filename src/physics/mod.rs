@@ -18,6 +18,7 @@ pub mod identify;
 pub mod integrator;
 pub mod jet;
 pub mod mass_matrix;
+pub mod multibody;
 pub mod params;
 pub mod parts;
 pub mod scalar;

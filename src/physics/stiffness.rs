@@ -87,8 +87,9 @@ pub fn stiffness(
     };
     let (mut eps, mut fastest_rest, mut curable) = (0.0f64, 0.0f64, true);
     let qs = std::iter::once(&zero).chain(configurations.iter().filter(|q| q.len() == n));
+    let mass_at = t.mass_at(p);
     for q in qs {
-        let mass = t.mass(p, q);
+        let mass = mass_at(q);
         let Some(l) = cholesky(&mass) else { continue };
         let d = symmetric(&velocity_stiffness(t, p, q));
         let rate = largest_eigenvalue(&congruence(&l, &d));

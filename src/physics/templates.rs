@@ -6,6 +6,7 @@ use std::borrow::Cow;
 use std::sync::Arc;
 
 use super::formula_template::FormulaTemplate;
+use super::multibody::crba;
 use super::params::{ParamInfo, Part};
 use super::scalar::Scalar;
 use super::urdf::template::{KIND as URDF, UrdfTemplate};
@@ -171,9 +172,9 @@ impl Template {
 
     /// Physical values from the raw values the optimiser moves (any scalar): positive
     /// parameters are trained as logarithms; a URDF body's as its log-Cholesky factor.
-    pub fn natural<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
+    pub fn physical_from_raw<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
         match self {
-            Template::Urdf(u) => u.natural(raw),
+            Template::Urdf(u) => u.physical_from_raw(raw),
             _ => self
                 .params()
                 .iter()
@@ -183,9 +184,9 @@ impl Template {
         }
     }
 
-    /// Raw values from physical ones (`natural`'s inverse); an error names `init.<name>`
+    /// Raw values from physical ones (`physical_from_raw`'s inverse); an error names `init.<name>`
     /// (422 for a value below its parameter's bound).
-    pub fn raw(&self, values: &[f64]) -> Result<Vec<f64>> {
+    pub fn raw_from_physical(&self, values: &[f64]) -> Result<Vec<f64>> {
         for (info, &v) in self.params().iter().zip(values) {
             let field = || format!("init.{}", info.name);
             if !v.is_finite() {
@@ -204,7 +205,7 @@ impl Template {
             }
         }
         match self {
-            Template::Urdf(u) => u.raw(values),
+            Template::Urdf(u) => u.raw_from_physical(values),
             _ => Ok(self
                 .params()
                 .iter()
@@ -305,6 +306,19 @@ impl Template {
 
     pub fn index_of(&self, name: &str) -> Option<usize> {
         self.params().iter().position(|p| p.name == name)
+    }
+
+    /// M(q) in f64 at physical values `p`, set up once for many q: a robot's by CRBA on its
+    /// multibody model (docs/robots.md#multibody-dynamics), any other template's by `mass`.
+    pub fn mass_at<'a>(&'a self, p: &'a [f64]) -> impl Fn(&[f64]) -> Vec<Vec<f64>> + 'a {
+        let robot = match self {
+            Template::Urdf(u) => Some(u.multibody_model(p, false)),
+            _ => None,
+        };
+        move |q| match &robot {
+            Some(model) => crba(model, q),
+            None => self.mass(p, q),
+        }
     }
 
     /// The symmetric mass matrix M(q), n×n.

@@ -30,10 +30,10 @@ pub const MIN_SHARD_ROWS: usize = 128;
 pub const MIN_SHARD_ROWS_WITHOUT_NETWORK: usize = 2048;
 
 /// The fewest rows a shard of `spec`'s model gets: a model with a network, or a robot's on
-/// the recursive algorithms (one op of ~40 µs per UR5 row), has per-row work enough for
+/// the multibody algorithms (one op of ~40 µs per UR5 row), has per-row work enough for
 /// [`MIN_SHARD_ROWS`].
 pub fn min_shard_rows(spec: &crate::model::spec::ModelSpec) -> usize {
-    if spec.has_network() || spec.recursive().is_some() {
+    if spec.has_network() || spec.multibody().is_some() {
         MIN_SHARD_ROWS
     } else {
         MIN_SHARD_ROWS_WITHOUT_NETWORK
@@ -239,7 +239,7 @@ mod tests {
             min_shard_rows(&named("W-B")),
             MIN_SHARD_ROWS_WITHOUT_NETWORK
         );
-        // A robot's W-B runs the recursive algorithms: per-row work enough to shard.
+        // A robot's W-B runs the multibody algorithms: per-row work enough to shard.
         let urdf = include_str!("../../tests/fixtures/urdf/double_pendulum.urdf");
         let robot = crate::physics::urdf::UrdfTemplate::from_urdf(urdf).unwrap();
         let robot = Template::Urdf(std::sync::Arc::new(robot));

@@ -2,10 +2,11 @@
 //! by scripts/urdf_fixtures.py), read one way by every test binary that compares with them.
 
 use graybox::physics::dual::Dual;
+use graybox::physics::multibody::Inertial;
+use graybox::physics::multibody::spatial::body_inertia;
+use graybox::physics::multibody::term::Term;
 use graybox::physics::scalar::Scalar;
-use graybox::physics::urdf::inertia::Inertial;
-use graybox::physics::urdf::term::Term;
-use graybox::physics::urdf::{Tree, body_inertia, rigid};
+use graybox::physics::urdf::{Tree, assembled};
 use serde_json::Value;
 
 /// The path of fixture `name` (e.g. "arm4", "robots/panda") with extension `ext`.
@@ -40,7 +41,7 @@ pub fn floats(v: &Value) -> Vec<f64> {
         .collect()
 }
 
-/// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) of `urdf::rigid` over
+/// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) of `urdf::assembled` over
 /// dual numbers, for `inertias`.
 pub fn rigid_terms(
     tree: &Tree,
@@ -55,8 +56,8 @@ pub fn rigid_terms(
         .iter()
         .map(|i| body_inertia(&i.theta().unwrap().map(|t| Term::V(qv[0].lift(t)))))
         .collect();
-    let m = rigid::mass_matrix(tree, &bodies, &qv);
-    let v = rigid::potential(tree, &bodies, gravity, &qv);
+    let m = assembled::mass_matrix(tree, &bodies, &qv);
+    let v = assembled::potential(tree, &bodies, gravity, &qv);
     let d = |x: &Dual<f64>, k: usize| x.tangent(k).copied().unwrap_or(0.0);
     let g = (0..n).map(|k| d(&v, k)).collect();
     let c = (0..n)

@@ -1,12 +1,10 @@
-//! The vector–Jacobian product of forward dynamics (`featherstone::adjoint`), a training
+//! The vector–Jacobian product of forward dynamics (`multibody::adjoint`), a training
 //! step's backward pass: Yᵀλ without Y equals the regressor's, and every gradient equals
 //! central differences of ḡ · FD.
 
-use graybox::physics::urdf::featherstone::adjoint::{forward_dynamics_adjoint, parameter_gradient};
-use graybox::physics::urdf::featherstone::regressor::{
-    regressor, standard_parameters, with_parameters,
-};
-use graybox::physics::urdf::featherstone::{RigidBodyModel, forward_dynamics};
+use graybox::physics::multibody::adjoint::{forward_dynamics_adjoint, parameter_gradient};
+use graybox::physics::multibody::regressor::{regressor, standard_parameters, with_parameters};
+use graybox::physics::multibody::{self, forward_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
@@ -47,7 +45,7 @@ fn the_adjoint_is_central_differences() {
     let mut rng = Rng::new(31);
     for name in ["robots/ur5", "robots/panda", "robots/solo12"] {
         let (tree, fx) = fixture(name);
-        let model = RigidBodyModel::new(&tree, gravity(&fx));
+        let model = tree.multibody(gravity(&fx));
         let n = model.n;
         let (q, qd, tau, g) = (
             random(&mut rng, n, 1.5),
@@ -56,7 +54,7 @@ fn the_adjoint_is_central_differences() {
             random(&mut rng, n, 1.0),
         );
         let adj = forward_dynamics_adjoint(&model, &q, &qd, &tau, &g);
-        let loss = |m: &RigidBodyModel, q: &[f64], qd: &[f64], tau: &[f64]| -> f64 {
+        let loss = |m: &multibody::Model, q: &[f64], qd: &[f64], tau: &[f64]| -> f64 {
             forward_dynamics(m, q, qd, tau)
                 .iter()
                 .zip(&g)
@@ -108,8 +106,8 @@ fn the_adjoint_is_central_differences() {
 /// on every fixture robot (mimic joints, branches, prismatic fingers), to 1e-9 of max(1, |ref|).
 #[test]
 fn the_reverse_pass_is_the_jets_transposed() {
-    use graybox::physics::urdf::featherstone::adjoint::id_gradient;
-    use graybox::physics::urdf::featherstone::id_partials;
+    use graybox::physics::multibody::adjoint::id_gradient;
+    use graybox::physics::multibody::id_partials;
     let mut rng = Rng::new(37);
     for (name, model) in models() {
         let n = model.n;

@@ -1,13 +1,12 @@
-//! The regressor (τ = Y π, `featherstone::regressor`) and the base parameters
-//! (`featherstone::base`): Y π is RNEA's τ for any π; the base parameters reproduce every τ
+//! The regressor (τ = Y π, `multibody::regressor`) and the base parameters
+//! (`multibody::base`): Y π is RNEA's τ for any π; the base parameters reproduce every τ
 //! from fewer values; a pendulum's are the ones its axis and gravity leave.
 
+use graybox::physics::multibody::PER_BODY;
+use graybox::physics::multibody::base::base_parameters;
+use graybox::physics::multibody::regressor::{regressor, standard_parameters, with_parameters};
+use graybox::physics::multibody::{self, inverse_dynamics};
 use graybox::physics::urdf::Tree;
-use graybox::physics::urdf::featherstone::base::base_parameters;
-use graybox::physics::urdf::featherstone::regressor::{
-    PER_BODY, regressor, standard_parameters, with_parameters,
-};
-use graybox::physics::urdf::featherstone::{RigidBodyModel, inverse_dynamics};
 use graybox::rng::Rng;
 
 use super::{err, models, random, random_state};
@@ -47,7 +46,7 @@ fn base_parameters_reproduce_every_torque() {
     let mut rng = Rng::new(23);
     for (name, model) in models() {
         let base = base_parameters(&model);
-        let cols = PER_BODY * model.joints.len();
+        let cols = PER_BODY * model.bodies.len();
         assert!(
             !base.is_empty() && base.len() < cols,
             "{name}: {}",
@@ -69,7 +68,7 @@ fn base_parameters_reproduce_every_torque() {
     }
 }
 
-fn pendulum(axis: &str) -> RigidBodyModel {
+fn pendulum(axis: &str) -> multibody::Model {
     let urdf = format!(
         r#"<robot name="p"><link name="base"/>
   <joint name="j" type="revolute"><parent link="base"/><child link="rod"/>
@@ -78,7 +77,7 @@ fn pendulum(axis: &str) -> RigidBodyModel {
     <inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>
 </robot>"#
     );
-    RigidBodyModel::new(&Tree::parse(&urdf, 8).unwrap(), [0.0, 0.0, -9.81])
+    Tree::parse(&urdf, 8).unwrap().multibody([0.0, 0.0, -9.81])
 }
 
 /// One joint: about y under gravity along −z, τ = I_yy q̈ + g (m c_x cos q + m c_z sin q)
@@ -86,7 +85,7 @@ fn pendulum(axis: &str) -> RigidBodyModel {
 /// work and only I_zz remains.
 #[test]
 fn a_pendulums_base_parameters_are_what_its_axis_leaves() {
-    let singles = |m: &RigidBodyModel| -> Vec<usize> {
+    let singles = |m: &multibody::Model| -> Vec<usize> {
         let base = base_parameters(m);
         assert!(base.iter().all(|b| b.terms.len() == 1), "{base:?}");
         let mut k: Vec<usize> = base.iter().map(|b| b.terms[0].0).collect();
@@ -103,12 +102,12 @@ fn a_pendulums_base_parameters_are_what_its_axis_leaves() {
 /// parameters of the file's links), 36 for the UR5 (60 standard parameters).
 #[test]
 fn a_reports_base_parameters_read_as_their_formulas() {
+    use graybox::physics::multibody::spatial::STANDARD_NAMES as NAMES;
     use graybox::physics::urdf::UrdfTemplate;
-    use graybox::physics::urdf::featherstone::regressor::NAMES;
     let path = super::common::urdf::fixture_path("robots/ur5", "urdf");
     let t = UrdfTemplate::from_urdf(&std::fs::read_to_string(path).unwrap()).unwrap();
     let physical: Vec<f64> = t.params().iter().map(|p| p.default).collect();
-    let model = t.recursive_model(&physical, true);
+    let model = t.multibody_model(&physical, true);
     let pi = standard_parameters(&model);
     let lookup = |name: &str| -> f64 {
         let (link, what) = name.rsplit_once('.').unwrap();

@@ -1,4 +1,4 @@
-//! URDF models evaluate on the recursive algorithms (`infer::rigid`): q̈, one step and its
+//! URDF models evaluate on the multibody algorithms (`infer::multibody`): q̈, one step and its
 //! Jacobians equal the template assembly's (`Evaluator::assembled`, M(q) = Σ JᵀIJ and V(q)
 //! over dual numbers) for white-box models of real robots (mimic joints and branches
 //! included) and for models whose residual networks, network potential or control-affine
@@ -29,7 +29,7 @@ fn reloaded(file: &ModelFile) -> Evaluator {
     Evaluator::from_file(&ModelFile::from_bytes(&file.to_bytes().unwrap()).unwrap()).unwrap()
 }
 
-/// The recursive evaluator and the assembled one agree at `states` random states (|q| ≤ 2,
+/// The multibody evaluator and the assembled one agree at `states` random states (|q| ≤ 2,
 /// |q̇| ≤ 3, |u| ≤ 5): q̈, the step and both Jacobians to 1e-9 of max(1, |ref|). Both are f64
 /// evaluations of the same mechanics by different formulas (recursions over the tree vs
 /// Σ JᵀIJ, derivatives by the implicit function theorem vs dual numbers through the
@@ -37,11 +37,11 @@ fn reloaded(file: &ModelFile) -> Evaluator {
 /// chain-rule term moves them by far more.
 fn agree(what: &str, e: &Evaluator, states: usize) {
     assert!(
-        e.is_recursive(),
+        e.is_multibody(),
         "{what}: a URDF model with M from the template"
     );
     let reference = e.clone().assembled();
-    assert!(!reference.is_recursive());
+    assert!(!reference.is_multibody());
     let (n, m) = (e.config.n, e.config.m);
     let mut rng = Rng::new(3);
     let mut draw = |k: usize, r: f64| (0..k).map(|_| rng.uniform_in(-r, r)).collect::<Vec<_>>();
@@ -165,7 +165,7 @@ fn trained_parts_on_a_urdf_model_equal_the_assembly() {
 /// for both and tight enough for any missing chain-rule term), with damping and Coriolis
 /// forces at work (the Panda's joints are damped; |q̇| up to 3).
 #[test]
-fn recursive_jacobians_equal_central_differences() {
+fn multibody_jacobians_equal_central_differences() {
     for name in ["robots/ur5", "robots/panda"] {
         let t = template(name);
         let file = ModelFile::from_template(&t, &t.defaults(), 0.01, Integrator::Rk4).unwrap();
@@ -209,10 +209,10 @@ fn recursive_jacobians_equal_central_differences() {
 }
 
 /// The true system of a URDF template (`sim::TemplateSystem`, what `simulate` steps) runs the
-/// recursive algorithms too: its q̈ equals the assembled model's and its energies the
+/// multibody algorithms too: its q̈ equals the assembled model's and its energies the
 /// template's M and V (½ q̇ᵀMq̇, V(q)), to 1e-9 of max(1, |ref|) as above.
 #[test]
-fn the_true_system_of_a_urdf_template_is_recursive() {
+fn the_true_system_of_a_urdf_template_is_multibody() {
     use graybox::sim::TemplateSystem;
     for name in ["robots/panda", "robots/iiwa"] {
         let t = template(name);

@@ -1,4 +1,4 @@
-//! Training's forward dynamics for URDF models (`model/rigid.rs`: one Burn op per batch,
+//! Training's forward dynamics for URDF models (`model/multibody.rs`: one Burn op per batch,
 //! the articulated-body algorithm forward and forward dynamics' adjoint backward) against
 //! Burn's autodiff through the template's assembly (M = Σ JᵀIJ with its q-derivatives over
 //! dual numbers, the Coriolis term from them, a Cholesky solve, V's gradient): one RK4 step's
@@ -85,8 +85,8 @@ fn rigid_op_loss_and_gradients_equal_the_assembly() {
         let fused = perturb(&model(name, Some(t), n, m, 5, &dev), &dev);
         let what = format!("{robot} {name}");
         assert!(
-            fused.is_recursive() == (name != "M"),
-            "{what}: recursive iff M is the template's"
+            fused.is_multibody() == (name != "M"),
+            "{what}: multibody iff M is the template's"
         );
         let (v, g) = loss_and_gradients(&fused, &dev);
         let (v_ref, g_ref) = loss_and_gradients(&fused.clone().assembled(), &dev);
@@ -109,7 +109,7 @@ fn rigid_op_on_ndarray_equals_flex() {
     let on = |dev: Device| {
         let dev = dev.autodiff();
         let model = perturb(&model("W-B", Some(t.clone()), n, m, 5, &dev), &dev);
-        assert!(model.is_recursive());
+        assert!(model.is_multibody());
         loss_and_gradients(&model, &dev)
     };
     let (v, g) = on(f64_device());

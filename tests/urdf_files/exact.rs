@@ -123,7 +123,10 @@ fn graybox_model_holds_massless_links_at_rest_at_pinocchio_gravity_torque() {
     let coords: Vec<String> = serde_json::from_value(fx["coordinates"].clone()).unwrap();
     assert_eq!(coords, t.coordinates());
     let values = file.physical_values().unwrap();
-    let floored = TemplateSystem::new(t.clone(), t.natural(&t.raw(&values).unwrap()));
+    let floored = TemplateSystem::new(
+        t.clone(),
+        t.physical_from_raw(&t.raw_from_physical(&values).unwrap()),
+    );
     let (mut worst, mut worst_floored) = (0.0f64, 0.0f64);
     for state in fx["states"].as_array().unwrap() {
         let (q, g) = (floats(&state["q"]), floats(&state["g"]));

@@ -5,10 +5,10 @@ mod events;
 mod flops;
 mod horizon;
 mod infer;
+mod multibody;
 mod process;
 mod queue;
 mod reads;
-mod rigid;
 mod scale;
 mod uploads;
 
@@ -38,8 +38,10 @@ pub enum BenchCommand {
     /// Inference latency for controllers (double pendulum MVF 3×32): in process and as gRPC
     /// round trips on loopback, idle and with 64 concurrent clients while a job trains.
     Infer(infer::BenchInferArgs),
-    /// µs per call of a URDF robot's dynamics: the template path vs the recursive algorithms.
-    Rigid(rigid::BenchRigidArgs),
+    /// µs per call of a URDF robot's dynamics: the assembled path vs the multibody algorithms
+    /// (`rigid` is its former name).
+    #[command(alias = "rigid")]
+    Multibody(multibody::BenchMultibodyArgs),
     /// The database load of one API node's event streams (polls and statements per second)
     /// with many subscribers, on SQLite or PostgreSQL.
     Events(events::BenchEventsArgs),
@@ -178,7 +180,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Train(a) => bench_train(a),
         BenchCommand::Step(a) => bench_step(a),
         BenchCommand::Infer(a) => infer::run(a),
-        BenchCommand::Rigid(a) => rigid::run(a),
+        BenchCommand::Multibody(a) => multibody::run(a),
         BenchCommand::Events(a) => events::run(a),
         BenchCommand::Queue(a) => queue::run(a),
         BenchCommand::Scale(a) => scale::run(a),

@@ -285,10 +285,10 @@ impl Model {
     }
 
     /// The same model training through the fused step (its forward and backward passes on
-    /// the host tape) instead of Burn's op-by-op graph. URDF models on the recursive
+    /// the host tape) instead of Burn's op-by-op graph. URDF models on the multibody
     /// algorithms keep their own op.
     pub fn fused(mut self) -> Self {
-        if self.consts.rigid.is_none() {
+        if self.consts.multibody.is_none() {
             let mut flat = Flatten(vec![]);
             self.params.visit(&mut flat);
             // The networks compute in the process's precision; the rest of the step in f64.

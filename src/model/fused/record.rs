@@ -75,7 +75,7 @@ fn record_values(config: &ModelConfig, layout: &Layout, tape: &Rc<RefCell<Tape>>
         Some((at..at + len).map(|i| Var::param(tape, i)).collect())
     };
     let physical = match (vars("physical"), config.template()) {
-        (Some(raw), Some(t)) => Some(t.natural(&raw)),
+        (Some(raw), Some(t)) => Some(t.physical_from_raw(&raw)),
         (None, _) => vars("physical_values"),
         (Some(raw), None) => Some(raw),
     };

@@ -3,7 +3,7 @@
 //! Cholesky solve for any tree (a mimic joint is not a degree of freedom of its own, which
 //! ABA's per-joint recursion assumes).
 
-use super::RigidBodyModel;
+use super::Model;
 use super::rnea::{bias, crba};
 use super::spatial::{Force, Inertia, Motion, Xform};
 use crate::physics::dynamics::{cholesky, solve_llt};
@@ -11,17 +11,17 @@ use crate::physics::scalar::Scalar;
 
 /// q̈ by the articulated-body algorithm; τ on the coordinates. Panics on a tree with mimic
 /// joints (use `forward_dynamics`).
-pub fn aba<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
+pub fn aba<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     assert!(!model.mimic, "ABA takes a tree without mimic joints");
     let zero = q[0].lift(0.0);
-    let nb = model.joints.len();
+    let nb = model.bodies.len();
     let mut xs: Vec<Xform<S>> = Vec::with_capacity(nb);
     let mut vs: Vec<Motion<S>> = Vec::with_capacity(nb);
     // Velocity-product accelerations c = v × S q̇, articulated inertias and bias forces.
     let mut cs: Vec<Motion<S>> = Vec::with_capacity(nb);
     let mut ia: Vec<Inertia<S>> = Vec::with_capacity(nb);
     let mut pa: Vec<Force<S>> = Vec::with_capacity(nb);
-    for j in &model.joints {
+    for j in &model.bodies {
         let x = j.xform(&j.value(q), &zero);
         let vj = j.motion(&j.rate(qd), &zero);
         let v = match j.parent {
@@ -37,10 +37,10 @@ pub fn aba<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> V
     // U = Iᴬ S, D = Sᵀ U, u = τ − Sᵀ pᴬ, from the leaves in.
     let mut us: Vec<(Force<S>, S, S)> = Vec::with_capacity(nb);
     for i in (0..nb).rev() {
-        let j = &model.joints[i];
+        let j = &model.bodies[i];
         let u_col = j.inertia_column(&ia[i], &zero);
         let d = j.project(&u_col, &zero);
-        let u = tau[j.coordinate].clone() - j.project(&pa[i], &zero);
+        let u = tau[j.drive.coordinate].clone() - j.project(&pa[i], &zero);
         if let Some(p) = j.parent {
             let i_a = ia[i].minus_outer(&u_col, &d);
             let ud = u.clone() / d.clone();
@@ -61,7 +61,7 @@ pub fn aba<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> V
     a0.v = model.gravity.map(|g| zero.lift(-g));
     let mut accs: Vec<Motion<S>> = Vec::with_capacity(nb);
     let mut qdd: Vec<S> = vec![zero.clone(); model.n];
-    for (i, j) in model.joints.iter().enumerate() {
+    for (i, j) in model.bodies.iter().enumerate() {
         let a = xs[i]
             .motion(match j.parent {
                 Some(p) => &accs[p],
@@ -71,13 +71,13 @@ pub fn aba<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> V
         let (u_col, d, u) = &us[i];
         let x = (u.clone() - a.dot(u_col)) / d.clone();
         accs.push(a.plus(&j.motion(&x, &zero)));
-        qdd[j.coordinate] = x;
+        qdd[j.drive.coordinate] = x;
     }
     qdd
 }
 
 /// q̈ from M(q) q̈ = τ − C(q, q̇) q̇ − g(q): CRBA, RNEA and a Cholesky solve (any tree).
-pub fn crba_forward<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
+pub fn crba_forward<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     let m = crba(model, q);
     let rhs = tau
         .iter()
@@ -88,7 +88,7 @@ pub fn crba_forward<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &
 }
 
 /// q̈: ABA without mimic joints, else CRBA and Cholesky.
-pub fn forward_dynamics<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
+pub fn forward_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     if model.mimic {
         crba_forward(model, q, qd, tau)
     } else {

@@ -10,10 +10,10 @@
 //! force and wᵢ = Xᵢ w_parent + Sᵢ λ its joints' λ carried out to it, and wᵢ·fᵢ is linear in
 //! π_i: wᵀI a − (v × w)ᵀ I v (since (v ×* f)·w = −f·(v × w)).
 
-use super::RigidBodyModel;
+use super::Model;
 use super::aba::forward_dynamics;
-use super::regressor::PER_BODY;
 use super::rnea::crba;
+use super::spatial::PER_BODY;
 use super::spatial::{Force, Motion, V3, Xform, cross};
 use crate::physics::dynamics::{cholesky, solve_llt};
 
@@ -41,20 +41,20 @@ fn inertia_form(a: &Motion<f64>, b: &Motion<f64>) -> [f64; PER_BODY] {
 
 /// Y(q, q̇, q̈)ᵀ λ: the gradient of λᵀ ID with respect to the standard parameters, O(n).
 pub fn parameter_gradient(
-    model: &RigidBodyModel,
+    model: &Model,
     q: &[f64],
     qd: &[f64],
     qdd: &[f64],
     lambda: &[f64],
 ) -> Vec<f64> {
-    let nb = model.joints.len();
+    let nb = model.bodies.len();
     let mut vs: Vec<Motion<f64>> = Vec::with_capacity(nb);
     let mut accs: Vec<Motion<f64>> = Vec::with_capacity(nb);
     let mut ws: Vec<Motion<f64>> = Vec::with_capacity(nb);
     let mut a0 = Motion::zero(&0.0);
     a0.v = model.gravity.map(|g| -g);
     let mut out = Vec::with_capacity(PER_BODY * nb);
-    for j in &model.joints {
+    for j in &model.bodies {
         let x = j.xform(&j.value(q), &0.0);
         let vj = j.motion(&j.rate(qd), &0.0);
         let sw = j.motion(&j.rate(lambda), &0.0);
@@ -88,19 +88,19 @@ pub fn parameter_gradient(
 /// v̄ = −w ×* (I v) − I (v × w) + (S q̇) ×* ā + Σ Xᵀv̄_child, using (a × b)·F = a·(b ×* F);
 /// a joint's value moves X by ∂(X m)/∂q = (X m) × S, its rate enters v and v × S q̇.
 pub fn id_gradient(
-    model: &RigidBodyModel,
+    model: &Model,
     q: &[f64],
     qd: &[f64],
     qdd: &[f64],
     lambda: &[f64],
 ) -> (Vec<f64>, Vec<f64>) {
-    let nb = model.joints.len();
+    let nb = model.bodies.len();
     let zero = Motion::zero(&0.0);
     let mut a0 = zero.clone();
     a0.v = model.gravity.map(|g| -g);
     // Per body: X, the parent's v, a, w in this body's frame (X m_parent), and v, a, w, f.
     let mut fwd: Vec<Forward> = Vec::with_capacity(nb);
-    for j in &model.joints {
+    for j in &model.bodies {
         let x = j.xform(&j.value(q), &0.0);
         let (vp, ap, wp) = match j.parent {
             Some(p) => (&fwd[p].v, &fwd[p].a, &fwd[p].w),
@@ -134,7 +134,7 @@ pub fn id_gradient(
     // Adjoints (forces) of v, a, w, filled in by the children first.
     let mut bar = vec![(zf.clone(), zf.clone(), zf.clone()); nb];
     for i in (0..nb).rev() {
-        let (j, b) = (&model.joints[i], &fwd[i]);
+        let (j, b) = (&model.bodies[i], &fwd[i]);
         let (vb, ab, wb) = &bar[i];
         let ab = ab.plus(&j.inertia.apply_const(&b.w, &0.0));
         let wb = wb.plus(&b.f);
@@ -146,8 +146,8 @@ pub fn id_gradient(
         let s = j.motion(&1.0, &0.0);
         let rate = s.dot(&vb) + b.v.cross(&s).dot(&ab);
         let value = b.vp.cross(&s).dot(&vb) + b.ap.cross(&s).dot(&ab) + b.wp.cross(&s).dot(&wb);
-        dqd[j.coordinate] += j.multiplier * rate;
-        dq[j.coordinate] += j.multiplier * value;
+        dqd[j.drive.coordinate] += j.drive.multiplier * rate;
+        dq[j.drive.coordinate] += j.drive.multiplier * value;
         if let Some(p) = j.parent {
             let up = |f: &Force<f64>| b.x.force_to_parent(f);
             let (pv, pa, pw) = (up(&vb), up(&ab), up(&wb));
@@ -186,7 +186,7 @@ pub struct Adjoint {
 
 /// Forward dynamics and its vector–Jacobian product for ḡ.
 pub fn forward_dynamics_adjoint(
-    model: &RigidBodyModel,
+    model: &Model,
     q: &[f64],
     qd: &[f64],
     tau: &[f64],
@@ -198,13 +198,7 @@ pub fn forward_dynamics_adjoint(
 
 /// The vector–Jacobian product at a q̈ that forward dynamics already gave (a training step's
 /// forward pass), without computing it again.
-pub fn adjoint_at(
-    model: &RigidBodyModel,
-    q: &[f64],
-    qd: &[f64],
-    qdd: Vec<f64>,
-    gbar: &[f64],
-) -> Adjoint {
+pub fn adjoint_at(model: &Model, q: &[f64], qd: &[f64], qdd: Vec<f64>, gbar: &[f64]) -> Adjoint {
     let lambda = solve_llt(&cholesky(&crba(model, q)), gbar.to_vec());
     let (dq, dqd) = id_gradient(model, q, qd, &qdd, &lambda);
     let minus = |g: Vec<f64>| g.into_iter().map(|g| -g).collect();

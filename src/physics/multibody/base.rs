@@ -8,7 +8,7 @@
 //! r combinations of the standard parameters that motion data determines (a dependent column
 //! that is zero, a parameter τ never feels, appears in none).
 
-use super::RigidBodyModel;
+use super::Model;
 use super::regressor::regressor;
 use crate::rng::Rng;
 
@@ -36,9 +36,9 @@ const COEFFICIENT_ZERO: f64 = 1e-9;
 
 /// The base parameters of `model`'s kinematics (its inertias are not read), from enough
 /// random states (seeded: the same robot gives the same list).
-pub fn base_parameters(model: &RigidBodyModel) -> Vec<BaseParameter> {
+pub fn base_parameters(model: &Model) -> Vec<BaseParameter> {
     let n = model.n;
-    let cols = super::regressor::PER_BODY * model.joints.len();
+    let cols = super::spatial::PER_BODY * model.bodies.len();
     let states = (2 * cols).div_ceil(n.max(1)) + 8;
     let mut rng = Rng::new(1990);
     let mut w: Vec<Vec<f64>> = Vec::with_capacity(states * n);

@@ -8,7 +8,7 @@
 //! `fd_over_jets` and `dual_derivatives` differentiate forward dynamics itself instead, for
 //! comparison. ∂q̈/∂τ is M⁻¹.
 
-use super::RigidBodyModel;
+use super::Model;
 use super::aba::forward_dynamics;
 use super::rnea::{crba, inverse_dynamics};
 use crate::physics::dual::Dual;
@@ -21,7 +21,7 @@ pub type Derivatives = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
 /// q̈ and its derivatives by −M⁻¹ ∂ID/∂(q, q̇), ID over fixed-size `Jet`s with 2n directions
 /// padded to 8, 16, 32 or 64 (n ≤ 32), `Dual` beyond.
 pub fn forward_dynamics_derivatives(
-    model: &RigidBodyModel,
+    model: &Model,
     q: &[f64],
     qd: &[f64],
     tau: &[f64],
@@ -47,7 +47,7 @@ pub fn forward_dynamics_derivatives(
 }
 
 /// ∂ID/∂(q, q̇) at (q, q̇, q̈): row i is ∂τᵢ/∂x_k for the 2n directions x = (q, q̇).
-pub fn id_partials(model: &RigidBodyModel, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
+pub fn id_partials(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
     match 2 * q.len() {
         0..=8 => id_over_jets::<8>(model, q, qd, qdd),
         9..=16 => id_over_jets::<16>(model, q, qd, qdd),
@@ -58,7 +58,7 @@ pub fn id_partials(model: &RigidBodyModel, q: &[f64], qd: &[f64], qdd: &[f64]) -
 }
 
 fn id_over_jets<const N: usize>(
-    model: &RigidBodyModel,
+    model: &Model,
     q: &[f64],
     qd: &[f64],
     qdd: &[f64],
@@ -72,7 +72,7 @@ fn id_over_jets<const N: usize>(
         .collect()
 }
 
-fn id_over_duals(model: &RigidBodyModel, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
+fn id_over_duals(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
     let (qv, qdv) = dual_state(q, qd);
     let qddv: Vec<Dual<f64>> = qdd.iter().map(|&a| Dual::constant(a)).collect();
     (inverse_dynamics(model, &qv, &qdv, &qddv).iter())
@@ -98,7 +98,7 @@ fn tangent(x: &Dual<f64>, k: usize) -> f64 {
 
 /// The same by forward dynamics itself over `Jet<N>` (2n ≤ N).
 pub fn fd_over_jets<const N: usize>(
-    model: &RigidBodyModel,
+    model: &Model,
     q: &[f64],
     qd: &[f64],
     tau: &[f64],
@@ -118,7 +118,7 @@ pub fn fd_over_jets<const N: usize>(
 
 /// The same by forward dynamics over `Dual` (sparse optional tangents, on the heap beyond
 /// eight directions).
-pub fn dual_derivatives(model: &RigidBodyModel, q: &[f64], qd: &[f64], tau: &[f64]) -> Derivatives {
+pub fn dual_derivatives(model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) -> Derivatives {
     let n = q.len();
     let (qv, qdv) = dual_state(q, qd);
     let tv: Vec<Dual<f64>> = tau.iter().map(|&t| Dual::constant(t)).collect();

@@ -1,18 +1,18 @@
-//! The robot's energies by recursions over the tree (docs/robots.md#recursive-algorithms):
+//! The robot's energies by recursions over the tree (docs/robots.md#multibody-dynamics):
 //! kinetic T = Σ ½ vᵢ · Iᵢ vᵢ with each body's spatial velocity from RNEA's forward pass, and
 //! potential V = −Σ g · (mᵢ pᵢ + E₀ᵢᵀ hᵢ) with each body's placement in the root frame
 //! (E₀ᵢ root axes to body axes, pᵢ its origin) composed from its parent's: O(n) each.
 
-use super::RigidBodyModel;
+use super::Model;
 use super::spatial::{M3, Motion, V3, add, cdot, mtv};
 use crate::physics::scalar::Scalar;
 
 /// ½ q̇ᵀ M(q) q̇, without forming M.
-pub fn kinetic_energy<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S]) -> S {
+pub fn kinetic_energy<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> S {
     let zero = q[0].lift(0.0);
-    let mut vs: Vec<Motion<S>> = Vec::with_capacity(model.joints.len());
+    let mut vs: Vec<Motion<S>> = Vec::with_capacity(model.bodies.len());
     let mut twice = zero.clone();
-    for j in &model.joints {
+    for j in &model.bodies {
         let x = j.xform(&j.value(q), &zero);
         let vj = j.motion(&j.rate(qd), &zero);
         let v = match j.parent {
@@ -25,12 +25,12 @@ pub fn kinetic_energy<S: Scalar>(model: &RigidBodyModel, q: &[S], qd: &[S]) -> S
     twice.scale(0.5)
 }
 
-/// V(q) of gravity, zero at the root frame's origin (the template's `rigid::potential`).
-pub fn potential_energy<S: Scalar>(model: &RigidBodyModel, q: &[S]) -> S {
+/// V(q) of gravity, zero at the root frame's origin (as `urdf::assembled::potential`).
+pub fn potential_energy<S: Scalar>(model: &Model, q: &[S]) -> S {
     let zero = q[0].lift(0.0);
-    let mut placed: Vec<(M3<S>, V3<S>)> = Vec::with_capacity(model.joints.len());
+    let mut placed: Vec<(M3<S>, V3<S>)> = Vec::with_capacity(model.bodies.len());
     let mut v = zero.clone();
-    for j in &model.joints {
+    for j in &model.bodies {
         let x = j.xform(&j.value(q), &zero);
         let (e, p) = match j.parent {
             // E₀ᵢ = E E₀ₚ; pᵢ = pₚ + E₀ₚᵀ r.
@@ -49,9 +49,7 @@ pub fn potential_energy<S: Scalar>(model: &RigidBodyModel, q: &[S]) -> S {
             None => (x.e, x.r),
         };
         // The body's first moment h from B = [h]×, its mass from C = m 𝟙.
-        let b = &j.inertia.b;
-        let h = [b[2][1], b[0][2], b[1][0]];
-        let m = j.inertia.c[0][0];
+        let (m, h) = (j.inertia.mass(), j.inertia.first_moment());
         let moment = add(
             &p.clone().map(|x| x.scale(m)),
             &mtv(&e, &h.map(|x| zero.lift(x))),

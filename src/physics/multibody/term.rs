@@ -3,7 +3,7 @@
 //! tensors every operation allocates. Arithmetic on constants happens in f64, a product with
 //! 0 or 1 costs nothing, and a constant enters a scalar expression as `scale` or `shift`.
 
-use std::ops::{Add, Mul, Neg, Sub};
+use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use crate::physics::scalar::Scalar;
 
@@ -21,20 +21,6 @@ impl<S: Scalar> Term<S> {
         match self {
             C(c) => like.lift(c),
             V(x) => x,
-        }
-    }
-
-    pub fn cos(&self) -> Self {
-        match self {
-            C(c) => C(c.cos()),
-            V(x) => V(x.cos()),
-        }
-    }
-
-    pub fn sin(&self) -> Self {
-        match self {
-            C(c) => C(c.sin()),
-            V(x) => V(x.sin()),
         }
     }
 }
@@ -81,61 +67,76 @@ impl<S: Scalar> Mul for Term<S> {
     }
 }
 
-pub type Vec3<S> = [Term<S>; 3];
-pub type Mat3<S> = [[Term<S>; 3]; 3];
-
-pub fn constant_vec<S>(v: [f64; 3]) -> Vec3<S> {
+pub fn constant_vec<S>(v: [f64; 3]) -> [Term<S>; 3] {
     v.map(C)
 }
 
-pub fn constant_mat<S>(m: [[f64; 3]; 3]) -> Mat3<S> {
+pub fn constant_mat<S>(m: [[f64; 3]; 3]) -> [[Term<S>; 3]; 3] {
     m.map(|r| r.map(C))
 }
 
-/// Σ_k a_k b_k.
-fn dot3<S: Scalar>(a: [&Term<S>; 3], b: [&Term<S>; 3]) -> Term<S> {
-    (a[0].clone() * b[0].clone()) + (a[1].clone() * b[1].clone()) + (a[2].clone() * b[2].clone())
+impl<S: Scalar> Div for Term<S> {
+    type Output = Self;
+    fn div(self, o: Self) -> Self {
+        match (self, o) {
+            (C(a), C(b)) => C(a / b),
+            (V(x), C(b)) => V(x.clone() / x.lift(b)),
+            (C(a), V(y)) => V(y.lift(a) / y),
+            (V(x), V(y)) => V(x / y),
+        }
+    }
 }
 
-pub fn dot<S: Scalar>(a: &Vec3<S>, b: &Vec3<S>) -> Term<S> {
-    dot3([&a[0], &a[1], &a[2]], [&b[0], &b[1], &b[2]])
+/// A function of one value: in f64 on a constant, on the scalar otherwise.
+fn unary<S>(t: &Term<S>, c: impl Fn(f64) -> f64, v: impl Fn(&S) -> S) -> Term<S> {
+    match t {
+        C(a) => C(c(*a)),
+        V(x) => V(v(x)),
+    }
 }
 
-pub fn add<S: Scalar>(a: &Vec3<S>, b: &Vec3<S>) -> Vec3<S> {
-    std::array::from_fn(|i| a[i].clone() + b[i].clone())
-}
-
-pub fn sub<S: Scalar>(a: &Vec3<S>, b: &Vec3<S>) -> Vec3<S> {
-    std::array::from_fn(|i| a[i].clone() - b[i].clone())
-}
-
-pub fn scale<S: Scalar>(a: &Vec3<S>, s: &Term<S>) -> Vec3<S> {
-    std::array::from_fn(|i| a[i].clone() * s.clone())
-}
-
-pub fn cross<S: Scalar>(a: &Vec3<S>, b: &Vec3<S>) -> Vec3<S> {
-    let c = |i: usize, j: usize| a[i].clone() * b[j].clone() - a[j].clone() * b[i].clone();
-    [c(1, 2), c(2, 0), c(0, 1)]
-}
-
-/// A b.
-pub fn mat_vec<S: Scalar>(a: &Mat3<S>, b: &Vec3<S>) -> Vec3<S> {
-    std::array::from_fn(|i| dot(&a[i], b))
-}
-
-/// Aᵀ b.
-pub fn mat_t_vec<S: Scalar>(a: &Mat3<S>, b: &Vec3<S>) -> Vec3<S> {
-    std::array::from_fn(|i| dot3([&a[0][i], &a[1][i], &a[2][i]], [&b[0], &b[1], &b[2]]))
-}
-
-/// A B.
-pub fn mat_mul<S: Scalar>(a: &Mat3<S>, b: &Mat3<S>) -> Mat3<S> {
-    std::array::from_fn(|i| {
-        std::array::from_fn(|j| {
-            dot3(
-                [&a[i][0], &a[i][1], &a[i][2]],
-                [&b[0][j], &b[1][j], &b[2][j]],
-            )
-        })
-    })
+/// Constants fold in f64, so the 3-vector algebra of `spatial` runs on terms as it does on
+/// any scalar.
+impl<S: Scalar> Scalar for Term<S> {
+    fn cos(&self) -> Self {
+        unary(self, f64::cos, S::cos)
+    }
+    fn sin(&self) -> Self {
+        unary(self, f64::sin, S::sin)
+    }
+    fn sqrt(&self) -> Self {
+        unary(self, f64::sqrt, S::sqrt)
+    }
+    fn exp(&self) -> Self {
+        unary(self, f64::exp, S::exp)
+    }
+    fn ln(&self) -> Self {
+        unary(self, f64::ln, S::ln)
+    }
+    fn atan2(&self, x: &Self) -> Self {
+        match (self, x) {
+            (C(y), C(x)) => C(f64::atan2(*y, *x)),
+            (V(y), C(x)) => V(y.atan2(&y.lift(*x))),
+            (C(y), V(x)) => V(x.lift(*y).atan2(x)),
+            (V(y), V(x)) => V(y.atan2(x)),
+        }
+    }
+    fn sigmoid(&self) -> Self {
+        unary(self, |a| a.sigmoid(), S::sigmoid)
+    }
+    fn softplus(&self) -> Self {
+        unary(self, |a| a.softplus(), S::softplus)
+    }
+    fn scale(&self, c: f64) -> Self {
+        unary(self, |a| c * a, |x| x.scale(c))
+    }
+    fn shift(&self, c: f64) -> Self {
+        unary(self, |a| a + c, |x| x.shift(c))
+    }
+    fn tanh(&self) -> Self {
+        unary(self, f64::tanh, S::tanh)
+    }
+    fn lift(&self, c: f64) -> Self {
+        C(c)
+    }
 }

@@ -3,23 +3,23 @@
 //! own frame, and V = −Σ gᵀ(mᵢ pᵢ + Rᵢ hᵢ). Dual numbers give their q-derivatives (the
 //! Coriolis term needs ∂M/∂q), so the same code serves training, inference, linearization.
 
-use super::inertia::BodyInertia;
-use super::term::{
-    C, Mat3, Term, V, Vec3, add, constant_mat, constant_vec, cross, dot, mat_mul, mat_t_vec,
-    mat_vec, scale, sub,
-};
-use super::tree::{Body, JointKind, Tree};
+use super::tree::{JointKind, Tree};
+use crate::physics::multibody::spatial::{BodyInertia, M3, V3, add, cross, dot, mm, mtv, mv, sub};
+use crate::physics::multibody::term::{C, Term, V, constant_mat, constant_vec};
 use crate::physics::scalar::Scalar;
+
+/// A 3-vector of terms.
+type Vec3<S> = V3<Term<S>>;
 
 /// Each body's frame in the world: rotation, origin, and its joint's axis in world axes.
 struct Poses<S> {
-    rot: Vec<Mat3<S>>,
-    pos: Vec<Vec3<S>>,
-    axis: Vec<Vec3<S>>,
+    rot: Vec<M3<Term<S>>>,
+    pos: Vec<V3<Term<S>>>,
+    axis: Vec<V3<Term<S>>>,
 }
 
 /// R = a aᵀ + cos q (𝟙 − a aᵀ) + sin q [a]×, the rotation by q about the unit axis a.
-fn rotation<S: Scalar>(a: &[f64; 3], q: &S) -> Mat3<S> {
+fn rotation<S: Scalar>(a: &[f64; 3], q: &S) -> M3<Term<S>> {
     let (c, s) = (V(q.cos()), V(q.sin()));
     let k = [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]];
     std::array::from_fn(|i| {
@@ -29,17 +29,6 @@ fn rotation<S: Scalar>(a: &[f64; 3], q: &S) -> Mat3<S> {
             C(aa) + c.clone() * C(id - aa) + s.clone() * C(k[i][j])
         })
     })
-}
-
-/// Body i's joint value from the coordinates: its own, or the one a mimic joint follows.
-fn joint_value<S: Scalar>(b: &Body, q: &[S]) -> S {
-    let d = b.drive;
-    let x = &q[d.coordinate];
-    if (d.multiplier, d.offset) == (1.0, 0.0) {
-        x.clone()
-    } else {
-        x.scale(d.multiplier).shift(d.offset)
-    }
 }
 
 fn poses<S: Scalar>(tree: &Tree, q: &[S]) -> Poses<S> {
@@ -53,19 +42,19 @@ fn poses<S: Scalar>(tree: &Tree, q: &[S]) -> Poses<S> {
         let (joint_rot, joint_pos) = match b.parent {
             None => (constant_mat(b.rot), constant_vec(b.pos)),
             Some(k) => (
-                mat_mul(&p.rot[k], &constant_mat(b.rot)),
-                add(&p.pos[k], &mat_vec(&p.rot[k], &constant_vec(b.pos))),
+                mm(&p.rot[k], &constant_mat(b.rot)),
+                add(&p.pos[k], &mv(&p.rot[k], &constant_vec(b.pos))),
             ),
         };
-        let axis = mat_vec(&joint_rot, &constant_vec(b.axis));
-        let qi = joint_value(b, q);
+        let axis = mv(&joint_rot, &constant_vec(b.axis));
+        let qi = b.drive.value(q);
         let (rot, pos) = match b.kind {
             JointKind::Prismatic => {
-                let slide = scale(&axis, &V(qi));
+                let slide = axis.clone().map(|a| a * V(qi.clone()));
                 (joint_rot, add(&joint_pos, &slide))
             }
             JointKind::Revolute | JointKind::Continuous => {
-                (mat_mul(&joint_rot, &rotation(&b.axis, &qi)), joint_pos)
+                (mm(&joint_rot, &rotation(&b.axis, &qi)), joint_pos)
             }
         };
         p.rot.push(rot);
@@ -101,11 +90,7 @@ pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[BodyInertia<S>], q: &[S]) 
                     JointKind::Prismatic => (z.clone(), None),
                     _ => (cross(z, &sub(&p.pos[i], &p.pos[j])), Some(z.clone())),
                 };
-                (
-                    j,
-                    mat_t_vec(&p.rot[i], &v),
-                    w.map(|w| mat_t_vec(&p.rot[i], &w)),
-                )
+                (j, mtv(&p.rot[i], &v), w.map(|w| mtv(&p.rot[i], &w)))
             })
             .collect();
         for (a, (j, vj, wj)) in columns.iter().enumerate() {
@@ -118,7 +103,7 @@ pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[BodyInertia<S>], q: &[S]) 
                 if let Some(wj) = wj {
                     e = e + dot(vk, &cross(wj, &body.h));
                     if let Some(wk) = wk {
-                        e = e + dot(wj, &mat_vec(&body.inertia, wk));
+                        e = e + dot(wj, &mv(&body.inertia, wk));
                     }
                 }
                 let (dj, dk) = (tree.bodies[*j].drive, tree.bodies[*k].drive);
@@ -157,7 +142,10 @@ pub fn potential<S: Scalar>(
         .iter()
         .enumerate()
         .map(|(i, b)| {
-            let moment = add(&scale(&p.pos[i], &b.mass), &mat_vec(&p.rot[i], &b.h));
+            let moment = add(
+                &p.pos[i].clone().map(|x| x * b.mass.clone()),
+                &mv(&p.rot[i], &b.h),
+            );
             -dot(&g, &moment)
         })
         .reduce(|a, b| a + b)

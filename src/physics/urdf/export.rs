@@ -9,11 +9,11 @@ use std::collections::HashMap;
 use quick_xml::Reader;
 use quick_xml::events::Event;
 
-use super::inertia::Inertial;
 use super::read;
 use super::template::{UrdfDoc, UrdfTemplate};
 use super::xml::line_col;
 use crate::error::{Error, Result};
+use crate::physics::multibody::Inertial;
 
 /// An element of the document: its name, the `name` attribute, and byte spans.
 #[derive(Debug, Clone)]

@@ -2,8 +2,9 @@
 //! link frames.
 
 use super::read::Pose;
+use crate::physics::multibody::spatial::{M3, V3, mm, mv};
 
-pub type Rot = [[f64; 3]; 3];
+pub type Rot = M3<f64>;
 
 /// R = Rz(yaw) Ry(pitch) Rx(roll), URDF's fixed-axis roll-pitch-yaw.
 pub fn rpy(r: [f64; 3]) -> Rot {
@@ -17,19 +18,11 @@ pub fn rpy(r: [f64; 3]) -> Rot {
     ]
 }
 
-fn mul(a: &Rot, b: &Rot) -> Rot {
-    std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| a[i][k] * b[k][j]).sum()))
-}
-
-fn apply(a: &Rot, v: &[f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| (0..3).map(|k| a[i][k] * v[k]).sum())
-}
-
 /// A rigid transform (rotation, translation): x ↦ R x + p.
 #[derive(Clone, Copy)]
 pub struct Frame {
     pub rot: Rot,
-    pub pos: [f64; 3],
+    pub pos: V3<f64>,
 }
 
 impl Frame {
@@ -46,9 +39,9 @@ impl Frame {
     }
 
     pub fn then(&self, o: &Frame) -> Frame {
-        let p = apply(&self.rot, &o.pos);
+        let p = mv(&self.rot, &o.pos);
         Frame {
-            rot: mul(&self.rot, &o.rot),
+            rot: mm(&self.rot, &o.rot),
             pos: std::array::from_fn(|i| self.pos[i] + p[i]),
         }
     }

@@ -1,20 +1,17 @@
 //! Robots from URDF (docs/robots.md#urdf-robots): the rigid-body tree's M(q) and V(q) with trainable,
 //! physically consistent inertial parameters.
 
+pub mod assembled;
+pub mod export;
 pub mod frame;
-pub mod inertia;
 mod mimic;
+mod multibody;
 pub mod parameters;
 pub mod read;
-pub mod rigid;
 mod settings;
-pub mod term;
+pub mod template;
 pub mod tree;
 pub mod xml;
 
-pub use inertia::{BodyInertia, Inertial, body_inertia};
-pub use tree::{Body, JointKind, Tree};
-pub mod template;
 pub use template::{UrdfDoc, UrdfTemplate};
-pub mod export;
-pub mod featherstone;
+pub use tree::{Body, JointKind, Tree};

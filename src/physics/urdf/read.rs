@@ -19,7 +19,7 @@ pub struct Pose {
 }
 
 #[derive(Debug, Clone, PartialEq, Default)]
-pub struct Inertial {
+pub struct InertialElement {
     /// The centre-of-mass frame in the link's frame.
     pub origin: Pose,
     pub mass: f64,
@@ -33,7 +33,7 @@ pub struct Link {
     /// The line of its start tag.
     pub line: usize,
     /// The first `<inertial>` (the ROS parser reads the first); None: massless.
-    pub inertial: Option<Inertial>,
+    pub inertial: Option<InertialElement>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -246,7 +246,7 @@ pub fn read(text: &str) -> Result<Robot> {
             (2, Some(b"link"), b"inertial") if !st.had_inertial => {
                 (st.in_inertial, st.had_inertial) = (opens, true);
                 if let Some(l) = st.link.as_mut() {
-                    l.inertial = Some(Inertial::default());
+                    l.inertial = Some(InertialElement::default());
                 }
             }
             (3, Some(b"inertial"), _) if st.in_inertial => {
@@ -315,7 +315,7 @@ fn start_joint(tag: &Tag, line: usize) -> Result<Partial> {
     })
 }
 
-fn inertial_part(i: &mut Inertial, tag: &Tag, name: &[u8]) -> Result<()> {
+fn inertial_part(i: &mut InertialElement, tag: &Tag, name: &[u8]) -> Result<()> {
     match name {
         b"origin" => i.origin = tag.pose()?,
         b"mass" => i.mass = tag.number("value", None)?,

@@ -13,16 +13,16 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::featherstone;
-use super::inertia::{BodyInertia, Inertial};
-use super::parameters::{
-    PER_BODY, PER_JOINT, body_of_physical, inertial_of, params_of, physical_of_theta, raw_order,
-    standard_of_physical,
-};
-use super::rigid;
+use super::assembled;
+use super::parameters::{PER_BODY, PER_JOINT, params_of};
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::names::name_problem;
+use crate::physics::multibody::spatial::{
+    BodyInertia, STANDARD_NAMES, body_of_physical, of_physical, physical_of_raw, raw_order,
+    standard_of_physical,
+};
+use crate::physics::multibody::{self, Inertial};
 use crate::physics::params::{ParamInfo, physical_problem};
 use crate::physics::scalar::Scalar;
 
@@ -284,10 +284,10 @@ impl UrdfTemplate {
     }
 
     /// Physical values from raw ones (any scalar; Burn tensors in training).
-    pub fn natural<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
+    pub fn physical_from_raw<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
         let mut out = Vec::with_capacity(raw.len());
         for b in 0..self.nb() {
-            out.extend(physical_of_theta(&raw[b * PER_BODY..(b + 1) * PER_BODY]));
+            out.extend(physical_of_raw(&raw[b * PER_BODY..(b + 1) * PER_BODY]));
         }
         out.extend_from_slice(&raw[self.nb() * PER_BODY..]);
         out
@@ -296,7 +296,7 @@ impl UrdfTemplate {
     /// Raw values from physical ones; an error (field `init.<link>.<…>`) names a body that is
     /// not physically realisable. A body that is only just not (a point mass, a thin rod) is
     /// regularised as the URDF's own values are.
-    pub fn raw(&self, physical: &[f64]) -> Result<Vec<f64>> {
+    pub fn raw_from_physical(&self, physical: &[f64]) -> Result<Vec<f64>> {
         let mut out = Vec::with_capacity(physical.len());
         for (b, body) in self.tree.bodies.iter().enumerate() {
             let v = &physical[b * PER_BODY..(b + 1) * PER_BODY];
@@ -306,7 +306,7 @@ impl UrdfTemplate {
                     format!("must be ≥ 0, got {}", v[0]),
                 ));
             }
-            let theta = inertial_of(v).regularised().theta().map_err(|e| {
+            let theta = of_physical(v).regularised().theta().map_err(|e| {
                 let why = match e {
                     Error::Invalid { message, .. } => message,
                     other => other.to_string(),
@@ -329,11 +329,11 @@ impl UrdfTemplate {
     }
 
     pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
-        rigid::mass_matrix(&self.tree, &self.bodies(p), q)
+        assembled::mass_matrix(&self.tree, &self.bodies(p), q)
     }
 
     pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
-        rigid::potential(&self.tree, &self.bodies(p), &self.doc.gravity, q)
+        assembled::potential(&self.tree, &self.bodies(p), &self.doc.gravity, q)
     }
 
     /// F = S u − d∘q̇ − f∘tanh(q̇/ε), per joint; a mimic joint's force enters the coordinate
@@ -368,15 +368,15 @@ impl UrdfTemplate {
             .collect()
     }
 
-    /// The robot at these physical values as the recursive algorithms take it
-    /// (`featherstone`); gravity only when the model's V is this template's (otherwise the
+    /// The robot at these physical values as the multibody algorithms take it
+    /// (`multibody`); gravity only when the model's V is this template's (otherwise the
     /// model's own V stands in for it).
-    pub fn recursive_model(&self, physical: &[f64], gravity: bool) -> featherstone::RigidBodyModel {
+    pub fn multibody_model(&self, physical: &[f64], gravity: bool) -> multibody::Model {
         let bodies: Vec<Inertial> = (0..self.nb())
             .map(|b| self.link_inertial(physical, b))
             .collect();
         let g = if gravity { self.doc.gravity } else { [0.0; 3] };
-        featherstone::RigidBodyModel::with_inertias(&self.tree, &bodies, g)
+        self.tree.multibody_with(&bodies, g)
     }
 
     /// The base parameters at these physical values (docs/robots.md#base-parameters): each a
@@ -385,17 +385,17 @@ impl UrdfTemplate {
     /// with its value. `gravity`: whether V is the template's (else the data sees no weight).
     /// Empty for a robot of over `BASE_PARAMETERS_MAX_BODIES` moving bodies.
     pub fn base_parameters(&self, physical: &[f64], gravity: bool) -> Vec<(String, f64)> {
-        use featherstone::regressor::{NAMES, PER_BODY as STANDARD, standard_parameters};
+        use multibody::regressor::standard_parameters;
         if self.nb() > BASE_PARAMETERS_MAX_BODIES {
             return vec![];
         }
-        let model = self.recursive_model(physical, gravity);
+        let model = self.multibody_model(physical, gravity);
         let pi = standard_parameters(&model);
         let name = |k: usize| {
-            let link = &self.tree.bodies[k / STANDARD].link;
-            format!("{link}.{}", NAMES[k % STANDARD])
+            let link = &self.tree.bodies[k / PER_BODY].link;
+            format!("{link}.{}", STANDARD_NAMES[k % PER_BODY])
         };
-        featherstone::base::base_parameters(&model)
+        multibody::base::base_parameters(&model)
             .into_iter()
             .map(|b| {
                 let mut text = String::new();
@@ -416,7 +416,7 @@ impl UrdfTemplate {
             .collect()
     }
 
-    /// π, every body's standard parameters (`featherstone::regressor`'s order), from physical
+    /// π, every body's standard parameters (`multibody::regressor`'s order), from physical
     /// values (any scalar: Burn tensors in training).
     pub fn standard_parameters<S: Scalar>(&self, physical: &[S]) -> Vec<S> {
         (physical.chunks(PER_BODY).take(self.nb()))
@@ -426,7 +426,7 @@ impl UrdfTemplate {
 
     /// The physical values as URDF elements per link and joint (for the export).
     pub fn link_inertial(&self, physical: &[f64], body: usize) -> Inertial {
-        inertial_of(&physical[body * PER_BODY..(body + 1) * PER_BODY])
+        of_physical(&physical[body * PER_BODY..(body + 1) * PER_BODY])
     }
 
     pub fn joint_dynamics(&self, physical: &[f64], body: usize) -> (f64, f64) {

@@ -5,10 +5,11 @@
 
 use std::collections::{HashMap, HashSet};
 
-use super::inertia::Inertial;
 use super::read::{self, JointType, Mimic, Pose};
 use crate::error::{Error, Result};
 use crate::names::{name_problem, quoted_name};
+pub use crate::physics::multibody::Drive;
+use crate::physics::multibody::Inertial;
 use crate::physics::params::physical_problem;
 
 use super::frame::Frame;
@@ -21,18 +22,6 @@ pub enum JointKind {
     /// A revolute joint without limits: periodic by default.
     Continuous,
     Prismatic,
-}
-
-/// How a body's joint value follows the coordinates: multiplier · q[coordinate] + offset. A
-/// coordinate's own joint has (1, 0); a mimic joint follows the joint it mimics (through any
-/// chain of mimics), so it is not a coordinate, its velocity and acceleration are the
-/// multiplier's times the coordinate's, and its forces enter that coordinate times the
-/// multiplier (the chain rule, as Pinocchio's mimic joints have it).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Drive {
-    pub coordinate: usize,
-    pub multiplier: f64,
-    pub offset: f64,
 }
 
 #[derive(Debug, Clone, PartialEq)]

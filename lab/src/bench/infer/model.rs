@@ -35,7 +35,7 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
     let (x1, u1) = (&xs[..2 * n], &us[..m]);
     let few = (calls / 10).max(20);
     let about = json!({"model": path.display().to_string(), "n": n, "m": m,
-                       "recursive": eval.is_recursive()});
+                       "multibody": eval.is_multibody()});
     let with = |extra: serde_json::Value| {
         let mut v = about.clone();
         v.as_object_mut()
@@ -76,7 +76,7 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
             std::hint::black_box(eval.linearize_batch(x1, u1));
         }),
     );
-    if eval.is_recursive() {
+    if eval.is_multibody() {
         // The same model on the template's assembly: what a URDF model cost before.
         let assembled = eval.clone().assembled();
         print(

@@ -1,17 +1,137 @@
-//! Physically consistent inertial parameters (docs/robots.md#physically-consistent-inertia; Wensing, Kim & Slotine 2017;
-//! Rucker & Wensing 2022). A body's mass m, first moment h = m c and rotational inertia Ī
-//! about its frame's origin form the pseudo-inertia J = [[Σ, h], [hᵀ, m]] with
-//! Σ = ½ tr(Ī) 𝟙 − Ī; the body is physically realisable exactly when J ≻ 0. Training moves
-//! ten unconstrained values θ = (α, d₁, d₂, d₃, s₁₂, s₁₃, s₂₃, t₁, t₂, t₃) through
+//! A body's inertia in every form graybox uses, and the conversions between them
+//! (docs/robots.md#inertia-forms, where the forms have one table):
 //!
-//!     U = e^α [[e^d₁, s₁₂, s₁₃, t₁], [0, e^d₂, s₂₃, t₂], [0, 0, e^d₃, t₃], [0, 0, 0, 1]],
-//!     J = U Uᵀ,
-//!
-//! so every value the optimiser visits is a rigid body: m = e^{2α}, c = t, and Σ, Ī follow.
+//! - [`Inertial`]: m, h = m c and Ī about the body frame's origin, in f64 (what a producer
+//!   such as the URDF reader builds a `Model` from; `from_com` takes URDF's own form);
+//! - [`BodyInertia`]: the same over any scalar, each value a constant or not (the assembled
+//!   path's M(q) and V(q) over trainable values);
+//! - [`Inertia`]: the symmetric 6×6 spatial inertia [[A, B], [Bᵀ, C]] the algorithms take;
+//! - the standard parameters π = (m, m c, Ī about the origin), ten per body, linear in τ
+//!   (`Inertia::standard`, `Inertia::of_standard`);
+//! - the physical values (m, c, Ī about c), ten per body, which a template's parameters are
+//!   named by (`of_physical`, `body_of_physical`, `standard_of_physical`);
+//! - the raw values θ the optimiser moves (`raw.rs`).
 
-use super::term::{C, Mat3, Term, V, Vec3};
-use crate::error::{Error, Result};
+use super::{Force, M3, Motion, V3, add, cdot, lift3x3, mat_op, mtv, mv};
+use crate::physics::multibody::term::{Term, V};
 use crate::physics::scalar::Scalar;
+
+/// Values per body in every ten-value form (π, the physical values, θ).
+pub const PER_BODY: usize = 10;
+
+/// π's names after the link's, in its order.
+pub const STANDARD_NAMES: [&str; PER_BODY] = [
+    "mass", "mx", "my", "mz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
+];
+
+/// A symmetric 6×6 spatial inertia [[A, B], [Bᵀ, C]]: the force I m = (A ω + B v, Bᵀ ω + C v).
+#[derive(Clone, Debug)]
+pub struct Inertia<S> {
+    pub a: M3<S>,
+    pub b: M3<S>,
+    pub c: M3<S>,
+}
+
+impl Inertia<f64> {
+    /// A rigid body of mass m, first moment h = m c and rotational inertia Ī about the
+    /// frame's origin: A = Ī, B = [h]×, C = m 𝟙.
+    pub fn rigid(mass: f64, h: &[f64; 3], inertia: &[[f64; 3]; 3]) -> Self {
+        let b = [[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]];
+        let c = std::array::from_fn(|i| std::array::from_fn(|j| if i == j { mass } else { 0.0 }));
+        Self { a: *inertia, b, c }
+    }
+
+    /// A body of standard parameters π (m, h, Ixx, Ixy, Ixz, Iyy, Iyz, Izz).
+    pub fn of_standard(p: &[f64]) -> Self {
+        let i = [[p[4], p[5], p[6]], [p[5], p[7], p[8]], [p[6], p[8], p[9]]];
+        Self::rigid(p[0], &[p[1], p[2], p[3]], &i)
+    }
+
+    /// The mass, from C = m 𝟙.
+    pub fn mass(&self) -> f64 {
+        self.c[0][0]
+    }
+
+    /// The first moment h, from B = [h]×.
+    pub fn first_moment(&self) -> [f64; 3] {
+        [self.b[2][1], self.b[0][2], self.b[1][0]]
+    }
+
+    /// The body's standard parameters π.
+    pub fn standard(&self) -> [f64; PER_BODY] {
+        let (a, [hx, hy, hz]) = (&self.a, self.first_moment());
+        [
+            self.mass(),
+            hx,
+            hy,
+            hz,
+            a[0][0],
+            a[0][1],
+            a[0][2],
+            a[1][1],
+            a[1][2],
+            a[2][2],
+        ]
+    }
+
+    pub fn lift<S: Scalar>(&self, zero: &S) -> Inertia<S> {
+        Inertia {
+            a: lift3x3(&self.a, zero),
+            b: lift3x3(&self.b, zero),
+            c: lift3x3(&self.c, zero),
+        }
+    }
+
+    /// I m for a constant I (zero entries skipped).
+    pub fn apply_const<S: Scalar>(&self, m: &Motion<S>, zero: &S) -> Force<S> {
+        let row = |r: &[f64; 3], x: &V3<S>| cdot(r, x, zero);
+        let bt = |k: usize| [self.b[0][k], self.b[1][k], self.b[2][k]];
+        Force {
+            n: std::array::from_fn(|k| row(&self.a[k], &m.w) + row(&self.b[k], &m.v)),
+            f: std::array::from_fn(|k| row(&bt(k), &m.w) + row(&self.c[k], &m.v)),
+        }
+    }
+}
+
+impl<S: Scalar> Inertia<S> {
+    pub fn apply(&self, m: &Motion<S>) -> Force<S> {
+        Force {
+            n: add(&mv(&self.a, &m.w), &mv(&self.b, &m.v)),
+            f: add(&mtv(&self.b, &m.w), &mv(&self.c, &m.v)),
+        }
+    }
+
+    pub fn add_assign(&mut self, o: &Self) {
+        self.a = mat_op(&self.a, &o.a, |x, y| x + y);
+        self.b = mat_op(&self.b, &o.b, |x, y| x + y);
+        self.c = mat_op(&self.c, &o.c, |x, y| x + y);
+    }
+
+    /// I − u uᵀ / d for a force-like column u = (uₙ, u_f).
+    pub fn minus_outer(&self, u: &Force<S>, d: &S) -> Self {
+        let (un, uf) = (
+            u.n.clone().map(|x| x / d.clone()),
+            u.f.clone().map(|x| x / d.clone()),
+        );
+        let outer = |m: &M3<S>, x: &V3<S>, y: &V3<S>| -> M3<S> {
+            std::array::from_fn(|i| {
+                std::array::from_fn(|j| m[i][j].clone() - x[i].clone() * y[j].clone())
+            })
+        };
+        Self {
+            a: outer(&self.a, &u.n, &un),
+            b: outer(&self.b, &u.n, &uf),
+            c: outer(&self.c, &u.f, &uf),
+        }
+    }
+}
+
+impl Inertial {
+    /// Its spatial inertia.
+    pub fn spatial(&self) -> Inertia<f64> {
+        Inertia::rigid(self.mass, &self.h, &self.inertia)
+    }
+}
 
 /// A body's inertial parameters in its own frame: m, h = m c, and Ī about the frame's origin.
 #[derive(Debug, Clone, PartialEq)]
@@ -23,21 +143,15 @@ pub struct Inertial {
     /// made from them: `com` and `inertia_at_com` return them as they are, where h/m and the
     /// parallel-axis difference would round (m c / m ≠ c for one (m, c) in ten), so that a
     /// file's values come back exactly (docs/robots.md#physically-consistent-inertia).
-    at_com: Option<([f64; 3], [[f64; 3]; 3])>,
+    pub(super) at_com: Option<([f64; 3], [[f64; 3]; 3])>,
 }
 
-/// The same over any scalar (the trainable form's image).
+/// The same over any scalar (the trainable form's image), each value a constant or not.
 pub struct BodyInertia<S> {
     pub mass: Term<S>,
-    pub h: Vec3<S>,
-    pub inertia: Mat3<S>,
+    pub h: V3<Term<S>>,
+    pub inertia: M3<Term<S>>,
 }
-
-/// The smallest mass a body is given (kg) and the smallest second moment about its centre
-/// of mass per unit mass (m², a spread of 1 mm): a link without `<inertial>`, a point mass or
-/// a thin rod has a singular pseudo-inertia, outside the open set every θ maps to.
-pub const MIN_MASS: f64 = 1e-6;
-pub const MIN_SPREAD: f64 = 1e-6;
 
 impl Inertial {
     pub const ZERO: Inertial = Inertial {
@@ -151,164 +265,57 @@ impl Inertial {
         });
         Inertial::from_com(self.mass, c_new, rotated)
     }
-
-    /// The pseudo-inertia J (4×4).
-    pub fn pseudo(&self) -> [[f64; 4]; 4] {
-        let tr = self.inertia[0][0] + self.inertia[1][1] + self.inertia[2][2];
-        // Σ = ½ tr(Ī) 𝟙 − Ī, bordered by h and m.
-        std::array::from_fn(|a| {
-            std::array::from_fn(|b| match (a, b) {
-                (3, 3) => self.mass,
-                (3, k) | (k, 3) => self.h[k],
-                _ if a == b => 0.5 * tr - self.inertia[a][b],
-                _ => -self.inertia[a][b],
-            })
-        })
-    }
-
-    /// θ with J(θ) = this body's pseudo-inertia (the upper-triangular, "UL", Cholesky factor
-    /// of J); an error when the body is not physically realisable.
-    pub fn theta(&self) -> Result<[f64; 10]> {
-        let u = ul_cholesky(&self.pseudo()).ok_or_else(|| {
-            Error::invalid(
-                "inertial",
-                "is not physically consistent: the pseudo-inertia [[½tr(I)𝟙 − I, m c], \
-                 [m cᵀ, m]] is not positive definite (a negative mass or principal moments \
-                 that break the triangle inequality)",
-            )
-        })?;
-        let ea = u[3][3];
-        Ok([
-            ea.ln(),
-            (u[0][0] / ea).ln(),
-            (u[1][1] / ea).ln(),
-            (u[2][2] / ea).ln(),
-            u[0][1] / ea,
-            u[0][2] / ea,
-            u[1][2] / ea,
-            u[0][3] / ea,
-            u[1][3] / ea,
-            u[2][3] / ea,
-        ])
-    }
-
-    /// The body for θ.
-    pub fn from_theta(theta: &[f64; 10]) -> Inertial {
-        let b = body_inertia::<f64>(&theta.map(V));
-        let f = |t: &Term<f64>| match t {
-            C(c) | V(c) => *c,
-        };
-        Inertial {
-            mass: f(&b.mass),
-            h: b.h.each_ref().map(f),
-            inertia: b.inertia.each_ref().map(|r| r.each_ref().map(f)),
-            at_com: None,
-        }
-    }
-
-    /// This body made realisable when it is only just not: a mass below `MIN_MASS` is
-    /// raised to it, and a second moment about the centre of mass below `MIN_SPREAD` per
-    /// unit mass in some direction (a point mass, a thin rod) gets `MIN_SPREAD` added in
-    /// every direction. A body that is clearly not physical is left as it is (and `theta`
-    /// refuses it).
-    pub fn regularised(&self) -> Inertial {
-        if self.mass < 0.0 {
-            return self.clone();
-        }
-        let mass = self.mass.max(MIN_MASS);
-        let c = if self.mass > 0.0 {
-            self.com()
-        } else {
-            [0.0; 3]
-        };
-        let ic = if self.mass > 0.0 {
-            self.inertia_at_com()
-        } else {
-            [[0.0; 3]; 3]
-        };
-        let body = Inertial::from_com(mass, c, ic);
-        // Σ_c = ½ tr(Ī_c) 𝟙 − Ī_c: the second moment about the centre of mass.
-        let tr = ic[0][0] + ic[1][1] + ic[2][2];
-        let sigma: [[f64; 3]; 3] = std::array::from_fn(|i| {
-            std::array::from_fn(|j| if i == j { 0.5 * tr } else { 0.0 } - ic[i][j])
-        });
-        let floor = MIN_SPREAD * mass;
-        let shifted = |by: f64| -> [[f64; 4]; 4] {
-            let mut j = [[0.0; 4]; 4];
-            for a in 0..3 {
-                for b in 0..3 {
-                    j[a][b] = sigma[a][b] - if a == b { by } else { 0.0 };
-                }
-            }
-            j[3][3] = 1.0;
-            j
-        };
-        let well_spread = ul_cholesky(&shifted(floor)).is_some();
-        let nearly_physical = ul_cholesky(&shifted(-floor)).is_some();
-        if well_spread || !nearly_physical {
-            return body;
-        }
-        // Adding s 𝟙 to Σ_c adds 2s 𝟙 to Ī_c.
-        let ic2 = std::array::from_fn(|i| {
-            std::array::from_fn(|j| ic[i][j] + if i == j { 2.0 * floor } else { 0.0 })
-        });
-        Inertial::from_com(mass, c, ic2)
-    }
 }
 
-/// J = U Uᵀ with U upper triangular and a positive diagonal; None unless J ≻ 0.
-fn ul_cholesky(j: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
-    let mut u = [[0.0; 4]; 4];
-    for c in (0..4).rev() {
-        let d = j[c][c] - (c + 1..4).map(|k| u[c][k] * u[c][k]).sum::<f64>();
-        // NaN fails `d > 0.0` too.
-        if !(d.is_finite() && d > 0.0) {
-            return None;
-        }
-        u[c][c] = d.sqrt();
-        for r in 0..c {
-            u[r][c] = (j[r][c] - (c + 1..4).map(|k| u[r][k] * u[c][k]).sum::<f64>()) / u[c][c];
-        }
-    }
-    Some(u)
+/// A body of physical values (m, c, Ī about c).
+pub fn of_physical(v: &[f64]) -> Inertial {
+    let ic = [[v[4], v[5], v[6]], [v[5], v[7], v[8]], [v[6], v[8], v[9]]];
+    Inertial::from_com(v[0], [v[1], v[2], v[3]], ic)
 }
 
-/// m, h and Ī about the frame's origin for θ, over any scalar.
-pub fn body_inertia<S: Scalar>(theta: &[Term<S>; 10]) -> BodyInertia<S> {
-    let [a, d1, d2, d3, s12, s13, s23, t1, t2, t3] = theta.clone();
-    let exp = |t: Term<S>| match t {
-        C(c) => C(c.exp()),
-        V(x) => V(x.exp()),
-    };
-    let m = exp(a.clone() + a);
-    // Rows of U / e^α.
-    let rows: [[Term<S>; 4]; 3] = [
-        [exp(d1), s12, s13, t1.clone()],
-        [C(0.0), exp(d2), s23, t2.clone()],
-        [C(0.0), C(0.0), exp(d3), t3.clone()],
+/// A body of physical values over any scalar: h = m c, Ī_o = Ī_c + m(|c|² 𝟙 − c cᵀ).
+pub fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
+    let m = v[0].clone();
+    let c = [v[1].clone(), v[2].clone(), v[3].clone()];
+    let ic = [
+        [&v[4], &v[5], &v[6]],
+        [&v[5], &v[7], &v[8]],
+        [&v[6], &v[8], &v[9]],
     ];
-    let dot4 = |x: &[Term<S>; 4], y: &[Term<S>; 4]| {
-        (0..4)
-            .map(|k| x[k].clone() * y[k].clone())
-            .reduce(|p, q| p + q)
-            .expect("four terms")
-    };
-    // Σ = e^{2α} (rows · rows) on the 3×3 block.
-    let sigma: Mat3<S> =
-        std::array::from_fn(|i| std::array::from_fn(|j| m.clone() * dot4(&rows[i], &rows[j])));
-    let tr = sigma[0][0].clone() + sigma[1][1].clone() + sigma[2][2].clone();
+    let c2 = c[0].square() + c[1].square() + c[2].square();
     let inertia = std::array::from_fn(|i| {
         std::array::from_fn(|j| {
-            if i == j {
-                tr.clone() - sigma[i][j].clone()
+            let shift = if i == j {
+                c2.clone() - c[i].square()
             } else {
-                -sigma[i][j].clone()
-            }
+                -(c[i].clone() * c[j].clone())
+            };
+            V(ic[i][j].clone() + m.clone() * shift)
         })
     });
     BodyInertia {
-        h: [t1, t2, t3].map(|t| m.clone() * t),
-        mass: m,
+        h: c.clone().map(|ci| V(m.clone() * ci)),
+        mass: V(m),
         inertia,
     }
+}
+
+/// π of a body from its physical values, over any scalar (Burn tensors in training).
+pub fn standard_of_physical<S: Scalar>(v: &[S]) -> [S; PER_BODY] {
+    let b = body_of_physical(v);
+    let like = &v[0];
+    let [hx, hy, hz] = b.h;
+    let i = |r: usize, c: usize| b.inertia[r][c].clone().value(like);
+    [
+        b.mass.value(like),
+        hx.value(like),
+        hy.value(like),
+        hz.value(like),
+        i(0, 0),
+        i(0, 1),
+        i(0, 2),
+        i(1, 1),
+        i(1, 2),
+        i(2, 2),
+    ]
 }

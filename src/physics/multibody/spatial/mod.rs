@@ -5,6 +5,15 @@
 //! frame's origin: A = Ī, B = [h]×, C = m 𝟙). Constants (axes, frames, inertias) stay f64 and
 //! enter as `scale`, skipping zeros, so dual numbers pay only for what depends on q.
 
+mod inertia;
+mod raw;
+
+pub use inertia::{
+    BodyInertia, Inertia, Inertial, PER_BODY, STANDARD_NAMES, body_of_physical, of_physical,
+    standard_of_physical,
+};
+pub use raw::{MIN_MASS, MIN_SPREAD, body_inertia, physical_of_raw, raw_order};
+
 use crate::physics::scalar::Scalar;
 
 pub type V3<S> = [S; 3];
@@ -44,7 +53,7 @@ pub fn mtv<S: Scalar>(m: &M3<S>, x: &V3<S>) -> V3<S> {
     })
 }
 
-fn mm<S: Scalar>(a: &M3<S>, b: &M3<S>) -> M3<S> {
+pub fn mm<S: Scalar>(a: &M3<S>, b: &M3<S>) -> M3<S> {
     std::array::from_fn(|i| {
         std::array::from_fn(|j| {
             a[i][0].clone() * b[0][j].clone()
@@ -78,7 +87,7 @@ fn cross_right<S: Scalar>(m: &M3<S>, r: &V3<S>) -> M3<S> {
     std::array::from_fn(|i| cross(&m[i], r))
 }
 
-fn mat_op<S: Scalar>(a: &M3<S>, b: &M3<S>, f: impl Fn(S, S) -> S) -> M3<S> {
+pub(super) fn mat_op<S: Scalar>(a: &M3<S>, b: &M3<S>, f: impl Fn(S, S) -> S) -> M3<S> {
     std::array::from_fn(|i| std::array::from_fn(|j| f(a[i][j].clone(), b[i][j].clone())))
 }
 
@@ -133,7 +142,7 @@ pub fn lift3<S: Scalar>(c: &[f64; 3], zero: &S) -> V3<S> {
     c.map(|x| zero.lift(x))
 }
 
-fn lift33<S: Scalar>(c: &[[f64; 3]; 3], zero: &S) -> M3<S> {
+pub(super) fn lift3x3<S: Scalar>(c: &[[f64; 3]; 3], zero: &S) -> M3<S> {
     c.map(|r| lift3(&r, zero))
 }
 
@@ -249,74 +258,5 @@ impl<S: Scalar> Xform<S> {
         });
         let b = mat_op(&b, &cross_left(&self.r, &c), |x, y| x + y);
         Inertia { a, b, c }
-    }
-}
-
-/// A symmetric 6×6 spatial inertia [[A, B], [Bᵀ, C]]: the force I m = (A ω + B v, Bᵀ ω + C v).
-#[derive(Clone, Debug)]
-pub struct Inertia<S> {
-    pub a: M3<S>,
-    pub b: M3<S>,
-    pub c: M3<S>,
-}
-
-impl Inertia<f64> {
-    /// A rigid body of mass m, first moment h = m c and rotational inertia Ī about the
-    /// frame's origin: A = Ī, B = [h]×, C = m 𝟙.
-    pub fn rigid(mass: f64, h: &[f64; 3], inertia: &[[f64; 3]; 3]) -> Self {
-        let b = [[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]];
-        let c = std::array::from_fn(|i| std::array::from_fn(|j| if i == j { mass } else { 0.0 }));
-        Self { a: *inertia, b, c }
-    }
-
-    pub fn lift<S: Scalar>(&self, zero: &S) -> Inertia<S> {
-        Inertia {
-            a: lift33(&self.a, zero),
-            b: lift33(&self.b, zero),
-            c: lift33(&self.c, zero),
-        }
-    }
-
-    /// I m for a constant I (zero entries skipped).
-    pub fn apply_const<S: Scalar>(&self, m: &Motion<S>, zero: &S) -> Force<S> {
-        let row = |r: &[f64; 3], x: &V3<S>| cdot(r, x, zero);
-        let bt = |k: usize| [self.b[0][k], self.b[1][k], self.b[2][k]];
-        Force {
-            n: std::array::from_fn(|k| row(&self.a[k], &m.w) + row(&self.b[k], &m.v)),
-            f: std::array::from_fn(|k| row(&bt(k), &m.w) + row(&self.c[k], &m.v)),
-        }
-    }
-}
-
-impl<S: Scalar> Inertia<S> {
-    pub fn apply(&self, m: &Motion<S>) -> Force<S> {
-        Force {
-            n: add(&mv(&self.a, &m.w), &mv(&self.b, &m.v)),
-            f: add(&mtv(&self.b, &m.w), &mv(&self.c, &m.v)),
-        }
-    }
-
-    pub fn add_assign(&mut self, o: &Self) {
-        self.a = mat_op(&self.a, &o.a, |x, y| x + y);
-        self.b = mat_op(&self.b, &o.b, |x, y| x + y);
-        self.c = mat_op(&self.c, &o.c, |x, y| x + y);
-    }
-
-    /// I − u uᵀ / d for a force-like column u = (uₙ, u_f).
-    pub fn minus_outer(&self, u: &Force<S>, d: &S) -> Self {
-        let (un, uf) = (
-            u.n.clone().map(|x| x / d.clone()),
-            u.f.clone().map(|x| x / d.clone()),
-        );
-        let outer = |m: &M3<S>, x: &V3<S>, y: &V3<S>| -> M3<S> {
-            std::array::from_fn(|i| {
-                std::array::from_fn(|j| m[i][j].clone() - x[i].clone() * y[j].clone())
-            })
-        };
-        Self {
-            a: outer(&self.a, &u.n, &un),
-            b: outer(&self.b, &u.n, &uf),
-            c: outer(&self.c, &u.f, &uf),
-        }
     }
 }

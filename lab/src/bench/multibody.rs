@@ -1,7 +1,7 @@
-//! `graybox-lab bench rigid --urdf FILE`: microseconds per call of a URDF robot's dynamics in
+//! `graybox-lab bench multibody --urdf FILE`: microseconds per call of a URDF robot's dynamics in
 //! f64, the template path that serves today (M and V over dual numbers, then the Coriolis
 //! term from ∂L/∂q and a Cholesky solve: `dynamics::white_box_acceleration`) against the
-//! recursive algorithms (`urdf::featherstone`): ABA, CRBA + Cholesky, and ∂q̈/∂q, ∂q̈/∂q̇ (what
+//! multibody algorithms (`physics::multibody`): ABA, CRBA + Cholesky, and ∂q̈/∂q, ∂q̈/∂q̇ (what
 //! Linearize needs) by −M⁻¹ ∂ID over jets, by forward dynamics over jets and over `Dual`.
 
 use std::hint::black_box;
@@ -13,16 +13,16 @@ use serde_json::json;
 
 use graybox::error::{Error, Result};
 use graybox::physics::dynamics::{constants, white_box_acceleration};
-use graybox::physics::urdf::UrdfTemplate;
-use graybox::physics::urdf::featherstone::adjoint::{forward_dynamics_adjoint, parameter_gradient};
-use graybox::physics::urdf::featherstone::{
-    RigidBodyModel, aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets,
-    forward_dynamics, forward_dynamics_derivatives,
+use graybox::physics::multibody::adjoint::{forward_dynamics_adjoint, parameter_gradient};
+use graybox::physics::multibody::{
+    aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets, forward_dynamics,
+    forward_dynamics_derivatives,
 };
+use graybox::physics::urdf::UrdfTemplate;
 use graybox::rng::Rng;
 
 #[derive(Args, Debug)]
-pub struct BenchRigidArgs {
+pub struct BenchMultibodyArgs {
     /// The robot's URDF file (e.g. tests/fixtures/urdf/robots/ur5.urdf).
     #[arg(long)]
     pub urdf: PathBuf,
@@ -57,12 +57,12 @@ fn figure(name: &str, n: usize, calls: usize, mut f: impl FnMut(usize)) {
     );
 }
 
-pub fn run(a: BenchRigidArgs) -> Result<()> {
+pub fn run(a: BenchMultibodyArgs) -> Result<()> {
     let text = std::fs::read_to_string(&a.urdf)
         .map_err(|e| Error::invalid("urdf", format!("{}: {e}", a.urdf.display())))?;
     let t = UrdfTemplate::from_urdf(&text)?;
     let n = t.n();
-    let model = RigidBodyModel::new(&t.tree, t.doc.gravity);
+    let model = t.tree.multibody(t.doc.gravity);
     let p: Vec<f64> = t.params().iter().map(|p| p.default).collect();
     let pd = constants(&p);
     let mut rng = Rng::new(a.seed);
@@ -93,8 +93,8 @@ pub fn run(a: BenchRigidArgs) -> Result<()> {
     });
     println!(
         "{}",
-        json!({"bench": "rigid_agreement", "robot": t.doc.name, "n": n,
-               "bodies": model.joints.len(), "mimic": model.mimic,
+        json!({"bench": "multibody_agreement", "robot": t.doc.name, "n": n,
+               "bodies": model.bodies.len(), "mimic": model.mimic,
                "max_rel_diff_qdd": worst})
     );
     let calls = a.calls;
