@@ -22,8 +22,8 @@ pub fn aba<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     let mut ia: Vec<Inertia<S>> = Vec::with_capacity(nb);
     let mut pa: Vec<Force<S>> = Vec::with_capacity(nb);
     for j in &model.bodies {
-        let x = j.xform(&j.value(q), &zero);
-        let vj = j.motion(&j.rate(qd), &zero);
+        let x = j.placement(q, &zero);
+        let vj = j.joint_motion(qd, &zero);
         let v = match j.parent {
             Some(p) => x.motion(&vs[p]).plus(&vj),
             None => vj.clone(),
@@ -70,7 +70,7 @@ pub fn aba<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
             .plus(&cs[i]);
         let (u_col, d, u) = &us[i];
         let x = (u.clone() - a.dot(u_col)) / d.clone();
-        accs.push(a.plus(&j.motion(&x, &zero)));
+        accs.push(a.plus(&j.joint.motion(&x, &zero)));
         qdd[j.drive.coordinate] = x;
     }
     qdd

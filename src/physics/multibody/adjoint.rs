@@ -55,18 +55,18 @@ pub fn parameter_gradient(
     a0.v = model.gravity.map(|g| -g);
     let mut out = Vec::with_capacity(PER_BODY * nb);
     for j in &model.bodies {
-        let x = j.xform(&j.value(q), &0.0);
-        let vj = j.motion(&j.rate(qd), &0.0);
-        let sw = j.motion(&j.rate(lambda), &0.0);
+        let x = j.placement(q, &0.0);
+        let vj = j.joint_motion(qd, &0.0);
+        let sw = j.joint_motion(lambda, &0.0);
         let (v, a, w) = match j.parent {
             Some(p) => (
                 x.motion(&vs[p]).plus(&vj),
-                x.motion(&accs[p]).plus(&j.motion(&j.rate(qdd), &0.0)),
+                x.motion(&accs[p]).plus(&j.joint_motion(qdd, &0.0)),
                 x.motion(&ws[p]).plus(&sw),
             ),
             None => (
                 vj.clone(),
-                x.motion(&a0).plus(&j.motion(&j.rate(qdd), &0.0)),
+                x.motion(&a0).plus(&j.joint_motion(qdd, &0.0)),
                 sw,
             ),
         };
@@ -101,16 +101,16 @@ pub fn id_gradient(
     // Per body: X, the parent's v, a, w in this body's frame (X m_parent), and v, a, w, f.
     let mut fwd: Vec<Forward> = Vec::with_capacity(nb);
     for j in &model.bodies {
-        let x = j.xform(&j.value(q), &0.0);
+        let x = j.placement(q, &0.0);
         let (vp, ap, wp) = match j.parent {
             Some(p) => (&fwd[p].v, &fwd[p].a, &fwd[p].w),
             None => (&zero, &a0, &zero),
         };
         let (vp, ap, wp) = (x.motion(vp), x.motion(ap), x.motion(wp));
-        let sqd = j.motion(&j.rate(qd), &0.0);
+        let sqd = j.joint_motion(qd, &0.0);
         let v = vp.plus(&sqd);
-        let a = ap.plus(&j.motion(&j.rate(qdd), &0.0)).plus(&v.cross(&sqd));
-        let w = wp.plus(&j.motion(&j.rate(lambda), &0.0));
+        let a = ap.plus(&j.joint_motion(qdd, &0.0)).plus(&v.cross(&sqd));
+        let w = wp.plus(&j.joint_motion(lambda, &0.0));
         let iv = j.inertia.apply_const(&v, &0.0);
         let f = j.inertia.apply_const(&a, &0.0).plus(&v.cross_force(&iv));
         fwd.push(Forward {
@@ -143,7 +143,7 @@ pub fn id_gradient(
             .plus(&j.inertia.apply_const(&b.v.cross(&b.w), &0.0).scale(-1.0))
             .plus(&b.sqd.cross_force(&ab));
         // Sᵀ(v̄ + ā ⋆ …): the rate's share; (X m_parent) × S the value's.
-        let s = j.motion(&1.0, &0.0);
+        let s = j.joint.motion(&1.0, &0.0);
         let rate = s.dot(&vb) + b.v.cross(&s).dot(&ab);
         let value = b.vp.cross(&s).dot(&vb) + b.ap.cross(&s).dot(&ab) + b.wp.cross(&s).dot(&wb);
         dqd[j.drive.coordinate] += j.drive.multiplier * rate;

@@ -1,15 +1,15 @@
 //! Rigid-body dynamics of a tree of bodies (docs/robots.md#multibody-dynamics; Featherstone,
 //! "Rigid Body Dynamics Algorithms", 2008), laid out as Pinocchio's: a [`Model`] (the tree,
 //! its joint models, its bodies' inertias, gravity) built once from any source (the URDF
-//! reader is one producer: `urdf::Tree::multibody`), one spatial algebra (`spatial`), the
-//! inertia's forms and every conversion between them (`inertia`), the joint models
-//! (`joint`), and one file per algorithm: the recursive Newton–Euler algorithm for inverse
-//! dynamics, gravity and Coriolis torques (`rnea`), the composite rigid-body algorithm for
-//! M(q) (`rnea::crba`), the articulated-body algorithm for forward dynamics (`aba`), the
-//! derivatives of forward dynamics (`derivatives`), forward dynamics' vector–Jacobian product
-//! (`adjoint`), the energies (`energy`), τ = Y π (`regressor`) and the base parameters
-//! (`base`). Each is O(n) or O(n·depth) per state, generic over `Scalar` (f64 for speed, dual
-//! numbers for exact derivatives).
+//! reader is one producer: `urdf::Tree::multibody`), one spatial algebra owning every form of
+//! a body's inertia and the conversions between them (`spatial`), the joint models (`joint`),
+//! and one file per algorithm: forward kinematics (`kinematics`), the recursive Newton–Euler
+//! algorithm for inverse dynamics, gravity and Coriolis torques (`rnea`), the composite
+//! rigid-body algorithm for M(q) (`rnea::crba`), the articulated-body algorithm for forward
+//! dynamics (`aba`), the derivatives of forward dynamics (`derivatives`), forward dynamics'
+//! vector–Jacobian product (`adjoint`), the energies (`energy`), τ = Y π (`regressor`) and
+//! the base parameters (`base`). Each is O(n) or O(n·depth) per state, generic over `Scalar`
+//! (f64 for speed, dual numbers for exact derivatives).
 //!
 //! Mimic joints ([`Drive`]): joint values are G q + offset with G = ∂(joint values)/∂q, so
 //! joint velocities and accelerations are G q̇ and G q̈, forces on the coordinates are
@@ -21,6 +21,7 @@ pub mod base;
 pub mod derivatives;
 pub mod energy;
 pub mod joint;
+pub mod kinematics;
 pub mod regressor;
 pub mod rnea;
 pub mod spatial;
@@ -84,24 +85,15 @@ impl Model {
 }
 
 impl Body {
-    /// The joint's value from the coordinates.
-    pub fn value<S: Scalar>(&self, q: &[S]) -> S {
-        self.drive.value(q)
+    /// X_J X_T at the coordinates q: parent to body coordinates.
+    pub fn placement<S: Scalar>(&self, q: &[S], zero: &S) -> Xform<S> {
+        self.joint.xform(&self.drive.value(q), zero)
     }
 
-    /// The joint's velocity (or acceleration) from the coordinates' (no offset).
-    pub fn rate<S: Scalar>(&self, qd: &[S]) -> S {
-        self.drive.rate(qd)
-    }
-
-    /// X_J X_T: parent to body coordinates at joint value `x`.
-    pub fn xform<S: Scalar>(&self, x: &S, zero: &S) -> Xform<S> {
-        self.joint.xform(x, zero)
-    }
-
-    /// S x: the body's motion for joint rate x.
-    pub fn motion<S: Scalar>(&self, x: &S, zero: &S) -> Motion<S> {
-        self.joint.motion(x, zero)
+    /// S q̇_J: the body's motion relative to its parent for coordinate rates `rates` (q̇, q̈ or
+    /// a tangent of them).
+    pub fn joint_motion<S: Scalar>(&self, rates: &[S], zero: &S) -> Motion<S> {
+        self.joint.motion(&self.drive.rate(rates), zero)
     }
 
     /// Sᵀ f: the force's component along the joint.

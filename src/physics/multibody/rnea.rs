@@ -46,16 +46,16 @@ pub fn rnea<S: Scalar>(
         a0.v = model.gravity.map(|g| zero.lift(-g));
     }
     for (i, j) in model.bodies.iter().enumerate() {
-        let x = j.xform(&j.value(q), &zero);
+        let x = j.placement(q, &zero);
         let mut a = x.motion(match j.parent {
             Some(p) => &accs[p],
             None => &a0,
         });
         if let Some(qdd) = qdd {
-            a = a.plus(&j.motion(&j.rate(qdd), &zero));
+            a = a.plus(&j.joint_motion(qdd, &zero));
         }
         let f = if let Some(qd) = qd {
-            let vj = j.motion(&j.rate(qd), &zero);
+            let vj = j.joint_motion(qd, &zero);
             let v = match j.parent {
                 Some(p) => x.motion(&vs[p]).plus(&vj),
                 None => vj.clone(),
@@ -112,7 +112,7 @@ pub fn crba<S: Scalar>(model: &Model, q: &[S]) -> Vec<Vec<S>> {
     let zero = q[0].lift(0.0);
     let nb = model.bodies.len();
     let xs: Vec<Xform<S>> = (model.bodies.iter())
-        .map(|j| j.xform(&j.value(q), &zero))
+        .map(|j| j.placement(q, &zero))
         .collect();
     let mut ic: Vec<Inertia<S>> = (model.bodies.iter())
         .map(|j| j.inertia.lift(&zero))
