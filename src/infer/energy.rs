@@ -10,7 +10,7 @@ use super::nets::JetNets;
 use crate::error::{Error, Result};
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::{Columns, Structure};
-use crate::physics::dynamics::{Tri, acceleration, coriolis};
+use crate::physics::dynamics::{Tri, acceleration, coriolis, tri_t_mul};
 use crate::physics::energy::PotentialValue;
 use crate::physics::multibody::{
     self, crba, forward_dynamics, gravity_torques, kinetic_energy, potential_energy,
@@ -132,12 +132,12 @@ fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> R
     let l = t.l.map(|e| e.v);
     let gravity = t.grad_v.clone().unwrap_or_else(|| vec![0.0; s.n]);
     let qdd = acceleration(&t.l, t.grad_v, applied, x.qd);
-    let w = lower_t_mul(&l, x.qd);
+    let w = tri_t_mul(&l, x.qd);
     Row {
         power: 0.0,
         kinetic: 0.5 * w.iter().map(|v| v * v).sum::<f64>(),
         potential: s.potential_value(nets, x, true),
-        inertial: lower_mul(&l, &lower_t_mul(&l, &qdd)),
+        inertial: lower_mul(&l, &tri_t_mul(&l, &qdd)),
         coriolis: coriolis(&t.l, x.qd),
         gravity,
         parts,
@@ -197,13 +197,6 @@ fn sum_parts(parts: &[NamedPart], n: usize) -> Vec<f64> {
 fn lower_mul(l: &Tri<f64>, v: &[f64]) -> Vec<f64> {
     (0..l.n)
         .map(|a| (0..=a).map(|b| l.get(a, b) * v[b]).sum())
-        .collect()
-}
-
-/// Lᵀ v for a lower-triangular L.
-fn lower_t_mul(l: &Tri<f64>, v: &[f64]) -> Vec<f64> {
-    (0..l.n)
-        .map(|a| (a..l.n).map(|b| l.get(b, a) * v[b]).sum())
         .collect()
 }
 

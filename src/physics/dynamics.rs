@@ -98,7 +98,7 @@ pub fn solve_llt<S: Scalar>(l: &Tri<S>, r: Vec<S>) -> Vec<S> {
 }
 
 /// (Lᵀ v)_a = Σ_{b ≥ a} L_ba v_b.
-fn tri_t_mul<S: Scalar>(l: &Tri<S>, v: &[S]) -> Vec<S> {
+pub fn tri_t_mul<S: Scalar>(l: &Tri<S>, v: &[S]) -> Vec<S> {
     (0..l.n)
         .map(|a| sum((a..l.n).map(|b| l.get(b, a).clone() * v[b].clone())).expect("n ≥ 1"))
         .collect()
