@@ -2,7 +2,8 @@
 //! RNEA's g(q) and C(q, q̇)q̇ equal Pinocchio's at every fixture state (the same fixtures as
 //! tests/urdf.rs); forward dynamics (ABA, or CRBA + Cholesky with mimic joints) inverts them;
 //! they agree with `urdf::assembled` (M = Σ JᵀIJ, V) for other, random physical inertias; and
-//! their dual-number derivatives are central differences'.
+//! their dual-number derivatives are central differences'; a model built by hand (`built.rs`)
+//! is the robot the URDF producer builds.
 
 use std::f64::consts::PI;
 
@@ -22,6 +23,8 @@ use serde_json::Value;
 mod adjoint;
 #[path = "multibody/base.rs"]
 mod base;
+#[path = "multibody/built.rs"]
+mod built;
 mod common;
 #[path = "multibody/evaluator.rs"]
 mod evaluator;

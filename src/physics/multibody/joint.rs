@@ -123,10 +123,6 @@ impl JointModel {
         }
     }
 
-    pub fn is_prismatic(&self) -> bool {
-        matches!(self, Self::Prismatic(_))
-    }
-
     /// The unit axis in the body's (= the joint's) frame.
     pub fn axis(&self) -> &V3<f64> {
         &self.axial().axis
