@@ -28,7 +28,7 @@ mod built;
 mod common;
 #[path = "multibody/evaluator.rs"]
 mod evaluator;
-use common::urdf::{fixture, flat_matrix, floats, rigid_terms};
+use common::urdf::{assembled_terms, fixture, flat_matrix, floats};
 
 const FIXTURES: [&str; 7] = [
     "arm4",
@@ -212,7 +212,7 @@ fn multibody_algorithms_agree_with_the_jacobian_form() {
             let n = model.n;
             let q: Vec<f64> = (0..n).map(|_| rng.uniform_in(-PI, PI)).collect();
             let qd = random(&mut rng, n, 2.0);
-            let (m, gv, c) = rigid_terms(&tree, &inertias, &g, &q, &qd);
+            let (m, gv, c) = assembled_terms(&tree, &inertias, &g, &q, &qd);
             let ours = flat(&crba(&model, &q));
             assert!(err(&ours, &m) < 1e-9, "{name}: M {ours:?} vs {m:?}");
             let ours = gravity_torques(&model, &q);
@@ -365,7 +365,7 @@ fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
         assert!(model.mimic);
         let q: Vec<f64> = (0..3).map(|_| rng.uniform_in(-PI, PI)).collect();
         let qd = random(&mut rng, 3, 2.0);
-        let (m, gv, c) = rigid_terms(&tree, &inertias, &g, &q, &qd);
+        let (m, gv, c) = assembled_terms(&tree, &inertias, &g, &q, &qd);
         assert!(err(&flat(&crba(&model, &q)), &m) < 1e-9, "M");
         assert!(err(&gravity_torques(&model, &q), &gv) < 1e-9, "g");
         assert!(err(&coriolis(&model, &q, &qd), &c) < 1e-9, "C q̇");

@@ -25,7 +25,7 @@ use graybox::train::warnings::zero_acceleration_loss;
 use graybox::train::{TrainConfig, Trainer};
 
 mod common;
-use common::urdf::{fixture, flat_matrix, floats, rigid_terms};
+use common::urdf::{assembled_terms, fixture, flat_matrix, floats};
 use std::sync::atomic::AtomicBool;
 
 /// max |a − b| / max(1, max |b|); infinite when any value is not finite (`f64::max` would
@@ -44,7 +44,7 @@ fn err(a: &[f64], b: &[f64]) -> f64 {
 /// M, g and C q̇ at (q, q̇) of `urdf::assembled` with the tree's own inertias, through θ.
 fn terms(tree: &Tree, gravity: &[f64; 3], q: &[f64], qd: &[f64]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let inertias: Vec<Inertial> = tree.bodies.iter().map(|b| b.inertial.clone()).collect();
-    rigid_terms(tree, &inertias, gravity, q, qd)
+    assembled_terms(tree, &inertias, gravity, q, qd)
 }
 
 /// Pinocchio's `crba` (symmetrised), `computeGeneralizedGravity` and `nonLinearEffects` − g

@@ -74,7 +74,7 @@ fn bench_train_reports_step_throughput_and_cpu() {
 /// `graybox-lab bench multibody` on the Panda (a mimic joint: no ABA figure) prints the agreement of
 /// the two paths' q̈ and a positive µs per call for each figure, one JSON line each.
 #[test]
-fn bench_rigid_prints_agreement_and_figures() {
+fn bench_multibody_prints_agreement_and_figures() {
     let urdf = format!(
         "{}/../tests/fixtures/urdf/robots/panda.urdf",
         env!("CARGO_MANIFEST_DIR")

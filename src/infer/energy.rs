@@ -114,7 +114,7 @@ impl Evaluator {
         let (q, qd) = x.split_at(self.config.n);
         let mut row = self
             .with_structure((q, qd, u), |s, nets, cols| match &self.multibody {
-                Some(model) => rigid_row(model, s, nets, cols),
+                Some(model) => multibody_row(model, s, nets, cols),
                 None => assembled_row(s, nets, cols),
             })
             .expect("checked: a structured model");
@@ -146,7 +146,7 @@ fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> R
 
 /// A robot's by the multibody algorithms: gravity is RNEA's at q̇ = q̈ = 0 plus the gradient
 /// of whatever potential is not the template's (∇V′ = F − τ, τ the torques the algorithms take).
-fn rigid_row(
+fn multibody_row(
     model: &multibody::Model,
     s: &Structure<f64>,
     nets: &JetNets<f64>,

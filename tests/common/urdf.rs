@@ -43,7 +43,7 @@ pub fn floats(v: &Value) -> Vec<f64> {
 
 /// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) of `urdf::assembled` over
 /// dual numbers, for `inertias`.
-pub fn rigid_terms(
+pub fn assembled_terms(
     tree: &Tree,
     inertias: &[Inertial],
     gravity: &[f64; 3],

@@ -68,7 +68,7 @@ fn gradient_error(g: &[f64], g_ref: &[f64]) -> f64 {
 /// rounding separates them by ~1e-16 (measured); a wrong sign, frame, gravity or a missing
 /// term of the adjoint moves them by far more.
 #[test]
-fn rigid_op_loss_and_gradients_equal_the_assembly() {
+fn multibody_op_loss_and_gradients_equal_the_assembly() {
     let dev = f64_device().autodiff();
     let cases = [
         ("robots/ur5", "W-B"),
@@ -103,7 +103,7 @@ fn rigid_op_loss_and_gradients_equal_the_assembly() {
 /// The op runs on every backend graybox selects: NdArray gives Flex's loss and gradients (the
 /// same f64 host code on both; only the tensors' round trip differs, so to rounding).
 #[test]
-fn rigid_op_on_ndarray_equals_flex() {
+fn multibody_op_on_ndarray_equals_flex() {
     let t = urdf("tree+mimic");
     let (n, m) = (t.n(), t.m());
     let on = |dev: Device| {
