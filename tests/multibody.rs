@@ -26,6 +26,8 @@ mod base;
 #[path = "multibody/built.rs"]
 mod built;
 mod common;
+#[path = "multibody/data.rs"]
+mod data;
 #[path = "multibody/evaluator.rs"]
 mod evaluator;
 use common::urdf::{assembled_terms, fixture, flat_matrix, floats};

@@ -12,10 +12,8 @@
 use super::Evaluator;
 use super::weights::Weights;
 use crate::model::ModelConfig;
-use crate::physics::dual::Dual;
-use crate::physics::dynamics::{Tri, cholesky, solve_llt};
 use crate::physics::jet::Jet;
-use crate::physics::multibody::{Model as Robot, crba, forward_dynamics, id_partials};
+use crate::physics::multibody::{Model as Robot, with_data};
 use crate::physics::templates::Template;
 
 /// The robot as the multibody algorithms take it, for a structured model whose M is a URDF
@@ -111,7 +109,8 @@ impl Evaluator {
         y.iter().flat_map(|y| y.d[..dirs].to_vec()).collect()
     }
 
-    /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u).
+    /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u): the
+    /// implicit-function derivative (`Data::fd_tangents`) along their ∂q, ∂q̇ and ∂τ.
     fn stage<const N: usize>(
         &self,
         model: &Robot,
@@ -120,35 +119,23 @@ impl Evaluator {
         u: &[Jet<N>],
     ) -> Vec<Jet<N>> {
         let value = |x: &[Jet<N>]| x.iter().map(|j| j.v).collect::<Vec<f64>>();
-        let (qv, qdv, uv) = (value(q), value(qd), value(u));
-        let (n, dirs) = (qv.len(), 2 * qv.len() + uv.len());
-        let var = |x: &[f64], from: usize| -> Vec<Dual<f64>> {
-            (x.iter().enumerate())
-                .map(|(k, &v)| Dual::variable(v, from + k, dirs, 1.0))
+        let (qv, qdv) = (value(q), value(qd));
+        let n = qv.len();
+        // τ over the stage's own jets carries its tangents in the step's directions.
+        let tau = self.torques(q, qd, u);
+        let tau_v = value(&tau);
+        let tangents = |x: &[Jet<N>]| x.iter().flat_map(|j| j.d).collect::<Vec<f64>>();
+        let (dq, dqd, dtau) = (tangents(q), tangents(qd), tangents(&tau));
+        with_data(|data| {
+            data.fd_partials(model, &qv, &qdv, &tau_v);
+            let mut out = vec![0.0; n * N];
+            data.fd_tangents(&dq, &dqd, &dtau, N, &mut out);
+            (data.qdd.iter().zip(out.chunks_exact(N)))
+                .map(|(&v, d)| Jet {
+                    v,
+                    d: d.try_into().expect("N tangents"),
+                })
                 .collect()
-        };
-        let tau = self.torques(&var(&qv, 0), &var(&qdv, n), &var(&uv, 2 * n));
-        let tau_v: Vec<f64> = tau.iter().map(|t| t.v).collect();
-        let qdd = forward_dynamics(model, &qv, &qdv, &tau_v);
-        let id = id_partials(model, &qv, &qdv, &qdd);
-        let inputs: Vec<&Jet<N>> = q.iter().chain(qd).chain(u).collect();
-        // (∂τ/∂z − ∂ID/∂z) dz for each row, then one solve with M = L Lᵀ for all directions.
-        let rhs = (0..n)
-            .map(|i| {
-                let mut d = [0.0; N];
-                for (z, dz) in inputs.iter().enumerate() {
-                    let dtau = tau[i].tangent(z).copied().unwrap_or(0.0);
-                    let g = dtau - if z < 2 * n { id[i][z] } else { 0.0 };
-                    if g != 0.0 {
-                        d.iter_mut().zip(&dz.d).for_each(|(d, t)| *d += g * t);
-                    }
-                }
-                Jet { v: 0.0, d }
-            })
-            .collect();
-        let l: Tri<Jet<N>> = cholesky(&crba(model, &qv)).map(|&v| Jet::constant(v));
-        (qdd.into_iter().zip(solve_llt(&l, rhs)))
-            .map(|(v, t)| Jet { v, d: t.d })
-            .collect()
+        })
     }
 }

@@ -3,23 +3,109 @@
 //!
 //!     ∂q̈/∂x = −M⁻¹ ∂ID/∂x  at fixed q̈ = FD(q, q̇, τ)   (Carpentier & Mansard, RSS 2018)
 //!
-//! with ∂ID/∂q, ∂ID/∂q̇ from RNEA over dual numbers (cheaper than ABA over them: no articulated
-//! inertias carry tangents) and one Cholesky factor of CRBA's M for the 2n solves.
-//! `fd_over_jets` and `dual_derivatives` differentiate forward dynamics itself instead, for
-//! comparison. ∂q̈/∂τ is M⁻¹.
+//! with ∂ID/∂q, ∂ID/∂q̇ analytic (`Data::id_derivatives`, docs/robots.md#derivatives-of-rnea)
+//! and one Cholesky factor of CRBA's M for the solves (`Data::fd_tangents`, the one
+//! implicit-function derivative: Linearize's stages call it with the tangents they carry).
+//! `fd_over_jets` and `dual_derivatives` differentiate forward dynamics itself instead, the
+//! references the analytic route is tested and benchmarked against. ∂q̈/∂τ is M⁻¹.
 
 use super::Model;
 use super::aba::forward_dynamics;
-use super::rnea::{crba, inverse_dynamics};
+use super::data::{Data, with_data};
+use super::spatial::six::{
+    add, add_assign, add_scaled, apply, apply_t, cross, cross_force, dot, velocity_variation,
+};
 use crate::physics::dual::Dual;
-use crate::physics::dynamics::{cholesky, solve_llt};
 use crate::physics::jet::Jet;
 
 /// q̈ with ∂q̈/∂q and ∂q̈/∂q̇ (n×n each, row i is q̈ᵢ's gradient).
 pub type Derivatives = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
 
-/// q̈ and its derivatives by −M⁻¹ ∂ID/∂(q, q̇), ID over fixed-size `Jet`s with 2n directions
-/// padded to 8, 16, 32 or 64 (n ≤ 32), `Dual` beyond.
+impl Data {
+    /// ∂ID/∂q and ∂ID/∂q̇ at the state `forward_dynamics` (or `kinematics`, `mass_and_bias`,
+    /// `accelerations`) left, over the coordinates. In the root frame, moving joint j's value
+    /// turns everything it carries rigidly (what leaves Sₖ·Fₖ unchanged for k below j) and
+    /// moves v by d_j and a by α_j + d_j × v; moving its rate moves v by S_j and a by
+    /// 2d_j + S_j × v. A body force I a + v ×* I v then moves by I δa' + B δv with B its
+    /// variation in v (`six::velocity_variation`), so with composites Iᶜ, Bᶜ and subtree
+    /// forces F, for j on k's path to the root (j ⪯ k):
+    ///
+    ///     ∂τₖ/∂θⱼ = Sₖ·(Iᶜₖ αⱼ + Bᶜₖ dⱼ)         ∂τₖ/∂θ̇ⱼ = Sₖ·(2 Iᶜₖ dⱼ + Bᶜₖ Sⱼ)
+    ///     ∂τⱼ/∂θₖ = Sⱼ·(Sₖ ×* Fₖ + Iᶜₖ αₖ + Bᶜₖ dₖ)   ∂τⱼ/∂θ̇ₖ = Sⱼ·(2 Iᶜₖ dₖ + Bᶜₖ Sₖ)  (j ≺ k)
+    ///
+    /// contracted onto the coordinates with the mimic multipliers on both sides.
+    pub fn id_derivatives(&mut self, model: &Model) {
+        let g = model.gravity;
+        let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
+        let zero = [0.0; 6];
+        for (i, body) in model.bodies.iter().enumerate() {
+            self.variation[i] = velocity_variation(&self.inertia[i], &self.v[i], &self.momentum[i]);
+            let (vp, ap) = body.parent.map_or((zero, a0), |p| (self.v[p], self.a[p]));
+            self.alpha[i] = add(&cross(&ap, &self.s[i]), &cross(&vp, &self.d[i]));
+        }
+        for (i, body) in model.bodies.iter().enumerate().rev() {
+            if let Some(p) = body.parent {
+                let b = self.variation[i];
+                add_assign(&mut self.variation[p], &b);
+            }
+        }
+        let n = model.n;
+        self.id_dq.fill(0.0);
+        self.id_dqd.fill(0.0);
+        for (k, body) in model.bodies.iter().enumerate() {
+            let (ic, bc, sk) = (&self.composite[k], &self.variation[k], &self.s[k]);
+            let (ck, gk) = (body.drive.coordinate, body.drive.multiplier);
+            // Sₖᵀ Iᶜₖ and Sₖᵀ Bᶜₖ as vectors, for the rows of τₖ.
+            let (r, sb) = (apply(ic, sk), apply_t(bc, sk));
+            // The columns of θₖ in the rows of k's ancestors.
+            let id_ak = apply(ic, &self.alpha[k]);
+            let bd = apply(bc, &self.d[k]);
+            let p_k = add(&cross_force(sk, &self.force[k]), &add(&id_ak, &bd));
+            let q_k = add_scaled(&apply(bc, sk), 2.0, &apply(ic, &self.d[k]));
+            let mut j = Some(k);
+            while let Some(jj) = j {
+                let other = &model.bodies[jj];
+                let (cj, g) = (other.drive.coordinate, gk * other.drive.multiplier);
+                let (sj, dj) = (&self.s[jj], &self.d[jj]);
+                let at = ck * n + cj;
+                self.id_dq[at] += g * (dot(&r, &self.alpha[jj]) + dot(&sb, dj));
+                self.id_dqd[at] += g * (2.0 * dot(&r, dj) + dot(&sb, sj));
+                if jj != k {
+                    let at = cj * n + ck;
+                    self.id_dq[at] += g * dot(sj, &p_k);
+                    self.id_dqd[at] += g * dot(sj, &q_k);
+                }
+                j = other.parent;
+            }
+        }
+    }
+
+    /// The implicit-function derivative of q̈ = FD(q, q̇, τ) at the state `forward_dynamics`
+    /// left: for each of `cols` directions (the columns of n×cols row-major blocks of
+    /// tangents of q, q̇ and τ), ∂q̈ = M⁻¹ (∂τ − ∂ID/∂q ∂q − ∂ID/∂q̇ ∂q̇), into `out`.
+    pub fn fd_tangents(&self, dq: &[f64], dqd: &[f64], dtau: &[f64], cols: usize, out: &mut [f64]) {
+        let n = self.qdd.len();
+        out.copy_from_slice(dtau);
+        for (i, row) in out.chunks_exact_mut(cols).enumerate() {
+            for k in 0..n {
+                let (a, b) = (self.id_dq[i * n + k], self.id_dqd[i * n + k]);
+                let (tq, tqd) = (&dq[k * cols..][..cols], &dqd[k * cols..][..cols]);
+                for ((o, x), y) in row.iter_mut().zip(tq).zip(tqd) {
+                    *o -= a * x + b * y;
+                }
+            }
+        }
+        self.solve(out, cols);
+    }
+
+    /// q̈ = FD(q, q̇, τ) and its partials ∂ID/∂q, ∂ID/∂q̇, M's factor: what `fd_tangents` needs.
+    pub fn fd_partials(&mut self, model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) {
+        self.forward_dynamics(model, q, qd, tau);
+        self.id_derivatives(model);
+    }
+}
+
+/// q̈ and its derivatives by −M⁻¹ ∂ID/∂(q, q̇) (this thread's `Data`).
 pub fn forward_dynamics_derivatives(
     model: &Model,
     q: &[f64],
@@ -27,57 +113,41 @@ pub fn forward_dynamics_derivatives(
     tau: &[f64],
 ) -> Derivatives {
     let n = q.len();
-    let qdd = forward_dynamics(model, q, qd, tau);
-    let partials = id_partials(model, q, qd, &qdd);
-    let l = cholesky(&crba(model, q));
-    let mut dq = vec![vec![0.0; n]; n];
-    let mut dqd = vec![vec![0.0; n]; n];
-    for k in 0..2 * n {
-        let col = solve_llt(&l, partials.iter().map(|r| -r[k]).collect());
-        let (out, c) = if k < n {
-            (&mut dq, k)
-        } else {
-            (&mut dqd, k - n)
-        };
-        for (row, v) in out.iter_mut().zip(col) {
-            row[c] = v;
+    with_data(|data| {
+        data.fd_partials(model, q, qd, tau);
+        // The 2n directions of (q, q̇) as identity blocks, τ fixed.
+        let (mut dq, mut dqd) = (vec![0.0; 2 * n * n], vec![0.0; 2 * n * n]);
+        for k in 0..n {
+            dq[k * 2 * n + k] = 1.0;
+            dqd[k * 2 * n + n + k] = 1.0;
         }
-    }
-    (qdd, dq, dqd)
+        let mut out = vec![0.0; 2 * n * n];
+        data.fd_tangents(&dq, &dqd, &vec![0.0; 2 * n * n], 2 * n, &mut out);
+        let rows = |from: usize| -> Vec<Vec<f64>> {
+            (out.chunks_exact(2 * n))
+                .map(|r| r[from..from + n].to_vec())
+                .collect()
+        };
+        (data.qdd.clone(), rows(0), rows(n))
+    })
 }
 
 /// ∂ID/∂(q, q̇) at (q, q̇, q̈): row i is ∂τᵢ/∂x_k for the 2n directions x = (q, q̇).
 pub fn id_partials(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
-    match 2 * q.len() {
-        0..=8 => id_over_jets::<8>(model, q, qd, qdd),
-        9..=16 => id_over_jets::<16>(model, q, qd, qdd),
-        17..=32 => id_over_jets::<32>(model, q, qd, qdd),
-        33..=64 => id_over_jets::<64>(model, q, qd, qdd),
-        _ => id_over_duals(model, q, qd, qdd),
-    }
-}
-
-fn id_over_jets<const N: usize>(
-    model: &Model,
-    q: &[f64],
-    qd: &[f64],
-    qdd: &[f64],
-) -> Vec<Vec<f64>> {
     let n = q.len();
-    let qv: Vec<Jet<N>> = (0..n).map(|k| Jet::variable(q[k], k)).collect();
-    let qdv: Vec<Jet<N>> = (0..n).map(|k| Jet::variable(qd[k], n + k)).collect();
-    let qddv: Vec<Jet<N>> = qdd.iter().map(|&a| Jet::constant(a)).collect();
-    (inverse_dynamics(model, &qv, &qdv, &qddv).iter())
-        .map(|t| t.d[..2 * n].to_vec())
-        .collect()
-}
-
-fn id_over_duals(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
-    let (qv, qdv) = dual_state(q, qd);
-    let qddv: Vec<Dual<f64>> = qdd.iter().map(|&a| Dual::constant(a)).collect();
-    (inverse_dynamics(model, &qv, &qdv, &qddv).iter())
-        .map(|t| (0..2 * q.len()).map(|k| tangent(t, k)).collect())
-        .collect()
+    with_data(|data| {
+        data.kinematics(model, q, qd);
+        data.mass_and_bias(model);
+        data.qdd.copy_from_slice(qdd);
+        data.accelerations(model);
+        data.id_derivatives(model);
+        (0..n)
+            .map(|i| {
+                let row = i * n..(i + 1) * n;
+                [&data.id_dq[row.clone()], &data.id_dqd[row]].concat()
+            })
+            .collect()
+    })
 }
 
 fn dual_state(q: &[f64], qd: &[f64]) -> (Vec<Dual<f64>>, Vec<Dual<f64>>) {

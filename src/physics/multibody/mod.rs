@@ -18,6 +18,7 @@
 pub mod aba;
 pub mod adjoint;
 pub mod base;
+pub mod data;
 pub mod derivatives;
 pub mod energy;
 pub mod joint;
@@ -28,6 +29,7 @@ pub mod spatial;
 pub mod term;
 
 pub use aba::{aba, crba_forward, forward_dynamics};
+pub use data::{Data, with_data};
 pub use derivatives::{
     Derivatives, dual_derivatives, fd_over_jets, forward_dynamics_derivatives, id_partials,
 };

@@ -7,6 +7,7 @@
 
 mod inertia;
 mod raw;
+pub mod six;
 
 pub use inertia::{
     BodyInertia, Inertia, Inertial, PER_BODY, STANDARD_NAMES, body_of_physical, of_physical,
