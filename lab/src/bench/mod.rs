@@ -6,6 +6,7 @@ mod flops;
 mod horizon;
 mod infer;
 mod multibody;
+mod pinocchio;
 mod process;
 mod queue;
 mod reads;

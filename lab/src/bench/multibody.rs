@@ -31,13 +31,18 @@ pub struct BenchMultibodyArgs {
     pub calls: usize,
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Pinocchio's C++ benchmark (scripts/pinocchio_cpp/build.sh builds it), run on the same
+    /// URDF in the same sitting when it is there.
+    #[arg(long, default_value = "target/pinocchio-bench/bench")]
+    pub pinocchio_bench: PathBuf,
 }
 
 /// States the calls cycle through, so no figure is of one state's cached branch pattern.
-const STATES: usize = 64;
+pub(super) const STATES: usize = 64;
 
-/// Mean and median µs per call of `f` over `calls` calls (state k mod `STATES`).
-fn figure(name: &str, n: usize, calls: usize, mut f: impl FnMut(usize)) {
+/// Mean and median µs per call of `f` over `calls` calls (state k mod `STATES`); returns the
+/// median.
+fn figure(name: &str, n: usize, calls: usize, f: &mut dyn FnMut(usize)) -> f64 {
     for k in 0..calls.div_ceil(10) {
         f(k % STATES);
     }
@@ -55,6 +60,7 @@ fn figure(name: &str, n: usize, calls: usize, mut f: impl FnMut(usize)) {
         json!({"bench": name, "n": n, "calls": calls, "mean_us": mean,
                "p50_us": us[us.len() / 2], "p99_us": us[(us.len() - 1) * 99 / 100]})
     );
+    us[us.len() / 2]
 }
 
 pub fn run(a: BenchMultibodyArgs) -> Result<()> {
@@ -98,46 +104,52 @@ pub fn run(a: BenchMultibodyArgs) -> Result<()> {
                "max_rel_diff_qdd": worst})
     );
     let calls = a.calls;
-    figure("template_white_box_acceleration_f64", n, calls, |k| {
+    // The comparison first, while the machine is as it was for the C++ figures.
+    let (predict, linearize) =
+        super::pinocchio::model_figures(&t, calls, &|name, calls, f| figure(name, n, calls, f))?;
+    if let Some(cpp) = super::pinocchio::cpp_figures(&a.pinocchio_bench, &a.urdf, calls)? {
+        super::pinocchio::ratios(&t.doc.name, predict, linearize, &cpp);
+    }
+    figure("template_white_box_acceleration_f64", n, calls, &mut |k| {
         black_box(existing(&states[k]));
     });
     if !model.mimic {
-        figure("aba_f64", n, calls, |k| {
+        figure("aba_f64", n, calls, &mut |k| {
             let [q, qd, tau] = &states[k];
             black_box(aba(&model, q, qd, tau));
         });
     }
-    figure("crba_cholesky_f64", n, calls, |k| {
+    figure("crba_cholesky_f64", n, calls, &mut |k| {
         let [q, qd, tau] = &states[k];
         black_box(crba_forward(&model, q, qd, tau));
     });
-    figure("crba_f64", n, calls, |k| {
+    figure("crba_f64", n, calls, &mut |k| {
         black_box(crba(&model, &states[k][0]));
     });
-    figure("rnea_bias_f64", n, calls, |k| {
+    figure("rnea_bias_f64", n, calls, &mut |k| {
         black_box(bias(&model, &states[k][0], &states[k][1]));
     });
-    figure("fd_derivatives_by_rnea_jets", n, calls, |k| {
+    figure("fd_derivatives_analytic", n, calls, &mut |k| {
         let [q, qd, tau] = &states[k];
         black_box(forward_dynamics_derivatives(&model, q, qd, tau));
     });
     if 2 * n <= 16 {
-        figure("fd_derivatives_fd_over_jets16", n, calls, |k| {
+        figure("fd_derivatives_fd_over_jets16", n, calls, &mut |k| {
             let [q, qd, tau] = &states[k];
             black_box(fd_over_jets::<16>(&model, q, qd, tau));
         });
     }
-    figure("fd_derivatives_fd_over_dual", n, calls.div_ceil(10), |k| {
+    figure("fd_derivatives_fd_over_dual", n, calls.div_ceil(10), &mut |k| {
         let [q, qd, tau] = &states[k];
         black_box(dual_derivatives(&model, q, qd, tau));
     });
     // A training step's backward pass per state and integrator stage (ḡ = τ's values: any
     // vector does).
-    figure("fd_adjoint_q_qd_tau_pi", n, calls, |k| {
+    figure("fd_adjoint_q_qd_tau_pi", n, calls, &mut |k| {
         let [q, qd, tau] = &states[k];
         black_box(forward_dynamics_adjoint(&model, q, qd, tau, tau));
     });
-    figure("parameter_gradient_only", n, calls, |k| {
+    figure("parameter_gradient_only", n, calls, &mut |k| {
         let [q, qd, tau] = &states[k];
         black_box(parameter_gradient(&model, q, qd, qd, tau));
     });
