@@ -10,7 +10,7 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-use super::jet::Activations;
+use super::activations::Activations;
 use crate::physics::dual::Dual;
 use crate::physics::jet::Jet;
 use crate::physics::scalar::Scalar;

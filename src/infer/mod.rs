@@ -5,6 +5,7 @@
 //!
 //! Weights come from the model file (Burn's layout: Linear weights `[in, out]`).
 
+pub mod activations;
 pub mod col;
 mod continuous;
 mod energy;
@@ -12,7 +13,6 @@ pub mod energy_report;
 mod ensemble;
 mod gains;
 pub mod horizons;
-pub mod jet;
 pub mod limits;
 mod multibody;
 mod nets;
@@ -20,8 +20,8 @@ mod weights;
 
 use std::sync::Arc;
 
+use activations::Activations;
 pub use energy::{Energies, NamedPart};
-use jet::Activations;
 pub use nets::Mlp64;
 use nets::{JetNets, input_jet, networks, periodic_full_jet, periodic_q_jet};
 use weights::Weights;

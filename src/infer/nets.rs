@@ -3,8 +3,8 @@
 
 use std::collections::HashMap;
 
+use super::activations::Activations;
 use super::col::Lanes;
-use super::jet::Activations;
 use super::weights::{Components, Forces};
 use crate::error::{Error, Result};
 use crate::model::params_io::NamedArray;

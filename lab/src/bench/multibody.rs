@@ -119,6 +119,12 @@ pub fn run(a: BenchMultibodyArgs) -> Result<()> {
             black_box(aba(&model, q, qd, tau));
         });
     }
+    let mut data = graybox::physics::multibody::Data::new(&model);
+    figure("data_forward_dynamics_f64", n, calls, &mut |k| {
+        let [q, qd, tau] = &states[k];
+        data.forward_dynamics(&model, q, qd, tau);
+        black_box(&data.qdd);
+    });
     figure("crba_cholesky_f64", n, calls, &mut |k| {
         let [q, qd, tau] = &states[k];
         black_box(crba_forward(&model, q, qd, tau));
@@ -139,10 +145,15 @@ pub fn run(a: BenchMultibodyArgs) -> Result<()> {
             black_box(fd_over_jets::<16>(&model, q, qd, tau));
         });
     }
-    figure("fd_derivatives_fd_over_dual", n, calls.div_ceil(10), &mut |k| {
-        let [q, qd, tau] = &states[k];
-        black_box(dual_derivatives(&model, q, qd, tau));
-    });
+    figure(
+        "fd_derivatives_fd_over_dual",
+        n,
+        calls.div_ceil(10),
+        &mut |k| {
+            let [q, qd, tau] = &states[k];
+            black_box(dual_derivatives(&model, q, qd, tau));
+        },
+    );
     // A training step's backward pass per state and integrator stage (ḡ = τ's values: any
     // vector does).
     figure("fd_adjoint_q_qd_tau_pi", n, calls, &mut |k| {

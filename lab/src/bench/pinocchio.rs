@@ -60,12 +60,15 @@ fn cpp_p50(lines: &[Value], name: &str) -> Option<f64> {
         .and_then(|l| l["p50_us"].as_f64())
 }
 
+/// A timed figure: its name, calls, and the call of state k (the median returned).
+pub(super) type Figure<'a> = &'a dyn Fn(&str, usize, &mut dyn FnMut(usize)) -> f64;
+
 /// Predict and Linearize of one state of `t`'s white-box model, as the figures `figure` gives
 /// (their medians returned).
 pub(super) fn model_figures(
     t: &UrdfTemplate,
     calls: usize,
-    figure: &dyn Fn(&str, usize, &mut dyn FnMut(usize)) -> f64,
+    figure: Figure<'_>,
 ) -> Result<(f64, f64)> {
     let template = Template::Urdf(Arc::new(t.clone()));
     let defaults: Vec<f64> = t.params().iter().map(|p| p.default).collect();

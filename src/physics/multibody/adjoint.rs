@@ -4,25 +4,26 @@
 //!
 //!     ∂L/∂τ = λ,   ∂L/∂π = −Yᵀλ,   ∂L/∂(q, q̇) = −(∂ID/∂(q, q̇))ᵀ λ   at q̈ = FD(q, q̇, τ).
 //!
-//! The last is one reverse pass over RNEA (`id_gradient`), O(n) like the rest.
+//! All of it runs on one `Data` (the state's kinematics, M and its factor computed once). The
+//! last is λ contracted with the analytic derivatives of RNEA (`Data::id_derivatives`) in one
+//! backward pass, O(n) like the rest.
 //!
 //! Yᵀλ is O(n) without forming Y: λᵀ ID = Σᵢ wᵢ · fᵢ with fᵢ = Iᵢaᵢ + vᵢ ×* Iᵢvᵢ the body's
-//! force and wᵢ = Xᵢ w_parent + Sᵢ λ its joints' λ carried out to it, and wᵢ·fᵢ is linear in
-//! π_i: wᵀI a − (v × w)ᵀ I v (since (v ×* f)·w = −f·(v × w)).
+//! force and wᵢ = w_parent + Sᵢ λ its joints' λ carried out to it, and wᵢ·fᵢ is linear in
+//! π_i: wᵀI a − (v × w)ᵀ I v (since (v ×* f)·w = −f·(v × w)), read in the body's frame.
 
 use super::Model;
-use super::aba::forward_dynamics;
-use super::rnea::crba;
+use super::data::{Data, with_data};
 use super::spatial::PER_BODY;
-use super::spatial::{Force, Motion, V3, Xform, cross};
-use crate::physics::dynamics::{cholesky, solve_llt};
+use super::spatial::six::{V6, ZERO6, add, add_scaled, apply, apply_t, cross, dot};
+use super::spatial::{M3, Motion, V3};
 
 /// ∂(mᵀ I(π) b)/∂π for one body's standard parameters (m, h, I about the origin):
 /// mᵀIb = ω₁ᵀĪω₂ + h·(v₂ × ω₁ + v₁ × ω₂) + m v₁·v₂.
 fn inertia_form(a: &Motion<f64>, b: &Motion<f64>) -> [f64; PER_BODY] {
     let (w1, w2) = (&a.w, &b.w);
     let h: V3<f64> = {
-        let (x, y) = (cross(&b.v, &a.w), cross(&a.v, &b.w));
+        let (x, y) = (cross3(&b.v, &a.w), cross3(&a.v, &b.w));
         [x[0] + y[0], x[1] + y[1], x[2] + y[2]]
     };
     [
@@ -39,6 +40,86 @@ fn inertia_form(a: &Motion<f64>, b: &Motion<f64>) -> [f64; PER_BODY] {
     ]
 }
 
+fn cross3(a: &V3<f64>, b: &V3<f64>) -> V3<f64> {
+    super::spatial::cross(a, b)
+}
+
+/// A root-frame motion in the coordinates of the body placed at (E₀, p): ω' = E₀ ω,
+/// v' = E₀ (v − p × ω).
+fn to_body(e: &M3<f64>, p: &V3<f64>, m: &V6) -> Motion<f64> {
+    let (w, v) = ([m[0], m[1], m[2]], [m[3], m[4], m[5]]);
+    let pw = cross3(p, &w);
+    let rel = [v[0] - pw[0], v[1] - pw[1], v[2] - pw[2]];
+    let rot = |x: &V3<f64>| -> V3<f64> { std::array::from_fn(|i| dot3(&e[i], x)) };
+    Motion {
+        w: rot(&w),
+        v: rot(&rel),
+    }
+}
+
+fn dot3(a: &V3<f64>, b: &V3<f64>) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+impl Data {
+    /// ∂(λᵀ ID)/∂(q, q̇) at the state `accelerations` left (after `mass_and_bias`), added into
+    /// `dq`, `dqd`: λ contracted with `id_derivatives`' formulas. With w the λ carried out to
+    /// each body and subtree sums Rⱼ = Σ λₖ Iᶜₖ Sₖ, Tⱼ = Σ λₖ Bᶜₖᵀ Sₖ (k ⪰ j),
+    ///
+    ///     ∂/∂θⱼ = αⱼ·Rⱼ + dⱼ·Tⱼ + w_parent·Pⱼ      ∂/∂θ̇ⱼ = 2dⱼ·Rⱼ + Sⱼ·Tⱼ + w_parent·Qⱼ.
+    pub fn id_gradient(&mut self, model: &Model, lambda: &[f64], dq: &mut [f64], dqd: &mut [f64]) {
+        self.variations(model);
+        for (i, body) in model.bodies.iter().enumerate() {
+            let l = body.drive.rate(lambda);
+            let wp = body.parent.map_or(ZERO6, |p| self.carried[p]);
+            self.carried[i] = add_scaled(&wp, l, &self.s[i]);
+            let s = &self.s[i];
+            self.reach_i[i] = apply(&self.composite[i], s).map(|x| l * x);
+            self.reach_b[i] = apply_t(&self.variation[i], s).map(|x| l * x);
+        }
+        for (i, body) in model.bodies.iter().enumerate().rev() {
+            let (r, t) = (self.reach_i[i], self.reach_b[i]);
+            let (s, d) = (&self.s[i], &self.d[i]);
+            let mut by_q = dot(&self.alpha[i], &r) + dot(d, &t);
+            let mut by_qd = 2.0 * dot(d, &r) + dot(s, &t);
+            if let Some(p) = body.parent {
+                let (pc, qc) = self.descendant_column(i);
+                let wp = self.carried[p];
+                by_q += dot(&wp, &pc);
+                by_qd += dot(&wp, &qc);
+                self.reach_i[p] = add(&self.reach_i[p], &r);
+                self.reach_b[p] = add(&self.reach_b[p], &t);
+            }
+            let (c, g) = (body.drive.coordinate, body.drive.multiplier);
+            dq[c] += g * by_q;
+            dqd[c] += g * by_qd;
+        }
+    }
+
+    /// Y(q, q̇, q̈)ᵀ λ after `id_gradient` (which carried λ out to the bodies): the gradient of
+    /// λᵀ ID with respect to the standard parameters, body after body.
+    pub fn parameter_gradient(&self, model: &Model, out: &mut Vec<f64>) {
+        out.clear();
+        for i in 0..model.bodies.len() {
+            let (e, p) = (&self.rot[i], &self.pos[i]);
+            let w = to_body(e, p, &self.carried[i]);
+            let a = to_body(e, p, &self.a[i]);
+            let v = to_body(e, p, &self.v[i]);
+            let u = to_body(e, p, &cross(&self.v[i], &self.carried[i]));
+            let (fa, fv) = (inertia_form(&w, &a), inertia_form(&u, &v));
+            out.extend((0..PER_BODY).map(|k| fa[k] - fv[k]));
+        }
+    }
+
+    /// The state at (q, q̇, q̈): kinematics, M and its factor, accelerations and forces.
+    fn at_state(&mut self, model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) {
+        self.kinematics(model, q, qd);
+        self.mass_and_bias(model);
+        self.qdd.copy_from_slice(qdd);
+        self.accelerations(model);
+    }
+}
+
 /// Y(q, q̇, q̈)ᵀ λ: the gradient of λᵀ ID with respect to the standard parameters, O(n).
 pub fn parameter_gradient(
     model: &Model,
@@ -47,46 +128,14 @@ pub fn parameter_gradient(
     qdd: &[f64],
     lambda: &[f64],
 ) -> Vec<f64> {
-    let nb = model.bodies.len();
-    let mut vs: Vec<Motion<f64>> = Vec::with_capacity(nb);
-    let mut accs: Vec<Motion<f64>> = Vec::with_capacity(nb);
-    let mut ws: Vec<Motion<f64>> = Vec::with_capacity(nb);
-    let mut a0 = Motion::zero(&0.0);
-    a0.v = model.gravity.map(|g| -g);
-    let mut out = Vec::with_capacity(PER_BODY * nb);
-    for j in &model.bodies {
-        let x = j.placement(q, &0.0);
-        let vj = j.joint_motion(qd, &0.0);
-        let sw = j.joint_motion(lambda, &0.0);
-        let (v, a, w) = match j.parent {
-            Some(p) => (
-                x.motion(&vs[p]).plus(&vj),
-                x.motion(&accs[p]).plus(&j.joint_motion(qdd, &0.0)),
-                x.motion(&ws[p]).plus(&sw),
-            ),
-            None => (
-                vj.clone(),
-                x.motion(&a0).plus(&j.joint_motion(qdd, &0.0)),
-                sw,
-            ),
-        };
-        // a = X a_parent + S q̈ + v × S q̇.
-        let a = a.plus(&v.cross(&vj));
-        let u = v.cross(&w);
-        let (fa, fv) = (inertia_form(&w, &a), inertia_form(&u, &v));
-        out.extend((0..PER_BODY).map(|k| fa[k] - fv[k]));
-        vs.push(v);
-        accs.push(a);
-        ws.push(w);
-    }
-    out
+    id_gradient_and(model, q, qd, qdd, lambda, |data, _| {
+        let mut out = Vec::with_capacity(PER_BODY * model.bodies.len());
+        data.parameter_gradient(model, &mut out);
+        out
+    })
 }
 
-/// ∂(λᵀ ID(q, q̇, q̈))/∂(q, q̇) by a reverse pass over RNEA, O(n): the forward pass keeps each
-/// body's X, v, a, w = X w_parent + Sλ and f = I a + v ×* I v; φ = λᵀID = Σ wᵢ·fᵢ, so from the
-/// leaves in the adjoints are f̄ = w, w̄ = f + Σ Xᵀw̄_child, ā = I w + Σ Xᵀā_child and
-/// v̄ = −w ×* (I v) − I (v × w) + (S q̇) ×* ā + Σ Xᵀv̄_child, using (a × b)·F = a·(b ×* F);
-/// a joint's value moves X by ∂(X m)/∂q = (X m) × S, its rate enters v and v × S q̇.
+/// ∂(λᵀ ID(q, q̇, q̈))/∂(q, q̇), O(n).
 pub fn id_gradient(
     model: &Model,
     q: &[f64],
@@ -94,83 +143,23 @@ pub fn id_gradient(
     qdd: &[f64],
     lambda: &[f64],
 ) -> (Vec<f64>, Vec<f64>) {
-    let nb = model.bodies.len();
-    let zero = Motion::zero(&0.0);
-    let mut a0 = zero.clone();
-    a0.v = model.gravity.map(|g| -g);
-    // Per body: X, the parent's v, a, w in this body's frame (X m_parent), and v, a, w, f.
-    let mut fwd: Vec<Forward> = Vec::with_capacity(nb);
-    for j in &model.bodies {
-        let x = j.placement(q, &0.0);
-        let (vp, ap, wp) = match j.parent {
-            Some(p) => (&fwd[p].v, &fwd[p].a, &fwd[p].w),
-            None => (&zero, &a0, &zero),
-        };
-        let (vp, ap, wp) = (x.motion(vp), x.motion(ap), x.motion(wp));
-        let sqd = j.joint_motion(qd, &0.0);
-        let v = vp.plus(&sqd);
-        let a = ap.plus(&j.joint_motion(qdd, &0.0)).plus(&v.cross(&sqd));
-        let w = wp.plus(&j.joint_motion(lambda, &0.0));
-        let iv = j.inertia.apply_const(&v, &0.0);
-        let f = j.inertia.apply_const(&a, &0.0).plus(&v.cross_force(&iv));
-        fwd.push(Forward {
-            x,
-            vp,
-            ap,
-            wp,
-            sqd,
-            v,
-            a,
-            w,
-            f,
-            iv,
-        });
-    }
-    let (mut dq, mut dqd) = (vec![0.0; q.len()], vec![0.0; q.len()]);
-    let zf = Force {
-        n: [0.0; 3],
-        f: [0.0; 3],
-    };
-    // Adjoints (forces) of v, a, w, filled in by the children first.
-    let mut bar = vec![(zf.clone(), zf.clone(), zf.clone()); nb];
-    for i in (0..nb).rev() {
-        let (j, b) = (&model.bodies[i], &fwd[i]);
-        let (vb, ab, wb) = &bar[i];
-        let ab = ab.plus(&j.inertia.apply_const(&b.w, &0.0));
-        let wb = wb.plus(&b.f);
-        let vb = vb
-            .plus(&b.w.cross_force(&b.iv).scale(-1.0))
-            .plus(&j.inertia.apply_const(&b.v.cross(&b.w), &0.0).scale(-1.0))
-            .plus(&b.sqd.cross_force(&ab));
-        // Sᵀ(v̄ + ā ⋆ …): the rate's share; (X m_parent) × S the value's.
-        let s = j.joint.motion(&1.0, &0.0);
-        let rate = s.dot(&vb) + b.v.cross(&s).dot(&ab);
-        let value = b.vp.cross(&s).dot(&vb) + b.ap.cross(&s).dot(&ab) + b.wp.cross(&s).dot(&wb);
-        dqd[j.drive.coordinate] += j.drive.multiplier * rate;
-        dq[j.drive.coordinate] += j.drive.multiplier * value;
-        if let Some(p) = j.parent {
-            let up = |f: &Force<f64>| b.x.force_to_parent(f);
-            let (pv, pa, pw) = (up(&vb), up(&ab), up(&wb));
-            let parent = &mut bar[p];
-            parent.0 = parent.0.plus(&pv);
-            parent.1 = parent.1.plus(&pa);
-            parent.2 = parent.2.plus(&pw);
-        }
-    }
-    (dq, dqd)
+    id_gradient_and(model, q, qd, qdd, lambda, |_, g| g)
 }
 
-struct Forward {
-    x: Xform<f64>,
-    vp: Motion<f64>,
-    ap: Motion<f64>,
-    wp: Motion<f64>,
-    sqd: Motion<f64>,
-    v: Motion<f64>,
-    a: Motion<f64>,
-    w: Motion<f64>,
-    f: Force<f64>,
-    iv: Force<f64>,
+fn id_gradient_and<R>(
+    model: &Model,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    lambda: &[f64],
+    then: impl FnOnce(&Data, (Vec<f64>, Vec<f64>)) -> R,
+) -> R {
+    with_data(|data| {
+        data.at_state(model, q, qd, qdd);
+        let (mut dq, mut dqd) = (vec![0.0; q.len()], vec![0.0; q.len()]);
+        data.id_gradient(model, lambda, &mut dq, &mut dqd);
+        then(data, (dq, dqd))
+    })
 }
 
 /// q̈ = FD(q, q̇, τ) with the gradients of L given ḡ = ∂L/∂q̈.
@@ -192,21 +181,30 @@ pub fn forward_dynamics_adjoint(
     tau: &[f64],
     gbar: &[f64],
 ) -> Adjoint {
-    let qdd = forward_dynamics(model, q, qd, tau);
+    let qdd = super::aba::forward_dynamics(model, q, qd, tau);
     adjoint_at(model, q, qd, qdd, gbar)
 }
 
 /// The vector–Jacobian product at a q̈ that forward dynamics already gave (a training step's
-/// forward pass), without computing it again.
+/// forward pass), without computing it again: one pass of kinematics, CRBA and its factor for
+/// λ = M⁻¹ḡ, then the gradients, all on this thread's `Data`.
 pub fn adjoint_at(model: &Model, q: &[f64], qd: &[f64], qdd: Vec<f64>, gbar: &[f64]) -> Adjoint {
-    let lambda = solve_llt(&cholesky(&crba(model, q)), gbar.to_vec());
-    let (dq, dqd) = id_gradient(model, q, qd, &qdd, &lambda);
-    let minus = |g: Vec<f64>| g.into_iter().map(|g| -g).collect();
-    Adjoint {
-        q: minus(dq),
-        qd: minus(dqd),
-        pi: minus(parameter_gradient(model, q, qd, &qdd, &lambda)),
-        tau: lambda,
-        qdd,
-    }
+    with_data(|data| {
+        data.at_state(model, q, qd, &qdd);
+        data.factor();
+        let mut lambda = gbar.to_vec();
+        data.solve(&mut lambda, 1);
+        let (mut dq, mut dqd) = (vec![0.0; q.len()], vec![0.0; q.len()]);
+        data.id_gradient(model, &lambda, &mut dq, &mut dqd);
+        let mut pi = Vec::with_capacity(PER_BODY * model.bodies.len());
+        data.parameter_gradient(model, &mut pi);
+        let minus = |g: Vec<f64>| g.into_iter().map(|g| -g).collect();
+        Adjoint {
+            q: minus(dq),
+            qd: minus(dqd),
+            pi: minus(pi),
+            tau: lambda,
+            qdd,
+        }
+    })
 }

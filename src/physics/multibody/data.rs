@@ -53,6 +53,11 @@ pub struct Data {
     /// variation B of the body force in v.
     pub(super) alpha: Vec<V6>,
     pub(super) variation: Vec<M6>,
+    /// Per body, scratch of the adjoint: w = Σ S λ over its path from the root, and the sums
+    /// over its subtree of λ Iᶜ S and λ Bᶜᵀ S.
+    pub(super) carried: Vec<V6>,
+    pub(super) reach_i: Vec<V6>,
+    pub(super) reach_b: Vec<V6>,
 }
 
 thread_local! {
@@ -93,6 +98,9 @@ impl Data {
             &mut self.momentum,
             &mut self.force,
             &mut self.alpha,
+            &mut self.carried,
+            &mut self.reach_i,
+            &mut self.reach_b,
         ] {
             fit(v, nb);
         }

@@ -13,7 +13,7 @@ use super::Model;
 use super::aba::forward_dynamics;
 use super::data::{Data, with_data};
 use super::spatial::six::{
-    add, add_assign, add_scaled, apply, apply_t, cross, cross_force, dot, velocity_variation,
+    V6, add, add_assign, add_scaled, apply, apply_t, cross, cross_force, dot, velocity_variation,
 };
 use crate::physics::dual::Dual;
 use crate::physics::jet::Jet;
@@ -35,20 +35,7 @@ impl Data {
     ///
     /// contracted onto the coordinates with the mimic multipliers on both sides.
     pub fn id_derivatives(&mut self, model: &Model) {
-        let g = model.gravity;
-        let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
-        let zero = [0.0; 6];
-        for (i, body) in model.bodies.iter().enumerate() {
-            self.variation[i] = velocity_variation(&self.inertia[i], &self.v[i], &self.momentum[i]);
-            let (vp, ap) = body.parent.map_or((zero, a0), |p| (self.v[p], self.a[p]));
-            self.alpha[i] = add(&cross(&ap, &self.s[i]), &cross(&vp, &self.d[i]));
-        }
-        for (i, body) in model.bodies.iter().enumerate().rev() {
-            if let Some(p) = body.parent {
-                let b = self.variation[i];
-                add_assign(&mut self.variation[p], &b);
-            }
-        }
+        self.variations(model);
         let n = model.n;
         self.id_dq.fill(0.0);
         self.id_dqd.fill(0.0);
@@ -57,11 +44,7 @@ impl Data {
             let (ck, gk) = (body.drive.coordinate, body.drive.multiplier);
             // Sₖᵀ Iᶜₖ and Sₖᵀ Bᶜₖ as vectors, for the rows of τₖ.
             let (r, sb) = (apply(ic, sk), apply_t(bc, sk));
-            // The columns of θₖ in the rows of k's ancestors.
-            let id_ak = apply(ic, &self.alpha[k]);
-            let bd = apply(bc, &self.d[k]);
-            let p_k = add(&cross_force(sk, &self.force[k]), &add(&id_ak, &bd));
-            let q_k = add_scaled(&apply(bc, sk), 2.0, &apply(ic, &self.d[k]));
+            let (p_k, q_k) = self.descendant_column(k);
             let mut j = Some(k);
             while let Some(jj) = j {
                 let other = &model.bodies[jj];
@@ -78,6 +61,42 @@ impl Data {
                 j = other.parent;
             }
         }
+    }
+
+    /// Per body, α = a_parent × S + v_parent × d and the composite variation Bᶜ of its subtree's
+    /// force in v: what the derivatives of RNEA and its adjoint read.
+    pub(super) fn variations(&mut self, model: &Model) {
+        let g = model.gravity;
+        let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
+        let zero = [0.0; 6];
+        for (i, body) in model.bodies.iter().enumerate() {
+            self.variation[i] = velocity_variation(&self.inertia[i], &self.v[i], &self.momentum[i]);
+            let (vp, ap) = body.parent.map_or((zero, a0), |p| (self.v[p], self.a[p]));
+            self.alpha[i] = add(&cross(&ap, &self.s[i]), &cross(&vp, &self.d[i]));
+        }
+        for (i, body) in model.bodies.iter().enumerate().rev() {
+            if let Some(p) = body.parent {
+                let b = self.variation[i];
+                add_assign(&mut self.variation[p], &b);
+            }
+        }
+    }
+
+    /// The column of θₖ in the rows of k's ancestors (j ≺ k): (Pₖ, Qₖ) with ∂τⱼ/∂θₖ = Sⱼ·Pₖ and
+    /// ∂τⱼ/∂θ̇ₖ = Sⱼ·Qₖ.
+    pub(super) fn descendant_column(&self, k: usize) -> (V6, V6) {
+        let (ic, bc, sk, dk) = (
+            &self.composite[k],
+            &self.variation[k],
+            &self.s[k],
+            &self.d[k],
+        );
+        let p = add(
+            &cross_force(sk, &self.force[k]),
+            &add(&apply(ic, &self.alpha[k]), &apply(bc, dk)),
+        );
+        let q = add_scaled(&apply(bc, sk), 2.0, &apply(ic, dk));
+        (p, q)
     }
 
     /// The implicit-function derivative of q̈ = FD(q, q̇, τ) at the state `forward_dynamics`
