@@ -63,7 +63,10 @@ impl TemplateSystem {
     pub fn acceleration(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
         let tau = self.template.forces(&self.params, q, qd, u);
         if let Some(model) = &self.multibody {
-            return multibody::forward_dynamics(model, q, qd, &tau);
+            return multibody::with_data(|data| {
+                data.forward_dynamics(model, q, qd, &tau);
+                data.qdd.clone()
+            });
         }
         let p = constants(&self.params);
         white_box_acceleration(

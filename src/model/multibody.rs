@@ -14,7 +14,7 @@ use super::{Model, ModelConfig};
 use crate::backend::{RowFn, RowFunction, row_map};
 use crate::physics::multibody::adjoint::adjoint_at;
 use crate::physics::multibody::regressor::with_parameters;
-use crate::physics::multibody::{self, forward_dynamics};
+use crate::physics::multibody::{self, with_data};
 
 /// Forward dynamics as a row function: a row is [q, q̇, τ], the parameters are π (ten per
 /// body, `multibody::regressor`), the output q̈.
@@ -50,9 +50,12 @@ impl RowFunction for ForwardDynamics {
     fn forward(&self, rows: &[f64], params: &[f64]) -> Vec<f64> {
         let (model, n) = (with_parameters(&self.model, params), self.n());
         let mut out = Vec::with_capacity(rows.len() / 3);
-        for r in rows.chunks_exact(3 * n) {
-            out.extend(forward_dynamics(&model, &r[..n], &r[n..2 * n], &r[2 * n..]));
-        }
+        with_data(|data| {
+            for r in rows.chunks_exact(3 * n) {
+                data.forward_dynamics(&model, &r[..n], &r[n..2 * n], &r[2 * n..]);
+                out.extend_from_slice(&data.qdd);
+            }
+        });
         out
     }
 

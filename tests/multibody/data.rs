@@ -40,8 +40,8 @@ fn analytic_rnea_derivatives_equal_forward_mode() {
     }
 }
 
-/// The workspace's M (CRBA in the root frame), C q̇ + g and q̈ equal the body-frame CRBA, RNEA
-/// and forward dynamics. The root frame sums in another order, so bit-for-bit equality does
+/// The workspace's M (CRBA in the root frame), C q̇ + g and q̈ (by CRBA and Cholesky, and by
+/// ABA in the root frame) equal the body-frame CRBA, RNEA and forward dynamics. The root frame sums in another order, so bit-for-bit equality does
 /// not hold: the bound is 1e-12 of max(1, |ref|) for M and the bias (rounding ~1e-15 of
 /// terms ≤ 1e2) and 1e-9 for q̈ (the same rounding amplified by M's condition, ≤ 1e4 here).
 /// The workspace is the same one throughout, resized between robots.
@@ -53,17 +53,19 @@ fn the_workspace_equals_the_body_frame_recursions() {
         for (name, model) in all_models() {
             let n = model.n;
             let [q, qd, tau] = random_state(&mut rng, n, 1.5);
-            data.forward_dynamics(&model, &q, &qd, &tau);
+            data.crba_forward(&model, &q, &qd, &tau);
             let m = crba(&model, &q);
             assert!(err(&data.mass, &flat(&m)) < 1e-12, "{name} {round}: M");
             let b = bias(&model, &q, &qd);
             assert!(err(&data.bias, &b) < 1e-12, "{name} {round}: bias");
             let qdd = forward_dynamics(&model, &q, &qd, &tau);
-            assert!(err(&data.qdd, &qdd) < 1e-9, "{name} {round}: q̈");
+            assert!(err(&data.qdd, &qdd) < 1e-9, "{name} {round}: q̈ by CRBA");
+            data.forward_dynamics(&model, &q, &qd, &tau);
+            assert!(err(&data.qdd, &qdd) < 1e-9, "{name} {round}: q̈ by ABA");
             let fresh = Data::new(&model);
             let mut fresh = fresh;
             fresh.fd_partials(&model, &q, &qd, &tau);
-            data.id_derivatives(&model);
+            data.fd_partials(&model, &q, &qd, &tau);
             assert_eq!(fresh.id_dq, data.id_dq, "{name} {round}: reused vs fresh");
             assert_eq!(fresh.id_dqd, data.id_dqd, "{name} {round}: reused vs fresh");
         }

@@ -4,7 +4,9 @@
 //! ABA's per-joint recursion assumes).
 
 use super::Model;
+use super::data::Data;
 use super::rnea::{bias, crba};
+use super::spatial::six::{add, add_assign, add_scaled, apply, cross_force, dot};
 use super::spatial::{Force, Inertia, Motion, Xform};
 use crate::physics::dynamics::{cholesky, solve_llt};
 use crate::physics::scalar::Scalar;
@@ -93,5 +95,46 @@ pub fn forward_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) 
         crba_forward(model, q, qd, tau)
     } else {
         aba(model, q, qd, tau)
+    }
+}
+
+impl Data {
+    /// q̈ by the articulated-body algorithm in the root frame after `kinematics` (no mimic
+    /// joints): the same recursion as `aba` with every transform the identity, since the
+    /// workspace's inertias, velocities and axes are all in one frame.
+    pub(super) fn aba(&mut self, model: &Model, tau: &[f64]) {
+        for i in 0..model.bodies.len() {
+            self.articulated[i] = self.inertia[i];
+            self.bias_force[i] = cross_force(&self.v[i], &self.momentum[i]);
+        }
+        for (i, body) in model.bodies.iter().enumerate().rev() {
+            let s = &self.s[i];
+            let u_col = apply(&self.articulated[i], s);
+            let d = dot(s, &u_col);
+            let u = tau[body.drive.coordinate] - dot(s, &self.bias_force[i]);
+            (self.u_col[i], self.pivot[i]) = (u_col, (d, u));
+            if let Some(p) = body.parent {
+                let ia = &mut self.articulated[i];
+                for (row, &ur) in ia.iter_mut().zip(&u_col) {
+                    let k = ur / d;
+                    row.iter_mut().zip(&u_col).for_each(|(x, &uc)| *x -= k * uc);
+                }
+                let c = self.d[i].map(|x| x * self.rate[i]);
+                let pa = add_scaled(&add(&self.bias_force[i], &apply(ia, &c)), u / d, &u_col);
+                let ia = self.articulated[i];
+                add_assign(&mut self.articulated[p], &ia);
+                self.bias_force[p] = add(&self.bias_force[p], &pa);
+            }
+        }
+        let g = model.gravity;
+        let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
+        for (i, body) in model.bodies.iter().enumerate() {
+            let ap = body.parent.map_or(a0, |p| self.a[p]);
+            let a = add_scaled(&ap, self.rate[i], &self.d[i]);
+            let (d, u) = self.pivot[i];
+            let x = (u - dot(&a, &self.u_col[i])) / d;
+            self.a[i] = add_scaled(&a, x, &self.s[i]);
+            self.qdd[body.drive.coordinate] = x;
+        }
     }
 }

@@ -15,7 +15,7 @@
 use super::Model;
 use super::data::{Data, with_data};
 use super::spatial::PER_BODY;
-use super::spatial::six::{V6, ZERO6, add, add_scaled, apply, apply_t, cross, dot};
+use super::spatial::six::{V6, ZERO6, add, add_scaled, apply, cross, dot};
 use super::spatial::{M3, Motion, V3};
 
 /// ∂(mᵀ I(π) b)/∂π for one body's standard parameters (m, h, I about the origin):
@@ -62,7 +62,7 @@ fn dot3(a: &V3<f64>, b: &V3<f64>) -> f64 {
 }
 
 impl Data {
-    /// ∂(λᵀ ID)/∂(q, q̇) at the state `accelerations` left (after `mass_and_bias`), added into
+    /// ∂(λᵀ ID)/∂(q, q̇) at the state `accelerations` left (after `mass`), added into
     /// `dq`, `dqd`: λ contracted with `id_derivatives`' formulas. With w the λ carried out to
     /// each body and subtree sums Rⱼ = Σ λₖ Iᶜₖ Sₖ, Tⱼ = Σ λₖ Bᶜₖᵀ Sₖ (k ⪰ j),
     ///
@@ -75,7 +75,7 @@ impl Data {
             self.carried[i] = add_scaled(&wp, l, &self.s[i]);
             let s = &self.s[i];
             self.reach_i[i] = apply(&self.composite[i], s).map(|x| l * x);
-            self.reach_b[i] = apply_t(&self.variation[i], s).map(|x| l * x);
+            self.reach_b[i] = self.variation[i].apply_t(s).map(|x| l * x);
         }
         for (i, body) in model.bodies.iter().enumerate().rev() {
             let (r, t) = (self.reach_i[i], self.reach_b[i]);
@@ -114,7 +114,7 @@ impl Data {
     /// The state at (q, q̇, q̈): kinematics, M and its factor, accelerations and forces.
     fn at_state(&mut self, model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) {
         self.kinematics(model, q, qd);
-        self.mass_and_bias(model);
+        self.mass(model);
         self.qdd.copy_from_slice(qdd);
         self.accelerations(model);
     }

@@ -14,8 +14,8 @@ use std::cell::RefCell;
 
 use super::Model;
 use super::spatial::six::{
-    M6, V6, ZERO6, add, add_assign, add_scaled, apply, cross, cross_force, dot, inertia_to_root,
-    motion_to_root,
+    M6, V6, Variation, ZERO6, add, add_assign, add_scaled, apply, cross, cross_force, dot,
+    inertia_to_root, motion_to_root,
 };
 use super::spatial::{M3, V3, mm, mtv};
 
@@ -52,12 +52,18 @@ pub struct Data {
     /// Per body, scratch of `id_derivatives`: α = a_parent × S + v_parent × d, and the composite
     /// variation B of the body force in v.
     pub(super) alpha: Vec<V6>,
-    pub(super) variation: Vec<M6>,
+    pub(super) variation: Vec<Variation>,
     /// Per body, scratch of the adjoint: w = Σ S λ over its path from the root, and the sums
     /// over its subtree of λ Iᶜ S and λ Bᶜᵀ S.
     pub(super) carried: Vec<V6>,
     pub(super) reach_i: Vec<V6>,
     pub(super) reach_b: Vec<V6>,
+    /// Per body, scratch of ABA: articulated inertia and bias force, U = Iᴬ S, and
+    /// (D = Sᵀ U, u = τ − Sᵀ pᴬ).
+    pub(super) articulated: Vec<M6>,
+    pub(super) bias_force: Vec<V6>,
+    pub(super) u_col: Vec<V6>,
+    pub(super) pivot: Vec<(f64, f64)>,
 }
 
 thread_local! {
@@ -101,13 +107,21 @@ impl Data {
             &mut self.carried,
             &mut self.reach_i,
             &mut self.reach_b,
+            &mut self.bias_force,
+            &mut self.u_col,
         ] {
             fit(v, nb);
         }
-        for m in [&mut self.inertia, &mut self.composite, &mut self.variation] {
+        for m in [
+            &mut self.inertia,
+            &mut self.composite,
+            &mut self.articulated,
+        ] {
             fit(m, nb);
         }
+        fit(&mut self.variation, nb);
         fit(&mut self.rate, nb);
+        fit(&mut self.pivot, nb);
         for m in [
             &mut self.mass,
             &mut self.chol,
@@ -162,9 +176,9 @@ impl Data {
         }
     }
 
-    /// After `kinematics`: composite inertias, M by CRBA (M_kj = S_k · Iᶜ_k S_j for j on k's
-    /// path to the root) and C q̇ + g by RNEA at q̈ = 0, both over the coordinates.
-    pub fn mass_and_bias(&mut self, model: &Model) {
+    /// After `kinematics`: composite inertias and M by CRBA over the coordinates
+    /// (M_kj = S_k · Iᶜ_k S_j for j on k's path to the root).
+    pub fn mass(&mut self, model: &Model) {
         self.composite.clone_from_slice(&self.inertia);
         for (i, body) in model.bodies.iter().enumerate().rev() {
             if let Some(p) = body.parent {
@@ -172,13 +186,10 @@ impl Data {
                 add_assign(&mut self.composite[p], &c);
             }
         }
-        self.subtree_forces(model);
         let n = self.n;
         self.mass.fill(0.0);
-        self.bias.fill(0.0);
         for (k, body) in model.bodies.iter().enumerate() {
             let (ck, gk) = (body.drive.coordinate, body.drive.multiplier);
-            self.bias[ck] += gk * dot(&self.s[k], &self.force[k]);
             let r = apply(&self.composite[k], &self.s[k]);
             let mut j = Some(k);
             while let Some(jj) = j {
@@ -193,6 +204,17 @@ impl Data {
                 self.mass[a * n + b] += h;
                 j = model.bodies[jj].parent;
             }
+        }
+    }
+
+    /// `mass`, and C q̇ + g by RNEA at q̈ = 0 over the coordinates.
+    pub fn mass_and_bias(&mut self, model: &Model) {
+        self.mass(model);
+        self.subtree_forces(model);
+        self.bias.fill(0.0);
+        for (k, body) in model.bodies.iter().enumerate() {
+            let (ck, gk) = (body.drive.coordinate, body.drive.multiplier);
+            self.bias[ck] += gk * dot(&self.s[k], &self.force[k]);
         }
     }
 
@@ -252,8 +274,9 @@ impl Data {
         self.subtree_forces(model);
     }
 
-    /// q̈ = FD(q, q̇, τ) = M⁻¹ (τ − C q̇ − g), leaving M's factor and the state at q̈ behind.
-    pub fn forward_dynamics(&mut self, model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) {
+    /// q̈ = FD(q, q̇, τ) = M⁻¹ (τ − C q̇ − g) by CRBA and Cholesky, leaving M, its factor, the
+    /// bias and the state at q̈ behind (what the derivatives read).
+    pub fn crba_forward(&mut self, model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) {
         self.kinematics(model, q, qd);
         self.mass_and_bias(model);
         self.factor();
@@ -264,5 +287,15 @@ impl Data {
         self.solve(&mut qdd, 1);
         self.qdd = qdd;
         self.accelerations(model);
+    }
+
+    /// q̈ = FD(q, q̇, τ) alone: the articulated-body algorithm without mimic joints, else
+    /// `crba_forward`; the bodies' accelerations at q̈ are left behind.
+    pub fn forward_dynamics(&mut self, model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) {
+        if model.mimic {
+            return self.crba_forward(model, q, qd, tau);
+        }
+        self.kinematics(model, q, qd);
+        self.aba(model, tau);
     }
 }

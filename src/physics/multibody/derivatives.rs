@@ -12,9 +12,7 @@
 use super::Model;
 use super::aba::forward_dynamics;
 use super::data::{Data, with_data};
-use super::spatial::six::{
-    V6, add, add_assign, add_scaled, apply, apply_t, cross, cross_force, dot, velocity_variation,
-};
+use super::spatial::six::{V6, Variation, add, add_scaled, apply, cross, cross_force, dot};
 use crate::physics::dual::Dual;
 use crate::physics::jet::Jet;
 
@@ -22,12 +20,12 @@ use crate::physics::jet::Jet;
 pub type Derivatives = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
 
 impl Data {
-    /// ∂ID/∂q and ∂ID/∂q̇ at the state `forward_dynamics` (or `kinematics`, `mass_and_bias`,
+    /// ∂ID/∂q and ∂ID/∂q̇ at the state `crba_forward` (or `kinematics`, `mass_and_bias`,
     /// `accelerations`) left, over the coordinates. In the root frame, moving joint j's value
     /// turns everything it carries rigidly (what leaves Sₖ·Fₖ unchanged for k below j) and
     /// moves v by d_j and a by α_j + d_j × v; moving its rate moves v by S_j and a by
     /// 2d_j + S_j × v. A body force I a + v ×* I v then moves by I δa' + B δv with B its
-    /// variation in v (`six::velocity_variation`), so with composites Iᶜ, Bᶜ and subtree
+    /// variation in v (`six::Variation`), so with composites Iᶜ, Bᶜ and subtree
     /// forces F, for j on k's path to the root (j ⪯ k):
     ///
     ///     ∂τₖ/∂θⱼ = Sₖ·(Iᶜₖ αⱼ + Bᶜₖ dⱼ)         ∂τₖ/∂θ̇ⱼ = Sₖ·(2 Iᶜₖ dⱼ + Bᶜₖ Sⱼ)
@@ -43,7 +41,7 @@ impl Data {
             let (ic, bc, sk) = (&self.composite[k], &self.variation[k], &self.s[k]);
             let (ck, gk) = (body.drive.coordinate, body.drive.multiplier);
             // Sₖᵀ Iᶜₖ and Sₖᵀ Bᶜₖ as vectors, for the rows of τₖ.
-            let (r, sb) = (apply(ic, sk), apply_t(bc, sk));
+            let (r, sb) = (apply(ic, sk), bc.apply_t(sk));
             let (p_k, q_k) = self.descendant_column(k);
             let mut j = Some(k);
             while let Some(jj) = j {
@@ -70,14 +68,14 @@ impl Data {
         let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
         let zero = [0.0; 6];
         for (i, body) in model.bodies.iter().enumerate() {
-            self.variation[i] = velocity_variation(&self.inertia[i], &self.v[i], &self.momentum[i]);
+            self.variation[i] = Variation::of(&self.inertia[i], &self.v[i], &self.momentum[i]);
             let (vp, ap) = body.parent.map_or((zero, a0), |p| (self.v[p], self.a[p]));
             self.alpha[i] = add(&cross(&ap, &self.s[i]), &cross(&vp, &self.d[i]));
         }
         for (i, body) in model.bodies.iter().enumerate().rev() {
             if let Some(p) = body.parent {
                 let b = self.variation[i];
-                add_assign(&mut self.variation[p], &b);
+                self.variation[p].add_assign(&b);
             }
         }
     }
@@ -93,13 +91,13 @@ impl Data {
         );
         let p = add(
             &cross_force(sk, &self.force[k]),
-            &add(&apply(ic, &self.alpha[k]), &apply(bc, dk)),
+            &add(&apply(ic, &self.alpha[k]), &bc.apply(dk)),
         );
-        let q = add_scaled(&apply(bc, sk), 2.0, &apply(ic, dk));
+        let q = add_scaled(&bc.apply(sk), 2.0, &apply(ic, dk));
         (p, q)
     }
 
-    /// The implicit-function derivative of q̈ = FD(q, q̇, τ) at the state `forward_dynamics`
+    /// The implicit-function derivative of q̈ = FD(q, q̇, τ) at the state `crba_forward`
     /// left: for each of `cols` directions (the columns of n×cols row-major blocks of
     /// tangents of q, q̇ and τ), ∂q̈ = M⁻¹ (∂τ − ∂ID/∂q ∂q − ∂ID/∂q̇ ∂q̇), into `out`.
     pub fn fd_tangents(&self, dq: &[f64], dqd: &[f64], dtau: &[f64], cols: usize, out: &mut [f64]) {
@@ -119,7 +117,7 @@ impl Data {
 
     /// q̈ = FD(q, q̇, τ) and its partials ∂ID/∂q, ∂ID/∂q̇, M's factor: what `fd_tangents` needs.
     pub fn fd_partials(&mut self, model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) {
-        self.forward_dynamics(model, q, qd, tau);
+        self.crba_forward(model, q, qd, tau);
         self.id_derivatives(model);
     }
 }

@@ -9,7 +9,10 @@
 //! dynamics (`aba`), the derivatives of forward dynamics (`derivatives`), forward dynamics'
 //! vector–Jacobian product (`adjoint`), the energies (`energy`), τ = Y π (`regressor`) and
 //! the base parameters (`base`). Each is O(n) or O(n·depth) per state, generic over `Scalar`
-//! (f64 for speed, dual numbers for exact derivatives).
+//! (f64, dual numbers for exact derivatives, `Term`s for the tape). The f64 path runs on a
+//! workspace as Pinocchio's does (`data::Data`): the state's kinematics in the root frame,
+//! computed once and shared by CRBA, RNEA, ABA, the analytic derivatives of RNEA and the
+//! adjoint.
 //!
 //! Mimic joints ([`Drive`]): joint values are G q + offset with G = ∂(joint values)/∂q, so
 //! joint velocities and accelerations are G q̇ and G q̈, forces on the coordinates are

@@ -3,7 +3,7 @@
 //! motion-to-force map a 6×6 matrix. Plain arrays keep these loops free of the generic
 //! `Scalar` clones and let the compiler vectorise them.
 
-use super::{Force, Inertia, M3, Motion, V3, Xform};
+use super::{Force, Inertia, M3, Motion, V3};
 
 pub type V6 = [f64; 6];
 pub type M6 = [[f64; 6]; 6];
@@ -116,44 +116,191 @@ pub fn motion_to_root(e: &M3<f64>, p: &V3<f64>, m: &Motion<f64>) -> V6 {
     [w[0], w[1], w[2], v[0] + pw[0], v[1] + pw[1], v[2] + pw[2]]
 }
 
-/// A body inertia in the root frame (Xᵀ I X for X the root-to-body transform).
+/// A rigid body's inertia in the root frame (Xᵀ I X for X the root-to-body transform), from
+/// its mass m, first moment h and rotational inertia A about its frame's origin: with
+/// R = E₀ᵀ, g = R h and [a]×ᵀ[b]× = (a·b)𝟙 − b aᵀ,
+/// h' = m p + g and A' = R A Rᵀ + m(|p|²𝟙 − p pᵀ) + 2(p·g)𝟙 − g pᵀ − p gᵀ.
 #[inline]
 pub fn inertia_to_root(e: &M3<f64>, p: &V3<f64>, i: &Inertia<f64>) -> M6 {
-    let x = Xform { e: *e, r: *p };
-    of_inertia(&x.inertia_to_parent(i))
+    let m = i.mass();
+    let hb = i.first_moment();
+    let g: V3<f64> = std::array::from_fn(|r| e[0][r] * hb[0] + e[1][r] * hb[1] + e[2][r] * hb[2]);
+    // R A Rᵀ = E₀ᵀ A E₀.
+    let ae: M3<f64> = std::array::from_fn(|r| {
+        std::array::from_fn(|c| i.a[r][0] * e[0][c] + i.a[r][1] * e[1][c] + i.a[r][2] * e[2][c])
+    });
+    let (pp, pg) = (dot3(p, p), dot3(p, &g));
+    let a: M3<f64> = std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            let rar = e[0][r] * ae[0][c] + e[1][r] * ae[1][c] + e[2][r] * ae[2][c];
+            let diag = if r == c { m * pp + 2.0 * pg } else { 0.0 };
+            rar + diag - m * p[r] * p[c] - g[r] * p[c] - p[r] * g[c]
+        })
+    });
+    let h: V3<f64> = std::array::from_fn(|k| m * p[k] + g[k]);
+    of_inertia(&Inertia::rigid(m, &h, &a))
 }
 
-/// The matrix of m ↦ m ×* h, for the derivative of v ×* (I v) in v.
 #[inline]
-pub fn bar_cross(h: &V6) -> M6 {
-    // d ×* h = (d_ω × h_n + d_v × h_f, d_ω × h_f) = (−h_n × d_ω − h_f × d_v, −h_f × d_ω).
-    let minus_skew =
-        |x: &[f64]| -> M3<f64> { [[0.0, x[2], -x[1]], [-x[2], 0.0, x[0]], [x[1], -x[0], 0.0]] };
-    let (hn, hf) = (minus_skew(&h[..3]), minus_skew(&h[3..]));
+fn dot3(a: &V3<f64>, b: &V3<f64>) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// [x]×.
+#[inline]
+fn skew(x: &[f64]) -> M3<f64> {
+    [[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]]
+}
+
+#[inline]
+fn mul3(a: &M3<f64>, b: &M3<f64>) -> M3<f64> {
     std::array::from_fn(|r| {
-        std::array::from_fn(|c| match (r < 3, c < 3) {
-            (true, true) => hn[r][c],
-            (true, false) => hf[r][c - 3],
-            (false, true) => hf[r - 3][c],
-            (false, false) => 0.0,
-        })
+        std::array::from_fn(|c| a[r][0] * b[0][c] + a[r][1] * b[1][c] + a[r][2] * b[2][c])
     })
 }
 
-/// B = [v]×* I − I [v]× + [h]⁻ (with [h]⁻ d = d ×* h): the derivative of the body force
-/// I a + v ×* I v along a change d of v that moves a by d × v. Column by column: (B)e_c =
-/// v ×* (I e_c) − I (v × e_c) + e_c ×* h.
-#[inline]
-pub fn velocity_variation(i: &M6, v: &V6, h: &V6) -> M6 {
-    let mut b = bar_cross(h);
-    for c in 0..6 {
-        let col: V6 = std::array::from_fn(|r| i[r][c]);
-        let mut e = ZERO6;
-        e[c] = 1.0;
-        let term = add_scaled(&cross_force(v, &col), -1.0, &apply(i, &cross(v, &e)));
-        for (r, t) in term.iter().enumerate() {
-            b[r][c] += t;
+/// B = [v]×* I − I [v]× + [I v]⁻ ([h]⁻ d = d ×* h): the derivative of a body force
+/// I a + v ×* I v along a change d of v that moves a by d × v. For a rigid body's
+/// I = [[A, [h]×], [−[h]×, m𝟙]] at v = (ω, u) with momentum (hₙ, h_f) = I v, its right
+/// column of blocks vanishes (h_f = m u + ω × h cancels it) and
+///
+///     B = [[[ω]× A − A [ω]× − [u]×[h]× − [h]×[u]× − [hₙ]×, 0], [−2 [h_f]×, 0]],
+///
+/// so only the two left blocks are kept: B d reads d's ω only.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Variation {
+    pub top: M3<f64>,
+    pub bottom: M3<f64>,
+}
+
+impl Variation {
+    #[inline]
+    pub fn of(i: &M6, v: &V6, momentum: &V6) -> Self {
+        let a: M3<f64> = std::array::from_fn(|r| std::array::from_fn(|c| i[r][c]));
+        // [h]× is the upper right block.
+        let h = [i[2][4], i[0][5], i[1][3]];
+        let (w, u) = (skew(&v[..3]), skew(&v[3..]));
+        let hx = skew(&h);
+        let (wa, aw, uh, hu) = (mul3(&w, &a), mul3(&a, &w), mul3(&u, &hx), mul3(&hx, &u));
+        let hn = skew(&momentum[..3]);
+        let hf = skew(&momentum[3..]);
+        Self {
+            top: std::array::from_fn(|r| {
+                std::array::from_fn(|c| wa[r][c] - aw[r][c] - uh[r][c] - hu[r][c] - hn[r][c])
+            }),
+            bottom: std::array::from_fn(|r| std::array::from_fn(|c| -2.0 * hf[r][c])),
         }
     }
-    b
+
+    #[inline]
+    pub fn add_assign(&mut self, o: &Self) {
+        for (a, b) in self.top.iter_mut().zip(&o.top) {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+        for (a, b) in self.bottom.iter_mut().zip(&o.bottom) {
+            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+        }
+    }
+
+    /// B d.
+    #[inline]
+    pub fn apply(&self, d: &V6) -> V6 {
+        let row = |m: &M3<f64>, r: usize| m[r][0] * d[0] + m[r][1] * d[1] + m[r][2] * d[2];
+        [
+            row(&self.top, 0),
+            row(&self.top, 1),
+            row(&self.top, 2),
+            row(&self.bottom, 0),
+            row(&self.bottom, 1),
+            row(&self.bottom, 2),
+        ]
+    }
+
+    /// Bᵀ x.
+    #[inline]
+    pub fn apply_t(&self, x: &V6) -> V6 {
+        let col = |c: usize| {
+            (0..3)
+                .map(|r| self.top[r][c] * x[r] + self.bottom[r][c] * x[3 + r])
+                .sum::<f64>()
+        };
+        [col(0), col(1), col(2), 0.0, 0.0, 0.0]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::physics::multibody::spatial::Xform;
+
+    /// The definition column by column: B e_c = v ×* (I e_c) − I (v × e_c) + e_c ×* h.
+    fn variation_by_columns(i: &M6, v: &V6, h: &V6) -> M6 {
+        let mut b = [[0.0; 6]; 6];
+        for c in 0..6 {
+            let col: V6 = std::array::from_fn(|r| i[r][c]);
+            let mut e = ZERO6;
+            e[c] = 1.0;
+            let term = add(
+                &add_scaled(&cross_force(v, &col), -1.0, &apply(i, &cross(v, &e))),
+                &cross_force(&e, h),
+            );
+            for (r, t) in term.iter().enumerate() {
+                b[r][c] = *t;
+            }
+        }
+        b
+    }
+
+    fn body() -> Inertia<f64> {
+        let a = [[0.3, 0.02, -0.01], [0.02, 0.25, 0.03], [-0.01, 0.03, 0.2]];
+        Inertia::rigid(1.7, &[0.1, -0.2, 0.05], &a)
+    }
+
+    fn placement() -> (M3<f64>, V3<f64>) {
+        let (c, s) = (0.6f64.cos(), 0.6f64.sin());
+        let e = [
+            [c, s, 0.0],
+            [-s * 0.8, c * 0.8, 0.6],
+            [s * 0.6, -c * 0.6, 0.8],
+        ];
+        (e, [0.4, -0.3, 0.9])
+    }
+
+    /// The structured B equals the definition at a body placed off the root, to rounding
+    /// (sums of a few products of O(1) terms: 1e-14).
+    #[test]
+    fn the_structured_variation_is_the_definition() {
+        let (e, p) = placement();
+        let i = inertia_to_root(&e, &p, &body());
+        let v = [0.3, -1.1, 0.7, 0.5, 0.2, -0.9];
+        let h = apply(&i, &v);
+        let want = variation_by_columns(&i, &v, &h);
+        let got = Variation::of(&i, &v, &h);
+        for c in 0..6 {
+            let mut x = ZERO6;
+            x[c] = 1.0;
+            let col = got.apply(&x);
+            for r in 0..6 {
+                assert!((col[r] - want[r][c]).abs() < 1e-14, "B[{r}][{c}]");
+            }
+            let row = got.apply_t(&x);
+            for (k, w) in row.iter().enumerate() {
+                assert!((w - want[c][k]).abs() < 1e-14, "Bᵀ[{k}][{c}]");
+            }
+        }
+    }
+
+    /// The closed form of the root-frame inertia equals Xᵀ I X by the spatial transform, to
+    /// rounding (1e-14 on entries of size ≤ 2).
+    #[test]
+    fn the_root_inertia_is_the_transformed_one() {
+        let (e, p) = placement();
+        let want = of_inertia(&Xform { e, r: p }.inertia_to_parent(&body()));
+        let got = inertia_to_root(&e, &p, &body());
+        for r in 0..6 {
+            for c in 0..6 {
+                assert!((got[r][c] - want[r][c]).abs() < 1e-14, "[{r}][{c}]");
+            }
+        }
+    }
 }
