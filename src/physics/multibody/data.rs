@@ -17,7 +17,7 @@ use super::spatial::six::{
     M6, V6, Variation, ZERO6, add, add_assign, add_scaled, apply, cross, cross_force, dot,
     inertia_to_root, motion_to_root,
 };
-use super::spatial::{M3, V3, mm, mtv};
+use super::spatial::{M3, V3};
 
 /// Quantities at one state; see the module comment. Body-indexed vectors follow
 /// `Model::bodies`, matrices over the coordinates are n×n row-major.
@@ -93,6 +93,9 @@ impl Data {
     /// Sizes every vector for `model` (no allocation once they have been this long).
     fn fit(&mut self, model: &Model) {
         let (nb, n) = (model.bodies.len(), model.n);
+        if (self.n, self.rot.len()) == (n, nb) {
+            return;
+        }
         self.n = n;
         fit(&mut self.rot, nb);
         fit(&mut self.pos, nb);
@@ -144,9 +147,16 @@ impl Data {
             let (e, p, vp, ap) = match body.parent {
                 Some(k) => {
                     let (ek, pk) = (&self.rot[k], &self.pos[k]);
-                    let r = mtv(ek, &x.r);
-                    let p = [pk[0] + r[0], pk[1] + r[1], pk[2] + r[2]];
-                    (mm(&x.e, ek), p, self.v[k], self.a[k])
+                    // E₀ = E E₀_parent, p = p_parent + E₀_parentᵀ r.
+                    let (mut e, mut p) = ([[0.0; 3]; 3], *pk);
+                    for r in 0..3 {
+                        for c in 0..3 {
+                            e[r][c] =
+                                x.e[r][0] * ek[0][c] + x.e[r][1] * ek[1][c] + x.e[r][2] * ek[2][c];
+                            p[r] += ek[c][r] * x.r[c];
+                        }
+                    }
+                    (e, p, self.v[k], self.a[k])
                 }
                 None => (x.e, x.r, ZERO6, a0),
             };

@@ -124,21 +124,37 @@ pub fn motion_to_root(e: &M3<f64>, p: &V3<f64>, m: &Motion<f64>) -> V6 {
 pub fn inertia_to_root(e: &M3<f64>, p: &V3<f64>, i: &Inertia<f64>) -> M6 {
     let m = i.mass();
     let hb = i.first_moment();
-    let g: V3<f64> = std::array::from_fn(|r| e[0][r] * hb[0] + e[1][r] * hb[1] + e[2][r] * hb[2]);
-    // R A Rᵀ = E₀ᵀ A E₀.
-    let ae: M3<f64> = std::array::from_fn(|r| {
-        std::array::from_fn(|c| i.a[r][0] * e[0][c] + i.a[r][1] * e[1][c] + i.a[r][2] * e[2][c])
-    });
+    let mut g = [0.0; 3];
+    for (r, g) in g.iter_mut().enumerate() {
+        *g = e[0][r] * hb[0] + e[1][r] * hb[1] + e[2][r] * hb[2];
+    }
+    // A E₀, then E₀ᵀ (A E₀) = R A Rᵀ.
+    let mut ae = [[0.0; 3]; 3];
+    for (r, row) in ae.iter_mut().enumerate() {
+        for (c, x) in row.iter_mut().enumerate() {
+            *x = i.a[r][0] * e[0][c] + i.a[r][1] * e[1][c] + i.a[r][2] * e[2][c];
+        }
+    }
     let (pp, pg) = (dot3(p, p), dot3(p, &g));
-    let a: M3<f64> = std::array::from_fn(|r| {
-        std::array::from_fn(|c| {
+    let h = [m * p[0] + g[0], m * p[1] + g[1], m * p[2] + g[2]];
+    let mut out = [[0.0; 6]; 6];
+    for r in 0..3 {
+        for c in 0..3 {
             let rar = e[0][r] * ae[0][c] + e[1][r] * ae[1][c] + e[2][r] * ae[2][c];
             let diag = if r == c { m * pp + 2.0 * pg } else { 0.0 };
-            rar + diag - m * p[r] * p[c] - g[r] * p[c] - p[r] * g[c]
-        })
-    });
-    let h: V3<f64> = std::array::from_fn(|k| m * p[k] + g[k]);
-    of_inertia(&Inertia::rigid(m, &h, &a))
+            out[r][c] = rar + diag - m * p[r] * p[c] - g[r] * p[c] - p[r] * g[c];
+        }
+        out[3 + r][3 + r] = m;
+    }
+    // B = [h]× above the diagonal blocks, Bᵀ below.
+    let hx = [[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]];
+    for r in 0..3 {
+        for c in 0..3 {
+            out[r][3 + c] = hx[r][c];
+            out[3 + c][r] = hx[r][c];
+        }
+    }
+    out
 }
 
 #[inline]
