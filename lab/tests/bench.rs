@@ -72,14 +72,26 @@ fn bench_train_reports_step_throughput_and_cpu() {
 }
 
 /// `graybox-lab bench multibody` on the Panda (a mimic joint: no ABA figure) prints the agreement of
-/// the two paths' q̈ and a positive µs per call for each figure, one JSON line each.
+/// the two paths' q̈ and a positive µs per call for each figure, one JSON line each, and
+/// without Pinocchio's C++ benchmark a line naming the missing binary and how to build it.
 #[test]
 fn bench_multibody_prints_agreement_and_figures() {
     let urdf = format!(
         "{}/../tests/fixtures/urdf/robots/panda.urdf",
         env!("CARGO_MANIFEST_DIR")
     );
-    let lines = json_lines(&["bench", "multibody", "--urdf", &urdf, "--calls", "20"]);
+    // No C++ benchmark at that path: a line says how to build it, and the rest runs.
+    let missing = "no-such-dir/bench";
+    let lines = json_lines(&[
+        "bench",
+        "multibody",
+        "--urdf",
+        &urdf,
+        "--calls",
+        "20",
+        "--pinocchio-bench",
+        missing,
+    ]);
     assert_eq!(lines[0]["bench"], "multibody_agreement");
     assert_eq!(lines[0]["mimic"], true);
     assert!(
@@ -93,13 +105,24 @@ fn bench_multibody_prints_agreement_and_figures() {
         .collect();
     assert!(!names.contains(&"aba_f64"), "{names:?}");
     for name in [
+        "graybox_predict_1",
+        "graybox_linearize_1",
         "template_white_box_acceleration_f64",
+        "data_forward_dynamics_f64",
         "crba_cholesky_f64",
-        "fd_derivatives_by_rnea_jets",
+        "fd_derivatives_analytic",
     ] {
         assert!(names.contains(&name), "{name} in {names:?}");
     }
-    for l in &lines[1..] {
+    let skipped = (lines.iter())
+        .find(|l| l["bench"] == "pinocchio_cpp")
+        .expect("a line for the C++ benchmark");
+    let why = skipped["skipped"].as_str().unwrap();
+    assert!(
+        why.contains(missing) && why.contains("scripts/pinocchio_cpp/build.sh"),
+        "{why}"
+    );
+    for l in lines[1..].iter().filter(|l| l["bench"] != "pinocchio_cpp") {
         assert!(l["p50_us"].as_f64().unwrap() > 0.0, "{l}");
     }
 }
