@@ -102,19 +102,26 @@ fn the_adjoint_is_central_differences() {
     }
 }
 
-/// The reverse pass over RNEA gives λᵀ∂ID/∂(q, q̇) equal to the forward jets' partials times λ
-/// on every fixture robot (mimic joints, branches, prismatic fingers), to 1e-9 of max(1, |ref|).
+/// The adjoint's O(n) pass gives λᵀ∂ID/∂(q, q̇) equal to the partials of RNEA over `Jet<64>`
+/// (forward mode through the body-frame recursion, an independent route) times λ on every
+/// fixture robot (mimic joints, branches, prismatic fingers), to 1e-9 of max(1, |ref|).
 #[test]
 fn the_reverse_pass_is_the_jets_transposed() {
+    use graybox::physics::jet::Jet;
     use graybox::physics::multibody::adjoint::id_gradient;
-    use graybox::physics::multibody::id_partials;
+    use graybox::physics::multibody::inverse_dynamics;
     let mut rng = Rng::new(37);
     for (name, model) in models() {
         let n = model.n;
         for s in 0..3 {
             let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
             let l = random(&mut rng, n, 1.0);
-            let id = id_partials(&model, &q, &qd, &qdd);
+            let qv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(q[k], k)).collect();
+            let qdv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(qd[k], n + k)).collect();
+            let qddv: Vec<Jet<64>> = qdd.iter().map(|&a| Jet::constant(a)).collect();
+            let id: Vec<Vec<f64>> = (inverse_dynamics(&model, &qv, &qdv, &qddv).iter())
+                .map(|t| t.d[..2 * n].to_vec())
+                .collect();
             let want = transposed_times(&id, &l);
             let (dq, dqd) = id_gradient(&model, &q, &qd, &qdd, &l);
             let got = [dq, dqd].concat();
