@@ -121,6 +121,19 @@ fn models() -> impl Iterator<Item = (&'static str, multibody::Model)> {
     })
 }
 
+/// ∂ID/∂(q, q̇) by RNEA over `Jet<64>` (forward mode through the body-frame recursion): the
+/// independent reference for the analytic partials and the adjoint. Row i is τᵢ's.
+fn jet_id_partials(model: &multibody::Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
+    let n = q.len();
+    assert!(2 * n <= 64, "{n} coordinates");
+    let qv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(q[k], k)).collect();
+    let qdv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(qd[k], n + k)).collect();
+    let qddv: Vec<Jet<64>> = qdd.iter().map(|&a| Jet::constant(a)).collect();
+    (inverse_dynamics(model, &qv, &qdv, &qddv).iter())
+        .map(|t| t.d[..2 * n].to_vec())
+        .collect()
+}
+
 /// A random (q, q̇, q̈) of n coordinates each.
 fn random_state(rng: &mut Rng, n: usize, scale: f64) -> [Vec<f64>; 3] {
     std::array::from_fn(|_| random(rng, n, scale))

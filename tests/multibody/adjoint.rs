@@ -8,7 +8,7 @@ use graybox::physics::multibody::{self, forward_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
-use super::{err, gravity, models, random, random_state};
+use super::{err, gravity, jet_id_partials, models, random, random_state};
 
 /// Aᵀλ for the rows of A.
 fn transposed_times(a: &[Vec<f64>], l: &[f64]) -> Vec<f64> {
@@ -107,21 +107,14 @@ fn the_adjoint_is_central_differences() {
 /// fixture robot (mimic joints, branches, prismatic fingers), to 1e-9 of max(1, |ref|).
 #[test]
 fn the_reverse_pass_is_the_jets_transposed() {
-    use graybox::physics::jet::Jet;
     use graybox::physics::multibody::adjoint::id_gradient;
-    use graybox::physics::multibody::inverse_dynamics;
     let mut rng = Rng::new(37);
     for (name, model) in models() {
         let n = model.n;
         for s in 0..3 {
             let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
             let l = random(&mut rng, n, 1.0);
-            let qv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(q[k], k)).collect();
-            let qdv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(qd[k], n + k)).collect();
-            let qddv: Vec<Jet<64>> = qdd.iter().map(|&a| Jet::constant(a)).collect();
-            let id: Vec<Vec<f64>> = (inverse_dynamics(&model, &qv, &qdv, &qddv).iter())
-                .map(|t| t.d[..2 * n].to_vec())
-                .collect();
+            let id = jet_id_partials(&model, &q, &qd, &qdd);
             let want = transposed_times(&id, &l);
             let (dq, dqd) = id_gradient(&model, &q, &qd, &qdd, &l);
             let got = [dq, dqd].concat();
