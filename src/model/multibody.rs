@@ -1,7 +1,7 @@
 //! URDF models in training on the multibody algorithms (docs/robots.md#training-by-the-adjoint):
 //! q̈ = FD(q, q̇, τ; π) as one Burn op per batch ([`row_map`]), forward by the articulated-body
 //! algorithm row by row and backward by forward dynamics' adjoint (λ = M⁻¹ḡ; ∂/∂τ = λ,
-//! ∂/∂π = −Yᵀλ, ∂/∂(q, q̇) by a reverse pass over RNEA), O(n) per state each. τ = F − ∂V′/∂q
+//! ∂/∂π = −Yᵀλ, ∂/∂(q, q̇) by λ contracted with RNEA's derivatives), O(n) per state each. τ = F − ∂V′/∂q
 //! comes from the one assembly on Burn columns and π, the bodies' standard parameters, from
 //! the physical values by Burn's ops, so the gradients reach θ, the networks and the forces
 //! as Burn's autodiff carries them.
@@ -11,8 +11,8 @@ use std::sync::Arc;
 use burn::tensor::Tensor;
 
 use super::{Model, ModelConfig};
-use crate::backend::{RowFn, RowFunction, row_map};
-use crate::physics::multibody::adjoint::adjoint_at;
+use crate::backend::{Kept, RowFn, RowFunction, row_map};
+use crate::physics::multibody::data::PLACED;
 use crate::physics::multibody::regressor::with_parameters;
 use crate::physics::multibody::{self, with_data};
 
@@ -59,6 +59,21 @@ impl RowFunction for ForwardDynamics {
         out
     }
 
+    fn forward_keeping(&self, rows: &[f64], params: &[f64]) -> (Vec<f64>, Kept) {
+        let (model, n) = (with_parameters(&self.model, params), self.n());
+        let batch = rows.len() / (3 * n);
+        let mut out = Vec::with_capacity(batch * n);
+        let mut placed = Vec::with_capacity(batch * PLACED * model.bodies.len());
+        with_data(|data| {
+            for r in rows.chunks_exact(3 * n) {
+                data.forward_dynamics(&model, &r[..n], &r[n..2 * n], &r[2 * n..]);
+                out.extend_from_slice(&data.qdd);
+                data.save_placements(&mut placed);
+            }
+        });
+        (out, Kept::new(Placed(placed)))
+    }
+
     fn backward(
         &self,
         rows: &[f64],
@@ -66,20 +81,46 @@ impl RowFunction for ForwardDynamics {
         out: &[f64],
         g: &[f64],
     ) -> (Vec<f64>, Vec<f64>) {
+        self.backward_kept(&Kept::default(), rows, params, out, g)
+    }
+
+    /// The adjoint row by row, on the placements the forward pass kept when it did (the
+    /// trigonometry and the products of rotations down the tree are a third of a row's
+    /// kinematics, which the forward and backward passes would otherwise both compute).
+    fn backward_kept(
+        &self,
+        kept: &Kept,
+        rows: &[f64],
+        params: &[f64],
+        out: &[f64],
+        g: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
         let (model, n) = (with_parameters(&self.model, params), self.n());
-        let mut d_rows = Vec::with_capacity(rows.len());
+        let placed = kept.take::<Placed>().map(|p| p.0);
+        let per_row = PLACED * model.bodies.len();
+        let mut d_rows = vec![0.0; rows.len()];
         let mut d_params = vec![0.0; params.len()];
-        let each = rows.chunks_exact(3 * n).zip(out.chunks_exact(n));
-        for ((r, qdd), g) in each.zip(g.chunks_exact(n)) {
-            let a = adjoint_at(&model, &r[..n], &r[n..2 * n], qdd.to_vec(), g);
-            d_rows.extend(a.q.into_iter().chain(a.qd).chain(a.tau));
-            for (d, p) in d_params.iter_mut().zip(a.pi) {
-                *d += p;
+        with_data(|data| {
+            let each = rows.chunks_exact(3 * n).zip(out.chunks_exact(n));
+            let each = each
+                .zip(g.chunks_exact(n))
+                .zip(d_rows.chunks_exact_mut(3 * n));
+            for (i, (((r, qdd), g), d_row)) in each.enumerate() {
+                let (q, qd) = (&r[..n], &r[n..2 * n]);
+                match &placed {
+                    Some(p) => data.kinematics_from(&model, &p[i * per_row..][..per_row], qd),
+                    None => data.kinematics(&model, q, qd),
+                }
+                data.adjoint(&model, qdd, g, d_row, &mut d_params);
             }
-        }
+        });
+        d_params.iter_mut().for_each(|p| *p = -*p);
         (d_rows, d_params)
     }
 }
+
+/// The forward pass's placements, `PLACED` values per body and row.
+struct Placed(Vec<f64>);
 
 impl Model {
     /// q̈ of a model whose M is a URDF template's, by the multibody algorithms.
@@ -121,5 +162,39 @@ impl Model {
     /// Whether q̈ comes from the multibody algorithms.
     pub fn is_multibody(&self) -> bool {
         self.consts.multibody.is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use super::*;
+    use crate::physics::multibody::regressor::standard_parameters;
+    use crate::physics::templates::Template;
+    use crate::physics::urdf::UrdfTemplate;
+
+    /// The backward pass on the placements the forward pass kept equals, bit for bit, the one
+    /// that computes them again (the kept values are copies of the same arithmetic), so a
+    /// row or body mixed up in keeping them shows.
+    #[test]
+    fn backward_on_kept_placements_equals_recomputing_them() {
+        let urdf = include_str!("../../tests/fixtures/urdf/robots/ur5.urdf");
+        let t = Arc::new(UrdfTemplate::from_urdf(urdf).unwrap());
+        let defaults = Template::Urdf(t.clone()).defaults();
+        let fd = ForwardDynamics {
+            model: t.multibody_model(&defaults, true),
+        };
+        let (n, batch) = (fd.n(), 5);
+        let wave = |k: usize| (0.7 * k as f64).sin() * 1.5;
+        let rows: Vec<f64> = (0..batch * 3 * n).map(wave).collect();
+        let g: Vec<f64> = (0..batch * n).map(|k| wave(k + 11)).collect();
+        let params = standard_parameters(&fd.model);
+        let (out, kept) = fd.forward_keeping(&rows, &params);
+        assert_eq!(out, fd.forward(&rows, &params));
+        let fresh = fd.backward(&rows, &params, &out, &g);
+        let reused = fd.backward_kept(&kept, &rows, &params, &out, &g);
+        assert!(fresh.0.iter().any(|x| *x != 0.0));
+        assert_eq!(reused, fresh);
     }
 }

@@ -97,21 +97,48 @@ impl Data {
     }
 
     /// Y(q, q̇, q̈)ᵀ λ after `id_gradient` (which carried λ out to the bodies): the gradient of
-    /// λᵀ ID with respect to the standard parameters, body after body.
-    pub fn parameter_gradient(&self, model: &Model, out: &mut Vec<f64>) {
-        out.clear();
-        for i in 0..model.bodies.len() {
+    /// λᵀ ID with respect to the standard parameters, body after body, added into `out`.
+    pub fn parameter_gradient(&self, model: &Model, out: &mut [f64]) {
+        let bodies = out.chunks_exact_mut(PER_BODY).take(model.bodies.len());
+        for (i, out) in bodies.enumerate() {
             let (e, p) = (&self.rot[i], &self.pos[i]);
             let w = to_body(e, p, &self.carried[i]);
             let a = to_body(e, p, &self.a[i]);
             let v = to_body(e, p, &self.v[i]);
             let u = to_body(e, p, &cross(&self.v[i], &self.carried[i]));
             let (fa, fv) = (inertia_form(&w, &a), inertia_form(&u, &v));
-            out.extend((0..PER_BODY).map(|k| fa[k] - fv[k]));
+            (out.iter_mut().zip(fa).zip(fv)).for_each(|((o, a), v)| *o += a - v);
         }
     }
 
-    /// The state at (q, q̇, q̈): kinematics, M and its factor, accelerations and forces.
+    /// With the kinematics of (q, q̇) in place: the adjoint at q̈ for ḡ, without allocating.
+    /// `d_row` gets [−λᵀ∂ID/∂q, −λᵀ∂ID/∂q̇, λ] (3n) and `pi_sum` gains +Yᵀλ (the caller
+    /// negates the sum over its rows once).
+    pub fn adjoint(
+        &mut self,
+        model: &Model,
+        qdd: &[f64],
+        gbar: &[f64],
+        d_row: &mut [f64],
+        pi_sum: &mut [f64],
+    ) {
+        let n = qdd.len();
+        self.mass(model);
+        self.qdd.copy_from_slice(qdd);
+        self.accelerations(model);
+        self.factor();
+        let (dq, rest) = d_row.split_at_mut(n);
+        let (dqd, lambda) = rest.split_at_mut(n);
+        lambda.copy_from_slice(gbar);
+        self.solve(lambda, 1);
+        dq.fill(0.0);
+        dqd.fill(0.0);
+        self.id_gradient(model, lambda, dq, dqd);
+        dq.iter_mut().chain(dqd.iter_mut()).for_each(|x| *x = -*x);
+        self.parameter_gradient(model, pi_sum);
+    }
+
+    /// The state at (q, q̇, q̈): kinematics, M, accelerations and forces.
     fn at_state(&mut self, model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) {
         self.kinematics(model, q, qd);
         self.mass(model);
@@ -129,7 +156,7 @@ pub fn parameter_gradient(
     lambda: &[f64],
 ) -> Vec<f64> {
     id_gradient_and(model, q, qd, qdd, lambda, |data, _| {
-        let mut out = Vec::with_capacity(PER_BODY * model.bodies.len());
+        let mut out = vec![0.0; PER_BODY * model.bodies.len()];
         data.parameter_gradient(model, &mut out);
         out
     })
@@ -189,22 +216,17 @@ pub fn forward_dynamics_adjoint(
 /// forward pass), without computing it again: one pass of kinematics, CRBA and its factor for
 /// λ = M⁻¹ḡ, then the gradients, all on this thread's `Data`.
 pub fn adjoint_at(model: &Model, q: &[f64], qd: &[f64], qdd: Vec<f64>, gbar: &[f64]) -> Adjoint {
+    let n = q.len();
+    let (mut row, mut pi) = (vec![0.0; 3 * n], vec![0.0; PER_BODY * model.bodies.len()]);
     with_data(|data| {
-        data.at_state(model, q, qd, &qdd);
-        data.factor();
-        let mut lambda = gbar.to_vec();
-        data.solve(&mut lambda, 1);
-        let (mut dq, mut dqd) = (vec![0.0; q.len()], vec![0.0; q.len()]);
-        data.id_gradient(model, &lambda, &mut dq, &mut dqd);
-        let mut pi = Vec::with_capacity(PER_BODY * model.bodies.len());
-        data.parameter_gradient(model, &mut pi);
-        let minus = |g: Vec<f64>| g.into_iter().map(|g| -g).collect();
-        Adjoint {
-            q: minus(dq),
-            qd: minus(dqd),
-            pi: minus(pi),
-            tau: lambda,
-            qdd,
-        }
-    })
+        data.kinematics(model, q, qd);
+        data.adjoint(model, &qdd, gbar, &mut row, &mut pi);
+    });
+    Adjoint {
+        q: row[..n].to_vec(),
+        qd: row[n..2 * n].to_vec(),
+        tau: row[2 * n..].to_vec(),
+        pi: pi.into_iter().map(|p| -p).collect(),
+        qdd,
+    }
 }

@@ -79,6 +79,9 @@ pub fn with_data<R>(f: impl FnOnce(&mut Data) -> R) -> R {
     })
 }
 
+/// Values per body that `save_placements` keeps: a rotation, an origin and a joint axis.
+pub const PLACED: usize = 9 + 3 + 6;
+
 fn fit<T: Clone + Default>(v: &mut Vec<T>, len: usize) {
     v.resize(len, T::default());
 }
@@ -139,12 +142,17 @@ impl Data {
 
     /// Placements, axes, velocities and inertias at (q, q̇), and the accelerations at q̈ = 0.
     pub fn kinematics(&mut self, model: &Model, q: &[f64], qd: &[f64]) {
+        self.placements(model, q);
+        self.motion(model, qd);
+    }
+
+    /// Each body's placement and joint axis in the root frame: what depends on q alone (and
+    /// holds the trigonometry).
+    fn placements(&mut self, model: &Model, q: &[f64]) {
         self.fit(model);
-        let g = model.gravity;
-        let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
         for (i, body) in model.bodies.iter().enumerate() {
             let x = body.placement(q, &0.0);
-            let (e, p, vp, ap) = match body.parent {
+            let (e, p) = match body.parent {
                 Some(k) => {
                     let (ek, pk) = (&self.rot[k], &self.pos[k]);
                     // E₀ = E E₀_parent, p = p_parent + E₀_parentᵀ r.
@@ -156,20 +164,55 @@ impl Data {
                             p[r] += ek[c][r] * x.r[c];
                         }
                     }
-                    (e, p, self.v[k], self.a[k])
+                    (e, p)
                 }
-                None => (x.e, x.r, ZERO6, a0),
+                None => (x.e, x.r),
             };
-            let s = motion_to_root(&e, &p, &body.joint.motion(&1.0, &0.0));
+            self.s[i] = motion_to_root(&e, &p, &body.joint.motion(&1.0, &0.0));
+            (self.rot[i], self.pos[i]) = (e, p);
+        }
+    }
+
+    /// After `placements`: velocities, d, accelerations at q̈ = 0, root-frame inertias and
+    /// momenta at q̇.
+    fn motion(&mut self, model: &Model, qd: &[f64]) {
+        let g = model.gravity;
+        let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
+        for (i, body) in model.bodies.iter().enumerate() {
+            let (vp, ap) = body.parent.map_or((ZERO6, a0), |k| (self.v[k], self.a[k]));
+            let s = &self.s[i];
             let rate = body.drive.rate(qd);
-            let d = cross(&vp, &s);
-            self.v[i] = add_scaled(&vp, rate, &s);
+            let d = cross(&vp, s);
+            self.v[i] = add_scaled(&vp, rate, s);
             self.a[i] = add_scaled(&ap, rate, &d);
-            self.inertia[i] = inertia_to_root(&e, &p, &body.inertia);
+            self.inertia[i] = inertia_to_root(&self.rot[i], &self.pos[i], &body.inertia);
             self.momentum[i] = apply(&self.inertia[i], &self.v[i]);
-            (self.rot[i], self.pos[i], self.s[i], self.d[i]) = (e, p, s, d);
+            self.d[i] = d;
             self.rate[i] = rate;
         }
+    }
+
+    /// Appends what `placements` computed (`PLACED` values per body) to `out`: a pass over
+    /// the same q later (training's backward pass) restores it instead of recomputing it.
+    pub fn save_placements(&self, out: &mut Vec<f64>) {
+        for ((e, p), s) in self.rot.iter().zip(&self.pos).zip(&self.s) {
+            out.extend(e.iter().flatten().chain(p).chain(s));
+        }
+    }
+
+    /// `kinematics` at (q, q̇) with q's placements from `save_placements` (`saved` holds
+    /// `PLACED` values per body of `model`).
+    pub fn kinematics_from(&mut self, model: &Model, saved: &[f64], qd: &[f64]) {
+        self.fit(model);
+        let bodies = self.rot.iter_mut().zip(&mut self.pos).zip(&mut self.s);
+        for (((e, p), s), x) in bodies.zip(saved.chunks_exact(PLACED)) {
+            for (r, row) in e.iter_mut().enumerate() {
+                row.copy_from_slice(&x[3 * r..3 * r + 3]);
+            }
+            p.copy_from_slice(&x[9..12]);
+            s.copy_from_slice(&x[12..]);
+        }
+        self.motion(model, qd);
     }
 
     /// Each body's force I a + v ×* I v at the current accelerations, summed over its subtree.
