@@ -1,0 +1,108 @@
+"""The service's answers to a fixed set of inference calls (Predict, Rollout, Linearize,
+Tvlqr, Plan by both methods) for a set of model files: the record that every evaluator of a
+model file (the service, the inference core, the C library) must reproduce bit for bit.
+
+`scripts/inference_fixtures.sh` writes the models and, through `record`, the requests and
+the service's answers to tests/fixtures/inference/answers.json; `test_inference_answers.py`
+replays the requests against the service and compares. The requests live in the JSON, not in
+code, so that a reader in any language replays exactly what was recorded.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+ANSWERS = ROOT / "tests/fixtures/inference/answers.json"
+
+# name → model file (relative to the repository). The oldest format and the ensemble are the
+# compatibility fixtures an earlier graybox wrote (tests/fixtures/compat).
+MODELS = {
+    "dp-mvf": "tests/fixtures/inference/dp-mvf.gbx",
+    "cartpole-wb": "tests/fixtures/inference/cartpole-wb.gbx",
+    "formula-dp-wb": "tests/fixtures/inference/formula-dp-wb.gbx",
+    "ur5-residual": "tests/fixtures/inference/ur5-residual.gbx",
+    "ensemble-wb-x3": "tests/fixtures/compat/wb-x3.gbx",
+    "oldest-format-mvf": "tests/fixtures/compat/mvf.gbx",
+}
+
+HORIZON = 10
+
+
+def requests(n: int, m: int, seed: int) -> list[dict]:
+    """The calls for a model with n coordinates and m inputs: states within ±1 (angles and
+    rates alike), inputs within ±1, a horizon of HORIZON steps, and the cost
+    Q = 𝟙, R = 0.1·𝟙, Qf = 10·𝟙 toward the origin."""
+    rng = np.random.default_rng(seed)
+    x = lambda *shape: rng.uniform(-1.0, 1.0, (*shape, 2 * n)).tolist()
+    u = lambda *shape: rng.uniform(-1.0, 1.0, (*shape, m)).tolist()
+    cost = {"Q": np.eye(2 * n).tolist(), "R": (0.1 * np.eye(m)).tolist(),
+            "Qf": (10.0 * np.eye(2 * n)).tolist()}
+    x0, us = x(), u(HORIZON)
+    plan = {"x0": x0, "goal": [0.0] * (2 * n), "horizon": HORIZON, "u_init": us,
+            "max_iterations": 3, **cost}
+    return [
+        {"rpc": "predict", "x": x(), "u": u()},
+        {"rpc": "predict", "x": x(4), "u": u(4)},
+        {"rpc": "rollout", "x0": x0, "u": us},
+        {"rpc": "linearize", "x": x(), "u": u()},
+        {"rpc": "linearize", "x": x(3), "u": u(3)},
+        {"rpc": "tvlqr", "x0": x0, "u": us, **cost},
+        {"rpc": "plan", "method": "ilqr", **plan},
+        {"rpc": "plan", "method": "dircol", **plan},
+    ]
+
+
+def _list(a) -> list:
+    return np.asarray(a, dtype=np.float64).tolist()
+
+
+def answer(client, model_id: str, call: dict) -> dict:
+    """The service's answer to one recorded call, as plain lists of floats."""
+    rpc = call["rpc"]
+    if rpc == "predict":
+        x_next, accel = client.predict(model_id, call["x"], call["u"], want_accel=True)
+        return {"x_next": _list(x_next), "accel": _list(accel)}
+    if rpc == "rollout":
+        return {"xs": _list(client.rollout(model_id, call["x0"], call["u"]))}
+    if rpc == "linearize":
+        a, b = client.linearize(model_id, call["x"], call["u"])
+        return {"A": _list(a), "B": _list(b)}
+    if rpc == "tvlqr":
+        # Along the model's own rollout of the inputs, as a controller tracking it would.
+        xbar = client.rollout(model_id, call["x0"], call["u"])
+        k, s = client.tvlqr(model_id, xbar, call["u"], call["Q"], call["R"], call["Qf"])
+        return {"K": _list(k), "S": _list(s)}
+    if rpc == "plan":
+        p = client.plan(model_id, call["x0"], call["goal"], call["horizon"], call["Q"],
+                        call["R"], call["Qf"], u_init=call["u_init"],
+                        max_iterations=call["max_iterations"], method=call["method"])
+        return {"x": _list(p.x), "u": _list(p.u), "K": _list(p.K), "cost": p.cost,
+                "costs": _list(p.costs), "iterations": p.iterations,
+                "converged": p.converged}
+    raise ValueError(f"unknown rpc {rpc}")
+
+
+def record(client, upload, skip=frozenset()) -> dict:
+    """Every model's calls and the service's answers (but those in `skip`); `upload(path)`
+    returns a model id."""
+    out = {}
+    for seed, (name, path) in enumerate(MODELS.items()):
+        if name in skip:
+            continue
+        model_id = upload(ROOT / path)
+        info = client.get_model(model_id)
+        calls = requests(info.n, info.m, seed)
+        out[name] = {"file": path, "n": info.n, "m": info.m,
+                     "calls": [{**c, "answer": answer(client, model_id, c)} for c in calls]}
+    return out
+
+
+def load() -> dict:
+    return json.loads(ANSWERS.read_text())
+
+
+def write(answers: dict) -> None:
+    ANSWERS.parent.mkdir(parents=True, exist_ok=True)
+    ANSWERS.write_text(json.dumps(answers, indent=1) + "\n")
