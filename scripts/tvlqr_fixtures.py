@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes the TVLQR golden fixtures in tests/fixtures/tvlqr/ (read by the Rust tests).
 
-Convention (as src/control/tvlqr.rs): cost Σ_{t<T} (δx_tᵀQδx_t + δu_tᵀRδu_t) + δx_TᵀQf δx_T
+Convention (as core/src/control/tvlqr.rs): cost Σ_{t<T} (δx_tᵀQδx_t + δu_tᵀRδu_t) + δx_TᵀQf δx_T
 (no ½), policy δu_t = −K_t δx_t, K has T entries and S has T+1 (S_T = Qf).
 
 Every expected value is checked here by a second, independent method before it is written:

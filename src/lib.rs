@@ -1,6 +1,10 @@
 //! graybox: structured Lagrangian (gray-box) dynamics models of mechanical systems, learned from
 //! transition data and served to controllers.
 //!
+//! The model files, the mechanics, f64 inference and control are the inference core
+//! (`graybox-core`, re-exported here under their own names); this crate adds training on
+//! Burn, the store, the core `App` and its adapters.
+//!
 //! Layers (ARCHITECTURE.md, enforced by tests/architecture.rs), bottom up: `error`, `rng`,
 //! `names`, `array` (shaped f64 data), `backend`, `data` (the dataset type), `records` (what the store keeps); the
 //! mechanics in `physics` (dynamics, templates, URDF robots; no Burn); the math in `model`
@@ -11,25 +15,18 @@
 
 pub mod api;
 pub mod app;
-pub mod array;
 pub mod backend;
 pub mod backoff;
 pub mod cli;
-pub mod control;
-pub mod data;
-pub mod error;
-pub mod infer;
 pub mod model;
-pub mod names;
 pub mod pem;
-pub mod physics;
 pub mod records;
-pub mod rng;
 pub mod service;
-pub mod sim;
-pub mod simd;
 pub mod store;
 pub mod train;
 pub mod worker;
+
+// The inference core's modules, under the paths the service has always used for them.
+pub use graybox_core::{array, control, data, error, infer, names, physics, rng, sim, simd};
 
 pub use error::{Error, Result};

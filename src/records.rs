@@ -2,7 +2,7 @@
 //! and writes these records (its rows add keys, leases and blobs around them), the core hands
 //! them to adapters as they are. `JobState` is the queue's vocabulary.
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 // The arrays themselves are a `data::Dataset`; the API schema keeps the name clients know.
 /// A dataset's metadata.
@@ -22,26 +22,7 @@ pub struct DatasetInfo {
     pub warnings: Vec<Warning>,
 }
 
-/// Something in the data or in a training run a person should look at. Warnings never block.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
-pub struct Warning {
-    /// A stable identifier, e.g. `coordinate_span`.
-    pub code: String,
-    /// What it concerns, e.g. `q[0]` (coordinate 0 of q), when it is one field.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub field: Option<String>,
-    pub message: String,
-}
-
-impl Warning {
-    pub fn new(code: &str, field: Option<String>, message: String) -> Self {
-        Self {
-            code: code.to_string(),
-            field,
-            message,
-        }
-    }
-}
+pub use graybox_core::records::Warning;
 
 // `model` and `training` are not columns: `store::jobs` reads them from the stored request.
 /// A training job and its progress.

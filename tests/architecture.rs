@@ -1,4 +1,5 @@
-//! The layers of ARCHITECTURE.md, enforced: reads every file under `src/` and fails on a
+//! The layers of ARCHITECTURE.md, enforced: reads every file under `src/` and `core/src/`
+//! (the inference core, whose modules keep their names and layers) and fails on a
 //! dependency that points up, naming file and line. It sees `use crate::x`, grouped
 //! `use crate::{x, y::z}`, paths written inline without a `use` (`crate::store::JobRow`),
 //! and `super::` paths that climb out of a layer. It also fails on a circle of modules inside
@@ -19,6 +20,8 @@ fn may_import(layer: &str, dep: &str) -> bool {
         // by `physics_is_free_of_burn`), no dataset, no record; `simd`'s kernels are plain
         // math on slices (the tape's tanh).
         "physics" => ["error", "rng", "names", "simd", "physics"].contains(&dep),
+        // Burn's tensors as the mechanics' scalars: the core's one module that names Burn.
+        "tensor_scalar" => ["error", "simd", "physics", "tensor_scalar"].contains(&dep),
         _ => !forbidden(layer).contains(&dep),
     }
 }
@@ -167,6 +170,11 @@ const MULTIBODY_MAY_USE: &[&str] = &["multibody", "scalar", "dual", "jet", "dyna
 
 /// `file:line: layer imports module` for every forbidden dependency in `src`.
 fn violations(src: &Path) -> Vec<String> {
+    violations_in(src, "src")
+}
+
+/// `violations` of the source tree `src`, named `label` in the messages.
+fn violations_in(src: &Path, label: &str) -> Vec<String> {
     let mut files = vec![];
     collect(src, &mut files);
     let mut out = vec![];
@@ -181,7 +189,7 @@ fn violations(src: &Path) -> Vec<String> {
             // The core's store field is crate-visible for the worker; adapters must not use it.
             if layer == "api" && code(line).contains("app.store") {
                 out.push(format!(
-                    "src/{}:{}: `api` must not reach the store through App: {}",
+                    "{label}/{}:{}: `api` must not reach the store through App: {}",
                     rel.display(),
                     n + 1,
                     line.trim()
@@ -191,7 +199,7 @@ fn violations(src: &Path) -> Vec<String> {
                 for dep in refs_of_line(&module, line, &["physics"]) {
                     if !MULTIBODY_MAY_USE.contains(&dep) {
                         out.push(format!(
-                            "src/{}:{}: `physics::multibody` must not import `physics::{dep}`: {}",
+                            "{label}/{}:{}: `physics::multibody` must not import `physics::{dep}`: {}",
                             rel.display(),
                             n + 1,
                             line.trim()
@@ -203,7 +211,7 @@ fn violations(src: &Path) -> Vec<String> {
             for dep in deps {
                 if !may_import(layer, dep) {
                     out.push(format!(
-                        "src/{}:{}: `{layer}` must not import `{dep}`: {}",
+                        "{label}/{}:{}: `{layer}` must not import `{dep}`: {}",
                         rel.display(),
                         n + 1,
                         line.trim()
@@ -232,8 +240,9 @@ fn collect(dir: &Path, out: &mut Vec<PathBuf>) {
 
 #[test]
 fn no_dependency_points_up() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let v = violations(&src);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut v = violations(&root.join("src"));
+    v.extend(violations_in(&root.join("core/src"), "core/src"));
     assert!(
         v.is_empty(),
         "{} forbidden dependencies (see ARCHITECTURE.md):\n{}",
@@ -244,7 +253,7 @@ fn no_dependency_points_up() {
 
 #[test]
 fn physics_is_free_of_burn() {
-    let physics = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/physics");
+    let physics = Path::new(env!("CARGO_MANIFEST_DIR")).join("core/src/physics");
     let mut files = vec![];
     collect(&physics, &mut files);
     let burn: Vec<String> = files
@@ -263,10 +272,47 @@ fn physics_is_free_of_burn() {
     assert!(burn.is_empty(), "physics/ uses Burn:\n{}", burn.join("\n"));
 }
 
+/// The inference core builds without Burn, an async runtime, a database or an RPC framework
+/// (its `burn` and `sqlx` features, which the service turns on, are off here), so what is built
+/// on it alone (the C library) links none of them.
+#[test]
+fn the_inference_core_depends_on_no_service_framework() {
+    let out = std::process::Command::new(env!("CARGO"))
+        .args([
+            "tree",
+            "-p",
+            "graybox-core",
+            "-e",
+            "normal",
+            "--prefix",
+            "none",
+            "--offline",
+        ])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let tree = String::from_utf8(out.stdout).unwrap();
+    assert!(tree.starts_with("graybox-core "), "{tree}");
+    let framework = |l: &&str| {
+        let name = l.split(' ').next().unwrap_or("");
+        ["burn", "tokio", "sqlx", "tonic"]
+            .iter()
+            .any(|f| name == *f || name.starts_with(&format!("{f}-")))
+    };
+    let found: Vec<&str> = tree.lines().filter(framework).collect();
+    assert!(found.is_empty(), "the core depends on {found:?}");
+}
+
 #[test]
 fn no_circle_of_modules_inside_a_layer() {
-    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
-    let c = cycles::circles(&src);
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut c = cycles::circles(&root.join("src"));
+    c.extend(cycles::circles(&root.join("core/src")));
     assert!(c.is_empty(), "{} circles:\n{}", c.len(), c.join("\n"));
 }
 
@@ -275,6 +321,7 @@ fn no_source_file_is_over_the_limit() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut long = sizes::too_long(&root.join("src"), "src");
     long.extend(sizes::too_long(&root.join("lab/src"), "lab/src"));
+    long.extend(sizes::too_long(&root.join("core/src"), "core/src"));
     assert!(
         long.is_empty(),
         "split these by concern (or, if generated or table-like, list them in \

@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use graybox::infer::Evaluator;
+use graybox::model::Model;
 use graybox::model::file::ModelFile;
 use graybox::records::JobState;
 use serde_json::{Value, json};
@@ -108,7 +109,7 @@ fn files_keep_their_value_names_and_order() {
             layout(&old.params),
             "{name}"
         );
-        let loaded = old.model(&device).unwrap();
+        let loaded = Model::from_file(&old, &device).unwrap();
         assert_eq!(
             loaded.params.export(),
             old.params,

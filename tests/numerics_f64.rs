@@ -521,7 +521,7 @@ fn sharded_batches_have_the_whole_batch_gradient() {
     }
 }
 
-/// graybox's tanh (one Burn op with its backward written out, `backend/tanh.rs`) against
+/// graybox's tanh (one Burn op with its backward written out, `tensor_scalar/tanh.rs` in the core) against
 /// Burn's own tanh and its autodiff, in f64, on Flex and NdArray, over the range a network
 /// sees (saturated ends included), on a non-contiguous (transposed) input. The fused kernel's
 /// exp is accurate to ~1e-16 relative, so values and gradients agree to 1e-14 absolute.

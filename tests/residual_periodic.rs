@@ -9,6 +9,7 @@ use std::sync::atomic::AtomicBool;
 
 use graybox::backend::{Backend, Precision};
 use graybox::data::Dataset;
+use graybox::model::Model;
 use graybox::model::file::ModelFile;
 use graybox::model::spec::ModelSpec;
 use graybox::physics::formula_template::FormulaTemplate;
@@ -257,7 +258,7 @@ fn a_template_model_keeps_its_angles_periodic() {
         )
         .unwrap()
     };
-    let model = file.model(&flex()).unwrap();
+    let model = Model::from_file(&file, &flex()).unwrap();
     let unwrapped = evaluate(&model, &row(next[0])).unwrap();
     let wrapped = evaluate(&model, &row(next[0] - 2.0 * PI)).unwrap();
     // f32 evaluation of the true system's own step: both are rounding-sized; unwrapped as an

@@ -13,6 +13,7 @@ use burn::tensor::Device;
 use graybox::backend::{Backend, Precision, device};
 use graybox::data::Dataset;
 use graybox::error::Error;
+use graybox::model::Model;
 use graybox::model::file::ModelFile;
 use graybox::model::spec::{ModelSpec, NAMED};
 use graybox::physics::templates::Template;
@@ -61,10 +62,9 @@ fn every_named_model_trains_and_evaluates() {
                 t.name()
             );
             let file = trainer.model_file();
-            let model = ModelFile::from_bytes(&file.to_bytes().unwrap())
-                .unwrap()
-                .model(&device(Backend::Flex, Precision::F32).unwrap())
-                .unwrap();
+            let back = ModelFile::from_bytes(&file.to_bytes().unwrap()).unwrap();
+            let model =
+                Model::from_file(&back, &device(Backend::Flex, Precision::F32).unwrap()).unwrap();
             let loss = evaluate(&model, &val).unwrap();
             assert!(loss.is_finite(), "{name}");
         }
@@ -383,9 +383,7 @@ fn saved_model_is_the_best_validation_model() {
     t.run(&AtomicBool::new(false), |_, _| {}).unwrap();
     let file = t.model_file();
     let report = file.report.clone().unwrap();
-    let model = file
-        .model(&device(Backend::Flex, Precision::F32).unwrap())
-        .unwrap();
+    let model = Model::from_file(&file, &device(Backend::Flex, Precision::F32).unwrap()).unwrap();
     let loss = evaluate(&model, &val).unwrap();
     let best = report.best_val_loss.unwrap();
     assert!(

@@ -1,13 +1,13 @@
-//! Backend and precision selection, and graybox's own Burn operations (`tanh.rs`, and
-//! `rows.rs` for a host function of each row with its vector–Jacobian product). Burn fixes
+//! Backend and precision selection, and graybox's own Burn operations (the fused tanh, which
+//! lives beside the tensors' `Scalar` impl in the core's `tensor_scalar`, and `rows.rs` for a
+//! host function of each row with its vector–Jacobian product). Burn fixes
 //! a device's float type once per process (docs/training.md#precision), so precision is a process-level
 //! setting.
 
 mod rows;
-mod tanh;
 
+pub use graybox_core::tensor_scalar::tanh;
 pub use rows::{Kept, RowFn, RowFunction, row_map};
-pub use tanh::tanh;
 
 use burn::tensor::{Device, FloatDType};
 use serde::{Deserialize, Serialize};

@@ -4,7 +4,7 @@
 //! (a robot's forward dynamics: hundreds of scalar operations per state), where Burn's ops
 //! would allocate a `[batch, 1]` column for every one of them and record each on the tape.
 //!
-//! Like `tanh.rs`, a backend extension (`#[backend_extension]`): Flex and NdArray read the
+//! Like the fused tanh (the core's `tensor_scalar/tanh.rs`), a backend extension (`#[backend_extension]`): Flex and NdArray read the
 //! tensors to the host and back, and Autodiff over either keeps the host rows and outputs for
 //! the backward pass.
 

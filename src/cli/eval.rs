@@ -10,6 +10,7 @@ use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::infer::horizons::{check_horizons, horizon_errors};
+use crate::model::Model;
 use crate::model::file::ModelFile;
 use crate::model::report::{Spread, identifiable, used_physical};
 use crate::train::trainer::{evaluate, evaluate_members};
@@ -55,7 +56,7 @@ pub(super) fn eval(a: EvalArgs) -> Result<()> {
     if file.member_count() > 1 {
         return eval_ensemble(&file, &data, &device);
     }
-    let model = file.model(&device)?;
+    let model = Model::from_file(&file, &device)?;
     let loss = evaluate(&model, &data)?;
     println!("{}", json!({"loss": loss, "count": data.count()}));
     Ok(())
@@ -65,7 +66,7 @@ pub(super) fn eval(a: EvalArgs) -> Result<()> {
 /// each member's own and how far apart their predictions are.
 fn eval_ensemble(file: &ModelFile, data: &Dataset, device: &burn::tensor::Device) -> Result<()> {
     let members = (0..file.member_count())
-        .map(|k| file.member(k).model(device))
+        .map(|k| Model::from_file(&file.member(k), device))
         .collect::<Result<Vec<_>>>()?;
     let e = evaluate_members(&members, data)?;
     println!(
@@ -121,7 +122,9 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
     });
     if let Some(t) = c.template() {
         let device = backend::device(Backend::Flex, Precision::F32)?;
-        let values = file.model(&device)?.physical_values().unwrap_or_default();
+        let values = Model::from_file(&file, &device)?
+            .physical_values()
+            .unwrap_or_default();
         let parts = c.spec.white_box_parts();
         out["template"] = json!(t.name());
         // In the model's order, which is not Pinocchio's on a branching robot: how a user

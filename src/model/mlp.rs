@@ -184,7 +184,7 @@ impl From<Tensor<3>> for InputTangent {
     }
 }
 
-/// The hidden layers' activation: one fused Burn op (`backend/tanh.rs`).
+/// The hidden layers' activation: one fused Burn op (the core's `tensor_scalar/tanh.rs`).
 pub fn tanh<const D: usize>(z: Tensor<D>) -> Tensor<D> {
     crate::backend::tanh(z)
 }

@@ -1,56 +1,35 @@
 //! The structured Lagrangian model (docs/dynamics.md) on Burn: parameters, the dynamics
 //! q̈ = M⁻¹(F − c − ∂V/∂q), one-step prediction by an integrator, and the loss.
 
-pub mod file;
 mod fused;
 mod init;
 pub mod mlp;
 mod multibody;
 pub mod params;
 pub mod params_io;
-pub mod report;
-mod scaling;
-pub mod spec;
-mod spec_json;
 mod tensors;
+
+// The model as its file describes it lives in the inference core (ARCHITECTURE.md).
+pub use graybox_core::model::{ModelConfig, NamedArray, file, names, report, spec};
 
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
-use serde::{Deserialize, Serialize};
 
 use crate::error::Result;
 use crate::physics::assembly::{Structure, Values};
 use crate::physics::dual::Dual;
 use crate::physics::dynamics::{Tri, acceleration};
-use crate::physics::integrator::Integrator;
 use crate::physics::params::Part;
 use crate::physics::parts::PotentialSpec;
-use crate::physics::scaling::Scaling;
 use crate::physics::templates::Template;
 use crate::rng::Rng;
+use file::ModelFile;
 use mlp::{Mlp, param};
 pub use params::Params;
 use params::{Components, PotentialParams, Values as Trainable};
 use spec::ModelSpec;
 use tensors::{BurnNets, Consts, LazyColumns};
 pub use tensors::{columns, dual_columns};
-
-/// Everything that defines a model apart from its trainable values.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ModelConfig {
-    pub spec: ModelSpec,
-    pub n: usize,
-    pub m: usize,
-    pub dt: f64,
-    pub integrator: Integrator,
-    /// Weight of the velocity error in the loss.
-    pub lambda: f64,
-    pub scaling: Scaling,
-    /// Which coordinates are angles (empty: none, as in every file before this field): the
-    /// networks see (sin q, cos q) for them and the loss compares them on the circle.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub periodic: Vec<bool>,
-}
 
 /// A model bound to a device: config, parameters and the derived constants.
 #[derive(Debug, Clone)]
@@ -67,36 +46,6 @@ pub struct Parts {
     /// ∂V/∂q (`None` for a zero potential).
     pub grad_v: Option<Vec<Tensor<2>>>,
     pub forces: Vec<Tensor<2>>,
-}
-
-impl ModelConfig {
-    pub fn template(&self) -> Option<&Template> {
-        self.spec.template()
-    }
-
-    /// `periodic` as a file stores it: none marked is empty, as in every file before the field.
-    pub fn stored_periodic(angles: Vec<bool>) -> Vec<bool> {
-        if angles.contains(&true) {
-            angles
-        } else {
-            vec![]
-        }
-    }
-
-    /// Whether coordinate k is an angle.
-    pub fn is_periodic(&self, k: usize) -> bool {
-        self.periodic.get(k).copied().unwrap_or(false)
-    }
-
-    /// The width of a network input made of q: one per coordinate, two per angle.
-    pub fn q_inputs(&self) -> usize {
-        self.n + (0..self.n).filter(|&k| self.is_periodic(k)).count()
-    }
-
-    /// The width of a network input made of [q, q̇, u].
-    pub fn full_inputs(&self) -> usize {
-        self.q_inputs() + self.n + self.m
-    }
 }
 
 impl Model {
@@ -151,6 +100,16 @@ impl Model {
             }
         };
         Ok(Self::from_parts(config, params, device))
+    }
+
+    /// The model a file describes, on `device`.
+    pub fn from_file(file: &ModelFile, device: &Device) -> Result<Self> {
+        let skeleton = Model::init(file.config.clone(), None, 0, device)?;
+        let mut params = params_io::import(skeleton.params, &file.params, device)?;
+        if let Params::Structured(c) = &mut params {
+            c.physical_as_is = file.params.iter().any(|a| a.name == names::PHYSICAL_VALUES);
+        }
+        Ok(Model::from_parts(file.config.clone(), params, device))
     }
 
     /// The model of `config` with `params`, on the fused step when its spec takes it

@@ -16,23 +16,7 @@ use super::params_io::{NamedArray, export_as};
 
 /// The file names of a model's values. A network's arrays are `<name>.layers.<i>.weight`
 /// and `<name>.layers.<i>.bias`.
-pub mod names {
-    pub const NAIVE: &str = "naive";
-    pub const MASS_NET: &str = "mass_net";
-    pub const MASS_CONST: &str = "mass_const";
-    pub const POTENTIAL_NET: &str = "potential_net";
-    pub const POTENTIAL_QUAD: &str = "potential_quad";
-    pub const FORCE_NET: &str = "force_net";
-    pub const B_NET: &str = "b_net";
-    pub const DAMPING_NET: &str = "damping_net";
-    pub const B_CONST: &str = "b_const";
-    pub const ETA: &str = "eta";
-    pub const PHYSICAL: &str = "physical";
-    /// The template's physical values as they are, for a model that trains nothing
-    /// (`ModelFile::from_template`): a URDF's massless link or point mass stays what the
-    /// file says, where the trainable form needs floors.
-    pub const PHYSICAL_VALUES: &str = "physical_values";
-}
+pub use crate::model::names;
 
 /// A rank-2 trainable tensor.
 pub type Values = Param<Tensor<2>>;

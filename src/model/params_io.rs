@@ -4,17 +4,10 @@
 
 use burn::module::{Module, ModuleMapper, ModuleVisitor, Param};
 use burn::tensor::{Device, Tensor, TensorData};
-use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
 
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct NamedArray {
-    /// The value's name in the file, e.g. "mass_net.layers.0.weight" (see `params::names`).
-    pub name: String,
-    pub shape: Vec<usize>,
-    pub values: Vec<f64>,
-}
+pub use crate::model::NamedArray;
 
 struct Exporter {
     path: Vec<String>,

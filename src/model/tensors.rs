@@ -9,8 +9,6 @@ use super::params::{Components, ControlAffine, ForceParams, MassParams, Passive,
 use crate::backend::RowFn;
 use crate::physics::assembly;
 use crate::physics::dual::Dual;
-use crate::physics::integrator::StateVec;
-use crate::physics::scalar::Scalar;
 
 /// Constant tensors derived from the config, built once per device.
 #[derive(Debug, Clone)]
@@ -220,19 +218,6 @@ impl assembly::Inputs<Tensor<2>> for LazyColumns<'_> {
     }
 }
 
-/// Trainable values in training: `[1, 1]` tensors, tracked.
-impl assembly::Coef<Tensor<2>> for Tensor<2> {
-    fn times(&self, x: &Tensor<2>) -> Tensor<2> {
-        x.clone() * self.clone()
-    }
-    fn value(&self, _like: &Tensor<2>) -> Tensor<2> {
-        self.clone()
-    }
-    fn mul_div(&self, mul: f64, div: f64) -> Self {
-        self.clone().mul_scalar(mul / div)
-    }
-}
-
 /// Splits `[batch, k]` into k columns `[batch, 1]`.
 pub fn columns(x: &Tensor<2>) -> Vec<Tensor<2>> {
     let k = x.dims()[1];
@@ -250,58 +235,6 @@ pub fn dual_columns(y: Tensor<2>, jac: Tensor<3>) -> Vec<Dual<Tensor<2>>> {
             Dual::new(y.clone().narrow(1, j, 1), d)
         })
         .collect()
-}
-
-/// A Burn float tensor used as a scalar column: `[batch, 1]` for per-sample values, `[1, 1]`
-/// for parameters (broadcast against the batch).
-impl Scalar for Tensor<2> {
-    fn cos(&self) -> Self {
-        self.clone().cos()
-    }
-    fn sin(&self) -> Self {
-        self.clone().sin()
-    }
-    fn sqrt(&self) -> Self {
-        self.clone().sqrt()
-    }
-    fn exp(&self) -> Self {
-        self.clone().exp()
-    }
-    fn ln(&self) -> Self {
-        self.clone().log()
-    }
-    fn atan2(&self, x: &Self) -> Self {
-        self.clone().atan2(x.clone())
-    }
-    fn sigmoid(&self) -> Self {
-        burn::tensor::activation::sigmoid(self.clone())
-    }
-    fn softplus(&self) -> Self {
-        // The same overflow-free form as the f64 impl, so both paths agree to rounding
-        // (Burn's own softplus switches to the identity above a threshold).
-        self.clone().clamp_min(0.0) + self.clone().abs().neg().exp().log1p()
-    }
-    fn scale(&self, c: f64) -> Self {
-        self.clone().mul_scalar(c)
-    }
-    fn shift(&self, c: f64) -> Self {
-        self.clone().add_scalar(c)
-    }
-    fn square(&self) -> Self {
-        self.clone().square()
-    }
-    fn tanh(&self) -> Self {
-        super::mlp::tanh(self.clone())
-    }
-    fn lift(&self, c: f64) -> Self {
-        self.full_like(c)
-    }
-}
-
-impl StateVec for Tensor<2> {
-    fn axpy(&self, a: f64, x: &Self) -> Self {
-        self.clone() + x.clone().mul_scalar(a)
-    }
 }
 
 /// The structured model's networks on a batch, as columns (M's and V's with their

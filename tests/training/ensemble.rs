@@ -5,6 +5,7 @@
 use std::sync::atomic::AtomicBool;
 
 use graybox::error::Error;
+use graybox::model::Model;
 use graybox::model::file::{FORMAT_ENSEMBLE, ModelFile};
 use graybox::model::spec::ModelSpec;
 use graybox::physics::templates::Template;
@@ -311,7 +312,7 @@ fn an_ensembles_eval_is_its_mean_predictions_loss() {
     // This process computes in f32 (fixed per process); the evaluator in f64.
     let dev = device(Backend::Flex, Precision::F32).unwrap();
     let models: Vec<_> = (0..3)
-        .map(|k| file.member(k).model(&dev).unwrap())
+        .map(|k| Model::from_file(&file.member(k), &dev).unwrap())
         .collect();
     let test = data(&Template::DoublePendulum, 300, 23);
     let got = evaluate_members(&models, &test).unwrap();

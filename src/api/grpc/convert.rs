@@ -15,8 +15,22 @@ use crate::control::plan::{
 };
 use crate::error::Error;
 
-impl From<Error> for Status {
-    fn from(e: Error) -> Self {
+/// `?` for the library's results in a gRPC handler: `app.call().await.or_status()?`. (The
+/// error type is the inference core's and `Status` is tonic's, so no `From` between them may
+/// be written here.)
+pub trait OrStatus<T> {
+    fn or_status(self) -> Result<T, Status>;
+}
+
+impl<T> OrStatus<T> for crate::error::Result<T> {
+    fn or_status(self) -> Result<T, Status> {
+        self.map_err(status)
+    }
+}
+
+/// The one mapping of the library's errors to gRPC statuses (ARCHITECTURE.md's table).
+pub fn status(e: Error) -> Status {
+    {
         // The message quotes the field and what the caller sent: bounded like REST's.
         let msg = bounded(e.public_message(), MESSAGE_LIMIT);
         if let Error::Storage(detail) = &e {
@@ -67,7 +81,7 @@ pub fn take(field: &str, a: Option<pb::Array>) -> Result<Array, Status> {
 pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
     // The message's field for a missing array, the math's name for a bad one (as TVLQR's).
     let matrix = |field: &str, name: &str, a: Option<pb::Array>| -> Result<Mat, Status> {
-        Ok(Mat::from_array(name, take(field, a)?)?)
+        Mat::from_array(name, take(field, a)?).or_status()
     };
     let bound = |v: Vec<f64>| (!v.is_empty()).then_some(v);
     Ok(PlanRequest {
@@ -88,8 +102,8 @@ pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
             .transpose()?,
         x_min: bound(r.x_min),
         x_max: bound(r.x_max),
-        method: Method::parse(&r.method)?,
-        ensemble_cost: EnsembleCost::parse(&r.ensemble_cost)?,
+        method: Method::parse(&r.method).or_status()?,
+        ensemble_cost: EnsembleCost::parse(&r.ensemble_cost).or_status()?,
         max_iterations: r
             .max_iterations
             .map_or(DEFAULT_MAX_ITERATIONS, |v| v as usize),

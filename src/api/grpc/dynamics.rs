@@ -7,7 +7,7 @@ use futures_util::{Stream, StreamExt};
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status};
 
-use super::convert::{model_info, plan_request, take};
+use super::convert::{OrStatus, model_info, plan_request, take};
 use super::pb::{self, dynamics_server::Dynamics};
 use crate::app::App;
 use crate::app::inference::{Energy, RolloutInputs, RolloutShape, Want};
@@ -58,7 +58,11 @@ impl Dynamics for DynamicsService {
             accel: r.want_accel,
             members: r.members,
         };
-        let p = self.app.predict(&r.model_id, x, u, want, until).await?;
+        let p = self
+            .app
+            .predict(&r.model_id, x, u, want, until)
+            .await
+            .or_status()?;
         Ok(Response::new(pb::PredictResponse {
             id: r.id,
             x_next: Some(p.next.into()),
@@ -77,7 +81,11 @@ impl Dynamics for DynamicsService {
         let until = deadline(&req);
         let r = req.into_inner();
         let (x, u) = (take("x", r.x)?, take("u", r.u)?);
-        let Energy { n, energies: e } = self.app.energy(&r.model_id, x, u, until).await?;
+        let Energy { n, energies: e } = self
+            .app
+            .energy(&r.model_id, x, u, until)
+            .await
+            .or_status()?;
         let b = e.kinetic.len();
         let array = |v: Vec<f64>| Some(Array::new(&[b, n], v).into());
         Ok(Response::new(pb::EnergyResponse {
@@ -124,10 +132,11 @@ impl Dynamics for DynamicsService {
         let rx = self
             .app
             .rollout(&r.model_id, r.x0, inputs, shape, until)
-            .await?;
+            .await
+            .or_status()?;
         let id = r.id;
         let stream = ReceiverStream::new(rx).map(move |c| {
-            let c = c?;
+            let c = c.or_status()?;
             Ok(pb::RolloutChunk {
                 id: id.clone(),
                 start: c.start as u64,
@@ -147,7 +156,11 @@ impl Dynamics for DynamicsService {
         let until = deadline(&req);
         let r = req.into_inner();
         let (x, u) = (take("x", r.x)?, take("u", r.u)?);
-        let l = self.app.linearize(&r.model_id, x, u, until).await?;
+        let l = self
+            .app
+            .linearize(&r.model_id, x, u, until)
+            .await
+            .or_status()?;
         Ok(Response::new(pb::LinearizeResponse {
             id: r.id,
             a: Some(l.a.into()),
@@ -167,7 +180,8 @@ impl Dynamics for DynamicsService {
         let g = self
             .app
             .tvlqr(&r.model_id, xbar, ubar, weights, until)
-            .await?;
+            .await
+            .or_status()?;
         Ok(Response::new(pb::TvlqrResponse {
             id: r.id,
             k: Some(g.k.into()),
@@ -183,7 +197,11 @@ impl Dynamics for DynamicsService {
         let mut r = req.into_inner();
         let id = std::mem::take(&mut r.id);
         let model_id = std::mem::take(&mut r.model_id);
-        let p = self.app.plan(&model_id, plan_request(r)?, until).await?;
+        let p = self
+            .app
+            .plan(&model_id, plan_request(r)?, until)
+            .await
+            .or_status()?;
         let (t, nx) = (p.gains.k.len(), p.x.len() / (p.gains.k.len() + 1));
         let m = p.u.len() / t.max(1);
         Ok(Response::new(pb::PlanResponse {
@@ -207,7 +225,11 @@ impl Dynamics for DynamicsService {
         &self,
         req: Request<pb::GetModelRequest>,
     ) -> Result<Response<pb::ModelInfo>, Status> {
-        let row = self.app.resolve_model(&req.into_inner().model_id).await?;
+        let row = self
+            .app
+            .resolve_model(&req.into_inner().model_id)
+            .await
+            .or_status()?;
         Ok(Response::new(model_info(&row)))
     }
 
@@ -218,7 +240,7 @@ impl Dynamics for DynamicsService {
         let r = req.into_inner();
         let size = (r.page_size != 0).then_some(r.page_size as i64);
         let token = (!r.page_token.is_empty()).then_some(r.page_token.as_str());
-        let (items, next) = self.app.list_models(size, token).await?;
+        let (items, next) = self.app.list_models(size, token).await.or_status()?;
         Ok(Response::new(pb::ListModelsResponse {
             models: items.iter().map(model_info).collect(),
             next_page_token: next.unwrap_or_default(),

@@ -90,3 +90,20 @@ impl Error {
         }
     }
 }
+
+// The database's errors are the cluster's (ARCHITECTURE.md's table: Storage). These live here,
+// beside the type, because Rust lets a foreign error convert into this one only in its crate;
+// the C library builds without the feature and links no database.
+#[cfg(feature = "sqlx")]
+impl From<sqlx::Error> for Error {
+    fn from(e: sqlx::Error) -> Self {
+        Error::Storage(e.to_string())
+    }
+}
+
+#[cfg(feature = "sqlx")]
+impl From<sqlx::migrate::MigrateError> for Error {
+    fn from(e: sqlx::migrate::MigrateError) -> Self {
+        Error::Storage(format!("migration failed: {e}"))
+    }
+}

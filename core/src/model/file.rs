@@ -7,19 +7,15 @@ use std::path::Path;
 
 use std::collections::BTreeMap;
 
-use super::params::names;
 use super::report::TrainReport;
 use super::spec::ModelSpec;
+use super::{ModelConfig, NamedArray, names};
 use crate::error::{Error, Result};
-use crate::model::params::Params;
-use crate::model::params_io::{NamedArray, import};
-use crate::model::{Model, ModelConfig, raw_physical};
 use crate::physics::integrator::Integrator;
 use crate::physics::params::Part;
 use crate::physics::scaling::Scaling;
 use crate::physics::templates::Template;
 use crate::records::Warning;
-use burn::tensor::Device;
 
 /// The format of files whose template is a built-in one (older graybox versions read them).
 pub const FORMAT: &str = "graybox.model/1";
@@ -123,7 +119,7 @@ impl ModelFile {
             ));
         }
         // Values the trainable form refuses (a body that is not physical) are refused here too.
-        raw_physical(t, values)?;
+        t.raw_from_physical(values)?;
         // Continuous joints and a formula's angles stay angles: a row that wraps across π must
         // cost its true difference, not (2π)². None marked is stored empty, as training does.
         let config = ModelConfig {
@@ -259,16 +255,6 @@ impl ModelFile {
             }
         }
         crate::physics::urdf::export::export(u, &physical)
-    }
-
-    /// The model on `device` with these parameters.
-    pub fn model(&self, device: &Device) -> Result<Model> {
-        let skeleton = Model::init(self.config.clone(), None, 0, device)?;
-        let mut params = import(skeleton.params, &self.params, device)?;
-        if let Params::Structured(c) = &mut params {
-            c.physical_as_is = self.params.iter().any(|a| a.name == names::PHYSICAL_VALUES);
-        }
-        Ok(Model::from_parts(self.config.clone(), params, device))
     }
 }
 

@@ -6,9 +6,9 @@ use std::collections::HashMap;
 
 use super::Mlp64;
 use crate::error::{Error, Result};
+use crate::model::NamedArray;
 use crate::model::file::ModelFile;
-use crate::model::params::names;
-use crate::model::params_io::NamedArray;
+use crate::model::names;
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::Values;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};

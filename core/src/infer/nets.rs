@@ -7,7 +7,7 @@ use super::activations::Activations;
 use super::col::Lanes;
 use super::weights::{Components, Forces};
 use crate::error::{Error, Result};
-use crate::model::params_io::NamedArray;
+use crate::model::NamedArray;
 use crate::physics::assembly::Networks;
 use crate::physics::dual::Dual;
 use crate::physics::scaling::Scaling;

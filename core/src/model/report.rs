@@ -25,7 +25,8 @@ pub struct EpochMetrics {
 }
 
 /// The errors after `horizon` steps over every window of that many transitions.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct HorizonError {
     pub horizon: usize,
     /// horizon × Δt.
@@ -99,7 +100,8 @@ pub struct TrainReport {
 
 /// Whether a model keeps, creates or loses energy where it has data (README "Energy and
 /// power"), measured once on states drawn from a dataset.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct EnergyReport {
     /// The dataset it was measured on when asked for (`POST /v1/models/{id}/energy-report`);
     /// absent when measured on the training data as the job finished.
@@ -122,7 +124,8 @@ pub struct EnergyReport {
 }
 
 /// |E(t) − E(0)| / energy scale after `steps` steps of the unforced rollouts.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct EnergyDrift {
     pub steps: usize,
     /// steps × Δt.
@@ -136,7 +139,8 @@ pub struct EnergyDrift {
 
 /// Where the unforced generalized force F(q, q̇, 0) injects energy: q̇ᵀF > 0 beyond rounding
 /// (1e-9 · ‖q̇‖‖F‖). A passive system never does.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, utoipa::ToSchema)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct Passivity {
     pub states: usize,
     pub injecting: usize,

@@ -1,0 +1,26 @@
+//! graybox's inference core: everything a trained model needs to answer, with no Burn, async
+//! runtime, database or RPC framework (ARCHITECTURE.md). The service (`graybox`) and the C
+//! library (`graybox-c`) are built on it.
+//!
+//! Layers, bottom up: `error`, `rng`, `names`, `simd`, `array` (shaped f64 data), `records`
+//! (a warning), `data` (the dataset type); the mechanics in `physics`; then `model` (a model
+//! as its file describes it), `infer` (f64 evaluation), `control` (TVLQR, planning) and `sim`
+//! (simulated data, a template's true system). `tensor_scalar` (feature `burn`) makes Burn's
+//! tensors the mechanics' scalars for training.
+
+pub mod array;
+pub mod control;
+pub mod data;
+pub mod error;
+pub mod infer;
+pub mod model;
+pub mod names;
+pub mod physics;
+pub mod records;
+pub mod rng;
+pub mod sim;
+pub mod simd;
+#[cfg(feature = "burn")]
+pub mod tensor_scalar;
+
+pub use error::{Error, Result};
