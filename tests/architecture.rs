@@ -273,39 +273,41 @@ fn physics_is_free_of_burn() {
 }
 
 /// The inference core builds without Burn, an async runtime, a database or an RPC framework
-/// (its `burn` and `sqlx` features, which the service turns on, are off here), so what is built
-/// on it alone (the C library) links none of them.
+/// (its `burn` and `sqlx` features, which the service turns on, are off here), and so does
+/// the C library built on it alone.
 #[test]
-fn the_inference_core_depends_on_no_service_framework() {
-    let out = std::process::Command::new(env!("CARGO"))
-        .args([
-            "tree",
-            "-p",
-            "graybox-core",
-            "-e",
-            "normal",
-            "--prefix",
-            "none",
-            "--offline",
-        ])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let tree = String::from_utf8(out.stdout).unwrap();
-    assert!(tree.starts_with("graybox-core "), "{tree}");
-    let framework = |l: &&str| {
-        let name = l.split(' ').next().unwrap_or("");
-        ["burn", "tokio", "sqlx", "tonic"]
-            .iter()
-            .any(|f| name == *f || name.starts_with(&format!("{f}-")))
-    };
-    let found: Vec<&str> = tree.lines().filter(framework).collect();
-    assert!(found.is_empty(), "the core depends on {found:?}");
+fn the_inference_core_and_the_c_library_depend_on_no_service_framework() {
+    for package in ["graybox-core", "graybox-c"] {
+        let out = std::process::Command::new(env!("CARGO"))
+            .args([
+                "tree",
+                "-p",
+                package,
+                "-e",
+                "normal",
+                "--prefix",
+                "none",
+                "--offline",
+            ])
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let tree = String::from_utf8(out.stdout).unwrap();
+        assert!(tree.starts_with(&format!("{package} ")), "{tree}");
+        let framework = |l: &&str| {
+            let name = l.split(' ').next().unwrap_or("");
+            ["burn", "tokio", "sqlx", "tonic"]
+                .iter()
+                .any(|f| name == *f || name.starts_with(&format!("{f}-")))
+        };
+        let found: Vec<&str> = tree.lines().filter(framework).collect();
+        assert!(found.is_empty(), "{package} depends on {found:?}");
+    }
 }
 
 #[test]
@@ -322,6 +324,7 @@ fn no_source_file_is_over_the_limit() {
     let mut long = sizes::too_long(&root.join("src"), "src");
     long.extend(sizes::too_long(&root.join("lab/src"), "lab/src"));
     long.extend(sizes::too_long(&root.join("core/src"), "core/src"));
+    long.extend(sizes::too_long(&root.join("capi/src"), "capi/src"));
     assert!(
         long.is_empty(),
         "split these by concern (or, if generated or table-like, list them in \

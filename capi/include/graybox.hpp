@@ -1,0 +1,71 @@
+// graybox.hpp: a C++17 wrapper of graybox.h (written by hand, header-only). A Model owns its
+// handle (RAII: freed when the Model goes), is movable, not copyable, and may be shared by
+// reference across threads like the handle; a failed call throws graybox::Error with the
+// status and the library's message.
+#ifndef GRAYBOX_HPP
+#define GRAYBOX_HPP
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "graybox.h"
+
+namespace graybox {
+
+class Error : public std::runtime_error {
+ public:
+  Error(GbxStatus status, const char* message) : std::runtime_error(message), status_(status) {}
+  GbxStatus status() const { return status_; }
+
+ private:
+  GbxStatus status_;
+};
+
+inline void check(GbxStatus status) {
+  if (status != GBX_STATUS_OK) throw Error(status, gbx_last_error());
+}
+
+class Model {
+ public:
+  explicit Model(const std::string& path) {
+    GbxModel* m = nullptr;
+    check(gbx_model_load(path.c_str(), &m));
+    handle_.reset(m);
+  }
+  Model(const uint8_t* data, size_t len) {
+    GbxModel* m = nullptr;
+    check(gbx_model_load_buffer(data, len, &m));
+    handle_.reset(m);
+  }
+
+  size_t n() const { return gbx_model_n(get()); }
+  size_t m() const { return gbx_model_m(get()); }
+  double dt() const { return gbx_model_dt(get()); }
+
+  // x [batch, 2n], u [batch, m] -> x_next [batch, 2n] (and q̈ [batch, n] unless null).
+  void predict(const double* x, const double* u, size_t batch, double* x_next,
+               double* accel = nullptr) const {
+    check(gbx_predict(get(), x, u, batch, x_next, accel));
+  }
+  // A [batch, 2n, 2n] and B [batch, 2n, m] of the one-step map.
+  void linearize(const double* x, const double* u, size_t batch, double* a, double* b) const {
+    check(gbx_linearize(get(), x, u, batch, a, b));
+  }
+  // xs [steps + 1, 2n] from x0 [2n] under u [steps, m].
+  void rollout(const double* x0, const double* u, size_t steps, double* xs) const {
+    check(gbx_rollout(get(), x0, u, steps, xs));
+  }
+
+  const GbxModel* get() const { return handle_.get(); }
+
+ private:
+  struct Free {
+    void operator()(GbxModel* m) const { gbx_model_free(m); }
+  };
+  std::unique_ptr<GbxModel, Free> handle_;
+};
+
+}  // namespace graybox
+
+#endif  // GRAYBOX_HPP

@@ -1,0 +1,333 @@
+//! graybox's trained models inside a C or C++ controller's own process, with no service in
+//! the loop: load a model file (`.gbx`, every format the service loads, ensembles included),
+//! then predict, linearize and roll out from the caller's buffers. Built on the inference core
+//! alone (`graybox-core`), so the library links no Burn, async runtime, database or RPC
+//! framework. The answers are the service's, bit for bit (`tests/answers.rs` replays the
+//! service's recorded answers through this ABI).
+//!
+//! The header `include/graybox.h` is generated from this file by cbindgen
+//! (`tests/header.rs` fails when the committed one differs from a fresh generation).
+//!
+//! Thread safety: a loaded model is immutable; one handle may be used from any number of
+//! threads at once. Per-call scratch lives in the calling thread's workspace (the multibody
+//! `Data` and the evaluator's buffers), never in the handle. The message of a failed call is
+//! kept per thread (`gbx_last_error`).
+
+use std::cell::RefCell;
+use std::ffi::{CStr, CString, c_char};
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::path::Path;
+
+use graybox_core::error::Error;
+use graybox_core::infer::{Evaluator, finite_rows};
+use graybox_core::model::file::ModelFile;
+
+/// What a call returns: `GBX_STATUS_OK`, or why it failed (`gbx_last_error` says more).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GbxStatus {
+    Ok = 0,
+    /// A null pointer where an array was needed, a zero batch, or an input the model cannot
+    /// evaluate (its outputs would not be finite).
+    InvalidArgument = 1,
+    /// The file is not a graybox model file, or not one this library can read.
+    Corrupt = 2,
+    /// The file could not be read (the message names it and why).
+    Io = 3,
+    /// A fault of the library itself (a bug: please report it with the message).
+    Internal = 4,
+}
+
+/// A loaded model (opaque to C): immutable and shareable across threads.
+pub struct GbxModel {
+    eval: Evaluator,
+    n: usize,
+    m: usize,
+    dt: f64,
+}
+
+thread_local! {
+    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
+}
+
+fn remember(message: String) {
+    let c = CString::new(message.replace('\0', " ")).unwrap_or_default();
+    LAST_ERROR.with(|e| *e.borrow_mut() = c);
+}
+
+fn status_of(e: &Error) -> GbxStatus {
+    match e {
+        Error::Invalid { .. } | Error::Unprocessable { .. } => GbxStatus::InvalidArgument,
+        Error::Corrupt { .. } => GbxStatus::Corrupt,
+        Error::Io(_) => GbxStatus::Io,
+        _ => GbxStatus::Internal,
+    }
+}
+
+/// Runs a call: its error becomes a status and this thread's last message; a panic (a bug)
+/// stops at the boundary instead of unwinding into C.
+fn guard(f: impl FnOnce() -> Result<(), Error>) -> GbxStatus {
+    match catch_unwind(AssertUnwindSafe(f)) {
+        Ok(Ok(())) => GbxStatus::Ok,
+        Ok(Err(e)) => {
+            remember(e.to_string());
+            status_of(&e)
+        }
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            remember(format!("internal error: {what}"));
+            GbxStatus::Internal
+        }
+    }
+}
+
+/// `len` values at `p`, or an invalid-argument error naming `field` when `p` is null.
+///
+/// # Safety
+/// A non-null `p` points to at least `len` readable values.
+unsafe fn input<'a>(p: *const f64, len: usize, field: &str) -> Result<&'a [f64], Error> {
+    if len == 0 {
+        return Ok(&[]);
+    }
+    if p.is_null() {
+        return Err(Error::invalid(field, "is a null pointer"));
+    }
+    // SAFETY: non-null, and the caller promises `len` values.
+    Ok(unsafe { std::slice::from_raw_parts(p, len) })
+}
+
+/// `len` writable values at `p`, or an invalid-argument error naming `field` when null.
+///
+/// # Safety
+/// A non-null `p` points to at least `len` writable values that nothing else reads or
+/// writes during the call.
+unsafe fn output<'a>(p: *mut f64, len: usize, field: &str) -> Result<&'a mut [f64], Error> {
+    if p.is_null() {
+        return Err(Error::invalid(field, "is a null pointer"));
+    }
+    // SAFETY: non-null, and the caller promises `len` exclusive values.
+    Ok(unsafe { std::slice::from_raw_parts_mut(p, len) })
+}
+
+/// The model a file's bytes describe, boxed for C.
+fn loaded(file: ModelFile) -> Result<Box<GbxModel>, Error> {
+    let eval = Evaluator::from_file(&file)?;
+    let c = &file.config;
+    Ok(Box::new(GbxModel {
+        n: c.n,
+        m: c.m,
+        dt: c.dt,
+        eval,
+    }))
+}
+
+fn give(model: Result<Box<GbxModel>, Error>, out: *mut *mut GbxModel) -> Result<(), Error> {
+    if out.is_null() {
+        return Err(Error::invalid("out", "is a null pointer"));
+    }
+    let model = model?;
+    // SAFETY: `out` is non-null and the caller's to write.
+    unsafe { *out = Box::into_raw(model) };
+    Ok(())
+}
+
+/// Loads the model file at `path` (a NUL-terminated UTF-8 path) into `*out`.
+///
+/// # Safety
+/// `path` is a NUL-terminated string; `out` points to writable storage for one pointer.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_load(path: *const c_char, out: *mut *mut GbxModel) -> GbxStatus {
+    guard(|| {
+        if path.is_null() {
+            return Err(Error::invalid("path", "is a null pointer"));
+        }
+        // SAFETY: the caller promises a NUL-terminated string.
+        let path = unsafe { CStr::from_ptr(path) }
+            .to_str()
+            .map_err(|_| Error::invalid("path", "is not UTF-8"))?;
+        let bytes = std::fs::read(Path::new(path))
+            .map_err(|e| std::io::Error::new(e.kind(), format!("cannot read {path}: {e}")));
+        let file = bytes
+            .map_err(Error::Io)
+            .and_then(|b| ModelFile::from_bytes(&b));
+        give(file.and_then(loaded), out)
+    })
+}
+
+/// Loads a model file's `len` bytes at `data` (what a `.gbx` file holds) into `*out`.
+///
+/// # Safety
+/// `data` points to `len` readable bytes; `out` to writable storage for one pointer.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_load_buffer(
+    data: *const u8,
+    len: usize,
+    out: *mut *mut GbxModel,
+) -> GbxStatus {
+    guard(|| {
+        if data.is_null() {
+            return Err(Error::invalid("data", "is a null pointer"));
+        }
+        // SAFETY: non-null, and the caller promises `len` bytes.
+        let bytes = unsafe { std::slice::from_raw_parts(data, len) };
+        give(ModelFile::from_bytes(bytes).and_then(loaded), out)
+    })
+}
+
+/// Frees a model `gbx_model_load*` gave (null is ignored). No call may be using it.
+///
+/// # Safety
+/// `model` is null or a pointer a load function gave that has not been freed.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_free(model: *mut GbxModel) {
+    if !model.is_null() {
+        // SAFETY: the caller gives back what `Box::into_raw` made, once.
+        drop(unsafe { Box::from_raw(model) });
+    }
+}
+
+/// The model's number of coordinates n (a state is [q, q̇], 2n values).
+///
+/// # Safety
+/// `model` is a loaded model.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_n(model: *const GbxModel) -> usize {
+    // SAFETY: the caller promises a loaded model.
+    unsafe { model.as_ref() }.map_or(0, |m| m.n)
+}
+
+/// The model's number of inputs m.
+///
+/// # Safety
+/// `model` is a loaded model.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_m(model: *const GbxModel) -> usize {
+    // SAFETY: the caller promises a loaded model.
+    unsafe { model.as_ref() }.map_or(0, |m| m.m)
+}
+
+/// The model's time step Δt in seconds (one predict is one step of it).
+///
+/// # Safety
+/// `model` is a loaded model.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_dt(model: *const GbxModel) -> f64 {
+    // SAFETY: the caller promises a loaded model.
+    unsafe { model.as_ref() }.map_or(f64::NAN, |m| m.dt)
+}
+
+fn model_ref<'a>(model: *const GbxModel) -> Result<&'a GbxModel, Error> {
+    // SAFETY: null or a loaded model, as every entry point's contract says.
+    unsafe { model.as_ref() }.ok_or_else(|| Error::invalid("model", "is a null pointer"))
+}
+
+/// One step for `batch` states: `x` [batch, 2n] and `u` [batch, m] row-major give
+/// `x_next` [batch, 2n] and, when `accel` is not null, q̈ [batch, n]. An ensemble answers
+/// with its members' mean, as the service does.
+///
+/// # Safety
+/// `model` is a loaded model; the arrays hold the sizes above (`u` may be null when m = 0).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_predict(
+    model: *const GbxModel,
+    x: *const f64,
+    u: *const f64,
+    batch: usize,
+    x_next: *mut f64,
+    accel: *mut f64,
+) -> GbxStatus {
+    guard(|| {
+        let m = model_ref(model)?;
+        let (nx, b) = (2 * m.n, batch_of(batch)?);
+        // SAFETY (all four): the caller promises these sizes.
+        let (x, u) = unsafe { (input(x, b * nx, "x")?, input(u, b * m.m, "u")?) };
+        let out = unsafe { output(x_next, b * nx, "x_next")? };
+        let (next, acc) = m.eval.predict(x, u, !accel.is_null());
+        finite_rows("x", "next state", &next, nx)?;
+        out.copy_from_slice(&next);
+        if let Some(acc) = acc {
+            unsafe { output(accel, b * m.n, "accel")? }.copy_from_slice(&acc);
+        }
+        Ok(())
+    })
+}
+
+/// The one-step map's Jacobians at `batch` points: `a` [batch, 2n, 2n] = ∂x′/∂x and
+/// `b` [batch, 2n, m] = ∂x′/∂u, row-major.
+///
+/// # Safety
+/// `model` is a loaded model; the arrays hold the sizes above (`u` and `b` may be null when
+/// m = 0).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_linearize(
+    model: *const GbxModel,
+    x: *const f64,
+    u: *const f64,
+    batch: usize,
+    a: *mut f64,
+    b: *mut f64,
+) -> GbxStatus {
+    guard(|| {
+        let m = model_ref(model)?;
+        let (nx, k) = (2 * m.n, batch_of(batch)?);
+        // SAFETY (all four): the caller promises these sizes.
+        let (x, u) = unsafe { (input(x, k * nx, "x")?, input(u, k * m.m, "u")?) };
+        let (ja, jb) = m.eval.linearize_batch(x, u);
+        finite_rows("x", "Jacobian", &ja, nx * nx)?;
+        finite_rows("x", "Jacobian", &jb, nx * m.m)?;
+        unsafe { output(a, ja.len(), "a")? }.copy_from_slice(&ja);
+        if m.m > 0 {
+            unsafe { output(b, jb.len(), "b")? }.copy_from_slice(&jb);
+        }
+        Ok(())
+    })
+}
+
+/// `steps` steps from `x0` [2n] under the inputs `u` [steps, m]: `xs` [steps + 1, 2n] gets x0
+/// and every state after it.
+///
+/// # Safety
+/// `model` is a loaded model; the arrays hold the sizes above (`u` may be null when m = 0).
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_rollout(
+    model: *const GbxModel,
+    x0: *const f64,
+    u: *const f64,
+    steps: usize,
+    xs: *mut f64,
+) -> GbxStatus {
+    guard(|| {
+        let m = model_ref(model)?;
+        let nx = 2 * m.n;
+        // SAFETY (all three): the caller promises these sizes.
+        let (x0, u) = unsafe { (input(x0, nx, "x0")?, input(u, steps * m.m, "u")?) };
+        let xs = unsafe { output(xs, (steps + 1) * nx, "xs")? };
+        xs[..nx].copy_from_slice(x0);
+        let mut t = 0;
+        let input = |t: usize, _: &[f64]| u[t * m.m..(t + 1) * m.m].to_vec();
+        m.eval.rollout(x0, steps, input, |x, _| {
+            t += 1;
+            xs[t * nx..(t + 1) * nx].copy_from_slice(x);
+            true
+        });
+        finite_rows("x0", "state", xs, nx)
+    })
+}
+
+fn batch_of(batch: usize) -> Result<usize, Error> {
+    if batch == 0 {
+        return Err(Error::invalid("batch", "must be at least 1"));
+    }
+    Ok(batch)
+}
+
+/// The message of this thread's last failed call ("" before any): valid until this thread's
+/// next failing call.
+#[unsafe(no_mangle)]
+pub extern "C" fn gbx_last_error() -> *const c_char {
+    LAST_ERROR.with(|e| e.borrow().as_ptr())
+}

@@ -1,0 +1,145 @@
+//! examples/c/control_loop.c, built with the system's C compiler against this library and
+//! run on every recorded model: 1000 steps of gbx_predict in a C loop, the first ten equal
+//! to the service's recorded Rollout bit for bit.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Where cargo put this build's libgraybox_c (the test binary sits in its `deps/`).
+fn library_dir() -> PathBuf {
+    let exe = std::env::current_exe().unwrap();
+    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
+}
+
+fn numbers(v: &Value, out: &mut String) {
+    match v {
+        Value::Array(a) => a.iter().for_each(|v| numbers(v, out)),
+        // Rust prints an f64 in its shortest round-trip form, which strtod reads back exactly.
+        v => write!(out, "{} ", v.as_f64().unwrap()).unwrap(),
+    }
+}
+
+#[test]
+fn the_c_example_runs_a_control_loop_with_the_services_answers() {
+    let lib = library_dir();
+    assert!(
+        lib.join("libgraybox_c.so").exists(),
+        "no libgraybox_c.so in {}",
+        lib.display()
+    );
+    let tmp = std::env::temp_dir().join(format!("graybox-c-example-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let exe = tmp.join("control_loop");
+    let built = Command::new("cc")
+        .args(["-O2", "-std=c11", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(root().join("capi/include"))
+        .arg(root().join("examples/c/control_loop.c"))
+        .arg("-o")
+        .arg(&exe)
+        .arg(format!("-L{}", lib.display()))
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .args(["-lgraybox_c", "-lm"])
+        .output()
+        .unwrap();
+    assert!(
+        built.status.success(),
+        "cc: {}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+
+    let text = std::fs::read_to_string(root().join("tests/fixtures/inference/answers.json"));
+    let record: Value = serde_json::from_str(&text.unwrap()).unwrap();
+    for (name, entry) in record.as_object().unwrap() {
+        let calls = entry["calls"].as_array().unwrap();
+        let rollout = calls.iter().find(|c| c["rpc"] == "rollout").unwrap();
+        let (n, m) = (entry["n"].as_u64().unwrap(), entry["m"].as_u64().unwrap());
+        let steps = rollout["u"].as_array().unwrap().len();
+        let mut txt = format!("{n} {m} {steps}\n");
+        numbers(&rollout["x0"], &mut txt);
+        numbers(&rollout["u"], &mut txt);
+        numbers(&rollout["answer"]["xs"], &mut txt);
+        let path = tmp.join(format!("{name}.txt"));
+        std::fs::write(&path, txt).unwrap();
+        let run = Command::new(&exe)
+            .arg(root().join(entry["file"].as_str().unwrap()))
+            .arg(&path)
+            .output()
+            .unwrap();
+        let (out, err) = (
+            String::from_utf8_lossy(&run.stdout),
+            String::from_utf8_lossy(&run.stderr),
+        );
+        assert!(run.status.success(), "{name}: {out}{err}");
+        assert!(
+            out.contains("1000 steps; the first 10 equal"),
+            "{name}: {out}"
+        );
+    }
+    // Without a record: a loop from rest, as a user first runs it.
+    let run = Command::new(&exe)
+        .arg(root().join("tests/fixtures/inference/ur5-residual.gbx"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        out.starts_with("1000 steps of 0.01 s from rest; q ends at "),
+        "{out}"
+    );
+    std::fs::remove_dir_all(&tmp).ok();
+}
+
+#[test]
+fn the_cpp_wrapper_owns_the_model_and_throws_the_librarys_errors() {
+    let lib = library_dir();
+    let tmp = std::env::temp_dir().join(format!("graybox-cpp-example-{}", std::process::id()));
+    std::fs::create_dir_all(&tmp).unwrap();
+    let exe = tmp.join("wrapper");
+    let built = Command::new("c++")
+        .args(["-O2", "-std=c++17", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(root().join("capi/include"))
+        .arg(root().join("examples/c/wrapper.cpp"))
+        .arg("-o")
+        .arg(&exe)
+        .arg(format!("-L{}", lib.display()))
+        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .arg("-lgraybox_c")
+        .output()
+        .unwrap();
+    assert!(
+        built.status.success(),
+        "c++: {}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    let run = Command::new(&exe)
+        .arg(root().join("tests/fixtures/inference/cartpole-wb.gbx"))
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{out}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        out.starts_with("one step of 0.01 s from rest: qdot[0] = "),
+        "{out}"
+    );
+    // GBX_STATUS_IO, with the message naming the file.
+    assert!(
+        out.contains("status 3: i/o error: cannot read no/such/model.gbx"),
+        "{out}"
+    );
+    std::fs::remove_dir_all(&tmp).ok();
+}

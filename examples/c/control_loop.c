@@ -1,0 +1,115 @@
+/*
+ * A controller's loop on a graybox model, in the controller's own process (no service): load
+ * a model file, step it 1000 times with gbx_predict from the caller's buffers, and check the
+ * first steps against a rollout the service recorded.
+ *
+ * Usage: control_loop MODEL.gbx [RECORD.txt]
+ * Without a record the loop starts at rest (x = 0) with the inputs at zero and prints where
+ * it ends. RECORD.txt holds whitespace-separated numbers: n m steps, then x0 (2n), the inputs
+ * (steps × m) and the service's states x0 … x_steps ((steps + 1) × 2n), each in shortest
+ * round-trip form. The first `steps` states must match bit for bit; the loop then goes on to
+ * 1000 steps with the inputs held at zero, and every state must stay finite.
+ *
+ * Build (README, "In your controller's process"): cargo build --release -p graybox-c, then
+ * cc -O2 -I capi/include examples/c/control_loop.c -Ltarget/release -lgraybox_c -lm
+ *    -Wl,-rpath,$PWD/target/release -o control_loop
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "graybox.h"
+
+#define LOOP_STEPS 1000
+
+static double *read_doubles(FILE *f, size_t count) {
+    double *out = malloc(count * sizeof(double) + 1);
+    for (size_t i = 0; out && i < count; i++) {
+        if (fscanf(f, "%lf", &out[i]) != 1) {
+            free(out);
+            return NULL;
+        }
+    }
+    return out;
+}
+
+int main(int argc, char **argv) {
+    if (argc != 2 && argc != 3) {
+        fprintf(stderr, "usage: %s MODEL.gbx [RECORD.txt]\n", argv[0]);
+        return 2;
+    }
+    GbxModel *model = NULL;
+    if (gbx_model_load(argv[1], &model) != GBX_STATUS_OK) {
+        fprintf(stderr, "load: %s\n", gbx_last_error());
+        return 1;
+    }
+    size_t n = gbx_model_n(model), m = gbx_model_m(model), nx = 2 * n, steps = 0;
+    double *x0 = calloc(nx, sizeof(double)), *inputs = NULL, *expected = NULL;
+    if (argc == 3) {
+        size_t rn, rm;
+        FILE *f = fopen(argv[2], "r");
+        if (!f || fscanf(f, "%zu %zu %zu", &rn, &rm, &steps) != 3 || rn != n || rm != m) {
+            fprintf(stderr, "%s: not a record of this model\n", argv[2]);
+            return 1;
+        }
+        free(x0);
+        x0 = read_doubles(f, nx);
+        inputs = read_doubles(f, steps * m);
+        expected = read_doubles(f, (steps + 1) * nx);
+        fclose(f);
+        if (!x0 || !inputs || !expected) {
+            fprintf(stderr, "%s: too few numbers\n", argv[2]);
+            return 1;
+        }
+    }
+
+    double x[64], next[64], u[64] = {0};
+    if (nx > 64 || m > 64) {
+        fprintf(stderr, "this example holds at most 32 coordinates and 64 inputs\n");
+        return 1;
+    }
+    memcpy(x, x0, nx * sizeof(double));
+    int mismatches = 0;
+    for (size_t t = 0; t < LOOP_STEPS; t++) {
+        if (t < steps) {
+            memcpy(u, inputs + t * m, m * sizeof(double));
+        } else {
+            memset(u, 0, m * sizeof(double));
+        }
+        if (gbx_predict(model, x, u, 1, next, NULL) != GBX_STATUS_OK) {
+            fprintf(stderr, "step %zu: %s\n", t, gbx_last_error());
+            return 1;
+        }
+        for (size_t i = 0; i < nx; i++) {
+            if (t < steps && memcmp(&next[i], &expected[(t + 1) * nx + i], sizeof(double))) {
+                fprintf(stderr, "step %zu, x[%zu]: %.17g, the service's %.17g\n", t + 1, i,
+                        next[i], expected[(t + 1) * nx + i]);
+                mismatches++;
+            }
+            if (!isfinite(next[i])) {
+                fprintf(stderr, "step %zu: x[%zu] is not finite\n", t + 1, i);
+                return 1;
+            }
+        }
+        memcpy(x, next, nx * sizeof(double));
+    }
+    free(x0);
+    free(inputs);
+    free(expected);
+    if (mismatches) {
+        return 1;
+    }
+    if (steps > 0) {
+        printf("%d steps; the first %zu equal the service's rollout bit for bit\n", LOOP_STEPS,
+               steps);
+    } else {
+        printf("%d steps of %g s from rest; q ends at", LOOP_STEPS, gbx_model_dt(model));
+        for (size_t i = 0; i < n; i++) {
+            printf(" %.6g", x[i]);
+        }
+        printf("\n");
+    }
+    gbx_model_free(model);
+    return 0;
+}

@@ -1,0 +1,24 @@
+// The C++ wrapper (capi/include/graybox.hpp): a model as an RAII object whose failures are
+// exceptions. Usage: wrapper MODEL.gbx — one step from rest, then a load that must fail.
+#include <cstdio>
+#include <vector>
+
+#include "graybox.hpp"
+
+int main(int argc, char** argv) {
+  if (argc != 2) {
+    std::fprintf(stderr, "usage: %s MODEL.gbx\n", argv[0]);
+    return 2;
+  }
+  graybox::Model model(argv[1]);
+  std::vector<double> x(2 * model.n(), 0.0), u(model.m(), 0.0), next(2 * model.n());
+  model.predict(x.data(), u.data(), 1, next.data());
+  std::printf("one step of %g s from rest: qdot[0] = %.6g\n", model.dt(), next[model.n()]);
+  try {
+    graybox::Model missing("no/such/model.gbx");
+  } catch (const graybox::Error& e) {
+    std::printf("status %d: %s\n", static_cast<int>(e.status()), e.what());
+    return 0;
+  }
+  return 1;
+}
