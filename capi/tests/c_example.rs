@@ -26,33 +26,42 @@ fn numbers(v: &Value, out: &mut String) {
     }
 }
 
-#[test]
-fn the_c_example_runs_a_control_loop_with_the_services_answers() {
+/// Builds `source` (under examples/c/) with `compiler` and `std` against this build's library
+/// into a fresh temporary directory; the executable's path.
+fn build(compiler: &str, std: &str, source: &str, libs: &[&str]) -> PathBuf {
     let lib = library_dir();
     assert!(
         lib.join("libgraybox_c.so").exists(),
         "no libgraybox_c.so in {}",
         lib.display()
     );
-    let tmp = std::env::temp_dir().join(format!("graybox-c-example-{}", std::process::id()));
+    let stem = source.split('.').next().unwrap();
+    let tmp = std::env::temp_dir().join(format!("graybox-{stem}-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
-    let exe = tmp.join("control_loop");
-    let built = Command::new("cc")
-        .args(["-O2", "-std=c11", "-Wall", "-Wextra", "-Werror", "-I"])
+    let exe = tmp.join(stem);
+    let built = Command::new(compiler)
+        .args(["-O2", std, "-Wall", "-Wextra", "-Werror", "-I"])
         .arg(root().join("capi/include"))
-        .arg(root().join("examples/c/control_loop.c"))
+        .arg(root().join("examples/c").join(source))
         .arg("-o")
         .arg(&exe)
         .arg(format!("-L{}", lib.display()))
         .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .args(["-lgraybox_c", "-lm"])
+        .args(libs)
         .output()
         .unwrap();
     assert!(
         built.status.success(),
-        "cc: {}",
+        "{compiler}: {}",
         String::from_utf8_lossy(&built.stderr)
     );
+    exe
+}
+
+#[test]
+fn the_c_example_runs_a_control_loop_with_the_services_answers() {
+    let exe = build("cc", "-std=c11", "control_loop.c", &["-lgraybox_c", "-lm"]);
+    let tmp = exe.parent().unwrap().to_path_buf();
 
     let text = std::fs::read_to_string(root().join("tests/fixtures/inference/answers.json"));
     let record: Value = serde_json::from_str(&text.unwrap()).unwrap();
@@ -102,26 +111,7 @@ fn the_c_example_runs_a_control_loop_with_the_services_answers() {
 
 #[test]
 fn the_cpp_wrapper_owns_the_model_and_throws_the_librarys_errors() {
-    let lib = library_dir();
-    let tmp = std::env::temp_dir().join(format!("graybox-cpp-example-{}", std::process::id()));
-    std::fs::create_dir_all(&tmp).unwrap();
-    let exe = tmp.join("wrapper");
-    let built = Command::new("c++")
-        .args(["-O2", "-std=c++17", "-Wall", "-Wextra", "-Werror", "-I"])
-        .arg(root().join("capi/include"))
-        .arg(root().join("examples/c/wrapper.cpp"))
-        .arg("-o")
-        .arg(&exe)
-        .arg(format!("-L{}", lib.display()))
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
-        .arg("-lgraybox_c")
-        .output()
-        .unwrap();
-    assert!(
-        built.status.success(),
-        "c++: {}",
-        String::from_utf8_lossy(&built.stderr)
-    );
+    let exe = build("c++", "-std=c++17", "wrapper.cpp", &["-lgraybox_c"]);
     let run = Command::new(&exe)
         .arg(root().join("tests/fixtures/inference/cartpole-wb.gbx"))
         .output()
@@ -141,5 +131,5 @@ fn the_cpp_wrapper_owns_the_model_and_throws_the_librarys_errors() {
         out.contains("status 3: i/o error: cannot read no/such/model.gbx"),
         "{out}"
     );
-    std::fs::remove_dir_all(&tmp).ok();
+    std::fs::remove_dir_all(exe.parent().unwrap()).ok();
 }
