@@ -244,8 +244,9 @@ pub unsafe extern "C" fn gbx_predict(
         let m = model_ref(model)?;
         let (nx, b) = (2 * m.n, batch_of(batch)?);
         // SAFETY (all four): the caller promises these sizes.
-        let (x, u) = unsafe { (input(x, b * nx, "x")?, input(u, b * m.m, "u")?) };
-        let out = unsafe { output(x_next, b * nx, "x_next")? };
+        let (lx, lu) = (values("x", b, nx)?, values("u", b, m.m)?);
+        let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
+        let out = unsafe { output(x_next, lx, "x_next")? };
         let (next, acc) = m.eval.predict(x, u, !accel.is_null());
         finite_rows("x", "next state", &next, nx)?;
         out.copy_from_slice(&next);
@@ -275,7 +276,10 @@ pub unsafe extern "C" fn gbx_linearize(
         let m = model_ref(model)?;
         let (nx, k) = (2 * m.n, batch_of(batch)?);
         // SAFETY (all four): the caller promises these sizes.
-        let (x, u) = unsafe { (input(x, k * nx, "x")?, input(u, k * m.m, "u")?) };
+        let (lx, lu) = (values("x", k, nx)?, values("u", k, m.m)?);
+        values("a", k, nx * nx)?;
+        values("b", k, nx * m.m)?;
+        let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
         let (ja, jb) = m.eval.linearize_batch(x, u);
         finite_rows("x", "Jacobian", &ja, nx * nx)?;
         finite_rows("x", "Jacobian", &jb, nx * m.m)?;
@@ -304,8 +308,12 @@ pub unsafe extern "C" fn gbx_rollout(
         let m = model_ref(model)?;
         let nx = 2 * m.n;
         // SAFETY (all three): the caller promises these sizes.
-        let (x0, u) = unsafe { (input(x0, nx, "x0")?, input(u, steps * m.m, "u")?) };
-        let xs = unsafe { output(xs, (steps + 1) * nx, "xs")? };
+        let (lu, lxs) = (
+            values("u", steps, m.m)?,
+            values("xs", steps.saturating_add(1), nx)?,
+        );
+        let (x0, u) = unsafe { (input(x0, nx, "x0")?, input(u, lu, "u")?) };
+        let xs = unsafe { output(xs, lxs, "xs")? };
         xs[..nx].copy_from_slice(x0);
         let mut t = 0;
         let input = |t: usize, _: &[f64]| u[t * m.m..(t + 1) * m.m].to_vec();
@@ -323,6 +331,19 @@ fn batch_of(batch: usize) -> Result<usize, Error> {
         return Err(Error::invalid("batch", "must be at least 1"));
     }
     Ok(batch)
+}
+
+/// `rows × width` values, or an invalid-argument error naming `field` when no array of
+/// doubles could be that long (a wrapped product would read or write the wrong length).
+fn values(field: &str, rows: usize, width: usize) -> Result<usize, Error> {
+    let bytes = rows.checked_mul(width).and_then(|v| v.checked_mul(8));
+    match bytes {
+        Some(b) if b <= isize::MAX as usize => Ok(rows * width),
+        _ => Err(Error::invalid(
+            field,
+            format!("{rows} rows of {width} values are more than any array can hold"),
+        )),
+    }
 }
 
 /// The message of this thread's last failed call ("" before any): valid until this thread's

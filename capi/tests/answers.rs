@@ -165,5 +165,24 @@ fn failures_return_a_status_and_a_message() {
     };
     assert_eq!(s, GbxStatus::InvalidArgument);
     assert!(last_error().starts_with("batch:"), "{}", last_error());
+    // A batch whose arrays no memory could hold is refused before any pointer is read (its
+    // product of sizes would wrap around to a small length).
+    let huge = usize::MAX / 2 + 1;
+    let s = unsafe {
+        gbx_predict(
+            model,
+            x.as_ptr(),
+            x.as_ptr(),
+            huge,
+            next.as_mut_ptr(),
+            null_mut(),
+        )
+    };
+    assert_eq!(s, GbxStatus::InvalidArgument);
+    assert!(last_error().starts_with("x:"), "{}", last_error());
+    let mut xs = [0.0; 8];
+    let s = unsafe { gbx_rollout(model, x.as_ptr(), x.as_ptr(), usize::MAX, xs.as_mut_ptr()) };
+    assert_eq!(s, GbxStatus::InvalidArgument);
+    assert!(last_error().starts_with("u:"), "{}", last_error());
     unsafe { gbx_model_free(model) };
 }
