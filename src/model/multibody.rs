@@ -36,6 +36,28 @@ impl ForwardDynamics {
     fn n(&self) -> usize {
         self.model.n
     }
+
+    /// q̈ row by row, and each row's placements (`Data::save_placements`) when `keep`.
+    fn rows(&self, rows: &[f64], params: &[f64], keep: bool) -> (Vec<f64>, Vec<f64>) {
+        let (model, n) = (with_parameters(&self.model, params), self.n());
+        let batch = rows.len() / (3 * n);
+        let mut out = Vec::with_capacity(batch * n);
+        let mut placed = Vec::with_capacity(if keep {
+            batch * PLACED * model.bodies.len()
+        } else {
+            0
+        });
+        with_data(|data| {
+            for r in rows.chunks_exact(3 * n) {
+                data.forward_dynamics(&model, &r[..n], &r[n..2 * n], &r[2 * n..]);
+                out.extend_from_slice(&data.qdd);
+                if keep {
+                    data.save_placements(&mut placed);
+                }
+            }
+        });
+        (out, placed)
+    }
 }
 
 impl RowFunction for ForwardDynamics {
@@ -48,29 +70,11 @@ impl RowFunction for ForwardDynamics {
     }
 
     fn forward(&self, rows: &[f64], params: &[f64]) -> Vec<f64> {
-        let (model, n) = (with_parameters(&self.model, params), self.n());
-        let mut out = Vec::with_capacity(rows.len() / 3);
-        with_data(|data| {
-            for r in rows.chunks_exact(3 * n) {
-                data.forward_dynamics(&model, &r[..n], &r[n..2 * n], &r[2 * n..]);
-                out.extend_from_slice(&data.qdd);
-            }
-        });
-        out
+        self.rows(rows, params, false).0
     }
 
     fn forward_keeping(&self, rows: &[f64], params: &[f64]) -> (Vec<f64>, Kept) {
-        let (model, n) = (with_parameters(&self.model, params), self.n());
-        let batch = rows.len() / (3 * n);
-        let mut out = Vec::with_capacity(batch * n);
-        let mut placed = Vec::with_capacity(batch * PLACED * model.bodies.len());
-        with_data(|data| {
-            for r in rows.chunks_exact(3 * n) {
-                data.forward_dynamics(&model, &r[..n], &r[n..2 * n], &r[2 * n..]);
-                out.extend_from_slice(&data.qdd);
-                data.save_placements(&mut placed);
-            }
-        });
+        let (out, placed) = self.rows(rows, params, true);
         (out, Kept::new(Placed(placed)))
     }
 

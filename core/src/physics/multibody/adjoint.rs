@@ -123,9 +123,7 @@ impl Data {
         pi_sum: &mut [f64],
     ) {
         let n = qdd.len();
-        self.mass(model);
-        self.qdd.copy_from_slice(qdd);
-        self.accelerations(model);
+        self.at_accelerations(model, qdd);
         self.factor();
         let (dq, rest) = d_row.split_at_mut(n);
         let (dqd, lambda) = rest.split_at_mut(n);
@@ -141,6 +139,11 @@ impl Data {
     /// The state at (q, q̇, q̈): kinematics, M, accelerations and forces.
     fn at_state(&mut self, model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) {
         self.kinematics(model, q, qd);
+        self.at_accelerations(model, qdd);
+    }
+
+    /// After the kinematics: M, and the accelerations and forces at q̈.
+    fn at_accelerations(&mut self, model: &Model, qdd: &[f64]) {
         self.mass(model);
         self.qdd.copy_from_slice(qdd);
         self.accelerations(model);
