@@ -12,10 +12,11 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// Where cargo put this build's libgraybox_c (the test binary sits in its `deps/`).
+/// Where cargo put this build's libgraybox_c: `cargo test` leaves it in `deps/` beside the
+/// test binary (only `cargo build` copies it up to the profile's directory).
 fn library_dir() -> PathBuf {
     let exe = std::env::current_exe().unwrap();
-    exe.parent().and_then(Path::parent).unwrap().to_path_buf()
+    exe.parent().unwrap().to_path_buf()
 }
 
 fn numbers(v: &Value, out: &mut String) {
