@@ -5,6 +5,11 @@
  * once; per-call scratch lives in the calling thread's workspace, never in the handle. The
  * message of a failed call is per thread (gbx_last_error).
  *
+ * Real-time use: after a warm-up call with the same batch size on a thread, gbx_predict and
+ * gbx_linearize of fewer than 32 states take no lock and no memory from the system allocator
+ * (the library's allocator keeps the blocks those calls free in per-thread lists and serves
+ * them again). Batches of 32 states or more run on two threads, started per call.
+ *
  * Arrays are row-major doubles: a state is [q, qdot] (2n values), an input u (m values).
  * Every call returns GBX_STATUS_OK or why it failed.
  */

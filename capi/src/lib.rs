@@ -22,6 +22,12 @@ use graybox_core::error::Error;
 use graybox_core::infer::{Evaluator, finite_rows};
 use graybox_core::model::file::ModelFile;
 
+pub mod pool;
+
+/// Blocks for predict, linearize and rollout come from per-thread lists (`pool`).
+#[global_allocator]
+static ALLOCATOR: pool::Pool = pool::Pool;
+
 /// What a call returns: `GBX_STATUS_OK`, or why it failed (`gbx_last_error` says more).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -241,19 +247,21 @@ pub unsafe extern "C" fn gbx_predict(
     accel: *mut f64,
 ) -> GbxStatus {
     guard(|| {
-        let m = model_ref(model)?;
-        let (nx, b) = (2 * m.n, batch_of(batch)?);
-        // SAFETY (all four): the caller promises these sizes.
-        let (lx, lu) = (values("x", b, nx)?, values("u", b, m.m)?);
-        let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
-        let out = unsafe { output(x_next, lx, "x_next")? };
-        let (next, acc) = m.eval.predict(x, u, !accel.is_null());
-        finite_rows("x", "next state", &next, nx)?;
-        out.copy_from_slice(&next);
-        if let Some(acc) = acc {
-            unsafe { output(accel, b * m.n, "accel")? }.copy_from_slice(&acc);
-        }
-        Ok(())
+        pool::pooled(|| {
+            let m = model_ref(model)?;
+            let (nx, b) = (2 * m.n, batch_of(batch)?);
+            // SAFETY (all four): the caller promises these sizes.
+            let (lx, lu) = (values("x", b, nx)?, values("u", b, m.m)?);
+            let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
+            let out = unsafe { output(x_next, lx, "x_next")? };
+            let (next, acc) = m.eval.predict(x, u, !accel.is_null());
+            finite_rows("x", "next state", &next, nx)?;
+            out.copy_from_slice(&next);
+            if let Some(acc) = acc {
+                unsafe { output(accel, b * m.n, "accel")? }.copy_from_slice(&acc);
+            }
+            Ok(())
+        })
     })
 }
 
@@ -273,21 +281,23 @@ pub unsafe extern "C" fn gbx_linearize(
     b: *mut f64,
 ) -> GbxStatus {
     guard(|| {
-        let m = model_ref(model)?;
-        let (nx, k) = (2 * m.n, batch_of(batch)?);
-        // SAFETY (all four): the caller promises these sizes.
-        let (lx, lu) = (values("x", k, nx)?, values("u", k, m.m)?);
-        values("a", k, nx * nx)?;
-        values("b", k, nx * m.m)?;
-        let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
-        let (ja, jb) = m.eval.linearize_batch(x, u);
-        finite_rows("x", "Jacobian", &ja, nx * nx)?;
-        finite_rows("x", "Jacobian", &jb, nx * m.m)?;
-        unsafe { output(a, ja.len(), "a")? }.copy_from_slice(&ja);
-        if m.m > 0 {
-            unsafe { output(b, jb.len(), "b")? }.copy_from_slice(&jb);
-        }
-        Ok(())
+        pool::pooled(|| {
+            let m = model_ref(model)?;
+            let (nx, k) = (2 * m.n, batch_of(batch)?);
+            // SAFETY (all four): the caller promises these sizes.
+            let (lx, lu) = (values("x", k, nx)?, values("u", k, m.m)?);
+            values("a", k, nx * nx)?;
+            values("b", k, nx * m.m)?;
+            let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
+            let (ja, jb) = m.eval.linearize_batch(x, u);
+            finite_rows("x", "Jacobian", &ja, nx * nx)?;
+            finite_rows("x", "Jacobian", &jb, nx * m.m)?;
+            unsafe { output(a, ja.len(), "a")? }.copy_from_slice(&ja);
+            if m.m > 0 {
+                unsafe { output(b, jb.len(), "b")? }.copy_from_slice(&jb);
+            }
+            Ok(())
+        })
     })
 }
 
@@ -305,24 +315,26 @@ pub unsafe extern "C" fn gbx_rollout(
     xs: *mut f64,
 ) -> GbxStatus {
     guard(|| {
-        let m = model_ref(model)?;
-        let nx = 2 * m.n;
-        // SAFETY (all three): the caller promises these sizes.
-        let (lu, lxs) = (
-            values("u", steps, m.m)?,
-            values("xs", steps.saturating_add(1), nx)?,
-        );
-        let (x0, u) = unsafe { (input(x0, nx, "x0")?, input(u, lu, "u")?) };
-        let xs = unsafe { output(xs, lxs, "xs")? };
-        xs[..nx].copy_from_slice(x0);
-        let mut t = 0;
-        let input = |t: usize, _: &[f64]| u[t * m.m..(t + 1) * m.m].to_vec();
-        m.eval.rollout(x0, steps, input, |x, _| {
-            t += 1;
-            xs[t * nx..(t + 1) * nx].copy_from_slice(x);
-            true
-        });
-        finite_rows("x0", "state", xs, nx)
+        pool::pooled(|| {
+            let m = model_ref(model)?;
+            let nx = 2 * m.n;
+            // SAFETY (all three): the caller promises these sizes.
+            let (lu, lxs) = (
+                values("u", steps, m.m)?,
+                values("xs", steps.saturating_add(1), nx)?,
+            );
+            let (x0, u) = unsafe { (input(x0, nx, "x0")?, input(u, lu, "u")?) };
+            let xs = unsafe { output(xs, lxs, "xs")? };
+            xs[..nx].copy_from_slice(x0);
+            let mut t = 0;
+            let input = |t: usize, _: &[f64]| u[t * m.m..(t + 1) * m.m].to_vec();
+            m.eval.rollout(x0, steps, input, |x, _| {
+                t += 1;
+                xs[t * nx..(t + 1) * nx].copy_from_slice(x);
+                true
+            });
+            finite_rows("x0", "state", xs, nx)
+        })
     })
 }
 

@@ -293,3 +293,66 @@ async fn wait_for(
         tokio::time::sleep(Duration::from_millis(50)).await;
     }
 }
+
+/// `bench infer --model F`: Predict and Linearize of one state of that model as gRPC round
+/// trips on loopback, from a client thread of its own, against a service that stores the file.
+pub(super) fn model_round_trips(
+    path: &std::path::Path,
+    x: &[f64],
+    u: &[f64],
+    calls: usize,
+) -> Result<Vec<Value>> {
+    let bytes = std::fs::read(path)?;
+    let (x, u) = (x.to_vec(), u.to_vec());
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    rt.block_on(async move {
+        let db = crate::bench::TempDb::new();
+        let running = crate::bench::api_node(WorkerSettings {
+            db: db.0.to_string_lossy().into_owned(),
+            workers: 0,
+            ..WorkerSettings::default()
+        })
+        .await?;
+        let model = running
+            .app
+            .upload_model(Some("bench".into()), bytes)
+            .await?
+            .item
+            .id;
+        let url = format!("http://{}", running.grpc_addr);
+        let (nx, m) = (x.len(), u.len());
+        let predict = pb::PredictRequest {
+            model_id: model.clone(),
+            x: arr(&[1, nx], &x),
+            u: arr(&[1, m], &u),
+            ..Default::default()
+        };
+        let linearize = pb::LinearizeRequest {
+            model_id: model,
+            x: arr(&[1, nx], &x),
+            u: arr(&[1, m], &u),
+            ..Default::default()
+        };
+        let figures = tokio::task::spawn_blocking(move || {
+            tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()?
+                .block_on(async {
+                    let c = connect(&url).await?;
+                    let note = json!({"transport": "gRPC round trip on loopback, one client"});
+                    let p = time_async(calls, unary!(c, predict, predict)).await?;
+                    let l = time_async(calls, unary!(c, linearize, linearize)).await?;
+                    Ok::<_, Error>(vec![
+                        summary("grpc_model_predict_1", p, note.clone()),
+                        summary("grpc_model_linearize_1", l, note),
+                    ])
+                })
+        })
+        .await
+        .expect("client thread")?;
+        running.shutdown().await;
+        Ok(figures)
+    })
+}

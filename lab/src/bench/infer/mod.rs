@@ -1,6 +1,7 @@
 //! `graybox-lab bench infer`: inference latency for controllers on the double pendulum MVF 3×32
 //! and Plan swing-ups. In process (the evaluator alone) and as gRPC round trips on loopback
-//! against a real service: idle, then with concurrent clients while a training job runs.
+//! against a real service: idle, then with concurrent clients while a training job runs. With
+//! `--model`, any model file's figures, in process, through the C library and over gRPC.
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -16,6 +17,7 @@ use graybox::sim::{SimConfig, simulate};
 
 mod grpc;
 mod model;
+mod native;
 mod plan;
 
 #[derive(Args, Debug)]
@@ -33,13 +35,18 @@ pub struct BenchInferArgs {
     /// compare with the default [a temporary SQLite file] (Predict never reads the database).
     #[arg(long)]
     pub db: Option<String>,
-    /// Skip the gRPC figures (evaluator only).
+    /// Skip the gRPC figures (in process only).
     #[arg(long)]
     pub in_process_only: bool,
     /// Instead, Predict, Linearize and Plan of this model file (any n, m; e.g. a URDF
     /// robot's from `graybox model --template arm.urdf`), in process.
     #[arg(long)]
     pub model: Option<std::path::PathBuf>,
+    /// With --model: also the C library's Predict and Linearize of the same state, through
+    /// this build of it (`cargo build --release -p graybox-c` leaves
+    /// target/release/libgraybox_c.so), built into examples/c/latency.c with `cc`.
+    #[arg(long, requires = "model")]
+    pub c_library: Option<std::path::PathBuf>,
 }
 
 /// Latency percentiles of a set of samples, in microseconds.
@@ -113,7 +120,7 @@ fn weights() -> (Mat, Mat, Mat) {
 
 pub fn run(a: BenchInferArgs) -> Result<()> {
     if let Some(path) = &a.model {
-        return model::figures(path, a.calls);
+        return model::figures(&a, path);
     }
     let t = Template::DoublePendulum;
     let data = simulate(

@@ -1,7 +1,9 @@
 //! `bench infer --model FILE`: Predict (1 and 1024 states), Rollout (500 steps), Linearize
-//! and Plan latency of any model file (a URDF robot's, a formula template's), in process; for
-//! a URDF model also Predict and Linearize on the template's assembly, the path it replaced. The double pendulum figures stay the
-//! reference the targets were set against; these say what a bigger model costs.
+//! and Plan latency of any model file (a URDF robot's, a formula template's), in process; one
+//! state's Predict and Linearize also through the C library (`--c-library`) and as gRPC round
+//! trips; for a URDF model also Predict and Linearize on the template's assembly, the path it
+//! replaced. The double pendulum figures stay the reference the targets were set against;
+//! these say what a bigger model costs.
 
 use std::path::Path;
 
@@ -22,7 +24,8 @@ const HORIZON: usize = 100;
 const BATCH: usize = 1024;
 const ROLLOUT: usize = 500;
 
-pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
+pub(super) fn figures(a: &super::BenchInferArgs, path: &Path) -> Result<()> {
+    let calls = a.calls;
     let eval = Evaluator::from_file(&ModelFile::load(path)?)?;
     let (n, m) = (eval.config.n, eval.config.m);
     let mut rng = Rng::new(0);
@@ -44,12 +47,33 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
         v
     };
     let print = |name: &str, times: Vec<f64>| println!("{}", summary(name, times, with(json!({}))));
-    print(
+    let predict_1 = summary(
         "model_predict_1",
         time_calls(calls, || {
             std::hint::black_box(eval.predict(x1, u1, false));
         }),
+        with(json!({})),
     );
+    let linearize_1 = summary(
+        "model_linearize_1",
+        time_calls(calls, || {
+            std::hint::black_box(eval.linearize_batch(x1, u1));
+        }),
+        with(json!({})),
+    );
+    println!("{predict_1}\n{linearize_1}");
+    // The same state through the C library and over gRPC, in this sitting.
+    if let Some(lib) = &a.c_library {
+        let rust = [&predict_1, &linearize_1].map(|v| v["p50_us"].as_f64().unwrap_or(f64::NAN));
+        for v in super::native::figures(lib, path, calls, (x1, u1), rust)? {
+            println!("{}", with(v));
+        }
+    }
+    if !a.in_process_only {
+        for v in super::grpc::model_round_trips(path, x1, u1, calls)? {
+            println!("{}", with(v));
+        }
+    }
     print(
         "model_predict_1024",
         time_calls(few, || {
@@ -68,12 +92,6 @@ pub(super) fn figures(path: &Path, calls: usize) -> Result<()> {
                     true
                 },
             );
-        }),
-    );
-    print(
-        "model_linearize_1",
-        time_calls(calls, || {
-            std::hint::black_box(eval.linearize_batch(x1, u1));
         }),
     );
     if eval.is_multibody() {
