@@ -35,6 +35,10 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/pip" install --quiet --disable-pip-version-check -r tests/python/requirements.txt
 "$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/python
+# The Python module on the inference core (tests/python/test_native.py): maturin builds it in
+# this workspace's target directory, compiling only the core (without the service's features),
+# PyO3 and the module itself.
+"$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/native
 
 # The service's API tests again as it runs beyond one machine: each test on a new database of
 # a throwaway PostgreSQL cluster and its large bytes in an S3 endpoint (tests/api/helpers.rs

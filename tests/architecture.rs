@@ -273,11 +273,11 @@ fn physics_is_free_of_burn() {
 }
 
 /// The inference core builds without Burn, an async runtime, a database or an RPC framework
-/// (its `burn` and `sqlx` features, which the service turns on, are off here), and so does
-/// the C library built on it alone.
+/// (its `burn` and `sqlx` features, which the service turns on, are off here), and so do the
+/// C library and the Python module built on it alone.
 #[test]
-fn the_inference_core_and_the_c_library_depend_on_no_service_framework() {
-    for package in ["graybox-core", "graybox-c"] {
+fn the_inference_core_and_its_libraries_depend_on_no_service_framework() {
+    for package in ["graybox-core", "graybox-c", "graybox-native"] {
         let out = std::process::Command::new(env!("CARGO"))
             .args([
                 "tree",
@@ -325,6 +325,10 @@ fn no_source_file_is_over_the_limit() {
     long.extend(sizes::too_long(&root.join("lab/src"), "lab/src"));
     long.extend(sizes::too_long(&root.join("core/src"), "core/src"));
     long.extend(sizes::too_long(&root.join("capi/src"), "capi/src"));
+    long.extend(sizes::too_long(
+        &root.join("clients/native/src"),
+        "clients/native/src",
+    ));
     assert!(
         long.is_empty(),
         "split these by concern (or, if generated or table-like, list them in \

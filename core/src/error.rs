@@ -68,6 +68,31 @@ impl Error {
         }
     }
 
+    /// The gRPC status a caller hears this error as (its code and name): one mapping for the
+    /// service's status and the Python module's exception.
+    pub fn code(&self) -> (i32, &'static str) {
+        match self {
+            Error::Invalid { .. } | Error::Unprocessable { .. } => (3, "INVALID_ARGUMENT"),
+            Error::NotFound(_) => (5, "NOT_FOUND"),
+            Error::FailedPrecondition(_) | Error::Conflict(_) => (9, "FAILED_PRECONDITION"),
+            Error::ResourceExhausted(_) => (8, "RESOURCE_EXHAUSTED"),
+            Error::Cancelled => (1, "CANCELLED"),
+            Error::Storage(_) | Error::Busy(_) => (14, "UNAVAILABLE"),
+            Error::DeadlineExceeded(_) => (4, "DEADLINE_EXCEEDED"),
+            Error::Internal(_) | Error::Training(_) | Error::Io(_) | Error::Corrupt { .. } => {
+                (13, "INTERNAL")
+            }
+        }
+    }
+
+    /// The input a caller's error names, if it names one.
+    pub fn field(&self) -> Option<&str> {
+        match self {
+            Error::Invalid { field, .. } | Error::Unprocessable { field, .. } => Some(field),
+            _ => None,
+        }
+    }
+
     pub fn invalid(field: impl Into<String>, message: impl fmt::Display) -> Self {
         Error::Invalid {
             field: field.into(),

@@ -99,6 +99,27 @@ def record(client, upload, skip=frozenset()) -> dict:
     return out
 
 
+def first_difference(got, want, at="") -> str:
+    """Where `got` first differs from the recorded `want` ("" when nowhere): json.dumps prints
+    each float in its shortest round-trip form, so equal text is equal bits (and tells −0.0
+    from 0.0)."""
+    if isinstance(want, dict):
+        for k in want:
+            d = first_difference(got.get(k), want[k], f"{at}.{k}")
+            if d:
+                return d
+        return ""
+    if isinstance(want, list):
+        if not isinstance(got, list) or len(got) != len(want):
+            return f"{at}: shape differs"
+        for i, (g, w) in enumerate(zip(got, want)):
+            d = first_difference(g, w, f"{at}[{i}]")
+            if d:
+                return d
+        return ""
+    return "" if json.dumps(got) == json.dumps(want) else f"{at}: {got!r} != {want!r}"
+
+
 def load() -> dict:
     return json.loads(ANSWERS.read_text())
 

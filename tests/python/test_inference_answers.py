@@ -23,24 +23,6 @@ def _upload(server, path) -> str:
     return m["id"]
 
 
-def _first_difference(got, want, at="") -> str:
-    if isinstance(want, dict):
-        for k in want:
-            d = _first_difference(got.get(k), want[k], f"{at}.{k}")
-            if d:
-                return d
-        return ""
-    if isinstance(want, list):
-        if not isinstance(got, list) or len(got) != len(want):
-            return f"{at}: shape differs"
-        for i, (g, w) in enumerate(zip(got, want)):
-            d = _first_difference(g, w, f"{at}[{i}]")
-            if d:
-                return d
-        return ""
-    return "" if json.dumps(got) == json.dumps(want) else f"{at}: {got!r} != {want!r}"
-
-
 def test_inference_answers_are_the_recorded_ones(server, client):
     if os.environ.get("GRAYBOX_WRITE_INFERENCE") == "1":
         have = ia.load() if ia.ANSWERS.exists() else {}
@@ -55,5 +37,5 @@ def test_inference_answers_are_the_recorded_ones(server, client):
             got = ia.answer(client, model_id, call)
             # json.dumps prints each float in its shortest round-trip form, so equal text is
             # equal bits (and tells −0.0 from 0.0).
-            where = _first_difference(got, call["answer"])
+            where = ia.first_difference(got, call["answer"])
             assert not where, f"{name} {call['rpc']} {call.get('method', '')}{where}"

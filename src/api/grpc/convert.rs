@@ -28,27 +28,15 @@ impl<T> OrStatus<T> for crate::error::Result<T> {
     }
 }
 
-/// The one mapping of the library's errors to gRPC statuses (ARCHITECTURE.md's table).
+/// The library's error as a gRPC status, its code by the one mapping (`Error::code`,
+/// ARCHITECTURE.md's table).
 pub fn status(e: Error) -> Status {
-    {
-        // The message quotes the field and what the caller sent: bounded like REST's.
-        let msg = bounded(e.public_message(), MESSAGE_LIMIT);
-        if let Error::Storage(detail) = &e {
-            tracing::error!(error = %detail, "storage unavailable");
-        }
-        match e {
-            Error::Invalid { .. } | Error::Unprocessable { .. } => Status::invalid_argument(msg),
-            Error::NotFound(_) => Status::not_found(msg),
-            Error::FailedPrecondition(_) | Error::Conflict(_) => Status::failed_precondition(msg),
-            Error::ResourceExhausted(_) => Status::resource_exhausted(msg),
-            Error::Cancelled => Status::cancelled(msg),
-            Error::Storage(_) | Error::Busy(_) => Status::unavailable(msg),
-            Error::DeadlineExceeded(_) => Status::deadline_exceeded(msg),
-            Error::Internal(_) | Error::Training(_) | Error::Io(_) | Error::Corrupt { .. } => {
-                Status::internal(msg)
-            }
-        }
+    // The message quotes the field and what the caller sent: bounded like REST's.
+    let msg = bounded(e.public_message(), MESSAGE_LIMIT);
+    if let Error::Storage(detail) = &e {
+        tracing::error!(error = %detail, "storage unavailable");
     }
+    Status::new(tonic::Code::from(e.code().0), msg)
 }
 
 impl From<Array> for pb::Array {

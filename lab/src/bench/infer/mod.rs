@@ -47,6 +47,15 @@ pub struct BenchInferArgs {
     /// target/release/libgraybox_c.so), built into examples/c/latency.c with `cc`.
     #[arg(long, requires = "model")]
     pub c_library: Option<std::path::PathBuf>,
+    /// With --model: also graybox_native's Predict and Linearize of the same state, and its
+    /// throughput from 8 threads, run by this Python (whose environment has the module:
+    /// `pip install ./clients/native`).
+    #[arg(long, requires = "model")]
+    pub python: Option<std::path::PathBuf>,
+    /// With --model: rounds of the one-state figures (in process, C, Python), each library's
+    /// ratio taken to its own round's Rust figure.
+    #[arg(long, default_value_t = 3)]
+    pub rounds: usize,
 }
 
 /// Latency percentiles of a set of samples, in microseconds.

@@ -47,28 +47,8 @@ pub(super) fn figures(a: &super::BenchInferArgs, path: &Path) -> Result<()> {
         v
     };
     let print = |name: &str, times: Vec<f64>| println!("{}", summary(name, times, with(json!({}))));
-    let predict_1 = summary(
-        "model_predict_1",
-        time_calls(calls, || {
-            std::hint::black_box(eval.predict(x1, u1, false));
-        }),
-        with(json!({})),
-    );
-    let linearize_1 = summary(
-        "model_linearize_1",
-        time_calls(calls, || {
-            std::hint::black_box(eval.linearize_batch(x1, u1));
-        }),
-        with(json!({})),
-    );
-    println!("{predict_1}\n{linearize_1}");
-    // The same state through the C library and over gRPC, in this sitting.
-    if let Some(lib) = &a.c_library {
-        let rust = [&predict_1, &linearize_1].map(|v| v["p50_us"].as_f64().unwrap_or(f64::NAN));
-        for v in super::native::figures(lib, path, calls, (x1, u1), rust)? {
-            println!("{}", with(v));
-        }
-    }
+    // One state in process, through the C library and in Python, round by round.
+    super::native::one_state(a, &eval, path, (x1, u1), &with)?;
     if !a.in_process_only {
         for v in super::grpc::model_round_trips(path, x1, u1, calls)? {
             println!("{}", with(v));

@@ -1,18 +1,78 @@
-//! `bench infer --model F --c-library LIB`: the C library's latency beside the Rust figures of
-//! the same model and state. examples/c/latency.c is built with the system's C compiler
-//! against LIB (what `cargo build --release -p graybox-c` leaves in target/release) and run;
-//! its figures come back as JSON lines with their ratio to the in-process Rust median.
+//! `bench infer --model F --c-library LIB --python PY`: the C library's and the Python
+//! module's latency beside the Rust figures of the same model and state. examples/c/latency.c
+//! is built with the system's C compiler against LIB (what `cargo build --release -p
+//! graybox-c` leaves in target/release) and run; lab/python/native_latency.py runs in PY's
+//! environment (where `pip install ./clients/native` put graybox_native). Their figures come
+//! back as JSON lines with their ratio to the in-process Rust median.
 
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+use std::collections::BTreeMap;
+
 use serde_json::{Value, json};
 
+use super::{BenchInferArgs, summary, time_calls};
 use graybox::error::{Error, Result};
+use graybox::infer::Evaluator;
 
 fn failed(what: &str, detail: impl std::fmt::Display) -> Error {
     Error::Training(format!("the C benchmark {what}: {detail}"))
+}
+
+/// `a.rounds` rounds of Predict and Linearize of one state: in process, then through the C
+/// library and in Python when asked, each with its ratio to this round's Rust median (the
+/// machine's speed drifts between rounds more than the libraries differ), then the median
+/// of each ratio over the rounds.
+pub(super) fn one_state(
+    a: &BenchInferArgs,
+    eval: &Evaluator,
+    path: &Path,
+    (x, u): (&[f64], &[f64]),
+    with: &dyn Fn(Value) -> Value,
+) -> Result<()> {
+    let mut ratios: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    for round in 0..a.rounds.max(1) {
+        let predict = time_calls(a.calls, || {
+            std::hint::black_box(eval.predict(x, u, false));
+        });
+        let linearize = time_calls(a.calls, || {
+            std::hint::black_box(eval.linearize_batch(x, u));
+        });
+        let mut figures = vec![
+            summary("model_predict_1", predict, json!({})),
+            summary("model_linearize_1", linearize, json!({})),
+        ];
+        let rust = [0, 1].map(|i| figures[i]["p50_us"].as_f64().unwrap_or(f64::NAN));
+        if let Some(lib) = &a.c_library {
+            figures.extend(c_figures(lib, path, a.calls, (x, u), rust)?);
+        }
+        if let Some(python) = &a.python {
+            figures.extend(python_figures(python, path, a.calls, (x, u), rust)?);
+        }
+        for mut v in figures {
+            v["round"] = json!(round);
+            if let (Some(bench), Some(r)) = (v["bench"].as_str(), v["ratio_to_rust_p50"].as_f64()) {
+                ratios.entry(bench.to_string()).or_default().push(r);
+            }
+            println!("{}", with(v));
+        }
+    }
+    if !ratios.is_empty() {
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let medians: serde_json::Map<String, Value> = ratios
+            .into_iter()
+            .map(|(k, v)| (k, json!(median(v))))
+            .collect();
+        let line = json!({"bench": "ratio_to_rust_p50_median", "rounds": a.rounds.max(1),
+                          "ratios": medians});
+        println!("{}", with(line));
+    }
+    Ok(())
 }
 
 /// examples/c/latency.c built against the library at `lib`, in a fresh temporary directory.
@@ -44,17 +104,37 @@ fn build(lib: &Path) -> Result<PathBuf> {
 
 /// The C figures of `calls` calls of predict and linearize at (x, u), each with its median's
 /// ratio to Rust's (`rust_p50`: predict's, then linearize's).
-pub(super) fn figures(
+pub(super) fn c_figures(
     lib: &Path,
     model: &Path,
     calls: usize,
-    (x, u): (&[f64], &[f64]),
+    state: (&[f64], &[f64]),
     rust_p50: [f64; 2],
 ) -> Result<Vec<Value>> {
     let exe = build(lib)?;
-    let mut child = Command::new(&exe)
-        .arg(model)
-        .arg(calls.to_string())
+    let out = run(Command::new(&exe).arg(model).arg(calls.to_string()), state);
+    std::fs::remove_dir_all(exe.parent().expect("a directory")).ok();
+    with_ratios(&out?, rust_p50, "C ABI, in the caller's process")
+}
+
+/// graybox_native's figures (lab/python/native_latency.py run by `python`, in whose
+/// environment the module is installed), the first two with their ratios to Rust's.
+pub(super) fn python_figures(
+    python: &Path,
+    model: &Path,
+    calls: usize,
+    state: (&[f64], &[f64]),
+    rust_p50: [f64; 2],
+) -> Result<Vec<Value>> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/native_latency.py");
+    let mut cmd = Command::new(python);
+    let out = run(cmd.arg(script).arg(model).arg(calls.to_string()), state)?;
+    with_ratios(&out, rust_p50, "graybox_native, in the Python process")
+}
+
+/// A benchmark program's JSON lines, given the state (x then u) on its standard input.
+fn run(cmd: &mut Command, (x, u): (&[f64], &[f64])) -> Result<String> {
+    let mut child = cmd
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -65,18 +145,23 @@ pub(super) fn figures(
     writeln!(stdin, "{}", state.join(" "))?;
     drop(stdin);
     let out = child.wait_with_output()?;
-    std::fs::remove_dir_all(exe.parent().expect("a directory")).ok();
     if !out.status.success() {
         return Err(failed("run", String::from_utf8_lossy(&out.stderr)));
     }
-    let lines = String::from_utf8_lossy(&out.stdout);
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// The figures, the first two (predict's, linearize's) with their medians' ratios to Rust's.
+fn with_ratios(lines: &str, rust_p50: [f64; 2], transport: &str) -> Result<Vec<Value>> {
     let mut figures = vec![];
-    for (line, rust) in lines.lines().zip(rust_p50) {
+    for (i, line) in lines.lines().enumerate() {
         let mut v: Value = serde_json::from_str(line).map_err(|e| failed("output", e))?;
-        let p50 = v["p50_us"].as_f64().unwrap_or(f64::NAN);
-        v["ratio_to_rust_p50"] = json!(p50 / rust);
-        v["rust_p50_us"] = json!(rust);
-        v["transport"] = json!("C ABI, in the caller's process");
+        if let Some(&rust) = rust_p50.get(i) {
+            let p50 = v["p50_us"].as_f64().unwrap_or(f64::NAN);
+            v["ratio_to_rust_p50"] = json!(p50 / rust);
+            v["rust_p50_us"] = json!(rust);
+        }
+        v["transport"] = json!(transport);
         figures.push(v);
     }
     Ok(figures)
