@@ -5,7 +5,7 @@ import numpy as np
 import graybox_native
 from graybox_native import GrayboxError
 
-model = graybox_native.load(os.environ.get("MODEL_FILE", "mvf-windows.gbx"))
+model = graybox_native.load(os.environ.get("MODEL_FILE", "mvf.gbx"))  # the walkthrough's file
 info = model.info
 print(f"model file: n = {info['n']}, m = {info['m']}, dt = {info['dt']} s")
 
