@@ -4,7 +4,8 @@
 mod trajectories;
 
 pub use trajectories::{
-    MAX_TRANSITIONS, TrajectoryShape, double_pendulum_trajectories, simulate_trajectories,
+    MAX_SUBSTEPS, MAX_TRANSITIONS, Recording, TrajectoryShape, double_pendulum_recorded,
+    double_pendulum_trajectories, simulate_trajectories,
 };
 
 use crate::data::Dataset;

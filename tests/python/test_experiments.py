@@ -220,3 +220,24 @@ def test_bad_arguments_name_the_field(lab_bin, tmp_path):
     p = experiment(lab_bin, "multistep", "--quick", "--noise", "0.1", "--out",
                    str(tmp_path / "z"), ok=False)
     assert p.returncode == 2 and "noise" in p.stderr, p.stderr
+
+
+def test_multistep_records_coarse_data_as_asked(lab_bin, tmp_path):
+    """--dt and --substeps: the data recorded every Δt from RK4 at Δt/K, the trajectories as
+    long in seconds as at the paper's step, both in run.json and said in results.md; at the
+    paper's recording run.json stays as it was before the options (resumable old runs)."""
+    out = tmp_path / "coarse"
+    experiment(lab_bin, "multistep", "--quick", "--dt", "0.05", "--substeps", "50",
+               "--out", str(out))
+    s = json.loads((out / "run.json").read_text())["settings"]
+    assert (s["dt"], s["substeps"]) == (0.05, 50), s
+    assert (s["steps"], s["test_steps"]) == (6, 12), s  # 0.3 s and 0.6 s at 0.05 s
+    md = (out / "results.md").read_text()
+    assert "every Δt = 0.05 s" in md and "Δt / 50 = 0.001 s" in md, md
+    paper = tmp_path / "paper"
+    experiment(lab_bin, "multistep", "--quick", "--out", str(paper))
+    s = json.loads((paper / "run.json").read_text())["settings"]
+    assert "dt" not in s and "substeps" not in s and s["steps"] == 30, s
+    p = experiment(lab_bin, "multistep", "--quick", "--substeps", "0", "--out",
+                   str(tmp_path / "bad"), ok=False)
+    assert p.returncode == 2 and "substeps" in p.stderr, p.stderr

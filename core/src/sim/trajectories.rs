@@ -1,6 +1,8 @@
 //! Simulated trajectories of the true system, for multi-step training, rollout error against
 //! horizon and the dashboard's replay: each from a random state, its inputs drawn afresh every
-//! few steps and held in between (as a controller's commands are), integrated by RK4.
+//! few steps and held in between (as a controller's commands are), integrated by RK4, at the
+//! recording step or (`substeps`) at a finer one, as a system evolving continuously is
+//! recorded by a sensor sampling every Δt.
 
 use super::{SimConfig, TemplateSystem, true_step};
 use crate::data::Dataset;
@@ -9,21 +11,26 @@ use crate::physics::integrator::Integrator;
 use crate::physics::templates::Template;
 use crate::rng::Rng;
 
-/// How many trajectories, of how many transitions, with each input held for how many steps.
+/// How many trajectories, of how many transitions, with each input held for how many steps,
+/// each step of Δt made of how many RK4 steps of Δt / substeps (1: RK4 at Δt itself).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TrajectoryShape {
     pub count: usize,
     pub steps: usize,
     pub hold: usize,
+    pub substeps: usize,
 }
+
+/// The most RK4 steps one recorded step may be made of.
+pub const MAX_SUBSTEPS: usize = 10_000;
 
 /// The most transitions one call simulates (a few seconds of CPU, ~100 MB of JSON written).
 pub const MAX_TRANSITIONS: usize = 10_000_000;
 
 /// `shape.count` trajectories of `shape.steps` transitions each: x₀ with q ~ U(−r_q, r_q) and
 /// q̇ ~ U(−r_q̇, r_q̇), an input u ~ N(0, σ²) drawn every `shape.hold` steps and held in
-/// between, RK4 at `cfg.dt` (`cfg.count` is not used). The dataset keeps the trajectories'
-/// boundaries.
+/// between, recorded every `cfg.dt` of RK4 at `cfg.dt / shape.substeps` (`cfg.count` is not
+/// used). The dataset keeps the trajectories' boundaries.
 pub fn simulate_trajectories(
     template: &Template,
     params: Vec<f64>,
@@ -34,15 +41,33 @@ pub fn simulate_trajectories(
         ("trajectories", shape.count),
         ("steps", shape.steps),
         ("hold", shape.hold),
+        ("substeps", shape.substeps),
     ] {
         if v == 0 {
             return Err(Error::invalid(name, "must be at least 1"));
         }
     }
-    if shape.count.saturating_mul(shape.steps) > MAX_TRANSITIONS {
+    if shape.substeps > MAX_SUBSTEPS {
+        return Err(Error::invalid(
+            "substeps",
+            format!("must be at most {MAX_SUBSTEPS}"),
+        ));
+    }
+    let transitions = shape.count.saturating_mul(shape.steps);
+    if transitions > MAX_TRANSITIONS {
         return Err(Error::invalid(
             "trajectories",
             format!("trajectories × steps must be at most {MAX_TRANSITIONS}"),
+        ));
+    }
+    // The work is the RK4 steps: ten times the transitions' bound, a minute or so.
+    if transitions.saturating_mul(shape.substeps) > 10 * MAX_TRANSITIONS {
+        return Err(Error::invalid(
+            "substeps",
+            format!(
+                "trajectories × steps × substeps must be at most {}",
+                10 * MAX_TRANSITIONS
+            ),
         ));
     }
     cfg.check(template.m())?;
@@ -63,8 +88,13 @@ pub fn simulate_trajectories(
                 u.extend_from_within(u.len() - m..);
             }
         }
+        // Δt / 1 is Δt exactly: one substep is RK4 at Δt, bit for bit.
+        let h = cfg.dt / shape.substeps as f64;
         for uk in u.chunks(m) {
-            let next = true_step(&sys, &x, uk, cfg.dt, Integrator::Rk4);
+            let mut next = true_step(&sys, &x, uk, h, Integrator::Rk4);
+            for _ in 1..shape.substeps {
+                next = true_step(&sys, &next, uk, h, Integrator::Rk4);
+            }
             arrays[0].extend(&x[..n]);
             arrays[1].extend(&x[n..]);
             arrays[2].extend(uk);
@@ -78,11 +108,39 @@ pub fn simulate_trajectories(
 
 /// `count` trajectories of `steps` transitions of the double pendulum at its default values
 /// as the rollout and multi-step experiments draw them: q₀ ~ U(−π, π), q̇₀ ~ U(−2, 2),
-/// inputs N(0, 30²) held 0.1 s (10 steps).
+/// inputs N(0, 30²) held 0.1 s (10 steps), recorded every 0.01 s of RK4 at 0.01 s.
 pub fn double_pendulum_trajectories(count: usize, steps: usize, seed: u64) -> Result<Dataset> {
+    double_pendulum_recorded(count, steps, seed, Recording::default())
+}
+
+/// How the true system is recorded: every `dt` seconds, from RK4 at `dt / substeps`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Recording {
+    pub dt: f64,
+    pub substeps: usize,
+}
+
+impl Default for Recording {
+    fn default() -> Self {
+        Self {
+            dt: SimConfig::default().dt,
+            substeps: 1,
+        }
+    }
+}
+
+/// [`double_pendulum_trajectories`] recorded as `rec` says; the inputs are still held 0.1 s
+/// (at least one step).
+pub fn double_pendulum_recorded(
+    count: usize,
+    steps: usize,
+    seed: u64,
+    rec: Recording,
+) -> Result<Dataset> {
     let t = Template::DoublePendulum;
     let cfg = SimConfig {
         seed,
+        dt: rec.dt,
         qdot_range: 2.0,
         u_std: 30.0,
         ..SimConfig::default()
@@ -90,7 +148,8 @@ pub fn double_pendulum_trajectories(count: usize, steps: usize, seed: u64) -> Re
     let shape = TrajectoryShape {
         count,
         steps,
-        hold: 10,
+        hold: ((0.1 / rec.dt).round() as usize).max(1),
+        substeps: rec.substeps,
     };
     simulate_trajectories(&t, t.defaults(), &cfg, shape)
 }
@@ -123,6 +182,7 @@ mod tests {
             count: 1,
             steps: 5,
             hold: 0,
+            substeps: 1,
         };
         let e = simulate_trajectories(&t, t.defaults(), &SimConfig::default(), none).unwrap_err();
         assert!(e.to_string().contains("hold"), "{e}");

@@ -13,17 +13,23 @@ use graybox::model::report::EpochMetrics;
 use graybox::model::spec::ModelSpec;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
-use graybox::sim::double_pendulum_trajectories;
+use graybox::sim::{Recording, double_pendulum_recorded};
 use graybox::train::{TrainConfig, TrainState, Trainer};
 
 /// Epochs between a cell's checkpoints.
 const CHECKPOINT_EVERY: usize = 10;
 
 /// `count` trajectories of `steps` transitions from stream `stream` of `seed` (streams keep a
-/// seed's training, validation and test trajectories apart).
-pub fn trajectories(count: usize, steps: usize, seed: u64, stream: u64) -> Result<Dataset> {
+/// seed's training, validation and test trajectories apart), recorded as `rec` says.
+pub fn trajectories(
+    count: usize,
+    steps: usize,
+    seed: u64,
+    stream: u64,
+    rec: Recording,
+) -> Result<Dataset> {
     let seed = Rng::derive(seed, 0x7A7A_0000 + stream).next_u64();
-    double_pendulum_trajectories(count, steps, seed)
+    double_pendulum_recorded(count, steps, seed, rec)
 }
 
 /// Trains `model` with `cfg` on `data` (validated on `val`) to the end, resuming from the
@@ -93,7 +99,7 @@ mod tests {
 
     #[test]
     fn observed_states_are_noisy_and_still_chain() {
-        let exact = trajectories(2, 20, 0, 0).unwrap();
+        let exact = trajectories(2, 20, 0, 0, Recording::default()).unwrap();
         let noisy = observed(&exact, [0.01, 0.1], 3);
         let n = exact.n;
         let differs = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x != y);

@@ -1,8 +1,9 @@
 //! `graybox-lab experiment multistep`: MVF trained on windows of H transitions of the double
 //! pendulum's trajectories (H = 1 is the paper's one-step loss) against the open-loop error of
 //! its rollouts on held-out trajectories, per seed, paired across H (same data, same epochs),
-//! and H = 1 once more for the wall time H = 10 took. Cells checkpoint every few epochs, so an
-//! interrupted run resumes mid-cell.
+//! and H = 1 once more for the wall time H = 10 took. The data are recorded every Δt from RK4
+//! at Δt (the paper's) or, with `--substeps`, at a finer step. Cells checkpoint every few
+//! epochs, so an interrupted run resumes mid-cell.
 
 mod report;
 
@@ -19,12 +20,15 @@ use graybox::error::Result;
 use graybox::infer::Evaluator;
 use graybox::infer::horizons::{HorizonError, horizon_errors};
 use graybox::model::file::ModelFile;
+use graybox::sim::{MAX_SUBSTEPS, Recording};
 use graybox::train::TrainConfig;
 
-/// Where the error is read, in steps of Δt = 0.01 (the plot's points); the tables show
-/// `TABLE_STEPS`: 0.5 s, 1 s and 2 s.
-const EVAL_STEPS: [usize; 10] = [1, 2, 5, 10, 20, 50, 75, 100, 150, 200];
-const TABLE_STEPS: [usize; 3] = [50, 100, 200];
+/// When the error is read, in seconds (the plot's points, those that are a step or more at
+/// the run's Δt); the tables show `TABLE_SECONDS`.
+const EVAL_SECONDS: [f64; 10] = [0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 0.75, 1.0, 1.5, 2.0];
+const TABLE_SECONDS: [f64; 3] = [0.5, 1.0, 2.0];
+/// The paper's recording: every 0.01 s, of RK4 at 0.01 s.
+const PAPER_DT: f64 = 0.01;
 
 #[derive(Args, Debug)]
 pub struct MultistepArgs {
@@ -61,6 +65,14 @@ pub struct MultistepArgs {
     /// Trainings at once [default: 1].
     #[arg(long, default_value_t = 1)]
     pub jobs: usize,
+    /// The recording's (and the model's) time step, seconds: trajectories keep their
+    /// length in seconds (2 s to train on, 3 s held out) and their inputs' hold (0.1 s).
+    #[arg(long, default_value_t = PAPER_DT)]
+    pub dt: f64,
+    /// RK4 steps of the true system per recorded step (1: the data the model's own RK4 step
+    /// can match exactly; e.g. 50 at --dt 0.05: a continuous system sampled every 0.05 s).
+    #[arg(long, default_value_t = 1)]
+    pub substeps: usize,
     /// A small run for tests (well under a minute).
     #[arg(long)]
     pub quick: bool,
@@ -68,7 +80,13 @@ pub struct MultistepArgs {
 
 #[derive(Debug, Clone, Serialize)]
 pub(super) struct MultistepSettings {
-    system: &'static str,
+    system: String,
+    /// The recording's step and RK4 steps per recorded step (left out at the paper's 0.01
+    /// and 1, as before they were options).
+    #[serde(skip_serializing_if = "is_paper_dt")]
+    dt: f64,
+    #[serde(skip_serializing_if = "is_one")]
+    substeps: usize,
     model: &'static str,
     horizons: Vec<usize>,
     seeds: Vec<u64>,
@@ -125,14 +143,19 @@ pub(super) struct Cell {
     train_seconds: f64,
     seconds_per_epoch: f64,
     samples_per_second: f64,
-    /// Held-out open-loop errors at `EVAL_STEPS`.
+    /// Held-out open-loop errors at `EVAL_SECONDS`.
     errors: Vec<HorizonError>,
 }
 
 pub fn run(a: MultistepArgs) -> Result<()> {
     let q = a.quick;
+    let rec = recording(a.dt, a.substeps)?;
+    // Trajectories as long in seconds as at the paper's step.
+    let steps = |seconds: f64| ((seconds / rec.dt).round() as usize).max(1);
     let s = MultistepSettings {
-        system: "double_pendulum (paper values), dt 0.01, RK4",
+        system: system(rec),
+        dt: rec.dt,
+        substeps: rec.substeps,
         model: "MVF",
         horizons: a
             .horizons
@@ -148,14 +171,14 @@ pub fn run(a: MultistepArgs) -> Result<()> {
         train_trajectories: if q { 4 } else { 40 },
         val_trajectories: if q { 2 } else { 10 },
         test_trajectories: if q { 2 } else { 20 },
-        steps: if q { 30 } else { 200 },
-        test_steps: if q { 60 } else { 300 },
+        steps: steps(if q { 0.3 } else { 2.0 }),
+        test_steps: steps(if q { 0.6 } else { 3.0 }),
         trajectory: "q0 ~ U(-pi, pi), qdot0 ~ U(-2, 2), inputs ~ N(0, 30^2) held 0.1 s",
     };
     let out = OutDir::open(&a.out, "multistep", &s)?;
     let jobs = a.jobs.max(1);
     let threads = a.threads.unwrap_or((pool::threads(0) / jobs).max(1));
-    let test = trajectories(s.test_trajectories, s.test_steps, 1000, 2)?;
+    let test = trajectories(s.test_trajectories, s.test_steps, 1000, 2, rec)?;
     let keys = cell_keys(&s);
     let done = keys
         .iter()
@@ -224,6 +247,55 @@ fn is_zero(n: &usize) -> bool {
     *n == 0
 }
 
+fn is_one(n: &usize) -> bool {
+    *n == 1
+}
+
+fn is_paper_dt(dt: &f64) -> bool {
+    *dt == PAPER_DT
+}
+
+/// `--dt` and `--substeps`, checked.
+fn recording(dt: f64, substeps: usize) -> Result<Recording> {
+    if !(dt.is_finite() && dt > 0.0 && dt <= 0.1) {
+        return Err(graybox::error::Error::invalid(
+            "dt",
+            "expected a step in (0, 0.1] seconds",
+        ));
+    }
+    if !(1..=MAX_SUBSTEPS).contains(&substeps) {
+        return Err(graybox::error::Error::invalid(
+            "substeps",
+            format!("expected 1 to {MAX_SUBSTEPS}"),
+        ));
+    }
+    Ok(Recording { dt, substeps })
+}
+
+/// The system as run.json names it (the paper's recording as it always was).
+fn system(rec: Recording) -> String {
+    if rec.dt == PAPER_DT && rec.substeps == 1 {
+        return "double_pendulum (paper values), dt 0.01, RK4".into();
+    }
+    format!(
+        "double_pendulum (paper values), recorded every {} s of RK4 at {} s ({} substeps)",
+        rec.dt,
+        rec.dt / rec.substeps as f64,
+        rec.substeps
+    )
+}
+
+/// The steps at which the errors are read: `EVAL_SECONDS` at the run's step.
+fn eval_steps(dt: f64) -> Vec<usize> {
+    let mut steps: Vec<usize> = EVAL_SECONDS
+        .iter()
+        .map(|t| (t / dt).round() as usize)
+        .filter(|&k| k >= 1)
+        .collect();
+    steps.dedup();
+    steps
+}
+
 /// Trains one cell (resuming from its checkpoint when there is one), saves its model and
 /// measures its held-out errors.
 fn train_cell(
@@ -234,8 +306,12 @@ fn train_cell(
     test: &Dataset,
     show: &dyn Fn(&str),
 ) -> Result<Cell> {
-    let mut data = trajectories(s.train_trajectories, s.steps, k.seed, 0)?;
-    let mut val = trajectories(s.val_trajectories, s.steps, k.seed, 1)?;
+    let rec = Recording {
+        dt: s.dt,
+        substeps: s.substeps,
+    };
+    let mut data = trajectories(s.train_trajectories, s.steps, k.seed, 0, rec)?;
+    let mut val = trajectories(s.val_trajectories, s.steps, k.seed, 1, rec)?;
     if let Some(std) = s.noise {
         data = resumable::observed(&data, std, k.seed);
         val = resumable::observed(&val, std, k.seed + 1_000_000);
@@ -271,7 +347,7 @@ fn train_cell(
     let report = trainer.report();
     let history = &trainer.checkpoint().history;
     let best = history.iter().find(|m| m.epoch == report.best_epoch);
-    let errors = held_out_errors(&file, test)?;
+    let errors = held_out_errors(&file, test, s.dt)?;
     let _ = std::fs::remove_file(&ckpt);
     Ok(Cell {
         horizon: k.horizon,
@@ -309,7 +385,7 @@ fn equal_time_epochs(s: &MultistepSettings, out: &OutDir, seed: u64) -> usize {
     }
 }
 
-fn held_out_errors(file: &ModelFile, test: &Dataset) -> Result<Vec<HorizonError>> {
+fn held_out_errors(file: &ModelFile, test: &Dataset, dt: f64) -> Result<Vec<HorizonError>> {
     let e = Evaluator::from_file(file)?;
-    Ok(horizon_errors(&e, test, &EVAL_STEPS, &|| false).expect("never stopped"))
+    Ok(horizon_errors(&e, test, &eval_steps(dt), &|| false).expect("never stopped"))
 }

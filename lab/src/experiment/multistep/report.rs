@@ -3,16 +3,28 @@
 
 use plotters::prelude::*;
 
-use super::{Cell, EVAL_STEPS, MultistepSettings, TABLE_STEPS};
+use super::{Cell, MultistepSettings, TABLE_SECONDS, eval_steps};
 use crate::experiment::out::OutDir;
 use crate::experiment::plot::{self, COLORS};
 use crate::experiment::{csv_line, median};
 use graybox::error::Result;
 
-/// The median position error after `steps` of a cell (∞ for none: diverged everywhere).
-fn error_at(c: &Cell, steps: usize) -> f64 {
-    (c.errors.iter().find(|e| e.horizon == steps))
+/// A cell's errors after `seconds` of prediction, if they were measured.
+fn errors_at(c: &Cell, seconds: f64) -> Option<&graybox::infer::horizons::HorizonError> {
+    c.errors.iter().find(|e| (e.seconds - seconds).abs() < 1e-9)
+}
+
+/// The median position error after `seconds` of a cell (∞ for none: diverged everywhere).
+fn error_at(c: &Cell, seconds: f64) -> f64 {
+    errors_at(c, seconds)
         .and_then(|e| e.position_median)
+        .unwrap_or(f64::INFINITY)
+}
+
+/// The mean position error after `seconds` (∞ when a rollout diverged).
+fn mean_error_at(c: &Cell, seconds: f64) -> f64 {
+    errors_at(c, seconds)
+        .and_then(|e| e.position_mean)
         .unwrap_or(f64::INFINITY)
 }
 
@@ -33,6 +45,20 @@ fn label(c: &Cell) -> String {
     }
 }
 
+/// How the data were recorded, for the intro.
+fn recording(s: &MultistepSettings) -> String {
+    if s.substeps == 1 {
+        return format!("Δt = {}, the model's own RK4 step", s.dt);
+    }
+    format!(
+        "recorded every Δt = {} s of the true system integrated by RK4 at Δt / {} = {} s; the \
+         model steps RK4 at Δt",
+        s.dt,
+        s.substeps,
+        s.dt / s.substeps as f64
+    )
+}
+
 fn curriculum(one_step_epochs: usize) -> String {
     if one_step_epochs == 0 {
         return String::new();
@@ -46,12 +72,13 @@ fn curriculum(one_step_epochs: usize) -> String {
 pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Result<()> {
     let mut md = format!(
         "# Multi-step training: open-loop error against training horizon\n\n\
-         MVF on the double pendulum: {} training trajectories of {} steps (Δt = 0.01), {} for \
-         validation, per seed; {} epochs, batch {} windows, lr {}. Errors: median ‖q̂ − q‖ \
-         (angles on the circle) over every window start of {} held-out trajectories of {} \
-         steps, open loop under the recorded inputs.{}\n\n",
+         MVF on the double pendulum: {} training trajectories of {} steps ({}), {} for \
+         validation, per seed; {} epochs, batch {} windows, lr {}. Errors: median (and mean) \
+         ‖q̂ − q‖ (angles on the circle) over every window start of {} held-out trajectories \
+         of {} steps, open loop under the recorded inputs.{}\n\n",
         s.train_trajectories,
         s.steps,
+        recording(s),
         s.val_trajectories,
         s.epochs,
         s.batch_size,
@@ -68,8 +95,11 @@ pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Resu
         let at = md.rfind("\n\n").expect("the intro ends with a blank line");
         md.insert_str(at + 2, &note);
     }
-    md.push_str("| training | seed | 0.5 s | 1 s | 2 s | s / epoch | samples/s | best epoch |\n");
-    md.push_str("|---|---:|---:|---:|---:|---:|---:|---:|\n");
+    md.push_str(
+        "| training | seed | 0.5 s | 1 s | 2 s | mean 0.5 s | mean 1 s | mean 2 s | s / epoch \
+         | samples/s | best epoch |\n",
+    );
+    md.push_str("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     let header = [
         "training",
         "horizon",
@@ -78,20 +108,27 @@ pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Resu
         "error_0.5s",
         "error_1s",
         "error_2s",
+        "mean_error_0.5s",
+        "mean_error_1s",
+        "mean_error_2s",
         "seconds_per_epoch",
         "samples_per_second",
         "best_epoch",
     ];
     let mut csv = csv_line(&header.map(String::from));
     for c in cells {
-        let e: Vec<f64> = TABLE_STEPS.iter().map(|&k| error_at(c, k)).collect();
+        let e: Vec<f64> = TABLE_SECONDS.iter().map(|&t| error_at(c, t)).collect();
+        let mean: Vec<f64> = TABLE_SECONDS.iter().map(|&t| mean_error_at(c, t)).collect();
         md.push_str(&format!(
-            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.2} | {:.0} | {} |\n",
+            "| {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.0} | {} |\n",
             label(c),
             c.seed,
             e[0],
             e[1],
             e[2],
+            mean[0],
+            mean[1],
+            mean[2],
             c.seconds_per_epoch,
             c.samples_per_second,
             c.best_epoch
@@ -104,6 +141,9 @@ pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Resu
             e[0].to_string(),
             e[1].to_string(),
             e[2].to_string(),
+            mean[0].to_string(),
+            mean[1].to_string(),
+            mean[2].to_string(),
             c.seconds_per_epoch.to_string(),
             c.samples_per_second.to_string(),
             c.best_epoch.to_string(),
@@ -111,7 +151,7 @@ pub(super) fn write(s: &MultistepSettings, out: &OutDir, cells: &[Cell]) -> Resu
     }
     md.push_str(&ratios(cells));
     md.push_str("\n![median held-out error against prediction time](horizons.png)\n");
-    plot_errors(out, cells)?;
+    plot_errors(out, cells, s.dt)?;
     out.write("results.md", md.as_bytes())?;
     out.write("results.csv", csv.as_bytes())
 }
@@ -139,17 +179,17 @@ fn ratios(cells: &[Cell]) -> String {
             .filter(|d| d.horizon == c.horizon && d.equal_time == c.equal_time)
             .filter_map(|d| one(d.seed).map(|o| (d, o)))
             .collect();
-        let ratio = |k: usize| {
+        let ratio = |t: f64| {
             median(
                 &peers
                     .iter()
-                    .map(|(d, o)| error_at(o, k) / error_at(d, k))
+                    .map(|(d, o)| error_at(o, t) / error_at(d, t))
                     .collect::<Vec<_>>(),
             )
         };
         let better = (peers.iter())
             .filter(|(d, o)| {
-                error_at(d, 100) < error_at(o, 100) && error_at(d, 200) < error_at(o, 200)
+                error_at(d, 1.0) < error_at(o, 1.0) && error_at(d, 2.0) < error_at(o, 2.0)
             })
             .count();
         let time = median(
@@ -161,9 +201,9 @@ fn ratios(cells: &[Cell]) -> String {
         md.push_str(&format!(
             "| {} | {:.2}× | {:.2}× | {:.2}× | {better} of {} | {time:.1}× |\n",
             group(c),
-            ratio(50),
-            ratio(100),
-            ratio(200),
+            ratio(0.5),
+            ratio(1.0),
+            ratio(2.0),
             peers.len()
         ));
     }
@@ -172,20 +212,18 @@ fn ratios(cells: &[Cell]) -> String {
 
 /// Each training's median held-out position error (median over seeds) against prediction
 /// time, both axes logarithmic.
-fn plot_errors(out: &OutDir, cells: &[Cell]) -> Result<()> {
+fn plot_errors(out: &OutDir, cells: &[Cell], dt: f64) -> Result<()> {
     let mut labels: Vec<String> = cells.iter().map(group).collect();
     labels.dedup();
     let (lo, hi) = (1e-5, 10.0);
     let curve = |l: &String| -> Vec<(f64, f64)> {
         let mine: Vec<&Cell> = cells.iter().filter(|c| &group(c) == l).collect();
-        (EVAL_STEPS.iter())
-            .map(|&k| {
-                let e = median(&mine.iter().map(|c| error_at(c, k)).collect::<Vec<_>>());
+        (eval_steps(dt).into_iter())
+            .map(|k| {
+                let t = k as f64 * dt;
+                let e = median(&mine.iter().map(|c| error_at(c, t)).collect::<Vec<_>>());
                 // A diverged median sits on the top edge, marked by the clamp.
-                (
-                    k as f64 * 0.01,
-                    if e.is_finite() { e.clamp(lo, hi) } else { hi },
-                )
+                (t, if e.is_finite() { e.clamp(lo, hi) } else { hi })
             })
             .collect()
     };
@@ -198,7 +236,7 @@ fn plot_errors(out: &OutDir, cells: &[Cell]) -> Result<()> {
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d((0.01f64..2.0).log_scale(), (lo..hi).log_scale())?;
+            .build_cartesian_2d((dt.min(0.01)..2.0).log_scale(), (lo..hi).log_scale())?;
         chart
             .configure_mesh()
             .x_desc("prediction time (s)")

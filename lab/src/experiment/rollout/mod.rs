@@ -24,8 +24,8 @@ use graybox::model::spec::ModelSpec;
 use graybox::physics::integrator::Integrator;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
-use graybox::sim::TemplateSystem;
 use graybox::sim::true_step;
+use graybox::sim::{Recording, TemplateSystem};
 use graybox::train::{TrainConfig, Trainer};
 
 const MODELS: [&str; 2] = ["MVF", "naive"];
@@ -282,8 +282,14 @@ fn train_on_trajectories(
         .trajectories
         .as_ref()
         .expect("trajectory rows have settings");
-    let data = trajectories(t.train_trajectories, t.steps, s.seed, 0)?;
-    let val = trajectories(t.val_trajectories, t.steps, s.seed, 1)?;
+    let data = trajectories(
+        t.train_trajectories,
+        t.steps,
+        s.seed,
+        0,
+        Recording::default(),
+    )?;
+    let val = trajectories(t.val_trajectories, t.steps, s.seed, 1, Recording::default())?;
     let cfg = TrainConfig {
         epochs: t.epochs,
         batch_size: s.batch_size,
