@@ -6,6 +6,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Every member's artifacts first: `cargo test` builds only what a test links, and the Python
+# module (clients/native) has no Rust tests of its own (tests/python/test_native.py tests it).
+cargo build --workspace --release --locked
 cargo test --workspace --release --locked "$@"
 
 # The README's run command must reuse this build: with the dev-dependencies' and the lab's

@@ -236,7 +236,7 @@ fn plot_errors(out: &OutDir, cells: &[Cell], dt: f64) -> Result<()> {
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d((dt.min(0.01)..2.0).log_scale(), (lo..hi).log_scale())?;
+            .build_cartesian_2d((dt.max(0.01)..2.0).log_scale(), (lo..hi).log_scale())?;
         chart
             .configure_mesh()
             .x_desc("prediction time (s)")
