@@ -2,7 +2,7 @@
 //! with the fields of the gRPC `Plan` response.
 
 use std::path::PathBuf;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use clap::Args;
 use serde_json::json;
@@ -11,7 +11,7 @@ use crate::control::dircol::straight_line;
 use crate::control::linalg::Mat;
 use crate::control::plan::{
     DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, EnsembleCost, Method,
-    PlanRequest, check_horizon,
+    PlanRequest, check_horizon, time_limit_in,
 };
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
@@ -151,9 +151,7 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
         tolerance: a.tolerance,
         restarts: a.restarts,
         seed: a.seed,
-        time_limit: (a.time_limit_ms > 0)
-            .then(|| Instant::now().checked_add(Duration::from_millis(a.time_limit_ms)))
-            .flatten(),
+        time_limit: time_limit_in(a.time_limit_ms),
     })
 }
 

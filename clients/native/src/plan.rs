@@ -1,8 +1,6 @@
 //! The control calls: a rollout's inputs (given or a TVLQR policy), TVLQR gains and plans,
 //! checked as the service checks them, then solved by the core with the GIL released.
 
-use std::time::{Duration, Instant};
-
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyType};
@@ -11,7 +9,7 @@ use crate::convert::{ArrayIn, OrPy, array, matrix, values};
 use graybox_core::control::linalg::Mat;
 use graybox_core::control::plan::{
     DEFAULT_MAX_PLAN_HORIZON, EnsembleCost, MAX_RESTARTS, Method, PlanRequest, check_horizon,
-    validate,
+    time_limit_in, validate,
 };
 use graybox_core::control::policy::Policy;
 use graybox_core::error::{Error, Result};
@@ -182,9 +180,7 @@ fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>) -> Result<PlanRequest> {
         tolerance: a.tolerance,
         restarts: a.restarts,
         seed: a.seed,
-        time_limit: (a.time_limit_ms > 0)
-            .then(|| Instant::now().checked_add(Duration::from_millis(a.time_limit_ms)))
-            .flatten(),
+        time_limit: time_limit_in(a.time_limit_ms),
     };
     let req = req.with_effort_limits(&eval.effort_limits());
     validate(&req, nx, m)?;

@@ -112,6 +112,13 @@ pub struct PlanRequest {
     pub time_limit: Option<Instant>,
 }
 
+/// A plan's time limit `ms` milliseconds from now, as every caller gives it (0: none).
+pub fn time_limit_in(ms: u64) -> Option<Instant> {
+    (ms > 0)
+        .then(|| Instant::now().checked_add(std::time::Duration::from_millis(ms)))
+        .flatten()
+}
+
 impl PlanRequest {
     /// From `x0` to `goal` in `horizon` steps under the cost weights, with the defaults of
     /// everything else: inputs unbounded, a zero initial guess, no restarts, no time limit.

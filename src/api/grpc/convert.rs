@@ -1,8 +1,6 @@
 //! Domain ↔ protobuf conversions and the error → status mapping (exhaustive: a new error
 //! variant must decide its code here).
 
-use std::time::{Duration, Instant};
-
 use tonic::Status;
 
 use super::pb;
@@ -11,7 +9,7 @@ use crate::app::views::ModelView;
 use crate::array::Array;
 use crate::control::linalg::Mat;
 use crate::control::plan::{
-    DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, EnsembleCost, Method, PlanRequest,
+    DEFAULT_MAX_ITERATIONS, DEFAULT_TOLERANCE, EnsembleCost, Method, PlanRequest, time_limit_in,
 };
 use crate::error::Error;
 
@@ -98,9 +96,7 @@ pub fn plan_request(r: pb::PlanRequest) -> Result<PlanRequest, Status> {
         tolerance: r.tolerance.unwrap_or(DEFAULT_TOLERANCE),
         restarts: r.restarts as usize,
         seed: r.seed,
-        time_limit: (r.time_limit_ms > 0)
-            .then(|| Instant::now().checked_add(Duration::from_millis(r.time_limit_ms)))
-            .flatten(),
+        time_limit: time_limit_in(r.time_limit_ms),
     })
 }
 

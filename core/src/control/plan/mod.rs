@@ -27,7 +27,7 @@ use std::time::Instant;
 
 pub use super::plan_request::{
     DEFAULT_MAX_ITERATIONS, DEFAULT_MAX_PLAN_HORIZON, DEFAULT_TOLERANCE, EnsembleCost,
-    MAX_RESTARTS, Method, PlanRequest, check_horizon, validate,
+    MAX_RESTARTS, Method, PlanRequest, check_horizon, time_limit_in, validate,
 };
 
 use super::linalg::Mat;
