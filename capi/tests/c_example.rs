@@ -93,16 +93,7 @@ fn the_c_example_runs_a_control_loop_with_the_services_answers() {
         );
     }
     // Without a record: a loop from rest, as a user first runs it.
-    let run = Command::new(&exe)
-        .arg(root().join("tests/fixtures/inference/ur5-residual.gbx"))
-        .output()
-        .unwrap();
-    let out = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "{out}{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let out = run_on(&exe, "ur5-residual");
     assert!(
         out.starts_with("1000 steps of 0.01 s from rest; q ends at "),
         "{out}"
@@ -110,19 +101,25 @@ fn the_c_example_runs_a_control_loop_with_the_services_answers() {
     std::fs::remove_dir_all(&tmp).ok();
 }
 
-#[test]
-fn the_cpp_wrapper_owns_the_model_and_throws_the_librarys_errors() {
-    let exe = build("c++", "-std=c++17", "wrapper.cpp", &["-lgraybox_c"]);
-    let run = Command::new(&exe)
-        .arg(root().join("tests/fixtures/inference/cartpole-wb.gbx"))
+/// `exe`'s output on a recorded model file, after it succeeded.
+fn run_on(exe: &Path, model: &str) -> String {
+    let run = Command::new(exe)
+        .arg(root().join(format!("tests/fixtures/inference/{model}.gbx")))
         .output()
         .unwrap();
-    let out = String::from_utf8_lossy(&run.stdout);
+    let out = String::from_utf8_lossy(&run.stdout).into_owned();
     assert!(
         run.status.success(),
         "{out}{}",
         String::from_utf8_lossy(&run.stderr)
     );
+    out
+}
+
+#[test]
+fn the_cpp_wrapper_owns_the_model_and_throws_the_librarys_errors() {
+    let exe = build("c++", "-std=c++17", "wrapper.cpp", &["-lgraybox_c"]);
+    let out = run_on(&exe, "cartpole-wb");
     assert!(
         out.starts_with("one step of 0.01 s from rest: qdot[0] = "),
         "{out}"

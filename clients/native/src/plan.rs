@@ -8,8 +8,8 @@ use pyo3::types::{PyDict, PyType};
 use crate::convert::{ArrayIn, OrPy, array, matrix, values};
 use graybox_core::control::linalg::Mat;
 use graybox_core::control::plan::{
-    DEFAULT_MAX_PLAN_HORIZON, EnsembleCost, MAX_RESTARTS, Method, PlanRequest, check_horizon,
-    time_limit_in, validate,
+    DEFAULT_MAX_PLAN_HORIZON, EnsembleCost, Method, PlanRequest, check_horizon, time_limit_in,
+    validate,
 };
 use graybox_core::control::policy::Policy;
 use graybox_core::error::{Error, Result};
@@ -148,12 +148,6 @@ pub struct PlanArgs<'py, 'a> {
 fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>) -> Result<PlanRequest> {
     let (nx, m) = (2 * eval.config.n, eval.config.m);
     let horizon = check_horizon(a.horizon as u64, DEFAULT_MAX_PLAN_HORIZON)?;
-    if a.restarts > MAX_RESTARTS {
-        return Err(Error::invalid(
-            "restarts",
-            format!("at most {MAX_RESTARTS}"),
-        ));
-    }
     let flat = |v: &Option<ArrayIn<'_>>| v.as_ref().map(|v| values(v).0);
     let rows = |name: &str, v: &Option<ArrayIn<'_>>, width: usize| -> Result<Option<Mat>> {
         let Some(v) = v else { return Ok(None) };
