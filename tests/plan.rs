@@ -5,6 +5,8 @@
 mod common;
 #[path = "plan/ensemble.rs"]
 mod ensemble;
+#[path = "plan/x_init.rs"]
+mod x_init;
 
 use graybox::control::linalg::Mat;
 use graybox::control::plan::{Dynamics, Plan, PlanRequest, plan};

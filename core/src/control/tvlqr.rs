@@ -61,6 +61,10 @@ pub fn check_weight(name: &str, w: &Mat, dim: usize, definite: bool) -> Result<(
     Ok(())
 }
 
+/// The field an error about the nominal trajectory names: the Tvlqr call's; a plan names its
+/// own start instead (`Planner::finish`).
+pub const NOMINAL: &str = "x_bar";
+
 /// The TVLQR gains for the linearizations (A_t, B_t), t = 0..T−1.
 pub fn tvlqr(a: &[Mat], b: &[Mat], q: &Mat, r: &Mat, qf: &Mat) -> Result<Gains> {
     if a.is_empty() || a.len() != b.len() {
@@ -97,9 +101,20 @@ pub fn tvlqr(a: &[Mat], b: &[Mat], q: &Mat, r: &Mat, qf: &Mat) -> Result<Gains> 
                 ),
             ));
         }
-        let l = h
-            .cholesky()
-            .ok_or_else(|| Error::invalid("R", "R + BᵀSB lost positive definiteness"))?;
+        // R was checked positive definite above, so this is never R's fault: BᵀSB has swamped
+        // it in floating point, where the model's B (or the cost-to-go) is out of scale.
+        let l = h.cholesky().ok_or_else(|| {
+            let largest = bt.data.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            Error::invalid(
+                NOMINAL,
+                format!(
+                    "no gains at step {t}: R + BᵀSB is not positive definite in floating point \
+                     (the model's B_{t} has entries up to {largest:e}; R itself is positive \
+                     definite): the model's linearization there is out of range; keep the \
+                     nominal within the states the model was trained on"
+                ),
+            )
+        })?;
         let kt = cholesky_solve(&l, &sb.t().mul(at)); // (R + BᵀSB)⁻¹ BᵀSA
         let acl = at.sub(&bt.mul(&kt));
         let st = q

@@ -20,7 +20,7 @@ use self::sqp::Run;
 use self::transcription::Layout;
 use super::linalg::Mat;
 use super::plan::{Bounds, Dynamics, Method, Plan, PlanRequest, Planner, Trajectory, validate};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::rng::Rng;
 
 /// A system's continuous dynamics, for collocation: f and its Jacobians at a batch of points.
@@ -110,19 +110,32 @@ pub fn plan<S: Dynamics + Continuous>(
 impl<S: Dynamics + Continuous> Collocation<'_, S> {
     fn solve(&self, until: &Until) -> Result<Plan> {
         let mut rng = Rng::derive(self.req.seed, 0xD1_C0);
-        let mut best: Option<Run> = None;
+        let mut best: Option<(Run, usize)> = None;
         for start in 0..=self.req.restarts {
             self.planner.check()?;
             let z0 = self.initial_guess(start, &mut rng)?;
             let run = self.optimize(z0, until)?;
-            if best.as_ref().is_none_or(|b| better(&run, b)) {
-                best = Some(run);
+            if best.as_ref().is_none_or(|(b, _)| better(&run, b)) {
+                best = Some((run, start));
             }
             if until.reached() {
                 break;
             }
         }
-        self.finish(best.expect("at least one start"))
+        let (run, start) = best.expect("at least one start");
+        let from_x_init = start == 0 && self.req.x_init.is_some();
+        self.finish(run).map_err(|e| match e {
+            // The caller's initial states, not x0, led the plan where the model fails.
+            Error::Invalid { field, message } if field == "x0" && from_x_init => Error::invalid(
+                "x_init",
+                format!(
+                    "{message} (collocation started from x_init: give initial states within \
+                     the range the model was trained on, or leave x_init out to start from the \
+                     rollout of u_init)"
+                ),
+            ),
+            e => e,
+        })
     }
 
     /// Start 0's inputs are `u_init` and its states `x_init`; a restart's inputs are drawn as

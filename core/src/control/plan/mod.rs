@@ -31,7 +31,7 @@ pub use super::plan_request::{
 };
 
 use super::linalg::Mat;
-use super::tvlqr::{Gains, tvlqr};
+use super::tvlqr::{Gains, NOMINAL, tvlqr};
 use crate::error::{Error, Result};
 use crate::rng::Rng;
 
@@ -388,7 +388,13 @@ impl<'a, D: Dynamics> Planner<'a, D> {
                 ),
             ));
         }
-        let gains = tvlqr(a, b, &self.req.q, &self.req.r, &self.req.qf)?;
+        let gains = tvlqr(a, b, &self.req.q, &self.req.r, &self.req.qf).map_err(|e| match e {
+            // The plan's own states are the nominal: they lead back to where it started.
+            Error::Invalid { field, message } if field == NOMINAL => {
+                Error::invalid("x0", format!("along the plan from x0, {message}"))
+            }
+            e => e,
+        })?;
         let end = &t.x[horizon * nx..];
         let goal_error = end
             .iter()
