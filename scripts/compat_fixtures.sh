@@ -3,7 +3,8 @@
 # graybox that built $GRAYBOX_BIN (default target/release/graybox), which later versions must
 # keep reading (tests/compat.rs). Files already there are an earlier version's and are kept:
 # delete one only to capture it again on purpose, never to make a test pass. Run it to capture
-# a new format version (add its file below and to tests/compat.rs's MODELS first).
+# a new format version (add its file below and to tests/compat.rs's MODELS first). The files
+# here predate the model file's checksum: they are what a reader loads with a warning.
 #  - mvf.gbx, wb.gbx, naive.gbx: three trained models (2 epochs on simulated data);
 #  - wb-x3.gbx: a W-B ensemble of 3 members (graybox.model/3);
 #  - expected.json: their Predict and Linearize outputs at fixed points, written by

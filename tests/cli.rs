@@ -2,12 +2,16 @@
 
 use std::process::{Command, Output};
 
+#[path = "cli/careless.rs"]
+mod careless;
 #[path = "cli/ensemble.rs"]
 mod ensemble;
 #[path = "cli/formula_limits.rs"]
 mod formula_limits;
 #[path = "cli/messages.rs"]
 mod messages;
+#[path = "cli/model_files.rs"]
+mod model_files;
 #[path = "cli/plan_methods.rs"]
 mod plan_methods;
 

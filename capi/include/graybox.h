@@ -34,6 +34,9 @@ typedef enum GbxStatus {
   GBX_STATUS_IO = 3,
   // A fault of the library itself (a bug: please report it with the message).
   GBX_STATUS_INTERNAL = 4,
+  // The caller's cancel flag was set: the call stopped before it finished (a rollout's
+  // states so far are in `xs`; other outputs are incomplete).
+  GBX_STATUS_CANCELLED = 5,
 } GbxStatus;
 
 // A loaded model (opaque to C): immutable and shareable across threads.
@@ -79,6 +82,16 @@ size_t gbx_model_m(const struct GbxModel *model);
 // `model` is a loaded model.
 double gbx_model_dt(const struct GbxModel *model);
 
+// NULL when the model's file proved it is whole (its checksum matched); else why it loaded
+// without that proof (a file written before graybox files carried a checksum), as text the
+// model owns until `gbx_model_free`. A file whose checksum does not match, or whose members
+// disagree with its report, does not load at all: `GBX_STATUS_INVALID_ARGUMENT`, and
+// `gbx_last_error` names `checksum` or `members`.
+//
+// # Safety
+// `model` is a loaded model.
+const char *gbx_model_warning(const struct GbxModel *model);
+
 // One step for `batch` states: `x` [batch, 2n] and `u` [batch, m] row-major give
 // `x_next` [batch, 2n] and, when `accel` is not null, q̈ [batch, n]. An ensemble answers
 // with its members' mean, as the service does.
@@ -91,6 +104,22 @@ enum GbxStatus gbx_predict(const struct GbxModel *model,
                            size_t batch,
                            double *x_next,
                            double *accel);
+
+// `gbx_predict` that stops when `*cancel` turns nonzero (checked between chunks of the
+// batch), returning `GBX_STATUS_CANCELLED`. `cancel` may be NULL (no flag); else another
+// thread or a signal handler sets it while the call runs (a C11 `_Atomic int32_t`, or a
+// `volatile int32_t` stored whole).
+//
+// # Safety
+// As `gbx_predict`; a non-null `cancel` points to an aligned `int32_t` that outlives the
+// call.
+enum GbxStatus gbx_predict_cancellable(const struct GbxModel *model,
+                                       const double *x,
+                                       const double *u,
+                                       size_t batch,
+                                       double *x_next,
+                                       double *accel,
+                                       const int32_t *cancel);
 
 // The one-step map's Jacobians at `batch` points: `a` [batch, 2n, 2n] = ∂x′/∂x and
 // `b` [batch, 2n, m] = ∂x′/∂u, row-major.
@@ -105,6 +134,20 @@ enum GbxStatus gbx_linearize(const struct GbxModel *model,
                              double *a,
                              double *b);
 
+// `gbx_linearize` that stops when `*cancel` turns nonzero (checked between chunks of the
+// batch), returning `GBX_STATUS_CANCELLED`; `cancel` as `gbx_predict_cancellable`'s.
+//
+// # Safety
+// As `gbx_linearize`; a non-null `cancel` points to an aligned `int32_t` that outlives the
+// call.
+enum GbxStatus gbx_linearize_cancellable(const struct GbxModel *model,
+                                         const double *x,
+                                         const double *u,
+                                         size_t batch,
+                                         double *a,
+                                         double *b,
+                                         const int32_t *cancel);
+
 // `steps` steps from `x0` [2n] under the inputs `u` [steps, m]: `xs` [steps + 1, 2n] gets x0
 // and every state after it.
 //
@@ -115,6 +158,20 @@ enum GbxStatus gbx_rollout(const struct GbxModel *model,
                            const double *u,
                            size_t steps,
                            double *xs);
+
+// `gbx_rollout` that stops when `*cancel` turns nonzero (checked at every step), returning
+// `GBX_STATUS_CANCELLED` with the states computed so far in `xs`; `cancel` as
+// `gbx_predict_cancellable`'s.
+//
+// # Safety
+// As `gbx_rollout`; a non-null `cancel` points to an aligned `int32_t` that outlives the
+// call.
+enum GbxStatus gbx_rollout_cancellable(const struct GbxModel *model,
+                                       const double *x0,
+                                       const double *u,
+                                       size_t steps,
+                                       double *xs,
+                                       const int32_t *cancel);
 
 // The message of this thread's last failed call ("" before any): valid until this thread's
 // next failing call.

@@ -42,19 +42,27 @@ class Model {
   size_t n() const { return gbx_model_n(get()); }
   size_t m() const { return gbx_model_m(get()); }
   double dt() const { return gbx_model_dt(get()); }
+  // Null when the file proved it is whole; else why it loaded without that proof (a file from
+  // before graybox files carried a checksum), owned by the model.
+  const char* warning() const { return gbx_model_warning(get()); }
+
+  // Each call below stops when a non-null `cancel` turns nonzero (set by another thread or a
+  // signal handler), throwing Error with GBX_STATUS_CANCELLED.
 
   // x [batch, 2n], u [batch, m] -> x_next [batch, 2n] (and q̈ [batch, n] unless null).
   void predict(const double* x, const double* u, size_t batch, double* x_next,
-               double* accel = nullptr) const {
-    check(gbx_predict(get(), x, u, batch, x_next, accel));
+               double* accel = nullptr, const int32_t* cancel = nullptr) const {
+    check(gbx_predict_cancellable(get(), x, u, batch, x_next, accel, cancel));
   }
   // A [batch, 2n, 2n] and B [batch, 2n, m] of the one-step map.
-  void linearize(const double* x, const double* u, size_t batch, double* a, double* b) const {
-    check(gbx_linearize(get(), x, u, batch, a, b));
+  void linearize(const double* x, const double* u, size_t batch, double* a, double* b,
+                 const int32_t* cancel = nullptr) const {
+    check(gbx_linearize_cancellable(get(), x, u, batch, a, b, cancel));
   }
   // xs [steps + 1, 2n] from x0 [2n] under u [steps, m].
-  void rollout(const double* x0, const double* u, size_t steps, double* xs) const {
-    check(gbx_rollout(get(), x0, u, steps, xs));
+  void rollout(const double* x0, const double* u, size_t steps, double* xs,
+               const int32_t* cancel = nullptr) const {
+    check(gbx_rollout_cancellable(get(), x0, u, steps, xs, cancel));
   }
 
   const GbxModel* get() const { return handle_.get(); }

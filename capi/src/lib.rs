@@ -12,16 +12,21 @@
 //! threads at once. Per-call scratch lives in the calling thread's workspace (the multibody
 //! `Data` and the evaluator's buffers), never in the handle. The message of a failed call is
 //! kept per thread (`gbx_last_error`).
+//!
+//! Cancellation: the `_cancellable` variants of predict, linearize and rollout take a flag the
+//! caller sets from elsewhere (another thread, a signal handler) to stop a long call, which
+//! then returns `GBX_STATUS_CANCELLED`; the plain entry points are those with no flag.
 
-use std::cell::RefCell;
-use std::ffi::{CStr, CString, c_char};
-use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::ffi::{CStr, c_char};
 use std::path::Path;
 
 use graybox_core::error::Error;
 use graybox_core::infer::{Evaluator, finite_rows};
 use graybox_core::model::file::ModelFile;
 
+use boundary::{Cancel, batch_of, guard, input, output, values};
+
+mod boundary;
 pub mod pool;
 
 /// Blocks for predict, linearize and rollout come from per-thread lists (`pool`).
@@ -42,6 +47,9 @@ pub enum GbxStatus {
     Io = 3,
     /// A fault of the library itself (a bug: please report it with the message).
     Internal = 4,
+    /// The caller's cancel flag was set: the call stopped before it finished (a rollout's
+    /// states so far are in `xs`; other outputs are incomplete).
+    Cancelled = 5,
 }
 
 /// A loaded model (opaque to C): immutable and shareable across threads.
@@ -50,84 +58,22 @@ pub struct GbxModel {
     n: usize,
     m: usize,
     dt: f64,
-}
-
-thread_local! {
-    static LAST_ERROR: RefCell<CString> = RefCell::new(CString::default());
-}
-
-fn remember(message: String) {
-    let c = CString::new(message.replace('\0', " ")).unwrap_or_default();
-    LAST_ERROR.with(|e| *e.borrow_mut() = c);
-}
-
-fn status_of(e: &Error) -> GbxStatus {
-    match e {
-        Error::Invalid { .. } | Error::Unprocessable { .. } => GbxStatus::InvalidArgument,
-        Error::Corrupt { .. } => GbxStatus::Corrupt,
-        Error::Io(_) => GbxStatus::Io,
-        _ => GbxStatus::Internal,
-    }
-}
-
-/// Runs a call: its error becomes a status and this thread's last message; a panic (a bug)
-/// stops at the boundary instead of unwinding into C.
-fn guard(f: impl FnOnce() -> Result<(), Error>) -> GbxStatus {
-    match catch_unwind(AssertUnwindSafe(f)) {
-        Ok(Ok(())) => GbxStatus::Ok,
-        Ok(Err(e)) => {
-            remember(e.to_string());
-            status_of(&e)
-        }
-        Err(panic) => {
-            let what = panic
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| panic.downcast_ref::<String>().cloned())
-                .unwrap_or_default();
-            remember(format!("internal error: {what}"));
-            GbxStatus::Internal
-        }
-    }
-}
-
-/// `len` values at `p`, or an invalid-argument error naming `field` when `p` is null.
-///
-/// # Safety
-/// A non-null `p` points to at least `len` readable values.
-unsafe fn input<'a>(p: *const f64, len: usize, field: &str) -> Result<&'a [f64], Error> {
-    if len == 0 {
-        return Ok(&[]);
-    }
-    if p.is_null() {
-        return Err(Error::invalid(field, "is a null pointer"));
-    }
-    // SAFETY: non-null, and the caller promises `len` values.
-    Ok(unsafe { std::slice::from_raw_parts(p, len) })
-}
-
-/// `len` writable values at `p`, or an invalid-argument error naming `field` when null.
-///
-/// # Safety
-/// A non-null `p` points to at least `len` writable values that nothing else reads or
-/// writes during the call.
-unsafe fn output<'a>(p: *mut f64, len: usize, field: &str) -> Result<&'a mut [f64], Error> {
-    if p.is_null() {
-        return Err(Error::invalid(field, "is a null pointer"));
-    }
-    // SAFETY: non-null, and the caller promises `len` exclusive values.
-    Ok(unsafe { std::slice::from_raw_parts_mut(p, len) })
+    /// Why the file does not prove it is whole, when it loaded anyway (`gbx_model_warning`).
+    warning: Option<std::ffi::CString>,
 }
 
 /// The model a file's bytes describe, boxed for C.
 fn loaded(file: ModelFile) -> Result<Box<GbxModel>, Error> {
     let eval = Evaluator::from_file(&file)?;
     let c = &file.config;
+    let warning = (file.unchecked_warning())
+        .map(|w| std::ffi::CString::new(w.message.replace('\0', " ")).unwrap_or_default());
     Ok(Box::new(GbxModel {
         n: c.n,
         m: c.m,
         dt: c.dt,
         eval,
+        warning,
     }))
 }
 
@@ -226,6 +172,21 @@ pub unsafe extern "C" fn gbx_model_dt(model: *const GbxModel) -> f64 {
     unsafe { model.as_ref() }.map_or(f64::NAN, |m| m.dt)
 }
 
+/// NULL when the model's file proved it is whole (its checksum matched); else why it loaded
+/// without that proof (a file written before graybox files carried a checksum), as text the
+/// model owns until `gbx_model_free`. A file whose checksum does not match, or whose members
+/// disagree with its report, does not load at all: `GBX_STATUS_INVALID_ARGUMENT`, and
+/// `gbx_last_error` names `checksum` or `members`.
+///
+/// # Safety
+/// `model` is a loaded model.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_warning(model: *const GbxModel) -> *const c_char {
+    // SAFETY: the caller promises a loaded model.
+    let warning = unsafe { model.as_ref() }.and_then(|m| m.warning.as_ref());
+    warning.map_or(std::ptr::null(), |w| w.as_ptr())
+}
+
 fn model_ref<'a>(model: *const GbxModel) -> Result<&'a GbxModel, Error> {
     // SAFETY: null or a loaded model, as every entry point's contract says.
     unsafe { model.as_ref() }.ok_or_else(|| Error::invalid("model", "is a null pointer"))
@@ -246,15 +207,41 @@ pub unsafe extern "C" fn gbx_predict(
     x_next: *mut f64,
     accel: *mut f64,
 ) -> GbxStatus {
+    // SAFETY: the caller's promises, and no flag.
+    unsafe { gbx_predict_cancellable(model, x, u, batch, x_next, accel, std::ptr::null()) }
+}
+
+/// `gbx_predict` that stops when `*cancel` turns nonzero (checked between chunks of the
+/// batch), returning `GBX_STATUS_CANCELLED`. `cancel` may be NULL (no flag); else another
+/// thread or a signal handler sets it while the call runs (a C11 `_Atomic int32_t`, or a
+/// `volatile int32_t` stored whole).
+///
+/// # Safety
+/// As `gbx_predict`; a non-null `cancel` points to an aligned `int32_t` that outlives the
+/// call.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_predict_cancellable(
+    model: *const GbxModel,
+    x: *const f64,
+    u: *const f64,
+    batch: usize,
+    x_next: *mut f64,
+    accel: *mut f64,
+    cancel: *const i32,
+) -> GbxStatus {
     guard(|| {
         pool::pooled(|| {
             let m = model_ref(model)?;
             let (nx, b) = (2 * m.n, batch_of(batch)?);
-            // SAFETY (all four): the caller promises these sizes.
-            let (lx, lu) = (values("x", b, nx)?, values("u", b, m.m)?);
-            let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
+            let lx = values("x", b, nx)?;
+            values("u", b, m.m)?;
+            // SAFETY (all five): the caller promises these sizes and the flag.
+            let (x, u) = unsafe { (input(x, b, nx, "x")?, input(u, b, m.m, "u")?) };
             let out = unsafe { output(x_next, lx, "x_next")? };
-            let (next, acc) = m.eval.predict(x, u, !accel.is_null());
+            let cancel = unsafe { Cancel::new(cancel) };
+            let (next, acc) = (m.eval)
+                .predict_until(x, u, !accel.is_null(), &|| cancel.set())
+                .ok_or(Error::Cancelled)?;
             finite_rows("x", "next state", &next, nx)?;
             out.copy_from_slice(&next);
             if let Some(acc) = acc {
@@ -280,16 +267,40 @@ pub unsafe extern "C" fn gbx_linearize(
     a: *mut f64,
     b: *mut f64,
 ) -> GbxStatus {
+    // SAFETY: the caller's promises, and no flag.
+    unsafe { gbx_linearize_cancellable(model, x, u, batch, a, b, std::ptr::null()) }
+}
+
+/// `gbx_linearize` that stops when `*cancel` turns nonzero (checked between chunks of the
+/// batch), returning `GBX_STATUS_CANCELLED`; `cancel` as `gbx_predict_cancellable`'s.
+///
+/// # Safety
+/// As `gbx_linearize`; a non-null `cancel` points to an aligned `int32_t` that outlives the
+/// call.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_linearize_cancellable(
+    model: *const GbxModel,
+    x: *const f64,
+    u: *const f64,
+    batch: usize,
+    a: *mut f64,
+    b: *mut f64,
+    cancel: *const i32,
+) -> GbxStatus {
     guard(|| {
         pool::pooled(|| {
             let m = model_ref(model)?;
             let (nx, k) = (2 * m.n, batch_of(batch)?);
-            // SAFETY (all four): the caller promises these sizes.
-            let (lx, lu) = (values("x", k, nx)?, values("u", k, m.m)?);
+            values("x", k, nx)?;
+            values("u", k, m.m)?;
             values("a", k, nx * nx)?;
             values("b", k, nx * m.m)?;
-            let (x, u) = unsafe { (input(x, lx, "x")?, input(u, lu, "u")?) };
-            let (ja, jb) = m.eval.linearize_batch(x, u);
+            // SAFETY (all five): the caller promises these sizes and the flag.
+            let (x, u) = unsafe { (input(x, k, nx, "x")?, input(u, k, m.m, "u")?) };
+            let cancel = unsafe { Cancel::new(cancel) };
+            let (ja, jb) = (m.eval)
+                .linearize_until(x, u, &|| cancel.set())
+                .ok_or(Error::Cancelled)?;
             finite_rows("x", "Jacobian", &ja, nx * nx)?;
             finite_rows("x", "Jacobian", &jb, nx * m.m)?;
             unsafe { output(a, ja.len(), "a")? }.copy_from_slice(&ja);
@@ -314,53 +325,55 @@ pub unsafe extern "C" fn gbx_rollout(
     steps: usize,
     xs: *mut f64,
 ) -> GbxStatus {
+    // SAFETY: the caller's promises, and no flag.
+    unsafe { gbx_rollout_cancellable(model, x0, u, steps, xs, std::ptr::null()) }
+}
+
+/// `gbx_rollout` that stops when `*cancel` turns nonzero (checked at every step), returning
+/// `GBX_STATUS_CANCELLED` with the states computed so far in `xs`; `cancel` as
+/// `gbx_predict_cancellable`'s.
+///
+/// # Safety
+/// As `gbx_rollout`; a non-null `cancel` points to an aligned `int32_t` that outlives the
+/// call.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_rollout_cancellable(
+    model: *const GbxModel,
+    x0: *const f64,
+    u: *const f64,
+    steps: usize,
+    xs: *mut f64,
+    cancel: *const i32,
+) -> GbxStatus {
     guard(|| {
         pool::pooled(|| {
             let m = model_ref(model)?;
             let nx = 2 * m.n;
-            // SAFETY (all three): the caller promises these sizes.
-            let (lu, lxs) = (
-                values("u", steps, m.m)?,
-                values("xs", steps.saturating_add(1), nx)?,
-            );
-            let (x0, u) = unsafe { (input(x0, nx, "x0")?, input(u, lu, "u")?) };
+            values("u", steps, m.m)?;
+            let lxs = values("xs", steps.saturating_add(1), nx)?;
+            // SAFETY (all four): the caller promises these sizes and the flag.
+            let (x0, u) = unsafe { (input(x0, 1, nx, "x0")?, input(u, steps, m.m, "u")?) };
             let xs = unsafe { output(xs, lxs, "xs")? };
+            let cancel = unsafe { Cancel::new(cancel) };
             xs[..nx].copy_from_slice(x0);
             let mut t = 0;
             let input = |t: usize, _: &[f64]| u[t * m.m..(t + 1) * m.m].to_vec();
             m.eval.rollout(x0, steps, input, |x, _| {
                 t += 1;
                 xs[t * nx..(t + 1) * nx].copy_from_slice(x);
-                true
+                !cancel.set()
             });
+            if t < steps {
+                return Err(Error::Cancelled);
+            }
             finite_rows("x0", "state", xs, nx)
         })
     })
-}
-
-fn batch_of(batch: usize) -> Result<usize, Error> {
-    if batch == 0 {
-        return Err(Error::invalid("batch", "must be at least 1"));
-    }
-    Ok(batch)
-}
-
-/// `rows × width` values, or an invalid-argument error naming `field` when no array of
-/// doubles could be that long (a wrapped product would read or write the wrong length).
-fn values(field: &str, rows: usize, width: usize) -> Result<usize, Error> {
-    let bytes = rows.checked_mul(width).and_then(|v| v.checked_mul(8));
-    match bytes {
-        Some(b) if b <= isize::MAX as usize => Ok(rows * width),
-        _ => Err(Error::invalid(
-            field,
-            format!("{rows} rows of {width} values are more than any array can hold"),
-        )),
-    }
 }
 
 /// The message of this thread's last failed call ("" before any): valid until this thread's
 /// next failing call.
 #[unsafe(no_mangle)]
 pub extern "C" fn gbx_last_error() -> *const c_char {
-    LAST_ERROR.with(|e| e.borrow().as_ptr())
+    boundary::last_error()
 }

@@ -186,3 +186,52 @@ fn failures_return_a_status_and_a_message() {
     assert!(last_error().starts_with("u:"), "{}", last_error());
     unsafe { gbx_model_free(model) };
 }
+
+/// A NaN or infinity among the inputs is blamed on its argument and row, before computing
+/// (it once came back as a non-finite state of "x0" a step later, or as "x").
+#[test]
+fn non_finite_inputs_are_blamed_on_their_argument() {
+    let (model, status) = load(&root().join("tests/fixtures/inference/dp-mvf.gbx"));
+    assert_eq!(status, GbxStatus::Ok);
+    let x0 = [0.1, 0.2, 0.0, 0.0];
+    let mut u = [0.0; 2 * 10];
+    u[2 * 5 + 1] = f64::NAN;
+    let mut xs = [0.0; 4 * 11];
+    // SAFETY (every call): a loaded model and buffers of the documented sizes.
+    let s = unsafe { gbx_rollout(model, x0.as_ptr(), u.as_ptr(), 10, xs.as_mut_ptr()) };
+    assert_eq!(s, GbxStatus::InvalidArgument);
+    assert!(last_error().starts_with("u: row 5 "), "{}", last_error());
+    let x = [x0, x0].concat();
+    let mut next = [0.0; 8];
+    let s = unsafe {
+        gbx_predict(
+            model,
+            x.as_ptr(),
+            u.as_ptr().add(8),
+            2,
+            next.as_mut_ptr(),
+            null_mut(),
+        )
+    };
+    assert_eq!(s, GbxStatus::InvalidArgument);
+    assert!(last_error().starts_with("u: row 1 "), "{}", last_error());
+    let (mut a, mut b) = ([0.0; 32], [0.0; 16]);
+    let s = unsafe {
+        gbx_linearize(
+            model,
+            x.as_ptr(),
+            u.as_ptr().add(8),
+            2,
+            a.as_mut_ptr(),
+            b.as_mut_ptr(),
+        )
+    };
+    assert_eq!(s, GbxStatus::InvalidArgument);
+    assert!(last_error().starts_with("u: row 1 "), "{}", last_error());
+    let mut bad = x0;
+    bad[2] = f64::INFINITY;
+    let s = unsafe { gbx_rollout(model, bad.as_ptr(), u.as_ptr(), 5, xs.as_mut_ptr()) };
+    assert_eq!(s, GbxStatus::InvalidArgument);
+    assert!(last_error().starts_with("x0: row 0 "), "{}", last_error());
+    unsafe { gbx_model_free(model) };
+}

@@ -53,13 +53,21 @@ impl Array {
                 ),
             ));
         }
-        if let Some(i) = data.iter().position(|v| !v.is_finite()) {
-            return Err(Error::invalid(
-                field,
-                format!("row {} has a non-finite value", i / width),
-            ));
-        }
+        finite(field, data, width)?;
         Ok(r as usize)
+    }
+}
+
+/// Rows of `width` values all finite, else an error naming `field` and the first row that is
+/// not: checked before computing, so that a NaN in the inputs is not blamed on the states it
+/// would have made non-finite.
+pub fn finite(field: &str, data: &[f64], width: usize) -> Result<()> {
+    match data.iter().position(|v| !v.is_finite()) {
+        None => Ok(()),
+        Some(i) => Err(Error::invalid(
+            field,
+            format!("row {} has a non-finite value", i / width.max(1)),
+        )),
     }
 }
 

@@ -44,6 +44,9 @@ int main(int argc, char **argv) {
         fprintf(stderr, "load: %s\n", gbx_last_error());
         return 1;
     }
+    if (gbx_model_warning(model)) {
+        fprintf(stderr, "warning: %s: %s\n", argv[1], gbx_model_warning(model));
+    }
     size_t n = gbx_model_n(model), m = gbx_model_m(model), nx = 2 * n, steps = 0;
     double *x0 = calloc(nx, sizeof(double)), *inputs = NULL, *expected = NULL;
     if (argc == 3) {

@@ -37,8 +37,10 @@ pub struct App {
     /// Shared progress pollers of followed jobs.
     pub feeds: Arc<events::Feeds>,
     pub all_jobs: Arc<events::AllJobs>,
-    /// Admission of heavy inference calls (see `Settings::max_heavy_calls`).
-    pub heavy: Arc<inference::Heavy>,
+    /// Admission of short inference calls (see `Settings::max_short_calls`).
+    pub short_calls: Arc<inference::Heavy>,
+    /// Admission of long inference calls (see `Settings::max_heavy_calls`).
+    pub long_calls: Arc<inference::Heavy>,
     /// Admission of rollout chunks, a share of its own.
     pub streaming: Arc<inference::Heavy>,
     /// Memory for request bodies and datasets being read (`--max-inflight-body-mb`).
@@ -80,8 +82,18 @@ impl App {
             models: Arc::default(),
             feeds: Arc::default(),
             all_jobs: Arc::default(),
-            heavy: Arc::new(inference::Heavy::new(settings.max_heavy_calls)),
-            streaming: Arc::new(inference::Heavy::streaming(settings.max_heavy_calls)),
+            short_calls: Arc::new(inference::Heavy::new(
+                settings.max_short_calls,
+                "--max-short-calls",
+            )),
+            long_calls: Arc::new(inference::Heavy::new(
+                settings.max_heavy_calls,
+                "--max-heavy-calls",
+            )),
+            streaming: Arc::new(inference::Heavy::streaming(
+                settings.max_heavy_calls,
+                "--max-heavy-calls",
+            )),
             memory: Arc::new(memory::MemoryBudget::new(
                 settings.max_inflight_body_bytes(),
             )),

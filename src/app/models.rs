@@ -60,7 +60,10 @@ impl App {
 
     /// Stores a model file as it is (POST /v1/models): checked as the evaluator will read
     /// it and against the service's limits, identified by its bytes (the same file again
-    /// returns the stored model, `created = false`). A bad file is a 422 naming what is wrong.
+    /// returns the stored model, `created = false`). A bad file is a 422 naming what is wrong:
+    /// `checksum` or `members` for a file that does not prove it is whole, else `body`. A file
+    /// written before files carried a checksum is stored with that warning in its metrics
+    /// (the upload's answer and every read of the model) and in the log.
     pub async fn upload_model(
         &self,
         name: Option<String>,
@@ -73,7 +76,14 @@ impl App {
                 field: "body".into(),
                 message: format!("not a usable model file: {e}"),
             };
-            let file = ModelFile::from_bytes(&bytes).map_err(bad)?;
+            // An edited file's error names the field that shows it (`checksum`, `members`).
+            let file = ModelFile::from_bytes(&bytes).map_err(|e| match e.field() {
+                Some(field) => Error::Unprocessable {
+                    field: field.to_string(),
+                    message: format!("not a usable model file: {e}"),
+                },
+                None => bad(e),
+            })?;
             check_model_file(&file, max_dof, max_params).map_err(bad)?;
             Ok((file, bytes))
         })
@@ -92,10 +102,24 @@ impl App {
                 .into()
             });
         crate::names::check_name_at("report.model", &name)?;
+        let unchecked = file.unchecked_warning();
+        if let Some(w) = &unchecked {
+            tracing::warn!(model = %name, "uploaded model file: {}", w.message);
+        }
         let report = match (&file.report, &file.made) {
-            (Some(r), _) => serde_json::to_string(r).expect("json"),
-            (None, Some(made)) => json!({ "made": made }).to_string(),
-            (None, None) => "null".into(),
+            (Some(r), _) => {
+                let mut r = r.clone();
+                r.warnings.extend(unchecked);
+                serde_json::to_string(&r).expect("json")
+            }
+            (None, Some(made)) => match unchecked {
+                Some(w) => json!({ "made": made, "warnings": [w] }).to_string(),
+                None => json!({ "made": made }).to_string(),
+            },
+            (None, None) => match unchecked {
+                Some(w) => json!({ "warnings": [w] }).to_string(),
+                None => "null".into(),
+            },
         };
         let spec = serde_json::to_string(&file.config.spec).expect("json");
         let (store, n, m, dt) = (

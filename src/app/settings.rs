@@ -8,6 +8,7 @@ use clap::Args;
 
 use crate::control::plan::DEFAULT_MAX_PLAN_HORIZON;
 use crate::error::{Error, Result};
+use crate::infer::limits::DEFAULT_MAX_CALL_MEMORY_MB;
 
 /// Blocking threads of the service's runtime: training jobs, heavy inference calls and
 /// rollout chunks (at most `--max-heavy-calls` each) and model loads. A cap, so that no burst
@@ -51,11 +52,17 @@ pub struct Settings {
     #[arg(long, env = "GRAYBOX_GRPC_MAX_STREAMS", default_value_t = 100)]
     pub grpc_max_streams: u32,
     /// Memory one inference call may take, in MiB (larger calls: RESOURCE_EXHAUSTED).
-    #[arg(long, env = "GRAYBOX_MAX_CALL_MEMORY_MB", default_value_t = 512)]
+    #[arg(long, env = "GRAYBOX_MAX_CALL_MEMORY_MB", default_value_t = DEFAULT_MAX_CALL_MEMORY_MB)]
     pub max_call_memory_mb: usize,
-    /// Heavy inference calls computing at once (the others wait); rollout chunks get as many.
+    /// Long inference calls computing at once (plans, evaluations, energy reports and
+    /// batches over the short size; the others wait); rollout chunks get as many.
     #[arg(long, env = "GRAYBOX_MAX_HEAVY_CALLS", default_value_t = 2)]
     pub max_heavy_calls: usize,
+    /// Short inference calls computing at once (a controller's Predict, Linearize, Tvlqr or
+    /// Energy of up to 4096 one-step evaluations), apart from the long ones so that they
+    /// never queue behind a plan.
+    #[arg(long, env = "GRAYBOX_MAX_SHORT_CALLS", default_value_t = 2)]
+    pub max_short_calls: usize,
     /// Estimated peak memory of one training job, in MiB (larger jobs: 422 at submission).
     #[arg(long, env = "GRAYBOX_MAX_JOB_MEMORY_MB", default_value_t = 4096)]
     pub max_job_memory_mb: usize,
@@ -188,6 +195,7 @@ impl Settings {
             ("grpc-max-streams", self.grpc_max_streams as usize),
             ("max-call-memory-mb", self.max_call_memory_mb),
             ("max-heavy-calls", self.max_heavy_calls),
+            ("max-short-calls", self.max_short_calls),
             ("max-job-memory-mb", self.max_job_memory_mb),
             ("max-model-params", self.max_model_params),
             ("max-dof", self.max_dof),
@@ -215,12 +223,15 @@ impl Settings {
                 format!("must be at most {dof} (the most a template document may have)"),
             ));
         }
-        // Calls and rollout streams each get --max-heavy-calls threads; 8 spare for loads.
-        if self.worker.workers + 2 * self.max_heavy_calls + 8 > MAX_BLOCKING_THREADS {
+        // Long calls and rollout streams each get --max-heavy-calls threads, short calls
+        // --max-short-calls; 8 spare for loads.
+        let threads = self.worker.workers + 2 * self.max_heavy_calls + self.max_short_calls;
+        if threads + 8 > MAX_BLOCKING_THREADS {
             return Err(Error::invalid(
                 "workers",
                 format!(
-                    "--workers plus twice --max-heavy-calls must be at most {}",
+                    "--workers plus twice --max-heavy-calls plus --max-short-calls must be at \
+                     most {}",
                     MAX_BLOCKING_THREADS - 8
                 ),
             ));

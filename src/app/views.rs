@@ -51,12 +51,20 @@ pub struct ModelView {
 }
 
 /// What a model row's report holds: a trained model's report, or how a model that was not
-/// trained was made (the text "null": neither).
+/// trained was made, or neither (the text "null"); the latter two with the warnings of its
+/// upload (a file without a checksum, `App::upload_model`).
 #[derive(Deserialize)]
 #[serde(untagged)]
 enum StoredReport {
     Trained(Box<TrainReport>),
-    Made { made: Made },
+    Made {
+        made: Made,
+        #[serde(default)]
+        warnings: Vec<Warning>,
+    },
+    Uploaded {
+        warnings: Vec<Warning>,
+    },
 }
 
 /// A model's `metrics`: every key present (null when the model has no such figure), and
@@ -94,8 +102,13 @@ impl<'a> Metrics<'a> {
     fn of(report: Option<&'a StoredReport>) -> Self {
         match report {
             None => Self::default(),
-            Some(StoredReport::Made { made }) => Self {
+            Some(StoredReport::Made { made, warnings }) => Self {
                 made: Some(made),
+                warnings,
+                ..Self::default()
+            },
+            Some(StoredReport::Uploaded { warnings }) => Self {
+                warnings,
                 ..Self::default()
             },
             Some(StoredReport::Trained(r)) => Self {
@@ -132,9 +145,9 @@ impl From<ModelRow> for ModelView {
             metrics["energy"] = serde_json::to_value(energy).expect("reports serialize");
         }
         let (physical_parameters, identifiable, identifiability) = match report {
-            None => (None, None, None),
+            None | Some(StoredReport::Uploaded { .. }) => (None, None, None),
             // A model made from a template (no training) states its values in "made".
-            Some(StoredReport::Made { made }) => (Some(made.physical_parameters), None, None),
+            Some(StoredReport::Made { made, .. }) => (Some(made.physical_parameters), None, None),
             Some(StoredReport::Trained(r)) => (
                 Some(r.physical_parameters),
                 Some(r.identifiable),

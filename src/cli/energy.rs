@@ -9,7 +9,6 @@ use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::infer::energy_report::REPORT_SEED;
-use crate::model::file::ModelFile;
 
 #[derive(Args, Debug)]
 pub struct EnergyArgs {
@@ -33,7 +32,7 @@ pub struct EnergyArgs {
 }
 
 pub(super) fn energy(a: EnergyArgs) -> Result<()> {
-    let eval = Evaluator::from_file(&ModelFile::load(&a.model)?)?;
+    let eval = Evaluator::from_file(&super::model::read(&a.model)?)?;
     eval.check_energy()?;
     let data = Dataset::load(&a.data, a.dt)?;
     let c = &eval.config;
@@ -50,13 +49,15 @@ pub(super) fn energy(a: EnergyArgs) -> Result<()> {
     if a.report {
         let report = eval.energy_report(&x, a.seed, &|| false)?;
         let report = report.expect("never stopped");
-        println!("{}", serde_json::to_string_pretty(&report).expect("json"));
+        super::say(serde_json::to_string_pretty(&report).expect("json"))?;
         return Ok(());
     }
     let e = eval
         .energy_until(&x, &data.u, &|| false)?
         .expect("never stopped");
     let n = c.n;
+    // As the service refuses them: the rows are the data's transitions.
+    e.check_finite("data", n)?;
     let row = |v: &[f64], k: usize| v[k * n..(k + 1) * n].to_vec();
     for k in 0..data.count() {
         let parts: serde_json::Map<String, serde_json::Value> = (e.parts.iter())
@@ -67,7 +68,7 @@ pub(super) fn energy(a: EnergyArgs) -> Result<()> {
             "power": e.power[k], "inertial": row(&e.inertial, k), "coriolis": row(&e.coriolis, k),
             "gravity": row(&e.gravity, k), "applied": row(&e.applied, k), "parts": parts,
         });
-        println!("{line}");
+        super::say(&line)?;
     }
     Ok(())
 }

@@ -47,7 +47,7 @@ pub struct InspectArgs {
 }
 
 pub(super) fn eval(a: EvalArgs) -> Result<()> {
-    let file = ModelFile::load(&a.model)?;
+    let file = super::model::read(&a.model)?;
     let data = Dataset::load(&a.data, a.dt)?;
     if let Some(horizons) = &a.horizons {
         return eval_horizons(&file, &data, horizons);
@@ -58,7 +58,7 @@ pub(super) fn eval(a: EvalArgs) -> Result<()> {
     }
     let model = Model::from_file(&file, &device)?;
     let loss = evaluate(&model, &data)?;
-    println!("{}", json!({"loss": loss, "count": data.count()}));
+    super::say(json!({"loss": loss, "count": data.count()}))?;
     Ok(())
 }
 
@@ -69,14 +69,11 @@ fn eval_ensemble(file: &ModelFile, data: &Dataset, device: &burn::tensor::Device
         .map(|k| Model::from_file(&file.member(k), device))
         .collect::<Result<Vec<_>>>()?;
     let e = evaluate_members(&members, data)?;
-    println!(
-        "{}",
-        json!({
-            "loss": e.loss, "count": data.count(), "members": members.len(),
-            "member_loss": Spread::of(&e.member_losses), "member_losses": e.member_losses,
-            "prediction_std": e.prediction_std,
-        })
-    );
+    super::say(json!({
+        "loss": e.loss, "count": data.count(), "members": members.len(),
+        "member_loss": Spread::of(&e.member_losses), "member_losses": e.member_losses,
+        "prediction_std": e.prediction_std,
+    }))?;
     Ok(())
 }
 
@@ -96,7 +93,7 @@ fn eval_horizons(file: &ModelFile, data: &Dataset, horizons: &[usize]) -> Result
     let horizons = check_horizons(horizons, usize::MAX)?;
     let found = horizon_errors(&e, data, &horizons, &|| false).expect("never stopped");
     for h in found {
-        println!("{}", serde_json::to_string(&h).expect("json"));
+        super::say(serde_json::to_string(&h).expect("json"))?;
     }
     if longest < *horizons.last().expect("checked") {
         eprintln!(
@@ -108,7 +105,7 @@ fn eval_horizons(file: &ModelFile, data: &Dataset, horizons: &[usize]) -> Result
 }
 
 pub(super) fn inspect(a: InspectArgs) -> Result<()> {
-    let file = ModelFile::load(&a.model)?;
+    let file = super::model::read(&a.model)?;
     let c = &file.config;
     let mut out = json!({
         "spec": c.spec,
@@ -148,6 +145,6 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
             out["energy"] = json!(energy);
         }
     }
-    println!("{}", serde_json::to_string_pretty(&out).expect("json"));
+    super::say(serde_json::to_string_pretty(&out).expect("json"))?;
     Ok(())
 }

@@ -49,7 +49,7 @@ pub(super) fn health(a: HealthArgs) -> Result<()> {
             a.http, a.timeout_secs
         ))),
     }?;
-    println!("ready");
+    super::say("ready")?;
     Ok(())
 }
 

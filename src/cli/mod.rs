@@ -104,6 +104,19 @@ pub enum Command {
     Health(HealthArgs),
 }
 
+/// Writes one line of a command's results to stdout. A reader that stopped reading (`graybox
+/// simulate … | head`) ends the command quietly with 0, as it ends any well-behaved filter:
+/// it has what it wanted, and every command writes its files before its summary line. Rust's
+/// `println!` panicked there, with a backtrace and exit 101.
+pub fn say(line: impl std::fmt::Display) -> Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    match writeln!(out, "{line}").and_then(|()| out.flush()) {
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+        done => done.map_err(Error::from),
+    }
+}
+
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     init_tracing();

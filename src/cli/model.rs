@@ -1,7 +1,7 @@
 //! `graybox model`: the white-box model of a template with given physical values, written as
 //! a model file without data or training ("the true system" as a model).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 use serde_json::json;
@@ -47,8 +47,19 @@ pub(super) fn model(a: ModelArgs) -> Result<()> {
     if !warnings.is_empty() {
         out["warnings"] = json!(warnings);
     }
-    println!("{out}");
+    super::say(&out)?;
     Ok(())
+}
+
+/// A model file for a command, as `ModelFile::load` reads it (refused when it does not prove
+/// it is whole), with the warning of a file from before checksums on stderr, where every
+/// command's warnings go.
+pub(super) fn read(path: &Path) -> Result<ModelFile> {
+    let file = ModelFile::load(path)?;
+    if let Some(w) = file.unchecked_warning() {
+        eprintln!("warning: {}: {}", path.display(), w.message);
+    }
+    Ok(file)
 }
 
 #[derive(Args, Debug)]
@@ -63,9 +74,9 @@ pub struct ExportUrdfArgs {
 
 /// The identified robot: the template's URDF with the model's `<inertial>` and `<dynamics>`.
 pub(super) fn export_urdf(a: ExportUrdfArgs) -> Result<()> {
-    let file = ModelFile::load(&a.model)?;
+    let file = read(&a.model)?;
     let text = file.urdf()?;
     crate::model::file::write_atomic(&a.out, text.as_bytes())?;
-    println!("{}", json!({"out": a.out, "bytes": text.len()}));
+    super::say(json!({"out": a.out, "bytes": text.len()}))?;
     Ok(())
 }

@@ -15,7 +15,7 @@ use crate::control::plan::{
 };
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
-use crate::model::file::{ModelFile, write_atomic};
+use crate::model::file::write_atomic;
 
 #[derive(Args, Debug)]
 pub struct PlanArgs {
@@ -43,13 +43,13 @@ pub struct PlanArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub u_max: Option<String>,
     /// Diagonal of Q, 2n values (default: 1 for each q, 0.1 for each q̇).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub q_diag: Option<String>,
     /// Diagonal of R, m values (default: 1e-4 each).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub r_diag: Option<String>,
     /// Diagonal of Q_f, 2n values (default: 1000 × Q's).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub qf_diag: Option<String>,
     /// Extra randomised starts, at most 1000 (`control::plan::MAX_RESTARTS`).
     #[arg(long, default_value_t = 0)]
@@ -183,7 +183,7 @@ fn initial_states(text: &str, a: &PlanArgs, nx: usize) -> Result<Mat> {
 }
 
 pub(super) fn run(a: PlanArgs) -> Result<()> {
-    let file = ModelFile::load(&a.model)?;
+    let file = super::model::read(&a.model)?;
     let eval = Evaluator::from_file(&file)?;
     let (nx, m) = (2 * eval.config.n, eval.config.m);
     let req = request(&a, nx, m)?.with_effort_limits(&eval.effort_limits());
@@ -213,11 +213,10 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
         &a.out,
         serde_json::to_string_pretty(&out).expect("json").as_bytes(),
     )?;
-    println!(
-        "{}",
+    super::say(
         json!({"out": a.out, "method": p.method.name(), "cost": p.cost,
                "iterations": p.iterations, "converged": p.converged, "goal_error": p.goal_error,
-               "constraint_violation": p.constraint_violation, "seconds": seconds})
-    );
+               "constraint_violation": p.constraint_violation, "seconds": seconds}),
+    )?;
     Ok(())
 }

@@ -53,7 +53,7 @@ pub struct SimulateArgs {
     #[arg(long, default_value_t = 10.0)]
     pub qdot_range: f64,
     /// u ~ N(0, σ²): one σ for every input, or one per input (e.g. 8,8,3,0.2).
-    #[arg(long, default_value = "120")]
+    #[arg(long, default_value = "120", allow_hyphen_values = true)]
     pub u_std: String,
 }
 
@@ -120,6 +120,6 @@ pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
     if !warnings.is_empty() {
         out["warnings"] = json!(warnings);
     }
-    println!("{out}");
+    super::say(&out)?;
     Ok(())
 }

@@ -198,10 +198,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
     if let Some(obj) = summary.as_object_mut() {
         obj.remove("history");
     }
-    println!(
-        "{}",
-        serde_json::to_string_pretty(&summary).expect("reports serialize")
-    );
+    super::say(serde_json::to_string_pretty(&summary).expect("reports serialize"))?;
     Ok(())
 }
 

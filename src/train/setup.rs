@@ -59,8 +59,9 @@ pub struct TrainConfig {
     pub bootstrap: bool,
 }
 
-/// The most members an ensemble may have: each costs a model's training and inference.
-pub const MAX_ENSEMBLE: usize = 32;
+/// The most members an ensemble may have: each costs a model's training and inference. One
+/// limit with what a model file may hold (a reader refuses a file over it).
+pub const MAX_ENSEMBLE: usize = crate::model::file::MAX_MEMBERS;
 
 fn is_true(b: &bool) -> bool {
     *b

@@ -93,3 +93,55 @@ async fn serving_counts_the_members_answers_near_the_call_budget() {
     assert!(every_member < three, "{every_member} vs {three}");
     app.stop().await;
 }
+
+/// A plan on an ensemble's average cost stacks every member's state: over the call budget it
+/// is refused naming the horizon and the ensemble cost as the way out, not "fewer states",
+/// and the same plan on the mean dynamics is admitted.
+#[tokio::test]
+async fn a_mean_cost_plan_over_the_budget_names_the_horizon_and_the_ensemble_cost() {
+    use crate::helpers::{arr, client};
+    let mut settings = test_settings();
+    settings.worker.workers = 0;
+    settings.max_call_memory_mb = 1;
+    let app = spawn_configured(settings).await;
+    let model = upload_fixture(&app, "wb-x3").await;
+    let mut c = client(&app).await;
+    let eye = |s: f64| {
+        let mut d = vec![0.0; 16];
+        (0..4).for_each(|i| d[i * 5] = s);
+        arr(&[4, 4], d)
+    };
+    let plan = |ensemble_cost: &str| graybox::api::grpc::pb::PlanRequest {
+        model_id: model.clone(),
+        x0: vec![0.0; 4],
+        goal: vec![0.5, 0.0, 0.0, 0.0],
+        horizon: 10,
+        q: eye(1.0),
+        r: arr(&[2, 2], vec![0.01, 0.0, 0.0, 0.01]),
+        qf: eye(10.0),
+        max_iterations: Some(2),
+        method: "dircol".into(),
+        ensemble_cost: ensemble_cost.into(),
+        ..Default::default()
+    };
+    let refused = c.plan(plan("mean")).await.unwrap_err();
+    assert_eq!(
+        refused.code(),
+        tonic::Code::ResourceExhausted,
+        "{refused:?}"
+    );
+    let message = refused.message();
+    for words in [
+        "horizon:",
+        "--max-call-memory-mb",
+        "shorter horizon",
+        "ensemble_cost",
+        "mean_dynamics",
+        "3 members",
+    ] {
+        assert!(message.contains(words), "{words}: {message}");
+    }
+    assert!(!message.contains("fewer states"), "{message}");
+    c.plan(plan("mean_dynamics")).await.unwrap();
+    app.stop().await;
+}

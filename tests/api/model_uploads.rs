@@ -1,6 +1,7 @@
 //! Uploaded model files are the models their specs describe and within the service's
 //! limits: a network whose weights are not the spec's widths, or a model over
-//! `--max-model-params`, is a 422 and is not stored; a file as training wrote it is taken.
+//! `--max-model-params`, is a 422 and is not stored; a file as training wrote it is taken. A
+//! file proves it is whole: an edited one is a 422 naming `checksum` or `members`.
 
 use graybox::app::Settings;
 use serde_json::{Value, json};
@@ -40,11 +41,21 @@ async fn listed(app: &TestApp) -> Vec<String> {
         .collect()
 }
 
-/// An MVF model of the double pendulum as training wrote it (hidden widths 32, 32, 32).
+/// An MVF model of the double pendulum as training wrote it (hidden widths 32, 32, 32), with
+/// the checksum the worker writes.
 async fn mvf_file(app: &TestApp) -> (String, Value) {
     let id = trained(app, "MVF").await;
-    let file = serde_json::from_slice(&app.model_file(&id).await).unwrap();
+    let file: Value = serde_json::from_slice(&app.model_file(&id).await).unwrap();
+    assert!(file["checksum"].is_string(), "{}", file["checksum"]);
     (id, file)
+}
+
+/// The file without its checksum, as a file from before checksums is: the checks of what it
+/// holds are all that stand between such a file and serving (an edit of a file that has one
+/// is refused on its checksum first).
+fn unchecked(mut file: Value) -> Value {
+    file.as_object_mut().unwrap().remove("checksum");
+    file
 }
 
 /// The file's arrays whose names start with `prefix`.
@@ -65,6 +76,7 @@ fn arrays<'a>(file: &'a mut Value, prefix: &str) -> Vec<&'a mut Value> {
 async fn weights_unlike_their_spec_are_refused() {
     let app = spawn_app(1).await;
     let (id, file) = mvf_file(&app).await;
+    let file = unchecked(file);
     let before = listed(&app).await;
     assert_eq!(before, [id]);
 
@@ -151,4 +163,57 @@ async fn uploads_count_against_max_model_params() {
         .into_inner();
     assert_eq!(answer.x_next.unwrap().data.len(), 3 * 4);
     exact.stop().await;
+}
+
+/// An ensemble of three as graybox writes it (with its checksum) with one weight changed, a
+/// member removed, its `members` deleted (one model that would answer with no spread), or 200
+/// members more than training allows: each a 422 naming `checksum` or `members`, nothing
+/// stored. Before, each was stored and served. The file as written is taken without a
+/// warning; one from before checksums is taken with the warning in its metrics.
+#[tokio::test]
+async fn an_edited_model_file_is_refused_naming_the_field() {
+    use graybox::model::file::ModelFile;
+    let app = spawn_app(0).await;
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/compat");
+    let old = std::fs::read(dir.join("wb-x3.gbx")).unwrap();
+    let written = ModelFile::from_bytes(&old).unwrap().to_bytes().unwrap();
+    let file: Value = serde_json::from_slice(&written).unwrap();
+
+    let mut weight = file.clone();
+    let w = &mut weight["params"][0]["values"][0];
+    *w = json!(w.as_f64().unwrap() * 1.001);
+    let mut fewer = file.clone();
+    fewer["members"].as_array_mut().unwrap().pop();
+    let mut gone = file.clone();
+    gone.as_object_mut().unwrap().remove("members");
+    let mut many = file.clone();
+    many["members"] = json!(vec![file["params"].clone(); 200]);
+    for (edited, field, words) in [
+        (weight, "checksum", &["edited"][..]),
+        (fewer, "members", &["2 member(s)", "lists 3"]),
+        (gone, "members", &["1 member(s)", "lists 3"]),
+        (many, "members", &["201 members", "at most 32"]),
+    ] {
+        let (status, body) = post_file(&app, &edited).await;
+        refused(status, &body, words);
+        assert_eq!(body["error"]["field"], field, "{body}");
+    }
+    assert!(listed(&app).await.is_empty());
+
+    let (status, body) = post_file(&app, &file).await;
+    assert_eq!(status, 201, "{body}");
+    assert_eq!(body["metrics"]["warnings"], json!([]), "{body}");
+    let (status, body) = post_file(&app, &serde_json::from_slice(&old).unwrap()).await;
+    assert_eq!(status, 201, "{body}");
+    let (status, body) = app
+        .get(&format!("/v1/models/{}", body["id"].as_str().unwrap()))
+        .await;
+    assert_eq!(status, 200, "{body}");
+    let warnings = body["metrics"]["warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 1, "{body}");
+    assert_eq!(
+        (&warnings[0]["code"], &warnings[0]["field"]),
+        (&json!("model_file_unchecked"), &json!("checksum"))
+    );
+    app.stop().await;
 }

@@ -58,18 +58,35 @@ async fn twice(app: &TestApp, req: pb::PlanRequest) -> Vec<Code> {
     futures_util::future::join_all(calls).await
 }
 
+fn linearize_req(model: &str, rows: u64) -> pb::LinearizeRequest {
+    let rows_of = |width: u64, v: f64| arr(&[rows, width], vec![v; (rows * width) as usize]);
+    pb::LinearizeRequest {
+        id: String::new(),
+        model_id: model.into(),
+        x: rows_of(4, 0.1),
+        u: rows_of(2, 1.0),
+    }
+}
+
+/// Gains along the nominal at rest, `t` steps.
+fn tvlqr_req(model: &str, t: u64) -> pb::TvlqrRequest {
+    pb::TvlqrRequest {
+        id: String::new(),
+        model_id: model.into(),
+        x_bar: arr(&[t + 1, 4], vec![0.0; 4 * (t as usize + 1)]),
+        u_bar: arr(&[t, 2], vec![0.0; 2 * t as usize]),
+        q: eye(4, 1.0),
+        r: eye(2, 1.0),
+        qf: eye(4, 1.0),
+    }
+}
+
 /// Small calls right after: each within its 2 s deadline, so no permit is still held.
 async fn small_calls_succeed(app: &TestApp, model: &str) {
     let mut c = client(app).await;
     let p = c.predict(within(predict_req(model, 64), 2)).await;
     assert!(p.is_ok(), "a 64-row Predict afterwards: {p:?}");
-    let lin = pb::LinearizeRequest {
-        id: String::new(),
-        model_id: model.into(),
-        x: arr(&[64, 4], vec![0.1; 256]),
-        u: arr(&[64, 2], vec![1.0; 128]),
-    };
-    let l = c.linearize(within(lin, 2)).await;
+    let l = c.linearize(within(linearize_req(model, 64), 2)).await;
     assert!(l.is_ok(), "a 64-row Linearize afterwards: {l:?}");
     let p = c.plan(within(plan_req(model, 10, 20, 0), 2)).await;
     assert!(p.is_ok(), "a 10-step Plan afterwards: {p:?}");
@@ -124,21 +141,7 @@ async fn large_batches_past_their_deadline_free_their_permits() {
     let app = spawn_app(1).await;
     let model = trained(&app, "MVF").await;
     let (b, t) = (1_000_000u64, 100_000u64);
-    let lin = pb::LinearizeRequest {
-        id: String::new(),
-        model_id: model.clone(),
-        x: arr(&[b / 4, 4], vec![0.1; b as usize]),
-        u: arr(&[b / 4, 2], vec![1.0; b as usize / 2]),
-    };
-    let tv = pb::TvlqrRequest {
-        id: String::new(),
-        model_id: model.clone(),
-        x_bar: arr(&[t + 1, 4], vec![0.0; 4 * (t as usize + 1)]),
-        u_bar: arr(&[t, 2], vec![0.0; 2 * t as usize]),
-        q: eye(4, 1.0),
-        r: eye(2, 1.0),
-        qf: eye(4, 1.0),
-    };
+    let (lin, tv) = (linearize_req(&model, b / 4), tvlqr_req(&model, t));
     for call in ["predict", "linearize", "tvlqr"] {
         let calls = (0..2).map(|_| {
             let (app, model, lin, tv) = (&app, &model, lin.clone(), tv.clone());
@@ -184,5 +187,41 @@ async fn zero_iterations_return_the_initial_guess_with_its_gains() {
     assert!(p.u.unwrap().data.iter().all(|u| *u == 0.0));
     assert_eq!(p.k.unwrap().shape, vec![20, 2, 4]);
     assert_eq!(p.x.unwrap().shape, vec![21, 4]);
+    app.stop().await;
+}
+
+/// Issue 72: plans held both heavy permits for their whole solve, and every Predict of 5 or
+/// more states waited behind them until its deadline. Short calls have a class of their own
+/// now: while two long collocation plans hold the long class, a controller's 16-state
+/// Predict, Linearize and a 50-step Tvlqr answer within their deadline.
+#[tokio::test]
+async fn short_calls_answer_while_plans_hold_the_long_class() {
+    let app = spawn_app(1).await;
+    let model = trained(&app, "MVF").await;
+    let long = app.running.as_ref().unwrap().app.long_calls.clone();
+    let dircol = pb::PlanRequest {
+        method: "dircol".into(),
+        ..plan_req(&model, 2000, 200, 1000)
+    };
+    let mut plans = Vec::new();
+    for _ in 0..2 {
+        let (mut c, req) = (client(&app).await, dircol.clone());
+        plans.push(tokio::spawn(async move { c.plan(within(req, 60)).await }));
+    }
+    while long.busy() < 2 {
+        tokio::time::sleep(Duration::from_millis(10)).await;
+    }
+    let mut c = client(&app).await;
+    let p = c.predict(within(predict_req(&model, 16), 10)).await;
+    assert!(p.is_ok(), "a 16-state Predict beside two plans: {p:?}");
+    let l = c.linearize(within(linearize_req(&model, 16), 10)).await;
+    assert!(l.is_ok(), "a 16-state Linearize beside two plans: {l:?}");
+    let g = c.tvlqr(within(tvlqr_req(&model, 50), 10)).await;
+    assert!(g.is_ok(), "a 50-step Tvlqr beside two plans: {g:?}");
+    // The plans were still computing: the short calls did not wait for them to end.
+    assert_eq!(long.busy(), 2);
+    for plan in plans {
+        plan.abort();
+    }
     app.stop().await;
 }

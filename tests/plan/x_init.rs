@@ -25,7 +25,10 @@ fn far_off_initial_states_are_named_as_the_fault() {
                 assert!(message.contains("leave x_init out"), "{message}");
                 assert!(!message.contains("R + BᵀSB lost"), "{message}");
             }
-            other => panic!("{scale:e}: expected a refusal, got {:?}", other.map(|p| p.cost)),
+            other => panic!(
+                "{scale:e}: expected a refusal, got {:?}",
+                other.map(|p| p.cost)
+            ),
         }
     }
 }
@@ -42,7 +45,10 @@ fn gains_along_a_far_off_nominal_name_the_nominal() {
     match eval.tvlqr(&xbar, &ubar, &eye(4, 1.0), &eye(2, 1e-4), &eye(4, 1000.0)) {
         Err(Error::Invalid { field, message }) => {
             assert_eq!(field, "x_bar", "{message}");
-            assert!(message.contains("R itself is positive definite"), "{message}");
+            assert!(
+                message.contains("R itself is positive definite"),
+                "{message}"
+            );
         }
         other => panic!("expected a refusal, got {:?}", other.map(|g| g.k.len())),
     }

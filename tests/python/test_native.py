@@ -3,7 +3,10 @@ answers (tests/fixtures/inference/answers.json) bit for bit from every recorded 
 its errors as GrayboxError with the service's code and the field named, and one model shared
 by threads that compute at once (the GIL is released) with the answers of one thread."""
 
+import json
+import subprocess
 import threading
+import warnings
 
 import numpy as np
 import pytest
@@ -32,7 +35,7 @@ def test_the_recorded_answers_bit_for_bit(name):
     path = ia.ROOT / entry["file"]
     # From the path and from the bytes alike.
     for source in (str(path), path.read_bytes()):
-        model = graybox_native.load(source)
+        model = _load(source)
         assert (model.info["n"], model.info["m"]) == (entry["n"], entry["m"])
         for call in entry["calls"]:
             got = ia.answer(_AsClient(model), "", call)
@@ -40,8 +43,16 @@ def test_the_recorded_answers_bit_for_bit(name):
             assert not where, f"{name} {call['rpc']} {call.get('method', '')}{where}"
 
 
+def _load(source):
+    """A committed fixture: written before model files carried a checksum, so it loads with an
+    UncheckedModelWarning (test_a_file_from_before_checksums_loads_with_a_warning checks it)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", graybox_native.UncheckedModelWarning)
+        return graybox_native.load(source)
+
+
 def _model(name="dp-mvf"):
-    return graybox_native.load(str(ia.ROOT / ia.MODELS[name]))
+    return _load(str(ia.ROOT / ia.MODELS[name]))
 
 
 def _refused(call, code, field):
@@ -103,3 +114,237 @@ def test_threads_sharing_a_model_get_the_answers_of_one():
         t.join()
     for k in range(8):
         assert all(np.array_equal(g, w) for g, w in zip(got[k], want[k])), k
+
+
+def test_a_file_from_before_checksums_loads_with_a_warning(graybox_bin, tmp_path):
+    old = ia.ROOT / ia.MODELS["ensemble-wb-x3"]
+    with pytest.warns(graybox_native.UncheckedModelWarning, match="no checksum"):
+        graybox_native.load(old.read_bytes())
+    # A file this graybox writes carries its checksum and loads without a warning.
+    made = tmp_path / "dp.gbx"
+    subprocess.run([graybox_bin, "model", "--template", "double_pendulum", "--dt", "0.01",
+                    "--out", str(made)], check=True, capture_output=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        graybox_native.load(str(made))
+
+
+def test_an_edited_model_file_is_refused(graybox_bin, tmp_path):
+    """One weight changed in a file graybox wrote, a member removed, or an ensemble's members
+    deleted (which would leave one model answering with no spread, as if certain): each
+    raises GrayboxError, where before they loaded and were served."""
+    made = tmp_path / "dp.gbx"
+    subprocess.run([graybox_bin, "model", "--template", "double_pendulum", "--dt", "0.01",
+                    "--out", str(made)], check=True, capture_output=True)
+    doc = json.loads(made.read_bytes())
+    assert doc["checksum"].startswith("sha256:"), doc.get("checksum")
+    doc["params"][0]["values"][0] *= 1.001
+    e = _refused(lambda: graybox_native.load(json.dumps(doc).encode()), "INVALID_ARGUMENT",
+                 "source")
+    assert "checksum" in e.message, e.message
+
+    ensemble = json.loads((ia.ROOT / ia.MODELS["ensemble-wb-x3"]).read_bytes())
+    fewer = dict(ensemble, members=ensemble["members"][:1])
+    e = _refused(lambda: _load(json.dumps(fewer).encode()), "INVALID_ARGUMENT", "source")
+    assert "members" in e.message and "lists 3" in e.message, e.message
+    gone = {k: v for k, v in ensemble.items() if k != "members"}
+    e = _refused(lambda: _load(json.dumps(gone).encode()), "INVALID_ARGUMENT", "source")
+    assert "members" in e.message, e.message
+
+
+# --- Any array layout answers as its C-ordered copy -------------------------------------------
+
+def _layouts(a):
+    """`a` as C, Fortran (float64 and float32, which NumPy converts keeping the order), strided
+    (a view of every other column or row of a bigger array) and reversed views."""
+    a = np.ascontiguousarray(a, dtype=float)
+    yield "C", a
+    yield "Fortran", np.asfortranarray(a)
+    yield "Fortran float32", np.asfortranarray(a.astype(np.float32))
+    wide = np.zeros(a.shape[:-1] + (2 * a.shape[-1],))
+    wide[..., ::2] = a
+    yield "every other column", wide[..., ::2]
+    tall = np.zeros((2 * a.shape[0],) + a.shape[1:])
+    tall[::2] = a
+    yield "every other row", tall[::2]
+    yield "reversed", a[::-1]
+    if a.ndim > 1:
+        yield "both axes reversed", a[::-1, ::-1]
+
+
+def _same(got, want, where):
+    if isinstance(want, (tuple, list)):
+        assert len(got) == len(want), where
+        for k, (g, w) in enumerate(zip(got, want)):
+            _same(g, w, f"{where}[{k}]")
+    elif hasattr(want, "__dataclass_fields__"):
+        for name in want.__dataclass_fields__:
+            _same(getattr(got, name), getattr(want, name), f"{where}.{name}")
+    elif isinstance(want, np.ndarray):
+        assert got.shape == want.shape and np.array_equal(got, want, equal_nan=True), where
+    else:
+        assert got == want, where
+
+
+def _answer(call, **kwargs):
+    """The call's answer, or its error's code, field and message (a reversed weight matrix
+    is not positive definite: the copy must be refused alike)."""
+    try:
+        return call(**kwargs)
+    except GrayboxError as e:
+        return (e.code, e.field, e.message)
+
+
+def _every_layout(call, arrays, **kwargs):
+    """Each array argument in each layout answers exactly as its C-ordered copy does."""
+    for name, a in arrays.items():
+        for layout, view in _layouts(a):
+            args = dict(arrays, **{name: view}, **kwargs)
+            copies = dict(arrays, **{name: np.ascontiguousarray(view)}, **kwargs)
+            _same(_answer(call, **args), _answer(call, **copies), f"{name} {layout}")
+
+
+def test_every_entry_point_reads_any_layout_as_its_c_ordered_copy():
+    m = _model()
+    rng = np.random.default_rng(3)
+    x, u = rng.uniform(-1, 1, (5, 4)), rng.uniform(-1, 1, (5, 2))
+    _every_layout(m.predict, {"x": x, "u": u})
+    _every_layout(m.predict, {"x": x, "u": u}, want_accel=True)
+    _every_layout(m.step, {"x": x, "u": u})
+    _every_layout(m.linearize, {"x": x, "u": u})
+    x0, us = np.array([0.1, -0.2, 0.3, 0.05]), rng.uniform(-1, 1, (8, 2))
+    _every_layout(m.rollout, {"x0": x0, "u": us}, with_inputs=True)
+    xbar = m.rollout(x0, us)
+    K = rng.uniform(-0.5, 0.5, (8, 2, 4))
+
+    def by_policy(x0, x_bar, u_bar, K):
+        return m.rollout(x0, policy=(x_bar, u_bar, K), with_inputs=True)
+
+    _every_layout(by_policy, {"x0": x0, "x_bar": xbar + 0.01, "u_bar": us, "K": K})
+    Q, R = np.diag([1.0, 2.0, 0.1, 0.2]), np.array([[0.02, 0.005], [0.005, 0.01]])
+    _every_layout(m.tvlqr, {"xbar": xbar, "ubar": us, "Q": Q, "R": R, "Qf": 10 * Q})
+    goal = np.array([0.5, 0.0, 0.0, 0.0])
+    plan = {"x0": x0, "goal": goal, "Q": Q, "R": R, "Qf": 10 * Q, "u_init": us}
+    _every_layout(m.plan, plan, horizon=8, max_iterations=5)
+    _every_layout(m.plan, dict(plan, x_init=xbar), horizon=8, max_iterations=3,
+                  method="dircol")
+
+
+# --- Integers: a negative one is refused naming it ----------------------------------------------
+
+def test_negative_counts_and_limits_of_a_plan_name_their_argument():
+    m = _model()
+    args = (np.zeros(4), np.zeros(4), 10, np.eye(4), np.eye(2), np.eye(4))
+    for name in ("time_limit_ms", "restarts", "max_iterations", "seed"):
+        e = _refused(lambda: m.plan(*args, **{name: -1}), "INVALID_ARGUMENT", name)
+        assert "-1" in e.message, e
+    e = _refused(lambda: m.plan(*args[:2], -5, *args[3:]), "INVALID_ARGUMENT", "horizon")
+    assert "-5" in e.message, e
+    _refused(lambda: m.plan(*args, restarts=10**30), "INVALID_ARGUMENT", "restarts")
+    _refused(lambda: m.plan(*args[:2], 10**9, *args[3:]), "RESOURCE_EXHAUSTED", "horizon")
+    # The largest seed is still a seed.
+    assert m.plan(*args, seed=2**64 - 1, max_iterations=1).x.shape == (11, 4)
+
+
+# --- The memory budget -------------------------------------------------------------------------
+
+def test_calls_over_the_memory_budget_are_refused_naming_the_field_and_the_way_out():
+    # The service's default --max-call-memory-mb.
+    assert graybox_native.memory_budget_mb() == 512
+    for bad in (0, -1):
+        _refused(lambda: graybox_native.set_memory_budget_mb(bad), "INVALID_ARGUMENT", "mb")
+    m = _model("ensemble-wb-x3")
+    x0, goal = np.zeros(4), np.array([0.5, 0.0, 0.0, 0.0])
+    plan = (x0, goal, 10, np.eye(4), 0.01 * np.eye(2), 10 * np.eye(4))
+    graybox_native.set_memory_budget_mb(1)
+    try:
+        assert graybox_native.memory_budget_mb() == 1
+        # The members' average cost plans all three members' states at once: about 2.7 MB
+        # at this horizon, where the mean dynamics' plan fits.
+        e = _refused(lambda: m.plan(*plan, method="dircol", ensemble_cost="mean"),
+                     "RESOURCE_EXHAUSTED", "horizon")
+        for words in ("set_memory_budget_mb", "shorter horizon", "ensemble_cost",
+                      "mean_dynamics", "3 members"):
+            assert words in e.message, e
+        assert "fewer states" not in e.message, e
+        p = m.plan(*plan, method="dircol", ensemble_cost="mean_dynamics", max_iterations=2)
+        assert p.x.shape == (11, 4)
+        e = _refused(lambda: m.predict(np.zeros((20_000, 4)), np.zeros((20_000, 2))),
+                     "RESOURCE_EXHAUSTED", "x")
+        assert "fewer states" in e.message, e
+        _refused(lambda: m.linearize(np.zeros((5_000, 4)), np.zeros((5_000, 2))),
+                 "RESOURCE_EXHAUSTED", "x")
+        _refused(lambda: m.rollout(x0, np.zeros((40_000, 2))), "RESOURCE_EXHAUSTED", "u")
+        xbar, ubar = np.zeros((5_001, 4)), np.zeros((5_000, 2))
+        _refused(lambda: m.tvlqr(xbar, ubar, np.eye(4), np.eye(2), np.eye(4)),
+                 "RESOURCE_EXHAUSTED", "ubar")
+    finally:
+        graybox_native.set_memory_budget_mb(512)
+
+
+# --- Ctrl-C --------------------------------------------------------------------------------------
+
+# Runs one long call in a child process and says how many of them completed when
+# KeyboardInterrupt arrived. The call runs under map() inside deque(), all C code, so nothing
+# between the call's return and `done.append` checks for signals: a call that ignored Ctrl-C
+# completes and is counted before the interrupt is raised.
+_INTERRUPTED_CALL = """
+import collections, functools, itertools, sys
+import numpy as np
+import graybox_native
+
+m = graybox_native.load(sys.argv[1])
+graybox_native.set_memory_budget_mb(8192)
+rows, steps = int(sys.argv[3]), int(sys.argv[4])
+x, u = np.full((rows, 4), 0.1), np.full((rows, 2), 0.1)
+x0, us = np.array([0.1, 0.2, 0.0, 0.0]), np.full((steps, 2), 0.1)
+Q, R = np.eye(4), 1e-4 * np.eye(2)
+calls = {
+    "predict": (m.predict, (x, u)),
+    "linearize": (m.linearize, (x, u)),
+    "rollout": (m.rollout, (x0, us)),
+    "tvlqr": (m.tvlqr, (np.full((steps + 1, 4), 0.1), us, Q, R, Q)),
+    "plan": (functools.partial(m.plan, tolerance=0.0, max_iterations=10**6),
+             (x0, np.array([np.pi, 0.0, 0.0, 0.0]), steps, Q, R, 1000 * Q)),
+}
+call, args = calls[sys.argv[2]]
+done = []
+print("ready", flush=True)
+try:
+    collections.deque(map(done.append, itertools.starmap(call, [args])), maxlen=0)
+except KeyboardInterrupt:
+    print("KeyboardInterrupt", len(done), flush=True)
+else:
+    print("no interrupt", len(done), flush=True)
+"""
+
+
+@pytest.mark.parametrize("name,rows,steps", [
+    # Each call takes 10 s or more uninterrupted on this project's 2-core machine (the plan,
+    # which never meets a tolerance of 0, minutes).
+    ("predict", 1_000_000, 1),
+    ("linearize", 300_000, 1),
+    ("rollout", 1, 1_000_000),
+    ("tvlqr", 1, 300_000),
+    ("plan", 1, 300),
+])
+def test_ctrl_c_interrupts_a_long_call(tmp_path, name, rows, steps):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    script = tmp_path / "call.py"
+    script.write_text(_INTERRUPTED_CALL)
+    model = str(ia.ROOT / ia.MODELS["dp-mvf"])
+    child = subprocess.Popen([sys.executable, str(script), model, name, str(rows), str(steps)],
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "ready", child.stderr.read()
+        time.sleep(1.0)  # into the call
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=600)
+    finally:
+        child.kill()
+    # Interrupted, and the call never completed.
+    assert out.split() == ["KeyboardInterrupt", "0"], (out, err)

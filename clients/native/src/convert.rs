@@ -16,8 +16,20 @@ static GRAYBOX_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
 /// The core's error as the package's exception: code (a gRPC status name), message, field.
 pub fn py_error(py: Python<'_>, e: Error) -> PyErr {
+    let field = e.field().map(str::to_string);
+    raise(py, e, field)
+}
+
+/// [`py_error`] naming `field` when the error names none (RESOURCE_EXHAUSTED's do not: the
+/// argument whose size is at fault is the caller's to know).
+pub fn py_error_at(py: Python<'_>, e: Error, field: &str) -> PyErr {
+    let field = e.field().unwrap_or(field).to_string();
+    raise(py, e, Some(field))
+}
+
+fn raise(py: Python<'_>, e: Error, field: Option<String>) -> PyErr {
     let class = GRAYBOX_ERROR.import(py, "graybox_native", "GrayboxError");
-    let (code, field) = (e.code().1, e.field().map(str::to_string));
+    let code = e.code().1;
     match class {
         Ok(class) => match class.call1((code, e.to_string(), field)) {
             Ok(instance) => PyErr::from_value(instance),
@@ -41,15 +53,31 @@ impl<T> OrPy<T> for Result<T, Error> {
 /// A float64 array from anything NumPy reads as one.
 pub type ArrayIn<'py> = PyArrayLikeDyn<'py, f64, AllowTypeChange>;
 
-/// Its values (row-major) and shape.
+/// Its values in logical row-major order (what its C-ordered copy holds) and shape.
 pub fn values(a: &ArrayIn<'_>) -> (Vec<f64>, Vec<usize>) {
     let shape = a.shape().to_vec();
-    let data = match a.as_slice() {
-        Ok(s) => s.to_vec(),
-        // Not contiguous (a slice with a step, a transpose): in logical order.
-        Err(_) => a.as_array().iter().copied().collect(),
+    // `as_slice` also succeeds for a Fortran-ordered array, whose memory holds the values
+    // column by column: read as rows, they were scrambled.
+    let data = if a.is_c_contiguous() {
+        a.as_slice().expect("C-contiguous").to_vec()
+    } else {
+        // Fortran-ordered, strided or reversed: in logical order.
+        a.as_array().iter().copied().collect()
     };
     (data, shape)
+}
+
+/// A whole-number argument in `0..=max`, taken as a signed Python int so that a negative
+/// one is refused naming it (as an unsigned parameter it was a bare OverflowError).
+pub fn whole(field: &str, v: i128, max: u64) -> Result<u64, Error> {
+    match u64::try_from(v) {
+        Ok(v) if v <= max => Ok(v),
+        Ok(_) => Err(Error::invalid(
+            field,
+            format!("must be at most {max}, got {v}"),
+        )),
+        Err(_) => Err(Error::invalid(field, format!("must be ≥ 0, got {v}"))),
+    }
 }
 
 /// Rows of `width` values: `[width]` is one row (`single`), `[B, width]` is B of them.

@@ -3,9 +3,11 @@
 //! answers Predict, Rollout, Linearize, TVLQR and Plan from NumPy arrays, computed by the
 //! inference core (`graybox-core`) the service runs, so the answers are the service's, bit
 //! for bit. Every computation runs with the GIL released: threads sharing one model run in
-//! parallel.
+//! parallel. A call is admitted under the module's memory budget before it computes, and a
+//! long one hears Ctrl-C (`guard`).
 
 mod convert;
+mod guard;
 mod plan;
 
 use std::path::PathBuf;
@@ -17,6 +19,7 @@ use convert::{ArrayIn, OrPy, array, inputs, rows, shaped};
 use graybox_core::error::Error;
 use graybox_core::infer::{Evaluator, finite_rows};
 use graybox_core::model::file::ModelFile;
+use guard::{Interrupt, admit};
 
 /// A loaded model: immutable, shareable across threads.
 #[pyclass(frozen, module = "graybox_native")]
@@ -37,6 +40,7 @@ fn load(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<Model> {
         py.detach(move || read(&path))
     };
     let file = file.or_py(py)?;
+    warn_unchecked(py, &file)?;
     let eval = py.detach(|| Evaluator::from_file(&file)).or_py(py)?;
     let c = &eval.config;
     let names = match c.template() {
@@ -54,6 +58,20 @@ fn read(path: &std::path::Path) -> Result<ModelFile, Error> {
     let bytes = std::fs::read(path)
         .map_err(|e| Error::invalid("source", format!("cannot read {}: {e}", path.display())))?;
     ModelFile::from_bytes(&bytes).map_err(bad_source)
+}
+
+/// A file that does not prove it is whole (written before files carried a checksum) loads
+/// with `graybox_native.UncheckedModelWarning`, through Python's `warnings`, so that a caller
+/// may filter it, log it or make it an error.
+fn warn_unchecked(py: Python<'_>, file: &ModelFile) -> PyResult<()> {
+    let Some(w) = file.unchecked_warning() else {
+        return Ok(());
+    };
+    let category = py
+        .import("graybox_native")?
+        .getattr("UncheckedModelWarning")?;
+    let message = std::ffi::CString::new(w.message).unwrap_or_default();
+    PyErr::warn(py, &category, &message, 1)
 }
 
 /// Bytes that are not a model file: the caller's bad input, not the library's fault.
@@ -110,19 +128,26 @@ impl Model {
         let (b, single) = (xs.rows, xs.single);
         let eval = &self.eval;
         let spread = return_std || members;
+        admit(py, &eval.predict_cost(b, want_accel, members))?;
+        let interrupt = Interrupt::new();
+        let stop = || interrupt.stop();
         let out = py.detach(|| -> Result<_, Error> {
             let out = if spread {
-                let p = eval.predict_members_until(&xs.data, &us, want_accel, &|| false);
-                let p = p.expect("never stopped");
+                let Some(p) = eval.predict_members_until(&xs.data, &us, want_accel, &stop) else {
+                    return Ok(None);
+                };
                 (p.mean, p.accel, Some(p.std), Some(p.next))
             } else {
-                let (next, accel) = eval.predict(&xs.data, &us, want_accel);
+                let Some((next, accel)) = eval.predict_until(&xs.data, &us, want_accel, &stop)
+                else {
+                    return Ok(None);
+                };
                 (next, accel, None, None)
             };
             finite_rows("x", "next state", &out.0, nx)?;
-            Ok(out)
+            Ok(Some(out))
         });
-        let (next, accel, std, each) = out.or_py(py)?;
+        let (next, accel, std, each) = interrupt.answer(py, out)?;
         let mut items = vec![array(py, next, &shaped(single, b, &[nx]))?];
         if let Some(accel) = accel {
             items.push(array(py, accel, &shaped(single, b, &[n]))?);
@@ -165,14 +190,17 @@ impl Model {
         let xs = rows("x", Some(&x), nx).or_py(py)?;
         let us = inputs(&xs, rows("u", u.as_ref(), m).or_py(py)?, m).or_py(py)?;
         let eval = &self.eval;
-        let (a, b) = py
-            .detach(|| -> Result<_, Error> {
-                let (a, b) = eval.linearize_batch(&xs.data, &us);
-                finite_rows("x", "linearization", &a, nx * nx)?;
-                finite_rows("x", "linearization", &b, nx * m)?;
-                Ok((a, b))
-            })
-            .or_py(py)?;
+        admit(py, &eval.linearize_cost(xs.rows))?;
+        let interrupt = Interrupt::new();
+        let out = py.detach(|| -> Result<_, Error> {
+            let Some((a, b)) = eval.linearize_until(&xs.data, &us, &|| interrupt.stop()) else {
+                return Ok(None);
+            };
+            finite_rows("x", "linearization", &a, nx * nx)?;
+            finite_rows("x", "linearization", &b, nx * m)?;
+            Ok(Some((a, b)))
+        });
+        let (a, b) = interrupt.answer(py, out)?;
         let (single, rows) = (xs.single, xs.rows);
         Ok((
             array(py, a, &shaped(single, rows, &[nx, nx]))?,
@@ -199,23 +227,29 @@ impl Model {
         }
         let (steps, input) = plan::rollout_inputs(u.as_ref(), policy.as_ref(), nx, m).or_py(py)?;
         let eval = &self.eval;
-        let (xs, us) = py
-            .detach(|| -> Result<_, Error> {
-                let (mut xs, mut us) = (x0.data.clone(), Vec::with_capacity(steps * m));
-                eval.rollout(
-                    &x0.data,
-                    steps,
-                    |t, x| input(t, x),
-                    |x, u| {
-                        xs.extend_from_slice(x);
-                        us.extend_from_slice(u);
-                        true
-                    },
-                );
-                finite_rows("x0", "state", &xs, nx)?;
-                Ok((xs, us))
-            })
-            .or_py(py)?;
+        admit(py, &eval.rollout_cost(steps, policy.is_some()))?;
+        let interrupt = Interrupt::new();
+        let out = py.detach(|| -> Result<_, Error> {
+            let (mut xs, mut us) = (x0.data.clone(), Vec::with_capacity(steps * m));
+            let mut stopped = false;
+            eval.rollout(
+                &x0.data,
+                steps,
+                |t, x| input(t, x),
+                |x, u| {
+                    xs.extend_from_slice(x);
+                    us.extend_from_slice(u);
+                    stopped = interrupt.stop();
+                    !stopped
+                },
+            );
+            if stopped {
+                return Ok(None);
+            }
+            finite_rows("x0", "state", &xs, nx)?;
+            Ok(Some((xs, us)))
+        });
+        let (xs, us) = interrupt.answer(py, out)?;
         let xs = array(py, xs, &[steps + 1, nx])?;
         if !with_inputs {
             return Ok(xs);
@@ -250,18 +284,18 @@ impl Model {
         py: Python<'py>,
         x0: ArrayIn<'py>,
         goal: ArrayIn<'py>,
-        horizon: usize,
+        horizon: i128,
         Q: ArrayIn<'py>,
         R: ArrayIn<'py>,
         Qf: ArrayIn<'py>,
         u_min: Option<ArrayIn<'py>>,
         u_max: Option<ArrayIn<'py>>,
         u_init: Option<ArrayIn<'py>>,
-        max_iterations: usize,
+        max_iterations: i128,
         tolerance: f64,
-        restarts: usize,
-        seed: u64,
-        time_limit_ms: u64,
+        restarts: i128,
+        seed: i128,
+        time_limit_ms: i128,
         method: &str,
         x_init: Option<ArrayIn<'py>>,
         x_min: Option<ArrayIn<'py>>,
@@ -303,6 +337,8 @@ fn one_or_tuple<'py>(
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(guard::set_memory_budget_mb, m)?)?;
+    m.add_function(wrap_pyfunction!(guard::memory_budget_mb, m)?)?;
     m.add_class::<Model>()?;
     Ok(())
 }

@@ -5,7 +5,9 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyType};
 
-use crate::convert::{ArrayIn, OrPy, array, matrix, values};
+use crate::convert::{ArrayIn, OrPy, array, matrix, py_error_at, values, whole};
+use crate::guard::{Interrupt, admit};
+use graybox_core::array::finite;
 use graybox_core::control::linalg::Mat;
 use graybox_core::control::plan::{
     DEFAULT_MAX_PLAN_HORIZON, EnsembleCost, Method, PlanRequest, check_horizon, time_limit_in,
@@ -14,6 +16,7 @@ use graybox_core::control::plan::{
 use graybox_core::control::policy::Policy;
 use graybox_core::error::{Error, Result};
 use graybox_core::infer::Evaluator;
+use graybox_core::infer::limits::Cost;
 
 /// The input at step t in state x.
 pub type Inputs = Box<dyn Fn(usize, &[f64]) -> Vec<f64> + Send + Sync>;
@@ -39,6 +42,7 @@ pub fn rollout_inputs(
                     ));
                 }
             };
+            finite("u", &u, m)?;
             Ok((steps, Box::new(move |t, _| u[t * m..(t + 1) * m].to_vec())))
         }
         (None, Some((xbar, ubar, k))) => {
@@ -67,6 +71,9 @@ pub fn rollout_inputs(
                     format!("expected shape [{steps}, {m}, {nx}], got {ks:?}"),
                 ));
             }
+            finite("policy.x_bar", &xbar, nx)?;
+            finite("policy.u_bar", &ubar, m)?;
+            finite("policy.K", &k, m * nx)?;
             let p = Policy {
                 xbar,
                 ubar,
@@ -107,6 +114,8 @@ pub fn tvlqr<'py>(
                 ),
             ));
         }
+        finite("xbar", &xbar, nx)?;
+        finite("ubar", &ubar, m)?;
         let weights = [
             matrix("Q", &q, nx, nx)?,
             matrix("R", &r, m, m)?,
@@ -115,9 +124,21 @@ pub fn tvlqr<'py>(
         Ok((xbar, ubar, weights, t))
     };
     let (xbar, ubar, [q, r, qf], t) = checked().or_py(py)?;
-    let gains = py
-        .detach(|| eval.tvlqr(&xbar, &ubar, &q, &r, &qf))
-        .or_py(py)?;
+    let cost = eval.tvlqr_cost(t);
+    admit(
+        py,
+        &Cost {
+            field: "ubar",
+            ..cost
+        },
+    )?;
+    let interrupt = Interrupt::new();
+    let stop = || interrupt.stop();
+    let gains = py.detach(|| {
+        eval.tvlqr_until(&xbar, &ubar, [&q, &r, &qf], &stop)
+            .map(Some)
+    });
+    let gains = interrupt.answer(py, gains)?;
     let flat = |mats: Vec<Mat>| mats.into_iter().flat_map(|m| m.data).collect::<Vec<_>>();
     Ok((
         array(py, flat(gains.k), &[t, m, nx])?,
@@ -129,25 +150,33 @@ pub fn tvlqr<'py>(
 pub struct PlanArgs<'py, 'a> {
     pub x0: ArrayIn<'py>,
     pub goal: ArrayIn<'py>,
-    pub horizon: usize,
+    pub horizon: i128,
     pub weights: [ArrayIn<'py>; 3],
     pub u_bounds: [Option<ArrayIn<'py>>; 2],
     pub u_init: Option<ArrayIn<'py>>,
     pub x_init: Option<ArrayIn<'py>>,
     pub x_bounds: [Option<ArrayIn<'py>>; 2],
-    pub max_iterations: usize,
+    pub max_iterations: i128,
     pub tolerance: f64,
-    pub restarts: usize,
-    pub seed: u64,
-    pub time_limit_ms: u64,
+    pub restarts: i128,
+    pub seed: i128,
+    pub time_limit_ms: i128,
     pub method: &'a str,
     pub ensemble_cost: &'a str,
 }
 
+/// The horizon, as the service's limit has it: too long is RESOURCE_EXHAUSTED, so the field
+/// is named here.
+fn horizon(py: Python<'_>, horizon: i128) -> PyResult<usize> {
+    whole("horizon", horizon, u64::MAX)
+        .and_then(|h| check_horizon(h, DEFAULT_MAX_PLAN_HORIZON))
+        .map_err(|e| py_error_at(py, e, "horizon"))
+}
+
 /// The core's request from the arguments, checked against the model as the service does.
-fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>) -> Result<PlanRequest> {
+fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>, horizon: usize) -> Result<PlanRequest> {
     let (nx, m) = (2 * eval.config.n, eval.config.m);
-    let horizon = check_horizon(a.horizon as u64, DEFAULT_MAX_PLAN_HORIZON)?;
+    let count = |field: &str, v: i128| whole(field, v, usize::MAX as u64).map(|v| v as usize);
     let flat = |v: &Option<ArrayIn<'_>>| v.as_ref().map(|v| values(v).0);
     let rows = |name: &str, v: &Option<ArrayIn<'_>>, width: usize| -> Result<Option<Mat>> {
         let Some(v) = v else { return Ok(None) };
@@ -170,11 +199,11 @@ fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>) -> Result<PlanRequest> {
         x_max: flat(&a.x_bounds[1]),
         method: Method::parse(a.method)?,
         ensemble_cost: EnsembleCost::parse(a.ensemble_cost)?,
-        max_iterations: a.max_iterations,
+        max_iterations: count("max_iterations", a.max_iterations)?,
         tolerance: a.tolerance,
-        restarts: a.restarts,
-        seed: a.seed,
-        time_limit: time_limit_in(a.time_limit_ms),
+        restarts: count("restarts", a.restarts)?,
+        seed: whole("seed", a.seed, u64::MAX)?,
+        time_limit: time_limit_in(whole("time_limit_ms", a.time_limit_ms, u64::MAX)?),
     };
     let req = req.with_effort_limits(&eval.effort_limits());
     validate(&req, nx, m)?;
@@ -189,8 +218,12 @@ pub fn plan<'py>(
     eval: &Evaluator,
     a: PlanArgs<'py, '_>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let req = request(eval, &a).or_py(py)?;
-    let p = py.detach(|| eval.plan(&req, &|| false)).or_py(py)?;
+    let horizon = horizon(py, a.horizon)?;
+    let req = request(eval, &a, horizon).or_py(py)?;
+    admit(py, &eval.plan_cost(&req))?;
+    let interrupt = Interrupt::new();
+    let p = py.detach(|| eval.plan(&req, &|| interrupt.stop()).map(Some));
+    let p = interrupt.answer(py, p)?;
     let (nx, m, t) = (2 * eval.config.n, eval.config.m, req.horizon);
     let d = PyDict::new(py);
     d.set_item("x", array(py, p.x, &[t + 1, nx])?)?;

@@ -44,6 +44,34 @@ pub struct NamedPart {
     pub values: Vec<f64>,
 }
 
+impl Energies {
+    /// Refuses any figure that is not finite, naming `field` and the row: JSON has no
+    /// non-finite numbers, so one would reach a caller as `null` (and the CLI printed it so,
+    /// exiting 0, where the service refused).
+    pub fn check_finite(&self, field: &str, n: usize) -> Result<()> {
+        let per_state = [
+            ("kinetic energy", &self.kinetic),
+            ("potential energy", &self.potential),
+            ("energy", &self.total),
+            ("power", &self.power),
+        ];
+        for (what, v) in per_state {
+            super::finite_rows(field, what, v, 1)?;
+        }
+        let per_coordinate = [
+            ("inertial force M q̈", &self.inertial),
+            ("Coriolis force", &self.coriolis),
+            ("gravity force ∇V", &self.gravity),
+            ("generalized force", &self.applied),
+        ];
+        let parts = self.parts.iter().map(|p| (p.name, &p.values));
+        for (what, v) in per_coordinate.into_iter().chain(parts) {
+            super::finite_rows(field, what, v, n)?;
+        }
+        Ok(())
+    }
+}
+
 /// One state's figures.
 struct Row {
     kinetic: f64,

@@ -6,6 +6,8 @@
 //! inputs and outputs plus one chunk's work, not the whole batch's work at once.
 
 use super::{Evaluator, Mlp64};
+use crate::control::plan::{EnsembleCost, Method, PlanRequest};
+use crate::error::{Error, Result};
 
 /// Intermediate work one chunk of a batch may take (per thread; a chunk splits over two).
 pub const CHUNK_WORK_BYTES: usize = 32 << 20;
@@ -75,4 +77,183 @@ impl Evaluator {
             })
             .collect()
     }
+}
+
+/// The service's default per-call memory budget (`--max-call-memory-mb`), which the Python
+/// module's own budget starts at: a call the service refuses is refused in process too.
+pub const DEFAULT_MAX_CALL_MEMORY_MB: usize = 512;
+
+const MB: f64 = (1 << 20) as f64;
+
+/// The way out of a batch too large for a budget.
+const FEWER_STATES: &str = "send fewer states per call";
+
+/// What a call will take, decided before it computes (one estimate for the service, which
+/// also bounds the response's message, and the in-process callers), with the argument that
+/// decides it and how to ask for less.
+#[derive(Debug, Clone)]
+pub struct Cost {
+    /// The argument whose size is at fault when the call is over a limit.
+    pub field: &'static str,
+    /// How to ask for less, for the refusal.
+    pub way_out: String,
+    pub response_bytes: usize,
+    pub memory_bytes: usize,
+}
+
+impl Cost {
+    /// RESOURCE_EXHAUSTED naming the field, the budget of `budget` bytes (`knob`: where it is
+    /// set) and the way out when the call's memory is over it.
+    pub fn within(&self, budget: usize, knob: &str) -> Result<()> {
+        if self.memory_bytes <= budget {
+            return Ok(());
+        }
+        Err(Error::ResourceExhausted(format!(
+            "{}: the call would take about {:.0} MB, over the per-call memory budget of {:.0} \
+             MB ({knob}); {}",
+            self.field,
+            self.memory_bytes as f64 / MB,
+            budget as f64 / MB,
+            self.way_out
+        )))
+    }
+}
+
+/// The estimates of the batched calls and plans.
+impl Evaluator {
+    /// What an ensemble holds of its members' answers, `bytes` each, until their mean is taken
+    /// (nothing for a single model).
+    pub fn members_held(&self, bytes: usize) -> usize {
+        match self.member_count() {
+            1 => 0,
+            k => k.saturating_mul(bytes),
+        }
+    }
+
+    /// x' (and q̈ with `accel`) for `b` states; with `members`, every member's x' as well.
+    pub fn predict_cost(&self, b: usize, accel: bool, members: bool) -> Cost {
+        let (n, nx, m) = (self.config.n, 2 * self.config.n, self.config.m);
+        let k = self.member_count();
+        // x' (and its σ), q̈, max |z|; every member's x' when asked.
+        let states = 1 + usize::from(k > 1 || members) + if members { k } else { 0 };
+        let accel = if accel { n } else { 0 };
+        let response_bytes = 8 * b * (states * nx + 1 + accel);
+        let work = b.min(2 * self.chunk_states(Pass::Step)) * self.work_bytes_per_state(Pass::Step);
+        // Every member's answers are held until their mean is taken.
+        let held = self.members_held(8 * b * (nx + accel));
+        Cost {
+            field: "x",
+            way_out: FEWER_STATES.into(),
+            response_bytes,
+            memory_bytes: 8 * b * (nx + m) + 2 * response_bytes + held + work,
+        }
+    }
+
+    /// A and B at `b` states.
+    pub fn linearize_cost(&self, b: usize) -> Cost {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let response_bytes = 8 * b * (nx * nx + nx * m + 1);
+        let work = b.min(2 * self.chunk_states(Pass::Linearize))
+            * self.work_bytes_per_state(Pass::Linearize);
+        // The parts, their concatenation, A and B, and the encoded message (and an
+        // ensemble's members' A and B until their mean is taken).
+        let held = self.members_held(8 * b * (nx * nx + nx * m));
+        Cost {
+            field: "x",
+            way_out: FEWER_STATES.into(),
+            response_bytes,
+            memory_bytes: 8 * b * (nx + m) + 4 * response_bytes + work + held,
+        }
+    }
+
+    /// TVLQR's gains along a nominal of `t` steps.
+    pub fn tvlqr_cost(&self, t: usize) -> Cost {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (jac, gains) = (nx * nx + nx * m, m * nx + nx * nx);
+        let work = t.min(2 * self.chunk_states(Pass::Linearize))
+            * self.work_bytes_per_state(Pass::Linearize);
+        // A and B as rows, as matrices and in the solver; S and K, then their message.
+        Cost {
+            field: "u_bar",
+            way_out: "send a shorter nominal trajectory".into(),
+            response_bytes: 8 * (t * m * nx + (t + 1) * nx * nx),
+            memory_bytes: 8 * t * (4 * jac + 3 * gains) + work + self.members_held(8 * t * jac),
+        }
+    }
+
+    /// A rollout of `steps` kept whole (the in-process callers' answer; the service streams
+    /// it in chunks): its inputs (a policy's nominal and gains with `policy`), states and
+    /// applied inputs.
+    pub fn rollout_cost(&self, steps: usize, policy: bool) -> Cost {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let given = if policy { nx + m + m * nx } else { m };
+        let response_bytes = 8 * ((steps + 1) * nx + steps * m);
+        Cost {
+            field: if policy { "policy" } else { "u" },
+            way_out: "roll out fewer steps per call".into(),
+            response_bytes,
+            memory_bytes: 8 * steps * given
+                + response_bytes
+                + self.work_bytes_per_state(Pass::Step) * self.member_count(),
+        }
+    }
+
+    /// A plan of the request's horizon, method and ensemble cost (the request validated).
+    pub fn plan_cost(&self, req: &PlanRequest) -> Cost {
+        let t = req.horizon;
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        // The members' average cost plans on all of them stacked: K·nx states.
+        let k = self.member_count();
+        let stacked = k > 1 && req.ensemble_cost == EnsembleCost::Mean;
+        let nx = if stacked { k * nx } else { nx };
+        // Jacobians, the backward pass's matrices and gains, the line search's ten
+        // trajectories, the best start's, the returned plan and its message. Restarts add
+        // time, not memory (one start is kept besides the current one); the time is the
+        // deadline's to bound, which the solver checks at every time step.
+        let per_step = match req.method {
+            Method::Ilqr => 8 * (4 * (nx * nx + nx * m) + 11 * (nx + m) + 2 * m * nx),
+            Method::Dircol => dircol_bytes_per_interval(nx, m),
+        };
+        let iterations = req.max_iterations.saturating_add(1);
+        let memory_bytes = t * per_step
+            + t.min(2 * self.chunk_states(Pass::Linearize))
+                * self.work_bytes_per_state(Pass::Linearize)
+            + self.members_held(8 * (t + 1) * (nx * nx + nx * m));
+        let step_mb = per_step as f64 / MB;
+        let way_out = if stacked {
+            format!(
+                "plan a shorter horizon (about {step_mb:.1} MB a step), or with ensemble_cost \
+                 \"mean_dynamics\": the mean cost (\"mean\") plans all {k} members' states at \
+                 once, {k} times the states of one"
+            )
+        } else {
+            format!("plan a shorter horizon (about {step_mb:.2} MB a step)")
+        };
+        Cost {
+            field: "horizon",
+            way_out,
+            response_bytes: 8usize
+                .saturating_mul((t + 1) * nx + t * m + t * m * nx)
+                .saturating_add(8usize.saturating_mul(iterations)),
+            memory_bytes,
+        }
+    }
+}
+
+/// Direct collocation's memory per interval, all of which lives until the plan is answered:
+/// f's Jacobians at three points, the defect Jacobian as triplets (this iterate's and the
+/// last's), the learned curvature's block, the QP's matrices in clarabel (P and A, A's
+/// scaled copy) and its KKT system with the factor's fill (about twice the band of one
+/// interval's rows: variables, defects, bounds), and the interior point's ~20 vectors.
+/// Measured on the double pendulum: a peak of 146 MB at T = 4000, 36.5 KB an interval; this
+/// gives 38 KB there.
+fn dircol_bytes_per_interval(nx: usize, m: usize) -> usize {
+    let jacobian = nx * (5 * nx + 2 * m + 1);
+    let (block, kkt) = (3 * nx + m, 4 * nx + 3 * m);
+    8 * 3 * (nx * nx + nx * m)
+        + 2 * 24 * jacobian
+        + 8 * block * block
+        + 12 * (block * block + 2 * jacobian)
+        + 16 * 3 * kkt * kkt
+        + 8 * 20 * kkt
 }

@@ -1,5 +1,6 @@
-//! The model file (`.gbx`): config, parameters and the training report (or how the model was
-//! made, for one that was not trained), as JSON.
+//! The model file (`.gbx`, docs/model-file.md): config, parameters and the training report (or
+//! how the model was made, for one that was not trained), as JSON, with a checksum over what
+//! defines its answers (`checksum.rs`) that every write adds and every read checks.
 //! f64 values print in shortest round-trip form, so loading gives back the exact weights.
 
 use serde::{Deserialize, Serialize};
@@ -16,6 +17,13 @@ use crate::physics::params::Part;
 use crate::physics::scaling::Scaling;
 use crate::physics::templates::Template;
 use crate::records::Warning;
+
+mod checksum;
+mod integrity;
+#[cfg(test)]
+mod tests;
+
+pub use integrity::{MAX_MEMBERS, UNCHECKED};
 
 /// The format of files whose template is a built-in one (older graybox versions read them).
 pub const FORMAT: &str = "graybox.model/1";
@@ -47,6 +55,10 @@ pub struct ModelFile {
     /// empty for a single model ([`FORMAT_ENSEMBLE`] files only).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub members: Vec<Vec<NamedArray>>,
+    /// Read from a file without a checksum: nothing proved it whole ([`Self::unchecked_warning`]).
+    /// Never written: `to_bytes` writes a fresh checksum instead.
+    #[serde(skip)]
+    unchecked: bool,
 }
 
 /// How a model that was not trained was made: a template's equations with these values.
@@ -66,6 +78,7 @@ impl ModelFile {
             report,
             made: None,
             members: vec![],
+            unchecked: false,
         }
     }
 
@@ -97,6 +110,7 @@ impl ModelFile {
             file.report = self.report.clone().filter(|_| self.members.is_empty());
         }
         file.made = self.made.clone();
+        file.unchecked = self.unchecked;
         file
     }
 
@@ -168,7 +182,8 @@ impl ModelFile {
                 a.name
             )));
         }
-        Ok(serde_json::to_vec(self).expect("model files serialize"))
+        self.check_members()?;
+        Ok(self.sealed())
     }
 
     pub fn from_bytes(bytes: &[u8]) -> Result<Self> {
@@ -182,7 +197,7 @@ impl ModelFile {
                  with its values), `train`, `simulate`; or POST /v1/templates",
             ));
         }
-        let f: ModelFile =
+        let mut f: ModelFile =
             serde_json::from_slice(bytes).map_err(|e| Error::corrupt("model file", e))?;
         let known = [FORMAT, FORMAT_EMBEDDED_TEMPLATE, FORMAT_ENSEMBLE];
         if !known.contains(&f.format.as_str()) {
@@ -200,6 +215,8 @@ impl ModelFile {
                 ),
             ));
         }
+        f.check_members()?;
+        f.check_seal(bytes)?;
         Ok(f)
     }
 

@@ -39,6 +39,9 @@ pub enum BenchCommand {
     /// Inference latency for controllers (double pendulum MVF 3×32): in process and as gRPC
     /// round trips on loopback, idle and with 64 concurrent clients while a job trains.
     Infer(infer::BenchInferArgs),
+    /// A controller's 16-state Predict (p50, p99) while a job trains, alone and beside two
+    /// long plans holding the long-call class.
+    ShortCalls(infer::classes::BenchShortCallsArgs),
     /// µs per call of a URDF robot's dynamics: the assembled path vs the multibody algorithms
     /// (`rigid` is its former name).
     #[command(alias = "rigid")]
@@ -181,6 +184,7 @@ pub fn run(cmd: BenchCommand) -> Result<()> {
         BenchCommand::Train(a) => bench_train(a),
         BenchCommand::Step(a) => bench_step(a),
         BenchCommand::Infer(a) => infer::run(a),
+        BenchCommand::ShortCalls(a) => infer::classes::run(a),
         BenchCommand::Multibody(a) => multibody::run(a),
         BenchCommand::Events(a) => events::run(a),
         BenchCommand::Queue(a) => queue::run(a),

@@ -2,6 +2,7 @@
 //! parsing its body will cost before a byte of it is read, or gets 503 with `Retry-After`.
 //! Without this, 50 concurrent 200 MB uploads each held their body and its parse at once.
 
+use axum::body::Body;
 use axum::extract::{Request, State};
 use axum::http::header;
 use axum::middleware::Next;
@@ -11,19 +12,23 @@ use super::RestState;
 use super::error::{ApiError, RETRY_AFTER_SECS};
 use crate::app::uploads::BodyKind;
 
-/// The body limit of routes that take no document.
-pub const SMALL_BODY_LIMIT: usize = crate::app::uploads::SMALL_BODY;
-
 /// Admits a request's body under the budget before the handler reads it: a declared
 /// `Content-Length` over the route's limit is 413 at once; else the body's cost (declared
 /// length, or the limit when none is declared, times the kind's cost per byte) is reserved
 /// until the response is ready, or the request gets 503 with `Retry-After`.
+///
+/// This is the one place a route's body limit is set: the body is cut off at it whatever
+/// its transfer encoding. A chunked body declares no length, and a limit set per group of
+/// routes once let the small routes under the model upload's group read 64 MiB while the
+/// budget held 64 KiB for them.
 pub async fn admit_body(State(s): State<RestState>, req: Request, next: Next) -> Response {
-    let Some(kind) = BodyKind::of(req.method().as_str(), req.uri().path()) else {
+    let settings = &s.app.settings;
+    let kind = BodyKind::of(req.method().as_str(), req.uri().path());
+    let limit = kind.unwrap_or(BodyKind::Small).limit(settings);
+    let req = req.map(|body| Body::new(http_body_util::Limited::new(body, limit)));
+    let Some(kind) = kind else {
         return next.run(req).await;
     };
-    let settings = &s.app.settings;
-    let limit = kind.limit(settings);
     let declared = req
         .headers()
         .get(header::CONTENT_LENGTH)

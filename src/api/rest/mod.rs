@@ -38,15 +38,11 @@ impl RestState {
 /// The whole REST router; tests call it with `oneshot` or over a socket.
 pub fn router(app: App) -> Router {
     let state = RestState { app };
-    // Each route group reads bodies up to its kind's limit; the rest take small ones.
-    let limited = |routes: Router<RestState>, kind: BodyKind| {
-        routes.layer(DefaultBodyLimit::max(state.limit(kind)))
-    };
     Router::new()
-        .merge(limited(datasets::routes(), BodyKind::Dataset))
-        .merge(limited(jobs::routes(), BodyKind::Template))
-        .merge(limited(models::routes(), BodyKind::Model))
-        .merge(limited(templates::routes(), BodyKind::Template))
+        .merge(datasets::routes())
+        .merge(jobs::routes())
+        .merge(models::routes())
+        .merge(templates::routes())
         .merge(ops::routes())
         .merge(crate::api::web::routes())
         .fallback(|| async { ApiError::new(StatusCode::NOT_FOUND, "not_found", "no such route") })
@@ -65,7 +61,8 @@ pub fn router(app: App) -> Router {
         .layer(middleware::from_fn_with_state(state.clone(), record))
         // Outermost, so that the answers of the layers inside (401, 413, 503) carry them too.
         .layer(middleware::map_response(crate::api::web::security_headers))
-        .layer(DefaultBodyLimit::max(admission::SMALL_BODY_LIMIT))
+        // `admit_body` cuts every body off at its route's limit (`BodyKind::of`).
+        .layer(DefaultBodyLimit::disable())
         .with_state(state)
 }
 

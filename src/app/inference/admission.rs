@@ -1,5 +1,7 @@
 //! Admission of heavy inference work: a bounded number computes at once on the blocking
-//! pool, a bounded number waits; calls and rollout streams each have a pool.
+//! pool, a bounded number waits. Short calls (a controller's batch), long calls (plans,
+//! evaluations, large batches) and rollout streams each have a pool of their own, so that
+//! seconds of planning never queue a controller's Predict behind them.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -11,12 +13,56 @@ use crate::error::{Error, Result};
 /// Heavy calls waiting per permit before further ones are refused: a queue, not a pile.
 const WAITING_PER_PERMIT: usize = 16;
 
+/// The most one-step evaluations (states × members × passes, see [`Class::of`]) a short
+/// call may take: about 4096 × 15–20 µs ≈ 60–80 ms on the double pendulum, so a short call
+/// waits at most that long behind another. A 16-state Predict is 16, a 100-step Tvlqr of the
+/// double pendulum 700.
+pub const SHORT_EVALUATIONS: usize = 4096;
+
+/// Where a call computes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    /// On the executor thread itself: less work than a hop to the blocking pool costs.
+    Inline,
+    /// In the short class (`--max-short-calls`): a controller's call of milliseconds.
+    Short,
+    /// In the long class (`--max-heavy-calls`): plans, evaluations and large batches.
+    Long,
+}
+
+impl Class {
+    /// The class of a call of `evaluations` one-step evaluations (a linearization counts
+    /// its 2n + m + 1 directions); `inline` when the call is small enough for the executor.
+    pub fn of(inline: bool, evaluations: usize) -> Self {
+        if inline {
+            Class::Inline
+        } else if evaluations <= SHORT_EVALUATIONS {
+            Class::Short
+        } else {
+            Class::Long
+        }
+    }
+}
+
 /// Admission of heavy inference work: `permits` compute at once, a bounded number wait.
 /// Calls and rollout streams each have their own (see [`Heavy::streaming`]).
 pub struct Heavy {
     permits: Arc<Semaphore>,
     waiting: AtomicUsize,
     max_waiting: usize,
+    /// Calls computing now.
+    busy: Arc<AtomicUsize>,
+    /// The setting that sizes this pool, named when a call is turned away.
+    flag: &'static str,
+}
+
+/// Decrements the computing count when the computation ends, however it ends.
+struct Busy(Arc<AtomicUsize>);
+
+impl Drop for Busy {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
 }
 
 /// Decrements the waiting count however the wait ends (a caller's deadline drops the future).
@@ -29,23 +75,30 @@ impl Drop for Waiting<'_> {
 }
 
 impl Heavy {
-    /// A pool for calls: `permits` at once, a bounded queue behind them.
-    pub fn new(permits: usize) -> Self {
+    /// A pool for calls: `permits` at once (set by `flag`), a bounded queue behind them.
+    pub fn new(permits: usize, flag: &'static str) -> Self {
         let permits = permits.max(1);
         Self {
             permits: Arc::new(Semaphore::new(permits)),
             waiting: AtomicUsize::new(0),
             max_waiting: permits * WAITING_PER_PERMIT,
+            busy: Arc::default(),
+            flag,
         }
+    }
+
+    /// Calls computing now (for tests and telemetry).
+    pub fn busy(&self) -> usize {
+        self.busy.load(Ordering::SeqCst)
     }
 
     /// A pool for rollout streams: their chunks queue without a cap (a waiting stream is a
     /// parked task holding no thread, and streams are capped per connection), apart from
     /// calls, so that many streams cannot crowd Predict, Linearize or Tvlqr out.
-    pub fn streaming(permits: usize) -> Self {
+    pub fn streaming(permits: usize, flag: &'static str) -> Self {
         Self {
             max_waiting: usize::MAX,
-            ..Self::new(permits)
+            ..Self::new(permits, flag)
         }
     }
 
@@ -58,8 +111,8 @@ impl Heavy {
         if self.waiting.fetch_add(1, Ordering::SeqCst) >= self.max_waiting {
             self.waiting.fetch_sub(1, Ordering::SeqCst);
             return Err(Error::Busy(format!(
-                "{} heavy inference calls are already waiting; retry later (--max-heavy-calls)",
-                self.max_waiting
+                "{} inference calls like this one are already waiting; retry later ({})",
+                self.max_waiting, self.flag
             )));
         }
         let guard = Waiting(&self.waiting);
@@ -70,8 +123,11 @@ impl Heavy {
             .await
             .map_err(|_| Error::Internal("the inference pool is closed".into()))?;
         drop(guard);
+        self.busy.fetch_add(1, Ordering::SeqCst);
+        let busy = self.busy.clone();
         tokio::task::spawn_blocking(move || {
             let _permit = permit;
+            let _busy = Busy(busy);
             f()
         })
         .await
@@ -87,7 +143,7 @@ mod tests {
     /// UNAVAILABLE), not that it is too large (it was a 413).
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn past_the_queue_a_call_is_busy_not_too_large() {
-        let heavy = Arc::new(Heavy::new(1));
+        let heavy = Arc::new(Heavy::new(1, "--max-heavy-calls"));
         let (release, held) = std::sync::mpsc::channel::<()>();
         let held = Arc::new(std::sync::Mutex::new(held));
         let running = {
@@ -107,7 +163,12 @@ mod tests {
             tokio::task::yield_now().await;
         }
         match heavy.run(|| ()).await {
-            Err(Error::Busy(m)) => assert!(m.contains("already waiting"), "{m}"),
+            Err(Error::Busy(m)) => {
+                assert!(
+                    m.contains("already waiting") && m.contains("--max-heavy-calls"),
+                    "{m}"
+                )
+            }
             other => panic!("{other:?}"),
         }
         release.send(()).unwrap();

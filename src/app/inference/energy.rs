@@ -7,12 +7,12 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Cost, INLINE_ROWS, check_batch};
+use super::{Class, Cost, INLINE_ROWS, check_batch};
 use crate::app::App;
 use crate::app::requests::deadline;
 use crate::array::Array;
 use crate::error::{Error, Result};
-use crate::infer::{Energies, finite_rows};
+use crate::infer::Energies;
 
 /// How long a REST energy call may compute unless it says otherwise, and at most.
 const DEFAULT_SECONDS: f64 = 30.0;
@@ -112,14 +112,13 @@ impl App {
             },
         )?;
         let (x, u) = (x.data, u.data);
-        let small = b * k <= INLINE_ROWS;
+        let class = Class::of(b * k <= INLINE_ROWS, b * k);
         let energies = self
-            .compute(small, "energy", deadline, move |stop| {
+            .compute(class, "energy", deadline, move |stop| {
                 eval.energy_until(&x, &u, stop).transpose()
             })
             .await??;
-        finite_rows("x", "energy", &energies.total, 1)?;
-        finite_rows("x", "generalized force", &energies.applied, n)?;
+        energies.check_finite("x", n)?;
         Ok(Energy { n, energies })
     }
 

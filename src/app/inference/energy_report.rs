@@ -4,6 +4,7 @@
 
 use serde::Deserialize;
 
+use super::Class;
 use crate::app::App;
 use crate::app::requests::deadline;
 use crate::error::{Error, Result};
@@ -39,7 +40,7 @@ impl App {
         // the dataset's memory needs admitting, which reading it does.
         let loaded = self.read_dataset(&info).await?;
         let mut report = self
-            .heavy_until("energy report", Some(deadline), move |stop| {
+            .heavy_until(Class::Long, "energy report", Some(deadline), move |stop| {
                 let (states, _) = loaded.ds().states();
                 eval.energy_report(&states, REPORT_SEED, stop).transpose()
             })

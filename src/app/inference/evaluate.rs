@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::Cost;
+use super::{Class, Cost};
 use crate::app::App;
 use crate::app::requests::deadline;
 use crate::data::trajectories;
@@ -94,7 +94,7 @@ impl App {
             None => self.read_dataset(&info).await?,
         };
         let items = self
-            .heavy_until("evaluation", Some(deadline), move |stop| {
+            .heavy_until(Class::Long, "evaluation", Some(deadline), move |stop| {
                 horizon_errors(&eval, loaded.ds(), &horizons, stop)
             })
             .await?;

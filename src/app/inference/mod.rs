@@ -15,7 +15,7 @@ pub mod reads;
 mod replay;
 mod rollout;
 
-pub use admission::Heavy;
+pub use admission::{Class, Heavy, SHORT_EVALUATIONS};
 pub use cache::{CACHE_SWEEP, ModelCache};
 pub use energy::{Energy, EnergyRequest, EnergyView, ForcePartView};
 pub use energy_report::EnergyReportRequest;
@@ -31,7 +31,7 @@ use super::App;
 use crate::array::Array;
 use crate::control::linalg::Mat;
 use crate::error::{Error, Result};
-use crate::infer::limits::Pass;
+use crate::infer::limits::Cost as CallCost;
 use crate::infer::{Evaluator, finite_rows};
 use crate::model::file::ModelFile;
 
@@ -66,16 +66,8 @@ const INLINE_ROWS: usize = 4;
 
 const MB: f64 = (1 << 20) as f64;
 
-/// What an ensemble holds of its members' answers, `bytes` each, until their mean is taken
-/// (nothing for a single model).
-fn members_held(eval: &Evaluator, bytes: usize) -> usize {
-    match eval.member_count() {
-        1 => 0,
-        k => k * bytes,
-    }
-}
-
-/// What a call will take, decided before it computes.
+/// What a call the core does not estimate will take (`infer::limits` estimates the rest),
+/// decided before it computes.
 struct Cost {
     response_bytes: usize,
     memory_bytes: usize,
@@ -187,41 +179,59 @@ impl App {
         Ok(())
     }
 
-    /// RESOURCE_EXHAUSTED naming the limit when `cost` is over one, before any computing.
-    fn admit(&self, what: &str, cost: &Cost) -> Result<()> {
+    /// RESOURCE_EXHAUSTED naming the limit when `cost` is over one, before any computing:
+    /// for a call of the service's own, whose way out is fewer states.
+    fn admit(&self, what: &'static str, cost: &Cost) -> Result<()> {
+        self.admit_call(&CallCost {
+            field: what,
+            way_out: "send fewer states per call".into(),
+            response_bytes: cost.response_bytes,
+            memory_bytes: cost.memory_bytes,
+        })
+    }
+
+    /// RESOURCE_EXHAUSTED naming the limit, the field and the way out (a plan's is its
+    /// horizon, not its states) when `cost` is over a limit, before any computing.
+    fn admit_call(&self, cost: &CallCost) -> Result<()> {
         let s = &self.settings;
         if cost.response_bytes > s.grpc_max_message_bytes() {
             return Err(Error::ResourceExhausted(format!(
-                "{what}: the response would be {:.1} MB, over the message limit of {:.0} MB \
-                 (--grpc-max-message-mb); send fewer states per call",
+                "{}: the response would be {:.1} MB, over the message limit of {:.0} MB \
+                 (--grpc-max-message-mb); {}",
+                cost.field,
                 cost.response_bytes as f64 / MB,
-                s.grpc_max_message_bytes() as f64 / MB
+                s.grpc_max_message_bytes() as f64 / MB,
+                cost.way_out
             )));
         }
-        if cost.memory_bytes > s.max_call_memory_bytes() {
-            return Err(Error::ResourceExhausted(format!(
-                "{what}: the call would take about {:.0} MB, over the per-call memory budget of \
-                 {:.0} MB (--max-call-memory-mb); send fewer states per call",
-                cost.memory_bytes as f64 / MB,
-                s.max_call_memory_bytes() as f64 / MB
-            )));
-        }
-        Ok(())
+        cost.within(s.max_call_memory_bytes(), "--max-call-memory-mb")
     }
 
-    /// `f` inline when the work is small (see [`INLINE_ROWS`]), else as a heavy call that
-    /// stops at the deadline (see [`App::heavy_until`]).
+    /// `f` inline when the work is small (see [`INLINE_ROWS`]), else as a heavy call of its
+    /// class that stops at the deadline (see [`App::heavy_until`]).
     async fn compute<T: Send + 'static>(
         &self,
-        small: bool,
+        class: Class,
         what: &str,
         deadline: Option<Instant>,
         f: impl FnOnce(&dyn Fn() -> bool) -> Option<T> + Send + 'static,
     ) -> Result<T> {
-        if small {
-            f(&|| false).ok_or_else(|| Error::Internal(format!("the {what} stopped by itself")))
-        } else {
-            self.heavy_until(what, deadline, |stop| f(stop)).await
+        match class {
+            Class::Inline => {
+                f(&|| false).ok_or_else(|| Error::Internal(format!("the {what} stopped by itself")))
+            }
+            _ => {
+                self.heavy_until(class, what, deadline, |stop| f(stop))
+                    .await
+            }
+        }
+    }
+
+    /// The pool a call of `class` computes in.
+    fn pool(&self, class: Class) -> &Heavy {
+        match class {
+            Class::Short => &self.short_calls,
+            Class::Inline | Class::Long => &self.long_calls,
         }
     }
 
@@ -232,13 +242,14 @@ impl App {
     /// `Sync` so that a solver running code of its own may poll it from a second thread.
     async fn heavy_until<T: Send + 'static>(
         &self,
+        class: Class,
         what: &str,
         deadline: Option<Instant>,
         f: impl FnOnce(&(dyn Fn() -> bool + Sync)) -> Option<T> + Send + 'static,
     ) -> Result<T> {
         let gone = Arc::new(AtomicBool::new(false));
         let _guard = Gone(gone.clone());
-        let work = self.heavy.run(move || {
+        let work = self.pool(class).run(move || {
             let stop =
                 || gone.load(Ordering::Relaxed) || deadline.is_some_and(|d| Instant::now() >= d);
             f(&stop)
@@ -264,26 +275,14 @@ impl App {
     ) -> Result<Prediction> {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, &x, &u)?;
-        let (n, nx, m) = (eval.config.n, 2 * eval.config.n, eval.config.m);
+        let (n, nx) = (eval.config.n, 2 * eval.config.n);
         let k = eval.member_count();
         let spread = k > 1 || want.members;
-        // x' (and its σ), q̈, max |z|; every member's x' when asked.
-        let states = 1 + usize::from(spread) + if want.members { k } else { 0 };
-        let response_bytes = 8 * b * (states * nx + 1 + if want.accel { n } else { 0 });
-        let work = b.min(2 * eval.chunk_states(Pass::Step)) * eval.work_bytes_per_state(Pass::Step);
-        // Every member's answers are held until their mean is taken.
-        let held = members_held(&eval, 8 * b * (nx + if want.accel { n } else { 0 }));
-        self.admit(
-            "x",
-            &Cost {
-                response_bytes,
-                memory_bytes: 8 * b * (nx + m) + 2 * response_bytes + held + work,
-            },
-        )?;
+        self.admit_call(&eval.predict_cost(b, want.accel, want.members))?;
         let (x, u) = (x.data, u.data);
-        let small = b * k <= INLINE_ROWS;
+        let class = Class::of(b * k <= INLINE_ROWS, b * k);
         let out = self
-            .compute(small, "prediction", deadline, move |stop| {
+            .compute(class, "prediction", deadline, move |stop| {
                 let max_abs_z = eval.max_abs_z(&x, &u);
                 if !spread {
                     let (next, accel) = eval.predict_until(&x, &u, want.accel, stop)?;
@@ -312,23 +311,12 @@ impl App {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, &x, &u)?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
-        let response_bytes = 8 * b * (nx * nx + nx * m + 1);
-        let work = b.min(2 * eval.chunk_states(Pass::Linearize))
-            * eval.work_bytes_per_state(Pass::Linearize);
-        // The parts, their concatenation, A and B, and the encoded message (and an
-        // ensemble's members' A and B until their mean is taken).
-        let held = members_held(&eval, 8 * b * (nx * nx + nx * m));
-        self.admit(
-            "x",
-            &Cost {
-                response_bytes,
-                memory_bytes: 8 * b * (nx + m) + 4 * response_bytes + work + held,
-            },
-        )?;
+        self.admit_call(&eval.linearize_cost(b))?;
         let (x, u) = (x.data, u.data);
-        let small = b * eval.member_count() == 1;
+        let rows = b * eval.member_count();
+        let class = Class::of(rows == 1, rows * (nx + m + 1));
         let out = self
-            .compute(small, "linearization", deadline, move |stop| {
+            .compute(class, "linearization", deadline, move |stop| {
                 let (a, bm) = eval.linearize_until(&x, &u, stop)?;
                 Some(Linearization {
                     a: Array::new(&[b, nx, nx], a),
@@ -373,21 +361,9 @@ impl App {
             square("R", r, m)?,
             square("Qf", qf, nx)?,
         );
-        let (jac, gains) = (nx * nx + nx * m, m * nx + nx * nx);
-        let response_bytes = 8 * (t * m * nx + (t + 1) * nx * nx);
-        let work = t.min(2 * eval.chunk_states(Pass::Linearize))
-            * eval.work_bytes_per_state(Pass::Linearize);
-        // A and B as rows, as matrices and in the solver; S and K, then their message.
-        self.admit(
-            "u_bar",
-            &Cost {
-                response_bytes,
-                memory_bytes: 8 * t * (4 * jac + 3 * gains)
-                    + work
-                    + members_held(&eval, 8 * t * jac),
-            },
-        )?;
-        self.heavy_until("tvlqr", deadline, move |stop| {
+        self.admit_call(&eval.tvlqr_cost(t))?;
+        let class = Class::of(false, t * eval.member_count() * (nx + m + 1));
+        self.heavy_until(class, "tvlqr", deadline, move |stop| {
             match eval.tvlqr_until(&xbar.data, &ubar.data, [&qm, &rm, &qfm], stop) {
                 Err(Error::Cancelled) => None,
                 Err(e) => Some(Err(e)),

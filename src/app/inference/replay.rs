@@ -135,7 +135,7 @@ impl App {
         drop(loaded);
         let u = inputs.chunks(m).map(<[f64]>::to_vec).collect();
         let replayed = self
-            .heavy
+            .long_calls
             .run(move || replay_segment(&eval, recorded, &inputs, m))
             .await?;
         Ok(Replay {

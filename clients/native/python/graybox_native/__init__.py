@@ -12,7 +12,17 @@ model id, and the answers are the service's, bit for bit: both run graybox's inf
 Every computation releases the GIL, so threads sharing one model run in parallel. A failed
 call raises `GrayboxError` with the gRPC code the service would answer (e.g.
 "INVALID_ARGUMENT") and the `field` it names; with graybox_client installed it is that
-package's `GrayboxError`, so one `except` catches both.
+package's `GrayboxError`, so one `except` catches both. A model file that does not prove it
+is whole (its checksum does not match its contents, or its members disagree with its report)
+is refused with INVALID_ARGUMENT; one written before files carried a checksum loads with an
+`UncheckedModelWarning`.
+
+A call is admitted under a memory budget as the service's calls are (its estimate, before
+computing): over it, GrayboxError RESOURCE_EXHAUSTED names the argument at fault and the way
+out. The budget starts at the service's default `--max-call-memory-mb` (512 MiB);
+`set_memory_budget_mb(n)` sets it for the process and `memory_budget_mb()` reads it. Ctrl-C
+interrupts a long call within about 50 ms with KeyboardInterrupt (in the main thread, which
+receives signals).
 """
 
 from dataclasses import dataclass
@@ -56,6 +66,19 @@ except ImportError:
         rollout_deviation: float = 0.0
         x_std: Optional[np.ndarray] = None
 
-from ._native import Model, load  # noqa: E402  (GrayboxError first: the module raises it)
 
-__all__ = ["GrayboxError", "Model", "PlanResult", "load"]
+class UncheckedModelWarning(UserWarning):
+    """`load` read a model file that does not prove it is whole: one written before graybox
+    files carried a checksum. It is served as it is; a file whose checksum does not match, or
+    whose members disagree with its report, raises GrayboxError instead."""
+
+
+from ._native import (  # noqa: E402  (GrayboxError first: the module raises it)
+    Model,
+    load,
+    memory_budget_mb,
+    set_memory_budget_mb,
+)
+
+__all__ = ["GrayboxError", "Model", "PlanResult", "UncheckedModelWarning", "load",
+           "memory_budget_mb", "set_memory_budget_mb"]

@@ -13,7 +13,7 @@ use graybox::app::{App, WorkerSettings};
 use graybox::error::{Error, Result};
 use graybox::records::{Job, JobState};
 
-fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
+pub(super) fn arr(shape: &[usize], data: &[f64]) -> Option<pb::Array> {
     Some(pb::Array {
         shape: shape.iter().map(|&d| d as u64).collect(),
         data: data.to_vec(),
@@ -95,7 +95,7 @@ pub(super) async fn over_grpc(
 }
 
 /// An MVF job on the dataset for `epochs` epochs.
-async fn submit(app: &App, dataset: &str, epochs: usize) -> Result<Job> {
+pub(super) async fn submit(app: &App, dataset: &str, epochs: usize) -> Result<Job> {
     let req: JobRequest = serde_json::from_value(json!({
         "dataset_id": dataset, "model": "MVF", "template": "double_pendulum",
         "training": {"epochs": epochs, "batch_size": 256}
@@ -134,7 +134,7 @@ async fn concurrent(
     Ok((all, started.elapsed().as_secs_f64()))
 }
 
-async fn connect(url: &str) -> Result<DynamicsClient<tonic::transport::Channel>> {
+pub(super) async fn connect(url: &str) -> Result<DynamicsClient<tonic::transport::Channel>> {
     DynamicsClient::connect(url.to_string())
         .await
         .map_err(|e| Error::invalid("grpc", e.to_string()))
@@ -253,7 +253,7 @@ async fn sequential(url: &str, model: &str, calls: usize, p: &Problem) -> Result
     Ok(())
 }
 
-fn status(s: tonic::Status) -> Error {
+pub(super) fn status(s: tonic::Status) -> Error {
     Error::Training(format!("benchmark call failed: {s}"))
 }
 
@@ -274,7 +274,7 @@ where
     Ok(out)
 }
 
-async fn wait_for(
+pub(super) async fn wait_for(
     app: &graybox::app::App,
     job: &str,
     ok: impl Fn(JobState) -> bool,

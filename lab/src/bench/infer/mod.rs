@@ -15,6 +15,7 @@ use graybox::infer::Evaluator;
 use graybox::physics::templates::Template;
 use graybox::sim::{SimConfig, simulate};
 
+pub mod classes;
 mod grpc;
 mod model;
 mod native;
