@@ -1,14 +1,14 @@
 #!/usr/bin/env bash
 # Writes the missing files of tests/fixtures/compat: model files and a database written by the
 # graybox that built $GRAYBOX_BIN (default target/release/graybox), which later versions must
-# keep reading (tests/compat.rs). Files already there are an earlier version's and are kept:
+# keep reading (tests/suite/compat.rs). Files already there are an earlier version's and are kept:
 # delete one only to capture it again on purpose, never to make a test pass. Run it to capture
-# a new format version (add its file below and to tests/compat.rs's MODELS first). The files
+# a new format version (add its file below and to tests/suite/compat.rs's MODELS first). The files
 # here predate the model file's checksum: they are what a reader loads with a warning.
 #  - mvf.gbx, wb.gbx, naive.gbx: three trained models (2 epochs on simulated data);
 #  - wb-x3.gbx: a W-B ensemble of 3 members (graybox.model/3);
 #  - expected.json: their Predict and Linearize outputs at fixed points, written by
-#    tests/compat.rs in its generator mode (GRAYBOX_WRITE_COMPAT=1) with this version's code
+#    tests/suite/compat.rs in its generator mode (GRAYBOX_WRITE_COMPAT=1) with this version's code
 #    for the models it has none for;
 #  - running.db: a database whose MVF job was killed (-9) while running, after a checkpoint.
 set -euo pipefail
@@ -25,7 +25,7 @@ for spec in mvf:MVF:1 wb:W-B:1 naive:naive:1 wb-x3:W-B:3; do
   "$bin" train --data "$tmp/train.json" --model "$model" --template double_pendulum \
     --epochs 2 --batch-size 64 --ensemble "$members" --out "$out/$name.gbx" > /dev/null 2>&1
 done
-GRAYBOX_WRITE_COMPAT=1 cargo test --release --test compat -- --exact models_predict_as_they_did > /dev/null
+GRAYBOX_WRITE_COMPAT=1 cargo test --release -p graybox --test suite -- --exact compat::models_predict_as_they_did > /dev/null
 
 [ -e "$out/running.db" ] && { echo "kept $out/running.db"; exit 0; }
 

@@ -1,6 +1,8 @@
 """Regenerates README's dashboard screenshots (assets/dashboard-*.png) from a fresh service:
-two named jobs on recorded double-pendulum trajectories, then the jobs list, the new-job form
-and a model replaying a trajectory, at 1280 px in Debian's Chromium.
+three named jobs on recorded double-pendulum trajectories (one an ensemble of five), then the
+jobs list, a multi-step job's loss curves, the new-job form, a model replaying a trajectory
+with its energy along it, and the ensemble's replay with its members' spread, at 1280 px in
+Debian's Chromium.
 
     GRAYBOX_BIN=target/release/graybox .venv/bin/python scripts/dashboard_screenshots.py
 """
@@ -31,7 +33,9 @@ def main():
         for name, model, training in [("white-box, paper values", "W-B", {"epochs": 40}),
                                       ("MVF, 10-step windows", "MVF",
                                        {"epochs": 150, "batch_size": 64, "horizon": 10,
-                                        "one_step_epochs": 100})]:
+                                        "one_step_epochs": 100}),
+                                      ("MVB, five members", "MVB",
+                                       {"epochs": 100, "batch_size": 64, "ensemble": 5})]:
             status, job = s.rest.post("/v1/jobs", {"dataset_id": ds["id"], "model": model,
                                                    "template": "double_pendulum", "name": name,
                                                    "training": training})
@@ -42,9 +46,12 @@ def main():
                                         args=["--no-sandbox", "--disable-gpu"])
             page = browser.new_page(viewport={"width": 1280, "height": 800})
             shots = [("jobs", "#/jobs", "#jobs-table tbody tr"),
+                     ("job", f"#/jobs/{jobs[1]['id']}", "#loss-chart canvas"),
                      ("new-job", "#/new", "#job-form"),
                      ("model", f"#/models/{jobs[0]['model_id']}",
-                      '.replay-chart[data-variable="q0"] canvas')]
+                      '.split-chart[data-coordinate="1"] canvas'),
+                     ("ensemble", f"#/models/{jobs[2]['model_id']}",
+                      '.split-chart[data-coordinate="1"] canvas')]
             for name, view, ready in shots:
                 page.goto(s.rest.base + "/" + view)
                 page.wait_for_selector(ready)

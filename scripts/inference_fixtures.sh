@@ -5,8 +5,10 @@
 # format's MVF and a W-B ensemble, tests/fixtures/compat), which every evaluator of a model
 # file must reproduce bit for bit (tests/python/test_inference_answers.py). Files and records
 # already there are kept: delete one only to record it again on purpose, never to make a test
-# pass. The files recorded before model files carried a checksum have none and load with a
-# warning (docs/model-file.md); a file recorded now gets one from the CLI that writes it.
+# pass. A recorded Predict, Rollout or Linearize without its max_abs_z gets the service's, once
+# the rest of its answer is checked to be the record's. The files recorded before model files
+# carried a checksum have none and load with a warning (docs/model-file.md); a file recorded
+# now gets one from the CLI that writes it.
 #  - dp-mvf.gbx: MVF on the double pendulum;
 #  - cartpole-wb.gbx: W-B on the cart-pole;
 #  - formula-dp-wb.gbx: W-B on the double pendulum as a formula template

@@ -6,10 +6,23 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Each phase's wall time, printed as it ends and together at the end (the README's figures).
+phases=()
+last=$SECONDS
+phase() {
+  phases+=("$(printf '%-52s %5d s' "$1" $((SECONDS - last)))")
+  echo "test.sh: ${phases[-1]}" >&2
+  last=$SECONDS
+}
+
 # Every member's artifacts first: `cargo test` builds only what a test links, and the Python
 # module (clients/native) has no Rust tests of its own (tests/python/test_native.py tests it).
 cargo build --workspace --release --locked
+phase "build (the workspace, release)"
+cargo test --workspace --release --locked --no-run "$@"
+phase "build (the test binaries)"
 cargo test --workspace --release --locked "$@"
+phase "Rust tests (the API on SQLite)"
 
 # The README's run command must reuse this build: with the dev-dependencies' and the lab's
 # features declared on the service's normal dependencies (Cargo.toml), neither a plain release
@@ -38,10 +51,22 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/pip" install --quiet --disable-pip-version-check -r tests/python/requirements.txt
 "$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/python
-# The Python module on the inference core (tests/python/test_native.py): maturin builds it in
-# this workspace's target directory, compiling only the core (without the service's features),
-# PyO3 and the module itself.
-"$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/native
+# The Python module on the inference core (tests/python/test_native.py), installed as the
+# README installs it: its wheel packs the workspace's build above, so the inference core must
+# not compile again (a build of the module alone would, with other features).
+core_rlibs() { stat -c '%n %Y' target/release/deps/libgraybox_core-*.rlib; }
+before=$(core_rlibs)
+"$venv/bin/pip" install --quiet --disable-pip-version-check --force-reinstall --no-deps ./clients/native
+if [ "$(core_rlibs)" != "$before" ]; then
+  echo "error: pip install ./clients/native compiled the inference core again:" >&2
+  diff <(echo "$before") <(core_rlibs) >&2 || true
+  exit 1
+fi
+phase "Python virtualenv and packages"
+# Both packages' type stubs as a caller's type checker reads them once installed: the
+# examples pass mypy's strictest mode.
+"$venv/bin/python" -m mypy --strict --cache-dir=/dev/null examples/python/*.py
+phase "type check of the examples (mypy --strict)"
 
 # The service's API tests again as it runs beyond one machine: each test on a new database of
 # a throwaway PostgreSQL cluster and its large bytes in an S3 endpoint (tests/api/helpers.rs
@@ -51,6 +76,7 @@ source scripts/services.sh
 start_postgres "$venv"
 start_s3 "$venv"
 cargo test -p graybox --release --locked --test api
+phase "API tests again (PostgreSQL and S3)"
 
 if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
   # The dashboard test drives Debian's Chromium (browsers cannot be downloaded here).
@@ -62,4 +88,8 @@ if [ -d tests/python ] && compgen -G "tests/python/test_*.py" > /dev/null; then
   fi
   GRAYBOX_BIN="$PWD/target/release/graybox" GRAYBOX_LAB_BIN="$PWD/target/release/graybox-lab" \
     "$venv/bin/python" -m pytest -q tests/python
+  phase "Python, C and dashboard tests (pytest)"
 fi
+printf 'test.sh: wall time of each phase\n' >&2
+printf '  %s\n' "${phases[@]}" >&2
+printf '  %-52s %5d s\n' "total" "$SECONDS" >&2

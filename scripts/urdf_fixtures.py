@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Writes the rigid-body fixtures in tests/fixtures/urdf/*.json from the URDFs beside them,
-with Pinocchio as the reference (read by tests/urdf.rs).
+with Pinocchio as the reference (read by tests/suite/urdf.rs).
 
 For each URDF and 50 random states (q, q̇): M(q) (`crba`, which fills the upper triangle
 only: symmetrised here), g(q) = ∂V/∂q (`computeGeneralizedGravity`) and C(q, q̇)q̇
@@ -32,7 +32,7 @@ import pinocchio as pin
 ROOT = Path(__file__).resolve().parents[1]
 DIR = ROOT / "tests" / "fixtures" / "urdf"
 # point_masses has links without mass (a massless gimbal, a link without <inertial>, point
-# masses): tests/urdf_files/exact.rs holds it at rest with these g(q).
+# masses): tests/suite/urdf_files/exact.rs holds it at rest with these g(q).
 GRAVITY = {"arm4": [0.0, 0.0, -9.81], "tree": [0.3, -0.2, -9.81], "point_masses": [0.0, 0.0, -9.81]}
 # Real robots' files (robots/README.md says where each comes from), fewer states: they are
 # larger, and their joints are what is new, not the draws.

@@ -5,7 +5,7 @@
 //! (`graybox-core`, re-exported here under their own names); this crate adds training on
 //! Burn, the store, the core `App` and its adapters.
 //!
-//! Layers (ARCHITECTURE.md, enforced by tests/architecture.rs), bottom up: `error`, `rng`,
+//! Layers (ARCHITECTURE.md, enforced by tests/suite/architecture.rs), bottom up: `error`, `rng`,
 //! `names`, `array` (shaped f64 data), `backend`, `data` (the dataset type), `records` (what the store keeps); the
 //! mechanics in `physics` (dynamics, templates, URDF robots; no Burn); the math in `model`
 //! (the trainable model on Burn, its spec and file), `infer` (f64 evaluation), `control`

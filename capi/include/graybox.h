@@ -6,9 +6,14 @@
  * message of a failed call is per thread (gbx_last_error).
  *
  * Real-time use: after a warm-up call with the same batch size on a thread, gbx_predict and
- * gbx_linearize of fewer than 32 states take no lock and no memory from the system allocator
- * (the library's allocator keeps the blocks those calls free in per-thread lists and serves
- * them again). Batches of 32 states or more run on two threads, started per call.
+ * gbx_linearize (and their _z variants) of fewer than 32 states take no lock and no memory
+ * from the system allocator (the library's allocator keeps the blocks those calls free in
+ * per-thread lists and serves them again). Batches of 32 states or more run on two threads,
+ * started per call.
+ *
+ * How far from the data: the _z variants of predict, linearize and rollout also write z, the
+ * largest |z-score| of each row's q, qdot and u under the model's training data (the
+ * service's max_abs_z); above ~4, treat the outputs with doubt.
  *
  * Arrays are row-major doubles: a state is [q, qdot] (2n values), an input u (m values).
  * Every call returns GBX_STATUS_OK or why it failed.
@@ -176,6 +181,84 @@ enum GbxStatus gbx_rollout_cancellable(const struct GbxModel *model,
 // The message of this thread's last failed call ("" before any): valid until this thread's
 // next failing call.
 const char *gbx_last_error(void);
+
+// `gbx_predict` that also writes `z` [batch]: each row's max_abs_z of (x, u).
+//
+// # Safety
+// As `gbx_predict`; `z` points to `batch` writable values.
+enum GbxStatus gbx_predict_z(const struct GbxModel *model,
+                             const double *x,
+                             const double *u,
+                             size_t batch,
+                             double *x_next,
+                             double *accel,
+                             double *z);
+
+// `gbx_predict_z` that stops when `*cancel` turns nonzero, as `gbx_predict_cancellable`.
+//
+// # Safety
+// As `gbx_predict_z`; `cancel` as `gbx_predict_cancellable`'s.
+enum GbxStatus gbx_predict_z_cancellable(const struct GbxModel *model,
+                                         const double *x,
+                                         const double *u,
+                                         size_t batch,
+                                         double *x_next,
+                                         double *accel,
+                                         double *z,
+                                         const int32_t *cancel);
+
+// `gbx_linearize` that also writes `z` [batch]: each point's max_abs_z of (x, u).
+//
+// # Safety
+// As `gbx_linearize`; `z` points to `batch` writable values.
+enum GbxStatus gbx_linearize_z(const struct GbxModel *model,
+                               const double *x,
+                               const double *u,
+                               size_t batch,
+                               double *a,
+                               double *b,
+                               double *z);
+
+// `gbx_linearize_z` that stops when `*cancel` turns nonzero, as
+// `gbx_linearize_cancellable`.
+//
+// # Safety
+// As `gbx_linearize_z`; `cancel` as `gbx_predict_cancellable`'s.
+enum GbxStatus gbx_linearize_z_cancellable(const struct GbxModel *model,
+                                           const double *x,
+                                           const double *u,
+                                           size_t batch,
+                                           double *a,
+                                           double *b,
+                                           double *z,
+                                           const int32_t *cancel);
+
+// `gbx_rollout` that also writes `z` [steps]: for each step t, the max_abs_z of the state
+// x_t and the input u_t applied at it (so z[t] says how far from the data the step that
+// made x_{t+1} was asked to answer).
+//
+// # Safety
+// As `gbx_rollout`; `z` points to `steps` writable values.
+enum GbxStatus gbx_rollout_z(const struct GbxModel *model,
+                             const double *x0,
+                             const double *u,
+                             size_t steps,
+                             double *xs,
+                             double *z);
+
+// `gbx_rollout_z` that stops when `*cancel` turns nonzero (checked at every step),
+// returning `GBX_STATUS_CANCELLED` with the states computed so far in `xs` and their steps'
+// z in `z`; `cancel` as `gbx_predict_cancellable`'s.
+//
+// # Safety
+// As `gbx_rollout_z`; `cancel` as `gbx_predict_cancellable`'s.
+enum GbxStatus gbx_rollout_z_cancellable(const struct GbxModel *model,
+                                         const double *x0,
+                                         const double *u,
+                                         size_t steps,
+                                         double *xs,
+                                         double *z,
+                                         const int32_t *cancel);
 
 #ifdef __cplusplus
 }  // extern "C"

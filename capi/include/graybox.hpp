@@ -65,6 +65,22 @@ class Model {
     check(gbx_rollout_cancellable(get(), x0, u, steps, xs, cancel));
   }
 
+  // The same calls that also write z, how far each row's state and input lie from the
+  // training data (max |z-score| of q, qdot and u; above ~4, treat the outputs with doubt):
+  // z [batch] for predict and linearize, z [steps] of (x_t, u_t) for rollout.
+  void predict_z(const double* x, const double* u, size_t batch, double* x_next, double* z,
+                 double* accel = nullptr, const int32_t* cancel = nullptr) const {
+    check(gbx_predict_z_cancellable(get(), x, u, batch, x_next, accel, z, cancel));
+  }
+  void linearize_z(const double* x, const double* u, size_t batch, double* a, double* b,
+                   double* z, const int32_t* cancel = nullptr) const {
+    check(gbx_linearize_z_cancellable(get(), x, u, batch, a, b, z, cancel));
+  }
+  void rollout_z(const double* x0, const double* u, size_t steps, double* xs, double* z,
+                 const int32_t* cancel = nullptr) const {
+    check(gbx_rollout_z_cancellable(get(), x0, u, steps, xs, z, cancel));
+  }
+
   const GbxModel* get() const { return handle_.get(); }
 
  private:

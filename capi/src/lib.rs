@@ -16,18 +16,25 @@
 //! Cancellation: the `_cancellable` variants of predict, linearize and rollout take a flag the
 //! caller sets from elsewhere (another thread, a signal handler) to stop a long call, which
 //! then returns `GBX_STATUS_CANCELLED`; the plain entry points are those with no flag.
+//!
+//! How far from the data: the `_z` variants (`z.rs`) also write each row's `max_abs_z`, how
+//! far its state and input lie from the training data, as the service answers it.
 
 use std::ffi::{CStr, c_char};
 use std::path::Path;
 
 use graybox_core::error::Error;
-use graybox_core::infer::{Evaluator, finite_rows};
+use graybox_core::infer::Evaluator;
 use graybox_core::model::file::ModelFile;
 
-use boundary::{Cancel, batch_of, guard, input, output, values};
+use boundary::guard;
 
 mod boundary;
+mod calls;
 pub mod pool;
+mod z;
+
+pub use z::*;
 
 /// Blocks for predict, linearize and rollout come from per-thread lists (`pool`).
 #[global_allocator]
@@ -229,27 +236,8 @@ pub unsafe extern "C" fn gbx_predict_cancellable(
     accel: *mut f64,
     cancel: *const i32,
 ) -> GbxStatus {
-    guard(|| {
-        pool::pooled(|| {
-            let m = model_ref(model)?;
-            let (nx, b) = (2 * m.n, batch_of(batch)?);
-            let lx = values("x", b, nx)?;
-            values("u", b, m.m)?;
-            // SAFETY (all five): the caller promises these sizes and the flag.
-            let (x, u) = unsafe { (input(x, b, nx, "x")?, input(u, b, m.m, "u")?) };
-            let out = unsafe { output(x_next, lx, "x_next")? };
-            let cancel = unsafe { Cancel::new(cancel) };
-            let (next, acc) = (m.eval)
-                .predict_until(x, u, !accel.is_null(), &|| cancel.set())
-                .ok_or(Error::Cancelled)?;
-            finite_rows("x", "next state", &next, nx)?;
-            out.copy_from_slice(&next);
-            if let Some(acc) = acc {
-                unsafe { output(accel, b * m.n, "accel")? }.copy_from_slice(&acc);
-            }
-            Ok(())
-        })
-    })
+    // SAFETY: the caller's promises.
+    unsafe { calls::predict(model, x, u, batch, x_next, accel, None, cancel) }
 }
 
 /// The one-step map's Jacobians at `batch` points: `a` [batch, 2n, 2n] = ∂x′/∂x and
@@ -287,29 +275,8 @@ pub unsafe extern "C" fn gbx_linearize_cancellable(
     b: *mut f64,
     cancel: *const i32,
 ) -> GbxStatus {
-    guard(|| {
-        pool::pooled(|| {
-            let m = model_ref(model)?;
-            let (nx, k) = (2 * m.n, batch_of(batch)?);
-            values("x", k, nx)?;
-            values("u", k, m.m)?;
-            values("a", k, nx * nx)?;
-            values("b", k, nx * m.m)?;
-            // SAFETY (all five): the caller promises these sizes and the flag.
-            let (x, u) = unsafe { (input(x, k, nx, "x")?, input(u, k, m.m, "u")?) };
-            let cancel = unsafe { Cancel::new(cancel) };
-            let (ja, jb) = (m.eval)
-                .linearize_until(x, u, &|| cancel.set())
-                .ok_or(Error::Cancelled)?;
-            finite_rows("x", "Jacobian", &ja, nx * nx)?;
-            finite_rows("x", "Jacobian", &jb, nx * m.m)?;
-            unsafe { output(a, ja.len(), "a")? }.copy_from_slice(&ja);
-            if m.m > 0 {
-                unsafe { output(b, jb.len(), "b")? }.copy_from_slice(&jb);
-            }
-            Ok(())
-        })
-    })
+    // SAFETY: the caller's promises.
+    unsafe { calls::linearize(model, x, u, batch, a, b, None, cancel) }
 }
 
 /// `steps` steps from `x0` [2n] under the inputs `u` [steps, m]: `xs` [steps + 1, 2n] gets x0
@@ -345,30 +312,8 @@ pub unsafe extern "C" fn gbx_rollout_cancellable(
     xs: *mut f64,
     cancel: *const i32,
 ) -> GbxStatus {
-    guard(|| {
-        pool::pooled(|| {
-            let m = model_ref(model)?;
-            let nx = 2 * m.n;
-            values("u", steps, m.m)?;
-            let lxs = values("xs", steps.saturating_add(1), nx)?;
-            // SAFETY (all four): the caller promises these sizes and the flag.
-            let (x0, u) = unsafe { (input(x0, 1, nx, "x0")?, input(u, steps, m.m, "u")?) };
-            let xs = unsafe { output(xs, lxs, "xs")? };
-            let cancel = unsafe { Cancel::new(cancel) };
-            xs[..nx].copy_from_slice(x0);
-            let mut t = 0;
-            let input = |t: usize, _: &[f64]| u[t * m.m..(t + 1) * m.m].to_vec();
-            m.eval.rollout(x0, steps, input, |x, _| {
-                t += 1;
-                xs[t * nx..(t + 1) * nx].copy_from_slice(x);
-                !cancel.set()
-            });
-            if t < steps {
-                return Err(Error::Cancelled);
-            }
-            finite_rows("x0", "state", xs, nx)
-        })
-    })
+    // SAFETY: the caller's promises.
+    unsafe { calls::rollout(model, x0, u, steps, xs, None, cancel) }
 }
 
 /// The message of this thread's last failed call ("" before any): valid until this thread's

@@ -1,7 +1,8 @@
 //! The C library answers as the service does, bit for bit: every Predict, Linearize and
 //! Rollout the service answered in tests/fixtures/inference/answers.json (recorded by
 //! scripts/inference_fixtures.sh before the inference core moved out of the service),
-//! replayed through the C ABI. And its errors: a status and this thread's message.
+//! replayed through the C ABI, and through the `_z` calls with the max_abs_z the service
+//! answered. And its errors: a status and this thread's message.
 
 use std::ffi::{CStr, CString};
 use std::path::{Path, PathBuf};
@@ -48,6 +49,9 @@ fn same(got: &[f64], want: &[f64], what: &str) {
 fn replay(model: *const GbxModel, n: usize, m: usize, call: &Value, what: &str) -> bool {
     let nx = 2 * n;
     let answer = &call["answer"];
+    if let Some(z) = answer.get("max_abs_z") {
+        replay_z(model, n, m, call, &floats(z), what);
+    }
     // SAFETY (every call below): the buffers have the sizes the header documents.
     match call["rpc"].as_str().unwrap() {
         "predict" => {
@@ -99,11 +103,85 @@ fn replay(model: *const GbxModel, n: usize, m: usize, call: &Value, what: &str) 
     true
 }
 
+/// One recorded call through its `_z` entry point: the same answer, and the service's z.
+fn replay_z(model: *const GbxModel, n: usize, m: usize, call: &Value, want: &[f64], what: &str) {
+    let (nx, answer) = (2 * n, &call["answer"]);
+    let mut z = vec![f64::NAN; want.len()];
+    // SAFETY (every call below): the buffers have the sizes the header documents.
+    match call["rpc"].as_str().unwrap() {
+        "predict" => {
+            let (x, u) = (floats(&call["x"]), floats(&call["u"]));
+            let batch = x.len() / nx;
+            let (mut next, mut acc) = (vec![0.0; batch * nx], vec![0.0; batch * n]);
+            let s = unsafe {
+                gbx_predict_z(
+                    model,
+                    x.as_ptr(),
+                    u.as_ptr(),
+                    batch,
+                    next.as_mut_ptr(),
+                    acc.as_mut_ptr(),
+                    z.as_mut_ptr(),
+                )
+            };
+            assert_eq!(s, GbxStatus::Ok, "{what}: {}", last_error());
+            same(
+                &next,
+                &floats(&answer["x_next"]),
+                &format!("{what} x_next (z)"),
+            );
+            same(
+                &acc,
+                &floats(&answer["accel"]),
+                &format!("{what} accel (z)"),
+            );
+        }
+        "linearize" => {
+            let (x, u) = (floats(&call["x"]), floats(&call["u"]));
+            let batch = x.len() / nx;
+            let (mut a, mut b) = (vec![0.0; batch * nx * nx], vec![0.0; batch * nx * m]);
+            let s = unsafe {
+                gbx_linearize_z(
+                    model,
+                    x.as_ptr(),
+                    u.as_ptr(),
+                    batch,
+                    a.as_mut_ptr(),
+                    b.as_mut_ptr(),
+                    z.as_mut_ptr(),
+                )
+            };
+            assert_eq!(s, GbxStatus::Ok, "{what}: {}", last_error());
+            same(&a, &floats(&answer["A"]), &format!("{what} A (z)"));
+            same(&b, &floats(&answer["B"]), &format!("{what} B (z)"));
+        }
+        "rollout" => {
+            let (x0, u) = (floats(&call["x0"]), floats(&call["u"]));
+            let steps = u.len() / m;
+            let mut xs = vec![0.0; (steps + 1) * nx];
+            let s = unsafe {
+                gbx_rollout_z(
+                    model,
+                    x0.as_ptr(),
+                    u.as_ptr(),
+                    steps,
+                    xs.as_mut_ptr(),
+                    z.as_mut_ptr(),
+                )
+            };
+            assert_eq!(s, GbxStatus::Ok, "{what}: {}", last_error());
+            same(&xs, &floats(&answer["xs"]), &format!("{what} xs (z)"));
+        }
+        rpc => panic!("{what}: the record has z for {rpc}"),
+    }
+    same(&z, want, &format!("{what} max_abs_z"));
+}
+
 #[test]
 fn the_c_library_gives_the_services_recorded_answers_bit_for_bit() {
     let text = std::fs::read_to_string(root().join("tests/fixtures/inference/answers.json"));
     let record: Value = serde_json::from_str(&text.unwrap()).unwrap();
-    let mut replayed = 0;
+    let (mut replayed, mut with_z) = (0, 0);
     for (name, entry) in record.as_object().unwrap() {
         let (model, status) = load(&root().join(entry["file"].as_str().unwrap()));
         assert_eq!(status, GbxStatus::Ok, "{name}: {}", last_error());
@@ -114,11 +192,13 @@ fn the_c_library_gives_the_services_recorded_answers_bit_for_bit() {
         );
         for (k, call) in entry["calls"].as_array().unwrap().iter().enumerate() {
             replayed += replay(model, n, m, call, &format!("{name} call {k}")) as usize;
+            with_z += call["answer"].get("max_abs_z").is_some() as usize;
         }
         unsafe { gbx_model_free(model) };
     }
-    // Six models, each with two Predicts, two Linearizes and a Rollout.
+    // Six models, each with two Predicts, two Linearizes and a Rollout, each with its z.
     assert_eq!(replayed, 30);
+    assert_eq!(with_z, 30, "every replayed answer has the service's z");
 }
 
 #[test]

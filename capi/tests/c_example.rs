@@ -1,6 +1,7 @@
 //! examples/c/control_loop.c, built with the system's C compiler against this library and
-//! run on every recorded model: 1000 steps of gbx_predict in a C loop, the first ten equal
-//! to the service's recorded Rollout bit for bit.
+//! run on every recorded model: 1000 steps of gbx_predict_z in a C loop, the first ten equal
+//! to the service's recorded Rollout bit for bit, and a warning on stderr when the loop takes
+//! the model far from its training data.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -92,36 +93,47 @@ fn the_c_example_runs_a_control_loop_with_the_services_answers() {
             "{name}: {out}"
         );
     }
-    // Without a record: a loop from rest, as a user first runs it.
-    let out = run_on(&exe, "ur5-residual");
+    // Without a record: a loop from rest, as a user first runs it. The UR5 falls under no
+    // torque, far out of the states it was trained on, and the example says so.
+    let (out, err) = run_on(&exe, "ur5-residual");
     assert!(
         out.starts_with("1000 steps of 0.01 s from rest; q ends at "),
         "{out}"
     );
+    let warning = err
+        .lines()
+        .find(|l| l.starts_with("warning: step "))
+        .unwrap_or_default();
+    assert!(
+        warning.contains(": z = ") && warning.contains(" > 4: ") && warning.contains("doubt"),
+        "no warning of z on stderr: {err}"
+    );
+    assert!(err.contains("warning: z went above 4 at step "), "{err}");
     std::fs::remove_dir_all(&tmp).ok();
 }
 
-/// `exe`'s output on a recorded model file, after it succeeded.
-fn run_on(exe: &Path, model: &str) -> String {
+/// `exe`'s output and error output on a recorded model file, after it succeeded.
+fn run_on(exe: &Path, model: &str) -> (String, String) {
     let run = Command::new(exe)
         .arg(root().join(format!("tests/fixtures/inference/{model}.gbx")))
         .output()
         .unwrap();
     let out = String::from_utf8_lossy(&run.stdout).into_owned();
-    assert!(
-        run.status.success(),
-        "{out}{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    out
+    let err = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert!(run.status.success(), "{out}{err}");
+    (out, err)
 }
 
 #[test]
 fn the_cpp_wrapper_owns_the_model_and_throws_the_librarys_errors() {
     let exe = build("c++", "-std=c++17", "wrapper.cpp", &["-lgraybox_c"]);
-    let out = run_on(&exe, "cartpole-wb");
+    let (out, _) = run_on(&exe, "cartpole-wb");
     assert!(
         out.starts_with("one step of 0.01 s from rest: qdot[0] = "),
+        "{out}"
+    );
+    assert!(
+        out.contains("ten steps from rest: z at the last = "),
         "{out}"
     );
     // GBX_STATUS_IO, with the message naming the file.

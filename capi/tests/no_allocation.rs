@@ -1,7 +1,7 @@
-//! Real-time use: once warmed up, gbx_predict and gbx_linearize take every block they need
-//! from the calling thread's lists and none from the system allocator (which may lock or
-//! page in). The library's allocator counts, per thread, the allocations made inside those
-//! calls and how many of them reached the system.
+//! Real-time use: once warmed up, gbx_predict and gbx_linearize (and their `_z` variants)
+//! take every block they need from the calling thread's lists and none from the system
+//! allocator (which may lock or page in). The library's allocator counts, per thread, the
+//! allocations made inside those calls and how many of them reached the system.
 
 use std::ffi::CString;
 use std::ptr::{null, null_mut};
@@ -36,7 +36,8 @@ fn load(name: &str) -> Loaded {
     Loaded { model, n, m }
 }
 
-/// One predict (with q̈ when asked) and one linearize of `batch` states near the origin.
+/// One predict (with q̈ when asked) and one linearize of `batch` states near the origin, each
+/// also with its z.
 fn calls(l: &Loaded, batch: usize, accel: bool) {
     let nx = 2 * l.n;
     let x: Vec<f64> = (0..batch * nx).map(|i| 0.1 + 0.01 * i as f64).collect();
@@ -44,6 +45,7 @@ fn calls(l: &Loaded, batch: usize, accel: bool) {
     let (mut next, mut acc) = (vec![0.0; batch * nx], vec![0.0; batch * l.n]);
     let (mut a, mut b) = (vec![0.0; batch * nx * nx], vec![0.0; batch * nx * l.m]);
     let acc = if accel { acc.as_mut_ptr() } else { null_mut() };
+    let mut z = vec![0.0; batch];
     let u = if l.m == 0 { null() } else { u.as_ptr() };
     // SAFETY: the buffers have the sizes the header documents.
     unsafe {
@@ -57,6 +59,12 @@ fn calls(l: &Loaded, batch: usize, accel: bool) {
             a.as_mut_ptr(),
             b.as_mut_ptr(),
         );
+        assert_eq!(s, GbxStatus::Ok);
+        let (x, next) = (x.as_ptr(), next.as_mut_ptr());
+        let s = gbx_predict_z(l.model, x, u, batch, next, acc, z.as_mut_ptr());
+        assert_eq!(s, GbxStatus::Ok);
+        let (a, b) = (a.as_mut_ptr(), b.as_mut_ptr());
+        let s = gbx_linearize_z(l.model, x, u, batch, a, b, z.as_mut_ptr());
         assert_eq!(s, GbxStatus::Ok);
     }
 }

@@ -1,7 +1,8 @@
 /*
  * A controller's loop on a graybox model, in the controller's own process (no service): load
- * a model file, step it 1000 times with gbx_predict from the caller's buffers, and check the
- * first steps against a rollout the service recorded.
+ * a model file, step it 1000 times with gbx_predict_z from the caller's buffers, warn on
+ * stderr when the loop takes the model far from its training data, and check the first steps
+ * against a rollout the service recorded.
  *
  * Usage: control_loop MODEL.gbx [RECORD.txt]
  * Without a record the loop starts at rest (x = 0) with the inputs at zero and prints where
@@ -22,6 +23,12 @@
 #include "graybox.h"
 
 #define LOOP_STEPS 1000
+
+/* z is the largest |z-score| of a step's state and input under the model's training data.
+ * Past about 4 standard deviations the model answers about states it never saw: its networks
+ * saturate there, so its outputs stay finite but mean little (README: "above ~4, treat the
+ * outputs with doubt"). */
+#define Z_DOUBT 4.0
 
 static double *read_doubles(FILE *f, size_t count) {
     double *out = malloc(count * sizeof(double) + 1);
@@ -74,15 +81,30 @@ int main(int argc, char **argv) {
     }
     memcpy(x, x0, nx * sizeof(double));
     int mismatches = 0;
+    double z, z_max = 0.0;
+    size_t z_max_step = 0, z_first_step = 0;
+    int far = 0;
     for (size_t t = 0; t < LOOP_STEPS; t++) {
         if (t < steps) {
             memcpy(u, inputs + t * m, m * sizeof(double));
         } else {
             memset(u, 0, m * sizeof(double));
         }
-        if (gbx_predict(model, x, u, 1, next, NULL) != GBX_STATUS_OK) {
+        if (gbx_predict_z(model, x, u, 1, next, NULL, &z) != GBX_STATUS_OK) {
             fprintf(stderr, "step %zu: %s\n", t, gbx_last_error());
             return 1;
+        }
+        if (z > Z_DOUBT && !far) {
+            far = 1;
+            z_first_step = t;
+            fprintf(stderr,
+                    "warning: step %zu: z = %.3g > %g: the state or input is far outside the "
+                    "model's training data; treat its answers with doubt\n",
+                    t, z, Z_DOUBT);
+        }
+        if (z > z_max) {
+            z_max = z;
+            z_max_step = t;
         }
         for (size_t i = 0; i < nx; i++) {
             if (t < steps && memcmp(&next[i], &expected[(t + 1) * nx + i], sizeof(double))) {
@@ -100,6 +122,10 @@ int main(int argc, char **argv) {
     free(x0);
     free(inputs);
     free(expected);
+    if (far) {
+        fprintf(stderr, "warning: z went above %g at step %zu and reached %.3g at step %zu\n",
+                Z_DOUBT, z_first_step, z_max, z_max_step);
+    }
     if (mismatches) {
         return 1;
     }

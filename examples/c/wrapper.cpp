@@ -1,5 +1,6 @@
 // The C++ wrapper (capi/include/graybox.hpp): a model as an RAII object whose failures are
-// exceptions. Usage: wrapper MODEL.gbx — one step from rest, then a load that must fail.
+// exceptions. Usage: wrapper MODEL.gbx — one step from rest, ten with their z, then a load that
+// must fail.
 #include <cstdio>
 #include <vector>
 
@@ -14,6 +15,9 @@ int main(int argc, char** argv) {
   std::vector<double> x(2 * model.n(), 0.0), u(model.m(), 0.0), next(2 * model.n());
   model.predict(x.data(), u.data(), 1, next.data());
   std::printf("one step of %g s from rest: qdot[0] = %.6g\n", model.dt(), next[model.n()]);
+  std::vector<double> xs(11 * 2 * model.n()), us(10 * model.m(), 0.0), z(10);
+  model.rollout_z(x.data(), us.data(), 10, xs.data(), z.data());
+  std::printf("ten steps from rest: z at the last = %.3g\n", z[9]);
   try {
     graybox::Model missing("no/such/model.gbx");
   } catch (const graybox::Error& e) {

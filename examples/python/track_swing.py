@@ -26,9 +26,8 @@ with Client(target) as c:
     x0 = x_bar[0] + np.array([0.1, -0.1, 0.0, 0.0])
     open_loop = c.rollout(model_id, x0, u=u_bar)
     closed_loop = c.rollout(model_id, x0, policy=(x_bar, u_bar, K))
-    off = lambda xs: np.linalg.norm(xs[-1] - x_bar[-1])
-    print(f"distance from the swing after 1 s: open loop {off(open_loop):.3f}, "
-          f"TVLQR {off(closed_loop):.3f}")
+    off = np.linalg.norm(np.stack([open_loop[-1], closed_loop[-1]]) - x_bar[-1], axis=1)
+    print(f"distance from the swing after 1 s: open loop {off[0]:.3f}, TVLQR {off[1]:.3f}")
 
     try:
         c.predict(model_id, x[:3], np.zeros(2))     # a state of the wrong size

@@ -166,9 +166,9 @@ const ROUTES: &[Route] = &[
     Route(
         "get",
         "/v1/models/{id}/rollout",
-        "Replay trajectory `index` of a dataset with the model: from its first state with its recorded inputs, the recorded and predicted q and q̇ (T + 1 rows each) and their times",
+        "Replay trajectory `index` of a dataset with the model: from its first state with its recorded inputs, the recorded and predicted q and q̇ (T + 1 rows each) and their times; with `particles` P (1–1024), also the replay as P particles (particle p on member p mod K, as Rollout's), their mean and standard deviation in `particles`",
         None,
-        &["id", "?dataset_id", "?index"],
+        &["id", "?dataset_id", "?index", "?particles"],
     ),
     Route(
         "post",

@@ -1,5 +1,6 @@
 //! `graybox eval` and `graybox inspect`: a model file's loss on a dataset, and what it holds.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use clap::Args;
@@ -107,6 +108,7 @@ fn eval_horizons(file: &ModelFile, data: &Dataset, horizons: &[usize]) -> Result
 pub(super) fn inspect(a: InspectArgs) -> Result<()> {
     let file = super::model::read(&a.model)?;
     let c = &file.config;
+    let members = file.member_count();
     let mut out = json!({
         "spec": c.spec,
         "n": c.n,
@@ -115,22 +117,54 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
         "integrator": c.integrator,
         "lambda": c.lambda,
         "scaling": c.scaling,
+        "members": members,
         "parameters": file.params.iter().map(|p| p.values.len()).sum::<usize>(),
     });
     if let Some(t) = c.template() {
         let device = backend::device(Backend::Flex, Precision::F32)?;
-        let values = Model::from_file(&file, &device)?
-            .physical_values()
-            .unwrap_or_default();
         let parts = c.spec.white_box_parts();
+        // Every member's values: an ensemble's are their means (as its report and the
+        // service give them), with their spread beside them.
+        let mut physical = vec![];
+        let mut ident = vec![];
+        for k in 0..members {
+            let values = Model::from_file(&file.member(k), &device)?
+                .physical_values()
+                .unwrap_or_default();
+            physical.push(used_physical(t, &parts, &values));
+            ident.push(identifiable(t, &parts, &values));
+        }
         out["template"] = json!(t.name());
         // In the model's order, which is not Pinocchio's on a branching robot: how a user
         // maps the rows of q, q̇ and u to joints.
         out["coordinates"] = json!(t.coordinates());
         out["inputs"] = json!(t.inputs());
         out["periodic"] = json!(c.periodic);
-        out["physical_parameters"] = json!(used_physical(t, &parts, &values));
-        out["identifiable"] = json!(identifiable(t, &parts, &values));
+        let spread = |name: &String| -> Spread {
+            Spread::of(&physical.iter().map(|p| p[name]).collect::<Vec<_>>())
+        };
+        let names = physical[0].keys();
+        out["physical_parameters"] = json!(
+            names
+                .clone()
+                .map(|n| (n, spread(n).mean))
+                .collect::<BTreeMap<_, _>>()
+        );
+        if members > 1 {
+            out["physical_parameters_std"] = json!(
+                names
+                    .map(|n| (n, spread(n).std))
+                    .collect::<BTreeMap<_, _>>()
+            );
+        }
+        let mut combos = ident[0].clone();
+        for (i, c) in combos.iter_mut().enumerate() {
+            let same: Option<Vec<f64>> = (ident.iter())
+                .map(|m| m.get(i).filter(|o| o.name == c.name).map(|o| o.value))
+                .collect();
+            c.value = same.map_or(c.value, |v| Spread::of(&v).mean);
+        }
+        out["identifiable"] = json!(combos);
     }
     if let Some(made) = &file.made {
         out["made"] = json!(made);
@@ -141,6 +175,9 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
             "train_loss": r.train_loss, "val_loss": r.val_loss, "best_val_loss": r.best_val_loss,
             "seconds": r.seconds,
         });
+        if let Some(s) = r.ensemble.as_ref().and_then(|e| e.member_seconds) {
+            out["training"]["member_seconds"] = json!(s);
+        }
         if let Some(energy) = &r.energy {
             out["energy"] = json!(energy);
         }

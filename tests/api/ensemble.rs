@@ -30,7 +30,7 @@ async fn admission_counts_every_member() {
 }
 
 /// A model file of tests/fixtures/compat uploaded: its id.
-async fn upload_fixture(app: &crate::helpers::TestApp, name: &str) -> String {
+pub(crate) async fn upload_fixture(app: &crate::helpers::TestApp, name: &str) -> String {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/compat");
     let bytes = std::fs::read(dir.join(format!("{name}.gbx"))).unwrap();
     let r = (app.client.post(app.url("/v1/models")).body(bytes))

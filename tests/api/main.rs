@@ -5,6 +5,7 @@ mod cluster;
 mod crash;
 mod datasets;
 mod ensemble;
+mod ensemble_replay;
 mod errors;
 mod faults;
 mod formula_limits;

@@ -58,17 +58,27 @@ def _list(a) -> list:
     return np.asarray(a, dtype=np.float64).tolist()
 
 
-def answer(client, model_id: str, call: dict) -> dict:
-    """The service's answer to one recorded call, as plain lists of floats."""
+# The calls that answer max_abs_z, how far their states and inputs lie from the training data.
+Z_RPCS = ("predict", "rollout", "linearize")
+
+
+def answer(client, model_id: str, call: dict, z: bool | None = None) -> dict:
+    """The service's answer to one recorded call, as plain lists of floats; with `z` also its
+    max_abs_z (by default when the record holds it, or when there is no record yet)."""
     rpc = call["rpc"]
+    if z is None:
+        z = rpc in Z_RPCS and "max_abs_z" in call.get("answer", {"max_abs_z": None})
     if rpc == "predict":
-        x_next, accel = client.predict(model_id, call["x"], call["u"], want_accel=True)
-        return {"x_next": _list(x_next), "accel": _list(accel)}
+        out = client.predict(model_id, call["x"], call["u"], want_accel=True, return_z=z)
+        got = {"x_next": _list(out[0]), "accel": _list(out[1])}
+        return {**got, "max_abs_z": _list(out[2])} if z else got
     if rpc == "rollout":
-        return {"xs": _list(client.rollout(model_id, call["x0"], call["u"]))}
+        out = client.rollout(model_id, call["x0"], call["u"], return_z=z)
+        return {"xs": _list(out[0]), "max_abs_z": _list(out[1])} if z else {"xs": _list(out)}
     if rpc == "linearize":
-        a, b = client.linearize(model_id, call["x"], call["u"])
-        return {"A": _list(a), "B": _list(b)}
+        out = client.linearize(model_id, call["x"], call["u"], return_z=z)
+        got = {"A": _list(out[0]), "B": _list(out[1])}
+        return {**got, "max_abs_z": _list(out[2])} if z else got
     if rpc == "tvlqr":
         # Along the model's own rollout of the inputs, as a controller tracking it would.
         xbar = client.rollout(model_id, call["x0"], call["u"])
@@ -97,6 +107,26 @@ def record(client, upload, skip=frozenset()) -> dict:
         out[name] = {"file": path, "n": info.n, "m": info.m,
                      "calls": [{**c, "answer": answer(client, model_id, c)} for c in calls]}
     return out
+
+
+def complete(client, upload, record: dict) -> list[str]:
+    """Adds the service's max_abs_z to the recorded Predict, Rollout and Linearize answers
+    that lack it (z joined the record after their first answers), each once the rest of its
+    answer is checked to be the recorded one; the names of the models it completed."""
+    done = []
+    for name, entry in record.items():
+        calls = [c for c in entry["calls"]
+                 if c["rpc"] in Z_RPCS and "max_abs_z" not in c["answer"]]
+        if not calls:
+            continue
+        model_id = upload(ROOT / entry["file"])
+        for call in calls:
+            got = answer(client, model_id, call, z=True)
+            where = first_difference(got, call["answer"])
+            assert not where, f"{name} {call['rpc']}{where}: the record is not this service's"
+            call["answer"]["max_abs_z"] = got["max_abs_z"]
+        done.append(name)
+    return done
 
 
 def first_difference(got, want, at="") -> str:

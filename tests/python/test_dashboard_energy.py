@@ -58,7 +58,15 @@ def test_the_model_page_shows_the_stored_energy_report(service, trained, page):
     report = wb["metrics"]["energy"]
     page.goto(s.rest.base + f"/#/models/{wb['id']}")
     page.wait_for_selector("#model-energy-summary")
-    assert page.inner_text("#model-energy-summary") == f"The model {report['summary']}."
+    # The sentence gives the worst rollout's drift beside the median's, in the table's figures.
+    sentence = page.inner_text("#model-energy-summary")
+    drift = report["drift"][-1]
+    def pct(v):  # one decimal, or a power of ten for the tiny and the huge
+        p = 100 * v
+        return f"{p:.1f}" if 0.1 <= p < 1000 else f"{p:.1e}".replace("e+0", "e+").replace("e-0", "e-")
+    assert sentence.startswith("The model "), sentence
+    assert f"drift by {pct(drift['median'])} % (median) and up to {pct(drift['max'])} %" in sentence, sentence
+    assert f"(the worst of {report['rollouts']})" in sentence and f"in {drift['steps']} steps" in sentence
     cells = page.locator("#model-energy-table td").all_inner_texts()
     assert len(cells) == 4, cells
     median = report["drift"][1]["median"]

@@ -110,7 +110,12 @@ def test_work_from_the_dashboard(service, browser, graybox_bin, tmp_path):  # no
     page.wait_for_selector('.replay-chart[data-variable="q0"] canvas')
     captions = page.locator("#replay-charts figcaption").all_inner_texts()
     assert captions[:4] == JOINTS, captions
-    assert series_label(page, '.replay-chart[data-variable="q1"]') == "shoulder"
+    # Joints by name, and by their type's unit: revolute and continuous joints in radians.
+    page.wait_for_selector('.split-chart[data-coordinate="0"] canvas')
+    assert series_label(page, '.replay-chart[data-variable="q1"]') == "shoulder (rad)"
+    assert series_label(page, '.replay-chart[data-variable="qdot3"]') == "wrist rate (rad/s)"
+    assert series_label(page, "#energy-chart") == "energy (J)"
+    assert series_label(page, '.split-chart[data-coordinate="0"]') == "generalized force (N·m)"
     assert "document 1" in page.inner_text("#model-spec")
     assert "<robot" not in page.inner_text("#model-spec")  # not spelled out in the spec
     assert not page.is_visible("#spec-document-1 pre")  # collapsed until asked for

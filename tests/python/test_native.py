@@ -4,9 +4,11 @@ its errors as GrayboxError with the service's code and the field named, and one 
 by threads that compute at once (the GIL is released) with the answers of one thread."""
 
 import json
+import re
 import subprocess
 import threading
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -150,6 +152,77 @@ def test_an_edited_model_file_is_refused(graybox_bin, tmp_path):
     gone = {k: v for k, v in ensemble.items() if k != "members"}
     e = _refused(lambda: _load(json.dumps(gone).encode()), "INVALID_ARGUMENT", "source")
     assert "members" in e.message, e.message
+
+
+# --- The package's surface: info, and one GrayboxError and PlanResult ---------------------------
+
+INFO_KEYS = ["n", "m", "dt", "members", "integrator", "coordinates", "inputs"]
+
+
+def test_info_has_attributes_and_reads_as_the_dict_it_was():
+    info = _model("ensemble-wb-x3").info
+    assert (info.n, info.m, info.members, info.integrator) == (2, 2, 3, "rk4"), info
+    assert info.coordinates == ["q1", "q2"] and info.inputs == ["u1", "u2"], info
+    # Item access, the keys in the dict's order, and comparison with a dict, as before.
+    assert list(info) == INFO_KEYS and list(info.keys()) == INFO_KEYS
+    assert [info[k] for k in INFO_KEYS] == [getattr(info, k) for k in INFO_KEYS]
+    assert info == dict(info) and len(info) == len(INFO_KEYS) and "dt" in info
+    assert info.get("absent") is None
+    with pytest.raises(KeyError):
+        info["absent"]
+    # What a model file says is not the caller's to change.
+    with pytest.raises(AttributeError):
+        info.n = 3
+
+
+def test_graybox_error_and_plan_result_are_defined_once():
+    graybox_client = pytest.importorskip("graybox_client")
+    import graybox_client._shared as client_shared
+    import graybox_native._shared as native_shared
+    assert graybox_native.GrayboxError is graybox_client.GrayboxError
+    assert graybox_native.PlanResult is graybox_client.PlanResult
+    with pytest.raises(graybox_client.GrayboxError):
+        _model().predict(np.zeros(3), np.zeros(2))
+    # One class statement each in the packages' sources (a symbolic link is the file it
+    # names), which both packages install: their copies are the same bytes.
+    found = {"GrayboxError": set(), "PlanResult": set()}
+    for path in (ia.ROOT / "clients").rglob("*.py"):
+        parts = path.relative_to(ia.ROOT).parts
+        if {"build", "__pycache__"} & set(parts) or any(p.endswith(".egg-info") for p in parts):
+            continue
+        text = path.read_text()
+        for name, files in found.items():
+            if re.search(rf"^\s*class {name}\b", text, re.M):
+                files.add(path.resolve())
+    assert all(len(files) == 1 for files in found.values()), found
+    assert Path(native_shared.__file__).read_bytes() == Path(client_shared.__file__).read_bytes()
+
+
+# Without graybox_client (importing it fails, as when it is not installed), the module's
+# errors and plans are its own copy's classes.
+_WITHOUT_CLIENT = """
+import sys
+sys.modules["graybox_client"] = None
+import warnings
+import numpy as np
+import graybox_native
+warnings.simplefilter("ignore")
+m = graybox_native.load(sys.argv[1])
+try:
+    m.predict(np.zeros(3), np.zeros(2))
+except graybox_native.GrayboxError as e:
+    print(type(e).__module__, e.code, e.field)
+p = m.plan(np.zeros(4), np.zeros(4), 5, np.eye(4), np.eye(2), np.eye(4), max_iterations=1)
+print(type(p).__module__, type(p).__name__, p.x.shape)
+"""
+
+
+def test_the_module_works_without_graybox_client():
+    import sys
+    out = subprocess.run([sys.executable, "-c", _WITHOUT_CLIENT, str(ia.ROOT / ia.MODELS["dp-mvf"])],
+                         capture_output=True, text=True, check=True).stdout
+    assert out.split("\n")[:2] == ["graybox_native._shared INVALID_ARGUMENT x",
+                                   "graybox_native._shared PlanResult (6, 4)"], out
 
 
 # --- Any array layout answers as its C-ordered copy -------------------------------------------

@@ -1,25 +1,32 @@
 //! graybox's trained models inside a Python process, with no server: `graybox_native.load`
 //! reads a model file (every format the service loads, ensembles included) and the model
-//! answers Predict, Rollout, Linearize, TVLQR and Plan from NumPy arrays, computed by the
-//! inference core (`graybox-core`) the service runs, so the answers are the service's, bit
-//! for bit. Every computation runs with the GIL released: threads sharing one model run in
+//! answers Predict, Rollout (an ensemble's particles too), Linearize, TVLQR, Plan and Energy
+//! from NumPy arrays, with the gRPC client's arguments and return conventions, computed by
+//! the inference core (`graybox-core`) the service runs, so the answers are the service's,
+//! bit for bit. Every computation runs with the GIL released: threads sharing one model run in
 //! parallel. A call is admitted under the module's memory budget before it computes, and a
 //! long one hears Ctrl-C (`guard`).
 
 mod convert;
+mod energy;
 mod guard;
 mod plan;
+mod rollout;
 
 use std::path::PathBuf;
 
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyBytes, PyDict, PyFloat, PyType};
 
 use convert::{ArrayIn, OrPy, array, inputs, rows, shaped};
 use graybox_core::error::Error;
 use graybox_core::infer::{Evaluator, finite_rows};
 use graybox_core::model::file::ModelFile;
 use guard::{Interrupt, admit};
+
+/// `graybox_native.Info`, looked up once.
+static INFO: PyOnceLock<Py<PyType>> = PyOnceLock::new();
 
 /// A loaded model: immutable, shareable across threads.
 #[pyclass(frozen, module = "graybox_native")]
@@ -81,9 +88,10 @@ fn bad_source(e: Error) -> Error {
 
 #[pymethods]
 impl Model {
-    /// n, m, dt, the ensemble's member count, and the coordinates' and inputs' names.
+    /// n, m, dt, the ensemble's member count, the integrator, and the coordinates' and
+    /// inputs' names, as a `graybox_native.Info` (attributes, and item access as a dict's).
     #[getter]
-    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let c = &self.eval.config;
         let d = PyDict::new(py);
         d.set_item("n", c.n)?;
@@ -93,7 +101,8 @@ impl Model {
         d.set_item("integrator", c.integrator.name())?;
         d.set_item("coordinates", self.names.0.clone())?;
         d.set_item("inputs", self.names.1.clone())?;
-        Ok(d)
+        INFO.import(py, "graybox_native", "Info")?
+            .call((), Some(&d))
     }
 
     fn __repr__(&self) -> String {
@@ -110,8 +119,12 @@ impl Model {
     /// x' = f(x, u) for x [2n] and u [m], or a batch x [B, 2n] and u [B, m]; with
     /// `want_accel` also q̈ ([n] or [B, n]). An ensemble answers with its members' mean;
     /// `return_std` adds their standard deviation of x' (zeros for a single model) and
-    /// `members` every member's x' ([K, 2n] or [K, B, 2n]), in that order after x' (and q̈).
-    #[pyo3(signature = (x, u=None, want_accel=false, return_std=false, members=false))]
+    /// `members` every member's x' ([K, 2n] or [K, B, 2n]), in that order after x' (and q̈);
+    /// `return_z` adds max_abs_z last (a float, or [B]): the largest |z-score| of q, q̇ and u
+    /// under the training data's statistics (above ~4, treat the answer with doubt).
+    #[pyo3(signature = (x, u=None, want_accel=false, return_std=false, members=false,
+        return_z=false))]
+    #[allow(clippy::too_many_arguments)]
     fn predict<'py>(
         &self,
         py: Python<'py>,
@@ -120,6 +133,7 @@ impl Model {
         want_accel: bool,
         return_std: bool,
         members: bool,
+        return_z: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (n, m) = (self.eval.config.n, self.eval.config.m);
         let nx = 2 * n;
@@ -145,9 +159,10 @@ impl Model {
                 (next, accel, None, None)
             };
             finite_rows("x", "next state", &out.0, nx)?;
-            Ok(Some(out))
+            let z = return_z.then(|| eval.max_abs_z(&xs.data, &us));
+            Ok(Some((out, z)))
         });
-        let (next, accel, std, each) = interrupt.answer(py, out)?;
+        let ((next, accel, std, each), z) = interrupt.answer(py, out)?;
         let mut items = vec![array(py, next, &shaped(single, b, &[nx]))?];
         if let Some(accel) = accel {
             items.push(array(py, accel, &shaped(single, b, &[n]))?);
@@ -163,6 +178,9 @@ impl Model {
             shape.extend(shaped(single, b, &[nx]));
             items.push(array(py, each.concat(), &shape)?);
         }
+        if let Some(z) = z {
+            items.push(z_of(py, z, single)?);
+        }
         one_or_tuple(py, items)
     }
 
@@ -174,18 +192,20 @@ impl Model {
         x: ArrayIn<'py>,
         u: Option<ArrayIn<'py>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        self.predict(py, x, u, false, false, false)
+        self.predict(py, x, u, false, false, false, false)
     }
 
     /// A = ∂f/∂x and B = ∂f/∂u of the one-step map: [2n, 2n] and [2n, m] at one point,
     /// [B, 2n, 2n] and [B, 2n, m] for a batch. An ensemble's are its members' mean.
-    #[pyo3(signature = (x, u=None))]
+    /// `return_z` adds max_abs_z (a float, or [B]) as (A, B, z).
+    #[pyo3(signature = (x, u=None, return_z=false))]
     fn linearize<'py>(
         &self,
         py: Python<'py>,
         x: ArrayIn<'py>,
         u: Option<ArrayIn<'py>>,
-    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        return_z: bool,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let (nx, m) = (2 * self.eval.config.n, self.eval.config.m);
         let xs = rows("x", Some(&x), nx).or_py(py)?;
         let us = inputs(&xs, rows("u", u.as_ref(), m).or_py(py)?, m).or_py(py)?;
@@ -198,20 +218,33 @@ impl Model {
             };
             finite_rows("x", "linearization", &a, nx * nx)?;
             finite_rows("x", "linearization", &b, nx * m)?;
-            Ok(Some((a, b)))
+            let z = return_z.then(|| eval.max_abs_z(&xs.data, &us));
+            Ok(Some((a, b, z)))
         });
-        let (a, b) = interrupt.answer(py, out)?;
+        let (a, b, z) = interrupt.answer(py, out)?;
         let (single, rows) = (xs.single, xs.rows);
-        Ok((
+        let mut items = vec![
             array(py, a, &shaped(single, rows, &[nx, nx]))?,
             array(py, b, &shaped(single, rows, &[nx, m]))?,
-        ))
+        ];
+        if let Some(z) = z {
+            items.push(z_of(py, z, single)?);
+        }
+        one_or_tuple(py, items)
     }
 
     /// The states x_0..x_T ([T+1, 2n]) from x0 under inputs u [T, m], or under a TVLQR
     /// policy (x_bar [T+1 or T, 2n], u_bar [T, m], K [T, m, 2n]) applying
-    /// u_t = ū_t − K_t(x_t − x̄_t). `with_inputs` also returns the applied inputs [T, m].
-    #[pyo3(signature = (x0, u=None, policy=None, with_inputs=false))]
+    /// u_t = ū_t − K_t(x_t − x̄_t). `with_inputs` also returns the applied inputs [T, m] and
+    /// `return_z` max_abs_z [T] of each (x_t, u_t), last: (xs, us, z).
+    ///
+    /// `particles` P (1..1024) propagates P particles from x0, particle p following ensemble
+    /// member p mod K throughout (TS∞), a policy's input computed from its own state: xs is
+    /// their mean and their standard deviation [T+1, 2n] follows it, (xs, std, …); the
+    /// inputs are the particles' mean, z the largest over them.
+    #[pyo3(signature = (x0, u=None, policy=None, with_inputs=false, return_z=false,
+        particles=None))]
+    #[allow(clippy::too_many_arguments)]
     fn rollout<'py>(
         &self,
         py: Python<'py>,
@@ -219,42 +252,16 @@ impl Model {
         u: Option<ArrayIn<'py>>,
         policy: Option<(ArrayIn<'py>, ArrayIn<'py>, ArrayIn<'py>)>,
         with_inputs: bool,
+        return_z: bool,
+        particles: Option<i128>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let (nx, m) = (2 * self.eval.config.n, self.eval.config.m);
-        let x0 = rows("x0", Some(&x0), nx).or_py(py)?;
-        if !x0.single {
-            return Err(Error::invalid("x0", "is one state [2n], not a batch")).or_py(py);
-        }
-        let (steps, input) = plan::rollout_inputs(u.as_ref(), policy.as_ref(), nx, m).or_py(py)?;
-        let eval = &self.eval;
-        admit(py, &eval.rollout_cost(steps, policy.is_some()))?;
-        let interrupt = Interrupt::new();
-        let out = py.detach(|| -> Result<_, Error> {
-            let (mut xs, mut us) = (x0.data.clone(), Vec::with_capacity(steps * m));
-            let mut stopped = false;
-            eval.rollout(
-                &x0.data,
-                steps,
-                |t, x| input(t, x),
-                |x, u| {
-                    xs.extend_from_slice(x);
-                    us.extend_from_slice(u);
-                    stopped = interrupt.stop();
-                    !stopped
-                },
-            );
-            if stopped {
-                return Ok(None);
-            }
-            finite_rows("x0", "state", &xs, nx)?;
-            Ok(Some((xs, us)))
-        });
-        let (xs, us) = interrupt.answer(py, out)?;
-        let xs = array(py, xs, &[steps + 1, nx])?;
-        if !with_inputs {
-            return Ok(xs);
-        }
-        one_or_tuple(py, vec![xs, array(py, us, &[steps, m])?])
+        let want = rollout::Want {
+            with_inputs,
+            return_z,
+            particles,
+        };
+        let items = rollout::rollout(py, &self.eval, x0, u, policy, want)?;
+        one_or_tuple(py, items)
     }
 
     /// TVLQR gains K [T, m, 2n] and cost-to-go S [T+1, 2n, 2n] along x̄ [T+1, 2n], ū [T, m],
@@ -321,6 +328,31 @@ impl Model {
         };
         plan::plan(py, &self.eval, args)
     }
+
+    /// Energy and work at x [2n] under u [m], or a batch x [B, 2n] and u [B, m], as the gRPC
+    /// client's `energy`: a dict of `kinetic`, `potential`, `total`, `power` (q̇ᵀF) — floats,
+    /// or [B] — and the dynamics M q̈ + c + ∇V = F term by term, `inertial`, `coriolis`,
+    /// `gravity`, `applied` ([n] or [B, n]), with `parts`: F's named parts, {name: [n] or
+    /// [B, n]}, and `damping`, the names the spec calls damping or friction. An ensemble's
+    /// are its members' means; a naive model has none: FAILED_PRECONDITION.
+    #[pyo3(signature = (x, u=None))]
+    fn energy<'py>(
+        &self,
+        py: Python<'py>,
+        x: ArrayIn<'py>,
+        u: Option<ArrayIn<'py>>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        energy::energy(py, &self.eval, x, u)
+    }
+}
+
+/// max_abs_z as the gRPC client returns it: a float for one state, else [B].
+fn z_of<'py>(py: Python<'py>, z: Vec<f64>, single: bool) -> PyResult<Bound<'py, PyAny>> {
+    if single {
+        return Ok(PyFloat::new(py, z[0]).into_any());
+    }
+    let b = z.len();
+    array(py, z, &[b])
 }
 
 /// One value alone, several as a tuple (as the gRPC client returns them).

@@ -14,7 +14,8 @@ templates), numpy in and out, failures raised as `GrayboxError` by both.
 
 from ._pb import dynamics_pb2 as pb
 from ._pb import dynamics_pb2_grpc as pb_grpc
-from .client import Client, GrayboxError, ModelInfo, PlanResult, from_array, to_array
+from ._shared import GrayboxError, PlanResult
+from .client import Client, ModelInfo, from_array, to_array
 from .rest import RestClient
 
 __all__ = ["Client", "GrayboxError", "ModelInfo", "PlanResult", "RestClient", "from_array",

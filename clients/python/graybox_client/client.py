@@ -13,29 +13,20 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from typing import Any, Iterator, Optional, Sequence, Union
+from typing import Any, Callable, Iterator, Literal, Optional, Sequence, Union, overload
 
-import grpc
+# grpc ships no annotations (types-grpcio has them): its objects are Any here.
+import grpc  # type: ignore[import-untyped, unused-ignore]
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
 from ._pb import dynamics_pb2 as pb
 from ._pb import dynamics_pb2_grpc as pb_grpc
+from ._shared import GrayboxError, PlanResult
 
-
-class GrayboxError(Exception):
-    """A failed call: `code` is the gRPC status name (e.g. "INVALID_ARGUMENT") or the REST
-    error's code (e.g. "unprocessable"), `message` the server's explanation; from REST also
-    `field`, the input it names (e.g. "training.epochs", None when it names none), and
-    `status`, the HTTP status."""
-
-    def __init__(self, code: str, message: str, field: Optional[str] = None,
-                 status: Optional[int] = None):
-        where = f" ({field})" if field else ""
-        super().__init__(f"{code}{where}: {message}")
-        self.code = code
-        self.message = message
-        self.field = field
-        self.status = status
+Array = NDArray[np.float64]
+# A TVLQR policy: x̄ [T+1 or T, 2n], ū [T, m], K [T, m, 2n].
+Policy = Sequence[ArrayLike]
 
 
 @dataclass
@@ -49,33 +40,9 @@ class ModelInfo:
     n: int
     m: int
     dt: float
-    spec: dict
-    metrics: dict
+    spec: dict[str, Any]
+    metrics: dict[str, Any]
     created_at: str
-
-
-@dataclass
-class PlanResult:
-    """A Plan response: states `x` [T+1, 2n], inputs `u` [T, m], TVLQR gains `K` [T, m, 2n]
-    along them (u = ū − K(x − x̄)), the `cost`, `costs` (the initial guess's, then after each
-    accepted iteration; non-increasing for iLQR), `iterations`, `converged`, `goal_error`
-    (‖x_T − goal‖₂), the `method` that made it, and for direct collocation its largest defect
-    (`constraint_violation`) and how far the model's one-step rollout of `u` strays from `x`
-    (`rollout_deviation`); both 0 for iLQR. An ensemble's plan also has `x_std` [T+1, 2n], the
-    members' standard deviation of each state along `u` (None for a single model)."""
-
-    x: np.ndarray
-    u: np.ndarray
-    K: np.ndarray
-    cost: float
-    costs: np.ndarray
-    iterations: int
-    converged: bool
-    goal_error: float
-    method: str = "ilqr"
-    constraint_violation: float = 0.0
-    rollout_deviation: float = 0.0
-    x_std: np.ndarray | None = None
 
 
 def to_array(a: Any) -> pb.Array:
@@ -84,7 +51,7 @@ def to_array(a: Any) -> pb.Array:
     return pb.Array(shape=a.shape, data=a.ravel().tolist())
 
 
-def from_array(a: pb.Array) -> np.ndarray:
+def from_array(a: pb.Array) -> Array:
     return np.asarray(a.data, dtype=np.float64).reshape(tuple(a.shape))
 
 
@@ -98,7 +65,7 @@ def _model_info(m: pb.ModelInfo) -> ModelInfo:
     )
 
 
-def _z(values: Sequence[float], rows: int, single: bool):
+def _z(values: Sequence[float], rows: int, single: bool) -> Union[float, Array]:
     """max_abs_z as [B] (a float for a single point); a server that sent none is an error."""
     z = np.asarray(values, dtype=np.float64)
     if len(z) != rows:
@@ -106,16 +73,16 @@ def _z(values: Sequence[float], rows: int, single: bool):
     return float(z[0]) if single else z
 
 
-def _batch(x: Any, u: Any) -> tuple[np.ndarray, np.ndarray, bool]:
+def _batch(x: ArrayLike, u: ArrayLike) -> tuple[Array, Array, bool]:
     """(x, u) as [B, ·] arrays and whether the caller gave a single point ([2n] and [m])."""
-    x = np.asarray(x, dtype=np.float64)
-    u = np.asarray(u, dtype=np.float64)
-    single = x.ndim == 1
+    xs = np.asarray(x, dtype=np.float64)
+    us = np.asarray(u, dtype=np.float64)
+    single = xs.ndim == 1
     if single:
-        x = x[None, :]
-    if u.ndim == 1:
-        u = u[None, :]
-    return x, u, single
+        xs = xs[None, :]
+    if us.ndim == 1:
+        us = us[None, :]
+    return xs, us, single
 
 
 class Client:
@@ -149,7 +116,7 @@ class Client:
                     root_certificates = f.read()
             creds = grpc.ssl_channel_credentials(root_certificates=root_certificates)
             self.channel = grpc.secure_channel(target, creds, options=options)
-        self.stub = pb_grpc.DynamicsStub(self.channel)
+        self.stub = pb_grpc.DynamicsStub(self.channel)  # type: ignore[no-untyped-call]
 
     def close(self) -> None:
         self.channel.close()
@@ -157,17 +124,30 @@ class Client:
     def __enter__(self) -> "Client":
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _call(self, method, request):
+    def _call(self, method: Callable[..., Any], request: Any) -> Any:
         try:
             return method(request, timeout=self.timeout, metadata=self.metadata)
         except grpc.RpcError as e:
             raise GrayboxError(e.code().name, e.details() or "") from None
 
-    def predict(self, model_id: str, x, u, want_accel: bool = False, return_z: bool = False,
-                return_std: bool = False, members: bool = False):
+    # A call with no extras returns one array; one with extras a tuple whose length and
+    # members depend on the flags (z is a float for one state), typed Any rather than a union
+    # that every caller would have to narrow.
+    @overload
+    def predict(self, model_id: str, x: ArrayLike, u: ArrayLike,
+                want_accel: Literal[False] = False, return_z: Literal[False] = False,
+                return_std: Literal[False] = False, members: Literal[False] = False) -> Array: ...
+
+    @overload
+    def predict(self, model_id: str, x: ArrayLike, u: ArrayLike, want_accel: bool = False,
+                return_z: bool = False, return_std: bool = False,
+                members: bool = False) -> Any: ...
+
+    def predict(self, model_id: str, x: ArrayLike, u: ArrayLike, want_accel: bool = False,
+                return_z: bool = False, return_std: bool = False, members: bool = False) -> Any:
         """x' = f(x, u) for x [2n] and u [m], or a batch x [B, 2n] and u [B, m]; with
         `want_accel` also q̈ ([n] or [B, n]) as (x_next, accel); with `return_z` also
         max_abs_z (a float, or [B]) last: (x_next, z) or (x_next, accel, z).
@@ -180,7 +160,7 @@ class Client:
             model_id=model_id, x=to_array(xb), u=to_array(ub), want_accel=want_accel,
             members=members))
         x_next = from_array(r.x_next)
-        out = [x_next[0] if single else x_next]
+        out: list[Any] = [x_next[0] if single else x_next]
         if want_accel:
             accel = from_array(r.accel)
             out.append(accel[0] if single else accel)
@@ -195,9 +175,10 @@ class Client:
             out.append(_z(r.max_abs_z, len(x_next), single))
         return out[0] if len(out) == 1 else tuple(out)
 
-    def rollout_chunks(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
-                       chunk: Optional[int] = None, return_z: bool = False,
-                       particles: Optional[int] = None) -> Iterator[tuple]:
+    def rollout_chunks(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
+                       policy: Optional[Policy] = None, chunk: Optional[int] = None,
+                       return_z: bool = False,
+                       particles: Optional[int] = None) -> Iterator[tuple[Any, ...]]:
         """The streamed rollout as it arrives: (index of the chunk's first state, states
         [c, 2n], inputs applied in the chunk [c', m]), with `return_z` also max_abs_z [c'] of
         each applied input and the state it was applied at. Arguments as `rollout`; with
@@ -216,7 +197,7 @@ class Client:
         call = self.stub.Rollout(req, timeout=self.timeout, metadata=self.metadata)
         try:
             for c in call:
-                out = [c.start, from_array(c.x), from_array(c.u)]
+                out: list[Any] = [c.start, from_array(c.x), from_array(c.u)]
                 if return_z:
                     out.append(_z(c.max_abs_z, len(out[2]), False))
                 if particles is not None:
@@ -227,9 +208,22 @@ class Client:
         finally:
             call.cancel()  # a caller that stops reading early stops the server's computation
 
-    def rollout(self, model_id: str, x0, u=None, policy: Optional[Sequence] = None,
-                chunk: Optional[int] = None, with_inputs: bool = False, return_z: bool = False,
-                particles: Optional[int] = None):
+    @overload
+    def rollout(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
+                policy: Optional[Policy] = None, chunk: Optional[int] = None,
+                with_inputs: Literal[False] = False, return_z: Literal[False] = False,
+                particles: None = None) -> Array: ...
+
+    @overload
+    def rollout(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
+                policy: Optional[Policy] = None, chunk: Optional[int] = None,
+                with_inputs: bool = False, return_z: bool = False,
+                particles: Optional[int] = None) -> Any: ...
+
+    def rollout(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
+                policy: Optional[Policy] = None, chunk: Optional[int] = None,
+                with_inputs: bool = False, return_z: bool = False,
+                particles: Optional[int] = None) -> Any:
         """The states x_0..x_T ([T+1, 2n]) from x0 under inputs u [T, m] or a TVLQR policy
         (x_bar [T+1 or T, 2n], u_bar [T, m], K [T, m, 2n]) applying u_t = ū_t − K_t(x_t − x̄_t).
         `chunk` is the states per streamed message (server default 1000, capped so that a
@@ -240,7 +234,11 @@ class Client:
         `particles` P (1..1024) propagates P particles, particle p following ensemble member
         p mod K throughout (TS∞): xs is their mean, and their standard deviation [T+1, 2n]
         follows it: (xs, std, …); the inputs are the particles' mean, z the largest."""
-        xs, stds, us, zs, rows = [], [], [], [], 0
+        xs: list[Array] = []
+        stds: list[Array] = []
+        us: list[Array] = []
+        zs: list[Array] = []
+        rows = 0
         for start, x, applied, *rest in self.rollout_chunks(model_id, x0, u, policy, chunk,
                                                             return_z, particles):
             if start != rows:
@@ -254,7 +252,7 @@ class Client:
             rows += len(x)
         if not xs:
             raise GrayboxError("DATA_LOSS", "the rollout stream ended without states")
-        out = [np.concatenate(xs)]
+        out: list[Array] = [np.concatenate(xs)]
         if particles is not None:
             out.append(np.concatenate(stds))
         if with_inputs:
@@ -263,7 +261,20 @@ class Client:
             out.append(np.concatenate(zs))
         return out[0] if len(out) == 1 else tuple(out)
 
-    def linearize(self, model_id: str, x, u, return_z: bool = False):
+    @overload
+    def linearize(self, model_id: str, x: ArrayLike, u: ArrayLike,
+                  return_z: Literal[False] = False) -> tuple[Array, Array]: ...
+
+    @overload
+    def linearize(self, model_id: str, x: ArrayLike, u: ArrayLike, *,
+                  return_z: Literal[True]) -> tuple[Array, Array, Any]: ...
+
+    @overload
+    def linearize(self, model_id: str, x: ArrayLike, u: ArrayLike,
+                  return_z: bool = False) -> tuple[Any, ...]: ...
+
+    def linearize(self, model_id: str, x: ArrayLike, u: ArrayLike,
+                  return_z: bool = False) -> tuple[Any, ...]:
         """A = ∂f/∂x and B = ∂f/∂u of the one-step map: [2n, 2n] and [2n, m] at one point,
         [B, 2n, 2n] and [B, 2n, m] for a batch; with `return_z` also max_abs_z (a float, or
         [B]) as (A, B, z)."""
@@ -274,7 +285,7 @@ class Client:
         out = (a[0], b[0]) if single else (a, b)
         return (*out, _z(r.max_abs_z, len(a), single)) if return_z else out
 
-    def energy(self, model_id: str, x, u) -> dict:
+    def energy(self, model_id: str, x: ArrayLike, u: ArrayLike) -> dict[str, Any]:
         """Energy and work at x [2n] under u [m], or a batch x [B, 2n] and u [B, m]: a dict of
         `kinetic`, `potential`, `total`, `power` (q̇ᵀF) — floats, or [B] — and the dynamics
         M q̈ + c + ∇V = F term by term, `inertial`, `coriolis`, `gravity`, `applied` ([n] or
@@ -283,8 +294,11 @@ class Client:
         xb, ub, single = _batch(x, u)
         r = self._call(self.stub.Energy, pb.EnergyRequest(
             model_id=model_id, x=to_array(xb), u=to_array(ub)))
-        pick = (lambda a: a[0]) if single else (lambda a: a)
-        out = {k: pick(np.asarray(getattr(r, k))) for k in ("kinetic", "potential", "total", "power")}
+        def pick(a: Array) -> Any:
+            return a[0] if single else a
+
+        out: dict[str, Any] = {k: pick(np.asarray(getattr(r, k), dtype=np.float64))
+                               for k in ("kinetic", "potential", "total", "power")}
         if single:
             out = {k: float(v) for k, v in out.items()}
         for k in ("inertial", "coriolis", "gravity", "applied"):
@@ -293,7 +307,8 @@ class Client:
         out["damping"] = [p.name for p in r.parts if p.damping]
         return out
 
-    def tvlqr(self, model_id: str, xbar, ubar, Q, R, Qf):
+    def tvlqr(self, model_id: str, xbar: ArrayLike, ubar: ArrayLike, Q: ArrayLike, R: ArrayLike,
+              Qf: ArrayLike) -> tuple[Array, Array]:
         """TVLQR gains K [T, m, 2n] and cost-to-go S [T+1, 2n, 2n] along x̄ [T+1, 2n],
         ū [T, m], for the cost Σ δxᵀQδx + δuᵀRδu + δx_TᵀQf δx_T (no ½)."""
         r = self._call(self.stub.Tvlqr, pb.TvlqrRequest(
@@ -301,10 +316,13 @@ class Client:
             q=to_array(Q), r=to_array(R), qf=to_array(Qf)))
         return from_array(r.k), from_array(r.s)
 
-    def plan(self, model_id: str, x0, goal, horizon: int, Q, R, Qf, u_min=None, u_max=None,
-             u_init=None, max_iterations: int = 200, tolerance: float = 1e-6, restarts: int = 0,
+    def plan(self, model_id: str, x0: ArrayLike, goal: ArrayLike, horizon: int, Q: ArrayLike,
+             R: ArrayLike, Qf: ArrayLike, u_min: Optional[ArrayLike] = None,
+             u_max: Optional[ArrayLike] = None, u_init: Optional[ArrayLike] = None,
+             max_iterations: int = 200, tolerance: float = 1e-6, restarts: int = 0,
              seed: int = 0, time_limit_ms: int = 0, method: str = "ilqr",
-             x_init=None, x_min=None, x_max=None, ensemble_cost: str = "") -> PlanResult:
+             x_init: Optional[ArrayLike] = None, x_min: Optional[ArrayLike] = None,
+             x_max: Optional[ArrayLike] = None, ensemble_cost: str = "") -> PlanResult:
         """A trajectory of `horizon` steps from x0 toward `goal` minimizing
         Σ (x_t−g)ᵀQ(x_t−g) + u_tᵀRu_t + (x_T−g)ᵀQf(x_T−g) with u_min ≤ u_t ≤ u_max (None:
         unbounded), by iLQR with input bounds on the model, and TVLQR gains along it.
@@ -318,7 +336,9 @@ class Client:
         (±inf: none on that coordinate). On an ensemble, `ensemble_cost` "mean_dynamics" (the
         default) plans on the members' average next state and "mean" minimizes the members'
         average cost (x is then their mean state, K their gains for a shared deviation)."""
-        flat = lambda v: [] if v is None else np.asarray(v, dtype=np.float64).ravel().tolist()
+        def flat(v: Optional[ArrayLike]) -> list[float]:
+            return [] if v is None else [float(e) for e in np.asarray(v, dtype=np.float64).ravel()]
+
         req = pb.PlanRequest(
             model_id=model_id, x0=flat(x0), goal=flat(goal), horizon=horizon,
             q=to_array(Q), r=to_array(R), qf=to_array(Qf), u_min=flat(u_min), u_max=flat(u_max),

@@ -18,25 +18,28 @@ import urllib.error
 import urllib.parse
 import urllib.request
 from pathlib import Path
-from typing import Any, Callable, Iterator, Optional, Sequence, Union
+from typing import Any, Callable, Iterator, Mapping, Optional, Sequence, Union, cast
 
 import numpy as np
+from numpy.typing import ArrayLike, NDArray
 
-from .client import GrayboxError
+from ._shared import GrayboxError
 
 PathLike = Union[str, Path]
+# A JSON object as the service answers it.
+Json = dict[str, Any]
 FINAL = ("succeeded", "failed", "cancelled")
 PAUSE_MIN, PAUSE_MAX = 0.2, 5.0  # seconds between `wait`'s attempts to follow a job again
 
 
-def _rows(a: Any, what: str, width: Optional[int] = None) -> list:
+def _rows(a: ArrayLike, what: str, width: Optional[int] = None) -> list[list[float]]:
     """A 2-D float array as lists of rows (1-D arrays are one column)."""
-    a = np.asarray(a, dtype=np.float64)
-    if a.ndim == 1:
-        a = a[:, None]
-    if a.ndim != 2:
-        raise ValueError(f"{what} must be 1-D or 2-D, got shape {a.shape}")
-    return a.tolist()
+    v = np.asarray(a, dtype=np.float64)
+    if v.ndim == 1:
+        v = v[:, None]
+    if v.ndim != 2:
+        raise ValueError(f"{what} must be 1-D or 2-D, got shape {v.shape}")
+    return cast(list[list[float]], v.tolist())
 
 
 class RestClient:
@@ -54,13 +57,13 @@ class RestClient:
     def __enter__(self) -> "RestClient":
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         pass
 
     # ---------- requests ----------
 
     def request(self, method: str, path: str, body: Any = None, raw: Optional[bytes] = None,
-                content_type: str = "application/json", query: Optional[dict] = None,
+                content_type: str = "application/json", query: Optional[Json] = None,
                 parse: bool = True, timeout: Optional[float] = None) -> Any:
         """One request: the JSON answer (bytes with `parse=False`, None for 204). `timeout`:
         seconds for this one (default: the client's)."""
@@ -95,7 +98,7 @@ class RestClient:
         return GrayboxError("unavailable", f"cannot reach graybox at {self.base}: "
                             f"{getattr(e, 'reason', e)}")
 
-    def _headers(self, content_type: Optional[str]) -> dict:
+    def _headers(self, content_type: Optional[str]) -> dict[str, str]:
         h = {"accept": "application/json"}
         if content_type:
             h["content-type"] = content_type
@@ -103,7 +106,11 @@ class RestClient:
             h["authorization"] = f"Bearer {self.token}"
         return h
 
-    def _pages(self, path: str, query: Optional[dict] = None) -> Iterator[dict]:
+    def _json(self, method: str, path: str, body: Any = None, **kwargs: Any) -> Json:
+        """`request` for an answer that is a JSON object."""
+        return cast(Json, self.request(method, path, body, **kwargs))
+
+    def _pages(self, path: str, query: Optional[Json] = None) -> Iterator[Json]:
         """Every item of a paged list, page after page."""
         token = None
         while True:
@@ -116,27 +123,27 @@ class RestClient:
 
     # ---------- datasets ----------
 
-    def upload_dataset(self, q, qdot, u, q_next, qdot_next, dt: float,
-                       name: Optional[str] = None) -> dict:
+    def upload_dataset(self, q: ArrayLike, qdot: ArrayLike, u: ArrayLike, q_next: ArrayLike,
+                       qdot_next: ArrayLike, dt: float, name: Optional[str] = None) -> Json:
         """Transitions from arrays ([N, n] each, [N, m] for `u`; 1-D means one column). The
         answer carries `id`, `count`, `created` (false: the same data was stored before) and
         the data's `warnings` (read them: angles
         in degrees, a wrong Δt, … are warned of, not refused)."""
         doc = {"dt": dt, "q": _rows(q, "q"), "qdot": _rows(qdot, "qdot"), "u": _rows(u, "u"),
                "q_next": _rows(q_next, "q_next"), "qdot_next": _rows(qdot_next, "qdot_next")}
-        return self.request("POST", "/v1/datasets", doc, query={"name": name})
+        return self._json("POST", "/v1/datasets", doc, query={"name": name})
 
-    def upload_trajectories(self, trajectories: Sequence[dict], dt: float,
-                            name: Optional[str] = None) -> dict:
+    def upload_trajectories(self, trajectories: Sequence[Mapping[str, ArrayLike]], dt: float,
+                            name: Optional[str] = None) -> Json:
         """Trajectories, each a dict of `q` and `qdot` [T+1, n] and `u` [T, m] (u_t moves x_t
         to x_t+1); their boundaries are kept (multi-step training, replays)."""
         doc = {"dt": dt, "trajectories": [
             {k: _rows(t[k], f"trajectories[{i}].{k}") for k in ("q", "qdot", "u")}
             for i, t in enumerate(trajectories)]}
-        return self.request("POST", "/v1/datasets", doc, query={"name": name})
+        return self._json("POST", "/v1/datasets", doc, query={"name": name})
 
     def upload_dataset_file(self, path: PathLike, name: Optional[str] = None,
-                            dt: Optional[float] = None) -> dict:
+                            dt: Optional[float] = None) -> Json:
         """A dataset file as `graybox simulate` writes it (JSON, which carries its own `dt`),
         or CSV (a file ending in .csv; columns q0…, qdot0…, u0…, q_next0…, qdot_next0…, README
         "Dataset files"), which has no time step of its own: give it as `dt` (seconds), e.g.
@@ -148,17 +155,17 @@ class RestClient:
             raise GrayboxError("invalid_argument", f"{path.name} is CSV, which carries no time "
                                f"step: give it in seconds, upload_dataset_file({str(path)!r}, "
                                f"dt=0.01)", field="dt")
-        return self.request("POST", "/v1/datasets", raw=path.read_bytes(),
-                            content_type="text/csv" if csv else "application/json",
-                            query={"name": name, "dt": dt})
+        return self._json("POST", "/v1/datasets", raw=path.read_bytes(),
+                          content_type="text/csv" if csv else "application/json",
+                          query={"name": name, "dt": dt})
 
-    def dataset(self, dataset_id: str) -> dict:
-        return self.request("GET", f"/v1/datasets/{dataset_id}")
+    def dataset(self, dataset_id: str) -> Json:
+        return self._json("GET", f"/v1/datasets/{dataset_id}")
 
-    def datasets(self) -> list:
+    def datasets(self) -> list[Json]:
         return list(self._pages("/v1/datasets"))
 
-    def trajectories(self, dataset_id: str) -> list:
+    def trajectories(self, dataset_id: str) -> list[Json]:
         """The dataset's trajectories: `index`, `start` row and `length` each."""
         return list(self._pages(f"/v1/datasets/{dataset_id}/trajectories"))
 
@@ -168,11 +175,11 @@ class RestClient:
 
     # ---------- jobs ----------
 
-    def submit_job(self, dataset_id: str, model: Union[str, dict] = "MVF",
-                   template: Union[None, str, dict] = None, name: Optional[str] = None,
+    def submit_job(self, dataset_id: str, model: Union[str, Json] = "MVF",
+                   template: Union[None, str, Json] = None, name: Optional[str] = None,
                    validation_dataset_id: Optional[str] = None,
-                   training: Optional[dict] = None, init: Optional[dict] = None,
-                   periodic: Optional[Sequence[bool]] = None) -> dict:
+                   training: Optional[Json] = None, init: Optional[Json] = None,
+                   periodic: Optional[Sequence[bool]] = None) -> Json:
         """A training job (README "Training details" lists `training`'s fields and defaults):
         `model` a paper name ("MVF", "W-B", …) or a spec, `template` a built-in's name, a
         stored template's id or a template document. Returns the queued job."""
@@ -180,30 +187,32 @@ class RestClient:
                 "validation_dataset_id": validation_dataset_id, "template": template,
                 "training": training, "init": init,
                 "periodic": list(periodic) if periodic is not None else None}
-        return self.request("POST", "/v1/jobs", {k: v for k, v in body.items() if v is not None})
+        return self._json("POST", "/v1/jobs", {k: v for k, v in body.items() if v is not None})
 
-    def job(self, job_id: str) -> dict:
-        return self.request("GET", f"/v1/jobs/{job_id}")
+    def job(self, job_id: str) -> Json:
+        return self._json("GET", f"/v1/jobs/{job_id}")
 
-    def jobs(self, state: Optional[str] = None) -> list:
+    def jobs(self, state: Optional[str] = None) -> list[Json]:
         """Every job, newest first (optionally only those in `state`)."""
         return list(self._pages("/v1/jobs", {"state": state}))
 
-    def cancel(self, job_id: str) -> dict:
-        return self.request("POST", f"/v1/jobs/{job_id}/cancel")
+    def cancel(self, job_id: str) -> Json:
+        return self._json("POST", f"/v1/jobs/{job_id}/cancel")
 
-    def metrics(self, job_id: str) -> dict:
+    def metrics(self, job_id: str) -> Json:
         """Per-epoch figures as arrays: `epoch`, `train_loss`, `val_loss`, `val_horizon_loss`
         (a multi-step job's; NaN where there is none), `seconds`."""
         items = self.request("GET", f"/v1/jobs/{job_id}/metrics")["items"]
-        col = lambda k: np.array([np.nan if i.get(k) is None else i[k] for i in items],  # noqa: E731
-                                 dtype=np.float64)
+        def col(k: str) -> NDArray[np.float64]:
+            return np.array([np.nan if i.get(k) is None else i[k] for i in items],
+                            dtype=np.float64)
+
         return {"epoch": np.array([i["epoch"] for i in items], dtype=np.int64),
                 "train_loss": col("train_loss"), "val_loss": col("val_loss"),
                 "val_horizon_loss": col("val_horizon_loss"), "seconds": col("seconds")}
 
-    def wait(self, job_id: str, progress: Union[bool, Callable[[dict], None]] = False,
-             timeout: Optional[float] = None) -> dict:
+    def wait(self, job_id: str, progress: Union[bool, Callable[[Json], None]] = False,
+             timeout: Optional[float] = None) -> Json:
         """Follows the job's event stream until it ends and returns the finished job (any
         final state: check `state`). `progress`: True prints a line per epoch to stderr, a
         function is called with each epoch's figures (`epoch`, `train_loss`, `val_loss`, and a
@@ -213,7 +222,8 @@ class RestClient:
         `unavailable` (restarting), are followed again after a pause growing from 0.2 s to
         5 s; other errors (`not_found`, `unauthorized`, …) raise. `timeout` seconds in all
         raise `deadline_exceeded`; without it the wait has no end."""
-        report = None if progress is True else (progress or None)
+        report: Optional[Callable[[Json], None]] = (
+            None if progress is True or progress is False else progress)
         end = None if timeout is None else time.monotonic() + timeout
         reported = 0  # a stream followed again replays the epochs from the first
         state, pause = "unknown", PAUSE_MIN
@@ -223,7 +233,7 @@ class RestClient:
             limit = self.timeout if end is None else min(self.timeout,
                                                          max(end - time.monotonic(), 0.1))
             try:
-                job = self.request("GET", f"/v1/jobs/{job_id}", timeout=limit)
+                job = self._json("GET", f"/v1/jobs/{job_id}", timeout=limit)
                 state = job["state"]
                 if progress is True and report is None:
                     report = _printer(job_id, (job.get("training") or {}).get("horizon", 1))
@@ -237,7 +247,7 @@ class RestClient:
                     elif kind == "state":
                         state = data["state"]
                         if state in FINAL:
-                            return data
+                            return cast(Json, data)
             except GrayboxError as e:
                 if e.code != "unavailable" and e.status not in (502, 503):
                     raise
@@ -252,7 +262,8 @@ class RestClient:
             time.sleep(nap if left is None else min(nap, left))
             pause = min(2 * pause, PAUSE_MAX)
 
-    def _events(self, path: str, end: Optional[float], limit: float) -> Iterator[tuple]:
+    def _events(self, path: str, end: Optional[float],
+                limit: float) -> Iterator[tuple[str, Any]]:
         """Server-sent events as (event, parsed data) until the stream ends, drops, is silent
         for `limit` seconds or `end` passes."""
         req = urllib.request.Request(self.base + path, headers=self._headers(None))
@@ -261,10 +272,11 @@ class RestClient:
         except (OSError, http.client.HTTPException) as e:
             raise self._failure(e) from None
         with r:
-            kind, data = "message", []
+            kind = "message"
+            data: list[str] = []
             try:
-                for line in r:
-                    line = line.decode().rstrip("\r\n")
+                for raw in r:
+                    line = raw.decode().rstrip("\r\n")
                     if line.startswith("event:"):
                         kind = line[6:].strip()
                     elif line.startswith("data:"):
@@ -279,76 +291,81 @@ class RestClient:
 
     # ---------- models ----------
 
-    def model(self, model_id: str) -> dict:
+    def model(self, model_id: str) -> Json:
         """A model (or the model of the job `model_id` names): spec, n, m, dt, metrics,
         physical parameters, identifiable combinations, coordinates."""
-        return self.request("GET", f"/v1/models/{model_id}")
+        return self._json("GET", f"/v1/models/{model_id}")
 
-    def models(self) -> list:
+    def models(self) -> list[Json]:
         return list(self._pages("/v1/models"))
 
     def download_model(self, model_id: str, path: Optional[PathLike] = None) -> bytes:
         """The model file (.gbx): its bytes, also written to `path` when given."""
-        data = self.request("GET", f"/v1/models/{model_id}/checkpoint", parse=False)
+        data: bytes = self.request("GET", f"/v1/models/{model_id}/checkpoint", parse=False)
         if path is not None:
             Path(path).write_bytes(data)
         return data
 
-    def upload_model(self, file: Union[PathLike, bytes], name: Optional[str] = None) -> dict:
+    def upload_model(self, file: Union[PathLike, bytes], name: Optional[str] = None) -> Json:
         """A model file (a path or its bytes); the same bytes again return the stored model
         (`created` false)."""
         data = file if isinstance(file, bytes) else Path(file).read_bytes()
-        return self.request("POST", "/v1/models", raw=data,
-                            content_type="application/octet-stream", query={"name": name})
+        return self._json("POST", "/v1/models", raw=data,
+                          content_type="application/octet-stream", query={"name": name})
 
     def model_urdf(self, model_id: str) -> str:
         """A URDF model's identified robot as URDF text."""
-        return self.request("GET", f"/v1/models/{model_id}/urdf", parse=False).decode()
+        text: bytes = self.request("GET", f"/v1/models/{model_id}/urdf", parse=False)
+        return text.decode()
 
     def delete_model(self, model_id: str) -> None:
         self.request("DELETE", f"/v1/models/{model_id}")
 
-    def replay(self, model_id: str, dataset_id: str, index: int = 0) -> dict:
+    def replay(self, model_id: str, dataset_id: str, index: int = 0) -> Json:
         """The model's open-loop prediction of a recorded trajectory from its first state
         under its inputs: `t` [T+1], and `recorded` / `predicted` dicts of `q`, `qdot`
         [T+1, n]."""
         r = self.request("GET", f"/v1/models/{model_id}/rollout",
                          query={"dataset_id": dataset_id, "index": index})
-        arrays = lambda d: {k: np.asarray(d[k], dtype=np.float64) for k in ("q", "qdot")}  # noqa: E731
+        def arrays(d: Json) -> dict[str, NDArray[np.float64]]:
+            return {k: np.asarray(d[k], dtype=np.float64) for k in ("q", "qdot")}
+
         return {"t": np.asarray(r["t"], dtype=np.float64), "recorded": arrays(r["recorded"]),
                 "predicted": arrays(r["predicted"])}
 
-    def evaluate(self, model_id: str, dataset_id: str, horizons: Sequence[int]) -> list:
+    def evaluate(self, model_id: str, dataset_id: str, horizons: Sequence[int]) -> list[Json]:
         """Open-loop error against horizon on a dataset's trajectories: one dict per horizon
         (`horizon`, `seconds`, `windows`, `position_median`, `position_mean`,
         `velocity_median`, `velocity_mean`, `diverged`)."""
-        return self.request("POST", f"/v1/models/{model_id}/evaluate",
-                            {"dataset_id": dataset_id, "horizons": list(horizons)})["items"]
+        body = {"dataset_id": dataset_id, "horizons": list(horizons)}
+        items: list[Json] = self._json("POST", f"/v1/models/{model_id}/evaluate", body)["items"]
+        return items
 
-    def energy(self, model_id: str, x, u) -> dict:
+    def energy(self, model_id: str, x: ArrayLike, u: ArrayLike) -> Json:
         """Energy and work at a batch of states x [B, 2n] under u [B, m]: `kinetic`,
         `potential`, `total`, `power` ([B]), `inertial`, `coriolis`, `gravity`, `applied`
         ([B, n]; inertial + coriolis + gravity = applied) and `parts`, F's named parts
         (dicts of `name`, `damping`, `values` [B, n]). 409 for a naive model."""
-        body = {"x": [list(map(float, r)) for r in x], "u": [list(map(float, r)) for r in u]}
-        return self.request("POST", f"/v1/models/{model_id}/energy", body)
+        body = {"x": [list(map(float, r)) for r in np.asarray(x, dtype=np.float64)],
+                "u": [list(map(float, r)) for r in np.asarray(u, dtype=np.float64)]}
+        return self._json("POST", f"/v1/models/{model_id}/energy", body)
 
     # ---------- templates ----------
 
-    def upload_template(self, template: Union[PathLike, dict]) -> dict:
+    def upload_template(self, template: Union[PathLike, Json]) -> Json:
         """A URDF file (.urdf, .xml), a formula template file (.json), or a template document
         as a dict; the answer lists its coordinates, inputs and trainable `parameters`."""
         if isinstance(template, dict):
-            return self.request("POST", "/v1/templates", template)
+            return self._json("POST", "/v1/templates", template)
         path = Path(template)
         xml = path.suffix.lower() in (".urdf", ".xml")
-        return self.request("POST", "/v1/templates", raw=path.read_bytes(),
-                            content_type="application/xml" if xml else "application/json")
+        return self._json("POST", "/v1/templates", raw=path.read_bytes(),
+                          content_type="application/xml" if xml else "application/json")
 
-    def template(self, template_id: str) -> dict:
-        return self.request("GET", f"/v1/templates/{template_id}")
+    def template(self, template_id: str) -> Json:
+        return self._json("GET", f"/v1/templates/{template_id}")
 
-    def templates(self) -> list:
+    def templates(self) -> list[Json]:
         return list(self._pages("/v1/templates"))
 
     def delete_template(self, template_id: str) -> None:
@@ -365,9 +382,9 @@ def _error(status: int, body: bytes) -> GrayboxError:
                         status=status)
 
 
-def _printer(job_id: str, horizon: int) -> Callable[[dict], None]:
+def _printer(job_id: str, horizon: int) -> Callable[[Json], None]:
     """A line per epoch; a multi-step job's windowed validation loss named by its steps."""
-    def report(m: dict) -> None:
+    def report(m: Json) -> None:
         val, windows = m.get("val_loss"), m.get("val_horizon_loss")
         print(f"{job_id}: epoch {m['epoch']}, train {m['train_loss']:.4e}"
               + (f", val {val:.4e}" if val is not None else "")

@@ -67,8 +67,10 @@ impl Evaluator {
         let (n, m) = (self.config.n, self.config.m);
         let s = &self.config.scaling;
         let z = |v: f64, mean: f64, std: f64| ((v - mean) / std).abs();
+        // Rows by index, not `u.chunks(m)`: a model without inputs has empty rows of u.
         x.chunks(2 * n)
-            .zip(u.chunks(m))
+            .enumerate()
+            .map_while(|(b, x)| Some((x, u.get(b * m..(b + 1) * m)?)))
             .map(|(x, u)| {
                 let q = (0..n).map(|i| z(x[i], s.q_mean[i], s.q_std[i]));
                 let qd = (0..n).map(|i| z(x[n + i], s.qdot_mean[i], s.qdot_std[i]));
@@ -166,6 +168,23 @@ impl Evaluator {
         }
     }
 
+    /// The energies of `b` states (`energy::energy_until`): T, V, E and the power, then the
+    /// four terms and F's named parts, n each.
+    pub fn energy_cost(&self, b: usize) -> Cost {
+        let (n, m, k) = (self.config.n, self.config.m, self.member_count());
+        let parts = self.force_part_count();
+        let response_bytes = 8 * b * (4 + n * (4 + parts));
+        // The inputs, the answer's arrays and its message; each member's row of one state
+        // until their mean is taken.
+        let row = 8 * (k + 1) * n * (4 + parts);
+        Cost {
+            field: "x",
+            way_out: FEWER_STATES.into(),
+            response_bytes,
+            memory_bytes: 8 * b * (2 * n + m) + 2 * response_bytes + row,
+        }
+    }
+
     /// TVLQR's gains along a nominal of `t` steps.
     pub fn tvlqr_cost(&self, t: usize) -> Cost {
         let (nx, m) = (2 * self.config.n, self.config.m);
@@ -195,6 +214,31 @@ impl Evaluator {
             memory_bytes: 8 * steps * given
                 + response_bytes
                 + self.work_bytes_per_state(Pass::Step) * self.member_count(),
+        }
+    }
+
+    /// A particle rollout of `steps` kept whole (`particles::particle_rollout`): its inputs,
+    /// the particles' states, inputs and z of one step (what the service's pieces hold too),
+    /// one step's work for every particle, and the answer: the mean and spread of every
+    /// state, the mean inputs and z.
+    pub fn particle_rollout_cost(&self, steps: usize, particles: usize, policy: bool) -> Cost {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let given = if policy { nx + m + m * nx } else { m };
+        let response_bytes = 8 * (2 * (steps + 1) * nx + steps * (m + 1));
+        let per_steps = 8 * steps * given + response_bytes;
+        let per_particles = 8 * particles * (3 * nx + 2 * m + 1)
+            + self.work_bytes_per_state(Pass::Step) * particles;
+        // The larger share names the argument to cut.
+        let (field, way_out) = match (per_steps >= per_particles, policy) {
+            (true, true) => ("policy", "roll out fewer steps per call"),
+            (true, false) => ("u", "roll out fewer steps per call"),
+            (false, _) => ("particles", "propagate fewer particles"),
+        };
+        Cost {
+            field,
+            way_out: way_out.into(),
+            response_bytes,
+            memory_bytes: per_steps + per_particles,
         }
     }
 

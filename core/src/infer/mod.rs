@@ -16,6 +16,7 @@ pub mod horizons;
 pub mod limits;
 mod multibody;
 mod nets;
+pub mod particles;
 mod weights;
 
 use std::sync::Arc;

@@ -107,8 +107,9 @@ pub struct EnergyReport {
     /// absent when measured on the training data as the job finished.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dataset_id: Option<String>,
-    /// The figures in a sentence, e.g. "creates energy in 12 % of states; unforced rollouts
-    /// drift by 0.4 % of the energy scale in 1000 steps".
+    /// The figures in a sentence, e.g. "creates energy in 12.0 % of states; unforced rollouts
+    /// drift by 0.4 % (median) and up to 1.0e4 % (the worst of 64) of the energy scale in 1000
+    /// steps".
     pub summary: String,
     /// Unforced rollouts (u = 0, `switched_off` parts removed) from this many states.
     pub rollouts: usize,
@@ -155,6 +156,11 @@ pub struct Passivity {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EnsembleReport {
     pub members: Vec<MemberReport>,
+    /// The members' own training seconds summed. Members trained side by side time epochs
+    /// that overlap, so this is up to K times the report's `seconds`, the run's wall time;
+    /// absent in earlier files, whose `seconds` is this sum.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub member_seconds: Option<f64>,
     /// Each physical parameter's mean and standard deviation across the members: bootstrap
     /// error bars when the members trained on resamples.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]

@@ -214,7 +214,7 @@ impl<S: Scalar> Scalar for Dual<S> {
 }
 
 /// 1/x as x / (x · x). `Scalar::lift(1.0) / x` would do too, but served models' outputs were
-/// computed in this form, and another form changes their last bits (tests/compat.rs).
+/// computed in this form, and another form changes their last bits (tests/suite/compat.rs).
 trait RecipLike: Scalar {
     fn recip_like(&self) -> Self {
         self.clone() / self.square()

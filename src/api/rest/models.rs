@@ -67,7 +67,11 @@ async fn rollout(
         int_param(&p, "index")?.ok_or_else(|| ApiError::bad_request("index", "is required"))?;
     let index = usize::try_from(index)
         .map_err(|_| ApiError::bad_request("index", format!("must be ≥ 0, got {index}")))?;
-    Ok(axum::Json(s.app.replay(&id, dataset, index).await?))
+    // Out of usize's range is out of the particles' range too: the app names it alike.
+    let particles = int_param(&p, "particles")?.map(|v| usize::try_from(v).unwrap_or(0));
+    Ok(axum::Json(
+        s.app.replay(&id, dataset, index, particles).await?,
+    ))
 }
 
 /// A model file (`.gbx`, the format `checkpoint` returns) stored as it is: 201, or 200 with

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use super::{Class, Cost, INLINE_ROWS, check_batch};
+use super::{Class, INLINE_ROWS, check_batch};
 use crate::app::App;
 use crate::app::requests::deadline;
 use crate::array::Array;
@@ -97,20 +97,9 @@ impl App {
         let eval = self.evaluator(id).await?;
         eval.check_energy()?;
         let b = check_batch(&eval, &x, &u)?;
-        let (n, m, k) = (eval.config.n, eval.config.m, eval.member_count());
-        let parts = eval.force_part_count();
-        // T, V, E, power; the four terms and the parts, n each.
-        let response_bytes = 8 * b * (4 + n * (4 + parts));
-        // The inputs, the answer's arrays and its message; each member's row of one state
-        // until their mean is taken.
-        let row = 8 * (k + 1) * n * (4 + parts);
-        self.admit(
-            "x",
-            &Cost {
-                response_bytes,
-                memory_bytes: 8 * b * (2 * n + m) + 2 * response_bytes + row,
-            },
-        )?;
+        let (n, k) = (eval.config.n, eval.member_count());
+        // The core's estimate, which the in-process callers are admitted under too.
+        self.admit_call(&eval.energy_cost(b))?;
         let (x, u) = (x.data, u.data);
         let class = Class::of(b * k <= INLINE_ROWS, b * k);
         let energies = self

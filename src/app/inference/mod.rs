@@ -20,7 +20,7 @@ pub use cache::{CACHE_SWEEP, ModelCache};
 pub use energy::{Energy, EnergyRequest, EnergyView, ForcePartView};
 pub use energy_report::EnergyReportRequest;
 pub use evaluate::{EvaluateRequest, Evaluation};
-pub use replay::{Replay, Series, TrajectoryItem, TrajectoryList};
+pub use replay::{ParticleSeries, Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{MAX_PARTICLES, RolloutChunk, RolloutInputs, RolloutShape};
 
 use std::sync::Arc;

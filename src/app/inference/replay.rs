@@ -1,6 +1,6 @@
 //! A model replaying a recorded trajectory (the dashboard's "rollout vs data"): from the
 //! trajectory's first state with its recorded inputs, the model's states beside the recorded
-//! ones, T + 1 of each.
+//! ones, T + 1 of each; with particles, an ensemble's spread along it too.
 
 use serde::Serialize;
 
@@ -9,6 +9,7 @@ use crate::app::App;
 use crate::data::Dataset;
 use crate::data::trajectories::{self, Segment};
 use crate::error::{Error, Result};
+use crate::infer::particles::{self, ParticleTrack};
 
 /// One trajectory's q and q̇ per time step, `[T+1][n]` each.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
@@ -30,6 +31,20 @@ pub struct Replay {
     pub predicted: Series,
     /// The recorded inputs the model was driven with, T rows of m.
     pub u: Vec<Vec<f64>>,
+    /// With `particles`: the same replay as a particle rollout (Rollout's: particle p follows
+    /// member p mod K), the particles' mean and standard deviation at each state. `predicted`
+    /// stays the mean dynamics'.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub particles: Option<ParticleSeries>,
+}
+
+/// A particle replay's mean and spread, up to T + 1 rows of each: fewer when a particle's
+/// state left the finite numbers (the rows before it).
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct ParticleSeries {
+    pub count: usize,
+    pub mean: Series,
+    pub std: Series,
 }
 
 /// A dataset's trajectories and where their boundaries come from.
@@ -110,7 +125,16 @@ impl App {
     /// The model's replay of trajectory `index` of a dataset. Every check that needs no
     /// rows comes first; the dataset is read under the memory budget (shared with the other
     /// requests reading it), and only the trajectory's rows are kept for the rollout.
-    pub async fn replay(&self, model_id: &str, dataset_id: &str, index: usize) -> Result<Replay> {
+    pub async fn replay(
+        &self,
+        model_id: &str,
+        dataset_id: &str,
+        index: usize,
+        particles: Option<usize>,
+    ) -> Result<Replay> {
+        if let Some(p) = particles {
+            particles::check_particles(p)?;
+        }
         let eval = self.evaluator(model_id).await?;
         let (n, m) = (eval.config.n, eval.config.m);
         let info = self.dataset_for_model(dataset_id, (n, m)).await?;
@@ -126,7 +150,7 @@ impl App {
                 chains
             }
         };
-        let seg = self.replayable(&segments, dataset_id, index, (n, m))?;
+        let seg = self.replayable(&segments, dataset_id, index, (n, m), particles)?;
         let loaded = match loaded {
             Some(read) => read,
             None => self.read_dataset(&info).await?,
@@ -136,7 +160,11 @@ impl App {
         let u = inputs.chunks(m).map(<[f64]>::to_vec).collect();
         let replayed = self
             .long_calls
-            .run(move || replay_segment(&eval, recorded, &inputs, m))
+            .run(move || {
+                let spread = particles.map(|p| particle_replay(&eval, &recorded, &inputs, p));
+                let (recorded, predicted) = replay_segment(&eval, recorded, &inputs, m);
+                (recorded, predicted, spread)
+            })
             .await?;
         Ok(Replay {
             model_id: model_id.into(),
@@ -147,17 +175,19 @@ impl App {
             recorded: replayed.0,
             predicted: replayed.1,
             u,
+            particles: replayed.2,
         })
     }
 
     /// Trajectory `index` of `segments` if it can be replayed within the limits, its cost
-    /// admitted.
+    /// admitted (with `particles`, their states and their mean and spread too).
     fn replayable(
         &self,
         segments: &[Segment],
         dataset_id: &str,
         index: usize,
         (n, m): (usize, usize),
+        particles: Option<usize>,
     ) -> Result<Segment> {
         let seg = *segments.get(index).ok_or_else(|| {
             Error::invalid(
@@ -182,12 +212,14 @@ impl App {
                 seg.length
             )));
         }
-        let bytes = 8 * (4 * n + m) * (seg.length + 1);
+        let spread = if particles.is_some() { 4 * n } else { 0 };
+        let bytes = 8 * (4 * n + m + spread) * (seg.length + 1);
+        let states = 8 * 2 * n * particles.unwrap_or(0);
         self.admit(
             "index",
             &Cost {
                 response_bytes: bytes,
-                memory_bytes: 2 * bytes,
+                memory_bytes: 2 * bytes + 3 * states,
             },
         )?;
         Ok(seg)
@@ -237,4 +269,32 @@ fn replay_segment(
         },
     );
     (recorded, predicted)
+}
+
+/// The replay as `count` particles from the recording's first state under its inputs.
+fn particle_replay(
+    eval: &crate::infer::Evaluator,
+    recorded: &Series,
+    inputs: &[f64],
+    count: usize,
+) -> ParticleSeries {
+    let (n, m) = (eval.config.n, eval.config.m);
+    let x0 = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
+    let mut states = x0.repeat(count);
+    let mut track = ParticleTrack::default();
+    track.push_states(&states, 2 * n);
+    let input = |t: usize, _: &[f64]| inputs[t * m..(t + 1) * m].to_vec();
+    let steps = recorded.q.len() - 1;
+    // Nothing stops it: only a particle's state leaving the finite numbers ends it early,
+    // and the track then holds the states before.
+    let _diverged = particles::advance(eval, &mut states, 0, steps, input, &mut track, &|| false);
+    let series = |rows: &[f64]| Series {
+        q: rows.chunks(2 * n).map(|x| x[..n].to_vec()).collect(),
+        qdot: rows.chunks(2 * n).map(|x| x[n..].to_vec()).collect(),
+    };
+    ParticleSeries {
+        count,
+        mean: series(&track.mean),
+        std: series(&track.std),
+    }
 }

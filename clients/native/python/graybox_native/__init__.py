@@ -2,20 +2,29 @@
 
     import graybox_native
     model = graybox_native.load("arm.gbx")          # a path, or the file's bytes
+    model.info.n, model.info.dt                      # also model.info["n"], as a dict's
     x_next = model.predict(x, u)                     # x [2n], u [m] (or batches [B, ...])
+    x_next, z = model.predict(x, u, return_z=True)   # z: how far x, u are from the data
     A, B = model.linearize(x, u)
+    xs, std = ensemble.rollout(x0, us, particles=50) # particles' mean and spread
+    e = model.energy(x, u)                           # kinetic, potential, power, …
     K, S = model.tvlqr(xbar, ubar, Q, R, Qf)
     plan = model.plan(x0, goal, horizon, Q, R, Qf)
 
-The calls and their arguments are the gRPC client's (`graybox_client.Client`) without the
-model id, and the answers are the service's, bit for bit: both run graybox's inference core.
-Every computation releases the GIL, so threads sharing one model run in parallel. A failed
-call raises `GrayboxError` with the gRPC code the service would answer (e.g.
-"INVALID_ARGUMENT") and the `field` it names; with graybox_client installed it is that
-package's `GrayboxError`, so one `except` catches both. A model file that does not prove it
-is whole (its checksum does not match its contents, or its members disagree with its report)
-is refused with INVALID_ARGUMENT; one written before files carried a checksum loads with an
-`UncheckedModelWarning`.
+The calls, their keyword arguments and what they return are the gRPC client's
+(`graybox_client.Client`) without the model id (README, "In your controller's process",
+lists the few request options that have no keyword here, and why), and the answers are the
+service's, bit for bit: both run graybox's inference core. Every computation releases the
+GIL, so threads sharing one model run in parallel. A failed call raises `GrayboxError` with
+the gRPC code the service would answer (e.g. "INVALID_ARGUMENT") and the `field` it names;
+with graybox_client installed it is that package's `GrayboxError`, so one `except` catches
+both. A model file that does not prove it is whole (its checksum does not match its
+contents, or its members disagree with its report) is refused with INVALID_ARGUMENT; one
+written before files carried a checksum loads with an `UncheckedModelWarning`.
+
+`max_abs_z` (`return_z=True` on predict, linearize and rollout) is the largest |z-score| of
+q, q̇ and u under the model's training data statistics: above ~4 the model is answering
+outside its data, where a network's outputs are finite but meaningless.
 
 A call is admitted under a memory budget as the service's calls are (its estimate, before
 computing): over it, GrayboxError RESOURCE_EXHAUSTED names the argument at fault and the way
@@ -25,46 +34,49 @@ interrupts a long call within about 50 ms with KeyboardInterrupt (in the main th
 receives signals).
 """
 
-from dataclasses import dataclass
-from typing import Optional
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, fields
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
+if TYPE_CHECKING:
+    from ._shared import GrayboxError, PlanResult
+else:
+    try:
+        # The one definition both packages install (_shared.py): the client's copy when the
+        # client is installed, so that `except graybox_client.GrayboxError` catches ours.
+        from graybox_client._shared import GrayboxError, PlanResult
+    except ImportError:
+        from ._shared import GrayboxError, PlanResult
 
-try:
-    from graybox_client import GrayboxError, PlanResult
-except ImportError:
-    class GrayboxError(Exception):
-        """A failed call: `code` is a gRPC status name (e.g. "INVALID_ARGUMENT"), `message`
-        the explanation, `field` the argument it names (None when it names none)."""
 
-        def __init__(self, code: str, message: str, field: Optional[str] = None,
-                     status: Optional[int] = None):
-            where = f" ({field})" if field else ""
-            super().__init__(f"{code}{where}: {message}")
-            self.code = code
-            self.message = message
-            self.field = field
-            self.status = status
+@dataclass(frozen=True, eq=False)
+class Info(Mapping[str, Any]):
+    """What `Model.info` tells of a loaded model: `n` coordinates, `m` inputs, the time step
+    `dt` (s), the ensemble's `members` (1 for a single model), its `integrator`, and the
+    `coordinates`' and `inputs`' names. Also a read-only mapping of those names, as `info`
+    was a dict: `info["n"]`, `dict(info)` and `info == {...}` work as they did."""
 
-    @dataclass
-    class PlanResult:
-        """A plan: states `x` [T+1, 2n], inputs `u` [T, m], TVLQR gains `K` [T, m, 2n], its
-        `cost`, `costs` per accepted iteration, `iterations`, `converged`, `goal_error`, the
-        `method`, collocation's `constraint_violation` and `rollout_deviation`, and an
-        ensemble's `x_std` [T+1, 2n] (None for a single model)."""
+    n: int
+    m: int
+    dt: float
+    members: int
+    integrator: str
+    coordinates: list[str]
+    inputs: list[str]
 
-        x: np.ndarray
-        u: np.ndarray
-        K: np.ndarray
-        cost: float
-        costs: np.ndarray
-        iterations: int
-        converged: bool
-        goal_error: float
-        method: str = "ilqr"
-        constraint_violation: float = 0.0
-        rollout_deviation: float = 0.0
-        x_std: Optional[np.ndarray] = None
+    def __getitem__(self, key: str) -> Any:
+        if key not in _INFO_KEYS:
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(_INFO_KEYS)
+
+    def __len__(self) -> int:
+        return len(_INFO_KEYS)
+
+
+_INFO_KEYS = tuple(f.name for f in fields(Info))
 
 
 class UncheckedModelWarning(UserWarning):
@@ -73,12 +85,12 @@ class UncheckedModelWarning(UserWarning):
     whose members disagree with its report, raises GrayboxError instead."""
 
 
-from ._native import (  # noqa: E402  (GrayboxError first: the module raises it)
+from ._native import (  # noqa: E402  (the classes above first: the module makes them)
     Model,
     load,
     memory_budget_mb,
     set_memory_budget_mb,
 )
 
-__all__ = ["GrayboxError", "Model", "PlanResult", "UncheckedModelWarning", "load",
+__all__ = ["GrayboxError", "Info", "Model", "PlanResult", "UncheckedModelWarning", "load",
            "memory_budget_mb", "set_memory_budget_mb"]

@@ -44,7 +44,7 @@ pub struct BenchInferArgs {
     #[arg(long)]
     pub model: Option<std::path::PathBuf>,
     /// With --model: also the C library's Predict and Linearize of the same state, through
-    /// this build of it (`cargo build --release -p graybox-c` leaves
+    /// this build of it (`cargo build --release --workspace` leaves
     /// target/release/libgraybox_c.so), built into examples/c/latency.c with `cc`.
     #[arg(long, requires = "model")]
     pub c_library: Option<std::path::PathBuf>,

@@ -307,7 +307,9 @@ fn train_cell(
         member_best_val_loss: members.map_or(vec![report.best_val_loss], |m| {
             m.iter().map(|m| m.best_val_loss).collect()
         }),
-        member_seconds: report.seconds,
+        member_seconds: (report.ensemble.as_ref())
+            .and_then(|e| e.member_seconds)
+            .unwrap_or(report.seconds),
         wall_seconds: start.elapsed().as_secs_f64(),
     };
     file.save(&out.path(&trained.file))?;

@@ -134,6 +134,11 @@ function duration(job) {
   return s < 120 ? `${s.toFixed(1)} s` : `${(s / 60).toFixed(1)} min`;
 }
 const stateBadge = (state) => el("span", { class: `state state-${state}`, text: state });
+// A job's model as people name an ensemble of K: "MVB ×5".
+function modelLabel(job) {
+  const k = job.training?.ensemble;
+  return Number.isInteger(k) && k > 1 ? `${job.model} ×${k}` : job.model;
+}
 const isActive = (job) => job.state === "queued" || job.state === "running";
 
 function errorBox(e) {
@@ -161,6 +166,35 @@ async function loadDatasetNames(ids) {
     .then((d) => { if (d?.name) names.set(id, d.name); }, () => { /* shown by its id */ })));
   return names;
 }
+
+// ---------- units ----------
+
+// Each coordinate's unit where the model's template says it: a built-in template's, a URDF
+// joint's by its type (URDF is in SI units), a formula template's angles (its periodic
+// coordinates); null where only the data know.
+function coordinateUnits(m) {
+  const t = m.spec?.template;
+  const builtin = { pendulum: ["rad"], double_pendulum: ["rad", "rad"], cartpole: ["m", "rad"] };
+  if (typeof t === "string") return builtin[t] ?? Array(m.n).fill(null);
+  if (t?.kind === "urdf" && typeof t.urdf === "string") {
+    const robot = new DOMParser().parseFromString(t.urdf, "application/xml").documentElement;
+    // The robot's own joints: a <transmission> names joints too, without a type.
+    const types = new Map([...robot.querySelectorAll(":scope > joint")].map((j) => [j.getAttribute("name"), j.getAttribute("type")]));
+    const byType = { revolute: "rad", continuous: "rad", prismatic: "m" };
+    return coordinateNames(m).map((name) => byType[types.get(name)] ?? null);
+  }
+  const periodic = Array.isArray(t?.periodic) ? t.periodic : [];
+  return Array.from({ length: m.n }, (_, i) => (periodic[i] ? "rad" : null));
+}
+
+// Energies and forces are in joules and newtons (metres) when the template is in SI units: a
+// built-in one or a URDF robot. A formula template's are in its own.
+const siUnits = (m) => typeof m.spec?.template === "string" || m.spec?.template?.kind === "urdf";
+const rateUnit = (u) => (u ? `${u}/s` : null);
+const forceUnit = (u) => ({ rad: "N·m", m: "N" })[u] ?? null;
+const withUnit = (label, unit) => (unit ? `${label} (${unit})` : label);
+// The one unit every coordinate shares, or null.
+const sharedUnit = (units) => (units.length && units.every((u) => u && u === units[0]) ? units[0] : null);
 
 // ---------- charts ----------
 

@@ -49,7 +49,7 @@ async function jobsView(view) {
       el("td", {}, box),
       el("td", { class: "name" }, el("a", { href: `#/jobs/${job.id}`, text: job.name || job.id }), job.name ? el("div", { class: "muted small", text: job.id }) : ""),
       el("td", {}, stateBadge(job.state)),
-      el("td", { text: job.model }),
+      el("td", { class: "model", text: modelLabel(job) }),
       el("td", { class: "name" }, datasetNames?.get(job.dataset_id) || el("span", { class: "muted", text: job.dataset_id })),
       el("td", {}, bar, ` ${job.epoch}/${job.epochs}`),
       el("td", { class: "num", text: fmtBestLoss(job.best_val_loss, job.best_val_loss_steps) }),
@@ -116,7 +116,7 @@ async function jobView(view, id) {
       factList([
         ["id", job.id],
         ["state", stateBadge(job.state)],
-        ["model", job.model],
+        ["model", modelLabel(job)],
         ["dataset", datasetRef(job.dataset_id, names)],
         ["validation", job.validation_dataset_id ? datasetRef(job.validation_dataset_id, names) : "held out from the dataset"],
         ["progress", `${job.epoch} / ${job.epochs} epochs`],
@@ -136,10 +136,15 @@ async function jobView(view, id) {
     const x = xAxis.value === "epoch" ? metrics.map((m) => m.epoch) : metrics.map((m) => (t += m.seconds));
     const train = metrics.map((m) => m.train_loss);
     const val = metrics.map((m) => (m.val_loss === null ? null : m.val_loss));
-    const series = { train: ema(train, w), validation: ema(val, w) };
+    // A multi-step job's train loss is over windows of H steps, after its one-step epochs: a
+    // jump there is the loss changing, not the model getting worse.
+    const h = job.training?.horizon ?? 1;
+    const p = job.training?.one_step_epochs ?? 0;
+    const trainName = h > 1 ? (p > 0 ? `train (1-step to epoch ${p}, then ${h}-step windows)` : `train (${h}-step windows)`) : "train";
+    const series = { [trainName]: ema(train, w), validation: ema(val, w) };
     // An ensemble's losses are its members' mean: a band of ± one standard deviation.
     const bands = [];
-    for (const [name, key, values] of [["train", "train_loss_std", train], ["validation", "val_loss_std", val]]) {
+    for (const [name, key, values] of [[trainName, "train_loss_std", train], ["validation", "val_loss_std", val]]) {
       const std = metrics.map((m) => m[key] ?? null);
       if (!std.some((v) => v !== null)) continue;
       const edge = (sign) => ema(values.map((v, i) => (v === null || std[i] === null ? null : v + sign * std[i])), w);
@@ -187,7 +192,7 @@ async function compareView(view, ids) {
   const series = {};
   jobs.forEach((job, k) => {
     const byEpoch = new Map(metrics[k].map((m) => [m.epoch, m.val_loss ?? m.train_loss]));
-    series[`${job.id} (${job.model})`] = x.map((e) => byEpoch.get(e) ?? null);
+    series[`${job.id} (${modelLabel(job)})`] = x.map((e) => byEpoch.get(e) ?? null);
   });
   const host = el("div", { id: "compare-chart", role: "img", "aria-label": "validation loss per epoch of each job" });
   view.append(el("div", { class: "card" }, el("h2", { text: "Validation loss" }), host));
@@ -197,7 +202,7 @@ async function compareView(view, ids) {
   view.append(el("h2", { text: "Settings and results" }), el("div", { class: "table-wrap" }, el("table", { id: "compare-table" },
     el("thead", {}, el("tr", {}, el("th", { scope: "col", text: "" }), jobs.map((j) => el("th", { scope: "col" }, el("a", { href: `#/jobs/${j.id}`, text: j.id }))))),
     el("tbody", {},
-      row("model", (j) => j.model),
+      row("model", (j) => modelLabel(j)),
       row("state", (j) => stateBadge(j.state)),
       row("dataset", (j) => datasetRef(j.dataset_id, names)),
       row("validation", (j) => (j.validation_dataset_id ? datasetRef(j.validation_dataset_id, names) : "held out")),
@@ -207,7 +212,7 @@ async function compareView(view, ids) {
       row("final train loss", (j) => fmtLoss(j.train_loss)),
       row("duration", (j) => duration(j))))));
   // The trained models' median open-loop error on one dataset, a line each.
-  const trained = jobs.filter((j) => j.model_id).map((j) => ({ id: j.model_id, label: `${j.id} (${j.model})` }));
+  const trained = jobs.filter((j) => j.model_id).map((j) => ({ id: j.model_id, label: `${j.id} (${modelLabel(j)})` }));
   if (!trained.length) return;
   const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items;
   const dsSelect = el("select", { id: "compare-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));

@@ -55,7 +55,9 @@ async function modelView(view, id) {
   await replayPanel(view, m);
 }
 
-// The stored energy report: its sentence, then drift and passivity in a table.
+// The stored energy report in a sentence of its own figures (the worst rollout's drift beside
+// the median's: one rollout far off is what a controller would meet), then drift and
+// passivity in a table.
 function energyReport(e) {
   if (!e) return "";
   const pct = (v) => (v === null || v === undefined ? "–" : `${(100 * v).toPrecision(2)} %`);
@@ -65,10 +67,32 @@ function energyReport(e) {
     ["switched off in the rollouts", e.switched_off.length ? e.switched_off.join(", ") : "nothing (no part named damping or friction)"],
   ];
   return el("div", { class: "card", id: "model-energy" },
-    el("h2", { text: "Energy" }), el("p", { id: "model-energy-summary", text: `The model ${e.summary}.` }),
+    el("h2", { text: "Energy" }), el("p", { id: "model-energy-summary", text: energySentence(e) }),
     el("p", { class: "muted", text: `Drift: unforced rollouts from ${e.rollouts} ${e.dataset_id ? `states of dataset ${e.dataset_id}` : "training states"}, |E(t) − E(0)| as a share of their mean kinetic energy plus the range of V. Creates energy: q̇ᵀF(q, q̇, 0) > 0.` }),
     el("div", { class: "table-wrap" }, el("table", { id: "model-energy-table" },
       el("tbody", {}, rows.map(([k, v]) => el("tr", {}, el("th", { scope: "row", text: k }), el("td", { text: v })))))));
+}
+
+// "The model creates energy in 12.0 % of states; unforced rollouts drift by 0.4 % (median) and
+// up to 1.0e+4 % (the worst of 64) of the energy scale in 1000 steps": the median alone would
+// hide the one rollout that runs away.
+function energySentence(e) {
+  const pct = (v) => {
+    const p = 100 * v;
+    return p >= 0.1 && p < 1000 ? `${p.toFixed(1)} %` : `${p.toExponential(1)} %`;
+  };
+  const p = e.passivity;
+  const creates = p.injecting ? `creates energy in ${pct(p.share)} of states` : "never creates energy where it has data";
+  const d = e.drift[e.drift.length - 1];
+  let drifts = "";
+  if (d && d.median !== null && d.median !== undefined) {
+    const lost = d.diverged ? ` (${d.diverged} diverged)` : "";
+    drifts = `; unforced rollouts drift by ${pct(d.median)} (median) and up to ${pct(d.max)} (the worst of ${e.rollouts}) ` +
+      `of the energy scale in ${d.steps} steps${lost}`;
+  } else if (d) {
+    drifts = `; every unforced rollout diverged within ${d.steps} steps`;
+  }
+  return `The model ${creates}${drifts}.`;
 }
 
 // Energy along a replay (POST /v1/models/{id}/energy, a few hundred states a call: REST
@@ -98,8 +122,9 @@ async function energyCharts(m, r, dt, host) {
   host.replaceChildren(el("h3", { text: "Energy along the replay" }),
     el("p", { class: "muted", text: "T, V (up to its constant) and E = T + V of the predicted states; E(0) plus the work of the generalized forces (trapezoid rule). Where the two part, the model itself creates or loses energy." }),
     figures);
+  const units = coordinateUnits(m);
   chart(energy, {
-    x: r.t, xLabel: "time (s)", yLabel: "energy",
+    x: r.t, xLabel: "time (s)", yLabel: withUnit("energy", siUnits(m) ? "J" : null),
     series: { T: atStates("kinetic"), V: atStates("potential"), E: total, "E(0) + work of F": work.map((w) => total[0] + w) },
     dashed: ["E(0) + work of F"],
   });
@@ -113,7 +138,7 @@ async function energyCharts(m, r, dt, host) {
     }
     const split = el("div", { class: "split-chart", "data-coordinate": String(i), role: "img", "aria-label": `terms of the dynamics of ${names[i]}` });
     figures.append(el("figure", {}, el("figcaption", { text: `${names[i]}: M q̈ + c + ∇V = F, term by term` }), split));
-    chart(split, { x: r.t.slice(0, T), xLabel: "time (s)", yLabel: "generalized force", series });
+    chart(split, { x: r.t.slice(0, T), xLabel: "time (s)", yLabel: withUnit("generalized force", siUnits(m) ? forceUnit(units[i]) : null), series });
   }
 }
 
@@ -207,6 +232,9 @@ async function rolloutTrajectories(dataset) {
 
 async function replayPanel(view, m) {
   const names = coordinateNames(m);
+  const units = coordinateUnits(m);
+  // An ensemble replays as one particle per member too: their spread is the band.
+  const members = m.metrics?.ensemble?.members?.length ?? 1;
   const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items.filter((d) => d.n === m.n && d.m === m.m);
   const dsSelect = el("select", { id: "replay-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
   // First the data its training held out, else the data it trained on (the newest dataset
@@ -219,18 +247,19 @@ async function replayPanel(view, m) {
   const status = el("div", { role: "alert", id: "replay-alert" });
   const note = el("p", { class: "note", role: "status", id: "replay-note" });
   const charts = el("div", { class: "charts", id: "replay-charts" });
+  const spreadNote = el("p", { class: "muted", id: "replay-spread-note" });
   const energy = el("div", { id: "replay-energy" });
   const go = el("button", { type: "button", id: "replay-button" }, "Replay");
   view.append(el("h2", { text: "Rollout against data" }), el("p", { class: "muted",
     text: "The model predicts a recorded trajectory from its first state with its recorded inputs; recorded and predicted q and q̇ over time." }));
   if (!datasets.length) {
     view.append(el("p", { text: `No dataset with n = ${m.n}, m = ${m.m}.` }));
-    horizonPanel(view, [], null, { stored: m.metrics?.horizon_errors });
+    horizonPanel(view, [], null, { stored: m.metrics?.horizon_errors, unit: sharedUnit(units) });
     return;
   }
   view.append(el("div", { class: "toolbar" },
-    el("label", { for: "replay-dataset", text: "Dataset" }), dsSelect, trLabel, trSelect, go), note, status, charts, energy);
-  const evaluate = horizonPanel(view, [{ id: m.id, label: m.id }], dsSelect, { stored: m.metrics?.horizon_errors });
+    el("label", { for: "replay-dataset", text: "Dataset" }), dsSelect, trLabel, trSelect, go), note, status, spreadNote, charts, energy);
+  const evaluate = horizonPanel(view, [{ id: m.id, label: m.id }], dsSelect, { stored: m.metrics?.horizon_errors, unit: sharedUnit(units) });
 
   // Trajectories to choose from, or, for independent transitions, why there are none.
   async function loadTrajectories() {
@@ -239,7 +268,7 @@ async function replayPanel(view, m) {
     if (dsSelect.value !== d.id) return false; // another dataset was chosen meanwhile
     trSelect.replaceChildren(...items.map((t) => el("option", { value: t.index, text: `#${t.index} (${t.length} steps)` })));
     const usable = items.length > 0;
-    for (const e of [trLabel, trSelect, go, charts, energy]) e.hidden = !usable;
+    for (const e of [trLabel, trSelect, go, spreadNote, charts, energy]) e.hidden = !usable;
     evaluate.disabled = !usable;
     if (!usable) {
       charts.replaceChildren();
@@ -254,18 +283,30 @@ async function replayPanel(view, m) {
   async function replay() {
     status.replaceChildren();
     try {
-      const r = await api("GET", `/v1/models/${m.id}/rollout?dataset_id=${encodeURIComponent(dsSelect.value)}&index=${trSelect.value}`);
+      const particles = members > 1 ? `&particles=${members}` : "";
+      const r = await api("GET", `/v1/models/${m.id}/rollout?dataset_id=${encodeURIComponent(dsSelect.value)}&index=${trSelect.value}${particles}`);
       charts.replaceChildren();
+      const spread = r.particles;
+      spreadNote.textContent = spread ? `Shaded: the mean ± σ of ${spread.count} particles, one per member, each rolled out ` +
+        "on its member alone; “predicted” is the mean dynamics, what the service serves." : "";
       for (const key of ["q", "qdot"]) {
         for (let i = 0; i < m.n; i++) {
           // Coordinates by their names: a URDF's joints, a formula's coordinates.
           const label = key === "q" ? names[i] : `${names[i]} rate`;
+          const unit = key === "q" ? units[i] : rateUnit(units[i]);
           const host = el("div", { class: "replay-chart", "data-variable": `${key}${i}`, role: "img", "aria-label": `${label}, recorded and predicted` });
           charts.append(el("figure", {}, el("figcaption", { text: label }), host));
-          chart(host, {
-            x: r.t, xLabel: "time (s)", yLabel: label, dashed: ["predicted"],
-            series: { recorded: r.recorded[key].map((row) => row[i]), predicted: r.predicted[key].map((row) => row[i]) },
-          });
+          const series = { recorded: r.recorded[key].map((row) => row[i]), predicted: r.predicted[key].map((row) => row[i]) };
+          const bands = [];
+          if (spread) {
+            // Rows stop where a particle left the finite numbers: the band stops there.
+            const column = (s) => r.t.map((_, k) => s[key][k]?.[i] ?? null);
+            const [mean, std] = [column(spread.mean), column(spread.std)];
+            const edge = (sign) => mean.map((v, k) => (v === null || std[k] === null ? null : v + sign * std[k]));
+            Object.assign(series, { "members' mean": mean, "members' mean + σ": edge(1), "members' mean − σ": edge(-1) });
+            bands.push({ of: "members' mean", upper: "members' mean + σ", lower: "members' mean − σ" });
+          }
+          chart(host, { x: r.t, xLabel: "time (s)", yLabel: withUnit(label, unit), dashed: ["predicted"], series, bands });
         }
       }
       if (m.spec?.kind === "naive") {
@@ -295,9 +336,10 @@ async function replayPanel(view, m) {
 // on request, on the chosen dataset's trajectories (POST /v1/models/{id}/evaluate): one
 // model's median and mean, or each compared model's median. `models`: [{id, label}]; without
 // `dsSelect`, the stored figures alone. Returns the Evaluate button.
-function horizonPanel(view, models, dsSelect, { controls = [], stored = [] } = {}) {
+function horizonPanel(view, models, dsSelect, { controls = [], stored = [], unit = null } = {}) {
   view.append(el("h2", { text: "Error against horizon" }));
-  if (stored?.length) storedHorizonErrors(view, stored);
+  const yLabel = unit ? `|q̂ − q| (${unit}, log scale)` : "|q̂ − q| (log scale)";
+  if (stored?.length) storedHorizonErrors(view, stored, yLabel);
   if (!dsSelect) return null;
   const horizons = [1, 2, 5, 10, 20, 50, 100, 200, 500];
   const host = el("div", { id: "horizon-chart", role: "img", "aria-label": "open-loop error against prediction time" });
@@ -317,7 +359,7 @@ function horizonPanel(view, models, dsSelect, { controls = [], stored = [] } = {
         ? { median: items[0].map((e) => e.position_median), mean: items[0].map((e) => e.position_mean) }
         : Object.fromEntries(models.map((m, k) => [m.label, items[k].map((e) => e.position_median)]));
       chart(host, {
-        x: items[0].map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)",
+        x: items[0].map((e) => e.seconds), xLabel: "prediction time (s)", yLabel,
         logX: true, logY: true, series,
       });
     } catch (e) {
@@ -328,7 +370,7 @@ function horizonPanel(view, models, dsSelect, { controls = [], stored = [] } = {
 }
 
 // The stored errors as they are: a chart of q's median and mean, and every figure in a table.
-function storedHorizonErrors(view, errors) {
+function storedHorizonErrors(view, errors, yLabel) {
   const host = el("div", { id: "model-horizon-chart", role: "img",
     "aria-label": "open-loop error against prediction time on the validation trajectories, at the end of training" });
   const columns = [["horizon", "steps"], ["seconds", "time (s)"], ["windows", "windows"], ["diverged", "diverged"],
@@ -345,7 +387,7 @@ function storedHorizonErrors(view, errors) {
     el("h3", { text: "At the end of training, on the validation trajectories" }), host,
     el("div", { class: "table-wrap" }, table)));
   chart(host, {
-    x: errors.map((e) => e.seconds), xLabel: "prediction time (s)", yLabel: "|q̂ − q| (log scale)", logX: true, logY: true,
+    x: errors.map((e) => e.seconds), xLabel: "prediction time (s)", yLabel, logX: true, logY: true,
     series: { median: errors.map((e) => e.position_median), mean: errors.map((e) => e.position_mean) },
   });
 }

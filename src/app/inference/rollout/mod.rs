@@ -16,14 +16,14 @@ use crate::control::policy::Policy;
 use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::infer::limits::Pass;
+use crate::infer::particles::{check_particles, diverged};
 
 /// A Rollout chunk's bytes at most (states, inputs and z of one message): a stream whose
 /// reader stalls holds one chunk in its channel and one being sent, so 600 stalled streams
 /// stay within a few hundred MB.
 const ROLLOUT_CHUNK_BYTES: usize = 256 << 10;
 
-/// The most particles one rollout may propagate.
-pub const MAX_PARTICLES: usize = 1024;
+pub use crate::infer::particles::MAX_PARTICLES;
 
 /// Particle steps per computed piece at most: a piece of a many-particle rollout takes about
 /// as long as a plain one's longest (the deadline and the reader are checked between pieces).
@@ -124,15 +124,8 @@ impl App {
         shape: RolloutShape,
         until: Option<Instant>,
     ) -> Result<mpsc::Receiver<Result<RolloutChunk>>> {
-        if let Some(p) = shape.particles
-            && !(1..=MAX_PARTICLES).contains(&p)
-        {
-            return Err(Error::invalid(
-                "particles",
-                format!(
-                    "must be between 1 and {MAX_PARTICLES} (leave it unset for one rollout of the mean dynamics)"
-                ),
-            ));
+        if let Some(p) = shape.particles {
+            check_particles(p)?;
         }
         let eval = self.evaluator(id).await?;
         let (nx, m) = (2 * eval.config.n, eval.config.m);
@@ -263,22 +256,12 @@ fn deadline_passed() -> Error {
     Error::DeadlineExceeded("the rollout passed its deadline".into())
 }
 
-/// The input of step `t + s` at state `x`.
-fn input_at(inputs: &Inputs, m: usize, t: usize, s: usize, x: &[f64]) -> Vec<f64> {
+/// The input of step `t` at state `x`.
+fn input_at(inputs: &Inputs, m: usize, t: usize, x: &[f64]) -> Vec<f64> {
     match inputs {
-        Inputs::Open(u) => u[(t + s) * m..(t + s + 1) * m].to_vec(),
-        Inputs::Policy(p) => p.input(t + s, x),
+        Inputs::Open(u) => u[t * m..(t + 1) * m].to_vec(),
+        Inputs::Policy(p) => p.input(t, x),
     }
-}
-
-/// The error of a rollout whose state left the finite numbers at `step`.
-fn diverged(step: usize) -> Error {
-    Error::invalid(
-        "x0",
-        format!(
-            "the state became non-finite at step {step}: the trajectory left what the model can evaluate"
-        ),
-    )
 }
 
 /// `take` steps from state `x` at step `t` (the first piece also carries x0).
@@ -295,7 +278,7 @@ fn compute_piece(
     let (mut applied, mut from) = (Vec::with_capacity(take * m), Vec::with_capacity(take * nx));
     let mut last = x.clone();
     let mut error = None;
-    let input = |s: usize, x: &[f64]| input_at(inputs, m, t, s, x);
+    let input = |s: usize, x: &[f64]| input_at(inputs, m, t + s, x);
     let mut done = 0;
     eval.rollout(&x, take, input, |next, u| {
         if next.iter().any(|v| !v.is_finite()) {

@@ -1,12 +1,10 @@
-//! Particle rollouts (TS∞, Chua et al. 2018): P particles start at x0 and particle p follows
-//! member p mod K for the whole rollout, under the inputs (or a policy applied to its own
-//! state). What streams is each step's mean over the particles and their spread. A single
-//! model's particles all follow it, with zero spread.
+//! A piece of a particle rollout as a streamed chunk: the computation is the core's
+//! (`infer::particles`), continued piece after piece from the particles' states.
 
-use super::{Inputs, Piece, RolloutChunk, diverged, input_at};
+use super::{Inputs, Piece, RolloutChunk, input_at};
 use crate::array::Array;
 use crate::infer::Evaluator;
-use crate::model::report::Spread;
+use crate::infer::particles::{ParticleTrack, advance};
 
 /// `take` steps of every particle from their states `xs` `[P, 2n]` at step `t` (the first
 /// piece also carries x0's row); the piece continues from the particles' states.
@@ -19,84 +17,21 @@ pub(super) fn piece(
     first: bool,
 ) -> Piece {
     let (nx, m) = (2 * eval.config.n, eval.config.m);
-    let mut out = Stats::default();
+    let mut track = ParticleTrack::default();
     if first {
-        out.push(&xs, nx);
+        track.push_states(&xs, nx);
     }
-    let (mut applied, mut z) = (Vec::with_capacity(take * m), Vec::with_capacity(take));
-    let (mut xs, mut error) = (xs, None);
-    for s in 0..take {
-        let us: Vec<f64> = (xs.chunks(nx))
-            .flat_map(|x| input_at(inputs, m, t, s, x))
-            .collect();
-        let next = step(eval, &xs, &us);
-        if next.iter().any(|v| !v.is_finite()) {
-            error = Some(diverged(t + s + 1));
-            break;
-        }
-        let zs = eval.max_abs_z(&xs, &us);
-        z.push(zs.into_iter().fold(0.0, f64::max));
-        applied.extend(column_means(&us, m));
-        out.push(&next, nx);
-        xs = next;
-    }
-    let rows = out.mean.len() / nx;
+    let mut xs = xs;
+    let input = |step: usize, x: &[f64]| input_at(inputs, m, step, x);
+    // The deadline and the reader are checked between pieces, never inside one.
+    let error = advance(eval, &mut xs, t, take, input, &mut track, &|| false).err();
+    let rows = track.mean.len() / nx;
     let chunk = RolloutChunk {
         start: if first { 0 } else { t + 1 },
-        x: Array::new(&[rows, nx], out.mean),
-        u: Array::new(&[z.len(), m], applied),
-        max_abs_z: z,
-        x_std: Some(Array::new(&[rows, nx], out.std)),
+        x: Array::new(&[rows, nx], track.mean),
+        u: Array::new(&[track.max_abs_z.len(), m], track.u),
+        max_abs_z: track.max_abs_z,
+        x_std: Some(Array::new(&[rows, nx], track.std)),
     };
     (chunk, xs, error)
-}
-
-/// One step of every particle: those of one member as one batch on that member.
-fn step(eval: &Evaluator, xs: &[f64], us: &[f64]) -> Vec<f64> {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
-    let (p, k) = (xs.len() / nx, eval.member_count());
-    let mut next = vec![0.0; xs.len()];
-    for member in 0..k.min(p) {
-        let rows: Vec<usize> = (member..p).step_by(k).collect();
-        let x: Vec<f64> = rows
-            .iter()
-            .flat_map(|&r| &xs[r * nx..(r + 1) * nx])
-            .copied()
-            .collect();
-        let u: Vec<f64> = rows
-            .iter()
-            .flat_map(|&r| &us[r * m..(r + 1) * m])
-            .copied()
-            .collect();
-        let (y, _) = eval.member(member).predict(&x, &u, false);
-        for (&r, y) in rows.iter().zip(y.chunks(nx)) {
-            next[r * nx..(r + 1) * nx].copy_from_slice(y);
-        }
-    }
-    next
-}
-
-/// Each column's mean over the rows of a `[P, w]` array.
-fn column_means(a: &[f64], w: usize) -> Vec<f64> {
-    (0..w)
-        .map(|j| Spread::of(&a.iter().skip(j).step_by(w).copied().collect::<Vec<_>>()).mean)
-        .collect()
-}
-
-/// The particles' mean and standard deviation per coordinate, step after step.
-#[derive(Default)]
-struct Stats {
-    mean: Vec<f64>,
-    std: Vec<f64>,
-}
-
-impl Stats {
-    fn push(&mut self, xs: &[f64], nx: usize) {
-        for j in 0..nx {
-            let column: Vec<f64> = xs.iter().skip(j).step_by(nx).copied().collect();
-            let s = Spread::of(&column);
-            self.mean.push(s.mean);
-            self.std.push(s.std);
-        }
-    }
 }

@@ -2,7 +2,7 @@
 //! finite-horizon problem, the discrete algebraic Riccati equation for a long constant
 //! horizon, and the closed-loop cost x₀ᵀS₀x₀.
 
-mod common;
+use crate::common;
 
 use common::{gauss_solve, rel_err};
 use graybox::control::linalg::Mat;

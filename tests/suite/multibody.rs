@@ -1,6 +1,6 @@
 //! The multibody algorithms (docs/robots.md#multibody-dynamics): CRBA's M(q),
 //! RNEA's g(q) and C(q, q̇)q̇ equal Pinocchio's at every fixture state (the same fixtures as
-//! tests/urdf.rs); forward dynamics (ABA, or CRBA + Cholesky with mimic joints) inverts them;
+//! tests/suite/urdf.rs); forward dynamics (ABA, or CRBA + Cholesky with mimic joints) inverts them;
 //! they agree with `urdf::assembled` (M = Σ JᵀIJ, V) for other, random physical inertias; and
 //! their dual-number derivatives are central differences'; a model built by hand (`built.rs`)
 //! is the robot the URDF producer builds.
@@ -25,7 +25,7 @@ mod adjoint;
 mod base;
 #[path = "multibody/built.rs"]
 mod built;
-mod common;
+use crate::common;
 #[path = "multibody/data.rs"]
 mod data;
 #[path = "multibody/evaluator.rs"]

@@ -14,7 +14,8 @@ fn the_fused_step_has_burns_loss_and_gradients() {
 
 /// 300 epochs of Adam (600 steps) amplify the paths' 1e-15 rounding differences, but a
 /// smooth optimizer keeps them far below 1e-6; a wrong gradient anywhere changes the
-/// trajectory and its best loss at the percent level.
+/// trajectory and its best loss at the percent level. Slow (tens of seconds): the
+/// 300 epochs run on both paths, Burn's graph the slower.
 #[test]
 fn training_through_the_fused_step_follows_burns_trajectory() {
     let dev = f64_device().autodiff();

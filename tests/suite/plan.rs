@@ -2,7 +2,7 @@
 //! double-pendulum swing-up tracked on a closed-form RK4 written here, and a linear-quadratic
 //! problem solved by batch least squares.
 
-mod common;
+use crate::common;
 #[path = "plan/ensemble.rs"]
 mod ensemble;
 #[path = "plan/x_init.rs"]

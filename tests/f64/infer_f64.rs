@@ -1,7 +1,7 @@
 //! The f64 inference path against the Burn path (the trainer's own math) and against finite
 //! differences, in f64.
 
-mod common;
+use crate::common;
 #[path = "infer_f64/energy.rs"]
 mod energy;
 

@@ -2,7 +2,7 @@
 //! of a linear model assembled and solved densely here, the RK4 model's discrete LQ optimum,
 //! and the paper's swing-up tracked on a closed-form RK4.
 
-mod common;
+use crate::common;
 
 use std::time::{Duration, Instant};
 

@@ -287,7 +287,9 @@ fn long_pendulum(terms: usize) -> Template {
 }
 
 /// A 3000-term potential trains (W-B, Burn's autodiff over every term), and its model
-/// predicts and linearizes, on a thread with the stack a request or a job gets.
+/// predicts and linearizes, on a thread with the stack a request or a job gets. Slow (tens of
+/// seconds): the autodiff records an op per term at every step, and a shorter
+/// formula would not show that nothing recurses per term.
 #[test]
 fn a_long_potential_trains_predicts_and_linearizes_on_a_normal_stack() {
     on_stack(THREAD, || {

@@ -59,14 +59,21 @@ fn one_member_is_a_single_models_run_byte_for_byte() {
     assert!(without_times(&a.to_bytes().unwrap()) == without_times(&b.to_bytes().unwrap()));
 }
 
-/// JSON bytes with every measured time ("seconds", "train_seconds", "samples_per_second")
-/// set to 0: two runs differ in nothing else.
+/// JSON bytes with every measured time ("seconds", "train_seconds", "member_seconds",
+/// "samples_per_second") set to 0: two runs differ in nothing else.
 fn without_times(bytes: &[u8]) -> String {
     fn walk(v: &mut serde_json::Value) {
         match v {
             serde_json::Value::Object(o) => {
                 for (k, x) in o.iter_mut() {
-                    if ["seconds", "train_seconds", "samples_per_second"].contains(&k.as_str()) {
+                    if [
+                        "seconds",
+                        "train_seconds",
+                        "member_seconds",
+                        "samples_per_second",
+                    ]
+                    .contains(&k.as_str())
+                    {
                         *x = serde_json::json!(0);
                     } else {
                         walk(x);

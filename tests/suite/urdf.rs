@@ -24,7 +24,7 @@ use graybox::sim::true_step;
 use graybox::train::warnings::zero_acceleration_loss;
 use graybox::train::{TrainConfig, Trainer};
 
-mod common;
+use crate::common;
 use common::urdf::{assembled_terms, fixture, flat_matrix, floats};
 use std::sync::atomic::AtomicBool;
 

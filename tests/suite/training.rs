@@ -1,7 +1,7 @@
 //! Training behaviour in f32 (the default precision): every parameterization trains and
 //! evaluates, backends agree, resume equals an uninterrupted run, failures are reported.
 
-mod common;
+use crate::common;
 #[path = "training/ensemble.rs"]
 mod ensemble;
 #[path = "training/fused.rs"]

@@ -6,8 +6,6 @@ use std::sync::Arc;
 use graybox::physics::templates::Template;
 use graybox::physics::urdf::UrdfTemplate;
 
-mod common;
-
 #[path = "urdf_files/bounds.rs"]
 mod bounds;
 #[path = "urdf_files/coulomb.rs"]

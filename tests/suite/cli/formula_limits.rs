@@ -13,6 +13,9 @@ fn pendulum(potential: &str) -> serde_json::Value {
     })
 }
 
+/// Slow, the slowest of the suite (tens of seconds): every command evaluates the
+/// 3000-term potential, `train` through Burn's autodiff (an op per term per step) and `plan`
+/// through dual numbers; shorter, it would not show that nothing recurses per term.
 #[test]
 fn nested_template_files_are_refused_and_long_ones_work_in_every_command() {
     let (deep, long, d, m, w, p) = (

@@ -21,9 +21,13 @@ use super::trainer::{EpochRun, RunData, TrainState, Trainer};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::model::file::ModelFile;
-use crate::model::report::{EnsembleReport, EpochMetrics, MemberReport, Spread, TrainReport};
+use crate::model::report::{EpochMetrics, TrainReport};
 use crate::model::spec::ModelSpec;
 use crate::records::Warning;
+
+mod report;
+
+use report::{ensemble_report, mean, summary};
 
 /// What runs on a job's threads: whole members side by side, or one member's batch split
 /// into shards, the members one after another.
@@ -48,6 +52,9 @@ pub struct Ensemble {
     members: Vec<Trainer>,
     /// The threads members run on side by side (`Parallelism::Members`).
     pool: Option<Arc<rayon::ThreadPool>>,
+    /// Each epoch's wall time, by epoch: what the run took, which the members' own times,
+    /// overlapping when they run side by side, do not say.
+    wall: BTreeMap<usize, f64>,
 }
 
 /// An ensemble's checkpoint: every member's (one member's is a `TrainState` alone).
@@ -55,6 +62,13 @@ pub struct Ensemble {
 struct EnsembleState {
     /// First, so that a checkpoint's bytes say what they are by their first field.
     members: Vec<TrainState>,
+    /// `Ensemble::wall`; absent from earlier checkpoints.
+    #[serde(
+        rename = "seconds",
+        default,
+        skip_serializing_if = "BTreeMap::is_empty"
+    )]
+    wall: BTreeMap<usize, f64>,
 }
 
 /// How an ensemble checkpoint's JSON starts (`EnsembleState`'s first field).
@@ -96,6 +110,7 @@ impl Ensemble {
         Ok(Self {
             members,
             pool: None,
+            wall: BTreeMap::new(),
         })
     }
 
@@ -106,14 +121,17 @@ impl Ensemble {
         val: Option<&Dataset>,
         device: &Device,
     ) -> Result<Self> {
-        let states = if bytes.starts_with(ENSEMBLE_CHECKPOINT) {
-            let state: EnsembleState =
-                serde_json::from_slice(bytes).map_err(|e| Error::corrupt("checkpoint", e))?;
-            state.members
+        let state = if bytes.starts_with(ENSEMBLE_CHECKPOINT) {
+            serde_json::from_slice(bytes).map_err(|e| Error::corrupt("checkpoint", e))?
         } else {
-            vec![TrainState::from_bytes(bytes)?]
+            EnsembleState {
+                members: vec![TrainState::from_bytes(bytes)?],
+                wall: BTreeMap::new(),
+            }
         };
-        Self::resume_states(states, data, val, device)
+        let mut resumed = Self::resume_states(state.members, data, val, device)?;
+        resumed.wall = state.wall;
+        Ok(resumed)
     }
 
     /// Continues a run from its members' states (`Ensemble::states`).
@@ -147,6 +165,7 @@ impl Ensemble {
         Ok(Self {
             members,
             pool: None,
+            wall: BTreeMap::new(),
         })
     }
 
@@ -243,6 +262,7 @@ impl Ensemble {
         let mut epoch = summary(&ran);
         epoch.mean.epoch = self.epoch();
         epoch.mean.seconds = start.elapsed().as_secs_f64();
+        self.wall.insert(epoch.mean.epoch, epoch.mean.seconds);
         Ok(epoch)
     }
 
@@ -258,6 +278,7 @@ impl Ensemble {
         }
         serde_json::to_vec(&EnsembleState {
             members: self.states(),
+            wall: self.wall.clone(),
         })
         .expect("train states serialize")
     }
@@ -276,7 +297,7 @@ impl Ensemble {
         let reports: Vec<&TrainReport> = (files.iter())
             .map(|f| f.report.as_ref().expect("trained files carry a report"))
             .collect();
-        let report = ensemble_report(&reports);
+        let report = ensemble_report(&reports, &self.wall);
         let mut file = ModelFile::ensemble(files, Some(report));
         self.members[0].add_horizon_errors(&mut file);
         self.members[0].add_energy_report(&mut file);
@@ -341,97 +362,4 @@ fn interleaved(
 /// reaches the caller through the pool's scope).
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
-}
-
-/// The mean of the values when every one is known.
-fn mean(values: impl Iterator<Item = Option<f64>>) -> Option<f64> {
-    let v: Option<Vec<f64>> = values.collect();
-    v.filter(|v| !v.is_empty()).map(|v| Spread::of(&v).mean)
-}
-
-/// The members' mean and spread of one epoch's losses.
-fn summary(ran: &[EpochMetrics]) -> EnsembleEpoch {
-    let spread = |f: &dyn Fn(&EpochMetrics) -> Option<f64>| -> Option<Spread> {
-        let v: Option<Vec<f64>> = ran.iter().map(f).collect();
-        v.filter(|v| !v.is_empty()).map(|v| Spread::of(&v))
-    };
-    let train = spread(&|m| Some(m.train_loss)).expect("a member ran");
-    let val = spread(&|m| m.val_loss);
-    let val_h = spread(&|m| m.val_horizon_loss);
-    EnsembleEpoch {
-        mean: EpochMetrics {
-            epoch: ran.iter().map(|m| m.epoch).max().unwrap_or(0),
-            train_loss: train.mean,
-            val_loss: val.map(|s| s.mean),
-            val_horizon_loss: val_h.map(|s| s.mean),
-            seconds: 0.0,
-        },
-        std: Some(LossSpread {
-            train_loss: train.std,
-            val_loss: val.map(|s| s.std),
-            val_horizon_loss: val_h.map(|s| s.std),
-        }),
-    }
-}
-
-/// The ensemble's report: member 0's, with the members' mean losses, mean physical values,
-/// mean history (by epoch, over the members that ran it), every member's warnings once per
-/// code, and the members' own figures with the physical values' spread.
-fn ensemble_report(reports: &[&TrainReport]) -> TrainReport {
-    let mut r = reports[0].clone();
-    let of = |f: &dyn Fn(&TrainReport) -> Option<f64>| mean(reports.iter().map(|r| f(r)));
-    r.train_loss = of(&|r| Some(r.train_loss)).unwrap_or(f64::NAN);
-    r.val_loss = of(&|r| r.val_loss);
-    r.best_val_loss = of(&|r| r.best_val_loss);
-    r.seconds = reports.iter().map(|r| r.seconds).sum();
-    r.epochs = reports.iter().map(|r| r.epochs).max().unwrap_or(0);
-    r.stopped_early = reports.iter().all(|r| r.stopped_early);
-    let mut physical = BTreeMap::new();
-    for name in r.physical_parameters.keys() {
-        let values: Vec<f64> = reports
-            .iter()
-            .map(|m| m.physical_parameters[name])
-            .collect();
-        physical.insert(name.clone(), Spread::of(&values));
-    }
-    r.physical_parameters = physical.iter().map(|(k, s)| (k.clone(), s.mean)).collect();
-    for (i, c) in r.identifiable.iter_mut().enumerate() {
-        let same = |m: &&&TrainReport| m.identifiable.get(i).is_some_and(|o| o.name == c.name);
-        if reports.iter().all(|m| same(&m)) {
-            c.value = of(&|m| Some(m.identifiable[i].value)).unwrap_or(c.value);
-        }
-    }
-    r.history = (1..=r.epochs)
-        .filter_map(|e| {
-            let ran: Vec<EpochMetrics> = (reports.iter())
-                .filter_map(|m| m.history.iter().find(|h| h.epoch == e).copied())
-                .collect();
-            (!ran.is_empty()).then(|| {
-                let mut s = summary(&ran).mean;
-                s.seconds = ran.iter().map(|m| m.seconds).sum();
-                s
-            })
-        })
-        .collect();
-    r.warnings = vec![];
-    for w in reports.iter().flat_map(|m| &m.warnings) {
-        if !r.warnings.iter().any(|o| o.code == w.code) {
-            r.warnings.push(w.clone());
-        }
-    }
-    r.ensemble = Some(EnsembleReport {
-        members: reports.iter().map(|m| member_report(m)).collect(),
-        physical_parameters: physical,
-    });
-    r
-}
-
-fn member_report(r: &TrainReport) -> MemberReport {
-    MemberReport {
-        best_epoch: r.best_epoch,
-        best_val_loss: r.best_val_loss,
-        train_loss: r.train_loss,
-        val_loss: r.val_loss,
-        physical_parameters: r.physical_parameters.clone(),
-    }
 }

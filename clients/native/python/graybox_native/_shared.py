@@ -1,0 +1,1 @@
+../../../python/graybox_client/_shared.py
