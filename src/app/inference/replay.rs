@@ -4,7 +4,7 @@
 
 use serde::Serialize;
 
-use super::Cost;
+use super::{Class, Cost};
 use crate::app::App;
 use crate::data::Dataset;
 use crate::data::trajectories::{self, Segment};
@@ -158,12 +158,15 @@ impl App {
         let (recorded, inputs) = recorded_segment(loaded.ds(), seg);
         drop(loaded);
         let u = inputs.chunks(m).map(<[f64]>::to_vec).collect();
+        // No deadline on REST; the replay stops when its caller goes away.
         let replayed = self
-            .long_calls
-            .run(move || {
-                let spread = particles.map(|p| particle_replay(&eval, &recorded, &inputs, p));
-                let (recorded, predicted) = replay_segment(&eval, recorded, &inputs, m);
-                (recorded, predicted, spread)
+            .heavy_until(Class::Long, "replay", None, move |stop| {
+                let spread = match particles {
+                    Some(p) => Some(particle_replay(&eval, &recorded, &inputs, p, stop)?),
+                    None => None,
+                };
+                let (recorded, predicted) = replay_segment(&eval, recorded, &inputs, m, stop)?;
+                Some((recorded, predicted, spread))
             })
             .await?;
         Ok(Replay {
@@ -244,13 +247,15 @@ fn recorded_segment(ds: &Dataset, seg: Segment) -> (Series, Vec<f64>) {
     (recorded, inputs)
 }
 
-/// The recording and the model's replay of it from its first state with its `inputs`.
+/// The recording and the model's replay of it from its first state with its `inputs`; `None`
+/// when `stop` ended it.
 fn replay_segment(
     eval: &crate::infer::Evaluator,
     recorded: Series,
     inputs: &[f64],
     m: usize,
-) -> (Series, Series) {
+    stop: &dyn Fn() -> bool,
+) -> Option<(Series, Series)> {
     let n = recorded.q[0].len();
     let x0: Vec<f64> = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
     let mut predicted = Series {
@@ -265,19 +270,21 @@ fn replay_segment(
         |x, _| {
             predicted.q.push(x[..n].to_vec());
             predicted.qdot.push(x[n..].to_vec());
-            true
+            !stop()
         },
     );
-    (recorded, predicted)
+    (predicted.q.len() == steps + 1).then_some((recorded, predicted))
 }
 
-/// The replay as `count` particles from the recording's first state under its inputs.
+/// The replay as `count` particles from the recording's first state under its inputs; `None`
+/// when `stop` ended it.
 fn particle_replay(
     eval: &crate::infer::Evaluator,
     recorded: &Series,
     inputs: &[f64],
     count: usize,
-) -> ParticleSeries {
+    stop: &dyn Fn() -> bool,
+) -> Option<ParticleSeries> {
     let (n, m) = (eval.config.n, eval.config.m);
     let x0 = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
     let mut states = x0.repeat(count);
@@ -285,16 +292,19 @@ fn particle_replay(
     track.push_states(&states, 2 * n);
     let input = |t: usize, _: &[f64]| inputs[t * m..(t + 1) * m].to_vec();
     let steps = recorded.q.len() - 1;
-    // Nothing stops it: only a particle's state leaving the finite numbers ends it early,
-    // and the track then holds the states before.
-    let _diverged = particles::advance(eval, &mut states, 0, steps, input, &mut track, &|| false);
+    // A particle's state leaving the finite numbers ends it early, and the track then holds
+    // the states before: the band ends where the first particle ran away.
+    let ended = particles::advance(eval, &mut states, 0, steps, input, &mut track, stop);
+    if let Err(Error::Cancelled) = ended {
+        return None;
+    }
     let series = |rows: &[f64]| Series {
         q: rows.chunks(2 * n).map(|x| x[..n].to_vec()).collect(),
         qdot: rows.chunks(2 * n).map(|x| x[n..].to_vec()).collect(),
     };
-    ParticleSeries {
+    Some(ParticleSeries {
         count,
         mean: series(&track.mean),
         std: series(&track.std),
-    }
+    })
 }
