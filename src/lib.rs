@@ -27,6 +27,8 @@ pub mod train;
 pub mod worker;
 
 // The inference core's modules, under the paths the service has always used for them.
-pub use graybox_core::{array, control, data, error, infer, names, physics, rng, sim, simd};
+pub use graybox_core::{
+    array, control, data, error, infer, linalg, names, physics, rng, sim, simd,
+};
 
 pub use error::{Error, Result};

@@ -3,16 +3,19 @@
 //! library (`graybox-c`) are built on it.
 //!
 //! Layers, bottom up: `error`, `rng`, `names`, `simd`, `array` (shaped f64 data), `records`
-//! (a warning), `data` (the dataset type); the mechanics in `physics`; then `model` (a model
-//! as its file describes it), `infer` (f64 evaluation), `control` (TVLQR, planning) and `sim`
-//! (simulated data, a template's true system). `tensor_scalar` (feature `burn`) makes Burn's
-//! tensors the mechanics' scalars for training.
+//! (a warning), `data` (the dataset type); the mechanics in `physics`, and `linalg` (the one
+//! Cholesky factorisation and its triangular solves) written over their `Scalar` for the
+//! mechanics and control alike; then `model` (a model as its file describes it), `infer`
+//! (f64 evaluation), `control` (TVLQR, planning) and `sim` (simulated data, a template's true
+//! system). `tensor_scalar` (feature `burn`) makes Burn's tensors the mechanics' scalars for
+//! training.
 
 pub mod array;
 pub mod control;
 pub mod data;
 pub mod error;
 pub mod infer;
+pub mod linalg;
 pub mod model;
 pub mod names;
 pub mod physics;

@@ -2,6 +2,7 @@
 #![allow(dead_code)]
 
 pub mod fused;
+pub mod jacobian_form;
 pub mod plans;
 pub mod urdf;
 

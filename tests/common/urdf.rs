@@ -1,13 +1,17 @@
 //! The URDF fixtures (tests/fixtures/urdf: robots and the Pinocchio values written beside them
-//! by scripts/urdf_fixtures.py), read one way by every test binary that compares with them.
+//! by scripts/urdf_fixtures.py), read one way by every test binary that compares with them,
+//! and the Jacobian form of a robot's M and V (`jacobian_form`): a reference of the multibody
+//! algorithms written here, with forward kinematics of its own, so that it shares nothing with
+//! them but the reader's tree.
 
 use graybox::physics::dual::Dual;
 use graybox::physics::multibody::Inertial;
-use graybox::physics::multibody::spatial::body_inertia;
-use graybox::physics::multibody::term::Term;
+use graybox::physics::multibody::spatial::{BodyInertia, body_inertia};
 use graybox::physics::scalar::Scalar;
-use graybox::physics::urdf::{Tree, assembled};
+use graybox::physics::urdf::Tree;
 use serde_json::Value;
+
+use super::jacobian_form;
 
 /// The path of fixture `name` (e.g. "arm4", "robots/panda") with extension `ext`.
 pub fn fixture_path(name: &str, ext: &str) -> String {
@@ -41,23 +45,17 @@ pub fn floats(v: &Value) -> Vec<f64> {
         .collect()
 }
 
-/// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) of `urdf::assembled` over
-/// dual numbers, for `inertias`.
-pub fn assembled_terms(
-    tree: &Tree,
-    inertias: &[Inertial],
-    gravity: &[f64; 3],
+/// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) at (q, q̇) of a robot's M
+/// and V over dual numbers in q.
+pub fn terms_of(
     q: &[f64],
     qd: &[f64],
+    mass: impl Fn(&[Dual<f64>]) -> Vec<Vec<Dual<f64>>>,
+    potential: impl Fn(&[Dual<f64>]) -> Dual<f64>,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let n = q.len();
     let qv: Vec<Dual<f64>> = (0..n).map(|k| Dual::variable(q[k], k, n, 1.0)).collect();
-    let bodies: Vec<_> = inertias
-        .iter()
-        .map(|i| body_inertia(&i.theta().unwrap().map(|t| Term::V(qv[0].lift(t)))))
-        .collect();
-    let m = assembled::mass_matrix(tree, &bodies, &qv);
-    let v = assembled::potential(tree, &bodies, gravity, &qv);
+    let (m, v) = (mass(&qv), potential(&qv));
     let d = |x: &Dual<f64>, k: usize| x.tangent(k).copied().unwrap_or(0.0);
     let g = (0..n).map(|k| d(&v, k)).collect();
     let c = (0..n)
@@ -72,4 +70,26 @@ pub fn assembled_terms(
         })
         .collect();
     (m.iter().flatten().map(|x| x.v).collect(), g, c)
+}
+
+/// `terms_of` the Jacobian form for `inertias` (through θ, so the θ ↦ body map is checked
+/// with it).
+pub fn jacobian_terms(
+    tree: &Tree,
+    inertias: &[Inertial],
+    gravity: &[f64; 3],
+    q: &[f64],
+    qd: &[f64],
+) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let bodies = |like: &Dual<f64>| -> Vec<BodyInertia<Dual<f64>>> {
+        (inertias.iter())
+            .map(|i| body_inertia(&i.theta().unwrap().map(|t| like.lift(t))))
+            .collect()
+    };
+    terms_of(
+        q,
+        qd,
+        |qv| jacobian_form::mass_matrix(tree, &bodies(&qv[0]), qv),
+        |qv| jacobian_form::potential(tree, &bodies(&qv[0]), gravity, qv),
+    )
 }

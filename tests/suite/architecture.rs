@@ -3,8 +3,11 @@
 //! dependency that points up, naming file and line. It sees `use crate::x`, grouped
 //! `use crate::{x, y::z}`, paths written inline without a `use` (`crate::store::JobRow`),
 //! and `super::` paths that climb out of a layer. It also fails on a circle of modules inside
-//! a layer (`cycles.rs`) and on a source file over 450 lines (`sizes.rs`).
+//! a layer (`cycles.rs`), on a source file over 450 lines (`sizes.rs`) and on a second
+//! implementation of a multibody algorithm (`algorithms.rs`).
 
+#[path = "architecture/algorithms.rs"]
+mod algorithms;
 #[path = "architecture/cycles.rs"]
 mod cycles;
 #[path = "architecture/sizes.rs"]
@@ -18,8 +21,9 @@ fn may_import(layer: &str, dep: &str) -> bool {
     match layer {
         // The mechanics stand on these alone: no Burn (`backend`, and the `burn` crate, checked
         // by `physics_is_free_of_burn`), no dataset, no record; `simd`'s kernels are plain
-        // math on slices (the tape's tanh).
-        "physics" => ["error", "rng", "names", "simd", "physics"].contains(&dep),
+        // math on slices (the tape's tanh). `linalg`, written over their numbers, stands beside.
+        "physics" => ["error", "rng", "names", "simd", "linalg", "physics"].contains(&dep),
+        "linalg" => ["error", "rng", "names", "simd", "physics", "linalg"].contains(&dep),
         // Burn's tensors as the mechanics' scalars: the core's one module that names Burn.
         "tensor_scalar" => ["error", "simd", "physics", "tensor_scalar"].contains(&dep),
         _ => !forbidden(layer).contains(&dep),
@@ -163,10 +167,18 @@ fn refs_of_line<'a>(module: &[String], line: &'a str, within: &[&str]) -> Vec<&'
     out
 }
 
-/// What `physics::multibody` (the rigid-body algorithms, built once from any source) may use
-/// of the mechanics: its numbers and the manipulator equation's linear algebra, never a
-/// producer (`urdf`), a template or the assembly, which stand on it instead.
-const MULTIBODY_MAY_USE: &[&str] = &["multibody", "scalar", "dual", "jet", "dynamics"];
+/// What parts of the core may use of the mechanics (`physics::x`). `physics::multibody`, the
+/// rigid-body algorithms built once from any source: its numbers and the manipulator
+/// equation's linear algebra, never a producer (`urdf`), a template or the assembly, which
+/// stand on it instead. `linalg`, which the mechanics use in turn: their numbers alone (dual
+/// ones in its tests, to differentiate through it).
+const MAY_USE_OF_PHYSICS: [(&[&str], &[&str]); 2] = [
+    (
+        &["physics", "multibody"],
+        &["multibody", "scalar", "dual", "jet", "dynamics"],
+    ),
+    (&["linalg"], &["scalar", "dual"]),
+];
 
 /// `file:line: layer imports module` for every forbidden dependency in `src`.
 fn violations(src: &Path) -> Vec<String> {
@@ -195,13 +207,17 @@ fn violations_in(src: &Path, label: &str) -> Vec<String> {
                     line.trim()
                 ));
             }
-            if module[..module.len().min(2)] == ["physics", "multibody"] {
+            for (part, may_use) in MAY_USE_OF_PHYSICS {
+                if module[..module.len().min(part.len())] != part[..] {
+                    continue;
+                }
                 for dep in refs_of_line(&module, line, &["physics"]) {
-                    if !MULTIBODY_MAY_USE.contains(&dep) {
+                    if !may_use.contains(&dep) {
                         out.push(format!(
-                            "{label}/{}:{}: `physics::multibody` must not import `physics::{dep}`: {}",
+                            "{label}/{}:{}: `{}` must not import `physics::{dep}`: {}",
                             rel.display(),
                             n + 1,
+                            part.join("::"),
                             line.trim()
                         ));
                     }

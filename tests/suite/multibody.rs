@@ -1,9 +1,9 @@
 //! The multibody algorithms (docs/robots.md#multibody-dynamics): CRBA's M(q),
 //! RNEA's g(q) and C(q, q̇)q̇ equal Pinocchio's at every fixture state (the same fixtures as
 //! tests/suite/urdf.rs); forward dynamics (ABA, or CRBA + Cholesky with mimic joints) inverts them;
-//! they agree with `urdf::assembled` (M = Σ JᵀIJ, V) for other, random physical inertias; and
-//! their dual-number derivatives are central differences'; a model built by hand (`built.rs`)
-//! is the robot the URDF producer builds.
+//! they agree with the tests' Jacobian form (`common::jacobian_form`: M = Σ JᵀIJ, V) for other,
+//! random physical inertias; their dual-number derivatives are central differences'; a model
+//! built by hand (`built.rs`) is the robot the URDF producer builds.
 
 use std::f64::consts::PI;
 
@@ -30,7 +30,7 @@ use crate::common;
 mod data;
 #[path = "multibody/evaluator.rs"]
 mod evaluator;
-use common::urdf::{assembled_terms, fixture, flat_matrix, floats};
+use common::urdf::{fixture, flat_matrix, floats, jacobian_terms};
 
 const FIXTURES: [&str; 7] = [
     "arm4",
@@ -211,7 +211,7 @@ fn forward_dynamics_inverts_inverse_dynamics() {
 
 /// For random physical inertias (θ ~ N(0, 1) per body: masses e^{2α} from 0.1 to 10, centres
 /// of mass off the axes, full inertia tensors) and random states, CRBA and RNEA agree with
-/// `urdf::assembled`'s M = Σ JᵀIJ, ∂V/∂q and the Coriolis term of ∂M/∂q to 1e-9 of max(1, |ref|)
+/// the Jacobian form's M = Σ JᵀIJ, ∂V/∂q and the Coriolis term of ∂M/∂q to 1e-9 of max(1, |ref|)
 /// (two f64 evaluations of the same mechanics by different formulas).
 #[test]
 fn multibody_algorithms_agree_with_the_jacobian_form() {
@@ -227,7 +227,7 @@ fn multibody_algorithms_agree_with_the_jacobian_form() {
             let n = model.n;
             let q: Vec<f64> = (0..n).map(|_| rng.uniform_in(-PI, PI)).collect();
             let qd = random(&mut rng, n, 2.0);
-            let (m, gv, c) = assembled_terms(&tree, &inertias, &g, &q, &qd);
+            let (m, gv, c) = jacobian_terms(&tree, &inertias, &g, &q, &qd);
             let ours = flat(&crba(&model, &q));
             assert!(err(&ours, &m) < 1e-9, "{name}: M {ours:?} vs {m:?}");
             let ours = gravity_torques(&model, &q);
@@ -364,7 +364,7 @@ fn mimic_robot() -> Tree {
 }
 
 /// On the mimic robot, with random inertias, CRBA and RNEA (contracted with G) equal
-/// `urdf::assembled`'s M, ∂V/∂q and Coriolis term to 1e-9 of max(1, |ref|), and forward dynamics
+/// the Jacobian form's M, ∂V/∂q and Coriolis term to 1e-9 of max(1, |ref|), and forward dynamics
 /// (CRBA + Cholesky) inverts them (tolerances as above).
 #[test]
 fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
@@ -380,7 +380,7 @@ fn mimic_joints_with_offsets_agree_with_the_jacobian_form() {
         assert!(model.mimic);
         let q: Vec<f64> = (0..3).map(|_| rng.uniform_in(-PI, PI)).collect();
         let qd = random(&mut rng, 3, 2.0);
-        let (m, gv, c) = assembled_terms(&tree, &inertias, &g, &q, &qd);
+        let (m, gv, c) = jacobian_terms(&tree, &inertias, &g, &q, &qd);
         assert!(err(&flat(&crba(&model, &q)), &m) < 1e-9, "M");
         assert!(err(&gravity_torques(&model, &q), &gv) < 1e-9, "g");
         assert!(err(&coriolis(&model, &q, &qd), &c) < 1e-9, "C q̇");

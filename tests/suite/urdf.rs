@@ -1,5 +1,6 @@
 //! URDF robots (docs/robots.md#mass-matrix-and-potential) against Pinocchio: M(q), g(q) = ∂V/∂q and C(q, q̇)q̇ of the
-//! rigid-body tree equal Pinocchio's at 50 random states of each test robot (fixtures written
+//! rigid-body tree, the template's (over its physical values) and the tests' Jacobian form's
+//! (through θ), equal Pinocchio's at 50 random states of each test robot (fixtures written
 //! by scripts/urdf_fixtures.py), and the inertia map θ ↔ (m, c, Ī) is a bijection onto
 //! physical bodies.
 
@@ -25,7 +26,7 @@ use graybox::train::warnings::zero_acceleration_loss;
 use graybox::train::{TrainConfig, Trainer};
 
 use crate::common;
-use common::urdf::{assembled_terms, fixture, flat_matrix, floats};
+use common::urdf::{fixture, fixture_path, flat_matrix, floats, jacobian_terms, terms_of};
 use std::sync::atomic::AtomicBool;
 
 /// max |a − b| / max(1, max |b|); infinite when any value is not finite (`f64::max` would
@@ -41,10 +42,22 @@ fn err(a: &[f64], b: &[f64]) -> f64 {
         / scale
 }
 
-/// M, g and C q̇ at (q, q̇) of `urdf::assembled` with the tree's own inertias, through θ.
+/// M, g and C q̇ at (q, q̇) of the tests' Jacobian form with the tree's own inertias, through θ.
 fn terms(tree: &Tree, gravity: &[f64; 3], q: &[f64], qd: &[f64]) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let inertias: Vec<Inertial> = tree.bodies.iter().map(|b| b.inertial.clone()).collect();
-    assembled_terms(tree, &inertias, gravity, q, qd)
+    jacobian_terms(tree, &inertias, gravity, q, qd)
+}
+
+/// The robot `name` as a template under `gravity`, and its physical values (the file's).
+fn fixture_template(name: &str, gravity: [f64; 3]) -> (Template, Vec<f64>) {
+    let urdf = std::fs::read_to_string(fixture_path(name, "urdf")).unwrap();
+    let mut doc = UrdfTemplate::from_urdf(&urdf).unwrap().doc;
+    doc.gravity = gravity;
+    let t = Template::Urdf(Arc::new(
+        UrdfTemplate::from_doc(doc, graybox::physics::MAX_DOF).unwrap(),
+    ));
+    let values = t.defaults();
+    (t, values)
 }
 
 /// Pinocchio's `crba` (symmetrised), `computeGeneralizedGravity` and `nonLinearEffects` − g
@@ -76,24 +89,45 @@ fn rigid_body_terms_equal_pinocchio() {
         assert_eq!(names, coords, "{name}: coordinate order");
         let g = floats(&fx["gravity"]);
         let gravity = [g[0], g[1], g[2]];
+        let (t, values) = fixture_template(name, gravity);
         for (s, state) in fx["states"].as_array().unwrap().iter().enumerate() {
             let (q, qd) = (floats(&state["q"]), floats(&state["qd"]));
-            let (m, grav, c) = terms(&tree, &gravity, &q, &qd);
-            let m_ref: Vec<f64> = flat_matrix(&state["M"]);
-            assert!(
-                err(&m, &m_ref) < 1e-9,
-                "{name} state {s}: M {m:?} vs {m_ref:?}"
+            let template = terms_of(
+                &q,
+                &qd,
+                |qv| {
+                    t.mass(
+                        &values.iter().map(|&v| qv[0].lift(v)).collect::<Vec<_>>(),
+                        qv,
+                    )
+                },
+                |qv| {
+                    t.potential(
+                        &values.iter().map(|&v| qv[0].lift(v)).collect::<Vec<_>>(),
+                        qv,
+                    )
+                },
             );
-            let g_ref = floats(&state["g"]);
-            assert!(
-                err(&grav, &g_ref) < 1e-9,
-                "{name} state {s}: g {grav:?} vs {g_ref:?}"
-            );
-            let c_ref = floats(&state["c"]);
-            assert!(
-                err(&c, &c_ref) < 1e-9,
-                "{name} state {s}: C q̇ {c:?} vs {c_ref:?}"
-            );
+            for (what, (m, grav, c)) in [
+                ("template", template),
+                ("Jacobian form", terms(&tree, &gravity, &q, &qd)),
+            ] {
+                let m_ref: Vec<f64> = flat_matrix(&state["M"]);
+                assert!(
+                    err(&m, &m_ref) < 1e-9,
+                    "{name} {what} state {s}: M {m:?} vs {m_ref:?}"
+                );
+                let g_ref = floats(&state["g"]);
+                assert!(
+                    err(&grav, &g_ref) < 1e-9,
+                    "{name} {what} state {s}: g {grav:?} vs {g_ref:?}"
+                );
+                let c_ref = floats(&state["c"]);
+                assert!(
+                    err(&c, &c_ref) < 1e-9,
+                    "{name} {what} state {s}: C q̇ {c:?} vs {c_ref:?}"
+                );
+            }
         }
     }
 }

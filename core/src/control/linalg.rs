@@ -1,8 +1,10 @@
 //! Small dense row-major f64 matrices for control (n ≤ a few dozen): products, transposes,
-//! Cholesky factorization and solves. Nothing forms an inverse.
+//! Cholesky factorization and solves (`linalg::cholesky`, in the [`StdSum`] order control's
+//! recorded answers were computed in). Nothing forms an inverse.
 
 use crate::array::Array;
 use crate::error::{Error, Result};
+use crate::linalg::cholesky::{self, Square, StdSum};
 
 /// A row-major matrix.
 #[derive(Debug, Clone, PartialEq)]
@@ -134,40 +136,22 @@ impl Mat {
         worst / scale
     }
 
-    /// The lower Cholesky factor of a symmetric positive-definite matrix, or `None` when a
-    /// pivot is not positive (the matrix is not positive definite).
+    /// The lower Cholesky factor of a symmetric positive-definite matrix (zero above its
+    /// diagonal), or `None` when a pivot is not positive and finite (the matrix is not positive
+    /// definite).
     pub fn cholesky(&self) -> Option<Mat> {
+        debug_assert_eq!(self.rows, self.cols, "a square matrix");
         let n = self.rows;
         let mut l = Mat::zeros(n, n);
-        for j in 0..n {
-            let d = self.at(j, j) - (0..j).map(|k| l.at(j, k).powi(2)).sum::<f64>();
-            if d.is_nan() || d <= 0.0 || d.is_infinite() {
-                return None;
-            }
-            let ljj = d.sqrt();
-            l.data[j * n + j] = ljj;
-            for i in j + 1..n {
-                let v = self.at(i, j) - (0..j).map(|k| l.at(i, k) * l.at(j, k)).sum::<f64>();
-                l.data[i * n + j] = v / ljj;
-            }
-        }
+        cholesky::factor_checked(&self.data, n, &mut l.data, StdSum).ok()?;
         Some(l)
     }
 }
 
-/// Solves (L Lᵀ) X = B for X, column by column, given the lower Cholesky factor L.
+/// Solves (L Lᵀ) X = B for X, every column of B a right-hand side, given the lower Cholesky
+/// factor L.
 pub fn cholesky_solve(l: &Mat, b: &Mat) -> Mat {
-    let n = l.rows;
     let mut x = b.clone();
-    for c in 0..b.cols {
-        for i in 0..n {
-            let s: f64 = (0..i).map(|k| l.at(i, k) * x.at(k, c)).sum();
-            x.data[i * b.cols + c] = (x.at(i, c) - s) / l.at(i, i);
-        }
-        for i in (0..n).rev() {
-            let s: f64 = (i + 1..n).map(|k| l.at(k, i) * x.at(k, c)).sum();
-            x.data[i * b.cols + c] = (x.at(i, c) - s) / l.at(i, i);
-        }
-    }
+    cholesky::solve_by(&l.data, Square(l.rows), &mut x.data, b.cols, StdSum);
     x
 }

@@ -10,6 +10,7 @@
 
 use super::dual::Dual;
 use super::scalar::Scalar;
+use crate::linalg::cholesky::{Packed, Summed, factor_in_place, solve_by};
 
 /// A lower-triangular n×n matrix stored row by row: (0,0), (1,0), (1,1), (2,0), …
 /// This is also the order of a mass network's off-diagonal outputs (see `mass_matrix`).
@@ -46,55 +47,22 @@ fn sum<S: Scalar>(terms: impl IntoIterator<Item = S>) -> Option<S> {
 }
 
 /// Cholesky factor of a symmetric positive-definite matrix (only the lower triangle of `m` is
-/// read). With dual entries this also differentiates the factorization.
+/// read). With dual entries this also differentiates the factorization. Its sums are rounded
+/// in the [`Summed`] order, as every learned model's answers were recorded.
 pub fn cholesky<S: Scalar>(m: &[Vec<S>]) -> Tri<S> {
     let n = m.len();
-    let mut l: Vec<Option<S>> = vec![None; Tri::<S>::len(n)];
-    let at = |l: &Vec<Option<S>>, i: usize, j: usize| -> S {
-        l[Tri::<S>::index(i, j)].clone().expect("computed earlier")
-    };
-    for j in 0..n {
-        let mut d = m[j][j].clone();
-        if let Some(s) = sum((0..j).map(|k| at(&l, j, k).square())) {
-            d = d - s;
-        }
-        let ljj = d.sqrt();
-        l[Tri::<S>::index(j, j)] = Some(ljj.clone());
-        for i in j + 1..n {
-            let mut v = m[i][j].clone();
-            if let Some(s) = sum((0..j).map(|k| at(&l, i, k) * at(&l, j, k))) {
-                v = v - s;
-            }
-            l[Tri::<S>::index(i, j)] = Some(v / ljj.clone());
-        }
+    let mut entries = Vec::with_capacity(Tri::<S>::len(n));
+    for (i, row) in m.iter().enumerate() {
+        entries.extend_from_slice(&row[..=i]);
     }
-    Tri {
-        n,
-        entries: l.into_iter().map(|e| e.expect("filled")).collect(),
-    }
+    factor_in_place(&mut entries, Packed(n), Summed);
+    Tri { n, entries }
 }
 
 /// Solves L Lᵀ x = r by forward then back substitution.
-pub fn solve_llt<S: Scalar>(l: &Tri<S>, r: Vec<S>) -> Vec<S> {
-    let n = l.n;
-    let mut y: Vec<S> = Vec::with_capacity(n);
-    for (i, ri) in r.into_iter().enumerate() {
-        let mut v = ri;
-        if let Some(s) = sum((0..i).map(|j| l.get(i, j).clone() * y[j].clone())) {
-            v = v - s;
-        }
-        y.push(v / l.get(i, i).clone());
-    }
-    let mut x: Vec<Option<S>> = vec![None; n];
-    for i in (0..n).rev() {
-        let mut v = y[i].clone();
-        let back = (i + 1..n).map(|j| l.get(j, i).clone() * x[j].clone().expect("solved"));
-        if let Some(s) = sum(back) {
-            v = v - s;
-        }
-        x[i] = Some(v / l.get(i, i).clone());
-    }
-    x.into_iter().map(|e| e.expect("solved")).collect()
+pub fn solve_llt<S: Scalar>(l: &Tri<S>, mut r: Vec<S>) -> Vec<S> {
+    solve_by(&l.entries, Packed(l.n), &mut r, 1, Summed);
+    r
 }
 
 /// (Lᵀ v)_a = Σ_{b ≥ a} L_ba v_b.
@@ -207,26 +175,4 @@ pub fn white_box_acceleration(
         .map(|k| v.tangent(k).copied().unwrap_or(0.0))
         .collect();
     acceleration(&cholesky(&mass(&qv)), Some(grad_v), forces, qd)
-}
-
-/// The lower-triangular L with M = L Lᵀ of a plain f64 matrix (its lower triangle read), or the
-/// first row whose pivot is not positive and finite (M is not positive definite there).
-pub fn cholesky_f64(m: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, usize> {
-    let n = m.len();
-    let mut l = vec![vec![0.0; n]; n];
-    for i in 0..n {
-        for j in 0..=i {
-            let s = m[i][j] - (0..j).map(|k| l[i][k] * l[j][k]).sum::<f64>();
-            if i == j {
-                // NaN fails `s > 0.0` too.
-                if !(s > 0.0 && s.is_finite()) {
-                    return Err(i);
-                }
-                l[i][i] = s.sqrt();
-            } else {
-                l[i][j] = s / l[j][j];
-            }
-        }
-    }
-    Ok(l)
 }

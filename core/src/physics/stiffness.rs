@@ -17,10 +17,11 @@
 //! loses is sticking (bench-results/2026-11-26-coulomb-stiffness.md).
 
 use super::dual::Dual;
-use super::dynamics::{cholesky_f64, constants, dual_vars};
+use super::dynamics::{constants, dual_vars};
 use super::eigen::symmetric_eigen;
 use super::integrator::Integrator;
 use super::templates::Template;
+use crate::linalg::cholesky::{Square, StdSum, factor_rows};
 
 /// The largest λ_max Δt `integrator` is given (module docs).
 pub fn limit(integrator: Integrator) -> f64 {
@@ -94,7 +95,7 @@ pub fn stiffness(
         let d = symmetric(&velocity_stiffness(t, p, q));
         let rate = largest_eigenvalue(&congruence(&l, &d));
         if rate > 0.0 && 1.0 / rate < out.tau {
-            let inv = inverse_diagonal(&l);
+            let inv = inverse_diagonal(&l, n);
             let own = |i: usize| d[i][i] * inv[i];
             out.tau = 1.0 / rate;
             out.q = q.clone();
@@ -232,29 +233,27 @@ fn symmetric(d: &[Vec<f64>]) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Lower-triangular L with M = L Lᵀ; None unless M is positive definite.
-fn cholesky(m: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
-    cholesky_f64(m).ok()
+/// L with M = L Lᵀ, n×n row-major; None unless M is positive definite.
+fn cholesky(m: &[Vec<f64>]) -> Option<Vec<f64>> {
+    factor_rows(m).ok()
 }
 
 /// The first coordinate whose pivot fails when M is factored (M is not positive definite
 /// there: a joint that moves no mass has a zero row), if any.
 pub fn singular_coordinate(m: &[Vec<f64>]) -> Option<usize> {
-    cholesky_f64(m).err()
+    factor_rows(m).err()
 }
 
 /// L⁻¹ b.
-fn forward(l: &[Vec<f64>], b: &[f64]) -> Vec<f64> {
-    let mut x = vec![0.0; b.len()];
-    for i in 0..b.len() {
-        x[i] = (b[i] - (0..i).map(|k| l[i][k] * x[k]).sum::<f64>()) / l[i][i];
-    }
+fn forward(l: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut x = b.to_vec();
+    crate::linalg::cholesky::forward(l, Square(b.len()), &mut x, 1, StdSum);
     x
 }
 
 /// L⁻¹ D L⁻ᵀ, whose eigenvalues are those of D v = λ L Lᵀ v.
-fn congruence(l: &[Vec<f64>], d: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    let n = l.len();
+fn congruence(l: &[f64], d: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let n = d.len();
     // Y = L⁻¹ D column by column; as D is symmetric, L⁻¹ D L⁻ᵀ = L⁻¹ Yᵀ.
     let y: Vec<Vec<f64>> = (0..n)
         .map(|j| forward(l, &(0..n).map(|i| d[i][j]).collect::<Vec<_>>()))
@@ -266,8 +265,7 @@ fn congruence(l: &[Vec<f64>], d: &[Vec<f64>]) -> Vec<Vec<f64>> {
 }
 
 /// The diagonal of M⁻¹ = L⁻ᵀ L⁻¹: (M⁻¹)_ii = Σ_k (L⁻¹)_ki².
-fn inverse_diagonal(l: &[Vec<f64>]) -> Vec<f64> {
-    let n = l.len();
+fn inverse_diagonal(l: &[f64], n: usize) -> Vec<f64> {
     let columns: Vec<Vec<f64>> = (0..n)
         .map(|i| {
             forward(

@@ -9,7 +9,7 @@
 
 use std::time::Instant;
 
-use graybox::model::Model;
+use graybox::model::{Model, names};
 use graybox::physics::integrator::Integrator;
 
 /// Network FLOPs of one training sample (forward and backward) of `model`.
@@ -24,7 +24,7 @@ pub fn per_sample(model: &Model) -> f64 {
         .filter(|a| a.name.contains(".layers.") && a.name.ends_with(".weight"))
         .map(|a| {
             let with_tangents =
-                a.name.starts_with("mass_net") || a.name.starts_with("potential_net");
+                a.name.starts_with(names::MASS_NET) || a.name.starts_with(names::POTENTIAL_NET);
             let dirs = if with_tangents { c.n } else { 0 };
             (a.values.len() * (1 + dirs)) as f64
         })

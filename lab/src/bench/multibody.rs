@@ -1,6 +1,6 @@
 //! `graybox-lab bench multibody --urdf FILE`: microseconds per call of a URDF robot's dynamics in
-//! f64, the assembled path (`urdf::assembled`: M and V over dual numbers, then the Coriolis
-//! term from ∂L/∂q and a Cholesky solve: `dynamics::white_box_acceleration`) against the
+//! f64, the assembled path (the template's M and V over dual numbers, then the Coriolis term
+//! from ∂L/∂q and a Cholesky solve: `dynamics::white_box_acceleration`) against the
 //! multibody algorithms (`physics::multibody`): ABA, CRBA + Cholesky, and ∂q̈/∂q, ∂q̈/∂q̇ (what
 //! Linearize needs) by −M⁻¹ ∂ID over jets, by forward dynamics over jets and over `Dual`.
 

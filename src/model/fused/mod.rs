@@ -16,7 +16,7 @@ use std::sync::{Arc, Mutex};
 use burn::module::{Module, ModuleVisitor, Param};
 use burn::tensor::Tensor;
 
-use super::{Model, ModelConfig};
+use super::{Model, ModelConfig, names};
 use crate::backend::{Kept, RowFn, RowFunction, row_map};
 use crate::physics::tape::{Buffers, Gradients, Layer, Params, Precision, Ref, Tape, Var};
 
@@ -44,12 +44,12 @@ impl Layout {
         }
         let mut nets = vec![];
         for prefix in [
-            "naive",
-            "mass_net",
-            "potential_net",
-            "force_net",
-            "b_net",
-            "damping_net",
+            names::NAIVE,
+            names::MASS_NET,
+            names::POTENTIAL_NET,
+            names::FORCE_NET,
+            names::B_NET,
+            names::DAMPING_NET,
         ] {
             let layer = |i: usize| -> Option<Layer> {
                 let find = |what: &str| {

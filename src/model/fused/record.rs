@@ -7,8 +7,8 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use super::Layout;
-use crate::model::ModelConfig;
 use crate::model::spec::ModelSpec;
+use crate::model::{ModelConfig, names};
 use crate::physics::assembly::{Columns, Networks, Structure, Values};
 use crate::physics::dual::Dual;
 use crate::physics::dynamics::acceleration;
@@ -74,16 +74,16 @@ fn record_values(config: &ModelConfig, layout: &Layout, tape: &Rc<RefCell<Tape>>
         let (at, len) = layout.array(name)?;
         Some((at..at + len).map(|i| Var::param(tape, i)).collect())
     };
-    let physical = match (vars("physical"), config.template()) {
+    let physical = match (vars(names::PHYSICAL), config.template()) {
         (Some(raw), Some(t)) => Some(t.physical_from_raw(&raw)),
-        (None, _) => vars("physical_values"),
+        (None, _) => vars(names::PHYSICAL_VALUES),
         (Some(raw), None) => Some(raw),
     };
     Recorded {
-        mass_const: vars("mass_const"),
-        potential_quad: vars("potential_quad"),
-        b_const: vars("b_const"),
-        eta: vars("eta"),
+        mass_const: vars(names::MASS_CONST),
+        potential_quad: vars(names::POTENTIAL_QUAD),
+        b_const: vars(names::B_CONST),
+        eta: vars(names::ETA),
         physical,
     }
 }
@@ -115,7 +115,7 @@ fn accel(
         ..
     } = &config.spec
     else {
-        let out = net("naive", &full(), 0).expect("a naive model's network");
+        let out = net(names::NAIVE, &full(), 0).expect("a naive model's network");
         return (out.into_iter().enumerate())
             .map(|(j, o)| o.v.scale(sc.acc_std[j]).shift(sc.acc_mean[j]))
             .collect();
@@ -123,17 +123,17 @@ fn accel(
     let n = config.n;
     let q_in = sc.q_features(q, angles, true);
     let nets = TapeNets {
-        mass: net("mass_net", &q_in, n),
-        potential: net("potential_net", &q_in, n).map(|mut v| v.remove(0)),
-        force: net("force_net", &full(), 0).or_else(|| {
+        mass: net(names::MASS_NET, &q_in, n),
+        potential: net(names::POTENTIAL_NET, &q_in, n).map(|mut v| v.remove(0)),
+        force: net(names::FORCE_NET, &full(), 0).or_else(|| {
             let plain: Vec<Dual<Var>> = (sc.q_features(q, angles, false).into_iter()).collect();
-            net("b_net", &plain, 0)
+            net(names::B_NET, &plain, 0)
         }),
         // [q, q̇]: the full input without u's last m entries.
-        damping: layout.net("damping_net").map(|_| {
+        damping: layout.net(names::DAMPING_NET).map(|_| {
             let mut x = full();
             x.truncate(x.len() - u.len());
-            net("damping_net", &x, 0).expect("the layout has it")
+            net(names::DAMPING_NET, &x, 0).expect("the layout has it")
         }),
     };
     let structure = Structure {

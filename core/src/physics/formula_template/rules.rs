@@ -1,11 +1,11 @@
 //! The rules a formula template document's names and values follow (checked when it is read,
 //! before its expressions are), and the checks of its M at the document's values.
 
-use crate::physics::dynamics::cholesky_f64;
 use std::collections::BTreeMap;
 
 use super::doc::{FormulaDoc, bad};
 use crate::error::Result;
+use crate::linalg::cholesky::factor_rows;
 use crate::names::{NAME_MAX, name_problem, quoted_name};
 use crate::physics::formula::{Names, reserved};
 use crate::physics::params::physical_problem;
@@ -111,5 +111,5 @@ pub(super) fn positive_definite(m: &[Vec<f64>]) -> bool {
     if m.iter().flatten().any(|v| !v.is_finite()) {
         return false;
     }
-    cholesky_f64(m).is_ok()
+    factor_rows(m).is_ok()
 }

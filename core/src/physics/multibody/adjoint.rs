@@ -61,7 +61,7 @@ fn dot3(a: &V3<f64>, b: &V3<f64>) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-impl Data {
+impl Data<f64> {
     /// ∂(λᵀ ID)/∂(q, q̇) at the state `accelerations` left (after `mass`), added into
     /// `dq`, `dqd`: λ contracted with `id_derivatives`' formulas. With w the λ carried out to
     /// each body and subtree sums Rⱼ = Σ λₖ Iᶜₖ Sₖ, Tⱼ = Σ λₖ Bᶜₖᵀ Sₖ (k ⪰ j),
@@ -72,7 +72,7 @@ impl Data {
         for (i, body) in model.bodies.iter().enumerate() {
             let l = body.drive.rate(lambda);
             let wp = body.parent.map_or(ZERO6, |p| self.carried[p]);
-            self.carried[i] = add_scaled(&wp, l, &self.s[i]);
+            self.carried[i] = add_scaled(&wp, &l, &self.s[i]);
             let s = &self.s[i];
             self.reach_i[i] = apply(&self.composite[i], s).map(|x| l * x);
             self.reach_b[i] = self.variation[i].apply_t(s).map(|x| l * x);

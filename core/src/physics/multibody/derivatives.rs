@@ -12,14 +12,14 @@
 use super::Model;
 use super::aba::forward_dynamics;
 use super::data::{Data, with_data};
-use super::spatial::six::{V6, Variation, add, add_scaled, apply, cross, cross_force, dot};
+use super::spatial::six::{V6, Variation, ZERO6, add, add_scaled, apply, cross, cross_force, dot};
 use crate::physics::dual::Dual;
 use crate::physics::jet::Jet;
 
 /// q̈ with ∂q̈/∂q and ∂q̈/∂q̇ (n×n each, row i is q̈ᵢ's gradient).
 pub type Derivatives = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
 
-impl Data {
+impl Data<f64> {
     /// ∂ID/∂q and ∂ID/∂q̇ at the state `crba_forward` (or `kinematics`, `mass_and_bias`,
     /// `accelerations`) left, over the coordinates. In the root frame, moving joint j's value
     /// turns everything it carries rigidly (what leaves Sₖ·Fₖ unchanged for k below j) and
@@ -64,12 +64,11 @@ impl Data {
     /// Per body, α = a_parent × S + v_parent × d and the composite variation Bᶜ of its subtree's
     /// force in v: what the derivatives of RNEA and its adjoint read.
     pub(super) fn variations(&mut self, model: &Model) {
-        let g = model.gravity;
-        let a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]];
-        let zero = [0.0; 6];
         for (i, body) in model.bodies.iter().enumerate() {
             self.variation[i] = Variation::of(&self.inertia[i], &self.v[i], &self.momentum[i]);
-            let (vp, ap) = body.parent.map_or((zero, a0), |p| (self.v[p], self.a[p]));
+            let (vp, ap) = body
+                .parent
+                .map_or((ZERO6, self.a0), |p| (self.v[p], self.a[p]));
             self.alpha[i] = add(&cross(&ap, &self.s[i]), &cross(&vp, &self.d[i]));
         }
         for (i, body) in model.bodies.iter().enumerate().rev() {
@@ -93,7 +92,7 @@ impl Data {
             &cross_force(sk, &self.force[k]),
             &add(&apply(ic, &self.alpha[k]), &bc.apply(dk)),
         );
-        let q = add_scaled(&bc.apply(sk), 2.0, &apply(ic, dk));
+        let q = add_scaled(&bc.apply(sk), &2.0, &apply(ic, dk));
         (p, q)
     }
 

@@ -3,16 +3,14 @@
 //! its joint models, its bodies' inertias, gravity) built once from any source (the URDF
 //! reader is one producer: `urdf::Tree::multibody`), one spatial algebra owning every form of
 //! a body's inertia and the conversions between them (`spatial`), the joint models (`joint`),
-//! and one file per algorithm: forward kinematics (`kinematics`), the recursive Newton–Euler
-//! algorithm for inverse dynamics, gravity and Coriolis torques (`rnea`), the composite
-//! rigid-body algorithm for M(q) (`rnea::crba`), the articulated-body algorithm for forward
-//! dynamics (`aba`), the derivatives of forward dynamics (`derivatives`), forward dynamics'
+//! and a workspace [`Data`] on which each algorithm is written once, generic over `Scalar`
+//! (f64, dual numbers and jets for exact derivatives, batch columns): the state's kinematics
+//! in the root frame (`data`: forward kinematics, and CRBA for M(q) and RNEA's passes, whose
+//! one-call entry points are in `rnea`), the articulated-body algorithm for forward dynamics
+//! (`aba`), the analytic derivatives of forward dynamics (`derivatives`), its
 //! vector–Jacobian product (`adjoint`), the energies (`energy`), τ = Y π (`regressor`) and
-//! the base parameters (`base`). Each is O(n) or O(n·depth) per state, generic over `Scalar`
-//! (f64, dual numbers for exact derivatives, `Term`s for the tape). The f64 path runs on a
-//! workspace as Pinocchio's does (`data::Data`): the state's kinematics in the root frame,
-//! computed once and shared by CRBA, RNEA, ABA, the analytic derivatives of RNEA and the
-//! adjoint.
+//! the base parameters (`base`). Each is O(n) or O(n·depth) per state. ARCHITECTURE.md's
+//! table names the one file of each.
 //!
 //! Mimic joints ([`Drive`]): joint values are G q + offset with G = ∂(joint values)/∂q, so
 //! joint velocities and accelerations are G q̇ and G q̈, forces on the coordinates are
@@ -25,20 +23,18 @@ pub mod data;
 pub mod derivatives;
 pub mod energy;
 pub mod joint;
-pub mod kinematics;
 pub mod regressor;
 pub mod rnea;
 pub mod spatial;
-pub mod term;
 
 pub use aba::{aba, crba_forward, forward_dynamics};
 pub use data::{Data, with_data};
 pub use derivatives::{
     Derivatives, dual_derivatives, fd_over_jets, forward_dynamics_derivatives, id_partials,
 };
-pub use energy::{kinetic_energy, potential_energy};
+pub use energy::{kinetic_energy, potential_energy, potential_energy_of};
 pub use joint::{Drive, JointModel, Placement};
-pub use rnea::{bias, coriolis, crba, gravity_torques, inverse_dynamics};
+pub use rnea::{bias, coriolis, crba, crba_with, gravity_torques, inverse_dynamics};
 pub use spatial::{Inertial, PER_BODY};
 
 use crate::physics::scalar::Scalar;

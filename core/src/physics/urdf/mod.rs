@@ -1,7 +1,6 @@
 //! Robots from URDF (docs/robots.md#urdf-robots): the rigid-body tree's M(q) and V(q) with trainable,
 //! physically consistent inertial parameters.
 
-pub mod assembled;
 pub mod export;
 pub mod frame;
 mod mimic;

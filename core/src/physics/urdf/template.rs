@@ -13,16 +13,15 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::assembled;
 use super::parameters::{PER_BODY, PER_JOINT, params_of};
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::names::name_problem;
 use crate::physics::multibody::spatial::{
-    BodyInertia, STANDARD_NAMES, body_of_physical, of_physical, physical_of_raw, raw_order,
+    STANDARD_NAMES, V3, body_of_physical, of_physical, physical_of_raw, raw_order,
     standard_of_physical,
 };
-use crate::physics::multibody::{self, Inertial};
+use crate::physics::multibody::{self, Inertial, crba_with, potential_energy_of};
 use crate::physics::params::{ParamInfo, physical_problem};
 use crate::physics::scalar::Scalar;
 
@@ -83,7 +82,7 @@ pub const IDENTIFIABILITY: &str = "motion data determines only combinations of t
     unidentifiable direction fit the data equally well, so read the masses, centres of mass \
     and inertias as one consistent, physically realisable solution, not as measurements";
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct UrdfTemplate {
     pub doc: UrdfDoc,
     pub tree: Tree,
@@ -91,6 +90,16 @@ pub struct UrdfTemplate {
     /// The coordinate each input drives.
     actuated: Vec<usize>,
     periodic: Vec<bool>,
+    /// The robot with its URDF's inertias and the document's gravity, built once: the
+    /// kinematics that M and V over trainable values run on (its inertias never enter).
+    robot: multibody::Model,
+}
+
+/// Everything but the document and the tree follows from them.
+impl PartialEq for UrdfTemplate {
+    fn eq(&self, o: &Self) -> bool {
+        self.doc == o.doc && self.tree == o.tree
+    }
 }
 
 fn bad(field: &str, message: impl Into<String>) -> Error {
@@ -232,12 +241,14 @@ impl UrdfTemplate {
             }
         }
         let params = params_of(&tree);
+        let robot = tree.multibody(doc.gravity);
         Ok(Self {
             doc,
             tree,
             params,
             actuated,
             periodic,
+            robot,
         })
     }
 
@@ -322,18 +333,21 @@ impl UrdfTemplate {
         Ok(out)
     }
 
-    fn bodies<S: Scalar>(&self, p: &[S]) -> Vec<BodyInertia<S>> {
-        (0..self.nb())
-            .map(|b| body_of_physical(&p[b * PER_BODY..(b + 1) * PER_BODY]))
-            .collect()
-    }
-
+    /// M(q) at physical values over any scalar (at fixed f64 values, `Template::mass_at`'s CRBA).
     pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
-        assembled::mass_matrix(&self.tree, &self.bodies(p), q)
+        let bodies: Vec<_> = (p.chunks(PER_BODY).take(self.nb()))
+            .map(body_of_physical)
+            .collect();
+        crba_with(&self.robot, q, &bodies)
     }
 
+    /// V(q) at physical values over any scalar: the multibody model's potential energy with
+    /// each body's m and h = m c.
     pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
-        assembled::potential(&self.tree, &self.bodies(p), &self.doc.gravity, q)
+        let moments: Vec<(S, V3<S>)> = (p.chunks(PER_BODY).take(self.nb()))
+            .map(|v| (v[0].clone(), [1, 2, 3].map(|k| v[0].clone() * v[k].clone())))
+            .collect();
+        potential_energy_of(&self.robot, q, &moments)
     }
 
     /// F = S u − d∘q̇ − f∘tanh(q̇/ε), per joint; a mimic joint's force enters the coordinate

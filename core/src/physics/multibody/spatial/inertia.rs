@@ -3,8 +3,8 @@
 //!
 //! - [`Inertial`]: m, h = m c and Ī about the body frame's origin, in f64 (what a producer
 //!   such as the URDF reader builds a `Model` from; `from_com` takes URDF's own form);
-//! - [`BodyInertia`]: the same over any scalar, each value a constant or not (the assembled
-//!   path's M(q) and V(q) over trainable values);
+//! - [`BodyInertia`]: the same over any scalar (a URDF template's M(q) and V(q) over
+//!   trainable values, `rnea::crba_with`);
 //! - [`Inertia`]: the symmetric 6×6 spatial inertia [[A, B], [Bᵀ, C]] the algorithms take;
 //! - the standard parameters π = (m, m c, Ī about the origin), ten per body, linear in τ
 //!   (`Inertia::standard`, `Inertia::of_standard`);
@@ -13,7 +13,6 @@
 //! - the raw values θ the optimiser moves (`raw.rs`).
 
 use super::{Force, M3, Motion, V3, add, cdot, lift3x3, mat_op, mtv, mv};
-use crate::physics::multibody::term::{Term, V};
 use crate::physics::scalar::Scalar;
 
 /// Values per body in every ten-value form (π, the physical values, θ).
@@ -146,11 +145,11 @@ pub struct Inertial {
     pub(super) at_com: Option<([f64; 3], [[f64; 3]; 3])>,
 }
 
-/// The same over any scalar (the trainable form's image), each value a constant or not.
+/// The same over any scalar (the trainable form's image).
 pub struct BodyInertia<S> {
-    pub mass: Term<S>,
-    pub h: V3<Term<S>>,
-    pub inertia: M3<Term<S>>,
+    pub mass: S,
+    pub h: V3<S>,
+    pub inertia: M3<S>,
 }
 
 impl Inertial {
@@ -290,12 +289,12 @@ pub fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
             } else {
                 -(c[i].clone() * c[j].clone())
             };
-            V(ic[i][j].clone() + m.clone() * shift)
+            ic[i][j].clone() + m.clone() * shift
         })
     });
     BodyInertia {
-        h: c.clone().map(|ci| V(m.clone() * ci)),
-        mass: V(m),
+        h: c.clone().map(|ci| m.clone() * ci),
+        mass: m,
         inertia,
     }
 }
@@ -303,14 +302,13 @@ pub fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
 /// π of a body from its physical values, over any scalar (Burn tensors in training).
 pub fn standard_of_physical<S: Scalar>(v: &[S]) -> [S; PER_BODY] {
     let b = body_of_physical(v);
-    let like = &v[0];
     let [hx, hy, hz] = b.h;
-    let i = |r: usize, c: usize| b.inertia[r][c].clone().value(like);
+    let i = |r: usize, c: usize| b.inertia[r][c].clone();
     [
-        b.mass.value(like),
-        hx.value(like),
-        hy.value(like),
-        hz.value(like),
+        b.mass,
+        hx,
+        hy,
+        hz,
         i(0, 0),
         i(0, 1),
         i(0, 2),

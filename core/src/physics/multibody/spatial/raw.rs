@@ -11,7 +11,6 @@
 use super::M3;
 use super::inertia::{BodyInertia, Inertial, PER_BODY};
 use crate::error::{Error, Result};
-use crate::physics::multibody::term::{C, Term, V};
 use crate::physics::scalar::Scalar;
 
 /// The smallest mass a body is given (kg) and the smallest second moment about its centre
@@ -63,14 +62,11 @@ impl Inertial {
 
     /// The body for θ.
     pub fn from_theta(theta: &[f64; 10]) -> Inertial {
-        let b = body_inertia::<f64>(&theta.map(V));
-        let f = |t: &Term<f64>| match t {
-            C(c) | V(c) => *c,
-        };
+        let b = body_inertia(theta);
         Inertial {
-            mass: f(&b.mass),
-            h: b.h.each_ref().map(f),
-            inertia: b.inertia.each_ref().map(|r| r.each_ref().map(f)),
+            mass: b.mass,
+            h: b.h,
+            inertia: b.inertia,
             at_com: None,
         }
     }
@@ -142,29 +138,42 @@ fn ul_cholesky(j: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
     Some(u)
 }
 
-/// m, h and Ī about the frame's origin for θ, over any scalar.
-pub fn body_inertia<S: Scalar>(theta: &[Term<S>; 10]) -> BodyInertia<S> {
-    let [a, d1, d2, d3, s12, s13, s23, t1, t2, t3] = theta.clone();
-    let exp = |t: Term<S>| match t {
-        C(c) => C(c.exp()),
-        V(x) => V(x.exp()),
-    };
-    let m = exp(a.clone() + a);
-    // Rows of U / e^α.
-    let rows: [[Term<S>; 4]; 3] = [
-        [exp(d1), s12, s13, t1.clone()],
-        [C(0.0), exp(d2), s23, t2.clone()],
-        [C(0.0), C(0.0), exp(d3), t3.clone()],
+/// R Rᵀ for R upper triangular with diagonal `d` and s = (s₁₂, s₁₃, s₂₃) above it, each row
+/// extended by `extra`'s entry when there is one: R's zeros never enter and the lower
+/// triangle is the upper's, so a Burn tensor path allocates nothing for them.
+fn upper_gram<S: Scalar>(d: &[S; 3], s: &[S; 3], extra: Option<&[S; 3]>) -> M3<S> {
+    let p = |x: &S, y: &S| x.clone() * y.clone();
+    let [s12, s13, s23] = s;
+    let mut upper = [
+        p(&d[0], &d[0]) + p(s12, s12) + p(s13, s13),
+        p(s12, &d[1]) + p(s13, s23),
+        p(s13, &d[2]),
+        p(&d[1], &d[1]) + p(s23, s23),
+        p(s23, &d[2]),
+        p(&d[2], &d[2]),
     ];
-    let dot4 = |x: &[Term<S>; 4], y: &[Term<S>; 4]| {
-        (0..4)
-            .map(|k| x[k].clone() * y[k].clone())
-            .reduce(|p, q| p + q)
-            .expect("four terms")
-    };
-    // Σ = e^{2α} (rows · rows) on the 3×3 block.
-    let sigma: M3<Term<S>> =
-        std::array::from_fn(|i| std::array::from_fn(|j| m.clone() * dot4(&rows[i], &rows[j])));
+    if let Some(t) = extra {
+        let pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+        for (u, (i, j)) in upper.iter_mut().zip(pairs) {
+            *u = u.clone() + p(&t[i], &t[j]);
+        }
+    }
+    let [g00, g01, g02, g11, g12, g22] = upper;
+    [
+        [g00, g01.clone(), g02.clone()],
+        [g01, g11, g12.clone()],
+        [g02, g12, g22],
+    ]
+}
+
+/// m, h and Ī about the frame's origin for θ, over any scalar.
+pub fn body_inertia<S: Scalar>(theta: &[S; 10]) -> BodyInertia<S> {
+    let [a, d1, d2, d3, s12, s13, s23, t1, t2, t3] = theta.clone();
+    let m = (a.clone() + a).exp();
+    let t = [t1, t2, t3];
+    // Σ = e^{2α} (rows · rows) of U / e^α on the 3×3 block.
+    let rows = upper_gram(&[d1.exp(), d2.exp(), d3.exp()], &[s12, s13, s23], Some(&t));
+    let sigma: M3<S> = rows.map(|r| r.map(|x| m.clone() * x));
     let tr = sigma[0][0].clone() + sigma[1][1].clone() + sigma[2][2].clone();
     let inertia = std::array::from_fn(|i| {
         std::array::from_fn(|j| {
@@ -176,7 +185,7 @@ pub fn body_inertia<S: Scalar>(theta: &[Term<S>; 10]) -> BodyInertia<S> {
         })
     });
     BodyInertia {
-        h: [t1, t2, t3].map(|t| m.clone() * t),
+        h: t.map(|t| m.clone() * t),
         mass: m,
         inertia,
     }
@@ -195,18 +204,8 @@ pub fn physical_of_raw<S: Scalar>(r: &[S]) -> [S; PER_BODY] {
     let [a, t1, t2, t3, d1, s12, s13, d2, s23, d3] =
         std::array::from_fn::<_, 10, _>(|k| r[k].clone());
     let m = (a.clone() + a).exp();
-    let rows: [[Term<S>; 3]; 3] = [
-        [V(d1.exp()), V(s12), V(s13)],
-        [C(0.0), V(d2.exp()), V(s23)],
-        [C(0.0), C(0.0), V(d3.exp())],
-    ];
-    let dot = |x: &[Term<S>; 3], y: &[Term<S>; 3]| {
-        (x[0].clone() * y[0].clone())
-            + (x[1].clone() * y[1].clone())
-            + (x[2].clone() * y[2].clone())
-    };
-    let like = &m;
-    let sigma = |i: usize, j: usize| m.clone() * dot(&rows[i], &rows[j]).value(like);
+    let rows = upper_gram(&[d1.exp(), d2.exp(), d3.exp()], &[s12, s13, s23], None);
+    let sigma = |i: usize, j: usize| m.clone() * rows[i][j].clone();
     let (s00, s11, s22) = (sigma(0, 0), sigma(1, 1), sigma(2, 2));
     let tr = s00.clone() + s11.clone() + s22.clone();
     [

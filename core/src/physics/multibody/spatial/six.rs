@@ -1,14 +1,28 @@
-//! Spatial vectors and matrices as flat f64 arrays, for the algorithms that run in the root
-//! frame on f64 only (`Data`'s): a motion is (ω, v), a force (n, f), an inertia or any other
-//! motion-to-force map a 6×6 matrix. Plain arrays keep these loops free of the generic
-//! `Scalar` clones and let the compiler vectorise them.
+//! Spatial vectors and matrices as flat arrays over any [`Scalar`], for the algorithms that run
+//! in the root frame (`Data`'s): a motion is (ω, v), a force (n, f), an inertia or any other
+//! motion-to-force map a 6×6 matrix. Plain arrays and loops (no `array::from_fn`, which the
+//! compiler left as an out-of-line call in the hot loops, 5 % of a training step's time) keep
+//! the f64 instance as fast as hand-written f64 code: `clone` is a copy there. The order of
+//! every sum is fixed here, so each scalar type computes the same operations in the same
+//! order and a batch column reproduces the single state bit for bit.
 
-use super::{Force, Inertia, M3, Motion, V3};
+use super::{BodyInertia, Force, Inertia, M3, Motion, V3};
+use crate::physics::scalar::Scalar;
 
-pub type V6 = [f64; 6];
-pub type M6 = [[f64; 6]; 6];
+pub type V6<S = f64> = [S; 6];
+pub type M6<S = f64> = [[S; 6]; 6];
 
 pub const ZERO6: V6 = [0.0; 6];
+
+#[inline]
+pub fn zeros<S: Scalar>(zero: &S) -> V6<S> {
+    std::array::from_fn(|_| zero.clone())
+}
+
+#[inline]
+pub fn zeros_m6<S: Scalar>(zero: &S) -> M6<S> {
+    std::array::from_fn(|_| zeros(zero))
+}
 
 #[inline]
 pub fn of_motion(m: &Motion<f64>) -> V6 {
@@ -34,98 +48,126 @@ pub fn of_inertia(i: &Inertia<f64>) -> M6 {
 }
 
 #[inline]
-fn cross3(a: &[f64], b: &[f64]) -> V3<f64> {
+fn mul<S: Scalar>(a: &S, b: &S) -> S {
+    a.clone() * b.clone()
+}
+
+#[inline]
+fn cross3<S: Scalar>(a: &[S], b: &[S]) -> V3<S> {
     [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
+        mul(&a[1], &b[2]) - mul(&a[2], &b[1]),
+        mul(&a[2], &b[0]) - mul(&a[0], &b[2]),
+        mul(&a[0], &b[1]) - mul(&a[1], &b[0]),
     ]
 }
 
 /// m × x for motions (crm).
 #[inline]
-pub fn cross(m: &V6, x: &V6) -> V6 {
+pub fn cross<S: Scalar>(m: &V6<S>, x: &V6<S>) -> V6<S> {
     let (w, v) = m.split_at(3);
     let (xw, xv) = x.split_at(3);
     let (a, b, c) = (cross3(w, xw), cross3(w, xv), cross3(v, xw));
-    [a[0], a[1], a[2], b[0] + c[0], b[1] + c[1], b[2] + c[2]]
+    let [b0, b1, b2] = b;
+    let [c0, c1, c2] = c;
+    let [a0, a1, a2] = a;
+    [a0, a1, a2, b0 + c0, b1 + c1, b2 + c2]
 }
 
 /// m ×* f (crf).
 #[inline]
-pub fn cross_force(m: &V6, f: &V6) -> V6 {
+pub fn cross_force<S: Scalar>(m: &V6<S>, f: &V6<S>) -> V6<S> {
     let (w, v) = m.split_at(3);
     let (n, ff) = f.split_at(3);
     let (a, b, c) = (cross3(w, n), cross3(v, ff), cross3(w, ff));
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2], c[0], c[1], c[2]]
+    let [a0, a1, a2] = a;
+    let [b0, b1, b2] = b;
+    let [c0, c1, c2] = c;
+    [a0 + b0, a1 + b1, a2 + b2, c0, c1, c2]
+}
+
+/// Σ aᵢ bᵢ, left to right (as f64's `sum`, whose fold starts at −0.0, the identity).
+#[inline]
+pub fn dot<S: Scalar>(a: &V6<S>, b: &V6<S>) -> S {
+    let mut s = mul(&a[0], &b[0]);
+    for (x, y) in a.iter().zip(b).skip(1) {
+        s = s + mul(x, y);
+    }
+    s
 }
 
 #[inline]
-pub fn dot(a: &V6, b: &V6) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-#[inline]
-pub fn add(a: &V6, b: &V6) -> V6 {
-    // Loops over fixed-size arrays rather than `array::from_fn`, which the compiler left as
-    // an out-of-line call in the hot loops (5 % of a training step's time).
-    let mut out = *a;
-    out.iter_mut().zip(b).for_each(|(o, y)| *o += y);
+pub fn add<S: Scalar>(a: &V6<S>, b: &V6<S>) -> V6<S> {
+    let mut out = a.clone();
+    out.iter_mut()
+        .zip(b)
+        .for_each(|(o, y)| *o = o.clone() + y.clone());
     out
 }
 
 /// a + c b.
 #[inline]
-pub fn add_scaled(a: &V6, c: f64, b: &V6) -> V6 {
-    let mut out = *a;
-    out.iter_mut().zip(b).for_each(|(o, y)| *o += c * y);
+pub fn add_scaled<S: Scalar>(a: &V6<S>, c: &S, b: &V6<S>) -> V6<S> {
+    let mut out = a.clone();
+    out.iter_mut()
+        .zip(b)
+        .for_each(|(o, y)| *o = o.clone() + mul(c, y));
+    out
+}
+
+/// c b.
+#[inline]
+pub fn scaled<S: Scalar>(c: &S, b: &V6<S>) -> V6<S> {
+    let mut out = b.clone();
+    out.iter_mut().for_each(|o| *o = mul(c, o));
     out
 }
 
 /// M x.
 #[inline]
-pub fn apply(m: &M6, x: &V6) -> V6 {
-    let mut out = ZERO6;
+pub fn apply<S: Scalar>(m: &M6<S>, x: &V6<S>) -> V6<S> {
+    let mut out = x.clone();
     out.iter_mut().zip(m).for_each(|(o, row)| *o = dot(row, x));
     out
 }
 
-/// Mᵀ x.
 #[inline]
-pub fn apply_t(m: &M6, x: &V6) -> V6 {
-    let mut out = ZERO6;
-    for (row, &xr) in m.iter().zip(x) {
-        for (o, &v) in out.iter_mut().zip(row) {
-            *o += v * xr;
-        }
-    }
-    out
-}
-
-#[inline]
-pub fn add_assign(a: &mut M6, b: &M6) {
+pub fn add_assign<S: Scalar>(a: &mut M6<S>, b: &M6<S>) {
     for (ra, rb) in a.iter_mut().zip(b) {
         for (x, y) in ra.iter_mut().zip(rb) {
-            *x += y;
+            *x = x.clone() + y.clone();
         }
     }
+}
+
+/// a ← a − u uᵀ / d: the articulated inertia a joint passes to its parent.
+#[inline]
+pub fn sub_outer<S: Scalar>(a: &mut M6<S>, u: &V6<S>, d: &S) {
+    for (row, ur) in a.iter_mut().zip(u) {
+        let k = ur.clone() / d.clone();
+        row.iter_mut()
+            .zip(u)
+            .for_each(|(x, uc)| *x = x.clone() - mul(&k, uc));
+    }
+}
+
+/// Σ rᵢ cᵢ over three constant coefficients, left to right.
+#[inline]
+fn combine<S: Scalar>(r: [&S; 3], c: &V3<f64>) -> S {
+    r[0].scale(c[0]) + r[1].scale(c[1]) + r[2].scale(c[2])
 }
 
 /// A motion in body coordinates, in the root frame, for the body placed at (E₀, p) (E₀ turns
 /// root axes into the body's, p is its origin): ω = E₀ᵀ ω', v = E₀ᵀ v' + p × ω.
 #[inline]
-pub fn motion_to_root(e: &M3<f64>, p: &V3<f64>, m: &Motion<f64>) -> V6 {
-    let rt = |x: &V3<f64>| -> V3<f64> {
-        let mut out = [0.0; 3];
-        for (i, o) in out.iter_mut().enumerate() {
-            *o = e[0][i] * x[0] + e[1][i] * x[1] + e[2][i] * x[2];
-        }
-        out
+pub fn motion_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, m: &Motion<f64>) -> V6<S> {
+    let rt = |x: &V3<f64>| -> V3<S> {
+        std::array::from_fn(|i| combine([&e[0][i], &e[1][i], &e[2][i]], x))
     };
     let w = rt(&m.w);
-    let v = rt(&m.v);
-    let pw = cross3(p, &w);
-    [w[0], w[1], w[2], v[0] + pw[0], v[1] + pw[1], v[2] + pw[2]]
+    let [v0, v1, v2] = rt(&m.v);
+    let [p0, p1, p2] = cross3(p, &w);
+    let [w0, w1, w2] = w;
+    [w0, w1, w2, v0 + p0, v1 + p1, v2 + p2]
 }
 
 /// A rigid body's inertia in the root frame (Xᵀ I X for X the root-to-body transform), from
@@ -133,57 +175,68 @@ pub fn motion_to_root(e: &M3<f64>, p: &V3<f64>, m: &Motion<f64>) -> V6 {
 /// R = E₀ᵀ, g = R h and [a]×ᵀ[b]× = (a·b)𝟙 − b aᵀ,
 /// h' = m p + g and A' = R A Rᵀ + m(|p|²𝟙 − p pᵀ) + 2(p·g)𝟙 − g pᵀ − p gᵀ.
 #[inline]
-pub fn inertia_to_root(e: &M3<f64>, p: &V3<f64>, i: &Inertia<f64>) -> M6 {
-    let m = i.mass();
-    let hb = i.first_moment();
-    let mut g = [0.0; 3];
-    for (r, g) in g.iter_mut().enumerate() {
-        *g = e[0][r] * hb[0] + e[1][r] * hb[1] + e[2][r] * hb[2];
-    }
+pub fn inertia_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, body: &BodyInertia<S>) -> M6<S> {
+    let zero = p[0].lift(0.0);
+    let (m, hb, a) = (&body.mass, &body.h, &body.inertia);
+    let g: V3<S> = std::array::from_fn(|r| dot3(&[&e[0][r], &e[1][r], &e[2][r]], hb));
     // A E₀, then E₀ᵀ (A E₀) = R A Rᵀ.
-    let mut ae = [[0.0; 3]; 3];
-    for (r, row) in ae.iter_mut().enumerate() {
-        for (c, x) in row.iter_mut().enumerate() {
-            *x = i.a[r][0] * e[0][c] + i.a[r][1] * e[1][c] + i.a[r][2] * e[2][c];
-        }
-    }
-    let (pp, pg) = (dot3(p, p), dot3(p, &g));
-    let h = [m * p[0] + g[0], m * p[1] + g[1], m * p[2] + g[2]];
-    let mut out = [[0.0; 6]; 6];
+    let ae: M3<S> = std::array::from_fn(|r| {
+        std::array::from_fn(|c| dot3(&[&e[0][c], &e[1][c], &e[2][c]], &a[r]))
+    });
+    let (pp, pg) = (
+        dot3(&[&p[0], &p[1], &p[2]], p),
+        dot3(&[&p[0], &p[1], &p[2]], &g),
+    );
+    let h: V3<S> = std::array::from_fn(|k| mul(m, &p[k]) + g[k].clone());
+    let mut out = zeros_m6(&zero);
     for r in 0..3 {
         for c in 0..3 {
-            let rar = e[0][r] * ae[0][c] + e[1][r] * ae[1][c] + e[2][r] * ae[2][c];
-            let diag = if r == c { m * pp + 2.0 * pg } else { 0.0 };
-            out[r][c] = rar + diag - m * p[r] * p[c] - g[r] * p[c] - p[r] * g[c];
+            let rar =
+                mul(&e[0][r], &ae[0][c]) + mul(&e[1][r], &ae[1][c]) + mul(&e[2][r], &ae[2][c]);
+            let diag = if r == c {
+                mul(m, &pp) + pg.scale(2.0)
+            } else {
+                zero.clone()
+            };
+            out[r][c] =
+                rar + diag - mul(&mul(m, &p[r]), &p[c]) - mul(&g[r], &p[c]) - mul(&p[r], &g[c]);
         }
-        out[3 + r][3 + r] = m;
+        out[3 + r][3 + r] = m.clone();
     }
     // B = [h]× above the diagonal blocks, Bᵀ below.
-    let hx = [[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]];
+    let hx = skew(&h, &zero);
     for r in 0..3 {
         for c in 0..3 {
-            out[r][3 + c] = hx[r][c];
-            out[3 + c][r] = hx[r][c];
+            out[r][3 + c] = hx[r][c].clone();
+            out[3 + c][r] = hx[r][c].clone();
         }
     }
     out
 }
 
+/// x · y for x given by reference, left to right.
 #[inline]
-fn dot3(a: &V3<f64>, b: &V3<f64>) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+fn dot3<S: Scalar>(x: &[&S; 3], y: &V3<S>) -> S {
+    mul(x[0], &y[0]) + mul(x[1], &y[1]) + mul(x[2], &y[2])
 }
 
 /// [x]×.
 #[inline]
-fn skew(x: &[f64]) -> M3<f64> {
-    [[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]]
+fn skew<S: Scalar>(x: &[S], zero: &S) -> M3<S> {
+    let z = || zero.clone();
+    [
+        [z(), -x[2].clone(), x[1].clone()],
+        [x[2].clone(), z(), -x[0].clone()],
+        [-x[1].clone(), x[0].clone(), z()],
+    ]
 }
 
 #[inline]
-fn mul3(a: &M3<f64>, b: &M3<f64>) -> M3<f64> {
+fn mul3<S: Scalar>(a: &M3<S>, b: &M3<S>) -> M3<S> {
     std::array::from_fn(|r| {
-        std::array::from_fn(|c| a[r][0] * b[0][c] + a[r][1] * b[1][c] + a[r][2] * b[2][c])
+        std::array::from_fn(|c| {
+            mul(&a[r][0], &b[0][c]) + mul(&a[r][1], &b[1][c]) + mul(&a[r][2], &b[2][c])
+        })
     })
 }
 
@@ -195,45 +248,66 @@ fn mul3(a: &M3<f64>, b: &M3<f64>) -> M3<f64> {
 ///     B = [[[ω]× A − A [ω]× − [u]×[h]× − [h]×[u]× − [hₙ]×, 0], [−2 [h_f]×, 0]],
 ///
 /// so only the two left blocks are kept: B d reads d's ω only.
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Variation {
-    pub top: M3<f64>,
-    pub bottom: M3<f64>,
+#[derive(Debug, Clone, Copy)]
+pub struct Variation<S = f64> {
+    pub top: M3<S>,
+    pub bottom: M3<S>,
 }
 
-impl Variation {
+impl<S: Scalar> Variation<S> {
+    pub fn zero(zero: &S) -> Self {
+        let m: M3<S> = std::array::from_fn(|_| std::array::from_fn(|_| zero.clone()));
+        Self {
+            top: m.clone(),
+            bottom: m,
+        }
+    }
+
     #[inline]
-    pub fn of(i: &M6, v: &V6, momentum: &V6) -> Self {
-        let a: M3<f64> = std::array::from_fn(|r| std::array::from_fn(|c| i[r][c]));
+    pub fn of(i: &M6<S>, v: &V6<S>, momentum: &V6<S>) -> Self {
+        let zero = v[0].lift(0.0);
+        let a: M3<S> = std::array::from_fn(|r| std::array::from_fn(|c| i[r][c].clone()));
         // [h]× is the upper right block.
-        let h = [i[2][4], i[0][5], i[1][3]];
-        let (w, u) = (skew(&v[..3]), skew(&v[3..]));
-        let hx = skew(&h);
+        let h = [i[2][4].clone(), i[0][5].clone(), i[1][3].clone()];
+        let (w, u) = (skew(&v[..3], &zero), skew(&v[3..], &zero));
+        let hx = skew(&h, &zero);
         let (wa, aw, uh, hu) = (mul3(&w, &a), mul3(&a, &w), mul3(&u, &hx), mul3(&hx, &u));
-        let hn = skew(&momentum[..3]);
-        let hf = skew(&momentum[3..]);
+        let hn = skew(&momentum[..3], &zero);
+        let hf = skew(&momentum[3..], &zero);
         Self {
             top: std::array::from_fn(|r| {
-                std::array::from_fn(|c| wa[r][c] - aw[r][c] - uh[r][c] - hu[r][c] - hn[r][c])
+                std::array::from_fn(|c| {
+                    wa[r][c].clone()
+                        - aw[r][c].clone()
+                        - uh[r][c].clone()
+                        - hu[r][c].clone()
+                        - hn[r][c].clone()
+                })
             }),
-            bottom: std::array::from_fn(|r| std::array::from_fn(|c| -2.0 * hf[r][c])),
+            bottom: std::array::from_fn(|r| std::array::from_fn(|c| hf[r][c].scale(-2.0))),
         }
     }
 
     #[inline]
     pub fn add_assign(&mut self, o: &Self) {
         for (a, b) in self.top.iter_mut().zip(&o.top) {
-            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+            a.iter_mut()
+                .zip(b)
+                .for_each(|(x, y)| *x = x.clone() + y.clone());
         }
         for (a, b) in self.bottom.iter_mut().zip(&o.bottom) {
-            a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+            a.iter_mut()
+                .zip(b)
+                .for_each(|(x, y)| *x = x.clone() + y.clone());
         }
     }
 
     /// B d.
     #[inline]
-    pub fn apply(&self, d: &V6) -> V6 {
-        let row = |m: &M3<f64>, r: usize| m[r][0] * d[0] + m[r][1] * d[1] + m[r][2] * d[2];
+    pub fn apply(&self, d: &V6<S>) -> V6<S> {
+        let row = |m: &M3<S>, r: usize| {
+            mul(&m[r][0], &d[0]) + mul(&m[r][1], &d[1]) + mul(&m[r][2], &d[2])
+        };
         [
             row(&self.top, 0),
             row(&self.top, 1),
@@ -246,13 +320,16 @@ impl Variation {
 
     /// Bᵀ x.
     #[inline]
-    pub fn apply_t(&self, x: &V6) -> V6 {
+    pub fn apply_t(&self, x: &V6<S>) -> V6<S> {
+        let zero = x[0].lift(0.0);
         let col = |c: usize| {
-            (0..3)
-                .map(|r| self.top[r][c] * x[r] + self.bottom[r][c] * x[3 + r])
-                .sum::<f64>()
+            let mut s = mul(&self.top[0][c], &x[0]) + mul(&self.bottom[0][c], &x[3]);
+            for r in 1..3 {
+                s = s + (mul(&self.top[r][c], &x[r]) + mul(&self.bottom[r][c], &x[3 + r]));
+            }
+            s
         };
-        [col(0), col(1), col(2), 0.0, 0.0, 0.0]
+        [col(0), col(1), col(2), zero.clone(), zero.clone(), zero]
     }
 }
 
@@ -269,7 +346,7 @@ mod tests {
             let mut e = ZERO6;
             e[c] = 1.0;
             let term = add(
-                &add_scaled(&cross_force(v, &col), -1.0, &apply(i, &cross(v, &e))),
+                &add_scaled(&cross_force(v, &col), &-1.0, &apply(i, &cross(v, &e))),
                 &cross_force(&e, h),
             );
             for (r, t) in term.iter().enumerate() {
@@ -282,6 +359,16 @@ mod tests {
     fn body() -> Inertia<f64> {
         let a = [[0.3, 0.02, -0.01], [0.02, 0.25, 0.03], [-0.01, 0.03, 0.2]];
         Inertia::rigid(1.7, &[0.1, -0.2, 0.05], &a)
+    }
+
+    /// `body()` as mass, first moment and rotational inertia about the origin.
+    fn rigid_body() -> BodyInertia<f64> {
+        let i = body();
+        BodyInertia {
+            mass: i.mass(),
+            h: i.first_moment(),
+            inertia: i.a,
+        }
     }
 
     fn placement() -> (M3<f64>, V3<f64>) {
@@ -299,7 +386,7 @@ mod tests {
     #[test]
     fn the_structured_variation_is_the_definition() {
         let (e, p) = placement();
-        let i = inertia_to_root(&e, &p, &body());
+        let i = inertia_to_root(&e, &p, &rigid_body());
         let v = [0.3, -1.1, 0.7, 0.5, 0.2, -0.9];
         let h = apply(&i, &v);
         let want = variation_by_columns(&i, &v, &h);
@@ -324,7 +411,7 @@ mod tests {
     fn the_root_inertia_is_the_transformed_one() {
         let (e, p) = placement();
         let want = of_inertia(&Xform { e, r: p }.inertia_to_parent(&body()));
-        let got = inertia_to_root(&e, &p, &body());
+        let got = inertia_to_root(&e, &p, &rigid_body());
         for r in 0..6 {
             for c in 0..6 {
                 assert!((got[r][c] - want[r][c]).abs() < 1e-14, "[{r}][{c}]");
