@@ -362,9 +362,13 @@ def test_calls_over_the_memory_budget_are_refused_naming_the_field_and_the_way_o
 # between the call's return and `done.append` checks for signals: a call that ignored Ctrl-C
 # completes and is counted before the interrupt is raised.
 _INTERRUPTED_CALL = """
-import collections, functools, itertools, sys
+import collections, functools, itertools, signal, sys
 import numpy as np
 import graybox_native
+
+# Python leaves SIGINT ignored when its parent ignored it (a job started in the background by
+# a non-interactive shell, as a CI runner may be): put back the handler a terminal's Python has.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 m = graybox_native.load(sys.argv[1])
 graybox_native.set_memory_budget_mb(8192)
