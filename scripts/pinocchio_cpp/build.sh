@@ -48,7 +48,8 @@ prefix="$site/cmeel.prefix"
 missing=()
 for pin in "${pins[@]}"; do
   name=${pin%%==*} want=${pin#*==}
-  have=$("$py" -m pip show "$name" 2>/dev/null | sed -n 's/^Version: //p')
+  # `pip show` fails on a package that is not there, which is what this loop looks for.
+  have=$("$py" -m pip show "$name" 2>/dev/null | sed -n 's/^Version: //p' || true)
   [ "$have" = "$want" ] || missing+=("$pin")
 done
 if [ ${#missing[@]} -gt 0 ]; then
