@@ -5,7 +5,7 @@
 //! (prismatic). The library's algorithms compose Plücker transforms instead; what this shares
 //! with them is only the reader's tree, which Pinocchio's fixtures check.
 
-use graybox::physics::multibody::spatial::BodyInertia;
+use graybox::physics::multibody::spatial::Inertial;
 use graybox::physics::scalar::Scalar;
 use graybox::physics::urdf::{JointKind, Tree};
 
@@ -98,7 +98,7 @@ fn poses<S: Scalar>(tree: &Tree, q: &[S]) -> Poses<S> {
 }
 
 /// M(q), n×n over the coordinates: with G = ∂(joint values)/∂q, M = Gᵀ M_joints G.
-pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[BodyInertia<S>], q: &[S]) -> Vec<Vec<S>> {
+pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[Inertial<S>], q: &[S]) -> Vec<Vec<S>> {
     let n = tree.coordinates.len();
     let p = poses(tree, q);
     let mut m: Vec<Vec<S>> = vec![vec![q[0].lift(0.0); n]; n];
@@ -146,7 +146,7 @@ pub fn mass_matrix<S: Scalar>(tree: &Tree, inertia: &[BodyInertia<S>], q: &[S]) 
 /// V(q) = −Σ gᵀ(mᵢ pᵢ + Rᵢ hᵢ).
 pub fn potential<S: Scalar>(
     tree: &Tree,
-    inertia: &[BodyInertia<S>],
+    inertia: &[Inertial<S>],
     gravity: &[f64; 3],
     q: &[S],
 ) -> S {

@@ -6,7 +6,7 @@
 
 use graybox::physics::dual::Dual;
 use graybox::physics::multibody::Inertial;
-use graybox::physics::multibody::spatial::{BodyInertia, body_inertia};
+use graybox::physics::multibody::spatial::body_inertia;
 use graybox::physics::scalar::Scalar;
 use graybox::physics::urdf::Tree;
 use serde_json::Value;
@@ -81,7 +81,7 @@ pub fn jacobian_terms(
     q: &[f64],
     qd: &[f64],
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let bodies = |like: &Dual<f64>| -> Vec<BodyInertia<Dual<f64>>> {
+    let bodies = |like: &Dual<f64>| -> Vec<Inertial<Dual<f64>>> {
         (inertias.iter())
             .map(|i| body_inertia(&i.theta().unwrap().map(|t| like.lift(t))))
             .collect()

@@ -43,7 +43,7 @@ fn body(parent: Option<usize>, joint: JointModel, drive: Drive, mass: f64, c: [f
         parent,
         joint,
         drive,
-        inertia: Inertial::from_com(mass, c, i(moments)).spatial(),
+        inertia: Inertial::from_com(mass, c, i(moments)),
     }
 }
 

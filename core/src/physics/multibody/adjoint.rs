@@ -16,18 +16,20 @@ use super::Model;
 use super::data::{Data, with_data};
 use super::spatial::PER_BODY;
 use super::spatial::six::{V6, ZERO6, add, add_scaled, apply, cross, dot};
-use super::spatial::{M3, Motion, V3};
+use super::spatial::{M3, V3};
 
-/// ∂(mᵀ I(π) b)/∂π for one body's standard parameters (m, h, I about the origin):
+/// ∂(mᵀ I(π) b)/∂π for one body's standard parameters (m, h, I about the origin), for
+/// motions m = (ω₁, v₁), b = (ω₂, v₂) in its frame:
 /// mᵀIb = ω₁ᵀĪω₂ + h·(v₂ × ω₁ + v₁ × ω₂) + m v₁·v₂.
-fn inertia_form(a: &Motion<f64>, b: &Motion<f64>) -> [f64; PER_BODY] {
-    let (w1, w2) = (&a.w, &b.w);
+fn inertia_form(a: &V6, b: &V6) -> [f64; PER_BODY] {
+    let (w1, v1) = ([a[0], a[1], a[2]], [a[3], a[4], a[5]]);
+    let (w2, v2) = ([b[0], b[1], b[2]], [b[3], b[4], b[5]]);
     let h: V3<f64> = {
-        let (x, y) = (cross3(&b.v, &a.w), cross3(&a.v, &b.w));
+        let (x, y) = (cross3(&v2, &w1), cross3(&v1, &w2));
         [x[0] + y[0], x[1] + y[1], x[2] + y[2]]
     };
     [
-        a.v[0] * b.v[0] + a.v[1] * b.v[1] + a.v[2] * b.v[2],
+        v1[0] * v2[0] + v1[1] * v2[1] + v1[2] * v2[2],
         h[0],
         h[1],
         h[2],
@@ -46,15 +48,13 @@ fn cross3(a: &V3<f64>, b: &V3<f64>) -> V3<f64> {
 
 /// A root-frame motion in the coordinates of the body placed at (E₀, p): ω' = E₀ ω,
 /// v' = E₀ (v − p × ω).
-fn to_body(e: &M3<f64>, p: &V3<f64>, m: &V6) -> Motion<f64> {
+fn to_body(e: &M3<f64>, p: &V3<f64>, m: &V6) -> V6 {
     let (w, v) = ([m[0], m[1], m[2]], [m[3], m[4], m[5]]);
     let pw = cross3(p, &w);
     let rel = [v[0] - pw[0], v[1] - pw[1], v[2] - pw[2]];
     let rot = |x: &V3<f64>| -> V3<f64> { std::array::from_fn(|i| dot3(&e[i], x)) };
-    Motion {
-        w: rot(&w),
-        v: rot(&rel),
-    }
+    let ([w0, w1, w2], [v0, v1, v2]) = (rot(&w), rot(&rel));
+    [w0, w1, w2, v0, v1, v2]
 }
 
 fn dot3(a: &V3<f64>, b: &V3<f64>) -> f64 {

@@ -19,7 +19,7 @@ use super::spatial::six::{
     M6, V6, Variation, add, add_assign, add_scaled, apply, cross, cross_force, dot,
     inertia_to_root, motion_to_root, zeros, zeros_m6,
 };
-use super::spatial::{BodyInertia, Inertia, M3, V3};
+use super::spatial::{Inertial, M3, V3};
 use crate::linalg::cholesky;
 use crate::physics::scalar::Scalar;
 
@@ -93,15 +93,6 @@ pub fn with_data<R>(f: impl FnOnce(&mut Data) -> R) -> R {
 
 /// Values per body that `save_placements` keeps: a rotation, an origin and a joint axis.
 pub const PLACED: usize = 9 + 3 + 6;
-
-/// A model's f64 inertia as values of the scalar (for f64, the same numbers).
-fn lifted<S: Scalar>(i: &Inertia<f64>, zero: &S) -> BodyInertia<S> {
-    BodyInertia {
-        mass: zero.lift(i.mass()),
-        h: i.first_moment().map(|x| zero.lift(x)),
-        inertia: i.a.map(|r| r.map(|x| zero.lift(x))),
-    }
-}
 
 fn fit<T: Clone>(v: &mut Vec<T>, len: usize, zero: &T) {
     v.resize(len, zero.clone());
@@ -218,13 +209,7 @@ impl<S: Scalar> Data<S> {
 
     /// `kinematics` with the bodies' inertias given over the scalar in place of the model's
     /// (a URDF template's trainable values).
-    pub fn kinematics_with(
-        &mut self,
-        model: &Model,
-        q: &[S],
-        qd: &[S],
-        inertias: &[BodyInertia<S>],
-    ) {
+    pub fn kinematics_with(&mut self, model: &Model, q: &[S], qd: &[S], inertias: &[Inertial<S>]) {
         self.placements(model, q);
         self.motion(model, qd, true, Some(inertias));
     }
@@ -257,14 +242,14 @@ impl<S: Scalar> Data<S> {
                 }
                 None => (x.e, x.r),
             };
-            self.s[i] = motion_to_root(&e, &p, &body.joint.motion(&1.0, &0.0));
+            self.s[i] = motion_to_root(&e, &p, &body.joint.subspace());
             (self.rot[i], self.pos[i]) = (e, p);
         }
     }
 
     /// After `placements`: velocities, d, accelerations at q̈ = 0, root-frame inertias and
     /// momenta at q̇ (of the bodies' `given` inertias, else the model's).
-    fn motion(&mut self, model: &Model, qd: &[S], gravity: bool, given: Option<&[BodyInertia<S>]>) {
+    fn motion(&mut self, model: &Model, qd: &[S], gravity: bool, given: Option<&[Inertial<S>]>) {
         let zero = self.a0[0].lift(0.0);
         let g = if gravity { model.gravity } else { [0.0; 3] };
         self.a0 = [0.0, 0.0, 0.0, -g[0], -g[1], -g[2]].map(|x| zero.lift(x));
@@ -281,7 +266,7 @@ impl<S: Scalar> Data<S> {
             self.inertia[i] = match given {
                 Some(b) => inertia_to_root(&self.rot[i], &self.pos[i], &b[i]),
                 None => {
-                    let b = lifted(&body.inertia, &zero);
+                    let b = body.inertia.lift(&zero);
                     inertia_to_root(&self.rot[i], &self.pos[i], &b)
                 }
             };

@@ -27,8 +27,8 @@ pub fn potential_energy<S: Scalar>(model: &Model, q: &[S]) -> S {
     let zero = q[0].lift(0.0);
     let moments: Vec<(S, V3<S>)> = (model.bodies.iter())
         .map(|j| {
-            let h = j.inertia.first_moment().map(|x| zero.lift(x));
-            (zero.lift(j.inertia.mass()), h)
+            let h = j.inertia.h.map(|x| zero.lift(x));
+            (zero.lift(j.inertia.mass), h)
         })
         .collect();
     potential_energy_of(model, q, &moments)

@@ -4,7 +4,8 @@
 //! Today's joints are 1-DoF; a spherical or free-flyer joint is a new variant whose value and
 //! rate are several coordinates (see the docs for what else it touches).
 
-use super::spatial::{Force, Inertia, M3, Motion, V3, Xform, affine, cdot, cscale, lift3, mm, mv};
+use super::spatial::six::V6;
+use super::spatial::{M3, V3, Xform, affine, lift3, mm, mv};
 use crate::physics::scalar::Scalar;
 
 /// How a body's joint value follows the coordinates: multiplier · q[coordinate] + offset. A
@@ -149,49 +150,12 @@ impl JointModel {
         }
     }
 
-    /// S x: the body's motion for joint rate x.
-    pub fn motion<S: Scalar>(&self, x: &S, zero: &S) -> Motion<S> {
-        let along = cscale(self.axis(), x, zero);
-        let none: V3<S> = [zero.clone(), zero.clone(), zero.clone()];
+    /// S: the body's motion (ω, v) in its own frame for a unit joint rate.
+    pub fn subspace(&self) -> V6 {
+        let [a0, a1, a2] = *self.axis();
         match self {
-            Self::Prismatic(_) => Motion { w: none, v: along },
-            Self::Revolute(_) => Motion { w: along, v: none },
-        }
-    }
-
-    /// Sᵀ f: the force's component along the joint.
-    pub fn project<S: Scalar>(&self, f: &Force<S>, zero: &S) -> S {
-        let part = match self {
-            Self::Prismatic(_) => &f.f,
-            Self::Revolute(_) => &f.n,
-        };
-        cdot(self.axis(), part, zero)
-    }
-
-    /// I S for an inertia over S.
-    pub fn inertia_column<S: Scalar>(&self, i: &Inertia<S>, zero: &S) -> Force<S> {
-        let axis = self.axis();
-        let col = |m: &M3<S>, transpose: bool| -> V3<S> {
-            std::array::from_fn(|r| {
-                let row: V3<S> = if transpose {
-                    [m[0][r].clone(), m[1][r].clone(), m[2][r].clone()]
-                } else {
-                    m[r].clone()
-                };
-                cdot(axis, &row, zero)
-            })
-        };
-        match self {
-            // (B a, C a)
-            Self::Prismatic(_) => Force {
-                n: col(&i.b, false),
-                f: col(&i.c, false),
-            },
-            // (A a, Bᵀ a)
-            Self::Revolute(_) => Force {
-                n: col(&i.a, false),
-                f: col(&i.b, true),
-            },
+            Self::Prismatic(_) => [0.0, 0.0, 0.0, a0, a1, a2],
+            Self::Revolute(_) => [a0, a1, a2, 0.0, 0.0, 0.0],
         }
     }
 }

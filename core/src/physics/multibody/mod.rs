@@ -38,16 +38,16 @@ pub use rnea::{bias, coriolis, crba, crba_with, gravity_torques, inverse_dynamic
 pub use spatial::{Inertial, PER_BODY};
 
 use crate::physics::scalar::Scalar;
-use spatial::{Force, Inertia, Motion, Xform};
+use spatial::Xform;
 
 /// One moving body: where it hangs, how its joint moves it, which coordinate drives that
-/// joint, and its spatial inertia about its frame's origin.
+/// joint, and its inertia about its frame's origin.
 #[derive(Debug, Clone)]
 pub struct Body {
     pub parent: Option<usize>,
     pub joint: JointModel,
     pub drive: Drive,
-    pub inertia: Inertia<f64>,
+    pub inertia: Inertial,
 }
 
 /// A robot as the algorithms take it: bodies in an order where every parent comes before
@@ -89,21 +89,5 @@ impl Body {
     /// X_J X_T at the coordinates q: parent to body coordinates.
     pub fn placement<S: Scalar>(&self, q: &[S], zero: &S) -> Xform<S> {
         self.joint.xform(&self.drive.value(q), zero)
-    }
-
-    /// S q̇_J: the body's motion relative to its parent for coordinate rates `rates` (q̇, q̈ or
-    /// a tangent of them).
-    pub fn joint_motion<S: Scalar>(&self, rates: &[S], zero: &S) -> Motion<S> {
-        self.joint.motion(&self.drive.rate(rates), zero)
-    }
-
-    /// Sᵀ f: the force's component along the joint.
-    pub fn project<S: Scalar>(&self, f: &Force<S>, zero: &S) -> S {
-        self.joint.project(f, zero)
-    }
-
-    /// I S for an inertia over S.
-    pub fn inertia_column<S: Scalar>(&self, i: &Inertia<S>, zero: &S) -> Force<S> {
-        self.joint.inertia_column(i, zero)
     }
 }

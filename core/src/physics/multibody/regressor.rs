@@ -6,7 +6,7 @@
 
 use super::Model;
 use super::rnea::inverse_dynamics;
-use super::spatial::{Inertia, PER_BODY};
+use super::spatial::{Inertial, PER_BODY};
 
 /// π of the model's bodies, body after body.
 pub fn standard_parameters(model: &Model) -> Vec<f64> {
@@ -19,7 +19,7 @@ pub fn standard_parameters(model: &Model) -> Vec<f64> {
 pub fn with_parameters(model: &Model, pi: &[f64]) -> Model {
     let mut m = model.clone();
     for (j, p) in m.bodies.iter_mut().zip(pi.chunks(PER_BODY)) {
-        j.inertia = Inertia::of_standard(p);
+        j.inertia = Inertial::of_standard(p);
     }
     m
 }
@@ -35,7 +35,7 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f
         let (body, p) = (k / PER_BODY, k % PER_BODY);
         let mut e = [0.0; PER_BODY];
         e[p] = 1.0;
-        let before = std::mem::replace(&mut unit.bodies[body].inertia, Inertia::of_standard(&e));
+        let before = std::mem::replace(&mut unit.bodies[body].inertia, Inertial::of_standard(&e));
         for (row, t) in y.iter_mut().zip(inverse_dynamics(&unit, q, qd, qdd)) {
             row[k] = t;
         }

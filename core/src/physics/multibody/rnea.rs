@@ -6,7 +6,7 @@
 
 use super::Model;
 use super::data::Data;
-use super::spatial::BodyInertia;
+use super::spatial::Inertial;
 use crate::physics::scalar::Scalar;
 
 fn at_rest<S: Scalar>(q: &[S]) -> Vec<S> {
@@ -53,7 +53,7 @@ pub fn crba<S: Scalar>(model: &Model, q: &[S]) -> Vec<Vec<S>> {
 
 /// M(q) by CRBA with the bodies' inertias given over the scalar in place of the model's (a
 /// URDF template's trainable values, which training differentiates M with respect to).
-pub fn crba_with<S: Scalar>(model: &Model, q: &[S], inertias: &[BodyInertia<S>]) -> Vec<Vec<S>> {
+pub fn crba_with<S: Scalar>(model: &Model, q: &[S], inertias: &[Inertial<S>]) -> Vec<Vec<S>> {
     let mut data = Data::for_state(model, q);
     data.kinematics_with(model, q, &at_rest(q), inertias);
     rows_of_mass(model, data)

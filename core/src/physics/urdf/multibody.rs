@@ -29,7 +29,7 @@ impl Tree {
                         }
                     },
                     drive: b.drive,
-                    inertia: i.spatial(),
+                    inertia: i.clone(),
                 }
             })
             .collect();

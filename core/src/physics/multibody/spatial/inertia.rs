@@ -1,18 +1,18 @@
 //! A body's inertia in every form graybox uses, and the conversions between them
 //! (docs/robots.md#inertia-forms, where the forms have one table):
 //!
-//! - [`Inertial`]: m, h = m c and Ī about the body frame's origin, in f64 (what a producer
-//!   such as the URDF reader builds a `Model` from; `from_com` takes URDF's own form);
-//! - [`BodyInertia`]: the same over any scalar (a URDF template's M(q) and V(q) over
-//!   trainable values, `rnea::crba_with`);
-//! - [`Inertia`]: the symmetric 6×6 spatial inertia [[A, B], [Bᵀ, C]] the algorithms take;
+//! - [`Inertial`]: m, h = m c and Ī about the body frame's origin, over any scalar (f64 is
+//!   what a producer such as the URDF reader builds a `Model` from, `from_com` taking URDF's
+//!   own form; dual numbers, jets and batch columns are a template's trainable values);
+//! - the 6×6 spatial inertia [[Ī, [h]×], [[h]×ᵀ, m 𝟙]] the algorithms take, in the root
+//!   frame (`six::inertia_to_root`);
 //! - the standard parameters π = (m, m c, Ī about the origin), ten per body, linear in τ
-//!   (`Inertia::standard`, `Inertia::of_standard`);
+//!   (`Inertial::standard`, `Inertial::of_standard`);
 //! - the physical values (m, c, Ī about c), ten per body, which a template's parameters are
 //!   named by (`of_physical`, `body_of_physical`, `standard_of_physical`);
 //! - the raw values θ the optimiser moves (`raw.rs`).
 
-use super::{Force, M3, Motion, V3, add, cdot, lift3x3, mat_op, mtv, mv};
+use super::{M3, V3, lift3x3};
 use crate::physics::scalar::Scalar;
 
 /// Values per body in every ten-value form (π, the physical values, θ).
@@ -23,133 +23,18 @@ pub const STANDARD_NAMES: [&str; PER_BODY] = [
     "mass", "mx", "my", "mz", "Ixx", "Ixy", "Ixz", "Iyy", "Iyz", "Izz",
 ];
 
-/// A symmetric 6×6 spatial inertia [[A, B], [Bᵀ, C]]: the force I m = (A ω + B v, Bᵀ ω + C v).
-#[derive(Clone, Debug)]
-pub struct Inertia<S> {
-    pub a: M3<S>,
-    pub b: M3<S>,
-    pub c: M3<S>,
-}
-
-impl Inertia<f64> {
-    /// A rigid body of mass m, first moment h = m c and rotational inertia Ī about the
-    /// frame's origin: A = Ī, B = [h]×, C = m 𝟙.
-    pub fn rigid(mass: f64, h: &[f64; 3], inertia: &[[f64; 3]; 3]) -> Self {
-        let b = [[0.0, -h[2], h[1]], [h[2], 0.0, -h[0]], [-h[1], h[0], 0.0]];
-        let c = std::array::from_fn(|i| std::array::from_fn(|j| if i == j { mass } else { 0.0 }));
-        Self { a: *inertia, b, c }
-    }
-
-    /// A body of standard parameters π (m, h, Ixx, Ixy, Ixz, Iyy, Iyz, Izz).
-    pub fn of_standard(p: &[f64]) -> Self {
-        let i = [[p[4], p[5], p[6]], [p[5], p[7], p[8]], [p[6], p[8], p[9]]];
-        Self::rigid(p[0], &[p[1], p[2], p[3]], &i)
-    }
-
-    /// The mass, from C = m 𝟙.
-    pub fn mass(&self) -> f64 {
-        self.c[0][0]
-    }
-
-    /// The first moment h, from B = [h]×.
-    pub fn first_moment(&self) -> [f64; 3] {
-        [self.b[2][1], self.b[0][2], self.b[1][0]]
-    }
-
-    /// The body's standard parameters π.
-    pub fn standard(&self) -> [f64; PER_BODY] {
-        let (a, [hx, hy, hz]) = (&self.a, self.first_moment());
-        [
-            self.mass(),
-            hx,
-            hy,
-            hz,
-            a[0][0],
-            a[0][1],
-            a[0][2],
-            a[1][1],
-            a[1][2],
-            a[2][2],
-        ]
-    }
-
-    pub fn lift<S: Scalar>(&self, zero: &S) -> Inertia<S> {
-        Inertia {
-            a: lift3x3(&self.a, zero),
-            b: lift3x3(&self.b, zero),
-            c: lift3x3(&self.c, zero),
-        }
-    }
-
-    /// I m for a constant I (zero entries skipped).
-    pub fn apply_const<S: Scalar>(&self, m: &Motion<S>, zero: &S) -> Force<S> {
-        let row = |r: &[f64; 3], x: &V3<S>| cdot(r, x, zero);
-        let bt = |k: usize| [self.b[0][k], self.b[1][k], self.b[2][k]];
-        Force {
-            n: std::array::from_fn(|k| row(&self.a[k], &m.w) + row(&self.b[k], &m.v)),
-            f: std::array::from_fn(|k| row(&bt(k), &m.w) + row(&self.c[k], &m.v)),
-        }
-    }
-}
-
-impl<S: Scalar> Inertia<S> {
-    pub fn apply(&self, m: &Motion<S>) -> Force<S> {
-        Force {
-            n: add(&mv(&self.a, &m.w), &mv(&self.b, &m.v)),
-            f: add(&mtv(&self.b, &m.w), &mv(&self.c, &m.v)),
-        }
-    }
-
-    pub fn add_assign(&mut self, o: &Self) {
-        self.a = mat_op(&self.a, &o.a, |x, y| x + y);
-        self.b = mat_op(&self.b, &o.b, |x, y| x + y);
-        self.c = mat_op(&self.c, &o.c, |x, y| x + y);
-    }
-
-    /// I − u uᵀ / d for a force-like column u = (uₙ, u_f).
-    pub fn minus_outer(&self, u: &Force<S>, d: &S) -> Self {
-        let (un, uf) = (
-            u.n.clone().map(|x| x / d.clone()),
-            u.f.clone().map(|x| x / d.clone()),
-        );
-        let outer = |m: &M3<S>, x: &V3<S>, y: &V3<S>| -> M3<S> {
-            std::array::from_fn(|i| {
-                std::array::from_fn(|j| m[i][j].clone() - x[i].clone() * y[j].clone())
-            })
-        };
-        Self {
-            a: outer(&self.a, &u.n, &un),
-            b: outer(&self.b, &u.n, &uf),
-            c: outer(&self.c, &u.f, &uf),
-        }
-    }
-}
-
-impl Inertial {
-    /// Its spatial inertia.
-    pub fn spatial(&self) -> Inertia<f64> {
-        Inertia::rigid(self.mass, &self.h, &self.inertia)
-    }
-}
-
-/// A body's inertial parameters in its own frame: m, h = m c, and Ī about the frame's origin.
+/// A body's inertial parameters in its own frame: m, h = m c, and Ī about the frame's origin;
+/// in f64 (a `Model`'s bodies) or over any scalar (a template's trainable values).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Inertial {
-    pub mass: f64,
-    pub h: [f64; 3],
-    pub inertia: [[f64; 3]; 3],
+pub struct Inertial<S = f64> {
+    pub mass: S,
+    pub h: V3<S>,
+    pub inertia: M3<S>,
     /// The centre of mass and the inertia about it as given (URDF's form), when the body was
     /// made from them: `com` and `inertia_at_com` return them as they are, where h/m and the
     /// parallel-axis difference would round (m c / m ≠ c for one (m, c) in ten), so that a
     /// file's values come back exactly (docs/robots.md#physically-consistent-inertia).
     pub(super) at_com: Option<([f64; 3], [[f64; 3]; 3])>,
-}
-
-/// The same over any scalar (the trainable form's image).
-pub struct BodyInertia<S> {
-    pub mass: S,
-    pub h: V3<S>,
-    pub inertia: M3<S>,
 }
 
 impl Inertial {
@@ -159,6 +44,35 @@ impl Inertial {
         inertia: [[0.0; 3]; 3],
         at_com: None,
     };
+
+    /// A body of standard parameters π (m, h, Ixx, Ixy, Ixz, Iyy, Iyz, Izz).
+    pub fn of_standard(p: &[f64]) -> Self {
+        Self {
+            mass: p[0],
+            h: [p[1], p[2], p[3]],
+            inertia: [[p[4], p[5], p[6]], [p[5], p[7], p[8]], [p[6], p[8], p[9]]],
+            at_com: None,
+        }
+    }
+
+    /// The body's standard parameters π.
+    pub fn standard(&self) -> [f64; PER_BODY] {
+        let (i, [hx, hy, hz]) = (&self.inertia, self.h);
+        [
+            self.mass, hx, hy, hz, i[0][0], i[0][1], i[0][2], i[1][1], i[1][2], i[2][2],
+        ]
+    }
+
+    /// The same body over another scalar (constants: a `Model`'s f64 bodies where an
+    /// algorithm runs over dual numbers, jets or batch columns).
+    pub fn lift<S: Scalar>(&self, zero: &S) -> Inertial<S> {
+        Inertial {
+            mass: zero.lift(self.mass),
+            h: self.h.map(|x| zero.lift(x)),
+            inertia: lift3x3(&self.inertia, zero),
+            at_com: None,
+        }
+    }
 
     /// No mass and no inertia at all (a link without `<inertial>`).
     pub fn is_nothing(&self) -> bool {
@@ -273,7 +187,7 @@ pub fn of_physical(v: &[f64]) -> Inertial {
 }
 
 /// A body of physical values over any scalar: h = m c, Ī_o = Ī_c + m(|c|² 𝟙 − c cᵀ).
-pub fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
+pub fn body_of_physical<S: Scalar>(v: &[S]) -> Inertial<S> {
     let m = v[0].clone();
     let c = [v[1].clone(), v[2].clone(), v[3].clone()];
     let ic = [
@@ -292,10 +206,11 @@ pub fn body_of_physical<S: Scalar>(v: &[S]) -> BodyInertia<S> {
             ic[i][j].clone() + m.clone() * shift
         })
     });
-    BodyInertia {
+    Inertial {
         h: c.clone().map(|ci| m.clone() * ci),
         mass: m,
         inertia,
+        at_com: None,
     }
 }
 

@@ -9,7 +9,7 @@
 //! so every value the optimiser visits is a rigid body: m = e^{2α}, c = t, and Σ, Ī follow.
 
 use super::M3;
-use super::inertia::{BodyInertia, Inertial, PER_BODY};
+use super::inertia::{Inertial, PER_BODY};
 use crate::error::{Error, Result};
 use crate::physics::scalar::Scalar;
 
@@ -167,7 +167,7 @@ fn upper_gram<S: Scalar>(d: &[S; 3], s: &[S; 3], extra: Option<&[S; 3]>) -> M3<S
 }
 
 /// m, h and Ī about the frame's origin for θ, over any scalar.
-pub fn body_inertia<S: Scalar>(theta: &[S; 10]) -> BodyInertia<S> {
+pub fn body_inertia<S: Scalar>(theta: &[S; 10]) -> Inertial<S> {
     let [a, d1, d2, d3, s12, s13, s23, t1, t2, t3] = theta.clone();
     let m = (a.clone() + a).exp();
     let t = [t1, t2, t3];
@@ -184,10 +184,11 @@ pub fn body_inertia<S: Scalar>(theta: &[S; 10]) -> BodyInertia<S> {
             }
         })
     });
-    BodyInertia {
+    Inertial {
         h: t.map(|t| m.clone() * t),
         mass: m,
         inertia,
+        at_com: None,
     }
 }
 

@@ -6,7 +6,7 @@
 //! every sum is fixed here, so each scalar type computes the same operations in the same
 //! order and a batch column reproduces the single state bit for bit.
 
-use super::{BodyInertia, Force, Inertia, M3, Motion, V3};
+use super::{Inertial, M3, V3};
 use crate::physics::scalar::Scalar;
 
 pub type V6<S = f64> = [S; 6];
@@ -22,29 +22,6 @@ pub fn zeros<S: Scalar>(zero: &S) -> V6<S> {
 #[inline]
 pub fn zeros_m6<S: Scalar>(zero: &S) -> M6<S> {
     std::array::from_fn(|_| zeros(zero))
-}
-
-#[inline]
-pub fn of_motion(m: &Motion<f64>) -> V6 {
-    [m.w[0], m.w[1], m.w[2], m.v[0], m.v[1], m.v[2]]
-}
-
-#[inline]
-pub fn of_force(f: &Force<f64>) -> V6 {
-    [f.n[0], f.n[1], f.n[2], f.f[0], f.f[1], f.f[2]]
-}
-
-/// [[A, B], [Bᵀ, C]].
-#[inline]
-pub fn of_inertia(i: &Inertia<f64>) -> M6 {
-    std::array::from_fn(|r| {
-        std::array::from_fn(|c| match (r < 3, c < 3) {
-            (true, true) => i.a[r][c],
-            (true, false) => i.b[r][c - 3],
-            (false, true) => i.b[c][r - 3],
-            (false, false) => i.c[r - 3][c - 3],
-        })
-    })
 }
 
 #[inline]
@@ -159,12 +136,12 @@ fn combine<S: Scalar>(r: [&S; 3], c: &V3<f64>) -> S {
 /// A motion in body coordinates, in the root frame, for the body placed at (E₀, p) (E₀ turns
 /// root axes into the body's, p is its origin): ω = E₀ᵀ ω', v = E₀ᵀ v' + p × ω.
 #[inline]
-pub fn motion_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, m: &Motion<f64>) -> V6<S> {
+pub fn motion_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, m: &V6<f64>) -> V6<S> {
     let rt = |x: &V3<f64>| -> V3<S> {
         std::array::from_fn(|i| combine([&e[0][i], &e[1][i], &e[2][i]], x))
     };
-    let w = rt(&m.w);
-    let [v0, v1, v2] = rt(&m.v);
+    let w = rt(&[m[0], m[1], m[2]]);
+    let [v0, v1, v2] = rt(&[m[3], m[4], m[5]]);
     let [p0, p1, p2] = cross3(p, &w);
     let [w0, w1, w2] = w;
     [w0, w1, w2, v0 + p0, v1 + p1, v2 + p2]
@@ -175,7 +152,7 @@ pub fn motion_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, m: &Motion<f64>) -> V6<S>
 /// R = E₀ᵀ, g = R h and [a]×ᵀ[b]× = (a·b)𝟙 − b aᵀ,
 /// h' = m p + g and A' = R A Rᵀ + m(|p|²𝟙 − p pᵀ) + 2(p·g)𝟙 − g pᵀ − p gᵀ.
 #[inline]
-pub fn inertia_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, body: &BodyInertia<S>) -> M6<S> {
+pub fn inertia_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, body: &Inertial<S>) -> M6<S> {
     let zero = p[0].lift(0.0);
     let (m, hb, a) = (&body.mass, &body.h, &body.inertia);
     let g: V3<S> = std::array::from_fn(|r| dot3(&[&e[0][r], &e[1][r], &e[2][r]], hb));
@@ -336,7 +313,6 @@ impl<S: Scalar> Variation<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::physics::multibody::spatial::Xform;
 
     /// The definition column by column: B e_c = v ×* (I e_c) − I (v × e_c) + e_c ×* h.
     fn variation_by_columns(i: &M6, v: &V6, h: &V6) -> M6 {
@@ -356,19 +332,35 @@ mod tests {
         b
     }
 
-    fn body() -> Inertia<f64> {
+    fn rigid_body() -> Inertial {
         let a = [[0.3, 0.02, -0.01], [0.02, 0.25, 0.03], [-0.01, 0.03, 0.2]];
-        Inertia::rigid(1.7, &[0.1, -0.2, 0.05], &a)
+        Inertial {
+            mass: 1.7,
+            h: [0.1, -0.2, 0.05],
+            inertia: a,
+            at_com: None,
+        }
     }
 
-    /// `body()` as mass, first moment and rotational inertia about the origin.
-    fn rigid_body() -> BodyInertia<f64> {
-        let i = body();
-        BodyInertia {
-            mass: i.mass(),
-            h: i.first_moment(),
-            inertia: i.a,
-        }
+    /// [a]×.
+    fn skew(a: &V3<f64>) -> M3<f64> {
+        [[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]]
+    }
+
+    /// A 6×6 matrix of 3×3 blocks [[p, q], [r, s]].
+    fn blocks(p: &M3<f64>, q: &M3<f64>, r: &M3<f64>, s: &M3<f64>) -> M6 {
+        std::array::from_fn(|i| {
+            std::array::from_fn(|j| match (i < 3, j < 3) {
+                (true, true) => p[i][j],
+                (true, false) => q[i][j - 3],
+                (false, true) => r[i - 3][j],
+                (false, false) => s[i - 3][j - 3],
+            })
+        })
+    }
+
+    fn mul6(a: &M6, b: &M6) -> M6 {
+        std::array::from_fn(|i| std::array::from_fn(|j| (0..6).map(|k| a[i][k] * b[k][j]).sum()))
     }
 
     fn placement() -> (M3<f64>, V3<f64>) {
@@ -410,7 +402,22 @@ mod tests {
     #[test]
     fn the_root_inertia_is_the_transformed_one() {
         let (e, p) = placement();
-        let want = of_inertia(&Xform { e, r: p }.inertia_to_parent(&body()));
+        // Featherstone's definition: X = [[E, 0], [−E [p]×, E]] from root to body
+        // coordinates, the body's I = [[Ī, [h]×], [[h]×ᵀ, m 𝟙]], and Xᵀ I X by 6×6 products.
+        let b = rigid_body();
+        let zero = [[0.0; 3]; 3];
+        let m1 =
+            std::array::from_fn(|i| std::array::from_fn(|j| if i == j { b.mass } else { 0.0 }));
+        let hx = skew(&b.h);
+        let hxt = std::array::from_fn(|i| std::array::from_fn(|j| hx[j][i]));
+        let i_body = blocks(&b.inertia, &hx, &hxt, &m1);
+        let px = skew(&p);
+        let epx = std::array::from_fn(|i| {
+            std::array::from_fn(|j| -(0..3).map(|k| e[i][k] * px[k][j]).sum::<f64>())
+        });
+        let x = blocks(&e, &zero, &epx, &e);
+        let xt = std::array::from_fn(|i| std::array::from_fn(|j| x[j][i]));
+        let want = mul6(&xt, &mul6(&i_body, &x));
         let got = inertia_to_root(&e, &p, &rigid_body());
         for r in 0..6 {
             for c in 0..6 {
