@@ -9,8 +9,11 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
+/// `'static`: every number type owns its values (what lets f64 callers share a thread's
+/// multibody workspace, `multibody::data::with_workspace`).
 pub trait Scalar:
-    Clone
+    'static
+    + Clone
     + Add<Output = Self>
     + Sub<Output = Self>
     + Mul<Output = Self>

@@ -5,7 +5,7 @@
 //! transform of the textbook recursion is the identity.
 
 use super::Model;
-use super::data::Data;
+use super::data::{Data, with_workspace};
 use super::spatial::six::{
     add, add_assign, add_scaled, apply, cross_force, dot, scaled, sub_outer,
 };
@@ -52,22 +52,25 @@ impl<S: Scalar> Data<S> {
 /// joints (use `forward_dynamics`).
 pub fn aba<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
     assert!(!model.mimic, "ABA takes a tree without mimic joints");
-    let mut data = Data::for_state(model, q);
-    data.kinematics(model, q, qd);
-    data.aba(model, tau);
-    data.qdd
+    with_workspace(model, q, |data| {
+        data.kinematics(model, q, qd);
+        data.aba(model, tau);
+        data.qdd.clone()
+    })
 }
 
 /// q̈ from M(q) q̈ = τ − C(q, q̇) q̇ − g(q): CRBA, RNEA and a Cholesky solve (any tree).
 pub fn crba_forward<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
-    let mut data = Data::for_state(model, q);
-    data.crba_forward(model, q, qd, tau);
-    data.qdd
+    with_workspace(model, q, |data| {
+        data.crba_forward(model, q, qd, tau);
+        data.qdd.clone()
+    })
 }
 
 /// q̈: ABA without mimic joints, else CRBA and Cholesky.
 pub fn forward_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
-    let mut data = Data::for_state(model, q);
-    data.forward_dynamics(model, q, qd, tau);
-    data.qdd
+    with_workspace(model, q, |data| {
+        data.forward_dynamics(model, q, qd, tau);
+        data.qdd.clone()
+    })
 }

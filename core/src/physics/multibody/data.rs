@@ -12,6 +12,7 @@
 //! (I in the root frame) adds up the tree without transforms. That is what makes the analytic
 //! derivatives of RNEA (`derivatives`) a sum of dot products.
 
+use std::any::{Any, TypeId};
 use std::cell::RefCell;
 
 use super::Model;
@@ -89,6 +90,24 @@ pub fn with_data<R>(f: impl FnOnce(&mut Data) -> R) -> R {
         Ok(mut d) => f(&mut d),
         Err(_) => f(&mut Data::default()),
     })
+}
+
+/// `f` on a workspace for coordinates like `q`: this thread's for f64 (`with_data`: the
+/// one-call entry points in `aba.rs` and `rnea.rs` allocate nothing after a thread's first),
+/// a fresh one for any other scalar, whose values' kind (a batch column's length, a dual
+/// number's directions) is the call's.
+pub fn with_workspace<S: Scalar, R>(
+    model: &Model,
+    q: &[S],
+    f: impl FnOnce(&mut Data<S>) -> R,
+) -> R {
+    if TypeId::of::<S>() == TypeId::of::<f64>() {
+        return with_data(|d| {
+            let d = (d as &mut dyn Any).downcast_mut::<Data<S>>();
+            f(d.expect("S is f64"))
+        });
+    }
+    f(&mut Data::for_state(model, q))
 }
 
 /// Values per body that `save_placements` keeps: a rotation, an origin and a joint axis.

@@ -1,11 +1,11 @@
 //! Inverse dynamics by the recursive Newton–Euler algorithm (Featherstone 2008, Table 5.1)
 //! and M(q) by the composite rigid-body algorithm (Table 6.2), over the coordinates (mimic
-//! joints contracted with G), as entry points for one call on a fresh workspace: the
+//! joints contracted with G), as entry points for one call (`data::with_workspace`): the
 //! algorithms themselves are `Data`'s (`Data::accelerations` and `Data::torques` are RNEA's
 //! two passes, `Data::mass` is CRBA), written once for every scalar.
 
 use super::Model;
-use super::data::Data;
+use super::data::{Data, with_workspace};
 use super::spatial::Inertial;
 use crate::physics::scalar::Scalar;
 
@@ -15,12 +15,13 @@ fn at_rest<S: Scalar>(q: &[S]) -> Vec<S> {
 
 /// τ = ID(q, q̇, q̈) = M(q) q̈ + C(q, q̇) q̇ + g(q).
 pub fn inverse_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], qdd: &[S]) -> Vec<S> {
-    let mut data = Data::for_state(model, q);
-    data.kinematics(model, q, qd);
-    data.qdd.clone_from_slice(qdd);
-    data.accelerations(model);
-    data.torques(model);
-    data.bias
+    with_workspace(model, q, |data| {
+        data.kinematics(model, q, qd);
+        data.qdd.clone_from_slice(qdd);
+        data.accelerations(model);
+        data.torques(model);
+        data.bias.clone()
+    })
 }
 
 /// g(q) = ID(q, 0, 0) = ∂V/∂q.
@@ -30,36 +31,40 @@ pub fn gravity_torques<S: Scalar>(model: &Model, q: &[S]) -> Vec<S> {
 
 /// C(q, q̇) q̇ = ID(q, q̇, 0) without gravity.
 pub fn coriolis<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> Vec<S> {
-    let mut data = Data::for_state(model, q);
-    data.kinematics_without_gravity(model, q, qd);
-    data.torques(model);
-    data.bias
+    with_workspace(model, q, |data| {
+        data.kinematics_without_gravity(model, q, qd);
+        data.torques(model);
+        data.bias.clone()
+    })
 }
 
 /// C(q, q̇) q̇ + g(q) = ID(q, q̇, 0).
 pub fn bias<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> Vec<S> {
-    let mut data = Data::for_state(model, q);
-    data.kinematics(model, q, qd);
-    data.torques(model);
-    data.bias
+    with_workspace(model, q, |data| {
+        data.kinematics(model, q, qd);
+        data.torques(model);
+        data.bias.clone()
+    })
 }
 
 /// M(q) over the coordinates (rows), by CRBA.
 pub fn crba<S: Scalar>(model: &Model, q: &[S]) -> Vec<Vec<S>> {
-    let mut data = Data::for_state(model, q);
-    data.kinematics(model, q, &at_rest(q));
-    rows_of_mass(model, data)
+    with_workspace(model, q, |data| {
+        data.kinematics(model, q, &at_rest(q));
+        rows_of_mass(model, data)
+    })
 }
 
 /// M(q) by CRBA with the bodies' inertias given over the scalar in place of the model's (a
 /// URDF template's trainable values, which training differentiates M with respect to).
 pub fn crba_with<S: Scalar>(model: &Model, q: &[S], inertias: &[Inertial<S>]) -> Vec<Vec<S>> {
-    let mut data = Data::for_state(model, q);
-    data.kinematics_with(model, q, &at_rest(q), inertias);
-    rows_of_mass(model, data)
+    with_workspace(model, q, |data| {
+        data.kinematics_with(model, q, &at_rest(q), inertias);
+        rows_of_mass(model, data)
+    })
 }
 
-fn rows_of_mass<S: Scalar>(model: &Model, mut data: Data<S>) -> Vec<Vec<S>> {
+fn rows_of_mass<S: Scalar>(model: &Model, data: &mut Data<S>) -> Vec<Vec<S>> {
     data.mass(model);
     data.mass.chunks_exact(model.n).map(<[S]>::to_vec).collect()
 }
