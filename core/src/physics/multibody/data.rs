@@ -282,13 +282,11 @@ impl<S: Scalar> Data<S> {
             let rate = body.drive.rate(qd);
             let d = cross(vp, s);
             let (v, a) = (add_scaled(vp, &rate, s), add_scaled(ap, &rate, &d));
-            self.inertia[i] = match given {
-                Some(b) => inertia_to_root(&self.rot[i], &self.pos[i], &b[i]),
-                None => {
-                    let b = body.inertia.lift(&zero);
-                    inertia_to_root(&self.rot[i], &self.pos[i], &b)
-                }
-            };
+            let (e, p, out) = (&self.rot[i], &self.pos[i], &mut self.inertia[i]);
+            match given {
+                Some(b) => inertia_to_root(e, p, &b[i], out),
+                None => inertia_to_root(e, p, &body.inertia.lift(&zero), out),
+            }
             self.momentum[i] = apply(&self.inertia[i], &v);
             (self.v[i], self.a[i], self.d[i], self.rate[i]) = (v, a, d, rate);
         }
