@@ -1,7 +1,7 @@
-//! The `Data` workspace's root-frame algorithms (docs/robots.md#the-data-workspace): CRBA,
-//! the bias, forward dynamics and the analytic derivatives of RNEA against the body-frame
-//! recursions over jets, on every fixture robot and the mimic robot; and a workspace reused
-//! across robots of different sizes answers as a fresh one.
+//! The `Data` workspace's root-frame algorithms (docs/robots.md#the-data-workspace): the
+//! analytic derivatives of RNEA against RNEA over jets, ABA against CRBA and Cholesky, on every
+//! fixture robot and the mimic robot; and a workspace reused across robots of different sizes
+//! answers as a fresh one.
 
 use super::*;
 use graybox::physics::multibody::{Data, id_partials};
@@ -13,8 +13,8 @@ fn all_models() -> Vec<(&'static str, multibody::Model)> {
     all
 }
 
-/// ∂ID/∂(q, q̇) from `Data::id_derivatives` equals RNEA over `Jet<64>` (the body-frame
-/// recursion, differentiated by forward mode: an independent route to the same partials) at
+/// ∂ID/∂(q, q̇) from `Data::id_derivatives` equals RNEA over `Jet<64>` (RNEA's passes
+/// differentiated by forward mode: an independent route to the same partials) at
 /// random states, to 1e-10 of max(1, |ref|): both are exact to rounding, ~1e-14 of the terms
 /// (≤ 1e3 here); a missing or wrong term (gravity's, a mimic multiplier, a branch) is O(1).
 #[test]
@@ -34,30 +34,32 @@ fn analytic_rnea_derivatives_equal_forward_mode() {
     }
 }
 
-/// The workspace's M (CRBA in the root frame), C q̇ + g and q̈ (by CRBA and Cholesky, and by
-/// ABA in the root frame) equal the body-frame CRBA, RNEA and forward dynamics. The root frame sums in another order, so bit-for-bit equality does
-/// not hold: the bound is 1e-12 of max(1, |ref|) for M and the bias (rounding ~1e-15 of
-/// terms ≤ 1e2) and 1e-9 for q̈ (the same rounding amplified by M's condition, ≤ 1e4 here).
-/// The workspace is the same one throughout, resized between robots.
+/// q̈ by ABA in the root frame equals q̈ by CRBA and Cholesky, two algorithms: to 1e-9 of
+/// max(1, |ref|) (their sums run in different orders; rounding ~1e-15 of terms ≤ 1e2,
+/// amplified by M's condition, ≤ 1e4 here; a mimic robot takes CRBA both ways). And one
+/// workspace reused across robots of different sizes answers bit for bit as a fresh one: M,
+/// the bias, q̈ and the partials of RNEA (a value left over from a larger robot would show).
+/// M, g and C q̇ themselves are Pinocchio's (`crba_and_rnea_equal_pinocchio`).
 #[test]
-fn the_workspace_equals_the_body_frame_recursions() {
+fn aba_equals_crba_and_a_reused_workspace_a_fresh_one() {
     let mut rng = Rng::new(57);
     let mut data = Data::default();
     for round in 0..2 {
         for (name, model) in all_models() {
             let n = model.n;
             let [q, qd, tau] = random_state(&mut rng, n, 1.5);
+            let mut fresh = Data::new(&model);
             data.crba_forward(&model, &q, &qd, &tau);
-            let m = crba(&model, &q);
-            assert!(err(&data.mass, &flat(&m)) < 1e-12, "{name} {round}: M");
-            let b = bias(&model, &q, &qd);
-            assert!(err(&data.bias, &b) < 1e-12, "{name} {round}: bias");
-            let qdd = forward_dynamics(&model, &q, &qd, &tau);
-            assert!(err(&data.qdd, &qdd) < 1e-9, "{name} {round}: q̈ by CRBA");
+            fresh.crba_forward(&model, &q, &qd, &tau);
+            assert_eq!(fresh.mass, data.mass, "{name} {round}: M, reused vs fresh");
+            assert_eq!(
+                fresh.bias, data.bias,
+                "{name} {round}: bias, reused vs fresh"
+            );
+            assert_eq!(fresh.qdd, data.qdd, "{name} {round}: q̈, reused vs fresh");
+            let by_crba = data.qdd.clone();
             data.forward_dynamics(&model, &q, &qd, &tau);
-            assert!(err(&data.qdd, &qdd) < 1e-9, "{name} {round}: q̈ by ABA");
-            let fresh = Data::new(&model);
-            let mut fresh = fresh;
+            assert!(err(&data.qdd, &by_crba) < 1e-9, "{name} {round}: q̈ by ABA");
             fresh.fd_partials(&model, &q, &qd, &tau);
             data.fd_partials(&model, &q, &qd, &tau);
             assert_eq!(fresh.id_dq, data.id_dq, "{name} {round}: reused vs fresh");
