@@ -13,7 +13,6 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 use super::activations::Activations;
 use crate::physics::dual::Dual;
 use crate::physics::jet::Jet;
-use crate::physics::multibody::{self, Model as Robot, with_data};
 use crate::physics::scalar::Scalar;
 
 /// One coordinate of every sample in a batch.
@@ -124,10 +123,6 @@ pub trait Column: Scalar {
     fn write_block(&self, jet: &mut Activations, o: usize, i: usize, j: usize);
     /// Unit j of the jet's block (o, i).
     fn read_block(jet: &Activations, o: usize, i: usize, j: usize) -> Self;
-    /// q̈ = FD(q, q̇, τ) by the multibody algorithms over this type.
-    fn multibody_forward(model: &Robot, q: &[Self], qd: &[Self], tau: &[Self]) -> Vec<Self> {
-        multibody::forward_dynamics(model, q, qd, tau)
-    }
 }
 
 impl Column for f64 {
@@ -146,13 +141,6 @@ impl Column for f64 {
     }
     fn read_block(jet: &Activations, o: usize, i: usize, j: usize) -> Self {
         jet.at(o, i, 0, j)
-    }
-    /// On this thread's workspace (root-frame ABA, no allocation).
-    fn multibody_forward(model: &Robot, q: &[f64], qd: &[f64], tau: &[f64]) -> Vec<f64> {
-        with_data(|data| {
-            data.forward_dynamics(model, q, qd, tau);
-            data.qdd.clone()
-        })
     }
 }
 
@@ -187,10 +175,6 @@ pub trait Lanes: Scalar {
     fn write(&self, jet: &mut Activations, i: usize, j: usize);
     /// Output unit j of the jet's inner block i, with its outer tangents.
     fn read(jet: &Activations, i: usize, j: usize) -> Self;
-    /// q̈ = FD(q, q̇, τ) by the multibody algorithms over this type.
-    fn multibody_forward(model: &Robot, q: &[Self], qd: &[Self], tau: &[Self]) -> Vec<Self> {
-        multibody::forward_dynamics(model, q, qd, tau)
-    }
 }
 
 impl<C: Column> Lanes for C {
@@ -205,9 +189,6 @@ impl<C: Column> Lanes for C {
     }
     fn read(jet: &Activations, i: usize, j: usize) -> Self {
         C::read_block(jet, 0, i, j)
-    }
-    fn multibody_forward(model: &Robot, q: &[C], qd: &[C], tau: &[C]) -> Vec<C> {
-        <C as Column>::multibody_forward(model, q, qd, tau)
     }
 }
 

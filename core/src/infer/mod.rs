@@ -38,6 +38,7 @@ use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::{Columns, Structure};
 use crate::physics::dynamics::acceleration;
+use crate::physics::multibody::forward_dynamics;
 use crate::physics::scalar::Scalar;
 
 /// Batches at least this large run on two threads: a thread costs ~20–40 µs, a step of 64
@@ -203,7 +204,7 @@ impl Evaluator {
             return if torques {
                 tau
             } else {
-                S::multibody_forward(model, x.q, x.qd, &tau)
+                forward_dynamics(model, x.q, x.qd, &tau)
             };
         }
         let t = structure.terms(nets, x);

@@ -5,7 +5,7 @@
 //! transform of the textbook recursion is the identity.
 
 use super::Model;
-use super::data::{Data, with_workspace};
+use super::data::{Data, parent_and_child, with_workspace};
 use super::spatial::six::{
     add, add_assign, add_scaled, apply, cross_force, dot, scaled, sub_outer,
 };
@@ -30,8 +30,8 @@ impl<S: Scalar> Data<S> {
                 let c = scaled(&self.rate[i], &self.d[i]);
                 let ud = u.clone() / d.clone();
                 let pa = add_scaled(&add(&self.bias_force[i], &apply(ia, &c)), &ud, &u_col);
-                let ia = self.articulated[i].clone();
-                add_assign(&mut self.articulated[p], &ia);
+                let (parent, child) = parent_and_child(&mut self.articulated, p, i);
+                add_assign(parent, child);
                 self.bias_force[p] = add(&self.bias_force[p], &pa);
             }
             (self.u_col[i], self.pivot[i]) = (u_col, (d, u));

@@ -113,6 +113,13 @@ pub fn with_workspace<S: Scalar, R>(
 /// Values per body that `save_placements` keeps: a rotation, an origin and a joint axis.
 pub const PLACED: usize = 9 + 3 + 6;
 
+/// A parent's entry p and its child's i in a per-body vector (p < i: every body comes after its
+/// parent), to add the child's into the parent's without copying it first.
+pub(super) fn parent_and_child<T>(v: &mut [T], p: usize, i: usize) -> (&mut T, &T) {
+    let (head, tail) = v.split_at_mut(i);
+    (&mut head[p], &tail[0])
+}
+
 fn fit<T: Clone>(v: &mut Vec<T>, len: usize, zero: &T) {
     v.resize(len, zero.clone());
 }
@@ -281,14 +288,15 @@ impl<S: Scalar> Data<S> {
             let s = &self.s[i];
             let rate = body.drive.rate(qd);
             let d = cross(vp, s);
-            let (v, a) = (add_scaled(vp, &rate, s), add_scaled(ap, &rate, &d));
+            self.v[i] = add_scaled(vp, &rate, s);
+            self.a[i] = add_scaled(ap, &rate, &d);
+            (self.d[i], self.rate[i]) = (d, rate);
             let (e, p, out) = (&self.rot[i], &self.pos[i], &mut self.inertia[i]);
             match given {
                 Some(b) => inertia_to_root(e, p, &b[i], out),
                 None => inertia_to_root(e, p, &body.inertia.lift(&zero), out),
             }
-            self.momentum[i] = apply(&self.inertia[i], &v);
-            (self.v[i], self.a[i], self.d[i], self.rate[i]) = (v, a, d, rate);
+            self.momentum[i] = apply(&self.inertia[i], &self.v[i]);
         }
     }
 
@@ -311,8 +319,8 @@ impl<S: Scalar> Data<S> {
         self.composite.clone_from_slice(&self.inertia);
         for (i, body) in model.bodies.iter().enumerate().rev() {
             if let Some(p) = body.parent {
-                let c = self.composite[i].clone();
-                add_assign(&mut self.composite[p], &c);
+                let (parent, child) = parent_and_child(&mut self.composite, p, i);
+                add_assign(parent, child);
             }
         }
         let n = self.n;

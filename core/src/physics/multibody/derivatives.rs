@@ -11,7 +11,7 @@
 
 use super::Model;
 use super::aba::forward_dynamics;
-use super::data::{Data, with_data};
+use super::data::{Data, parent_and_child, with_data};
 use super::spatial::six::{V6, Variation, ZERO6, add, add_scaled, apply, cross, cross_force, dot};
 use crate::physics::dual::Dual;
 use crate::physics::jet::Jet;
@@ -73,8 +73,8 @@ impl Data<f64> {
         }
         for (i, body) in model.bodies.iter().enumerate().rev() {
             if let Some(p) = body.parent {
-                let b = self.variation[i];
-                self.variation[p].add_assign(&b);
+                let (parent, child) = parent_and_child(&mut self.variation, p, i);
+                parent.add_assign(child);
             }
         }
     }

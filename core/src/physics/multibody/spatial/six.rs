@@ -2,7 +2,9 @@
 //! in the root frame (`Data`'s): a motion is (ω, v), a force (n, f), an inertia or any other
 //! motion-to-force map a 6×6 matrix. Plain arrays and loops (no `array::from_fn`, which the
 //! compiler left as an out-of-line call in the hot loops, 5 % of a training step's time) keep
-//! the f64 instance as fast as hand-written f64 code: `clone` is a copy there. The order of
+//! the f64 instance as fast as hand-written f64 code: `clone` is a copy there. Each function
+//! is `#[inline(always)]`: left to the compiler, the generic instances kept `apply` out of line
+//! in the f64 passes (six calls per forward dynamics, 9 % of its instructions). The order of
 //! every sum is fixed here, so each scalar type computes the same operations in the same
 //! order and a batch column reproduces the single state bit for bit.
 
@@ -14,22 +16,22 @@ pub type M6<S = f64> = [[S; 6]; 6];
 
 pub const ZERO6: V6 = [0.0; 6];
 
-#[inline]
+#[inline(always)]
 pub fn zeros<S: Scalar>(zero: &S) -> V6<S> {
     std::array::from_fn(|_| zero.clone())
 }
 
-#[inline]
+#[inline(always)]
 pub fn zeros_m6<S: Scalar>(zero: &S) -> M6<S> {
     std::array::from_fn(|_| zeros(zero))
 }
 
-#[inline]
+#[inline(always)]
 fn mul<S: Scalar>(a: &S, b: &S) -> S {
     a.clone() * b.clone()
 }
 
-#[inline]
+#[inline(always)]
 fn cross3<S: Scalar>(a: &[S], b: &[S]) -> V3<S> {
     [
         mul(&a[1], &b[2]) - mul(&a[2], &b[1]),
@@ -39,7 +41,7 @@ fn cross3<S: Scalar>(a: &[S], b: &[S]) -> V3<S> {
 }
 
 /// m × x for motions (crm).
-#[inline]
+#[inline(always)]
 pub fn cross<S: Scalar>(m: &V6<S>, x: &V6<S>) -> V6<S> {
     let (w, v) = m.split_at(3);
     let (xw, xv) = x.split_at(3);
@@ -51,7 +53,7 @@ pub fn cross<S: Scalar>(m: &V6<S>, x: &V6<S>) -> V6<S> {
 }
 
 /// m ×* f (crf).
-#[inline]
+#[inline(always)]
 pub fn cross_force<S: Scalar>(m: &V6<S>, f: &V6<S>) -> V6<S> {
     let (w, v) = m.split_at(3);
     let (n, ff) = f.split_at(3);
@@ -63,7 +65,7 @@ pub fn cross_force<S: Scalar>(m: &V6<S>, f: &V6<S>) -> V6<S> {
 }
 
 /// Σ aᵢ bᵢ, left to right (as f64's `sum`, whose fold starts at −0.0, the identity).
-#[inline]
+#[inline(always)]
 pub fn dot<S: Scalar>(a: &V6<S>, b: &V6<S>) -> S {
     let mut s = mul(&a[0], &b[0]);
     for (x, y) in a.iter().zip(b).skip(1) {
@@ -72,7 +74,7 @@ pub fn dot<S: Scalar>(a: &V6<S>, b: &V6<S>) -> S {
     s
 }
 
-#[inline]
+#[inline(always)]
 pub fn add<S: Scalar>(a: &V6<S>, b: &V6<S>) -> V6<S> {
     let mut out = a.clone();
     out.iter_mut()
@@ -82,7 +84,7 @@ pub fn add<S: Scalar>(a: &V6<S>, b: &V6<S>) -> V6<S> {
 }
 
 /// a + c b.
-#[inline]
+#[inline(always)]
 pub fn add_scaled<S: Scalar>(a: &V6<S>, c: &S, b: &V6<S>) -> V6<S> {
     let mut out = a.clone();
     out.iter_mut()
@@ -92,7 +94,7 @@ pub fn add_scaled<S: Scalar>(a: &V6<S>, c: &S, b: &V6<S>) -> V6<S> {
 }
 
 /// c b.
-#[inline]
+#[inline(always)]
 pub fn scaled<S: Scalar>(c: &S, b: &V6<S>) -> V6<S> {
     let mut out = b.clone();
     out.iter_mut().for_each(|o| *o = mul(c, o));
@@ -100,14 +102,14 @@ pub fn scaled<S: Scalar>(c: &S, b: &V6<S>) -> V6<S> {
 }
 
 /// M x.
-#[inline]
+#[inline(always)]
 pub fn apply<S: Scalar>(m: &M6<S>, x: &V6<S>) -> V6<S> {
     let mut out = x.clone();
     out.iter_mut().zip(m).for_each(|(o, row)| *o = dot(row, x));
     out
 }
 
-#[inline]
+#[inline(always)]
 pub fn add_assign<S: Scalar>(a: &mut M6<S>, b: &M6<S>) {
     for (ra, rb) in a.iter_mut().zip(b) {
         for (x, y) in ra.iter_mut().zip(rb) {
@@ -117,7 +119,7 @@ pub fn add_assign<S: Scalar>(a: &mut M6<S>, b: &M6<S>) {
 }
 
 /// a ← a − u uᵀ / d: the articulated inertia a joint passes to its parent.
-#[inline]
+#[inline(always)]
 pub fn sub_outer<S: Scalar>(a: &mut M6<S>, u: &V6<S>, d: &S) {
     for (row, ur) in a.iter_mut().zip(u) {
         let k = ur.clone() / d.clone();
@@ -128,14 +130,14 @@ pub fn sub_outer<S: Scalar>(a: &mut M6<S>, u: &V6<S>, d: &S) {
 }
 
 /// Σ rᵢ cᵢ over three constant coefficients, left to right.
-#[inline]
+#[inline(always)]
 fn combine<S: Scalar>(r: [&S; 3], c: &V3<f64>) -> S {
     r[0].scale(c[0]) + r[1].scale(c[1]) + r[2].scale(c[2])
 }
 
 /// A motion in body coordinates, in the root frame, for the body placed at (E₀, p) (E₀ turns
 /// root axes into the body's, p is its origin): ω = E₀ᵀ ω', v = E₀ᵀ v' + p × ω.
-#[inline]
+#[inline(always)]
 pub fn motion_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, m: &V6<f64>) -> V6<S> {
     let rt = |x: &V3<f64>| -> V3<S> {
         std::array::from_fn(|i| combine([&e[0][i], &e[1][i], &e[2][i]], x))
@@ -167,7 +169,7 @@ pub fn inertia_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, body: &Inertial<S>, out:
     let mut ae = [z3.clone(), z3.clone(), z3.clone()];
     for (r, row) in ae.iter_mut().enumerate() {
         for (c, x) in row.iter_mut().enumerate() {
-            *x = dot3(&[&e[0][c], &e[1][c], &e[2][c]], &a[r]);
+            *x = mul(&a[r][0], &e[0][c]) + mul(&a[r][1], &e[1][c]) + mul(&a[r][2], &e[2][c]);
         }
     }
     let (pp, pg) = (
@@ -203,13 +205,13 @@ pub fn inertia_to_root<S: Scalar>(e: &M3<S>, p: &V3<S>, body: &Inertial<S>, out:
 }
 
 /// x · y for x given by reference, left to right.
-#[inline]
+#[inline(always)]
 fn dot3<S: Scalar>(x: &[&S; 3], y: &V3<S>) -> S {
     mul(x[0], &y[0]) + mul(x[1], &y[1]) + mul(x[2], &y[2])
 }
 
 /// [x]×.
-#[inline]
+#[inline(always)]
 fn skew<S: Scalar>(x: &[S], zero: &S) -> M3<S> {
     let z = || zero.clone();
     [
@@ -219,7 +221,7 @@ fn skew<S: Scalar>(x: &[S], zero: &S) -> M3<S> {
     ]
 }
 
-#[inline]
+#[inline(always)]
 fn mul3<S: Scalar>(a: &M3<S>, b: &M3<S>) -> M3<S> {
     std::array::from_fn(|r| {
         std::array::from_fn(|c| {
