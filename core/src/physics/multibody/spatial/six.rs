@@ -4,7 +4,7 @@
 //! compiler left as an out-of-line call in the hot loops, 5 % of a training step's time) keep
 //! the f64 instance as fast as hand-written f64 code: `clone` is a copy there. Each function
 //! is `#[inline(always)]`: left to the compiler, the generic instances kept `apply` out of line
-//! in the f64 passes (six calls per forward dynamics, 9 % of its instructions). The order of
+//! in the f64 passes (six calls per forward dynamics, 6 % of its instructions). The order of
 //! every sum is fixed here, so each scalar type computes the same operations in the same
 //! order and a batch column reproduces the single state bit for bit.
 
