@@ -112,17 +112,15 @@ impl Model {
         Ok(Model::from_parts(file.config.clone(), params, device))
     }
 
-    /// The model of `config` with `params`, on the fused step when its spec takes it
-    /// (`ModelSpec::fused`).
+    /// The model of `config` with `params`, training through the fused step.
     pub fn from_parts(config: ModelConfig, params: Params, device: &Device) -> Self {
         let consts = Consts::new(&config, device);
-        let fused = config.spec.fused();
         let model = Self {
             config,
             params,
             consts,
         };
-        model.on_path(fused)
+        model.fused()
     }
 
     /// This model with other values for its parameters (same config and constants).

@@ -27,9 +27,7 @@ pub(super) struct ForwardDynamics {
 impl ForwardDynamics {
     /// The op of `config`'s robot, when its q̈ comes from the multibody algorithms.
     pub(super) fn of(config: &ModelConfig) -> Option<RowFn> {
-        let (t, gravity) = config.spec.multibody()?;
-        let defaults = config.template()?.defaults();
-        let model = t.multibody_model(&defaults, gravity);
+        let model = robot(config)?;
         Some(RowFn(Arc::new(Self { model })))
     }
 
@@ -123,6 +121,14 @@ impl RowFunction for ForwardDynamics {
     }
 }
 
+/// The tree of `config`'s robot, when its q̈ comes from the multibody algorithms (its
+/// inertias are the template's defaults: training replaces them by π's).
+pub(super) fn robot(config: &ModelConfig) -> Option<multibody::Model> {
+    let (t, gravity) = config.spec.multibody()?;
+    let defaults = config.template()?.defaults();
+    Some(t.multibody_model(&defaults, gravity))
+}
+
 /// The forward pass's placements, `PLACED` values per body and row.
 struct Placed(Vec<f64>);
 
@@ -159,8 +165,9 @@ impl Model {
     /// The same model on the template's M(q) and V(q) assembly instead of the multibody
     /// algorithms: the reference training's op is tested against, and a benchmark's baseline.
     pub fn assembled(mut self) -> Self {
+        let fused = self.is_fused();
         self.consts.multibody = None;
-        self
+        self.on_path(fused)
     }
 
     /// Whether q̈ comes from the multibody algorithms.

@@ -27,7 +27,7 @@ pub(super) struct Consts {
     /// Forward dynamics by the multibody algorithms, when M is a URDF template's.
     pub(super) multibody: Option<RowFn>,
     /// The whole step as one op (`model::fused`), when the model was asked to train so.
-    pub(super) fused: Option<RowFn>,
+    pub(super) fused: Option<std::sync::Arc<super::fused::FusedStep>>,
 }
 
 /// What angles need: their networks' inputs are (sin q, cos q), their loss 2(1 − cos Δ).

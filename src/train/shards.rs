@@ -23,10 +23,11 @@ pub type ParamGrads = Vec<Option<Tensor<1>>>;
 /// while using a second core).
 pub const MIN_SHARD_ROWS: usize = 128;
 
-/// The same for a model without a network: a step is a few hundred (built-in templates) to
-/// thousands (URDF) of tiny ops and little arithmetic per row, and Burn records every op under
-/// one lock, so a second thread pays only for large batches (W-B double pendulum: batch 256 in
-/// two shards 142k against 192k samples/s on one; batch 4096 1.33M against 0.83M).
+/// The same for a model without a network: its step is a few hundred scalar columns per row
+/// on the tape, a fraction of a millisecond for a small batch, which handing half of it to
+/// another thread does not repay (`graybox-lab bench train`, W-B double pendulum: batch 256
+/// in two shards 0.28–0.30M samples/s against 0.36–0.37M in one; batch 4096, eight pieces,
+/// on two threads 0.56–0.68M against 0.39M on one).
 pub const MIN_SHARD_ROWS_WITHOUT_NETWORK: usize = 2048;
 
 /// The fewest rows a shard of `spec`'s model gets: a model with a network, or a robot's on
@@ -79,16 +80,12 @@ pub fn shard_count(shards: usize, rows: usize, min_rows: usize) -> usize {
 }
 
 /// How many pieces a batch of `rows` of `model` is split into when a run uses `shards`: its
-/// shards, and on the fused step more pieces than threads for a large batch (each thread
+/// shards, and more pieces than threads for a large batch (each thread
 /// runs its pieces one after another; see [`MAX_FUSED_PIECE_ROWS`]). Like the shard count,
 /// it depends on nothing but the run's recorded shards, the batch and the model.
 pub fn piece_count(shards: usize, rows: usize, model: &crate::model::Model) -> usize {
-    let k = shard_count(shards, rows, min_shard_rows(&model.config.spec));
-    if model.is_fused() {
-        k.max(rows.div_ceil(MAX_FUSED_PIECE_ROWS))
-    } else {
-        k
-    }
+    shard_count(shards, rows, min_shard_rows(&model.config.spec))
+        .max(rows.div_ceil(MAX_FUSED_PIECE_ROWS))
 }
 
 /// `items` in `k` contiguous pieces whose lengths differ by at most one.
@@ -154,20 +151,6 @@ pub fn gradients<M: Module>(module: &M, loss: &Tensor<1>) -> ParamGrads {
     let mut none = Untouched(vec![]);
     module.visit(&mut none);
     none.0
-}
-
-/// A step's gradient must move something, else training would "succeed" having learned
-/// nothing.
-pub fn check_learns(grads: &ParamGrads) -> Result<()> {
-    if grads.iter().any(Option::is_some) {
-        return Ok(());
-    }
-    Err(Error::invalid(
-        "template",
-        "no trainable parameter: the loss depends on none of the model's values (a template \
-         parameter that enters V only as a constant term has no gradient); give the template a \
-         parameter that M, ∂V/∂q or F depends on, or choose a model with a network",
-    ))
 }
 
 /// The sum of the shards' gradients, in shard order.

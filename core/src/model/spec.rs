@@ -246,16 +246,6 @@ impl ModelSpec {
         Some((t, matches!(potential, PotentialSpec::Template { .. })))
     }
 
-    /// Whether the model trains through the fused step (`model::fused`: the whole one-step
-    /// prediction as one op, recorded and differentiated on a host tape): every model with a
-    /// network, except a robot's on the multibody algorithms, which has its own op. A model
-    /// without a network stays on Burn's op-by-op graph: its tape is hundreds of scalar
-    /// columns per row, which a large batch's kept tapes stream from memory (W-B at batch
-    /// 4096: 0.43M samples/s fused against 0.72M on the graph).
-    pub fn fused(&self) -> bool {
-        self.has_network() && self.multibody().is_none()
-    }
-
     pub fn template(&self) -> Option<&Template> {
         match self {
             ModelSpec::Structured { template, .. } => template.as_ref(),

@@ -18,6 +18,8 @@ use burn::tensor::Tensor;
 
 use super::{Model, ModelConfig, names};
 use crate::backend::{Kept, RowFn, RowFunction, row_map};
+use crate::error::{Error, Result};
+use crate::physics::multibody;
 use crate::physics::tape::{Buffers, Gradients, Layer, Params, Precision, Ref, Tape, Var};
 
 /// Rows per tape: enough that a node's loop dwarfs its bookkeeping, few enough that a
@@ -87,10 +89,12 @@ impl Layout {
 
 /// The step as a row function: a row is [x, u], the output x'.
 #[derive(Debug)]
-pub(super) struct FusedStep {
+pub(crate) struct FusedStep {
     config: ModelConfig,
     layout: Layout,
     precision: Precision,
+    /// The robot whose algorithms give q̈, when they do (see `Model::assembled`).
+    robot: Option<multibody::Model>,
     /// Finished tapes' storage, for the next ones.
     pool: Mutex<Vec<Buffers>>,
 }
@@ -113,13 +117,12 @@ impl FusedStep {
             .map(|j| Var::input(&tape, rows.iter().skip(j).step_by(width).copied().collect()))
             .collect();
         let nx = 2 * self.config.n;
-        let out = record::step(
-            &self.config,
-            &self.layout,
-            &tape,
-            &inputs[..nx],
-            &inputs[nx..],
-        );
+        let recipe = record::Recipe {
+            config: &self.config,
+            layout: &self.layout,
+            robot: self.robot.as_ref(),
+        };
+        let out = record::step(&recipe, &tape, &inputs[..nx], &inputs[nx..]);
         let block_inputs = inputs.iter().map(Var::id).collect();
         let outputs = out.iter().map(Var::id).collect();
         drop((inputs, out));
@@ -285,10 +288,9 @@ impl Model {
     }
 
     /// The same model training through the fused step (its forward and backward passes on
-    /// the host tape) instead of Burn's op-by-op graph. URDF models on the multibody
-    /// algorithms keep their own op.
+    /// the host tape) instead of Burn's op-by-op graph.
     pub fn fused(mut self) -> Self {
-        if self.consts.multibody.is_none() {
+        {
             let mut flat = Flatten(vec![]);
             self.params.visit(&mut flat);
             // The networks compute in the process's precision; the rest of the step in f64.
@@ -300,17 +302,51 @@ impl Model {
                 config: self.config.clone(),
                 layout: Layout::of(&self),
                 precision,
+                robot: self
+                    .consts
+                    .multibody
+                    .is_some()
+                    .then(|| super::multibody::robot(&self.config))
+                    .flatten(),
                 pool: Mutex::new(vec![]),
             };
-            self.consts.fused = Some(RowFn(Arc::new(step)));
+            self.consts.fused = Some(Arc::new(step));
         }
         self
     }
 
     /// x' by the fused op.
-    pub(super) fn fused_step(&self, f: &RowFn, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
+    pub(super) fn fused_step(&self, f: &Arc<FusedStep>, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
+        let f = RowFn(f.clone());
+        row_map(&f, Tensor::cat(vec![x, u], 1), self.flat_params())
+    }
+
+    /// Every parameter in one row, in the order the fused step reads them.
+    fn flat_params(&self) -> Tensor<2> {
         let mut flat = Flatten(vec![]);
         self.params.visit(&mut flat);
-        row_map(f, Tensor::cat(vec![x, u], 1), Tensor::cat(flat.0, 1))
+        Tensor::cat(flat.0, 1)
+    }
+
+    /// A step's gradient must reach some parameter, else training would "succeed" having
+    /// learned nothing: checked on the recorded step's structure, which is the same for any
+    /// rows.
+    pub fn check_learns(&self) -> Result<()> {
+        let Some(f) = &self.consts.fused else {
+            return Ok(());
+        };
+        let params: Vec<f64> = self.flat_params().into_data().iter::<f64>().collect();
+        let block = f.record(&vec![0.0; f.input_width()], &f.params(&params));
+        let reached = block.tape.reaches(&block.outputs);
+        f.recycle(block.tape, None);
+        if reached.contains(&true) {
+            return Ok(());
+        }
+        Err(Error::invalid(
+            "template",
+            "no trainable parameter: the loss depends on none of the model's values (a template \
+             parameter that enters V only as a constant term has no gradient); give the template a \
+             parameter that M, ∂V/∂q or F depends on, or choose a model with a network",
+        ))
     }
 }

@@ -12,8 +12,9 @@ use crate::model::{ModelConfig, names};
 use crate::physics::assembly::{Columns, Networks, Structure, Values};
 use crate::physics::dual::Dual;
 use crate::physics::dynamics::acceleration;
+use crate::physics::multibody;
 use crate::physics::scalar::Scalar;
-use crate::physics::tape::{Layer, Tape, Var, mlp};
+use crate::physics::tape::{Layer, Tape, Var, forward_dynamics, mlp};
 
 /// The tape's view of the parameters.
 struct Recorded {
@@ -49,22 +50,30 @@ impl Networks<Var> for TapeNets {
     }
 }
 
+/// What a block's step is recorded from: the model and where its values sit, and the
+/// robot whose algorithms give q̈ when they do (`ModelSpec::multibody`).
+pub(super) struct Recipe<'a> {
+    pub config: &'a ModelConfig,
+    pub layout: &'a Layout,
+    pub robot: Option<&'a multibody::Model>,
+}
+
 /// x' of the block's states `x` (2n columns) under inputs `u` (m columns).
 pub(super) fn step(
-    config: &ModelConfig,
-    layout: &Layout,
+    recipe: &Recipe<'_>,
     tape: &Rc<RefCell<Tape>>,
     x: &[Var],
     u: &[Var],
 ) -> Vec<Var> {
+    let config = recipe.config;
     let n = config.n;
-    let values = record_values(config, layout, tape);
+    let values = record_values(config, recipe.layout, tape);
     config
         .integrator
         .step(&x.to_vec(), config.dt, |x: &Vec<Var>| {
             let (q, qd) = x.split_at(n);
             let mut dx = qd.to_vec();
-            dx.extend(accel(config, layout, &values, q, qd, u));
+            dx.extend(accel(recipe, &values, q, qd, u));
             dx
         })
 }
@@ -89,14 +98,8 @@ fn record_values(config: &ModelConfig, layout: &Layout, tape: &Rc<RefCell<Tape>>
 }
 
 /// q̈ of the block: the naive network, or the structure assembled from the spec.
-fn accel(
-    config: &ModelConfig,
-    layout: &Layout,
-    r: &Recorded,
-    q: &[Var],
-    qd: &[Var],
-    u: &[Var],
-) -> Vec<Var> {
+fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) -> Vec<Var> {
+    let (config, layout) = (recipe.config, recipe.layout);
     let sc = &config.scaling;
     let angles = &config.periodic;
     let full = || -> Vec<Dual<Var>> {
@@ -152,6 +155,16 @@ fn accel(
         n,
         m: config.m,
     };
-    let t = structure.terms(&nets, &Columns { q, qd, u });
+    let inputs = Columns { q, qd, u };
+    if let (Some(robot), Some((urdf, _))) = (recipe.robot, config.spec.multibody()) {
+        let tau = structure.multibody_torques(&nets, &inputs);
+        let physical = r
+            .physical
+            .as_deref()
+            .expect("a template's M has physical values");
+        let pi = urdf.standard_parameters(physical);
+        return forward_dynamics(robot, q, qd, &tau, &pi);
+    }
+    let t = structure.terms(&nets, &inputs);
     acceleration(&t.l, t.grad_v, t.forces, qd)
 }

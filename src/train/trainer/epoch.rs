@@ -10,7 +10,6 @@ use super::loss::{HostData, mean_loss};
 use crate::error::{Error, Result};
 use crate::model::report::EpochMetrics;
 use crate::train::adam::Adam;
-use crate::train::shards;
 use crate::train::windows::Windows;
 
 /// An epoch under way: its shuffled window starts and the batches done so far.
@@ -65,7 +64,6 @@ impl Trainer {
             return Err(Error::Cancelled);
         }
         let (value, grads) = self.loss_and_grads(batch);
-        shards::check_learns(&grads)?;
         if !value.is_finite() {
             return Err(Error::Training(format!(
                 "the loss became non-finite ({value}) at epoch {}, batch {}; try a smaller learning rate",

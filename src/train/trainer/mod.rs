@@ -165,6 +165,7 @@ impl Trainer {
     ) -> Result<Self> {
         let seed = member_seed(cfg.seed, k);
         let model = Model::init(config, physical, seed, device)?;
+        model.check_learns()?;
         let state = TrainState {
             model_name: model_name.to_string(),
             config: model.config.clone(),

@@ -273,6 +273,16 @@ fn gemm<T: Net>(
 }
 
 impl Node {
+    /// The values it reads: its inputs and their tangents.
+    pub(super) fn inputs(&self) -> impl Iterator<Item = Ref> + '_ {
+        self.inputs.iter().flatten().copied()
+    }
+
+    /// Its layers' weights and biases, by their place in the parameters.
+    pub(super) fn params(&self) -> impl Iterator<Item = usize> + '_ {
+        (self.layers.iter()).flat_map(|l| (l.w..l.w + l.d_in * l.d_out).chain(l.b..l.b + l.d_out))
+    }
+
     /// The node's adjoint carried back through every layer into W, b and the inputs.
     pub(super) fn backward(
         &self,

@@ -11,13 +11,16 @@
 //! that one tape hands to the next ([`Buffers`]), so recording allocates only while they grow.
 
 mod mlp;
+mod multibody;
 mod ops;
+mod seen;
 
 use std::cell::RefCell;
 use std::rc::Rc;
 use std::sync::Arc;
 
 pub use mlp::{Layer, mlp};
+pub use multibody::forward_dynamics;
 
 /// The precision the networks compute in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,6 +67,7 @@ pub struct Buffers {
     net32: Vec<f32>,
     net64: Vec<f64>,
     adj: Vec<f64>,
+    seen: seen::Seen,
 }
 
 /// Where a node's value lives in the arena: `cols` columns of `len` numbers each (`len` is
@@ -86,6 +90,8 @@ enum Op {
     Binary(Ref, Ref, ops::Binary),
     /// A network's outputs (`mlp.rs`).
     Mlp(Box<mlp::Node>),
+    /// A robot's accelerations (`multibody.rs`).
+    Multibody(Box<multibody::Node>),
 }
 
 #[derive(Debug, Clone)]
@@ -93,10 +99,13 @@ struct Node {
     op: Op,
     slot: Slot,
     cols: usize,
+    /// The cosine of a sine's input, or the sine of a cosine's, when both are on the tape:
+    /// each one's derivative is the other's value, read rather than computed again.
+    partner: Option<u32>,
 }
 
 /// Column `col` of node `node`: a value on a finished tape.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct Ref {
     node: u32,
     col: u32,
@@ -114,6 +123,10 @@ pub struct Tape {
     net64: Vec<f64>,
     /// Storage for the next [`Tape::gradients`].
     spare: Vec<f64>,
+    /// Every elementwise node by its operation and inputs: the same operation on the same
+    /// values is recorded once (the assembly's dual numbers ask for cos q, products of
+    /// the same entries and the like several times), its adjoint gathering every use.
+    seen: seen::Seen,
 }
 
 /// A value on a tape: a column of the block's rows, or one shared number.
@@ -140,11 +153,13 @@ impl Tape {
             mut net32,
             mut net64,
             adj,
+            mut seen,
         } = buffers;
         nodes.clear();
         vals.clear();
         net32.clear();
         net64.clear();
+        seen.clear();
         Rc::new(RefCell::new(Self {
             rows,
             params,
@@ -153,6 +168,7 @@ impl Tape {
             net32,
             net64,
             spare: adj,
+            seen,
         }))
     }
 
@@ -172,6 +188,7 @@ impl Tape {
             net32: self.net32,
             net64: self.net64,
             adj: grads.map_or(self.spare, |g| g.adj),
+            seen: self.seen,
         }
     }
 
@@ -198,6 +215,12 @@ impl Tape {
             start: n.slot.start + r.col as usize * n.slot.len,
             len: n.slot.len,
         }
+    }
+
+    /// The value of a constant node (`Scalar::lift`), which no adjoint reaches.
+    fn constant(&self, r: Ref) -> Option<f64> {
+        let n = &self.nodes[r.node as usize];
+        matches!(n.op, Op::Const).then(|| self.vals[n.slot.start])
     }
 
     fn col(&self, r: Ref) -> &[f64] {
@@ -228,6 +251,7 @@ impl Tape {
             op,
             slot: Slot { start, len },
             cols,
+            partner: None,
         });
         Ref {
             node: (self.nodes.len() - 1) as u32,
@@ -252,16 +276,70 @@ impl Tape {
         }
         let t: &Tape = self;
         let mut params = vec![0.0; t.params.len()];
+        // A node no seed depends on has no adjoint to carry.
+        let live = t.live(seeds.iter().map(|(r, _)| r.node));
         for (i, node) in t.nodes.iter().enumerate().rev() {
+            if !live[i] {
+                continue;
+            }
             match &node.op {
                 Op::Input | Op::Const => {}
                 Op::Param(p) => params[*p] += adj[node.slot.start],
-                Op::Unary(a, f) => ops::unary_back(t, &mut adj, i, *a, *f),
+                Op::Unary(a, f) => ops::unary_back(t, &mut adj, i, *a, *f, node.partner),
                 Op::Binary(a, b, f) => ops::binary_back(t, &mut adj, i, *a, *b, *f),
                 Op::Mlp(m) => m.backward(t, &mut adj, &mut params, node),
+                Op::Multibody(m) => m.backward(t, &mut adj, node),
             }
         }
         Gradients { adj, params }
+    }
+}
+
+impl Op {
+    /// Every value the node reads.
+    fn each_input(&self, mut f: impl FnMut(Ref)) {
+        match self {
+            Op::Input | Op::Const | Op::Param(_) => {}
+            Op::Unary(a, _) => f(*a),
+            Op::Binary(a, b, _) => {
+                f(*a);
+                f(*b);
+            }
+            Op::Mlp(m) => m.inputs().for_each(f),
+            Op::Multibody(m) => m.inputs().for_each(f),
+        }
+    }
+}
+
+impl Tape {
+    /// Which nodes the `roots` depend on: a node is live when a live node reads it.
+    fn live(&self, roots: impl IntoIterator<Item = u32>) -> Vec<bool> {
+        let mut live = vec![false; self.nodes.len()];
+        roots.into_iter().for_each(|r| live[r as usize] = true);
+        for i in (0..self.nodes.len()).rev() {
+            if live[i] {
+                self.nodes[i]
+                    .op
+                    .each_input(|r| live[r.node as usize] = true);
+            }
+        }
+        live
+    }
+
+    /// Whether each parameter reaches one of `outputs`. One that none does has no gradient
+    /// at any rows (a template's parameter that enters V only as a constant term: training
+    /// sees ∂V/∂q).
+    pub fn reaches(&self, outputs: &[Ref]) -> Vec<bool> {
+        let live = self.live(outputs.iter().map(|r| r.node));
+        let mut reached = vec![false; self.params.len()];
+        for (node, _) in self.nodes.iter().zip(&live).filter(|(_, l)| **l) {
+            match &node.op {
+                Op::Param(p) => reached[*p] = true,
+                Op::Mlp(m) => m.params().for_each(|p| reached[p] = true),
+                _ => {}
+            }
+        }
+        reached
     }
 }
 

@@ -71,20 +71,15 @@ impl Unary {
     }
 }
 
-impl Binary {
-    fn apply(self, a: f64, b: f64) -> f64 {
-        match self {
-            Binary::Add => a + b,
-            Binary::Sub => a - b,
-            Binary::Mul => a * b,
-            Binary::Div => a / b,
-            Binary::Atan2 => a.atan2(b),
-        }
-    }
-}
-
 impl Var {
     fn unary(&self, f: Unary) -> Self {
+        if matches!(f, Unary::Scale(c) if c == 1.0) || matches!(f, Unary::Shift(c) if c == 0.0) {
+            return self.clone();
+        }
+        let key = f.key(self.r);
+        if let Some(&r) = self.tape.borrow().seen.get(&key) {
+            return self.with(r);
+        }
         let r = {
             let mut t = self.tape.borrow_mut();
             let x = t.slot(self.r);
@@ -92,14 +87,41 @@ impl Var {
             t.vals.resize(start + x.len, 0.0);
             let (src, out) = t.vals.split_at_mut(start);
             let src = &src[x.start..x.start + x.len];
-            (out.iter_mut().zip(src)).for_each(|(o, &v)| *o = f.apply(v));
-            t.node(Op::Unary(self.r, f), start, x.len, 1)
+            fill_unary(out, src, f);
+            let r = t.node(Op::Unary(self.r, f), start, x.len, 1);
+            t.seen.insert(key, r);
+            let other = match f {
+                Unary::Sin => Some(Unary::Cos),
+                Unary::Cos => Some(Unary::Sin),
+                _ => None,
+            };
+            if let Some(&p) = other.and_then(|o| t.seen.get(&o.key(self.r))) {
+                t.nodes[p.node as usize].partner = Some(r.node);
+                t.nodes[r.node as usize].partner = Some(p.node);
+            }
+            r
         };
         self.with(r)
     }
 
     fn binary(&self, o: &Self, f: Binary) -> Self {
         debug_assert!(std::rc::Rc::ptr_eq(&self.tape, &o.tape), "both on one tape");
+        let key = f.key(self.r, o.r);
+        {
+            let t = self.tape.borrow();
+            // x · 1, x + 0 and x − 0 are x, to the bit (a NaN included).
+            let (ca, cb) = (t.constant(self.r), t.constant(o.r));
+            match (f, ca, cb) {
+                (Binary::Mul, _, Some(1.0)) | (Binary::Add | Binary::Sub, _, Some(0.0)) => {
+                    return self.clone();
+                }
+                (Binary::Mul, Some(1.0), _) | (Binary::Add, Some(0.0), _) => return o.clone(),
+                _ => {}
+            }
+            if let Some(&r) = t.seen.get(&key) {
+                return self.with(r);
+            }
+        }
         let r = {
             let mut t = self.tape.borrow_mut();
             let (sa, sb) = (t.slot(self.r), t.slot(o.r));
@@ -111,15 +133,54 @@ impl Var {
                 &src[sa.start..sa.start + sa.len],
                 &src[sb.start..sb.start + sb.len],
             );
-            match (a.len(), b.len()) {
-                (x, y) if x == y => (out.iter_mut().zip(a.iter().zip(b)))
-                    .for_each(|(o, (&a, &b))| *o = f.apply(a, b)),
-                (1, _) => (out.iter_mut().zip(b)).for_each(|(o, &b)| *o = f.apply(a[0], b)),
-                _ => (out.iter_mut().zip(a)).for_each(|(o, &a)| *o = f.apply(a, b[0])),
-            }
-            t.node(Op::Binary(self.r, o.r, f), start, len, 1)
+            fill_binary(out, a, b, f);
+            let r = t.node(Op::Binary(self.r, o.r, f), start, len, 1);
+            t.seen.insert(key, r);
+            r
         };
         self.with(r)
+    }
+}
+
+/// `out` = f(`x`) elementwise, one loop per rule so that the simple ones vectorise (a
+/// `match` inside the loop would not).
+fn fill_unary(out: &mut [f64], x: &[f64], f: Unary) {
+    macro_rules! each {
+        ($op:expr) => {{
+            let op = $op;
+            (out.iter_mut().zip(x)).for_each(|(o, &x)| *o = op(x))
+        }};
+    }
+    match f {
+        Unary::Neg => each!(|x: f64| -x),
+        Unary::Scale(c) => each!(|x: f64| c * x),
+        Unary::Shift(c) => each!(|x: f64| x + c),
+        Unary::Square => each!(|x: f64| x * x),
+        Unary::Sqrt => each!(|x: f64| x.sqrt()),
+        _ => each!(|x: f64| f.apply(x)),
+    }
+}
+
+/// `out` = f(`a`, `b`) elementwise, a shared value broadcast; one loop per rule and shape.
+fn fill_binary(out: &mut [f64], a: &[f64], b: &[f64], f: Binary) {
+    macro_rules! each {
+        ($op:expr) => {{
+            let op = $op;
+            match (a.len(), b.len()) {
+                (x, y) if x == y => {
+                    (out.iter_mut().zip(a.iter().zip(b))).for_each(|(o, (&a, &b))| *o = op(a, b))
+                }
+                (1, _) => (out.iter_mut().zip(b)).for_each(|(o, &b)| *o = op(a[0], b)),
+                _ => (out.iter_mut().zip(a)).for_each(|(o, &a)| *o = op(a, b[0])),
+            }
+        }};
+    }
+    match f {
+        Binary::Add => each!(|a: f64, b: f64| a + b),
+        Binary::Sub => each!(|a: f64, b: f64| a - b),
+        Binary::Mul => each!(|a: f64, b: f64| a * b),
+        Binary::Div => each!(|a: f64, b: f64| a / b),
+        Binary::Atan2 => each!(|a: f64, b: f64| a.atan2(b)),
     }
 }
 
@@ -168,9 +229,20 @@ fn split(adj: &mut [f64], out: Slot) -> (&mut [f64], &[f64]) {
     (lo, &hi[..out.len])
 }
 
-pub(super) fn unary_back(t: &Tape, adj: &mut [f64], node: usize, a: Ref, f: Unary) {
+pub(super) fn unary_back(
+    t: &Tape,
+    adj: &mut [f64],
+    node: usize,
+    a: Ref,
+    f: Unary,
+    partner: Option<u32>,
+) {
     let out = t.nodes[node].slot;
     let x = t.slot(a);
+    let other = partner.map(|p| {
+        let s = t.nodes[p as usize].slot;
+        &t.vals[s.start..s.start + s.len]
+    });
     let (xs, ys) = (
         &t.vals[x.start..x.start + x.len],
         &t.vals[out.start..out.start + out.len],
@@ -194,6 +266,8 @@ pub(super) fn unary_back(t: &Tape, adj: &mut [f64], node: usize, a: Ref, f: Unar
         Unary::Tanh => rule!(|x, y| 1.0 - y * y),
         Unary::Square => rule!(|x, y| 2.0 * x),
         Unary::Sigmoid => rule!(|x, y| y * (1.0 - y)),
+        Unary::Sin if let Some(cos) = other => accumulate(lo, x, g, |k| cos[k]),
+        Unary::Cos if let Some(sin) = other => accumulate(lo, x, g, |k| -sin[k]),
         _ => rule!(|x, y| f.derivative(x, y)),
     }
 }

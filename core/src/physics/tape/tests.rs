@@ -153,3 +153,71 @@ fn a_network_with_input_tangents_against_finite_differences() {
             .collect()
     });
 }
+
+/// Repeated operations are one node whose adjoint gathers every use, x · 1, x + 0 and x − 0
+/// are x, and a sine and cosine of one value read each other's values in the backward pass:
+/// gradients still equal central differences, with the sine's and the cosine's nodes used
+/// several times and in either order.
+#[test]
+fn nodes_recorded_once_against_finite_differences() {
+    check(2, 1, 2, &|v| {
+        let (x, y) = (&v[0], &v[1]);
+        let a = Var::param(&x.tape, 0);
+        let (one, zero) = (x.lift(1.0), x.lift(0.0));
+        let s = x.sin() * x.cos() + x.cos().square() * (x.clone() * y.clone());
+        let t = (y.clone() * x.clone()) * one.clone() + zero.clone() - x.sin() * a.clone();
+        vec![
+            s * y.cos() + y.sin(),
+            (t - zero) * one + (a.clone() * a).scale(1.0),
+        ]
+    });
+}
+
+#[test]
+fn a_repeated_operation_is_one_node() {
+    let tape = Tape::new(3, Params::new(vec![], Precision::F64), Default::default());
+    let x = Var::input(&tape, vec![0.1, 0.2, 0.3]);
+    let y = Var::input(&tape, vec![1.0, 2.0, 3.0]);
+    let before = tape.borrow().nodes.len();
+    let (a, b) = (x.clone() * y.clone(), y.clone() * x.clone());
+    let (c, d) = (x.cos(), x.cos());
+    assert_eq!((a.id(), c.id()), (b.id(), d.id()));
+    assert_eq!((x.clone() * x.lift(1.0)).id(), x.id());
+    assert_eq!(
+        tape.borrow().nodes.len(),
+        before + 3,
+        "x·y, cos x and the constant 1"
+    );
+    // The same operation on other values is a node of its own.
+    assert_ne!((x.clone() - y.clone()).id(), (y - x).id());
+}
+
+/// A parameter that no output reads is unreached, whatever else depends on it; a network's
+/// weights are reached through its output.
+#[test]
+fn reaches_names_the_parameters_the_outputs_depend_on() {
+    let tape = Tape::new(
+        2,
+        Params::new(vec![0.5; 5], Precision::F64),
+        Default::default(),
+    );
+    let x = Var::input(&tape, vec![0.1, 0.2]);
+    let (p0, p1, p2) = (
+        Var::param(&tape, 0),
+        Var::param(&tape, 1),
+        Var::param(&tape, 2),
+    );
+    let used = x.clone() * p0;
+    let dead = (x.clone() * p1).sin();
+    let layer = Layer {
+        d_in: 1,
+        d_out: 1,
+        w: 3,
+        b: 4,
+    };
+    let net = mlp(&[layer], &[Dual::constant(x.clone())], 0);
+    let out = [used.id(), net[0].v.id()];
+    drop((x, dead, p2, used, net));
+    let t = Tape::finish(tape);
+    assert_eq!(t.reaches(&out), [true, false, false, true, true]);
+}
