@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Training throughput beside the paper's PyTorch code in one sitting: per round, the harness's
 # bench_train.py (MVF and naive at batch 256 and 4096, 2 threads, 6 epochs, tensor loader)
-# and `graybox-lab bench train --time-limit 0`, then `bench step` on the graph and the fused
-# path. Rounds alternate the two so that drift of the machine falls on both alike. Resumable:
+# and `graybox-lab bench train --time-limit 0`, then `bench step` (one thread, one piece).
+# Rounds alternate the two so that drift of the machine falls on both alike. Resumable:
 # a run whose output file exists is skipped. Prints the medians and ratios at the end.
 #
 #   scripts/pytorch_sitting.sh OUT_DIR ROUNDS HARNESS_DIR
@@ -34,8 +34,7 @@ for round in $(seq 1 "$rounds"); do
   done
   run "$out/graybox-train-$round.jsonl" "$lab" bench train --time-limit 0 --epochs 3
   for batch in 256 4096; do
-    run "$out/step-graph-$batch-$round.json" "$lab" bench step --graph --batch-size "$batch"
-    run "$out/step-fused-$batch-$round.json" "$lab" bench step --batch-size "$batch"
+    run "$out/step-$batch-$round.json" "$lab" bench step --batch-size "$batch"
   done
 done
 python3 - "$out" <<'PY'

@@ -7,8 +7,8 @@
 //! Cholesky factorisation and its triangular solves) written over their `Scalar` for the
 //! mechanics and control alike; then `model` (a model as its file describes it), `infer`
 //! (f64 evaluation), `control` (TVLQR, planning) and `sim` (simulated data, a template's true
-//! system). `tensor_scalar` (feature `burn`) makes Burn's tensors the mechanics' scalars for
-//! training.
+//! system). Training (in the service) records the same mechanics on the tape of
+//! `physics::tape`; the core links no Burn.
 
 pub mod array;
 pub mod control;
@@ -23,7 +23,5 @@ pub mod records;
 pub mod rng;
 pub mod sim;
 pub mod simd;
-#[cfg(feature = "burn")]
-pub mod tensor_scalar;
 
 pub use error::{Error, Result};

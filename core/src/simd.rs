@@ -1,6 +1,6 @@
 //! Branch-free elementwise math (exp, tanh and tanh's derivative) over slices, compiled for
 //! the widest vector unit the CPU has: libm's scalar calls (one per element) were the largest
-//! single cost of both the f64 evaluator (`infer/activations.rs`) and training (`tensor_scalar/tanh.rs`).
+//! single cost of both the f64 evaluator (`infer/activations.rs`) and training (the tape's network node, `physics/tape/mlp.rs`).
 
 /// Defines `pub fn $name` calling an `#[inline(always)]` kernel compiled for the widest vector
 /// unit the CPU has (AVX-512, else AVX2 + FMA, else the baseline), chosen at run time: the

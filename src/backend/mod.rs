@@ -1,12 +1,10 @@
-//! Backend and precision selection, and graybox's own Burn operations (the fused tanh, which
-//! lives beside the tensors' `Scalar` impl in the core's `tensor_scalar`, and `rows.rs` for a
-//! host function of each row with its vector–Jacobian product). Burn fixes
+//! Backend and precision selection, and graybox's own Burn operation (`rows.rs`: a host
+//! function of each row with its vector–Jacobian product, the training step's). Burn fixes
 //! a device's float type once per process (docs/training.md#precision), so precision is a process-level
 //! setting.
 
 mod rows;
 
-pub use graybox_core::tensor_scalar::tanh;
 pub use rows::{Kept, RowFn, RowFunction, row_map};
 
 use burn::tensor::{Device, FloatDType};

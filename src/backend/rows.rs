@@ -1,10 +1,10 @@
 //! A function of a batch's rows and one row of parameters, computed on the host in f64 and
 //! recorded as one Burn op whose backward pass is the function's own vector–Jacobian
-//! product. For work that is a long recursion per row with little arithmetic in each step
-//! (a robot's forward dynamics: hundreds of scalar operations per state), where Burn's ops
-//! would allocate a `[batch, 1]` column for every one of them and record each on the tape.
+//! product: the model's whole training step (`model::fused`), where Burn's ops would
+//! allocate a `[batch, 1]` column for each of its hundreds of scalar operations per row and
+//! record each on Burn's tape.
 //!
-//! Like the fused tanh (the core's `tensor_scalar/tanh.rs`), a backend extension (`#[backend_extension]`): Flex and NdArray read the
+//! A backend extension (`#[backend_extension]`): Flex and NdArray read the
 //! tensors to the host and back, and Autodiff over either keeps the host rows and outputs for
 //! the backward pass.
 

@@ -3,7 +3,7 @@
 
 use burn::tensor::Device;
 
-use super::mlp::{Mlp, param};
+use super::network::{Network, param};
 use super::params::{
     ConstantAffine, ControlAffine, ForceParams, MassParams, Passive, PotentialParams, Values,
 };
@@ -31,9 +31,9 @@ pub(super) fn mass(
 ) -> Option<MassParams> {
     let tri = mass_matrix::outputs(w.n);
     match mass {
-        MassSpec::Mlp { hidden } => {
-            Some(MassParams::Net(Mlp::init(w.q_in, hidden, tri, rng, device)))
-        }
+        MassSpec::Mlp { hidden } => Some(MassParams::Net(Network::init(
+            w.q_in, hidden, tri, rng, device,
+        ))),
         MassSpec::Constant => Some(MassParams::Constant(zeros(tri, device))),
         MassSpec::Template => None,
     }
@@ -77,14 +77,14 @@ pub(super) fn forces(
     }
     match f {
         ForceSpec::ControlAffine { hidden } => Some(ForceParams::ControlAffine(ControlAffine {
-            b_net: Mlp::init(w.q_in, hidden, n * m, rng, device),
+            b_net: Network::init(w.q_in, hidden, n * m, rng, device),
             eta: zeros(n, device),
         })),
         // D's factor starts at PyTorch's initialization: damping from the start, which
         // training shapes (a zero factor would leave only ε).
         ForceSpec::Passive { hidden } => Some(ForceParams::Passive(Passive {
-            b_net: Mlp::init(w.q_in, hidden, n * m, rng, device),
-            damping_net: Mlp::init(w.q_in + n, hidden, n * (n + 1) / 2, rng, device),
+            b_net: Network::init(w.q_in, hidden, n * m, rng, device),
+            damping_net: Network::init(w.q_in + n, hidden, n * (n + 1) / 2, rng, device),
         })),
         ForceSpec::ConstantAffine => {
             // B starts as the (rectangular) identity in scaled units.
@@ -100,13 +100,13 @@ pub(super) fn forces(
     }
 }
 
-type NetInit = fn(usize, &[usize], usize, &mut Rng, &Device) -> Mlp;
+type NetInit = fn(usize, &[usize], usize, &mut Rng, &Device) -> Network;
 
 /// A residual's network starts at zero output; any other at PyTorch's initialization.
 fn network(residual: bool) -> NetInit {
     if residual {
-        Mlp::init_zero_output
+        Network::init_zero_output
     } else {
-        Mlp::init
+        Network::init
     }
 }

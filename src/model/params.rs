@@ -11,7 +11,7 @@
 use burn::module::{Module, Param};
 use burn::tensor::{Tensor, TensorData};
 
-use super::mlp::Mlp;
+use super::network::Network;
 use super::params_io::{NamedArray, export_as};
 
 /// The file names of a model's values. A network's arrays are `<name>.layers.<i>.weight`
@@ -26,7 +26,7 @@ pub type Values = Param<Tensor<2>>;
 #[derive(Module, Debug)]
 pub enum Params {
     /// One network from (q, q̇, u) to q̈.
-    Naive(Mlp),
+    Naive(Network),
     Structured(Components),
 }
 
@@ -46,14 +46,14 @@ pub struct Components {
 #[derive(Module, Debug)]
 pub enum MassParams {
     /// The raw entries of L(q).
-    Net(Mlp),
+    Net(Network),
     /// Raw entries of a constant L, `[1, n(n+1)/2]`.
     Constant(Values),
 }
 
 #[derive(Module, Debug)]
 pub enum PotentialParams {
-    Net(Mlp),
+    Net(Network),
     /// Entries of the symmetric K of ½qᵀKq, `[1, n(n+1)/2]` (row-major lower triangle).
     Quadratic(Values),
 }
@@ -61,7 +61,7 @@ pub enum PotentialParams {
 #[derive(Module, Debug)]
 pub enum ForceParams {
     /// F(q, q̇, u).
-    Net(Mlp),
+    Net(Network),
     /// B_θ(q)u + ηq̇.
     ControlAffine(ControlAffine),
     /// Bu + ηq̇.
@@ -72,14 +72,14 @@ pub enum ForceParams {
 
 #[derive(Module, Debug)]
 pub struct Passive {
-    pub b_net: Mlp,
+    pub b_net: Network,
     /// [q, q̇] → the raw entries of D's factor.
-    pub damping_net: Mlp,
+    pub damping_net: Network,
 }
 
 #[derive(Module, Debug)]
 pub struct ControlAffine {
-    pub b_net: Mlp,
+    pub b_net: Network,
     /// Damping η, `[1, n]`.
     pub eta: Values,
 }

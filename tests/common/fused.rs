@@ -1,10 +1,8 @@
-//! The fused step (`Model::fused`) against Burn's op-by-op graph (`Model::graph`), shared by
-//! the f64 and the f32 test binaries: the one-step loss and every parameter tensor's
-//! gradient for structured models of every component kind, residual networks on a
-//! template's V and F, a periodic model, the naive network, n = 2, 3 and 6, and each
-//! integrator (against the graph now and as `scripts/gradient_fixtures.sh` recorded it in
-//! tests/fixtures/gradients, the reference that outlives the graph); and a training run's best
-//! validation loss on either path.
+//! The training step against what Burn's op-by-op graph computed before it was retired
+//! (tests/fixtures/gradients, README there), shared by the f64 and the f32 test binaries:
+//! the one-step loss and every parameter tensor's gradient for structured models of every
+//! component kind, residual networks on a template's V and F, a periodic model, the naive
+//! network, n = 2, 3 and 6, and each integrator; and a training run's best validation loss.
 
 use std::path::Path;
 
@@ -133,7 +131,7 @@ fn cases() -> Vec<(&'static str, ModelSpec, usize, usize, Integrator, bool)> {
     ]
 }
 
-/// Each case's model at perturbed parameters (seeded: the same on every call), on Burn's graph.
+/// Each case's model at perturbed parameters (seeded: the same on every call).
 fn case_models(dev: &Device) -> Vec<(&'static str, Model)> {
     cases()
         .into_iter()
@@ -144,7 +142,7 @@ fn case_models(dev: &Device) -> Vec<(&'static str, Model)> {
                 c.periodic = (0..n).map(|k| k == 0).collect();
             }
             let model = Model::init(c, None, 5, dev).unwrap();
-            (what, perturb(&model, dev).graph())
+            (what, perturb(&model, dev))
         })
         .collect()
 }
@@ -163,61 +161,29 @@ pub struct Recorded {
 /// math.
 const ROWS: usize = 17;
 
-/// Writes the graph's `Recorded` for every case to `path` (on autodiff device `dev`), unless
-/// the file is there: a record is the reference the fused step keeps once the graph is gone,
-/// deleted only to record it again on purpose, never to make a test pass.
-pub fn record_graph(dev: &Device, path: &Path) {
-    if path.exists() {
-        eprintln!("{} is there; kept", path.display());
-        return;
-    }
-    let records: Vec<Recorded> = case_models(dev)
-        .into_iter()
-        .map(|(what, model)| {
-            let (loss, gradients) = random_loss_and_gradients(&model, dev, ROWS);
-            Recorded {
-                case: what.to_string(),
-                params: model.params.export(),
-                loss,
-                gradients,
-            }
-        })
-        .collect();
-    std::fs::create_dir_all(path.parent().unwrap()).unwrap();
-    std::fs::write(path, serde_json::to_string(&records).unwrap()).unwrap();
-}
-
-/// The fused step's one-step loss and every parameter tensor's gradient against Burn's graph
-/// on the same parameters, to `tol` relative (per tensor), on autodiff device `dev`: computed
-/// now, and as `path` recorded it.
-pub fn fused_matches_graph(dev: &Device, tol: f64, path: &Path) {
+/// The step's one-step loss and every parameter tensor's gradient against the graph's as
+/// `path` recorded them, at the parameters it ran at, to `tol` relative (per tensor), on
+/// autodiff device `dev`.
+pub fn step_matches_graph(dev: &Device, tol: f64, path: &Path) {
     let text = std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("{}: {e} (scripts/gradient_fixtures.sh)", path.display()));
+        .unwrap_or_else(|e| panic!("{}: {e} (tests/fixtures/gradients)", path.display()));
     let records: Vec<Recorded> = serde_json::from_str(&text).unwrap();
     let models = case_models(dev);
     assert_eq!(records.len(), models.len(), "one record per case");
     for ((what, model), rec) in models.into_iter().zip(&records) {
         assert_eq!(what, rec.case);
         let params = import(model.params.clone(), &rec.params, dev).unwrap();
-        let fused = Model::from_parts(model.config.clone(), params, dev).fused();
-        let (v, g) = random_loss_and_gradients(&fused, dev, ROWS);
-        let (v_now, g_now) = random_loss_and_gradients(&model, dev, ROWS);
-        for (reference, (v_ref, g_ref)) in [
-            ("recorded", (rec.loss, &rec.gradients)),
-            ("graph", (v_now, &g_now)),
-        ] {
-            assert!(
-                (v - v_ref).abs() <= tol * v_ref.abs(),
-                "{what}: loss {v} vs {reference} {v_ref}"
-            );
-            assert_eq!(g.len(), g_ref.len(), "{what}: parameter tensors");
-            for (i, (a, b)) in g.iter().zip(g_ref).enumerate() {
-                let e = relative(a, b);
-                assert!(
-                    e <= tol,
-                    "{what}: tensor {i}: gradient error {e:e} ({reference})"
-                );
-            }
+        let model = Model::from_parts(model.config.clone(), params, dev);
+        let (v, g) = random_loss_and_gradients(&model, dev, ROWS);
+        assert!(
+            (v - rec.loss).abs() <= tol * rec.loss.abs(),
+            "{what}: loss {v} vs recorded {}",
+            rec.loss
+        );
+        assert_eq!(g.len(), rec.gradients.len(), "{what}: parameter tensors");
+        for (i, (a, b)) in g.iter().zip(&rec.gradients).enumerate() {
+            let e = relative(a, b);
+            assert!(e <= tol, "{what}: tensor {i}: gradient error {e:e}");
         }
         eprintln!("{what}: loss {v:e} matches");
     }
@@ -236,8 +202,8 @@ fn paper_data(count: usize, seed: u64) -> Dataset {
 /// The best validation loss of `epochs` epochs of `name` (MVF, or W-B on the double
 /// pendulum template from wrong physical values: started at the paper's, it would have
 /// nothing to learn; seed `seed`) on 512 of the paper's double pendulum transitions,
-/// validated on 256, through Burn's graph when `graph`, else through the fused step.
-pub fn best_val_loss(name: &str, graph: bool, seed: u64, epochs: usize, dev: &Device) -> f64 {
+/// validated on 256.
+pub fn best_val_loss(name: &str, seed: u64, epochs: usize, dev: &Device) -> f64 {
     let (train, val) = (paper_data(512, 1), paper_data(256, 2));
     let cfg = TrainConfig {
         epochs,
@@ -250,8 +216,7 @@ pub fn best_val_loss(name: &str, graph: bool, seed: u64, epochs: usize, dev: &De
         None => vec![],
     };
     let spec = ModelSpec::named(name, template).unwrap();
-    let trainer = Trainer::new(name, spec, &init, &train, Some(&val), cfg, dev).unwrap();
-    let mut trainer = trainer.on_path(!graph);
+    let mut trainer = Trainer::new(name, spec, &init, &train, Some(&val), cfg, dev).unwrap();
     trainer.run(&Default::default(), |_, _| {}).unwrap();
     trainer.report().best_val_loss.unwrap()
 }
@@ -268,33 +233,10 @@ pub struct RecordedRun {
     pub best_val_loss: f64,
 }
 
-/// Writes the graph's best validation loss of 300 epochs of each of `TRAINED` at each seed to
-/// `path` (kept if there, as `record_graph`'s).
-pub fn record_graph_training(dev: &Device, seeds: &[u64], path: &Path) {
-    if path.exists() {
-        eprintln!("{} is there; kept", path.display());
-        return;
-    }
-    let mut runs = vec![];
-    for model in TRAINED {
-        for &seed in seeds {
-            let best_val_loss = best_val_loss(model, true, seed, 300, dev);
-            eprintln!("{model} seed {seed}: {best_val_loss:e}");
-            runs.push(RecordedRun {
-                model: model.to_string(),
-                seed,
-                epochs: 300,
-                best_val_loss,
-            });
-        }
-    }
-    std::fs::write(path, serde_json::to_string_pretty(&runs).unwrap()).unwrap();
-}
-
-/// The recorded graph runs of `model` (scripts/gradient_fixtures.sh wrote them).
+/// The recorded graph runs of `model`.
 pub fn recorded_runs(path: &Path, model: &str) -> Vec<RecordedRun> {
     let text = std::fs::read_to_string(path)
-        .unwrap_or_else(|e| panic!("{}: {e} (scripts/gradient_fixtures.sh)", path.display()));
+        .unwrap_or_else(|e| panic!("{}: {e} (tests/fixtures/gradients)", path.display()));
     let runs: Vec<RecordedRun> = serde_json::from_str(&text).unwrap();
     runs.into_iter().filter(|r| r.model == model).collect()
 }

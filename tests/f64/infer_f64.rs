@@ -143,11 +143,11 @@ fn build(
     (model, Evaluator::from_file(&file).unwrap())
 }
 
-/// One RK4 step of every parameterization: the evaluator equals the Burn path to 1e-9
+/// One RK4 step of every parameterization: the evaluator equals the training step to 1e-9
 /// (both are f64; they differ only in operation order and tanh's formula), one state at a
 /// time (f64 scalars) and as one batch of 150 (columns through the structure, two threads).
 #[test]
-fn evaluator_matches_burn_for_every_parameterization() {
+fn evaluator_matches_the_training_step_for_every_parameterization() {
     let dev = f64_device();
     for (name, spec, n, m, periodic) in cases() {
         let (model, eval) = build(spec, n, m, periodic, &dev);

@@ -11,12 +11,12 @@ use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use common::*;
 use graybox::backend::{Backend, Precision, device};
-use graybox::model::mlp::Mlp;
+use graybox::infer::Evaluator;
+use graybox::model::Model;
+use graybox::model::file::ModelFile;
 use graybox::model::params_io::import;
 use graybox::model::spec::ModelSpec;
-use graybox::model::{Model, dual_columns};
 use graybox::physics::integrator::Integrator;
-use graybox::physics::mass_matrix;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
 use graybox::sim::TemplateSystem;
@@ -31,64 +31,16 @@ fn f64_device() -> Device {
 /// rounding ~ε·|f|/h ≈ 1e-9 at |f| = 100; both far below the 1e-7 bound.
 const H: f64 = 1e-5;
 
-fn shifted(q: &[Vec<f64>], k: usize, h: f64) -> Vec<Vec<f64>> {
-    q.iter()
-        .map(|r| {
-            let mut r = r.clone();
-            r[k] += h;
-            r
-        })
-        .collect()
+/// The inference core's f64 evaluator of `model`: the assembly training records on its tape,
+/// on f64 with L's q-derivatives in forward mode.
+fn evaluator(model: &Model) -> Evaluator {
+    let file = ModelFile::new(model.config.clone(), model.params.export(), None);
+    Evaluator::from_file(&file).unwrap()
 }
 
-/// Tangents of L(q) from the forward-mode Jacobian of a Cholesky MLP vs central differences of
-/// its values, through the input standardization and the softplus diagonal.
-#[test]
-fn mass_network_jacobian_matches_finite_differences() {
-    let dev = f64_device();
-    for n in [2, 3] {
-        let net = Mlp::init(
-            n,
-            &[32, 32, 32],
-            mass_matrix::outputs(n),
-            &mut Rng::new(n as u64),
-            &dev,
-        );
-        let sigma = 1.7;
-        let (q, _, _) = paper_samples(n, 1, 6, 11);
-        let dx_dq = Tensor::<2>::eye(n, &dev).mul_scalar(1.0 / sigma);
-        let l_at = |q: &[Vec<f64>]| {
-            let x = tensor(q, &dev).mul_scalar(1.0 / sigma);
-            let (y, j) = net.forward_jacobian(x, dx_dq.clone());
-            mass_matrix::factor_from_outputs(dual_columns(y, j), n)
-        };
-        let l = l_at(&q);
-        for k in 0..n {
-            let lp = l_at(&shifted(&q, k, H));
-            let lm = l_at(&shifted(&q, k, -H));
-            for e in 0..l.entries.len() {
-                let fd: Vec<f64> = host1(lp.entries[e].v.clone())
-                    .iter()
-                    .zip(host1(lm.entries[e].v.clone()))
-                    .map(|(a, b)| (a - b) / (2.0 * H))
-                    .collect();
-                let ad = host1(
-                    l.entries[e]
-                        .tangent(k)
-                        .expect("every entry depends on q")
-                        .clone(),
-                );
-                assert!(
-                    rel_err(&ad, &fd) < 1e-7,
-                    "n={n} entry {e} dq{k}: {ad:?} vs {fd:?}"
-                );
-            }
-        }
-    }
-}
-
-/// ∂V/∂q of every potential form, and ∂L/∂q of every mass form, through the model's own
-/// `parts`, vs central differences of V and L.
+/// ∂V/∂q of every potential form, and ∂L/∂q of every mass form (the networks' input
+/// derivatives through the standardization and the softplus diagonal among them), vs
+/// central differences of V and L.
 #[test]
 fn model_input_jacobians_match_finite_differences() {
     let dev = f64_device();
@@ -105,70 +57,83 @@ fn model_input_jacobians_match_finite_differences() {
     ];
     for (spec, n, m) in cases {
         let model = Model::init(config(spec.clone(), n, m), None, 5, &dev).unwrap();
-        perturb(&model, &dev);
-        let model = perturb(&model, &dev);
+        let eval = evaluator(&perturb(&model, &dev));
         let (q, qd, u) = paper_samples(n, m, 5, 3);
-        let (qt, qdt, ut) = (tensor(&q, &dev), tensor(&qd, &dev), tensor(&u, &dev));
-        let parts = model.parts(qt.clone(), qdt.clone(), ut.clone());
-        let v_at = |q: &[Vec<f64>]| host1(model.potential(tensor(q, &dev)).unwrap());
-        let l_at = |q: &[Vec<f64>]| model.parts(tensor(q, &dev), qdt.clone(), ut.clone()).l;
-        for k in 0..n {
-            let fd: Vec<f64> = v_at(&shifted(&q, k, H))
-                .iter()
-                .zip(v_at(&shifted(&q, k, -H)))
-                .map(|(a, b)| (a - b) / (2.0 * H))
-                .collect();
-            let ad = host1(parts.grad_v.as_ref().unwrap()[k].clone());
-            assert!(
-                rel_err(&ad, &fd) < 1e-7,
-                "{spec:?} ∂V/∂q{k}: {ad:?} vs {fd:?}"
-            );
-            let (lp, lm) = (l_at(&shifted(&q, k, H)), l_at(&shifted(&q, k, -H)));
-            for e in 0..parts.l.entries.len() {
-                let fd: Vec<f64> = host1(lp.entries[e].v.clone())
-                    .iter()
-                    .zip(host1(lm.entries[e].v.clone()))
-                    .map(|(a, b)| (a - b) / (2.0 * H))
-                    .collect();
-                let ad = match parts.l.entries[e].tangent(k) {
-                    Some(t) => host1(t.clone()),
-                    None => vec![0.0; q.len()],
+        for b in 0..q.len() {
+            let terms = |q: &[f64]| eval.terms(q, &qd[b], &u[b]).expect("a structured model");
+            let v = |q: &[f64]| {
+                let x = [q, &qd[b]].concat();
+                let e = eval.energy_until(&x, &u[b], &|| false).unwrap();
+                e.expect("never stopped").potential[0]
+            };
+            let t = terms(&q[b]);
+            for k in 0..n {
+                let at = |h: f64| {
+                    let mut q = q[b].clone();
+                    q[k] += h;
+                    q
                 };
-                let ad: Vec<f64> = if ad.len() == 1 {
-                    vec![ad[0]; q.len()]
-                } else {
-                    ad
-                };
+                let fd = (v(&at(H)) - v(&at(-H))) / (2.0 * H);
+                let ad = t.grad_v.as_ref().map_or(0.0, |g| g[k]);
                 assert!(
-                    rel_err(&ad, &fd) < 1e-7,
-                    "{spec:?} ∂L{e}/∂q{k}: {ad:?} vs {fd:?}"
+                    rel_err(&[ad], &[fd]) < 1e-7,
+                    "{spec:?} ∂V/∂q{k}: {ad} vs {fd}"
                 );
+                let (lp, lm) = (terms(&at(H)), terms(&at(-H)));
+                for e in 0..t.l.entries.len() {
+                    let fd = (lp.l.entries[e].v - lm.l.entries[e].v) / (2.0 * H);
+                    let ad = t.l.entries[e].tangent(k).copied().unwrap_or(0.0);
+                    assert!(
+                        rel_err(&[ad], &[fd]) < 1e-7,
+                        "{spec:?} ∂L{e}/∂q{k}: {ad} vs {fd}"
+                    );
+                }
             }
         }
     }
 }
 
-/// The W-B double pendulum's q̈ (Burn path and f64 path) equals the paper's equations written
-/// out independently. 1e-9: both are a handful of f64 operations on O(100) quantities.
+/// The W-B double pendulum's q̈ (the inference core's and the true system's) equals the
+/// paper's equations written out independently, and its training step's x′ (the tape's)
+/// equals RK4 on them. 1e-9: a handful of f64 operations on O(100) quantities.
 #[test]
 fn double_pendulum_matches_closed_form() {
     let dev = f64_device();
     let spec = ModelSpec::named("W-B", Some(Template::DoublePendulum)).unwrap();
     let model = Model::init(config(spec, 2, 2), Some(PAPER.to_vec()), 0, &dev).unwrap();
+    assert_eq!(model.config.integrator, Integrator::Rk4);
     let (q, qd, u) = paper_samples(2, 2, 64, 42);
-    let burn = host(model.accel(tensor(&q, &dev), tensor(&qd, &dev), tensor(&u, &dev)));
+    let eval = evaluator(&model);
     let sys = TemplateSystem::new(Template::DoublePendulum, PAPER.to_vec());
+    let x: Vec<Vec<f64>> = (0..q.len()).map(|i| [&q[i][..], &qd[i]].concat()).collect();
+    let stepped = host(model.step(tensor(&x, &dev), tensor(&u, &dev)));
     for i in 0..q.len() {
         let want = double_pendulum_accel(&PAPER, &q[i], &qd[i], &u[i]);
+        for (path, got) in [
+            ("inference", eval.accel(&q[i], &qd[i], &u[i])),
+            ("true system", sys.acceleration(&q[i], &qd[i], &u[i])),
+        ] {
+            assert!(rel_err(&got, &want) < 1e-9, "{path} {got:?} vs {want:?}");
+        }
+        let f = |x: &[f64]| {
+            let a = double_pendulum_accel(&PAPER, &x[..2], &x[2..], &u[i]);
+            vec![x[2], x[3], a[0], a[1]]
+        };
+        let dt = model.config.dt;
+        let along = |k: &[f64], h: f64| -> Vec<f64> {
+            x[i].iter().zip(k).map(|(x, k)| x + h * k).collect()
+        };
+        let k1 = f(&x[i]);
+        let k2 = f(&along(&k1, dt / 2.0));
+        let k3 = f(&along(&k2, dt / 2.0));
+        let k4 = f(&along(&k3, dt));
+        let want: Vec<f64> = (0..4)
+            .map(|j| x[i][j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j]))
+            .collect();
         assert!(
-            rel_err(&burn[i], &want) < 1e-9,
-            "burn {:?} vs {want:?}",
-            burn[i]
-        );
-        let f64_path = sys.acceleration(&q[i], &qd[i], &u[i]);
-        assert!(
-            rel_err(&f64_path, &want) < 1e-9,
-            "f64 {f64_path:?} vs {want:?}"
+            rel_err(&stepped[i], &want) < 1e-9,
+            "step {:?} vs {want:?}",
+            stepped[i]
         );
     }
 }
@@ -180,72 +145,58 @@ fn double_pendulum_matches_closed_form() {
 fn learned_mass_coriolis_matches_christoffel_definition() {
     let dev = f64_device();
     for n in [2, 3] {
-        let model = perturb(&model("MVF", None, n, 2, 4, &dev), &dev);
+        let eval = evaluator(&perturb(&model("MVF", None, n, 2, 4, &dev), &dev));
         let (q, qd, u) = paper_samples(n, 2, 4, 8);
-        let (qdt, ut) = (tensor(&qd, &dev), tensor(&u, &dev));
-        let mass_at = |q: &[Vec<f64>]| -> Vec<Vec<Vec<f64>>> {
-            let l = model.parts(tensor(q, &dev), qdt.clone(), ut.clone()).l;
-            let lv: Vec<Vec<f64>> = l.entries.iter().map(|e| host1(e.v.clone())).collect();
-            (0..q.len())
-                .map(|b| {
-                    let lij = |i: usize, j: usize| {
-                        if j <= i {
-                            lv[i * (i + 1) / 2 + j][b]
-                        } else {
-                            0.0
-                        }
-                    };
-                    (0..n)
-                        .map(|i| {
-                            (0..n)
-                                .map(|j| (0..n).map(|k| lij(i, k) * lij(j, k)).sum())
-                                .collect()
-                        })
-                        .collect()
-                })
-                .collect()
-        };
-        let m0 = mass_at(&q);
-        let dm: Vec<Vec<Vec<Vec<f64>>>> = (0..n)
-            .map(|k| {
-                let (p, mm) = (mass_at(&shifted(&q, k, H)), mass_at(&shifted(&q, k, -H)));
-                (0..q.len())
-                    .map(|b| {
+        for b in 0..q.len() {
+            let terms = |q: &[f64]| eval.terms(q, &qd[b], &u[b]).expect("a structured model");
+            let mass_at = |q: &[f64]| -> Vec<Vec<f64>> {
+                let l = terms(q).l;
+                let lij = |i: usize, j: usize| {
+                    if j <= i {
+                        l.entries[i * (i + 1) / 2 + j].v
+                    } else {
+                        0.0
+                    }
+                };
+                (0..n)
+                    .map(|i| {
                         (0..n)
-                            .map(|i| {
-                                (0..n)
-                                    .map(|j| (p[b][i][j] - mm[b][i][j]) / (2.0 * H))
-                                    .collect()
-                            })
+                            .map(|j| (0..n).map(|k| lij(i, k) * lij(j, k)).sum())
                             .collect()
                     })
                     .collect()
-            })
-            .collect();
-        let parts = model.parts(tensor(&q, &dev), qdt.clone(), ut.clone());
-        let gv: Vec<Vec<f64>> = parts.grad_v.unwrap().into_iter().map(host1).collect();
-        let f: Vec<Vec<f64>> = parts.forces.into_iter().map(host1).collect();
-        let got = host(model.accel(tensor(&q, &dev), qdt.clone(), ut.clone()));
-        for b in 0..q.len() {
+            };
+            let dm: Vec<Vec<Vec<f64>>> = (0..n)
+                .map(|k| {
+                    let at = |h: f64| {
+                        let mut q = q[b].clone();
+                        q[k] += h;
+                        mass_at(&q)
+                    };
+                    let (p, m) = (at(H), at(-H));
+                    (0..n)
+                        .map(|i| (0..n).map(|j| (p[i][j] - m[i][j]) / (2.0 * H)).collect())
+                        .collect()
+                })
+                .collect();
+            let t = terms(&q[b]);
             let w = &qd[b];
             let c: Vec<f64> = (0..n)
                 .map(|i| {
                     let mut s = 0.0;
                     for j in 0..n {
                         for k in 0..n {
-                            s += dm[k][b][i][j] * w[j] * w[k] - 0.5 * dm[i][b][j][k] * w[j] * w[k];
+                            s += dm[k][i][j] * w[j] * w[k] - 0.5 * dm[i][j][k] * w[j] * w[k];
                         }
                     }
                     s
                 })
                 .collect();
-            let rhs: Vec<f64> = (0..n).map(|i| f[i][b] - c[i] - gv[i][b]).collect();
-            let want = gauss_solve(m0[b].clone(), rhs);
-            assert!(
-                rel_err(&got[b], &want) < 1e-6,
-                "n={n}: {:?} vs {want:?}",
-                got[b]
-            );
+            let gv = t.grad_v.expect("MVF has a potential");
+            let rhs: Vec<f64> = (0..n).map(|i| t.forces[i] - c[i] - gv[i]).collect();
+            let want = gauss_solve(mass_at(&q[b]), rhs);
+            let got = eval.accel(&q[b], &qd[b], &u[b]);
+            assert!(rel_err(&got, &want) < 1e-6, "n={n}: {got:?} vs {want:?}");
         }
     }
 }
@@ -520,43 +471,5 @@ fn sharded_batches_have_the_whole_batch_gradient() {
                 "{name}, {threads} shards"
             );
         }
-    }
-}
-
-/// graybox's tanh (one Burn op with its backward written out, `tensor_scalar/tanh.rs` in the core) against
-/// Burn's own tanh and its autodiff, in f64, on Flex and NdArray, over the range a network
-/// sees (saturated ends included), on a non-contiguous (transposed) input. The fused kernel's
-/// exp is accurate to ~1e-16 relative, so values and gradients agree to 1e-14 absolute.
-#[test]
-fn fused_tanh_and_its_gradient_equal_burns() {
-    let ndarray = device(Backend::Ndarray, Precision::F64).expect("f64 ndarray");
-    for dev in [f64_device().autodiff(), ndarray.autodiff()] {
-        let values: Vec<f64> = (0..120).map(|i| (i as f64 - 60.0) * 0.37).collect();
-        let weights: Vec<f64> = (0..120)
-            .map(|i| ((i * 7 % 11) as f64 - 5.0) / 3.0)
-            .collect();
-        let w = Tensor::<2>::from_data(burn::tensor::TensorData::new(weights, [8, 15]), &dev);
-        let input = || {
-            Tensor::<2>::from_data(burn::tensor::TensorData::new(values.clone(), [15, 8]), &dev)
-                .require_grad()
-        };
-        let (x, x_ref) = (input(), input());
-        let y = graybox::backend::tanh(x.clone().transpose());
-        let y_ref = x_ref.clone().transpose().tanh();
-        let g = x.grad(&(y.clone() * w.clone()).sum().backward()).unwrap();
-        let g_ref = x_ref.grad(&(y_ref.clone() * w).sum().backward()).unwrap();
-        let host = |t: Tensor<2>| t.into_data().iter::<f64>().collect::<Vec<_>>();
-        let max_diff = |a: Vec<f64>, b: Vec<f64>| {
-            a.iter()
-                .zip(&b)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max)
-        };
-        let dy = max_diff(host(y.inner()), host(y_ref.inner()));
-        let dg = max_diff(host(g), host(g_ref));
-        assert!(
-            dy < 1e-14 && dg < 1e-14,
-            "{dev:?}: values {dy:e}, gradients {dg:e}"
-        );
     }
 }

@@ -36,7 +36,7 @@ use crate::error::{Error, Result};
 use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
-use crate::physics::assembly::{Columns, Structure};
+use crate::physics::assembly::{Columns, Structure, Terms};
 use crate::physics::dynamics::acceleration;
 use crate::physics::multibody::forward_dynamics;
 use crate::physics::scalar::Scalar;
@@ -85,6 +85,12 @@ impl Evaluator {
     /// (Cholesky factor, Coriolis term, solve) once on their output columns.
     pub fn accel<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C]) -> Vec<C> {
         self.evaluate(q, qd, u, false)
+    }
+
+    /// The terms of M q̈ = F − c − ∂V/∂q at one state (L with its q-derivatives, ∂V/∂q, F)
+    /// from the assembly; `None` for a naive model.
+    pub fn terms(&self, q: &[f64], qd: &[f64], u: &[f64]) -> Option<Terms<f64>> {
+        self.with_structure((q, qd, u), |s, nets, x| s.terms(nets, x))
     }
 
     /// τ = F − ∂V′/∂q of a model on the multibody algorithms, for a batch.
@@ -180,7 +186,7 @@ impl Evaluator {
     }
 
     /// q̈ from the networks' outputs: the structure assembled from the spec (the same
-    /// generic code the Burn path trains with), then the manipulator equation, or forward
+    /// generic code training records on its tape), then the manipulator equation, or forward
     /// dynamics by the multibody algorithms with τ from the structure (`torques`: τ only).
     /// Without its damping (`without_damping`), F loses the parts the spec names so.
     fn structure<S: Lanes>(

@@ -175,8 +175,8 @@ pub fn factor_in_place<S: Scalar>(l: &mut [S], layout: impl Layout, order: impl 
 /// The factorisation: `a(l, k)` is A's entry at index k of `layout` (read from `l` itself when
 /// factoring in place: an entry is overwritten only once it has been read), and the first
 /// pivot that `admits` refuses ends it. Column by column, L's entries as the manipulator
-/// equation always built them: the tape and Burn's autodiff accumulate a shared value's
-/// gradient in the order its uses were recorded, so this order keeps training's gradients
+/// equation always built them: the tape accumulates a shared value's gradient in
+/// the order its uses were recorded, so this order keeps training's gradients
 /// as they were (an entry's own arithmetic does not depend on it).
 #[inline]
 fn factor_by<S: Scalar>(

@@ -1,8 +1,8 @@
 //! A structured model assembled from its spec, once, for every number type: L(q) with its
 //! q-derivatives, ∇V and F, the terms of the manipulator equation M q̈ = F − c − ∇V
-//! (docs/dynamics.md#manipulator-equation). Training runs it on Burn column tensors, inference on f64, batch columns
+//! (docs/dynamics.md#manipulator-equation). Training records it on the tape, inference on f64, batch columns
 //! and dual numbers; only the networks' evaluation differs, behind [`Networks`], and the
-//! trainable non-network values, behind [`Coef`] (tracked tensors in training, constants in
+//! trainable non-network values, behind [`Coef`] (the tape's values in training, constants in
 //! inference). A new component kind is one arm here.
 
 use super::dual::Dual;

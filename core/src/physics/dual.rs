@@ -2,7 +2,7 @@
 //! of input directions (the generalized coordinates q₁…qₙ).
 //!
 //! Missing or `None` tangents are exact zeros and cost no arithmetic, which matters when the
-//! scalar is a Burn tensor: parameters and constants carry no tangent at all.
+//! scalar is a column of the training tape: parameters and constants carry no tangent at all.
 //! `Dual<Dual<f64>>` gives second derivatives (hyper-dual numbers).
 
 use super::scalar::Scalar;

@@ -2,7 +2,7 @@
 //! equation (`dynamics`), the assembly of L, ∇V and F from a model's parts (`assembly`,
 //! `parts`, `mass_matrix`, `scaling`), integrators, dual numbers for ∂/∂q, and the white-box
 //! systems with their physical parameters: built-in templates, formula templates and URDF
-//! robots. Training runs it on Burn column tensors (`model`), inference, simulation and
+//! robots. Training records it on the tape (`tape`), inference, simulation and
 //! control on f64 and dual numbers. It imports only `error`, `rng`, `simd`'s elementwise kernels and the name rule of
 //! `records`; the math behind it is in docs/dynamics.md and docs/robots.md.
 

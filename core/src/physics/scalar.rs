@@ -3,9 +3,11 @@
 //! Templates, the Cholesky factorization, the Coriolis term and the triangular solves are
 //! written once, generically over [`Scalar`], and run on
 //! - `f64` (simulation, reference checks, the f64 inference path),
-//! - Burn column tensors `[batch, 1]` (training, where autodiff differentiates w.r.t. θ),
+//! - the training tape's [`Var`](super::tape::Var), a column of a block's rows (reverse mode
+//!   differentiates w.r.t. θ),
 //! - [`Dual`](super::dual::Dual) numbers over either, which give the input derivatives
-//!   ∂/∂q in forward mode (Burn has no double-backward, docs/dynamics.md#forward-mode-input-derivatives).
+//!   ∂/∂q in forward mode (so that training's one reverse pass also differentiates them,
+//!   docs/dynamics.md#forward-mode-input-derivatives).
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 

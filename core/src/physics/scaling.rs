@@ -78,8 +78,8 @@ impl Scaling {
     }
 }
 
-/// The networks' inputs as values of any number type (the fused training step's; the Burn
-/// and f64 paths build the same inputs in their own form).
+/// The networks' inputs as values of any number type (the training tape's; the f64
+/// evaluator builds the same inputs in its batched form).
 impl Scaling {
     /// The input from q: standardized, an angle (`angles[k]`) as (sin q_k, cos q_k); with
     /// `inner`, each input carries its ∂/∂q as n tangents.

@@ -1,6 +1,6 @@
 //! White-box system templates: analytic M(q), V(q) and F(q, q̇, u) with named physical
-//! parameters, written once over [`Scalar`] so that the same equations serve training (Burn
-//! tensors), simulation and inference (f64), and their q-derivatives (dual numbers).
+//! parameters, written once over [`Scalar`] so that the same equations serve training (the
+//! tape's columns), simulation and inference (f64), and their q-derivatives (dual numbers).
 
 use std::borrow::Cow;
 use std::sync::Arc;

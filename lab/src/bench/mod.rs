@@ -76,10 +76,6 @@ pub struct BenchStepArgs {
     pub steps: usize,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
-    /// Through Burn's op-by-op graph (`Model::graph`) instead of the path the model's spec
-    /// takes (the fused step for a model with a network: the "before" of that change).
-    #[arg(long)]
-    pub graph: bool,
 }
 
 #[derive(Args, Debug)]
@@ -124,10 +120,6 @@ pub struct BenchTrainArgs {
     /// Threads per training (default: every core).
     #[arg(long, default_value_t = graybox::train::shards::cores())]
     pub threads: usize,
-    /// Train on Burn's op-by-op graph (`Trainer::on_graph`) instead of the path each model's
-    /// spec takes: the fused step's "before".
-    #[arg(long)]
-    pub graph: bool,
 }
 
 /// A temporary SQLite database file, removed (with its WAL files) on drop.
@@ -241,9 +233,6 @@ fn throughput(
     let never = AtomicBool::new(false);
     let mut trainer =
         Trainer::new(model, spec, &[], train, Some(val), tc, device)?.with_threads(a.threads)?;
-    if a.graph {
-        trainer = trainer.on_graph();
-    }
     trainer.run_epoch(&never)?; // warm-up: allocations, first-touch
     let (wall, cpu, steps) = (Instant::now(), cpu_seconds(), trainer.train_seconds());
     for _ in 0..epochs {
@@ -261,7 +250,6 @@ fn throughput(
                "cpu_per_wall": cpu / wall,
                "threads": a.threads,
                "shards": trainer.shards_of(bs),
-               "fused": trainer.model().is_fused(),
                "cores": graybox::train::shards::cores(),
                "note": "samples_per_second: training steps only (forward, backward, Adam), as \
                         the PyTorch reference is measured; cpu_per_wall: process CPU time over \
@@ -351,9 +339,6 @@ fn bench_step(a: BenchStepArgs) -> Result<()> {
         &device,
     )?;
     let mut model = trainer.model().clone();
-    if a.graph {
-        model = model.graph();
-    }
     let (x, y) = data.states();
     let b = a.batch_size;
     let tensor =
@@ -385,7 +370,7 @@ fn bench_step(a: BenchStepArgs) -> Result<()> {
     let (flops, peak) = (flops::per_sample(&model), flops::sgemm_per_core());
     println!(
         "{}",
-        json!({"bench": "train_step", "model": a.model, "fused": model.is_fused(), "batch_size": b, "forward_ms": fwd * k,
+        json!({"bench": "train_step", "model": a.model, "batch_size": b, "forward_ms": fwd * k,
                "backward_ms": bwd * k, "optimizer_ms": opt * k, "samples_per_second": rate,
                "network_mflop_per_sample": flops / 1e6, "network_gflops": rate * flops / 1e9,
                "sgemm_gflops_per_core": peak / 1e9, "share_of_sgemm": rate * flops / peak,

@@ -38,9 +38,9 @@ pub(super) struct Layout {
 }
 
 impl Layout {
-    fn of(model: &Model) -> Self {
+    fn of(params: &super::Params) -> Self {
         let (mut arrays, mut at) = (vec![], 0);
-        for a in model.params.export() {
+        for a in params.export() {
             arrays.push((a.name, at, a.values.len()));
             at += a.values.len();
         }
@@ -269,55 +269,43 @@ impl ModuleVisitor for Flatten {
     }
 }
 
-impl Model {
-    /// The same model on the fused step when `fused`, else on Burn's graph.
-    pub fn on_path(self, fused: bool) -> Self {
-        if fused { self.fused() } else { self.graph() }
-    }
-
-    /// Whether its step is the fused one.
-    pub fn is_fused(&self) -> bool {
-        self.consts.fused.is_some()
-    }
-
-    /// The same model on Burn's op-by-op graph rather than the fused step (the reference
-    /// the fused step is checked and measured against).
-    pub fn graph(mut self) -> Self {
-        self.consts.fused = None;
-        self
-    }
-
-    /// The same model training through the fused step (its forward and backward passes on
-    /// the host tape) instead of Burn's op-by-op graph.
-    pub fn fused(mut self) -> Self {
-        {
-            let mut flat = Flatten(vec![]);
-            self.params.visit(&mut flat);
-            // The networks compute in the process's precision; the rest of the step in f64.
-            let precision = match flat.0.first().map(|t| t.dtype()) {
-                Some(burn::tensor::DType::F64) => Precision::F64,
-                _ => Precision::F32,
-            };
-            let step = FusedStep {
-                config: self.config.clone(),
-                layout: Layout::of(&self),
-                precision,
-                robot: self
-                    .consts
-                    .multibody
-                    .is_some()
-                    .then(|| super::multibody::robot(&self.config))
-                    .flatten(),
-                pool: Mutex::new(vec![]),
-            };
-            self.consts.fused = Some(Arc::new(step));
+impl FusedStep {
+    /// The step of `config`'s model with parameters like `params`; a robot's q̈ by its
+    /// multibody algorithms when `multibody` (else by its template's assembly).
+    pub(super) fn new(config: &ModelConfig, params: &super::Params, multibody: bool) -> Self {
+        let mut flat = Flatten(vec![]);
+        params.visit(&mut flat);
+        // The networks compute in the process's precision; the rest of the step in f64.
+        let precision = match flat.0.first().map(|t| t.dtype()) {
+            Some(burn::tensor::DType::F64) => Precision::F64,
+            _ => Precision::F32,
+        };
+        Self {
+            config: config.clone(),
+            layout: Layout::of(params),
+            precision,
+            robot: if multibody { robot(config) } else { None },
+            pool: Mutex::new(vec![]),
         }
-        self
     }
 
+    pub(super) fn is_multibody(&self) -> bool {
+        self.robot.is_some()
+    }
+}
+
+/// The tree of `config`'s robot, when its q̈ comes from the multibody algorithms (its
+/// inertias are the template's defaults: training replaces them by π's).
+fn robot(config: &ModelConfig) -> Option<multibody::Model> {
+    let (t, gravity) = config.spec.multibody()?;
+    let defaults = config.template()?.defaults();
+    Some(t.multibody_model(&defaults, gravity))
+}
+
+impl Model {
     /// x' by the fused op.
-    pub(super) fn fused_step(&self, f: &Arc<FusedStep>, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
-        let f = RowFn(f.clone());
+    pub(super) fn fused_step(&self, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
+        let f = RowFn(self.step.clone());
         row_map(&f, Tensor::cat(vec![x, u], 1), self.flat_params())
     }
 
@@ -332,9 +320,7 @@ impl Model {
     /// learned nothing: checked on the recorded step's structure, which is the same for any
     /// rows.
     pub fn check_learns(&self) -> Result<()> {
-        let Some(f) = &self.consts.fused else {
-            return Ok(());
-        };
+        let f = &self.step;
         let params: Vec<f64> = self.flat_params().into_data().iter::<f64>().collect();
         let block = f.record(&vec![0.0; f.input_width()], &f.params(&params));
         let reached = block.tape.reaches(&block.outputs);

@@ -236,19 +236,6 @@ impl Trainer {
         shards::piece_count(self.state.shards, rows, &self.model)
     }
 
-    /// The same trainer on Burn's op-by-op graph rather than the fused step (`Model::graph`):
-    /// the reference the fused step is checked and measured against.
-    pub fn on_graph(mut self) -> Self {
-        self.model = self.model.graph();
-        self
-    }
-
-    /// The same trainer on the fused step when `fused`, else on Burn's graph (`Model::on_path`).
-    pub fn on_path(mut self, fused: bool) -> Self {
-        self.model = self.model.on_path(fused);
-        self
-    }
-
     /// Goes on training the same model on `data` (no validation set) for `epochs` more
     /// epochs in batches of `batch_size`: the parameters, Adam's moments and the shuffling RNG
     /// carry on, the scalings stay those of the first data, and the best-epoch tracking starts

@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 
 use graybox::backend::{Backend, Precision};
 use graybox::error::Error;
-use graybox::model::mlp::param;
+use graybox::model::network::param;
 use graybox::model::params::{Components, Params};
 use graybox::model::spec::ModelSpec;
 use graybox::physics::params::bounds;

@@ -1,5 +1,5 @@
 //! Expressions of formula templates (docs/robots.md#formula-templates): parsed once into a flat postfix program,
-//! evaluated over [`Scalar`], so that training (Burn columns), the f64 evaluator and dual
+//! evaluated over [`Scalar`], so that training (the tape's columns), the f64 evaluator and dual
 //! numbers (∂/∂q, linearization) all run the same formula and no symbolic differentiation is
 //! needed.
 //!

@@ -294,7 +294,7 @@ impl UrdfTemplate {
             .collect()
     }
 
-    /// Physical values from raw ones (any scalar; Burn tensors in training).
+    /// Physical values from raw ones (any scalar; the tape's values in training).
     pub fn physical_from_raw<S: Scalar>(&self, raw: &[S]) -> Vec<S> {
         let mut out = Vec::with_capacity(raw.len());
         for b in 0..self.nb() {
@@ -431,7 +431,7 @@ impl UrdfTemplate {
     }
 
     /// π, every body's standard parameters (`multibody::regressor`'s order), from physical
-    /// values (any scalar: Burn tensors in training).
+    /// values (any scalar: the tape's values in training).
     pub fn standard_parameters<S: Scalar>(&self, physical: &[S]) -> Vec<S> {
         (physical.chunks(PER_BODY).take(self.nb()))
             .flat_map(standard_of_physical)

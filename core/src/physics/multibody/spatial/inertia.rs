@@ -214,7 +214,7 @@ pub fn body_of_physical<S: Scalar>(v: &[S]) -> Inertial<S> {
     }
 }
 
-/// π of a body from its physical values, over any scalar (Burn tensors in training).
+/// π of a body from its physical values, over any scalar (the tape's values in training).
 pub fn standard_of_physical<S: Scalar>(v: &[S]) -> [S; PER_BODY] {
     let b = body_of_physical(v);
     let [hx, hy, hz] = b.h;

@@ -140,7 +140,7 @@ fn ul_cholesky(j: &[[f64; 4]; 4]) -> Option<[[f64; 4]; 4]> {
 
 /// R Rᵀ for R upper triangular with diagonal `d` and s = (s₁₂, s₁₃, s₂₃) above it, each row
 /// extended by `extra`'s entry when there is one: R's zeros never enter and the lower
-/// triangle is the upper's, so a Burn tensor path allocates nothing for them.
+/// triangle is the upper's, so a tape records no node for them.
 fn upper_gram<S: Scalar>(d: &[S; 3], s: &[S; 3], extra: Option<&[S; 3]>) -> M3<S> {
     let p = |x: &S, y: &S| x.clone() * y.clone();
     let [s12, s13, s23] = s;
