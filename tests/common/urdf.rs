@@ -45,18 +45,21 @@ pub fn floats(v: &Value) -> Vec<f64> {
         .collect()
 }
 
+/// A dual number wide enough for every fixture robot's q at once.
+pub type Wide = Dual<f64, 64>;
+
 /// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) at (q, q̇) of a robot's M
 /// and V over dual numbers in q.
 pub fn terms_of(
     q: &[f64],
     qd: &[f64],
-    mass: impl Fn(&[Dual<f64>]) -> Vec<Vec<Dual<f64>>>,
-    potential: impl Fn(&[Dual<f64>]) -> Dual<f64>,
+    mass: impl Fn(&[Wide]) -> Vec<Vec<Wide>>,
+    potential: impl Fn(&[Wide]) -> Wide,
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     let n = q.len();
-    let qv: Vec<Dual<f64>> = (0..n).map(|k| Dual::variable(q[k], k, n, 1.0)).collect();
+    let qv: Vec<Wide> = Dual::seeded(q, &1.0, 0..n);
     let (m, v) = (mass(&qv), potential(&qv));
-    let d = |x: &Dual<f64>, k: usize| x.tangent(k).copied().unwrap_or(0.0);
+    let d = |x: &Wide, k: usize| x.tangent(k).copied().unwrap_or(0.0);
     let g = (0..n).map(|k| d(&v, k)).collect();
     let c = (0..n)
         .map(|i| {
@@ -81,7 +84,7 @@ pub fn jacobian_terms(
     q: &[f64],
     qd: &[f64],
 ) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let bodies = |like: &Dual<f64>| -> Vec<Inertial<Dual<f64>>> {
+    let bodies = |like: &Wide| -> Vec<Inertial<Wide>> {
         (inertias.iter())
             .map(|i| body_inertia(&i.theta().unwrap().map(|t| like.lift(t))))
             .collect()

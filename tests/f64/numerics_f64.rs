@@ -80,9 +80,10 @@ fn model_input_jacobians_match_finite_differences() {
                     "{spec:?} ∂V/∂q{k}: {ad} vs {fd}"
                 );
                 let (lp, lm) = (terms(&at(H)), terms(&at(-H)));
-                for e in 0..t.l.entries.len() {
-                    let fd = (lp.l.entries[e].v - lm.l.entries[e].v) / (2.0 * H);
-                    let ad = t.l.entries[e].tangent(k).copied().unwrap_or(0.0);
+                let (l, dl) = (&t.factor.l, &t.factor.dl[k]);
+                for e in 0..l.entries.len() {
+                    let fd = (lp.factor.l.entries[e] - lm.factor.l.entries[e]) / (2.0 * H);
+                    let ad = dl.entries[e].unwrap_or(0.0);
                     assert!(
                         rel_err(&[ad], &[fd]) < 1e-7,
                         "{spec:?} ∂L{e}/∂q{k}: {ad} vs {fd}"
@@ -144,16 +145,17 @@ fn double_pendulum_matches_closed_form() {
 #[test]
 fn learned_mass_coriolis_matches_christoffel_definition() {
     let dev = f64_device();
-    for n in [2, 3] {
+    // n = 10: L's q-derivatives come in two groups of directions (`dual::groups`).
+    for n in [2, 3, 10] {
         let eval = evaluator(&perturb(&model("MVF", None, n, 2, 4, &dev), &dev));
         let (q, qd, u) = paper_samples(n, 2, 4, 8);
         for b in 0..q.len() {
             let terms = |q: &[f64]| eval.terms(q, &qd[b], &u[b]).expect("a structured model");
             let mass_at = |q: &[f64]| -> Vec<Vec<f64>> {
-                let l = terms(q).l;
+                let l = terms(q).factor.l;
                 let lij = |i: usize, j: usize| {
                     if j <= i {
-                        l.entries[i * (i + 1) / 2 + j].v
+                        l.entries[i * (i + 1) / 2 + j]
                     } else {
                         0.0
                     }

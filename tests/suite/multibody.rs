@@ -8,12 +8,11 @@
 use std::f64::consts::PI;
 
 use graybox::physics::dual::Dual;
-use graybox::physics::jet::Jet;
 use graybox::physics::multibody::Inertial;
 use graybox::physics::multibody::{
-    self, aba, bias, coriolis, crba, crba_forward, dual_derivatives, fd_over_jets,
-    forward_dynamics, forward_dynamics_derivatives, gravity_torques, inverse_dynamics,
-    kinetic_energy, potential_energy,
+    self, aba, bias, coriolis, crba, crba_forward, fd_over_dual, forward_dynamics,
+    forward_dynamics_derivatives, gravity_torques, inverse_dynamics, kinetic_energy,
+    potential_energy,
 };
 use graybox::physics::urdf::Tree;
 use graybox::rng::Rng;
@@ -121,16 +120,20 @@ fn models() -> impl Iterator<Item = (&'static str, multibody::Model)> {
     })
 }
 
-/// ∂ID/∂(q, q̇) by RNEA over `Jet<64>` (forward mode through the body-frame recursion): the
-/// independent reference for the analytic partials and the adjoint. Row i is τᵢ's.
-fn jet_id_partials(model: &multibody::Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
+/// ∂ID/∂(q, q̇) by RNEA over `Dual<f64, 64>` (forward mode through the body-frame
+/// recursion): the independent reference for the analytic partials and the adjoint. Row i
+/// is τᵢ's.
+fn dual_id_partials(model: &multibody::Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
     let n = q.len();
     assert!(2 * n <= 64, "{n} coordinates");
-    let qv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(q[k], k)).collect();
-    let qdv: Vec<Jet<64>> = (0..n).map(|k| Jet::variable(qd[k], n + k)).collect();
-    let qddv: Vec<Jet<64>> = qdd.iter().map(|&a| Jet::constant(a)).collect();
-    (inverse_dynamics(model, &qv, &qdv, &qddv).iter())
-        .map(|t| t.d[..2 * n].to_vec())
+    let x: Vec<Dual<f64, 64>> = Dual::seeded(&[q, qd].concat(), &1.0, 0..2 * n);
+    let qddv: Vec<Dual<f64, 64>> = qdd.iter().map(|&a| Dual::constant(a)).collect();
+    (inverse_dynamics(model, &x[..n], &x[n..], &qddv).iter())
+        .map(|t| {
+            (0..2 * n)
+                .map(|k| t.tangent(k).copied().unwrap_or(0.0))
+                .collect()
+        })
         .collect()
 }
 
@@ -162,7 +165,7 @@ fn residual(model: &multibody::Model, q: &[f64], qd: &[f64], tau: &[f64], qdd: &
 /// The kinetic energy (Σ ½ vᵢ·Iᵢvᵢ over the recursion's body velocities) and the potential
 /// energy (Σ −m g·c over the composed placements) equal Pinocchio's at every fixture state,
 /// to 1e-9 of max(1, |ref|) (rounding is ~1e-15; a wrong frame, first moment or sign moves
-/// them by ≥ 1e-4 here), and ∂V/∂q over jets is RNEA's gravity torque.
+/// them by ≥ 1e-4 here), and ∂V/∂q over dual numbers is RNEA's gravity torque.
 #[test]
 fn energies_equal_pinocchio() {
     for name in FIXTURES {
@@ -176,10 +179,11 @@ fn energies_equal_pinocchio() {
             let v_ref = st["V"].as_f64().unwrap();
             assert!(err(&[v], &[v_ref]) < 1e-9, "{name} {s}: V {v} vs {v_ref}");
             if q.len() <= 16 {
-                let qj: Vec<Jet<16>> = (q.iter().enumerate())
-                    .map(|(k, &x)| Jet::variable(x, k))
+                let qj: Vec<Dual<f64, 16>> = Dual::seeded(&q, &1.0, 0..q.len());
+                let v = potential_energy(&model, &qj);
+                let dv: Vec<f64> = (0..q.len())
+                    .map(|k| v.tangent(k).copied().unwrap_or(0.0))
                     .collect();
-                let dv = potential_energy(&model, &qj).d[..q.len()].to_vec();
                 let g = gravity_torques(&model, &q);
                 assert!(err(&dv, &g) < 1e-9, "{name} {s}: ∂V/∂q {dv:?} vs g {g:?}");
             }
@@ -243,8 +247,7 @@ fn multibody_algorithms_agree_with_the_jacobian_form() {
 /// and rounding ε|q̈|·κ/h ~ 1e-16·10²·10⁴/1e-5 = 1e-5 at worst (κ: M's condition), so the
 /// bound is 1e-4 of max(1, |∂q̈|) (measured: 3e-7); a wrong term shows at O(1). Dual numbers
 /// are exact to rounding, so the other routes agree much closer: forward dynamics over `Dual`
-/// (ABA, or CRBA + Cholesky) to 1e-9 (rounding amplified by M's condition), over `Jet` and
-/// over `Dual` (the same operations) to 1e-10.
+/// (ABA, or CRBA + Cholesky) to 1e-9 (rounding amplified by M's condition).
 #[test]
 fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
     let mut rng = Rng::new(9);
@@ -256,9 +259,9 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
             let tau = random(&mut rng, n, 5.0);
             let (qdd, dq, dqd) = forward_dynamics_derivatives(&model, &q, &qd, &tau);
             assert!(err(&qdd, &forward_dynamics(&model, &q, &qd, &tau)) < 1e-12);
-            // −M⁻¹ ∂ID, and forward dynamics itself over jets and over `Dual`: the same
-            // derivatives by different arithmetic, to rounding amplified by M's condition.
-            let (_, dq2, dqd2) = dual_derivatives(&model, &q, &qd, &tau);
+            // −M⁻¹ ∂ID, and forward dynamics itself over dual numbers: the same derivatives
+            // by different arithmetic, to rounding amplified by M's condition.
+            let (_, dq2, dqd2) = fd_over_dual::<64>(&model, &q, &qd, &tau);
             assert!(
                 err(&flat(&dq), &flat(&dq2)) < 1e-9,
                 "{name}: ∂ID vs duals, ∂q"
@@ -266,15 +269,6 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
             assert!(
                 err(&flat(&dqd), &flat(&dqd2)) < 1e-9,
                 "{name}: ∂ID vs duals, ∂q̇"
-            );
-            let (_, dq3, dqd3) = fd_over_jets::<64>(&model, &q, &qd, &tau);
-            assert!(
-                err(&flat(&dq3), &flat(&dq2)) < 1e-10,
-                "{name}: jets vs duals, ∂q"
-            );
-            assert!(
-                err(&flat(&dqd3), &flat(&dqd2)) < 1e-10,
-                "{name}: jets vs duals, ∂q̇"
             );
             let h = 1e-5;
             for k in 0..n {
@@ -299,12 +293,9 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
             }
             if !model.mimic {
                 let n2 = 2 * n;
-                let qv: Vec<Dual<f64>> = (0..n).map(|k| Dual::variable(q[k], k, n2, 1.0)).collect();
-                let qdv: Vec<Dual<f64>> = (0..n)
-                    .map(|k| Dual::variable(qd[k], n + k, n2, 1.0))
-                    .collect();
-                let tv: Vec<Dual<f64>> = tau.iter().map(|&t| Dual::constant(t)).collect();
-                let via_crba = crba_forward(&model, &qv, &qdv, &tv);
+                let x: Vec<Dual<f64, 64>> = Dual::seeded(&[&q[..], &qd[..]].concat(), &1.0, 0..n2);
+                let tv: Vec<Dual<f64, 64>> = tau.iter().map(|&t| Dual::constant(t)).collect();
+                let via_crba = crba_forward(&model, &x[..n], &x[n..], &tv);
                 for (i, x) in via_crba.iter().enumerate() {
                     let t: Vec<f64> = (0..n2)
                         .map(|k| x.tangent(k).copied().unwrap_or(0.0))

@@ -286,8 +286,8 @@ mod tests {
         jet.set(1, 0, 0, 0, c);
         jet.set(1, 1, 0, 0, d);
         jet.tanh();
-        let inner = |v: f64, dq: f64| Dual::new(v, vec![Some(dq)]);
-        let z = Dual::new(inner(a, b), vec![Some(inner(c, d))]);
+        let inner = |v: f64, dq: f64| -> Dual<f64> { Dual::new(v, vec![Some(dq)]) };
+        let z: Dual<Dual<f64>> = Dual::new(inner(a, b), vec![Some(inner(c, d))]);
         let h = z.tanh();
         let outer = h.tangent(0).unwrap();
         let want = [

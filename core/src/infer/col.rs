@@ -12,7 +12,6 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use super::activations::Activations;
 use crate::physics::dual::Dual;
-use crate::physics::jet::Jet;
 use crate::physics::scalar::Scalar;
 
 /// One coordinate of every sample in a batch.
@@ -192,7 +191,7 @@ impl<C: Column> Lanes for C {
     }
 }
 
-impl<C: Column> Lanes for Dual<C> {
+impl<C: Column, const N: usize> Lanes for Dual<C, N> {
     fn rows(&self) -> usize {
         self.v.rows()
     }
@@ -213,36 +212,6 @@ impl<C: Column> Lanes for Dual<C> {
             C::read_block(jet, 0, i, j),
             (1..=jet.outer).map(|o| Some(C::read_block(jet, o, i, j))),
         )
-    }
-}
-
-/// A state's coordinate with N dense tangents (Linearize on the multibody path): the outer
-/// directions are the first N, up to the last one any input moves (a step's Jacobian seeds
-/// 2n + m of them), so the networks carry no more than a `Dual` would.
-impl<const N: usize> Lanes for Jet<N> {
-    fn rows(&self) -> usize {
-        1
-    }
-    fn dirs(&self) -> usize {
-        self.d.iter().rposition(|&t| t != 0.0).map_or(0, |k| k + 1)
-    }
-    fn write(&self, jet: &mut Activations, i: usize, j: usize) {
-        jet.set(0, i, 0, j, self.v);
-        for (o, &t) in self.d.iter().take(jet.outer).enumerate() {
-            jet.set(o + 1, i, 0, j, t);
-        }
-    }
-    fn read(jet: &Activations, i: usize, j: usize) -> Self {
-        Jet {
-            v: jet.at(0, i, 0, j),
-            d: std::array::from_fn(|o| {
-                if o < jet.outer {
-                    jet.at(o + 1, i, 0, j)
-                } else {
-                    0.0
-                }
-            }),
-        }
     }
 }
 

@@ -10,7 +10,7 @@ use super::limits::Pass;
 use super::{columns, to_rows};
 use crate::control::dircol::Continuous;
 use crate::control::linalg::Mat;
-use crate::physics::dual::Dual;
+use crate::physics::dual::{Dual, groups};
 
 impl Evaluator {
     /// f at each row of `[B, 2n]` states and `[B, m]` inputs: q̇, then q̈.
@@ -36,28 +36,33 @@ impl Evaluator {
 }
 
 /// `f`'s Jacobian at each row of the columns `x` and `u`: every coordinate a dual variable
-/// (x's then u's directions); per row, per output, the row [∂f_i/∂x, ∂f_i/∂u].
+/// (x's then u's directions), a group of directions at a time (`dual::groups`); per row, per
+/// output, the row [∂f_i/∂x, ∂f_i/∂u].
 pub(super) fn dual_rows<C: Column>(
     x: Vec<C>,
     u: Vec<C>,
-    f: impl FnOnce(&[Dual<C>], &[Dual<C>]) -> Vec<Dual<C>>,
+    f: impl Fn(&[Dual<C>], &[Dual<C>]) -> Vec<Dual<C>>,
 ) -> Vec<f64> {
-    let (nx, dirs) = (x.len(), x.len() + u.len());
-    let var = |k: usize, c: C| {
-        let one = c.lift(1.0);
-        Dual::variable(c, k, dirs, one)
-    };
-    let xd: Vec<Dual<C>> = x.into_iter().enumerate().map(|(k, c)| var(k, c)).collect();
-    let ud: Vec<Dual<C>> = (u.into_iter().enumerate())
-        .map(|(k, c)| var(nx + k, c))
-        .collect();
-    let y = f(&xd, &ud);
-    (0..y[0].v.rows())
-        .flat_map(|b| {
-            y.iter()
-                .flat_map(move |yi| (0..dirs).map(move |k| yi.tangent(k).map_or(0.0, |t| t.get(b))))
-        })
-        .collect()
+    let (nx, rows) = (x.len(), x[0].rows());
+    let xu: Vec<C> = x.into_iter().chain(u).collect();
+    let (dirs, one) = (xu.len(), xu[0].lift(1.0));
+    let mut out: Vec<f64> = vec![];
+    for group in groups(dirs) {
+        let seeded = Dual::seeded(&xu, &one, group.clone());
+        let y = f(&seeded[..nx], &seeded[nx..]);
+        if out.is_empty() {
+            out = vec![0.0; rows * y.len() * dirs];
+        }
+        for b in 0..rows {
+            for (i, yi) in y.iter().enumerate() {
+                let at = (b * y.len() + i) * dirs + group.start;
+                for k in 0..group.len() {
+                    out[at + k] = yi.tangent(k).map_or(0.0, |t| t.get(b));
+                }
+            }
+        }
+    }
+    out
 }
 
 impl Continuous for Evaluator {

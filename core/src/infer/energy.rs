@@ -85,7 +85,7 @@ struct Row {
 
 impl<S: super::col::Lanes> PotentialValue<S> for JetNets<'_, S> {
     fn potential_value(&self) -> S {
-        self.potential().v.clone()
+        self.potential().clone()
     }
 }
 
@@ -157,16 +157,16 @@ fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> R
     let parts = named_parts(s, nets, x);
     let applied = sum_parts(&parts, s.n);
     let t = s.terms(nets, x);
-    let l = t.l.map(|e| e.v);
+    let l = &t.factor.l;
     let gravity = t.grad_v.clone().unwrap_or_else(|| vec![0.0; s.n]);
-    let qdd = acceleration(&t.l, t.grad_v, applied, x.qd);
-    let w = tri_t_mul(&l, x.qd);
+    let qdd = acceleration(&t.factor, t.grad_v, applied, x.qd);
+    let w = tri_t_mul(l, x.qd);
     Row {
         power: 0.0,
         kinetic: 0.5 * w.iter().map(|v| v * v).sum::<f64>(),
         potential: s.potential_value(nets, x, true),
-        inertial: lower_mul(&l, &tri_t_mul(&l, &qdd)),
-        coriolis: coriolis(&t.l, x.qd),
+        inertial: lower_mul(l, &tri_t_mul(l, &qdd)),
+        coriolis: coriolis(&t.factor, x.qd),
         gravity,
         parts,
     }

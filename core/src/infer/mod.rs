@@ -214,7 +214,7 @@ impl Evaluator {
             };
         }
         let t = structure.terms(nets, x);
-        acceleration(&t.l, t.grad_v, less(t.forces), x.qd)
+        acceleration(&t.factor, t.grad_v, less(t.forces), x.qd)
     }
 
     /// One step of the model's integrator: x = [q, q̇] (2n coordinates), u (m) → x'.

@@ -2,6 +2,7 @@
 //! derivatives (jets), and their outputs as the model's assembly reads them.
 
 use std::collections::HashMap;
+use std::ops::Range;
 
 use super::activations::Activations;
 use super::col::Lanes;
@@ -9,7 +10,7 @@ use super::weights::{Components, Forces};
 use crate::error::{Error, Result};
 use crate::model::NamedArray;
 use crate::physics::assembly::Networks;
-use crate::physics::dual::Dual;
+use crate::physics::dual::{Dual, groups};
 use crate::physics::scaling::Scaling;
 
 /// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
@@ -101,19 +102,19 @@ pub(super) fn periodic_q_jet<C: Lanes>(
     outer: usize,
 ) -> Activations {
     let n = q.len();
-    // The features and their ∂/∂q as the fused step builds them, written into the jet.
-    let features = sc.q_features(q, angles, inner);
-    let mut jet = Activations::zeros(
-        q[0].rows(),
-        features.len(),
-        if inner { n } else { 0 },
-        outer,
-    );
-    for (j, f) in features.iter().enumerate() {
+    // The features and their ∂/∂q as the fused step builds them, written into the jet, a
+    // group of directions at a time.
+    let values = sc.q_features(q, angles, 0..0);
+    let mut jet = Activations::zeros(q[0].rows(), values.len(), if inner { n } else { 0 }, outer);
+    for (j, f) in values.iter().enumerate() {
         f.v.write(&mut jet, 0, j);
-        for (k, t) in f.d.iter().enumerate() {
-            if let Some(t) = t {
-                t.write(&mut jet, k + 1, j);
+    }
+    for dirs in groups(if inner { n } else { 0 }) {
+        for (j, f) in sc.q_features(q, angles, dirs.clone()).iter().enumerate() {
+            for (k, t) in f.d.iter().enumerate() {
+                if let Some(t) = t {
+                    t.write(&mut jet, dirs.start + k + 1, j);
+                }
             }
         }
     }
@@ -148,44 +149,45 @@ pub(super) fn periodic_full_jet<C: Lanes>(
     jet
 }
 
-/// Output j as a dual number over q (inner tangents), each part a batch coordinate.
-fn dual_at<C: Lanes>(jet: &Activations, j: usize) -> Dual<C> {
-    Dual::new(
-        C::read(jet, 0, j),
-        (1..=jet.inner).map(|i| Some(C::read(jet, i, j))),
-    )
-}
-
 /// The networks' outputs as the assembly reads them.
 pub(super) struct JetNets<'a, S> {
     outs: &'a NetOutputs,
-    /// V's output with its q-tangents, read once.
-    potential: Option<Dual<S>>,
+    /// V's output and its q-derivatives, read once.
+    potential: Option<(S, Vec<S>)>,
 }
 
 impl<'a, S: Lanes> JetNets<'a, S> {
     pub(super) fn new(outs: &'a NetOutputs) -> Self {
+        let read = |p: &Activations| {
+            (
+                S::read(p, 0, 0),
+                (1..=p.inner).map(|i| S::read(p, i, 0)).collect(),
+            )
+        };
         Self {
             outs,
-            potential: outs.potential.as_ref().map(|p| dual_at(p, 0)),
+            potential: outs.potential.as_ref().map(read),
         }
     }
-}
 
-impl<S: Lanes> JetNets<'_, S> {
-    /// V's network output with its q-tangents.
-    pub(super) fn potential(&self) -> &Dual<S> {
-        self.potential.as_ref().expect("potential outputs")
+    /// V's network output.
+    pub(super) fn potential(&self) -> &S {
+        &self.potential.as_ref().expect("potential outputs").0
     }
 }
 
 impl<S: Lanes> Networks<S> for JetNets<'_, S> {
-    fn mass(&self, j: usize) -> Dual<S> {
-        dual_at(self.outs.mass.as_ref().expect("mass outputs"), j)
+    /// Output j with the jet's inner tangents `dirs`, each part a batch coordinate.
+    fn mass(&self, j: usize, dirs: Range<usize>) -> Dual<S> {
+        let jet = self.outs.mass.as_ref().expect("mass outputs");
+        Dual::new(
+            S::read(jet, 0, j),
+            dirs.map(|k| Some(S::read(jet, k + 1, j))),
+        )
     }
     fn potential_grad(&self, k: usize) -> S {
-        let v = self.potential();
-        v.tangent(k).cloned().unwrap_or_else(|| v.v.lift(0.0))
+        let (v, grad) = self.potential.as_ref().expect("potential outputs");
+        grad.get(k).cloned().unwrap_or_else(|| v.lift(0.0))
     }
     fn force(&self, j: usize) -> S {
         S::read(self.outs.force.as_ref().expect("force outputs"), 0, j)

@@ -5,9 +5,11 @@
 //! trainable non-network values, behind [`Coef`] (the tape's values in training, constants in
 //! inference). A new component kind is one arm here.
 
-use super::dual::Dual;
-use super::dynamics::{Tri, cholesky};
-use super::mass_matrix::factor_from_outputs;
+use std::ops::Range;
+
+use super::dual::{Dual, groups};
+use super::dynamics::{Factor, Tri, cholesky};
+use super::mass_matrix::{factor_from_outputs, outputs};
 use super::scalar::Scalar;
 use super::templates::Template;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
@@ -21,8 +23,9 @@ pub const PASSIVE_EPS: f64 = 1e-3;
 /// The networks' outputs for a batch, read by index; each is asked for only when the spec
 /// has that network.
 pub trait Networks<S> {
-    /// Output j of the mass network (the raw entries of L) with its n q-tangents.
-    fn mass(&self, j: usize) -> Dual<S>;
+    /// Output j of the mass network (the raw entries of L) with its q-tangents in the
+    /// directions `dirs`.
+    fn mass(&self, j: usize, dirs: Range<usize>) -> Dual<S>;
     /// ∂V/∂q_k of the potential network's (unscaled) output.
     fn potential_grad(&self, k: usize) -> S;
     /// Output j of the force network (general F, unscaled) or of the B network (B_θ(q)).
@@ -103,7 +106,7 @@ pub struct Values<'a, P> {
 /// The terms of M q̈ = F − c − ∂V/∂q for a batch.
 pub struct Terms<S> {
     /// L(q) with ∂L/∂q_k.
-    pub l: Tri<Dual<S>>,
+    pub factor: Factor<S>,
     /// ∂V/∂q (`None` for a zero potential).
     pub grad_v: Option<Vec<S>>,
     pub forces: Vec<S>,
@@ -128,7 +131,7 @@ impl<'a, P> Structure<'a, P> {
         P: Coef<S>,
     {
         Terms {
-            l: self.mass_factor(nets, x),
+            factor: self.mass_factor(nets, x),
             grad_v: self.potential_grad(nets, x),
             forces: self.generalized_forces(nets, x),
         }
@@ -160,27 +163,24 @@ impl<'a, P> Structure<'a, P> {
             .collect()
     }
 
-    /// q as dual variables, for the analytic parts that need ∂/∂q.
-    fn q_vars<S: Scalar>(&self, x: &impl Inputs<S>) -> Vec<Dual<S>> {
-        let one = x.one();
-        let n = self.n;
-        x.q()
-            .iter()
-            .enumerate()
-            .map(|(k, qk)| Dual::variable(qk.clone(), k, n, one.clone()))
-            .collect()
+    /// q as dual variables in the directions `dirs`, for the analytic parts that need ∂/∂q.
+    fn q_vars<S: Scalar>(&self, x: &impl Inputs<S>, dirs: Range<usize>) -> Vec<Dual<S>> {
+        Dual::seeded(x.q(), &x.one(), dirs)
     }
 
     /// L(q) = the Cholesky factor of M(q), with its q-tangents.
-    fn mass_factor<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Tri<Dual<S>>
+    fn mass_factor<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Factor<S>
     where
         P: Coef<S>,
     {
         let n = self.n;
-        match self.mass {
-            MassSpec::Mlp { .. } => {
-                factor_from_outputs((0..n * (n + 1) / 2).map(|j| nets.mass(j)).collect(), n)
-            }
+        Factor::from_groups(n, |dirs| match self.mass {
+            MassSpec::Mlp { .. } => factor_from_outputs(
+                (0..outputs(n))
+                    .map(|j| nets.mass(j, dirs.clone()))
+                    .collect(),
+                n,
+            ),
             MassSpec::Constant => {
                 let raw = self.values.mass_const.expect("constant mass");
                 let like = &x.q()[0];
@@ -191,9 +191,9 @@ impl<'a, P> Structure<'a, P> {
             }
             MassSpec::Template => {
                 let p = self.physical_dual(&x.q()[0]);
-                cholesky(&self.template().mass(&p, &self.q_vars(x)))
+                cholesky(&self.template().mass(&p, &self.q_vars(x, dirs)))
             }
-        }
+        })
     }
 
     /// ∂V/∂q.
@@ -228,9 +228,11 @@ impl<'a, P> Structure<'a, P> {
             }
             PotentialSpec::Template { residual } => {
                 let p = self.physical_dual(&x.q()[0]);
-                let v = self.template().potential(&p, &self.q_vars(x));
                 let zero = || x.q()[0].lift(0.0);
-                let grad = (0..n).map(|k| v.tangent(k).cloned().unwrap_or_else(zero));
+                let grad = groups(n).flat_map(|dirs| {
+                    let v = self.template().potential(&p, &self.q_vars(x, dirs.clone()));
+                    (0..dirs.len()).map(move |k| v.tangent(k).cloned().unwrap_or_else(zero))
+                });
                 Some(match residual {
                     None => grad.collect(),
                     Some(_) => grad.zip(network()).map(|(t, r)| t + r).collect(),

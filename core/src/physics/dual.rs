@@ -1,27 +1,40 @@
 //! Forward-mode dual numbers: a value and its partial derivatives with respect to a fixed set
-//! of input directions (the generalized coordinates q₁…qₙ).
+//! of input directions (the generalized coordinates q₁…qₙ, or a linearization's (x, u)).
 //!
-//! Missing or `None` tangents are exact zeros and cost no arithmetic, which matters when the
-//! scalar is a column of the training tape: parameters and constants carry no tangent at all.
-//! `Dual<Dual<f64>>` gives second derivatives (hyper-dual numbers).
+//! The one forward-mode family of the core, over any [`Scalar`]: `f64` for a single state,
+//! batch columns, the training tape's values, and itself (`Dual<Dual<f64>>`: second
+//! derivatives). Missing or `None` tangents are exact zeros and cost no arithmetic, which
+//! matters when the scalar is a column of the training tape: parameters and constants carry
+//! no tangent at all. The tangents live inline, at most `N` of them (fixed when the type is
+//! named, so a caller picks the width its directions need): no operation allocates.
 
 use super::scalar::Scalar;
-use smallvec::SmallVec;
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::ops::{Add, Div, Mul, Neg, Range, Sub};
 
-/// Tangents stored inline up to eight directions (a linearization's 2n + m for the templates'
-/// systems): the f64 evaluator creates many of these, and a heap allocation each was most of
-/// its time after the networks.
-pub type Tangents<S> = SmallVec<[Option<S>; 8]>;
+use arrayvec::ArrayVec;
 
-#[derive(Debug, Clone)]
-pub struct Dual<S> {
-    pub v: S,
-    /// ∂v/∂x_k for each direction k; `None` (or beyond the end) means zero.
-    pub d: Tangents<S>,
+/// The tangents of one dual number, inline: at most `N`, only those in use initialized.
+pub type Tangents<S, const N: usize> = ArrayVec<Option<S>, N>;
+
+/// The directions a dual number carries by default (a linearization's 2n + m for the
+/// templates' systems, a double pendulum's ∂/∂q twice over): a derivative in more directions
+/// runs in groups of this many ([`groups`]), each group's values computed again, which costs
+/// less than tangents on the heap did and keeps every dual number a fixed size.
+pub const WIDTH: usize = 8;
+
+/// The directions 0..n in groups of at most [`WIDTH`].
+pub fn groups(n: usize) -> impl Iterator<Item = Range<usize>> + Clone {
+    (0..n).step_by(WIDTH).map(move |s| s..(s + WIDTH).min(n))
 }
 
-impl<S: Scalar> Dual<S> {
+#[derive(Debug, Clone)]
+pub struct Dual<S, const N: usize = WIDTH> {
+    pub v: S,
+    /// ∂v/∂x_k for each direction k; `None` (or beyond the end) means zero.
+    pub d: Tangents<S, N>,
+}
+
+impl<S: Scalar, const N: usize> Dual<S, N> {
     pub fn constant(v: S) -> Self {
         Self {
             v,
@@ -38,9 +51,21 @@ impl<S: Scalar> Dual<S> {
 
     /// The input variable number `k` of `n`, with tangent `seed` (1 in direction k).
     pub fn variable(v: S, k: usize, n: usize, seed: S) -> Self {
-        let mut d: Tangents<S> = std::iter::repeat_n(None, n).collect();
+        assert!(n <= N, "{n} directions for a dual number of {N}");
+        let mut d: Tangents<S, N> = std::iter::repeat_n(None, n).collect();
         d[k] = Some(seed);
         Self { v, d }
+    }
+
+    /// `x` as dual numbers in the directions `dirs` of x's coordinates: x_k (k in `dirs`)
+    /// carries `seed` in direction k − dirs.start, every other coordinate is a constant.
+    pub fn seeded(x: &[S], seed: &S, dirs: Range<usize>) -> Vec<Self> {
+        (x.iter().enumerate())
+            .map(|(k, xk)| match dirs.contains(&k) {
+                true => Self::variable(xk.clone(), k - dirs.start, dirs.len(), seed.clone()),
+                false => Self::constant(xk.clone()),
+            })
+            .collect()
     }
 
     pub fn tangent(&self, k: usize) -> Option<&S> {
@@ -62,11 +87,11 @@ impl<S: Scalar> Dual<S> {
     }
 }
 
-fn zip_tangents<S: Clone>(
+fn zip_tangents<S: Clone, const N: usize>(
     a: &[Option<S>],
     b: &[Option<S>],
     f: impl Fn(Option<&S>, Option<&S>) -> Option<S>,
-) -> Tangents<S> {
+) -> Tangents<S, N> {
     let n = a.len().max(b.len());
     (0..n)
         .map(|k| {
@@ -78,7 +103,7 @@ fn zip_tangents<S: Clone>(
         .collect()
 }
 
-impl<S: Scalar> Add for Dual<S> {
+impl<S: Scalar, const N: usize> Add for Dual<S, N> {
     type Output = Self;
     fn add(self, o: Self) -> Self {
         let d = zip_tangents(&self.d, &o.d, |a, b| match (a, b) {
@@ -91,7 +116,7 @@ impl<S: Scalar> Add for Dual<S> {
     }
 }
 
-impl<S: Scalar> Sub for Dual<S> {
+impl<S: Scalar, const N: usize> Sub for Dual<S, N> {
     type Output = Self;
     fn sub(self, o: Self) -> Self {
         let d = zip_tangents(&self.d, &o.d, |a, b| match (a, b) {
@@ -105,7 +130,7 @@ impl<S: Scalar> Sub for Dual<S> {
 }
 
 #[allow(clippy::suspicious_arithmetic_impl)] // the product rule
-impl<S: Scalar> Mul for Dual<S> {
+impl<S: Scalar, const N: usize> Mul for Dual<S, N> {
     type Output = Self;
     fn mul(self, o: Self) -> Self {
         let d = zip_tangents(&self.d, &o.d, |a, b| match (a, b) {
@@ -119,7 +144,7 @@ impl<S: Scalar> Mul for Dual<S> {
 }
 
 #[allow(clippy::suspicious_arithmetic_impl)] // the quotient rule
-impl<S: Scalar> Div for Dual<S> {
+impl<S: Scalar, const N: usize> Div for Dual<S, N> {
     type Output = Self;
     fn div(self, o: Self) -> Self {
         let v = self.v.clone() / o.v.clone();
@@ -134,17 +159,18 @@ impl<S: Scalar> Div for Dual<S> {
     }
 }
 
-impl<S: Scalar> Neg for Dual<S> {
+impl<S: Scalar, const N: usize> Neg for Dual<S, N> {
     type Output = Self;
     fn neg(self) -> Self {
-        Self {
-            v: -self.v,
-            d: self.d.into_iter().map(|t| t.map(|t| -t)).collect(),
+        let mut d = self.d;
+        for t in d.iter_mut() {
+            *t = t.take().map(|t| -t);
         }
+        Self { v: -self.v, d }
     }
 }
 
-impl<S: Scalar> Scalar for Dual<S> {
+impl<S: Scalar, const N: usize> Scalar for Dual<S, N> {
     fn cos(&self) -> Self {
         self.chain(self.v.cos(), || -self.v.sin())
     }
@@ -247,6 +273,8 @@ mod tests {
             ("sub", |x| x.scale(3.0) - x.square()),
             ("neg", |x| -x.shift(2.0)),
             ("tanh", |x| x.scale(0.7).tanh()),
+            ("ln", |x| x.shift(0.5).ln()),
+            ("atan2", |x| x.sin().atan2(&x.exp())),
         ];
         for (name, f) in fs {
             for &x in &[0.3, 1.1, 2.5] {
@@ -262,8 +290,8 @@ mod tests {
     fn hyper_dual_gives_second_derivative() {
         // d²/dx² sin(x)·x = 2cos x − x sin x
         let x = 0.7;
-        let inner = Dual::variable(x, 0, 1, 1.0);
-        let outer = Dual::variable(inner, 0, 1, Dual::constant(1.0));
+        let inner: Dual<f64> = Dual::variable(x, 0, 1, 1.0);
+        let outer: Dual<Dual<f64>> = Dual::variable(inner, 0, 1, Dual::constant(1.0));
         let y = outer.clone() * outer.sin();
         let d2 = y.tangent(0).unwrap().tangent(0).copied().unwrap();
         assert!((d2 - (2.0 * x.cos() - x * x.sin())).abs() < 1e-14);

@@ -4,11 +4,13 @@
 //! M(q) q̈ = F(q, q̇, u) − c(q, q̇) − ∂V/∂q,   M = L Lᵀ
 //! ```
 //!
-//! Everything here takes the Cholesky factor L with its q-derivatives (as dual numbers), so a
+//! Everything here takes the Cholesky factor L with its q-derivatives ([`Factor`]), so a
 //! learned L, a constant L and the factor of an analytic M all share one Coriolis term and one
 //! solve. Nothing forms M⁻¹.
 
-use super::dual::Dual;
+use std::ops::Range;
+
+use super::dual::{Dual, groups};
 use super::scalar::Scalar;
 use crate::linalg::cholesky::{Packed, Summed, factor_in_place, solve_by};
 
@@ -72,17 +74,39 @@ pub fn tri_t_mul<S: Scalar>(l: &Tri<S>, v: &[S]) -> Vec<S> {
         .collect()
 }
 
+/// L(q) with its q-derivatives: what the Coriolis term and the solve take.
+pub struct Factor<S> {
+    pub l: Tri<S>,
+    /// ∂L/∂q_k for each direction k, `None` where an entry does not depend on q_k.
+    pub dl: Vec<Tri<Option<S>>>,
+}
+
+impl<S: Scalar> Factor<S> {
+    /// The factor of n coordinates from `f(dirs)`, L over dual numbers whose tangents are the
+    /// directions `dirs`, one group of them at a time ([`groups`]).
+    pub fn from_groups(n: usize, f: impl Fn(Range<usize>) -> Tri<Dual<S>>) -> Self {
+        let mut l = None;
+        let mut dl = Vec::with_capacity(n);
+        for dirs in groups(n) {
+            let group = f(dirs.clone());
+            dl.extend((0..dirs.len()).map(|k| group.map(|e| e.tangent(k).cloned())));
+            l.get_or_insert_with(|| group.map(|e| e.v.clone()));
+        }
+        Self {
+            l: l.expect("n ≥ 1"),
+            dl,
+        }
+    }
+}
+
 /// The Coriolis/centrifugal term c(q, q̇) = Ṁ q̇ − ∂/∂q (½ q̇ᵀ M q̇) (paper appendix A) from L and
 /// ∂L/∂q_k. With w = Lᵀq̇ and L̇ = Σ_k ∂_kL q̇_k:
 ///   Ṁ q̇ = L̇ w + L (L̇ᵀ q̇),   ∂_i (½ q̇ᵀMq̇) = w · (∂_iL)ᵀ q̇.
 /// (docs/dynamics.md#coriolis-term derives it.)
-pub fn coriolis<S: Scalar>(l: &Tri<Dual<S>>, qd: &[S]) -> Vec<S> {
-    let n = l.n;
-    let values = l.map(|e| e.v.clone());
-    let w = tri_t_mul(&values, qd);
-    // ∂_k L as a Tri per direction k (None where that entry has no k-tangent).
-    let dl = |k: usize| -> Tri<Option<S>> { l.map(|e| e.tangent(k).cloned()) };
-    let dls: Vec<Tri<Option<S>>> = (0..n).map(dl).collect();
+pub fn coriolis<S: Scalar>(factor: &Factor<S>, qd: &[S]) -> Vec<S> {
+    let (values, dls) = (&factor.l, &factor.dl);
+    let n = values.n;
+    let w = tri_t_mul(values, qd);
     // L̇ = Σ_k ∂_kL q̇_k, entry-wise; an entry with no tangent at all is zero.
     let ldot: Tri<Option<S>> = Tri {
         n,
@@ -133,26 +157,17 @@ pub fn coriolis<S: Scalar>(l: &Tri<Dual<S>>, qd: &[S]) -> Vec<S> {
 /// q̈ from the manipulator equation given L(q) with q-tangents, ∂V/∂q and F.
 /// `grad_v` is `None` for a zero potential.
 pub fn acceleration<S: Scalar>(
-    l: &Tri<Dual<S>>,
+    factor: &Factor<S>,
     grad_v: Option<Vec<S>>,
     forces: Vec<S>,
     qd: &[S],
 ) -> Vec<S> {
-    let c = coriolis(l, qd);
+    let c = coriolis(factor, qd);
     let mut rhs: Vec<S> = forces.into_iter().zip(c).map(|(f, c)| f - c).collect();
     if let Some(g) = grad_v {
         rhs = rhs.into_iter().zip(g).map(|(r, g)| r - g).collect();
     }
-    solve_llt(&l.map(|e| e.v.clone()), rhs)
-}
-
-/// q as dual variables: q_k carries tangent `one` in direction k.
-pub fn dual_vars<S: Scalar>(q: &[S], one: &S) -> Vec<Dual<S>> {
-    let n = q.len();
-    q.iter()
-        .enumerate()
-        .map(|(k, qk)| Dual::variable(qk.clone(), k, n, one.clone()))
-        .collect()
+    solve_llt(&factor.l, rhs)
 }
 
 /// Values as dual numbers without tangents (parameters: constants for ∂/∂q).
@@ -169,10 +184,13 @@ pub fn white_box_acceleration(
     q: &[f64],
     qd: &[f64],
 ) -> Vec<f64> {
-    let qv = dual_vars(q, &1.0);
-    let v = potential(&qv);
-    let grad_v = (0..q.len())
-        .map(|k| v.tangent(k).copied().unwrap_or(0.0))
+    let n = q.len();
+    let factor = Factor::from_groups(n, |dirs| cholesky(&mass(&Dual::seeded(q, &1.0, dirs))));
+    let grad_v = groups(n)
+        .flat_map(|dirs| {
+            let v = potential(&Dual::seeded(q, &1.0, dirs.clone()));
+            (0..dirs.len()).map(move |k| v.tangent(k).copied().unwrap_or(0.0))
+        })
         .collect();
-    acceleration(&cholesky(&mass(&qv)), Some(grad_v), forces, qd)
+    acceleration(&factor, Some(grad_v), forces, qd)
 }

@@ -16,7 +16,6 @@ pub mod formula;
 pub mod formula_template;
 pub mod identify;
 pub mod integrator;
-pub mod jet;
 pub mod mass_matrix;
 pub mod multibody;
 pub mod params;

@@ -6,6 +6,8 @@
 //! learned M starts near the identity and forces are scaled like accelerations; with an analytic
 //! M the force scale is the spread of M(q)q̈ over the data at the initial parameters.
 
+use std::ops::Range;
+
 use serde::{Deserialize, Serialize};
 
 use super::dual::Dual;
@@ -81,19 +83,21 @@ impl Scaling {
 /// The networks' inputs as values of any number type (the training tape's; the f64
 /// evaluator builds the same inputs in its batched form).
 impl Scaling {
-    /// The input from q: standardized, an angle (`angles[k]`) as (sin q_k, cos q_k); with
-    /// `inner`, each input carries its ∂/∂q as n tangents.
-    pub fn q_features<S: Scalar>(&self, q: &[S], angles: &[bool], inner: bool) -> Vec<Dual<S>> {
-        let n = q.len();
+    /// The input from q: standardized, an angle (`angles[k]`) as (sin q_k, cos q_k); each
+    /// input carries its ∂/∂q in the directions `dirs` (none for an empty range).
+    pub fn q_features<S: Scalar>(
+        &self,
+        q: &[S],
+        angles: &[bool],
+        dirs: Range<usize>,
+    ) -> Vec<Dual<S>> {
         let mut out = vec![];
         for (k, qk) in q.iter().enumerate() {
             let with = |v: S, d: S| -> Dual<S> {
-                if !inner {
+                if !dirs.contains(&k) {
                     return Dual::constant(v);
                 }
-                let mut t: Vec<Option<S>> = vec![None; n];
-                t[k] = Some(d);
-                Dual::new(v, t)
+                Dual::variable(v, k - dirs.start, dirs.len(), d)
             };
             if angles.get(k).copied().unwrap_or(false) {
                 let (sin, cos) = (qk.sin(), qk.cos());
@@ -110,7 +114,7 @@ impl Scaling {
     /// The input from [q, q̇, u]: q's as [`Scaling::q_features`] gives it, then q̇ and u
     /// standardized.
     pub fn full_features<S: Scalar>(&self, q: &[S], qd: &[S], u: &[S], angles: &[bool]) -> Vec<S> {
-        let mut out: Vec<S> = (self.q_features(q, angles, false).into_iter())
+        let mut out: Vec<S> = (self.q_features(q, angles, 0..0).into_iter())
             .map(|d| d.v)
             .collect();
         let standardized = |x: &[S], mean: &[f64], std: &[f64]| -> Vec<S> {

@@ -16,8 +16,8 @@
 //! step and over a coast to rest, and steps its own law to a fifth of the chatter; what it
 //! loses is sticking (bench-results/2026-11-26-coulomb-stiffness.md).
 
-use super::dual::Dual;
-use super::dynamics::{constants, dual_vars};
+use super::dual::{Dual, groups};
+use super::dynamics::constants;
 use super::eigen::symmetric_eigen;
 use super::integrator::Integrator;
 use super::templates::Template;
@@ -190,16 +190,16 @@ fn configuration(q: &[f64]) -> String {
 /// −∂F/∂q̇ at (q, q̇ = 0, u = 0), by dual numbers in q̇.
 pub fn velocity_stiffness(t: &Template, p: &[f64], q: &[f64]) -> Vec<Vec<f64>> {
     let n = t.n();
-    let qd = dual_vars(&vec![0.0; n], &1.0);
-    let u = constants(&vec![0.0; t.m()]);
-    let f: Vec<Dual<f64>> = t.forces(&constants(p), &constants(q), &qd, &u);
-    f.iter()
-        .map(|fi| {
-            (0..n)
-                .map(|k| -fi.tangent(k).copied().unwrap_or(0.0))
-                .collect()
-        })
-        .collect()
+    let (zero, u) = (vec![0.0; n], constants(&vec![0.0; t.m()]));
+    let mut rows = vec![Vec::with_capacity(n); n];
+    for dirs in groups(n) {
+        let qd = Dual::seeded(&zero, &1.0, dirs.clone());
+        let f: Vec<Dual<f64>> = t.forces(&constants(p), &constants(q), &qd, &u);
+        for (row, fi) in rows.iter_mut().zip(&f) {
+            row.extend((0..dirs.len()).map(|k| -fi.tangent(k).copied().unwrap_or(0.0)));
+        }
+    }
+    rows
 }
 
 /// λ_max of D v = λ M v for symmetric D and M = L Lᵀ (`cholesky`).

@@ -2,7 +2,7 @@
 //! f64, the assembled path (the template's M and V over dual numbers, then the Coriolis term
 //! from ∂L/∂q and a Cholesky solve: `dynamics::white_box_acceleration`) against the
 //! multibody algorithms (`physics::multibody`): ABA, CRBA + Cholesky, and ∂q̈/∂q, ∂q̈/∂q̇ (what
-//! Linearize needs) by −M⁻¹ ∂ID over jets, by forward dynamics over jets and over `Dual`.
+//! Linearize needs) by −M⁻¹ ∂ID analytically and by forward dynamics over dual numbers.
 
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -15,7 +15,7 @@ use graybox::error::{Error, Result};
 use graybox::physics::dynamics::{constants, white_box_acceleration};
 use graybox::physics::multibody::adjoint::{forward_dynamics_adjoint, parameter_gradient};
 use graybox::physics::multibody::{
-    aba, bias, crba, crba_forward, dual_derivatives, fd_over_jets, forward_dynamics,
+    Derivatives, Model, aba, bias, crba, crba_forward, fd_over_dual, forward_dynamics,
     forward_dynamics_derivatives,
 };
 use graybox::physics::urdf::UrdfTemplate;
@@ -139,21 +139,19 @@ pub fn run(a: BenchMultibodyArgs) -> Result<()> {
         let [q, qd, tau] = &states[k];
         black_box(forward_dynamics_derivatives(&model, q, qd, tau));
     });
-    if 2 * n <= 16 {
-        figure("fd_derivatives_fd_over_jets16", n, calls, &mut |k| {
+    // Forward dynamics over dual numbers, the reference the analytic route is checked by.
+    type OverDual = fn(&Model, &[f64], &[f64], &[f64]) -> Derivatives;
+    let over_dual: Option<OverDual> = match 2 * n {
+        0..=16 => Some(fd_over_dual::<16>),
+        17..=64 => Some(fd_over_dual::<64>),
+        _ => None,
+    };
+    if let Some(over_dual) = over_dual {
+        figure("fd_derivatives_fd_over_dual", n, calls, &mut |k| {
             let [q, qd, tau] = &states[k];
-            black_box(fd_over_jets::<16>(&model, q, qd, tau));
+            black_box(over_dual(&model, q, qd, tau));
         });
     }
-    figure(
-        "fd_derivatives_fd_over_dual",
-        n,
-        calls.div_ceil(10),
-        &mut |k| {
-            let [q, qd, tau] = &states[k];
-            black_box(dual_derivatives(&model, q, qd, tau));
-        },
-    );
     // A training step's backward pass per state and integrator stage (ḡ = τ's values: any
     // vector does).
     figure("fd_adjoint_q_qd_tau_pi", n, calls, &mut |k| {

@@ -18,15 +18,20 @@ pub struct DynamicsService {
     pub app: App,
 }
 
-/// How long before the caller's deadline the service gives up. tonic's own timeout layer
-/// answers a bare CANCELLED ("Timeout expired") at the deadline, racing the caller's
-/// DEADLINE_EXCEEDED; stopping a little earlier sends the service's DEADLINE_EXCEEDED, with
-/// its message, first. 10 ms covers tokio's 1 ms timer resolution and the handler starting
-/// after the layer's clock did.
-const DEADLINE_MARGIN: Duration = Duration::from_millis(10);
+/// How long before the caller's deadline the service gives up: a twentieth of the time the
+/// caller allows, between 10 ms and 100 ms. tonic's timeout layers (the server's, and the
+/// caller's own channel, whose clock started before the request left) answer a bare
+/// CANCELLED ("Timeout expired") at the deadline; stopping earlier sends the service's
+/// DEADLINE_EXCEEDED, with its message, first. 10 ms covers tokio's 1 ms timer resolution and
+/// the handler starting after the layer's clock did; on a loaded machine the answer's way
+/// back to the caller takes longer, which the proportional part covers (a 2 s call stops
+/// 100 ms early, a 100 ms call 10 ms early).
+fn deadline_margin(allowed: Duration) -> Duration {
+    (allowed / 20).clamp(Duration::from_millis(10), Duration::from_millis(100))
+}
 
 /// The caller's deadline from the `grpc-timeout` header ("100m", "5S", …), less
-/// [`DEADLINE_MARGIN`].
+/// [`deadline_margin`].
 fn deadline<T>(req: &Request<T>) -> Option<Instant> {
     let v = req.metadata().get("grpc-timeout")?.to_str().ok()?;
     let (num, unit) = v.split_at(v.len().checked_sub(1)?);
@@ -42,7 +47,7 @@ fn deadline<T>(req: &Request<T>) -> Option<Instant> {
         "n" => Duration::from_nanos(n),
         _ => return None,
     };
-    Instant::now().checked_add(d.saturating_sub(DEADLINE_MARGIN))
+    Instant::now().checked_add(d.saturating_sub(deadline_margin(d)))
 }
 
 #[tonic::async_trait]

@@ -4,13 +4,14 @@
 //! dynamics and integrator run on [`Var`].
 
 use std::cell::RefCell;
+use std::ops::Range;
 use std::rc::Rc;
 
 use super::Layout;
 use crate::model::spec::ModelSpec;
 use crate::model::{ModelConfig, names};
 use crate::physics::assembly::{Columns, Networks, Structure, Values};
-use crate::physics::dual::Dual;
+use crate::physics::dual::{Dual, WIDTH, groups};
 use crate::physics::dynamics::acceleration;
 use crate::physics::multibody;
 use crate::physics::scalar::Scalar;
@@ -26,21 +27,24 @@ struct Recorded {
     physical: Option<Vec<Var>>,
 }
 
-/// The networks' outputs for the block.
+/// The networks' outputs for the block; M's and V's with their q-tangents, per group of
+/// directions (`dual::groups`).
 struct TapeNets {
-    mass: Option<Vec<Dual<Var>>>,
-    potential: Option<Dual<Var>>,
+    mass: Option<Vec<Vec<Dual<Var>>>>,
+    potential: Option<Vec<Dual<Var>>>,
     force: Option<Vec<Dual<Var>>>,
     damping: Option<Vec<Dual<Var>>>,
 }
 
 impl Networks<Var> for TapeNets {
-    fn mass(&self, j: usize) -> Dual<Var> {
-        self.mass.as_ref().expect("mass outputs")[j].clone()
+    fn mass(&self, j: usize, dirs: Range<usize>) -> Dual<Var> {
+        self.mass.as_ref().expect("mass outputs")[dirs.start / WIDTH][j].clone()
     }
     fn potential_grad(&self, k: usize) -> Var {
-        let v = self.potential.as_ref().expect("potential outputs");
-        v.tangent(k).cloned().unwrap_or_else(|| v.v.lift(0.0))
+        let v = &self.potential.as_ref().expect("potential outputs")[k / WIDTH];
+        v.tangent(k % WIDTH)
+            .cloned()
+            .unwrap_or_else(|| v.v.lift(0.0))
     }
     fn force(&self, j: usize) -> Var {
         self.force.as_ref().expect("force outputs")[j].v.clone()
@@ -124,14 +128,18 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
             .collect();
     };
     let n = config.n;
-    let q_in = sc.q_features(q, angles, true);
+    // M's and V's networks read q with its ∂/∂q, a group of directions at a time.
+    let q_in: Vec<_> =
+        (groups(n).map(|dirs| (dirs.len(), sc.q_features(q, angles, dirs)))).collect();
+    let of_q = |name: &str| -> Option<Vec<Vec<Dual<Var>>>> {
+        (q_in.iter().map(|(dirs, x)| net(name, x, *dirs))).collect()
+    };
     let nets = TapeNets {
-        mass: net(names::MASS_NET, &q_in, n),
-        potential: net(names::POTENTIAL_NET, &q_in, n).map(|mut v| v.remove(0)),
-        force: net(names::FORCE_NET, &full(), 0).or_else(|| {
-            let plain: Vec<Dual<Var>> = (sc.q_features(q, angles, false).into_iter()).collect();
-            net(names::B_NET, &plain, 0)
-        }),
+        mass: of_q(names::MASS_NET),
+        potential: of_q(names::POTENTIAL_NET)
+            .map(|groups| groups.into_iter().map(|mut v| v.remove(0)).collect()),
+        force: net(names::FORCE_NET, &full(), 0)
+            .or_else(|| net(names::B_NET, &sc.q_features(q, angles, 0..0), 0)),
         // [q, q̇]: the full input without u's last m entries.
         damping: layout.net(names::DAMPING_NET).map(|_| {
             let mut x = full();
@@ -166,5 +174,5 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
         return forward_dynamics(robot, q, qd, &tau, &pi);
     }
     let t = structure.terms(&nets, &inputs);
-    acceleration(&t.l, t.grad_v, t.forces, qd)
+    acceleration(&t.factor, t.grad_v, t.forces, qd)
 }

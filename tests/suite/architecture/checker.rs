@@ -92,7 +92,7 @@ fn multibody_may_not_import_a_producer_or_the_assembly() {
     .unwrap();
     std::fs::write(
         dir.path().join("physics/multibody/spatial/raw.rs"),
-        "use super::super::super::templates::Template;\nuse super::super::jet::Jet;\n",
+        "use super::super::super::templates::Template;\nuse super::super::data::Data;\n",
     )
     .unwrap();
     let v = violations(dir.path());

@@ -8,7 +8,7 @@ use graybox::physics::multibody::{self, forward_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
-use super::{err, gravity, jet_id_partials, models, random, random_state};
+use super::{dual_id_partials, err, gravity, models, random, random_state};
 
 /// Aᵀλ for the rows of A.
 fn transposed_times(a: &[Vec<f64>], l: &[f64]) -> Vec<f64> {
@@ -102,7 +102,7 @@ fn the_adjoint_is_central_differences() {
     }
 }
 
-/// The adjoint's O(n) pass gives λᵀ∂ID/∂(q, q̇) equal to the partials of RNEA over `Jet<64>`
+/// The adjoint's O(n) pass gives λᵀ∂ID/∂(q, q̇) equal to the partials of RNEA over `Dual<f64, 64>`
 /// (forward mode through the body-frame recursion, an independent route) times λ on every
 /// fixture robot (mimic joints, branches, prismatic fingers), to 1e-9 of max(1, |ref|).
 #[test]
@@ -114,7 +114,7 @@ fn the_reverse_pass_is_the_jets_transposed() {
         for s in 0..3 {
             let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
             let l = random(&mut rng, n, 1.0);
-            let id = jet_id_partials(&model, &q, &qd, &qdd);
+            let id = dual_id_partials(&model, &q, &qd, &qdd);
             let want = transposed_times(&id, &l);
             let (dq, dqd) = id_gradient(&model, &q, &qd, &qdd, &l);
             let got = [dq, dqd].concat();

@@ -1,5 +1,5 @@
 //! The `Data` workspace's root-frame algorithms (docs/robots.md#the-data-workspace): the
-//! analytic derivatives of RNEA against RNEA over jets, ABA against CRBA and Cholesky, on every
+//! analytic derivatives of RNEA against RNEA over dual numbers, ABA against CRBA and Cholesky, on every
 //! fixture robot and the mimic robot; and a workspace reused across robots of different sizes
 //! answers as a fresh one.
 
@@ -13,7 +13,7 @@ fn all_models() -> Vec<(&'static str, multibody::Model)> {
     all
 }
 
-/// ∂ID/∂(q, q̇) from `Data::id_derivatives` equals RNEA over `Jet<64>` (RNEA's passes
+/// ∂ID/∂(q, q̇) from `Data::id_derivatives` equals RNEA over `Dual<f64, 64>` (RNEA's passes
 /// differentiated by forward mode: an independent route to the same partials) at
 /// random states, to 1e-10 of max(1, |ref|): both are exact to rounding, ~1e-14 of the terms
 /// (≤ 1e3 here); a missing or wrong term (gravity's, a mimic multiplier, a branch) is O(1).
@@ -25,7 +25,7 @@ fn analytic_rnea_derivatives_equal_forward_mode() {
         for s in 0..4 {
             let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
             let got = id_partials(&model, &q, &qd, &qdd);
-            let want = jet_id_partials(&model, &q, &qd, &qdd);
+            let want = dual_id_partials(&model, &q, &qd, &qdd);
             assert!(
                 err(&flat(&got), &flat(&want)) < 1e-10,
                 "{name} {s}: {got:?} vs {want:?}"

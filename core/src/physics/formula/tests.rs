@@ -134,7 +134,7 @@ fn dual_derivatives_match_finite_differences() {
                 Symbol::Q(i) => Dual::variable(at[i], i, 2, 1.0),
                 _ => unreachable!(),
             },
-            &Dual::constant(0.0),
+            &Dual::<f64>::constant(0.0),
         );
         assert!((d.v - f(at[0], at[1])).abs() < 1e-14, "{t}");
         // Central differences: error ~ h² f''' ≈ 1e-10 at h = 1e-5; rounding ~ 1e-16/h.

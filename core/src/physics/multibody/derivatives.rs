@@ -6,15 +6,14 @@
 //! with ∂ID/∂q, ∂ID/∂q̇ analytic (`Data::id_derivatives`, docs/robots.md#derivatives-of-rnea)
 //! and one Cholesky factor of CRBA's M for the solves (`Data::fd_tangents`, the one
 //! implicit-function derivative: Linearize's stages call it with the tangents they carry).
-//! `fd_over_jets` and `dual_derivatives` differentiate forward dynamics itself instead, the
-//! references the analytic route is tested and benchmarked against. ∂q̈/∂τ is M⁻¹.
+//! `fd_over_dual` differentiates forward dynamics itself instead, the reference the analytic
+//! route is tested and benchmarked against. ∂q̈/∂τ is M⁻¹.
 
 use super::Model;
 use super::aba::forward_dynamics;
 use super::data::{Data, parent_and_child, with_data};
 use super::spatial::six::{V6, Variation, ZERO6, add, add_scaled, apply, cross, cross_force, dot};
 use crate::physics::dual::Dual;
-use crate::physics::jet::Jet;
 
 /// q̈ with ∂q̈/∂q and ∂q̈/∂q̇ (n×n each, row i is q̈ᵢ's gradient).
 pub type Derivatives = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
@@ -166,24 +165,9 @@ pub fn id_partials(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec
     })
 }
 
-fn dual_state(q: &[f64], qd: &[f64]) -> (Vec<Dual<f64>>, Vec<Dual<f64>>) {
-    let n = q.len();
-    (
-        (0..n)
-            .map(|k| Dual::variable(q[k], k, 2 * n, 1.0))
-            .collect(),
-        (0..n)
-            .map(|k| Dual::variable(qd[k], n + k, 2 * n, 1.0))
-            .collect(),
-    )
-}
-
-fn tangent(x: &Dual<f64>, k: usize) -> f64 {
-    x.tangent(k).copied().unwrap_or(0.0)
-}
-
-/// The same by forward dynamics itself over `Jet<N>` (2n ≤ N).
-pub fn fd_over_jets<const N: usize>(
+/// The same by forward dynamics itself over dual numbers of N directions (2n ≤ N): the
+/// reference the analytic route is tested and benchmarked against.
+pub fn fd_over_dual<const N: usize>(
     model: &Model,
     q: &[f64],
     qd: &[f64],
@@ -191,31 +175,16 @@ pub fn fd_over_jets<const N: usize>(
 ) -> Derivatives {
     let n = q.len();
     assert!(2 * n <= N, "{N} directions for 2n = {}", 2 * n);
-    let qv: Vec<Jet<N>> = (0..n).map(|k| Jet::variable(q[k], k)).collect();
-    let qdv: Vec<Jet<N>> = (0..n).map(|k| Jet::variable(qd[k], n + k)).collect();
-    let tv: Vec<Jet<N>> = tau.iter().map(|&t| Jet::constant(t)).collect();
-    let out = forward_dynamics(model, &qv, &qdv, &tv);
+    let x: Vec<Dual<f64, N>> = Dual::seeded(&[q, qd].concat(), &1.0, 0..2 * n);
+    let (qv, qdv) = x.split_at(n);
+    let tv: Vec<Dual<f64, N>> = tau.iter().map(|&t| Dual::constant(t)).collect();
+    let out = forward_dynamics(model, qv, qdv, &tv);
+    let tangents = |x: &Dual<f64, N>, dirs: std::ops::Range<usize>| -> Vec<f64> {
+        dirs.map(|k| x.tangent(k).copied().unwrap_or(0.0)).collect()
+    };
     (
         out.iter().map(|x| x.v).collect(),
-        out.iter().map(|x| x.d[..n].to_vec()).collect(),
-        out.iter().map(|x| x.d[n..2 * n].to_vec()).collect(),
-    )
-}
-
-/// The same by forward dynamics over `Dual` (sparse optional tangents, on the heap beyond
-/// eight directions).
-pub fn dual_derivatives(model: &Model, q: &[f64], qd: &[f64], tau: &[f64]) -> Derivatives {
-    let n = q.len();
-    let (qv, qdv) = dual_state(q, qd);
-    let tv: Vec<Dual<f64>> = tau.iter().map(|&t| Dual::constant(t)).collect();
-    let out = forward_dynamics(model, &qv, &qdv, &tv);
-    (
-        out.iter().map(|x| x.v).collect(),
-        out.iter()
-            .map(|x| (0..n).map(|k| tangent(x, k)).collect())
-            .collect(),
-        out.iter()
-            .map(|x| (0..n).map(|k| tangent(x, n + k)).collect())
-            .collect(),
+        out.iter().map(|x| tangents(x, 0..n)).collect(),
+        out.iter().map(|x| tangents(x, n..2 * n)).collect(),
     )
 }

@@ -29,9 +29,7 @@ pub mod spatial;
 
 pub use aba::{aba, crba_forward, forward_dynamics};
 pub use data::{Data, with_data};
-pub use derivatives::{
-    Derivatives, dual_derivatives, fd_over_jets, forward_dynamics_derivatives, id_partials,
-};
+pub use derivatives::{Derivatives, fd_over_dual, forward_dynamics_derivatives, id_partials};
 pub use energy::{kinetic_energy, potential_energy, potential_energy_of};
 pub use joint::{Drive, JointModel, Placement};
 pub use rnea::{bias, coriolis, crba, crba_with, gravity_torques, inverse_dynamics};
