@@ -4,7 +4,7 @@
 //! algorithms written here, with forward kinematics of its own, so that it shares nothing with
 //! them but the reader's tree.
 
-use graybox::physics::dual::Dual;
+use graybox::physics::dual::{Dual, Jet};
 use graybox::physics::multibody::Inertial;
 use graybox::physics::multibody::spatial::body_inertia;
 use graybox::physics::scalar::Scalar;
@@ -46,7 +46,7 @@ pub fn floats(v: &Value) -> Vec<f64> {
 }
 
 /// A dual number wide enough for every fixture robot's q at once.
-pub type Wide = Dual<f64, 64>;
+pub type Wide = Jet<64>;
 
 /// M, g = ∂V/∂q and C q̇ (from ∂M/∂q: Σⱼₖ (∂ₖMᵢⱼ − ½ ∂ᵢMⱼₖ) q̇ⱼ q̇ₖ) at (q, q̇) of a robot's M
 /// and V over dual numbers in q.

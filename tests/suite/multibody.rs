@@ -7,7 +7,7 @@
 
 use std::f64::consts::PI;
 
-use graybox::physics::dual::Dual;
+use graybox::physics::dual::{Dual, Jet};
 use graybox::physics::multibody::Inertial;
 use graybox::physics::multibody::{
     self, aba, bias, coriolis, crba, crba_forward, fd_over_dual, forward_dynamics,
@@ -120,14 +120,14 @@ fn models() -> impl Iterator<Item = (&'static str, multibody::Model)> {
     })
 }
 
-/// ∂ID/∂(q, q̇) by RNEA over `Dual<f64, 64>` (forward mode through the body-frame
+/// ∂ID/∂(q, q̇) by RNEA over `Jet<64>` (forward mode through the body-frame
 /// recursion): the independent reference for the analytic partials and the adjoint. Row i
 /// is τᵢ's.
 fn dual_id_partials(model: &multibody::Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
     let n = q.len();
     assert!(2 * n <= 64, "{n} coordinates");
-    let x: Vec<Dual<f64, 64>> = Dual::seeded(&[q, qd].concat(), &1.0, 0..2 * n);
-    let qddv: Vec<Dual<f64, 64>> = qdd.iter().map(|&a| Dual::constant(a)).collect();
+    let x: Vec<Jet<64>> = Dual::seeded(&[q, qd].concat(), &1.0, 0..2 * n);
+    let qddv: Vec<Jet<64>> = qdd.iter().map(|&a| Dual::constant(a)).collect();
     (inverse_dynamics(model, &x[..n], &x[n..], &qddv).iter())
         .map(|t| {
             (0..2 * n)
@@ -179,7 +179,7 @@ fn energies_equal_pinocchio() {
             let v_ref = st["V"].as_f64().unwrap();
             assert!(err(&[v], &[v_ref]) < 1e-9, "{name} {s}: V {v} vs {v_ref}");
             if q.len() <= 16 {
-                let qj: Vec<Dual<f64, 16>> = Dual::seeded(&q, &1.0, 0..q.len());
+                let qj: Vec<Jet<16>> = Dual::seeded(&q, &1.0, 0..q.len());
                 let v = potential_energy(&model, &qj);
                 let dv: Vec<f64> = (0..q.len())
                     .map(|k| v.tangent(k).copied().unwrap_or(0.0))
@@ -293,8 +293,8 @@ fn dual_derivatives_of_forward_dynamics_are_finite_differences() {
             }
             if !model.mimic {
                 let n2 = 2 * n;
-                let x: Vec<Dual<f64, 64>> = Dual::seeded(&[&q[..], &qd[..]].concat(), &1.0, 0..n2);
-                let tv: Vec<Dual<f64, 64>> = tau.iter().map(|&t| Dual::constant(t)).collect();
+                let x: Vec<Jet<64>> = Dual::seeded(&[&q[..], &qd[..]].concat(), &1.0, 0..n2);
+                let tv: Vec<Jet<64>> = tau.iter().map(|&t| Dual::constant(t)).collect();
                 let via_crba = crba_forward(&model, &x[..n], &x[n..], &tv);
                 for (i, x) in via_crba.iter().enumerate() {
                     let t: Vec<f64> = (0..n2)

@@ -12,7 +12,7 @@ use graybox::data::Dataset;
 use graybox::infer::Evaluator;
 use graybox::model::file::ModelFile;
 use graybox::model::spec::ModelSpec;
-use graybox::physics::dual::Dual;
+use graybox::physics::dual::{Dual, Jet};
 use graybox::physics::integrator::Integrator;
 use graybox::physics::multibody::Inertial;
 use graybox::physics::scalar::Scalar;
@@ -493,8 +493,8 @@ fn balanced_data(t: &Template, truth: &[f64], count: usize, seed: u64) -> Datase
 fn mass_and_gravity(t: &Template, values: &[f64], q: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let n = q.len();
     let m: Vec<f64> = t.mass(values, q).into_iter().flatten().collect();
-    let qv: Vec<Dual<f64, 64>> = Dual::seeded(q, &1.0, 0..n);
-    let p: Vec<Dual<f64, 64>> = values.iter().map(|&v| qv[0].lift(v)).collect();
+    let qv: Vec<Jet<64>> = Dual::seeded(q, &1.0, 0..n);
+    let p: Vec<Jet<64>> = values.iter().map(|&v| qv[0].lift(v)).collect();
     let v = t.potential(&p, &qv);
     let g = (0..n)
         .map(|k| v.tangent(k).copied().unwrap_or(0.0))

@@ -11,7 +11,7 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use super::activations::Activations;
-use crate::physics::dual::Dual;
+use crate::physics::dual::{Dual, Tangents};
 use crate::physics::scalar::Scalar;
 
 /// One coordinate of every sample in a batch.
@@ -191,18 +191,18 @@ impl<C: Column> Lanes for C {
     }
 }
 
-impl<C: Column, const N: usize> Lanes for Dual<C, N> {
+impl<C: Column, T: Tangents<C>> Lanes for Dual<C, T> {
     fn rows(&self) -> usize {
         self.v.rows()
     }
     fn dirs(&self) -> usize {
-        self.d.len()
+        Dual::dirs(self)
     }
     fn write(&self, jet: &mut Activations, i: usize, j: usize) {
         self.v.write_block(jet, 0, i, j);
         // A missing tangent is zero, which the fresh jet already holds.
-        for (o, t) in self.d.iter().enumerate() {
-            if let Some(t) = t {
+        for o in 0..Dual::dirs(self) {
+            if let Some(t) = self.tangent(o) {
                 t.write_block(jet, o + 1, i, j);
             }
         }

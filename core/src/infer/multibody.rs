@@ -4,8 +4,8 @@
 //! from the assembly (forces, residual networks, a potential that is not the template's).
 //! O(n) per state where the template's M(q) and V(q) over dual numbers grow steeply with n.
 //!
-//! A step's Jacobian runs the integrator on dual numbers of a fixed width over (x, u) (all
-//! its directions at once, so each stage's partials are computed once) and takes each stage's
+//! A step's Jacobian runs the integrator on dense dual numbers (`Jet`) over (x, u) (all its
+//! directions at once, so each stage's partials are computed once) and takes each stage's
 //! q̈ with its derivatives by the implicit function theorem (Carpentier & Mansard, RSS 2018):
 //! ID(q, q̇, q̈) = τ(q, q̇, u) gives ∂q̈/∂z = M⁻¹ (∂τ/∂z − ∂ID/∂z) at q̈ = FD(q, q̇, τ), with
 //! ∂ID/∂(q, q̇) from RNEA's analytic derivatives and ∂τ/∂z from the assembly over dual numbers.
@@ -13,7 +13,7 @@
 use super::Evaluator;
 use super::weights::Weights;
 use crate::model::ModelConfig;
-use crate::physics::dual::Dual;
+use crate::physics::dual::{Dual, Jet};
 use crate::physics::multibody::{Model as Robot, with_data};
 use crate::physics::templates::Template;
 
@@ -92,20 +92,18 @@ impl Evaluator {
 
     fn step_jacobian<const N: usize>(&self, model: &Robot, x: &[f64], u: &[f64]) -> Vec<f64> {
         let (n, nx, dirs) = (self.config.n, x.len(), x.len() + u.len());
-        let xu: Vec<Dual<f64, N>> = Dual::seeded(&[x, u].concat(), &1.0, 0..dirs);
+        let xu: Vec<Jet<N>> = Dual::seeded(&[x, u].concat(), &1.0, 0..dirs);
         let (xj, uj) = xu.split_at(nx);
-        let y =
-            self.config
-                .integrator
-                .step(&xj.to_vec(), self.config.dt, |x: &Vec<Dual<f64, N>>| {
-                    let (q, qd) = x.split_at(n);
-                    let mut dx = qd.to_vec();
-                    dx.extend(self.stage(model, q, qd, uj));
-                    dx
-                });
-        y.iter()
-            .flat_map(|y| (0..dirs).map(|k| y.tangent(k).copied().unwrap_or(0.0)))
-            .collect()
+        let y = self
+            .config
+            .integrator
+            .step(&xj.to_vec(), self.config.dt, |x: &Vec<Jet<N>>| {
+                let (q, qd) = x.split_at(n);
+                let mut dx = qd.to_vec();
+                dx.extend(self.stage(model, q, qd, uj));
+                dx
+            });
+        y.iter().flat_map(|y| y.dense()[..dirs].to_vec()).collect()
     }
 
     /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u): the
@@ -113,28 +111,24 @@ impl Evaluator {
     fn stage<const N: usize>(
         &self,
         model: &Robot,
-        q: &[Dual<f64, N>],
-        qd: &[Dual<f64, N>],
-        u: &[Dual<f64, N>],
-    ) -> Vec<Dual<f64, N>> {
-        let value = |x: &[Dual<f64, N>]| x.iter().map(|j| j.v).collect::<Vec<f64>>();
+        q: &[Jet<N>],
+        qd: &[Jet<N>],
+        u: &[Jet<N>],
+    ) -> Vec<Jet<N>> {
+        let value = |x: &[Jet<N>]| x.iter().map(|j| j.v).collect::<Vec<f64>>();
         let (qv, qdv) = (value(q), value(qd));
         let n = qv.len();
         // τ over the stage's own dual numbers carries its tangents in the step's directions.
         let tau = self.torques(q, qd, u);
         let tau_v = value(&tau);
-        let tangents = |x: &[Dual<f64, N>]| {
-            (x.iter())
-                .flat_map(|j| (0..N).map(|k| j.tangent(k).copied().unwrap_or(0.0)))
-                .collect::<Vec<f64>>()
-        };
+        let tangents = |x: &[Jet<N>]| x.iter().flat_map(|j| *j.dense()).collect::<Vec<f64>>();
         let (dq, dqd, dtau) = (tangents(q), tangents(qd), tangents(&tau));
         with_data(|data| {
             data.fd_partials(model, &qv, &qdv, &tau_v);
             let mut out = vec![0.0; n * N];
             data.fd_tangents(&dq, &dqd, &dtau, N, &mut out);
             (data.qdd.iter().zip(out.chunks_exact(N)))
-                .map(|(&v, d)| Dual::new(v, d.iter().map(|&t| Some(t))))
+                .map(|(&v, d)| Jet::from_dense(v, d.try_into().expect("N tangents")))
                 .collect()
         })
     }

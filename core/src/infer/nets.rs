@@ -111,8 +111,8 @@ pub(super) fn periodic_q_jet<C: Lanes>(
     }
     for dirs in groups(if inner { n } else { 0 }) {
         for (j, f) in sc.q_features(q, angles, dirs.clone()).iter().enumerate() {
-            for (k, t) in f.d.iter().enumerate() {
-                if let Some(t) = t {
+            for k in 0..f.dirs() {
+                if let Some(t) = f.tangent(k) {
                     t.write(&mut jet, dirs.start + k + 1, j);
                 }
             }

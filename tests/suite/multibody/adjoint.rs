@@ -102,7 +102,7 @@ fn the_adjoint_is_central_differences() {
     }
 }
 
-/// The adjoint's O(n) pass gives λᵀ∂ID/∂(q, q̇) equal to the partials of RNEA over `Dual<f64, 64>`
+/// The adjoint's O(n) pass gives λᵀ∂ID/∂(q, q̇) equal to the partials of RNEA over `Jet<64>`
 /// (forward mode through the body-frame recursion, an independent route) times λ on every
 /// fixture robot (mimic joints, branches, prismatic fingers), to 1e-9 of max(1, |ref|).
 #[test]

@@ -13,7 +13,7 @@ fn all_models() -> Vec<(&'static str, multibody::Model)> {
     all
 }
 
-/// ∂ID/∂(q, q̇) from `Data::id_derivatives` equals RNEA over `Dual<f64, 64>` (RNEA's passes
+/// ∂ID/∂(q, q̇) from `Data::id_derivatives` equals RNEA over `Jet<64>` (RNEA's passes
 /// differentiated by forward mode: an independent route to the same partials) at
 /// random states, to 1e-10 of max(1, |ref|): both are exact to rounding, ~1e-14 of the terms
 /// (≤ 1e3 here); a missing or wrong term (gravity's, a mimic multiplier, a branch) is O(1).

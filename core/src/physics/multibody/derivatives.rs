@@ -13,7 +13,7 @@ use super::Model;
 use super::aba::forward_dynamics;
 use super::data::{Data, parent_and_child, with_data};
 use super::spatial::six::{V6, Variation, ZERO6, add, add_scaled, apply, cross, cross_force, dot};
-use crate::physics::dual::Dual;
+use crate::physics::dual::{Dual, Jet};
 
 /// q̈ with ∂q̈/∂q and ∂q̈/∂q̇ (n×n each, row i is q̈ᵢ's gradient).
 pub type Derivatives = (Vec<f64>, Vec<Vec<f64>>, Vec<Vec<f64>>);
@@ -165,7 +165,7 @@ pub fn id_partials(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec
     })
 }
 
-/// The same by forward dynamics itself over dual numbers of N directions (2n ≤ N): the
+/// The same by forward dynamics itself over dense dual numbers of N directions (2n ≤ N): the
 /// reference the analytic route is tested and benchmarked against.
 pub fn fd_over_dual<const N: usize>(
     model: &Model,
@@ -175,13 +175,11 @@ pub fn fd_over_dual<const N: usize>(
 ) -> Derivatives {
     let n = q.len();
     assert!(2 * n <= N, "{N} directions for 2n = {}", 2 * n);
-    let x: Vec<Dual<f64, N>> = Dual::seeded(&[q, qd].concat(), &1.0, 0..2 * n);
+    let x: Vec<Jet<N>> = Dual::seeded(&[q, qd].concat(), &1.0, 0..2 * n);
     let (qv, qdv) = x.split_at(n);
-    let tv: Vec<Dual<f64, N>> = tau.iter().map(|&t| Dual::constant(t)).collect();
+    let tv: Vec<Jet<N>> = tau.iter().map(|&t| Dual::constant(t)).collect();
     let out = forward_dynamics(model, qv, qdv, &tv);
-    let tangents = |x: &Dual<f64, N>, dirs: std::ops::Range<usize>| -> Vec<f64> {
-        dirs.map(|k| x.tangent(k).copied().unwrap_or(0.0)).collect()
-    };
+    let tangents = |x: &Jet<N>, dirs: std::ops::Range<usize>| x.dense()[dirs].to_vec();
     (
         out.iter().map(|x| x.v).collect(),
         out.iter().map(|x| tangents(x, 0..n)).collect(),

@@ -146,8 +146,8 @@ fn a_network_with_input_tangents_against_finite_differences() {
             .flat_map(|o| {
                 [
                     o.v.clone(),
-                    o.d[0].clone().unwrap(),
-                    o.d[1].clone().unwrap(),
+                    o.tangent(0).cloned().unwrap(),
+                    o.tangent(1).cloned().unwrap(),
                 ]
             })
             .collect()
