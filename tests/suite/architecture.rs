@@ -243,6 +243,27 @@ fn violations_in(src: &Path, label: &str) -> Vec<String> {
     out
 }
 
+/// Every Rust source of the workspace's members (`root` the workspace), as (path relative
+/// to `root`, text).
+fn workspace_sources(root: &Path) -> Vec<(String, String)> {
+    let mut files = vec![];
+    for dir in [
+        "core/src",
+        "src",
+        "capi/src",
+        "lab/src",
+        "clients/native/src",
+    ] {
+        collect(&root.join(dir), &mut files);
+    }
+    (files.into_iter())
+        .map(|f| {
+            let rel = f.strip_prefix(root).unwrap().to_string_lossy().into_owned();
+            (rel, std::fs::read_to_string(&f).unwrap())
+        })
+        .collect()
+}
+
 fn collect(dir: &Path, out: &mut Vec<PathBuf>) {
     let mut entries: Vec<_> = std::fs::read_dir(dir)
         .unwrap()

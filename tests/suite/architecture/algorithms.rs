@@ -8,7 +8,7 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use super::collect;
+use super::workspace_sources;
 
 const MULTIBODY: &str = "core/src/physics/multibody/";
 
@@ -89,20 +89,8 @@ fn walks_the_tree(body: &str) -> bool {
 
 /// `file: function` for every tree walk under the workspace's source directories.
 fn tree_walks(root: &Path) -> BTreeSet<(String, String)> {
-    let mut files = vec![];
-    for dir in [
-        "core/src",
-        "src",
-        "capi/src",
-        "lab/src",
-        "clients/native/src",
-    ] {
-        collect(&root.join(dir), &mut files);
-    }
     let mut walks = BTreeSet::new();
-    for f in files {
-        let rel = f.strip_prefix(root).unwrap().to_string_lossy().into_owned();
-        let text = std::fs::read_to_string(&f).unwrap();
+    for (rel, text) in workspace_sources(root) {
         for (name, body) in functions(&text) {
             if walks_the_tree(&body) {
                 walks.insert((rel.clone(), name));

@@ -5,7 +5,7 @@
 use std::collections::BTreeSet;
 use std::path::Path;
 
-use super::collect;
+use super::workspace_sources;
 
 /// The most number types the mechanics are written for.
 const MOST: usize = 4;
@@ -26,20 +26,8 @@ fn listed(architecture: &str) -> BTreeSet<String> {
 
 /// `file:line` of every `impl … Scalar for` in the workspace's sources.
 fn implementations(root: &Path) -> Vec<(String, usize)> {
-    let mut files = vec![];
-    for dir in [
-        "core/src",
-        "src",
-        "capi/src",
-        "lab/src",
-        "clients/native/src",
-    ] {
-        collect(&root.join(dir), &mut files);
-    }
     let mut out = vec![];
-    for f in files {
-        let rel = f.strip_prefix(root).unwrap().to_string_lossy().into_owned();
-        let text = std::fs::read_to_string(&f).unwrap();
+    for (rel, text) in workspace_sources(root) {
         for (i, line) in text.lines().enumerate() {
             let code = line.split("//").next().unwrap_or("").trim_start();
             if code.starts_with("impl") && code.contains(" Scalar for ") {
