@@ -11,7 +11,7 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use super::activations::Activations;
-use crate::physics::dual::{Dual, Tangents};
+use crate::physics::dual::{Dense, Dual, Sparse, Tangents, WIDTH};
 use crate::physics::scalar::Scalar;
 
 /// One coordinate of every sample in a batch.
@@ -113,6 +113,12 @@ impl Scalar for Col {
 
 /// A plain batch coordinate: `f64` (a batch of one) or [`Col`].
 pub trait Column: Scalar {
+    /// How a dual number over this column keeps the outer (linearization) directions'
+    /// tangents: dense for one state, where within a step every value soon depends on every
+    /// direction (an MVF's Linearize on the UR5: 2.2× faster than sparse ones, whose
+    /// per-operation copies of unused slots dominated), sparse for a batch's columns, where
+    /// a missing tangent saves a whole column's arithmetic.
+    type Tangents: Tangents<Self>;
     fn rows(&self) -> usize;
     /// Sample b's value.
     fn get(&self, b: usize) -> f64;
@@ -125,6 +131,7 @@ pub trait Column: Scalar {
 }
 
 impl Column for f64 {
+    type Tangents = Dense<WIDTH>;
     fn rows(&self) -> usize {
         1
     }
@@ -144,6 +151,7 @@ impl Column for f64 {
 }
 
 impl Column for Col {
+    type Tangents = Sparse<Col, WIDTH>;
     fn rows(&self) -> usize {
         self.0.len()
     }

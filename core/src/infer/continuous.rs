@@ -10,7 +10,7 @@ use super::limits::Pass;
 use super::{columns, to_rows};
 use crate::control::dircol::Continuous;
 use crate::control::linalg::Mat;
-use crate::physics::dual::{Dual, groups};
+use crate::physics::dual::{Dual, Tangents, groups_of};
 
 impl Evaluator {
     /// f at each row of `[B, 2n]` states and `[B, m]` inputs: q̇, then q̈.
@@ -41,13 +41,13 @@ impl Evaluator {
 pub(super) fn dual_rows<C: Column>(
     x: Vec<C>,
     u: Vec<C>,
-    f: impl Fn(&[Dual<C>], &[Dual<C>]) -> Vec<Dual<C>>,
+    f: impl Fn(&[Dual<C, C::Tangents>], &[Dual<C, C::Tangents>]) -> Vec<Dual<C, C::Tangents>>,
 ) -> Vec<f64> {
     let (nx, rows) = (x.len(), x[0].rows());
     let xu: Vec<C> = x.into_iter().chain(u).collect();
     let (dirs, one) = (xu.len(), xu[0].lift(1.0));
     let mut out: Vec<f64> = vec![];
-    for group in groups(dirs) {
+    for group in groups_of(dirs, C::Tangents::WIDTH) {
         let seeded = Dual::seeded(&xu, &one, group.clone());
         let y = f(&seeded[..nx], &seeded[nx..]);
         if out.is_empty() {

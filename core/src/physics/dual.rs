@@ -10,7 +10,8 @@
 //!   (parameters and constants carry no tangent at all) or a batch column;
 //! - [`Dense`] ([`Jet`]): N plain f64 tangents, each operation one loop over them that the
 //!   compiler vectorises, for recursions where every value soon depends on every direction
-//!   (a robot's step Jacobian over its 2n + m directions: 15× faster than sparse ones there).
+//!   (a robot's step Jacobian over its 2n + m directions: 15× faster than sparse ones there;
+//!   any one state's Linearize, `infer::col::Column::Tangents`).
 
 use super::scalar::Scalar;
 use std::ops::{Add, Div, Mul, Neg, Range, Sub};
@@ -19,6 +20,8 @@ use arrayvec::ArrayVec;
 
 /// Where a dual number keeps its tangents: the operations its rules are written with.
 pub trait Tangents<S>: Clone + 'static {
+    /// The most directions it holds.
+    const WIDTH: usize;
     /// No tangent: a constant.
     fn none() -> Self;
     /// Tangents of directions 0, 1, … in order; `None` is a zero.
@@ -42,6 +45,7 @@ pub trait Tangents<S>: Clone + 'static {
 pub struct Sparse<S, const N: usize>(ArrayVec<Option<S>, N>);
 
 impl<S: Clone + 'static, const N: usize> Tangents<S> for Sparse<S, N> {
+    const WIDTH: usize = N;
     fn none() -> Self {
         Self(ArrayVec::new())
     }
@@ -79,6 +83,7 @@ impl<S: Clone + 'static, const N: usize> Tangents<S> for Sparse<S, N> {
 pub struct Dense<const N: usize>([f64; N]);
 
 impl<const N: usize> Tangents<f64> for Dense<N> {
+    const WIDTH: usize = N;
     fn none() -> Self {
         Self([0.0; N])
     }
@@ -121,7 +126,12 @@ pub const WIDTH: usize = 8;
 
 /// The directions 0..n in groups of at most [`WIDTH`].
 pub fn groups(n: usize) -> impl Iterator<Item = Range<usize>> + Clone {
-    (0..n).step_by(WIDTH).map(move |s| s..(s + WIDTH).min(n))
+    groups_of(n, WIDTH)
+}
+
+/// The directions 0..n in groups of at most `width`.
+pub fn groups_of(n: usize, width: usize) -> impl Iterator<Item = Range<usize>> + Clone {
+    (0..n).step_by(width).map(move |s| s..(s + width).min(n))
 }
 
 /// A value with its tangents, kept as `T` says: [`WIDTH`] sparse ones unless named otherwise.
