@@ -28,7 +28,7 @@ pub mod worker;
 
 // The inference core's modules, under the paths the service has always used for them.
 pub use graybox_core::{
-    array, control, data, error, infer, linalg, names, physics, rng, sim, simd,
+    arena, array, control, data, error, infer, linalg, names, physics, rng, sim, simd,
 };
 
 pub use error::{Error, Result};

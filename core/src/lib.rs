@@ -10,6 +10,7 @@
 //! system). Training (in the service) records the same mechanics on the tape of
 //! `physics::tape`; the core links no Burn.
 
+pub mod arena;
 pub mod array;
 pub mod control;
 pub mod data;

@@ -8,6 +8,7 @@ pub use trajectories::{
     double_pendulum_trajectories, simulate_trajectories,
 };
 
+use crate::arena::Arena;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::physics::dynamics::{constants, white_box_acceleration};
@@ -71,12 +72,14 @@ impl TemplateSystem {
         }
         let p = constants(&self.params);
         white_box_acceleration(
+            &Arena::new(),
             |q| self.template.mass(&p, q),
             |q| self.template.potential(&p, q),
-            tau,
+            &tau,
             q,
             qd,
         )
+        .to_vec()
     }
 
     /// Kinetic and potential energy (T, V).

@@ -10,6 +10,7 @@ mod multibody;
 use burn::module::Module;
 use burn::tensor::{Device, Tensor};
 use common::*;
+use graybox::arena::Arena;
 use graybox::backend::{Backend, Precision, device};
 use graybox::infer::Evaluator;
 use graybox::model::Model;
@@ -59,8 +60,10 @@ fn model_input_jacobians_match_finite_differences() {
         let model = Model::init(config(spec.clone(), n, m), None, 5, &dev).unwrap();
         let eval = evaluator(&perturb(&model, &dev));
         let (q, qd, u) = paper_samples(n, m, 5, 3);
+        let arena = Arena::new();
         for b in 0..q.len() {
-            let terms = |q: &[f64]| eval.terms(q, &qd[b], &u[b]).expect("a structured model");
+            let terms =
+                |q: &[f64]| (eval.terms(&arena, q, &qd[b], &u[b])).expect("a structured model");
             let v = |q: &[f64]| {
                 let x = [q, &qd[b]].concat();
                 let e = eval.energy_until(&x, &u[b], &|| false).unwrap();
@@ -149,8 +152,10 @@ fn learned_mass_coriolis_matches_christoffel_definition() {
     for n in [2, 3, 10] {
         let eval = evaluator(&perturb(&model("MVF", None, n, 2, 4, &dev), &dev));
         let (q, qd, u) = paper_samples(n, 2, 4, 8);
+        let arena = Arena::new();
         for b in 0..q.len() {
-            let terms = |q: &[f64]| eval.terms(q, &qd[b], &u[b]).expect("a structured model");
+            let terms =
+                |q: &[f64]| (eval.terms(&arena, q, &qd[b], &u[b])).expect("a structured model");
             let mass_at = |q: &[f64]| -> Vec<Vec<f64>> {
                 let l = terms(q).factor.l;
                 let lij = |i: usize, j: usize| {

@@ -27,9 +27,16 @@ fn may_import(layer: &str, dep: &str) -> bool {
     match layer {
         // The mechanics stand on these alone: no Burn (`backend`, and the `burn` crate, checked
         // by `the_core_is_free_of_burn`), no dataset, no record; `simd`'s kernels are plain
-        // math on slices (the tape's tanh). `linalg`, written over their numbers, stands beside.
-        "physics" => ["error", "rng", "names", "simd", "linalg", "physics"].contains(&dep),
-        "linalg" => ["error", "rng", "names", "simd", "physics", "linalg"].contains(&dep),
+        // math on slices (the tape's tanh); `arena` the per-call scratch their vectors live in.
+        // `linalg`, written over their numbers, stands beside.
+        "physics" => [
+            "error", "rng", "names", "simd", "arena", "linalg", "physics",
+        ]
+        .contains(&dep),
+        "linalg" => [
+            "error", "rng", "names", "simd", "arena", "physics", "linalg",
+        ]
+        .contains(&dep),
         _ => !forbidden(layer).contains(&dep),
     }
 }
@@ -43,8 +50,8 @@ fn forbidden(layer: &str) -> &'static [&'static str] {
         "cli", "service",
     ];
     match layer {
-        "error" | "rng" | "backoff" | "pem" | "names" | "array" | "backend" | "simd" | "data"
-        | "records" => ABOVE_GROUND,
+        "error" | "rng" | "backoff" | "pem" | "names" | "arena" | "array" | "backend" | "simd"
+        | "data" | "records" => ABOVE_GROUND,
         "model" | "infer" | "control" | "sim" => {
             &["train", "app", "store", "worker", "api", "cli", "service"]
         }

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
+use graybox::arena::Arena;
 use graybox::backend::{Backend, Precision};
 use graybox::error::Error;
 use graybox::infer::Evaluator;
@@ -81,12 +82,14 @@ fn builtin_values(f: &FormulaTemplate, t: &Template) -> Vec<f64> {
 fn accel(f: &FormulaTemplate, p: &[f64], q: &[f64], qd: &[f64], u: &[f64]) -> Vec<f64> {
     let pd = constants(p);
     white_box_acceleration(
+        &Arena::new(),
         |q| f.mass(&pd, q),
         |q| f.potential(&pd, q),
-        f.forces(p, q, qd, u),
+        &f.forces(p, q, qd, u),
         q,
         qd,
     )
+    .to_vec()
 }
 
 /// Relative agreement to 1e-12: the same arithmetic in a different order rounds differently

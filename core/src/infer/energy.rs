@@ -158,15 +158,15 @@ fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> R
     let applied = sum_parts(&parts, s.n);
     let t = s.terms(nets, x);
     let l = &t.factor.l;
-    let gravity = t.grad_v.clone().unwrap_or_else(|| vec![0.0; s.n]);
-    let qdd = acceleration(&t.factor, t.grad_v, applied, x.qd);
+    let gravity = (t.grad_v.as_deref()).map_or_else(|| vec![0.0; s.n], <[f64]>::to_vec);
+    let qdd = acceleration(&t.factor, t.grad_v.as_deref(), &applied, x.qd);
     let w = tri_t_mul(l, x.qd);
     Row {
         power: 0.0,
         kinetic: 0.5 * w.iter().map(|v| v * v).sum::<f64>(),
         potential: s.potential_value(nets, x, true),
         inertial: lower_mul(l, &tri_t_mul(l, &qdd)),
-        coriolis: coriolis(&t.factor, x.qd),
+        coriolis: coriolis(&t.factor, x.qd).to_vec(),
         gravity,
         parts,
     }
@@ -210,7 +210,7 @@ fn named_parts(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> Vec
         .map(|p| NamedPart {
             name: p.name,
             dissipation: p.dissipation,
-            values: p.values,
+            values: p.values.to_vec(),
         })
         .collect()
 }

@@ -8,10 +8,11 @@
 use std::ops::Range;
 
 use super::dual::{Dual, groups};
-use super::dynamics::{Factor, Tri, cholesky};
+use super::dynamics::{Factor, cholesky, tri_index};
 use super::mass_matrix::{factor_from_outputs, outputs};
 use super::scalar::Scalar;
 use super::templates::Template;
+use crate::arena::{AVec, Arena, CollectIn};
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
 use crate::physics::scaling::Scaling;
 
@@ -104,12 +105,12 @@ pub struct Values<'a, P> {
 }
 
 /// The terms of M q̈ = F − c − ∂V/∂q for a batch.
-pub struct Terms<S> {
+pub struct Terms<'a, S> {
     /// L(q) with ∂L/∂q_k.
-    pub factor: Factor<S>,
+    pub factor: Factor<'a, S>,
     /// ∂V/∂q (`None` for a zero potential).
-    pub grad_v: Option<Vec<S>>,
-    pub forces: Vec<S>,
+    pub grad_v: Option<AVec<'a, S>>,
+    pub forces: AVec<'a, S>,
 }
 
 /// A structured model's parts and what they read.
@@ -122,11 +123,13 @@ pub struct Structure<'a, P> {
     pub values: Values<'a, P>,
     pub n: usize,
     pub m: usize,
+    /// Where its vectors are made.
+    pub arena: &'a Arena,
 }
 
 impl<'a, P> Structure<'a, P> {
     /// L, ∇V and F for a batch.
-    pub fn terms<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Terms<S>
+    pub fn terms<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Terms<'a, S>
     where
         P: Coef<S>,
     {
@@ -142,7 +145,7 @@ impl<'a, P> Structure<'a, P> {
             .expect("validated: white-box parts have a template")
     }
 
-    pub(super) fn physical<S: Scalar>(&self, like: &S) -> Vec<S>
+    pub(super) fn physical<S: Scalar>(&self, like: &S) -> AVec<'a, S>
     where
         P: Coef<S>,
     {
@@ -150,17 +153,17 @@ impl<'a, P> Structure<'a, P> {
             .values
             .physical
             .expect("a template model has physical values");
-        p.iter().map(|v| v.value(like)).collect()
+        p.iter().map(|v| v.value(like)).collect_in(self.arena)
     }
 
-    fn physical_dual<S: Scalar>(&self, like: &S) -> Vec<Dual<S>>
+    fn physical_dual<S: Scalar>(&self, like: &S) -> AVec<'a, Dual<S>>
     where
         P: Coef<S>,
     {
         self.physical(like)
             .into_iter()
             .map(Dual::constant)
-            .collect()
+            .collect_in(self.arena)
     }
 
     /// q as dual variables in the directions `dirs`, for the analytic parts that need ∂/∂q.
@@ -169,29 +172,24 @@ impl<'a, P> Structure<'a, P> {
     }
 
     /// L(q) = the Cholesky factor of M(q), with its q-tangents.
-    fn mass_factor<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Factor<S>
+    fn mass_factor<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Factor<'a, S>
     where
         P: Coef<S>,
     {
         let n = self.n;
-        Factor::from_groups(n, |dirs| match self.mass {
-            MassSpec::Mlp { .. } => factor_from_outputs(
-                (0..outputs(n))
-                    .map(|j| nets.mass(j, dirs.clone()))
-                    .collect(),
-                n,
-            ),
+        let a = self.arena;
+        Factor::from_groups(a, n, |dirs| match self.mass {
+            MassSpec::Mlp { .. } => {
+                factor_from_outputs(a, (0..outputs(n)).map(|j| nets.mass(j, dirs.clone())), n)
+            }
             MassSpec::Constant => {
                 let raw = self.values.mass_const.expect("constant mass");
                 let like = &x.q()[0];
-                factor_from_outputs(
-                    raw.iter().map(|v| Dual::constant(v.value(like))).collect(),
-                    n,
-                )
+                factor_from_outputs(a, raw.iter().map(|v| Dual::constant(v.value(like))), n)
             }
             MassSpec::Template => {
                 let p = self.physical_dual(&x.q()[0]);
-                cholesky(&self.template().mass(&p, &self.q_vars(x, dirs)))
+                cholesky(a, &self.template().mass(&p, &self.q_vars(x, dirs)))
             }
         })
     }
@@ -201,18 +199,18 @@ impl<'a, P> Structure<'a, P> {
         &self,
         nets: &impl Networks<S>,
         x: &impl Inputs<S>,
-    ) -> Option<Vec<S>>
+    ) -> Option<AVec<'a, S>>
     where
         P: Coef<S>,
     {
-        let (n, s) = (self.n, self.scaling);
+        let (n, s, a) = (self.n, self.scaling, self.arena);
         let network = || self.potential_network_grad(nets);
         match self.potential {
             PotentialSpec::Zero => None,
             PotentialSpec::Mlp { .. } => Some(network()),
             PotentialSpec::Quadratic => {
                 let k = self.values.potential_quad.expect("quadratic potential");
-                let kij = |i: usize, j: usize| &k[Tri::<()>::index(i.max(j), i.min(j))];
+                let kij = |i: usize, j: usize| &k[tri_index(i.max(j), i.min(j))];
                 let q = x.q();
                 Some(
                     (0..n)
@@ -223,7 +221,7 @@ impl<'a, P> Structure<'a, P> {
                                 .expect("n ≥ 1")
                                 .scale(s.quadratic_scale())
                         })
-                        .collect(),
+                        .collect_in(a),
                 )
             }
             PotentialSpec::Template { residual } => {
@@ -234,19 +232,19 @@ impl<'a, P> Structure<'a, P> {
                     (0..dirs.len()).map(move |k| v.tangent(k).cloned().unwrap_or_else(zero))
                 });
                 Some(match residual {
-                    None => grad.collect(),
-                    Some(_) => grad.zip(network()).map(|(t, r)| t + r).collect(),
+                    None => grad.collect_in(a),
+                    Some(_) => grad.zip(network()).map(|(t, r)| t + r).collect_in(a),
                 })
             }
         }
     }
 
     /// ∂V/∂q of the potential's network (in the data's units).
-    fn potential_network_grad<S: Scalar>(&self, nets: &impl Networks<S>) -> Vec<S> {
+    fn potential_network_grad<S: Scalar>(&self, nets: &impl Networks<S>) -> AVec<'a, S> {
         let scale = self.scaling.potential_scale();
         (0..self.n)
             .map(|k| nets.potential_grad(k).scale(scale))
-            .collect()
+            .collect_in(self.arena)
     }
 
     /// τ = F − ∂V′/∂q: what a rigid-body algorithm that supplies M, the Coriolis term and
@@ -257,11 +255,11 @@ impl<'a, P> Structure<'a, P> {
         &self,
         nets: &impl Networks<S>,
         x: &impl Inputs<S>,
-    ) -> Vec<S>
+    ) -> AVec<'a, S>
     where
         P: Coef<S>,
     {
-        let f = self.generalized_forces(nets, x);
+        let mut f = self.generalized_forces(nets, x);
         let rest = match self.potential {
             PotentialSpec::Template { residual: None } => None,
             PotentialSpec::Template { residual: Some(_) } => {
@@ -269,47 +267,51 @@ impl<'a, P> Structure<'a, P> {
             }
             _ => self.potential_grad(nets, x),
         };
-        match rest {
-            None => f,
-            Some(g) => f.into_iter().zip(g).map(|(f, g)| f - g).collect(),
+        for (f, g) in f.iter_mut().zip(rest.iter().flatten()) {
+            *f = f.clone() - g.clone();
         }
+        f
     }
 
     /// F(q, q̇, u).
-    fn generalized_forces<S: Scalar>(&self, nets: &impl Networks<S>, x: &impl Inputs<S>) -> Vec<S>
+    fn generalized_forces<S: Scalar>(
+        &self,
+        nets: &impl Networks<S>,
+        x: &impl Inputs<S>,
+    ) -> AVec<'a, S>
     where
         P: Coef<S>,
     {
         match self.forces {
             ForceSpec::Mlp { .. } => self.force_network(nets),
             ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => {
-                self.affine(self.input_gain(nets, x), x)
+                self.affine(&self.input_gain(nets, x), x)
             }
             ForceSpec::Passive { .. } => {
-                let bu = self.input_force(self.input_gain(nets, x), x);
+                let mut bu = self.input_force(&self.input_gain(nets, x), x);
                 let d = self.passive_damping(nets, x);
-                bu.into_iter().zip(d).map(|(a, d)| a + d).collect()
+                add_to(&mut bu, &d);
+                bu
             }
             ForceSpec::Template { residual } => {
                 let f = self
                     .template()
                     .forces(&self.physical(&x.q()[0]), x.q(), x.qd(), x.u());
-                match residual {
-                    None => f,
-                    Some(_) => (f.into_iter().zip(self.force_network(nets)))
-                        .map(|(t, r)| t + r)
-                        .collect(),
+                let mut f = AVec::from_iter_in(f, self.arena);
+                if residual.is_some() {
+                    add_to(&mut f, &self.force_network(nets));
                 }
+                f
             }
         }
     }
 
     /// The force network's output in the data's units (a general F, or a template's residual).
-    pub(super) fn force_network<S: Scalar>(&self, nets: &impl Networks<S>) -> Vec<S> {
+    pub(super) fn force_network<S: Scalar>(&self, nets: &impl Networks<S>) -> AVec<'a, S> {
         let s = self.scaling;
         (0..self.n)
             .map(|j| nets.force(j).scale(s.force_scale[j]))
-            .collect()
+            .collect_in(self.arena)
     }
 
     /// B(q) of a control-affine force, `n·m` row-major in the data's units.
@@ -317,39 +319,44 @@ impl<'a, P> Structure<'a, P> {
         &self,
         nets: &impl Networks<S>,
         x: &impl Inputs<S>,
-    ) -> Vec<S>
+    ) -> AVec<'a, S>
     where
         P: Coef<S>,
     {
-        let (n, m, s) = (self.n, self.m, self.scaling);
+        let (n, m, s, a) = (self.n, self.m, self.scaling, self.arena);
         let b_scale = |k: usize| s.force_scale[k / m] / s.u_std[k % m];
         match self.forces {
             ForceSpec::ControlAffine { .. } | ForceSpec::Passive { .. } => (0..n * m)
                 .map(|k| nets.force(k).scale(b_scale(k)))
-                .collect(),
+                .collect_in(a),
             ForceSpec::ConstantAffine => {
                 let raw = self.values.b_const.expect("constant B");
                 let like = &x.u()[0];
                 raw.iter()
                     .enumerate()
                     .map(|(k, v)| v.mul_div(b_scale(k), 1.0).value(like))
-                    .collect()
+                    .collect_in(a)
             }
             _ => unreachable!("only a control-affine force has an input gain"),
         }
     }
 
     /// B u + η ∘ q̇ in the data's units (B `n·m` row-major).
-    fn affine<S: Scalar>(&self, b: Vec<S>, x: &impl Inputs<S>) -> Vec<S>
+    fn affine<S: Scalar>(&self, b: &[S], x: &impl Inputs<S>) -> AVec<'a, S>
     where
         P: Coef<S>,
     {
-        let (bu, damping) = self.affine_parts(b, x);
-        bu.into_iter().zip(damping).map(|(a, d)| a + d).collect()
+        let (mut bu, damping) = self.affine_parts(b, x);
+        add_to(&mut bu, &damping);
+        bu
     }
 
     /// B u and η ∘ q̇, apart.
-    pub(super) fn affine_parts<S: Scalar>(&self, b: Vec<S>, x: &impl Inputs<S>) -> (Vec<S>, Vec<S>)
+    pub(super) fn affine_parts<S: Scalar>(
+        &self,
+        b: &[S],
+        x: &impl Inputs<S>,
+    ) -> (AVec<'a, S>, AVec<'a, S>)
     where
         P: Coef<S>,
     {
@@ -361,11 +368,11 @@ impl<'a, P> Structure<'a, P> {
                 .mul_div(s.force_scale[i], s.qdot_std[i])
                 .times(&qd[i])
         });
-        (self.input_force(b, x), damping.collect())
+        (self.input_force(b, x), damping.collect_in(self.arena))
     }
 
     /// B u (B `n·m` row-major).
-    pub(super) fn input_force<S: Scalar>(&self, b: Vec<S>, x: &impl Inputs<S>) -> Vec<S> {
+    pub(super) fn input_force<S: Scalar>(&self, b: &[S], x: &impl Inputs<S>) -> AVec<'a, S> {
         let (n, m, u) = (self.n, self.m, x.u());
         (0..n)
             .map(|i| {
@@ -374,7 +381,7 @@ impl<'a, P> Structure<'a, P> {
                     .reduce(|a, b| a + b)
                     .expect("m ≥ 1")
             })
-            .collect()
+            .collect_in(self.arena)
     }
 
     /// −D q̇ of a passive force in the data's units: D = S (L Lᵀ + εI) S with L the damping
@@ -384,22 +391,22 @@ impl<'a, P> Structure<'a, P> {
         &self,
         nets: &impl Networks<S>,
         x: &impl Inputs<S>,
-    ) -> Vec<S> {
-        let (n, s) = (self.n, self.scaling);
-        let root: Vec<f64> = (0..n)
+    ) -> AVec<'a, S> {
+        let (n, s, arena) = (self.n, self.scaling, self.arena);
+        let root: AVec<f64> = (0..n)
             .map(|i| (s.force_scale[i] / s.qdot_std[i]).sqrt())
-            .collect();
-        let w: Vec<S> = (0..n).map(|i| x.qd()[i].scale(root[i])).collect();
-        let l = |i: usize, j: usize| nets.damping(Tri::<()>::index(i, j));
+            .collect_in(arena);
+        let w: AVec<S> = (0..n).map(|i| x.qd()[i].scale(root[i])).collect_in(arena);
+        let l = |i: usize, j: usize| nets.damping(tri_index(i, j));
         // v = Lᵀ w, then L v + ε w.
-        let v: Vec<S> = (0..n)
+        let v: AVec<S> = (0..n)
             .map(|a| {
                 (a..n)
                     .map(|b| l(b, a) * w[b].clone())
                     .reduce(|p, q| p + q)
                     .expect("n ≥ 1")
             })
-            .collect();
+            .collect_in(arena);
         (0..n)
             .map(|a| {
                 let lv = (0..=a)
@@ -408,6 +415,13 @@ impl<'a, P> Structure<'a, P> {
                     .expect("n ≥ 1");
                 -(lv + w[a].scale(PASSIVE_EPS)).scale(root[a])
             })
-            .collect()
+            .collect_in(arena)
+    }
+}
+
+/// a += b, entry by entry.
+fn add_to<S: Scalar>(a: &mut [S], b: &[S]) {
+    for (a, b) in a.iter_mut().zip(b) {
+        *a = a.clone() + b.clone();
     }
 }

@@ -4,9 +4,10 @@
 //! beside `assembly.rs`'s.
 
 use super::assembly::{Coef, Inputs, Networks, Structure};
-use super::dynamics::Tri;
+use super::dynamics::tri_index;
 use super::scalar::Scalar;
 use super::templates::Template;
+use crate::arena::{AVec, CollectIn, avec};
 use crate::physics::parts::{ForceSpec, PotentialSpec};
 
 /// The potential network's (unscaled) output value, which only inference reads: training
@@ -16,7 +17,7 @@ pub trait PotentialValue<S> {
 }
 
 /// One named part of F; the parts of a model sum to its F.
-pub struct ForcePart<S> {
+pub struct ForcePart<'a, S> {
     /// `input` (B u), `damping`, `friction`, `unforced` (a formula template's F at u = 0,
     /// which may hold anything), `residual` (a network on a template's F) or `network` (a
     /// whole F from a network).
@@ -26,7 +27,7 @@ pub struct ForcePart<S> {
     /// conserves energy (a learned η > 0 pumping energy in shows in the passivity figure,
     /// which keeps every part on).
     pub dissipation: bool,
-    pub values: Vec<S>,
+    pub values: AVec<'a, S>,
 }
 
 impl ForceSpec {
@@ -42,7 +43,7 @@ impl ForceSpec {
     }
 }
 
-impl<P> Structure<'_, P> {
+impl<'a, P> Structure<'a, P> {
     /// V(q) up to its constant, or only what is not the template's (`template: false`, for a
     /// robot whose gravity the multibody algorithms compute themselves).
     pub fn potential_value<S: Scalar>(
@@ -65,7 +66,7 @@ impl<P> Structure<'_, P> {
                 let mut twice = zero;
                 for i in 0..self.n {
                     for j in 0..self.n {
-                        let kij = &k[Tri::<()>::index(i.max(j), i.min(j))];
+                        let kij = &k[tri_index(i.max(j), i.min(j))];
                         twice = twice + kij.times(&(q[i].clone() * q[j].clone()));
                     }
                 }
@@ -89,25 +90,26 @@ impl<P> Structure<'_, P> {
         &self,
         nets: &impl Networks<S>,
         x: &impl Inputs<S>,
-    ) -> Vec<ForcePart<S>>
+    ) -> AVec<'a, ForcePart<'a, S>>
     where
         P: Coef<S>,
     {
+        let a = self.arena;
         let part = |name, dissipation, values| ForcePart {
             name,
             dissipation,
             values,
         };
         match self.forces {
-            ForceSpec::Mlp { .. } => vec![part("network", false, self.force_network(nets))],
+            ForceSpec::Mlp { .. } => avec![in a; part("network", false, self.force_network(nets))],
             ForceSpec::ControlAffine { .. } | ForceSpec::ConstantAffine => {
-                let (bu, damping) = self.affine_parts(self.input_gain(nets, x), x);
-                vec![part("input", false, bu), part("damping", true, damping)]
+                let (bu, damping) = self.affine_parts(&self.input_gain(nets, x), x);
+                avec![in a; part("input", false, bu), part("damping", true, damping)]
             }
             ForceSpec::Passive { .. } => {
-                let bu = self.input_force(self.input_gain(nets, x), x);
+                let bu = self.input_force(&self.input_gain(nets, x), x);
                 let damping = self.passive_damping(nets, x);
-                vec![part("input", false, bu), part("damping", true, damping)]
+                avec![in a; part("input", false, bu), part("damping", true, damping)]
             }
             ForceSpec::Template { residual } => {
                 let mut parts = self.template_force_parts(x);
@@ -122,14 +124,14 @@ impl<P> Structure<'_, P> {
     /// A template's F as B u = F(q, q̇, u) − F(q, q̇, 0) and its unforced rest F(q, q̇, 0):
     /// the built-in templates' is η ∘ q̇ and a robot's its joints' damping and friction; a
     /// formula's may hold anything (a spring, a drive), so it is not named damping.
-    fn template_force_parts<S: Scalar>(&self, x: &impl Inputs<S>) -> Vec<ForcePart<S>>
+    fn template_force_parts<S: Scalar>(&self, x: &impl Inputs<S>) -> AVec<'a, ForcePart<'a, S>>
     where
         P: Coef<S>,
     {
-        let t = self.template();
+        let (t, a) = (self.template(), self.arena);
         let p = self.physical(&x.q()[0]);
-        let idle: Vec<S> = x.u().iter().map(|u| u.lift(0.0)).collect();
-        let unforced = t.forces(&p, x.q(), x.qd(), &idle);
+        let idle: AVec<S> = x.u().iter().map(|u| u.lift(0.0)).collect_in(a);
+        let unforced = AVec::from_iter_in(t.forces(&p, x.q(), x.qd(), &idle), a);
         let all = t.forces(&p, x.q(), x.qd(), x.u());
         let input = all.into_iter().zip(&unforced).map(|(f, r)| f - r.clone());
         let (name, dissipation) = match t {
@@ -137,11 +139,11 @@ impl<P> Structure<'_, P> {
             Template::Urdf(_) => ("friction", true),
             _ => ("damping", true),
         };
-        vec![
+        avec![in a;
             ForcePart {
                 name: "input",
                 dissipation: false,
-                values: input.collect(),
+                values: input.collect_in(a),
             },
             ForcePart {
                 name,

@@ -11,6 +11,7 @@ use std::time::Instant;
 use clap::Args;
 use serde_json::json;
 
+use graybox::arena::Arena;
 use graybox::error::{Error, Result};
 use graybox::physics::dynamics::{constants, white_box_acceleration};
 use graybox::physics::multibody::adjoint::{forward_dynamics_adjoint, parameter_gradient};
@@ -80,12 +81,14 @@ pub fn run(a: BenchMultibodyArgs) -> Result<()> {
     // equation (what `sim` and the f64 evaluator do for a white-box robot).
     let existing = |[q, qd, tau]: &[Vec<f64>; 3]| {
         white_box_acceleration(
+            &Arena::new(),
             |q| t.mass(&pd, q),
             |q| t.potential(&pd, q),
-            tau.clone(),
+            tau,
             q,
             qd,
         )
+        .to_vec()
     };
     // Both compute the same q̈ (to rounding): say how close, so a figure is of a right answer.
     let worst = states.iter().fold(0.0f64, |w, s| {

@@ -8,6 +8,7 @@ use std::ops::Range;
 use std::rc::Rc;
 
 use super::Layout;
+use crate::arena::Arena;
 use crate::model::spec::ModelSpec;
 use crate::model::{ModelConfig, names};
 use crate::physics::assembly::{Columns, Networks, Structure, Values};
@@ -162,6 +163,7 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
         },
         n,
         m: config.m,
+        arena: &Arena::new(),
     };
     let inputs = Columns { q, qd, u };
     if let (Some(robot), Some((urdf, _))) = (recipe.robot, config.spec.multibody()) {
@@ -174,5 +176,5 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
         return forward_dynamics(robot, q, qd, &tau, &pi);
     }
     let t = structure.terms(&nets, &inputs);
-    acceleration(&t.factor, t.grad_v, t.forces, qd)
+    acceleration(&t.factor, t.grad_v.as_deref(), &t.forces, qd).to_vec()
 }
