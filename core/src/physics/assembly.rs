@@ -167,8 +167,8 @@ impl<'a, P> Structure<'a, P> {
     }
 
     /// q as dual variables in the directions `dirs`, for the analytic parts that need ∂/∂q.
-    fn q_vars<S: Scalar>(&self, x: &impl Inputs<S>, dirs: Range<usize>) -> Vec<Dual<S>> {
-        Dual::seeded(x.q(), &x.one(), dirs)
+    fn q_vars<S: Scalar>(&self, x: &impl Inputs<S>, dirs: Range<usize>) -> AVec<'a, Dual<S>> {
+        Dual::seeded_in(self.arena, x.q(), &x.one(), dirs)
     }
 
     /// L(q) = the Cholesky factor of M(q), with its q-tangents.
@@ -189,7 +189,7 @@ impl<'a, P> Structure<'a, P> {
             }
             MassSpec::Template => {
                 let p = self.physical_dual(&x.q()[0]);
-                cholesky(a, &self.template().mass(&p, &self.q_vars(x, dirs)))
+                cholesky(a, &self.template().mass_in(a, &p, &self.q_vars(x, dirs)))
             }
         })
     }
@@ -228,7 +228,11 @@ impl<'a, P> Structure<'a, P> {
                 let p = self.physical_dual(&x.q()[0]);
                 let zero = || x.q()[0].lift(0.0);
                 let grad = groups(n).flat_map(|dirs| {
-                    let v = self.template().potential(&p, &self.q_vars(x, dirs.clone()));
+                    let v = (self.template()).potential_in(
+                        self.arena,
+                        &p,
+                        &self.q_vars(x, dirs.clone()),
+                    );
                     (0..dirs.len()).map(move |k| v.tangent(k).cloned().unwrap_or_else(zero))
                 });
                 Some(match residual {
@@ -294,10 +298,8 @@ impl<'a, P> Structure<'a, P> {
                 bu
             }
             ForceSpec::Template { residual } => {
-                let f = self
-                    .template()
-                    .forces(&self.physical(&x.q()[0]), x.q(), x.qd(), x.u());
-                let mut f = AVec::from_iter_in(f, self.arena);
+                let p = self.physical(&x.q()[0]);
+                let mut f = (self.template()).forces_in(self.arena, &p, x.q(), x.qd(), x.u());
                 if residual.is_some() {
                     add_to(&mut f, &self.force_network(nets));
                 }

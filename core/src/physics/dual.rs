@@ -14,6 +14,7 @@
 //!   any one state's Linearize, `infer::col::Column::Tangents`).
 
 use super::scalar::Scalar;
+use crate::arena::{AVec, Arena, CollectIn};
 use std::ops::{Add, Div, Mul, Neg, Range, Sub};
 
 use arrayvec::ArrayVec;
@@ -177,12 +178,19 @@ impl<S: Scalar, T: Tangents<S>> Dual<S, T> {
     /// `x` as dual numbers in the directions `dirs` of x's coordinates: x_k (k in `dirs`)
     /// carries `seed` in direction k − dirs.start, every other coordinate is a constant.
     pub fn seeded(x: &[S], seed: &S, dirs: Range<usize>) -> Vec<Self> {
-        (x.iter().enumerate())
-            .map(|(k, xk)| match dirs.contains(&k) {
-                true => Self::variable(xk.clone(), k - dirs.start, dirs.len(), seed.clone()),
-                false => Self::constant(xk.clone()),
-            })
-            .collect()
+        Self::seeds(x, seed, dirs).collect()
+    }
+
+    /// [`Dual::seeded`] in an arena.
+    pub fn seeded_in<'a>(a: &'a Arena, x: &[S], seed: &S, dirs: Range<usize>) -> AVec<'a, Self> {
+        Self::seeds(x, seed, dirs).collect_in(a)
+    }
+
+    fn seeds(x: &[S], seed: &S, dirs: Range<usize>) -> impl Iterator<Item = Self> {
+        (x.iter().enumerate()).map(move |(k, xk)| match dirs.contains(&k) {
+            true => Self::variable(xk.clone(), k - dirs.start, dirs.len(), seed.clone()),
+            false => Self::constant(xk.clone()),
+        })
     }
 
     /// Direction k's tangent; `None` is a zero.

@@ -214,11 +214,11 @@ where
 {
     let n = q.len();
     let factor = Factor::from_groups(a, n, |dirs| {
-        cholesky(a, &mass(&Dual::seeded(q, &1.0, dirs)))
+        cholesky(a, &mass(&Dual::seeded_in(a, q, &1.0, dirs)))
     });
     let grad_v: AVec<f64> = groups(n)
         .flat_map(|dirs| {
-            let v = potential(&Dual::seeded(q, &1.0, dirs.clone()));
+            let v = potential(&Dual::seeded_in(a, q, &1.0, dirs.clone()));
             (0..dirs.len()).map(move |k| v.tangent(k).copied().unwrap_or(0.0))
         })
         .collect_in(a);

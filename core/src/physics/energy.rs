@@ -74,7 +74,7 @@ impl<'a, P> Structure<'a, P> {
             }
             PotentialSpec::Template { residual } => {
                 let own = match template {
-                    true => self.template().potential(&self.physical(&q[0]), q),
+                    true => (self.template()).potential_in(self.arena, &self.physical(&q[0]), q),
                     false => zero,
                 };
                 match residual {
@@ -131,8 +131,8 @@ impl<'a, P> Structure<'a, P> {
         let (t, a) = (self.template(), self.arena);
         let p = self.physical(&x.q()[0]);
         let idle: AVec<S> = x.u().iter().map(|u| u.lift(0.0)).collect_in(a);
-        let unforced = AVec::from_iter_in(t.forces(&p, x.q(), x.qd(), &idle), a);
-        let all = t.forces(&p, x.q(), x.qd(), x.u());
+        let unforced = t.forces_in(a, &p, x.q(), x.qd(), &idle);
+        let all = t.forces_in(a, &p, x.q(), x.qd(), x.u());
         let input = all.into_iter().zip(&unforced).map(|(f, r)| f - r.clone());
         let (name, dissipation) = match t {
             Template::Formula(_) => ("unforced", false),

@@ -10,6 +10,7 @@ use super::multibody::crba;
 use super::params::{ParamInfo, Part};
 use super::scalar::Scalar;
 use super::urdf::template::{KIND as URDF, UrdfTemplate};
+use crate::arena::{AVec, Arena, CollectIn, avec};
 use crate::error::{Error, Result};
 
 /// The kinds of template document.
@@ -323,9 +324,21 @@ impl Template {
 
     /// The symmetric mass matrix M(q), n×n.
     pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
+        let a = Arena::new();
+        (self.mass_in(&a, p, q).iter())
+            .map(|r| r.to_vec())
+            .collect()
+    }
+
+    /// M(q) with its rows in `a`.
+    pub fn mass_in<'a, S: Scalar>(&self, a: &'a Arena, p: &[S], q: &[S]) -> AVec<'a, AVec<'a, S>> {
         match self {
-            Template::Formula(f) => f.mass(p, q),
-            Template::Urdf(u) => u.mass(p, q),
+            Template::Formula(f) => f.mass_in(a, p, q),
+            // The assembled robot's M is a reference path (its models run on the multibody
+            // algorithms), so it keeps its own vectors.
+            Template::Urdf(u) => (u.mass(p, q).into_iter())
+                .map(|r| AVec::from_iter_in(r, a))
+                .collect_in(a),
             Template::DoublePendulum => {
                 let (m1, m2, l1, l2) = (&p[0], &p[1], &p[2], &p[3]);
                 let i1 = (m1.clone() * l1.square()).scale(1.0 / 3.0);
@@ -334,18 +347,18 @@ impl Template {
                 let m2l1l2c2 = m2.clone() * l1.clone() * l2.clone() * c2;
                 let i11 = i1 + i2.clone() + m2.clone() * l1.square() + m2l1l2c2.clone();
                 let i12 = i2.clone() + m2l1l2c2.scale(0.5);
-                vec![vec![i11, i12.clone()], vec![i12, i2]]
+                avec![in a; avec![in a; i11, i12.clone()], avec![in a; i12, i2]]
             }
             Template::Pendulum => {
                 let (m, l) = (&p[0], &p[1]);
-                vec![vec![(m.clone() * l.square()).scale(1.0 / 3.0)]]
+                avec![in a; avec![in a; (m.clone() * l.square()).scale(1.0 / 3.0)]]
             }
             Template::Cartpole => {
                 let (mc, mp, l) = (&p[0], &p[1], &p[2]);
                 let off = mp.clone() * l.clone() * q[1].cos();
-                vec![
-                    vec![mc.clone() + mp.clone(), off.clone()],
-                    vec![off, mp.clone() * l.square()],
+                avec![in a;
+                    avec![in a; mc.clone() + mp.clone(), off.clone()],
+                    avec![in a; off, mp.clone() * l.square()],
                 ]
             }
         }
@@ -353,8 +366,13 @@ impl Template {
 
     /// The potential energy V(q).
     pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
+        self.potential_in(&Arena::new(), p, q)
+    }
+
+    /// V(q), any scratch in `a`.
+    pub fn potential_in<S: Scalar>(&self, a: &Arena, p: &[S], q: &[S]) -> S {
         match self {
-            Template::Formula(f) => f.potential(p, q),
+            Template::Formula(f) => f.potential_in(a, p, q),
             Template::Urdf(u) => u.potential(p, q),
             Template::DoublePendulum => {
                 let (m1, m2, l1, l2, g) = (&p[0], &p[1], &p[2], &p[3], &p[4]);
@@ -378,23 +396,35 @@ impl Template {
 
     /// The generalized forces F(q, q̇, u).
     pub fn forces<S: Scalar>(&self, p: &[S], q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        self.forces_in(&Arena::new(), p, q, qd, u).to_vec()
+    }
+
+    /// F(q, q̇, u) in `a`.
+    pub fn forces_in<'a, S: Scalar>(
+        &self,
+        a: &'a Arena,
+        p: &[S],
+        q: &[S],
+        qd: &[S],
+        u: &[S],
+    ) -> AVec<'a, S> {
         match self {
-            Template::Formula(f) => f.forces(p, q, qd, u),
-            Template::Urdf(t) => t.forces(p, q, qd, u),
+            Template::Formula(f) => f.forces_in(a, p, q, qd, u),
+            Template::Urdf(t) => AVec::from_iter_in(t.forces(p, q, qd, u), a),
             Template::DoublePendulum => {
                 let (b1, b2, e1, e2) = (&p[5], &p[6], &p[7], &p[8]);
-                vec![
+                avec![in a;
                     b1.clone() * u[0].clone() + e1.clone() * qd[0].clone(),
                     b2.clone() * u[1].clone() + e2.clone() * qd[1].clone(),
                 ]
             }
             Template::Pendulum => {
                 let (b, e) = (&p[3], &p[4]);
-                vec![b.clone() * u[0].clone() + e.clone() * qd[0].clone()]
+                avec![in a; b.clone() * u[0].clone() + e.clone() * qd[0].clone()]
             }
             Template::Cartpole => {
                 let (b, ex, eth) = (&p[4], &p[5], &p[6]);
-                vec![
+                avec![in a;
                     b.clone() * u[0].clone() + ex.clone() * qd[0].clone(),
                     eth.clone() * qd[1].clone(),
                 ]

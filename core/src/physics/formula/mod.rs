@@ -31,6 +31,7 @@ use std::fmt;
 pub use parse::{Budget, parse, parse_within};
 
 use super::scalar::Scalar;
+use crate::arena::{AVec, Arena};
 
 /// Nesting an expression may have: parentheses, calls, unary minus and `^` chains each add a
 /// level (a sum or product of any length adds one). Generated mass-matrix entries nest a few
@@ -188,8 +189,13 @@ impl Expr {
     /// The value with each symbol's value from `sym`; `like` gives constants their kind and
     /// shape (a batch column, a dual number without tangents).
     pub fn eval<S: Scalar>(&self, sym: &dyn Fn(Symbol) -> S, like: &S) -> S {
-        let mut stack: Vec<S> = Vec::with_capacity(self.stack);
-        let pop = |stack: &mut Vec<S>| stack.pop().expect("a parsed program has its operands");
+        self.eval_in(&Arena::new(), sym, like)
+    }
+
+    /// [`Expr::eval`] with its operand stack in `a`.
+    pub fn eval_in<S: Scalar>(&self, a: &Arena, sym: &dyn Fn(Symbol) -> S, like: &S) -> S {
+        let mut stack: AVec<S> = AVec::with_capacity_in(self.stack, a);
+        let pop = |stack: &mut AVec<S>| stack.pop().expect("a parsed program has its operands");
         for op in &self.ops {
             let v = match *op {
                 Op::Num(v) => like.lift(v),

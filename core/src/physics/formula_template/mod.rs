@@ -15,6 +15,7 @@ use super::MAX_DOF;
 use super::formula::{Budget, Expr, Names, Symbol, parse_within};
 use super::params::{ParamInfo, Part};
 use super::scalar::Scalar;
+use crate::arena::{AVec, Arena, CollectIn};
 use crate::error::Result;
 use crate::rng::Rng;
 
@@ -169,6 +170,14 @@ impl FormulaTemplate {
     }
 
     pub fn mass<S: Scalar>(&self, p: &[S], q: &[S]) -> Vec<Vec<S>> {
+        let a = Arena::new();
+        (self.mass_in(&a, p, q).iter())
+            .map(|r| r.to_vec())
+            .collect()
+    }
+
+    /// M(q), its rows and their operands in `a`.
+    pub fn mass_in<'a, S: Scalar>(&self, a: &'a Arena, p: &[S], q: &[S]) -> AVec<'a, AVec<'a, S>> {
         let sym = |s: Symbol| match s {
             Symbol::Q(i) => q[i].clone(),
             Symbol::Param(i) => p[i].clone(),
@@ -177,13 +186,17 @@ impl FormulaTemplate {
                 unreachable!("checked: M depends on q and parameters")
             }
         };
-        self.mass
-            .iter()
-            .map(|row| row.iter().map(|e| e.eval(&sym, &q[0])).collect())
-            .collect()
+        (self.mass.iter())
+            .map(|row| row.iter().map(|e| e.eval_in(a, &sym, &q[0])).collect_in(a))
+            .collect_in(a)
     }
 
     pub fn potential<S: Scalar>(&self, p: &[S], q: &[S]) -> S {
+        self.potential_in(&Arena::new(), p, q)
+    }
+
+    /// V(q), its operands in `a`.
+    pub fn potential_in<S: Scalar>(&self, a: &Arena, p: &[S], q: &[S]) -> S {
         let sym = |s: Symbol| match s {
             Symbol::Q(i) => q[i].clone(),
             Symbol::Param(i) => p[i].clone(),
@@ -191,17 +204,31 @@ impl FormulaTemplate {
                 unreachable!("checked: V depends on q and parameters")
             }
         };
-        self.potential.eval(&sym, &q[0])
+        self.potential.eval_in(a, &sym, &q[0])
     }
 
     pub fn forces<S: Scalar>(&self, p: &[S], q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        self.forces_in(&Arena::new(), p, q, qd, u).to_vec()
+    }
+
+    /// F(q, q̇, u), in `a`.
+    pub fn forces_in<'a, S: Scalar>(
+        &self,
+        a: &'a Arena,
+        p: &[S],
+        q: &[S],
+        qd: &[S],
+        u: &[S],
+    ) -> AVec<'a, S> {
         let sym = |s: Symbol| match s {
             Symbol::Q(i) => q[i].clone(),
             Symbol::QDot(i) => qd[i].clone(),
             Symbol::U(i) => u[i].clone(),
             Symbol::Param(i) => p[i].clone(),
         };
-        self.forces.iter().map(|e| e.eval(&sym, &q[0])).collect()
+        (self.forces.iter())
+            .map(|e| e.eval_in(a, &sym, &q[0]))
+            .collect_in(a)
     }
 
     /// M at the document's values must be symmetric (to 1e-9 relative) and positive definite
