@@ -30,7 +30,7 @@ use weights::Weights;
 
 use col::{Column, Lanes};
 
-use crate::arena::Arena;
+use crate::arena::{AVec, Arena, CollectIn};
 use crate::error::{Error, Result};
 use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
@@ -101,8 +101,21 @@ impl Evaluator {
 
     /// q̈, or (`torques`, for a model on the multibody algorithms) the τ it would take.
     fn evaluate<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C], torques: bool) -> Vec<C> {
-        let structured =
-            self.with_structure((q, qd, u), |s, nets, x| self.structure(s, nets, x, torques));
+        self.evaluate_in(&Arena::new(), q, qd, u, torques).to_vec()
+    }
+
+    /// [`Evaluator::evaluate`] in an arena.
+    fn evaluate_in<'a, C: Lanes>(
+        &'a self,
+        a: &'a Arena,
+        q: &[C],
+        qd: &[C],
+        u: &[C],
+        torques: bool,
+    ) -> AVec<'a, C> {
+        let structured = self.with_structure_in(a, (q, qd, u), |s, nets, x| {
+            self.structure(s, nets, x, torques)
+        });
         if let Some(out) = structured {
             return out;
         }
@@ -117,7 +130,7 @@ impl Evaluator {
                     .scale(sc.acc_std[j])
                     .shift(sc.acc_mean[j])
             })
-            .collect()
+            .collect_in(a)
     }
 
     /// The networks' input from (q, q̇, u): standardized, angles as (sin, cos).
@@ -201,13 +214,13 @@ impl Evaluator {
     /// generic code training records on its tape), then the manipulator equation, or forward
     /// dynamics by the multibody algorithms with τ from the structure (`torques`: τ only).
     /// Without its damping (`without_damping`), F loses the parts the spec names so.
-    fn structure<S: Lanes>(
+    fn structure<'a, S: Lanes>(
         &self,
-        structure: &Structure<f64>,
+        structure: &Structure<'a, f64>,
         nets: &JetNets<S>,
         x: &Columns<S>,
         torques: bool,
-    ) -> Vec<S> {
+    ) -> AVec<'a, S> {
         let damping = self.without_damping.then(|| {
             let parts = structure.force_parts(nets, x).into_iter();
             let damping = parts.filter(|p| p.dissipation).map(|p| p.values);
@@ -216,39 +229,40 @@ impl Evaluator {
                 a
             })
         });
-        let less = |f: Vec<S>| match damping.as_ref().and_then(Option::as_ref) {
-            None => f,
-            Some(d) => f.into_iter().zip(d).map(|(f, d)| f - d.clone()).collect(),
+        let less = |mut f: AVec<'a, S>| {
+            let d = damping.as_ref().and_then(Option::as_ref);
+            for (f, d) in f.iter_mut().zip(d.into_iter().flatten()) {
+                *f = f.clone() - d.clone();
+            }
+            f
         };
         if let Some(model) = &self.multibody {
-            let tau = less(structure.multibody_torques(nets, x).to_vec());
+            let tau = less(structure.multibody_torques(nets, x));
             return if torques {
                 tau
             } else {
-                forward_dynamics(model, x.q, x.qd, &tau)
+                AVec::from_iter_in(forward_dynamics(model, x.q, x.qd, &tau), structure.arena)
             };
         }
         let t = structure.terms(nets, x);
-        acceleration(
-            &t.factor,
-            t.grad_v.as_deref(),
-            &less(t.forces.to_vec()),
-            x.qd,
-        )
-        .to_vec()
+        acceleration(&t.factor, t.grad_v.as_deref(), &less(t.forces), x.qd)
     }
 
     /// One step of the model's integrator: x = [q, q̇] (2n coordinates), u (m) → x'.
     pub fn step<C: Lanes>(&self, x: &[C], u: &[C]) -> Vec<C> {
+        self.step_in(&Arena::new(), x, u).to_vec()
+    }
+
+    /// [`Evaluator::step`] in an arena.
+    pub fn step_in<'a, C: Lanes>(&'a self, a: &'a Arena, x: &[C], u: &[C]) -> AVec<'a, C> {
         let n = self.config.n;
-        self.config
-            .integrator
-            .step(&x.to_vec(), self.config.dt, |x: &Vec<C>| {
-                let (q, qd) = x.split_at(n);
-                let mut dx = qd.to_vec();
-                dx.extend(self.accel(q, qd, u));
-                dx
-            })
+        let x = AVec::from_iter_in(x.iter().cloned(), a);
+        (self.config.integrator).step(&x, self.config.dt, |x: &AVec<C>| {
+            let (q, qd) = x.split_at(n);
+            let mut dx = AVec::from_iter_in(qd.iter().cloned(), a);
+            dx.extend(self.evaluate_in(a, q, qd, u, false));
+            dx
+        })
     }
 }
 

@@ -66,6 +66,13 @@ pub trait StateVec: Sized {
     fn axpy(&self, a: f64, x: &Self) -> Self;
 }
 
+impl<S: super::scalar::Scalar> StateVec for crate::arena::AVec<'_, S> {
+    fn axpy(&self, a: f64, x: &Self) -> Self {
+        let out = self.iter().zip(x).map(|(s, x)| s.clone() + x.scale(a));
+        crate::arena::AVec::from_iter_in(out, self.bump())
+    }
+}
+
 impl<S: super::scalar::Scalar> StateVec for Vec<S> {
     fn axpy(&self, a: f64, x: &Self) -> Self {
         self.iter()
