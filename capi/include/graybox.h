@@ -2,14 +2,14 @@
  * graybox: a trained model (.gbx) inside a C or C++ controller's own process.
  *
  * Thread safety: a loaded GbxModel is immutable and may be shared by any number of threads at
- * once; per-call scratch lives in the calling thread's workspace, never in the handle. The
- * message of a failed call is per thread (gbx_last_error).
+ * once; per-call scratch lives in a workspace, never in the handle: the caller's own
+ * (gbx_workspace_new, passed to the _ws calls, one thread's at a time) or, for the other
+ * calls, the calling thread's. The message of a failed call is per thread (gbx_last_error).
  *
- * Real-time use: after a warm-up call with the same batch size on a thread, gbx_predict and
- * gbx_linearize (and their _z variants) of fewer than 32 states take no lock and no memory
- * from the system allocator (the library's allocator keeps the blocks those calls free in
- * per-thread lists and serves them again). Batches of 32 states or more run on two threads,
- * started per call.
+ * Real-time use: make a GbxWorkspace per thread for the model and the largest batch it will
+ * send (gbx_workspace_new); gbx_predict_ws, gbx_linearize_ws and gbx_rollout_ws then take no
+ * memory from the system allocator, by construction. Every call runs on the calling thread:
+ * the library starts no thread. Check gbx_abi_version() == GBX_ABI_VERSION at start-up.
  *
  * How far from the data: the _z variants of predict, linearize and rollout also write z, the
  * largest |z-score| of each row's q, qdot and u under the model's training data (the
@@ -26,6 +26,11 @@
 
 #include <stddef.h>
 #include <stdint.h>
+
+// The version of this ABI, as `gbx_abi_version` returns it. Version 2: caller-owned
+// workspaces (`gbx_workspace_new`, the `_ws` calls), and no allocator of the library's own
+// (version 1 served its calls' memory from per-thread lists it installed process-wide).
+#define GBX_ABI_VERSION 2
 
 // What a call returns: `GBX_STATUS_OK`, or why it failed (`gbx_last_error` says more).
 typedef enum GbxStatus {
@@ -47,9 +52,16 @@ typedef enum GbxStatus {
 // A loaded model (opaque to C): immutable and shareable across threads.
 typedef struct GbxModel GbxModel;
 
+// Per-call scratch (opaque to C): made for one model, used by one thread at a time.
+typedef struct GbxWorkspace GbxWorkspace;
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
+
+// The ABI version of the loaded library (`GBX_ABI_VERSION` of the header it was built
+// with): a caller compiled against another header should refuse to run.
+uint32_t gbx_abi_version(void);
 
 // Loads the model file at `path` (a NUL-terminated UTF-8 path) into `*out`.
 //
@@ -181,6 +193,69 @@ enum GbxStatus gbx_rollout_cancellable(const struct GbxModel *model,
 // The message of this thread's last failed call ("" before any): valid until this thread's
 // next failing call.
 const char *gbx_last_error(void);
+
+// Makes into `*out` a workspace for `model`'s calls of up to `max_batch` states (and
+// rollouts of any length): it runs each call once on zeros to size its scratch. Used with a
+// larger batch or another model, a workspace grows (taking memory from the system) rather
+// than fail.
+//
+// # Safety
+// `model` is a loaded model; `out` points to writable storage for one pointer.
+enum GbxStatus gbx_workspace_new(const struct GbxModel *model,
+                                 size_t max_batch,
+                                 struct GbxWorkspace **out);
+
+// Frees a workspace `gbx_workspace_new` gave (null is ignored). No call may be using it.
+//
+// # Safety
+// `ws` is null or a pointer `gbx_workspace_new` gave that has not been freed.
+void gbx_workspace_free(struct GbxWorkspace *ws);
+
+// `gbx_predict` in the caller's workspace `ws` (null: this thread's own), with every option:
+// `accel` [batch, n] when not null, `z` [batch] (as `gbx_predict_z`) when not null, and
+// `cancel` (as `gbx_predict_cancellable`) when not null.
+//
+// # Safety
+// As `gbx_predict_z_cancellable`; a non-null `ws` came from `gbx_workspace_new` and no other
+// call uses it meanwhile.
+enum GbxStatus gbx_predict_ws(const struct GbxModel *model,
+                              struct GbxWorkspace *ws,
+                              const double *x,
+                              const double *u,
+                              size_t batch,
+                              double *x_next,
+                              double *accel,
+                              double *z,
+                              const int32_t *cancel);
+
+// `gbx_linearize` in the caller's workspace `ws` (null: this thread's own), with `z`
+// [batch] when not null and `cancel` when not null.
+//
+// # Safety
+// As `gbx_linearize_z_cancellable`; `ws` as `gbx_predict_ws`'s.
+enum GbxStatus gbx_linearize_ws(const struct GbxModel *model,
+                                struct GbxWorkspace *ws,
+                                const double *x,
+                                const double *u,
+                                size_t batch,
+                                double *a,
+                                double *b,
+                                double *z,
+                                const int32_t *cancel);
+
+// `gbx_rollout` in the caller's workspace `ws` (null: this thread's own), with `z` [steps]
+// when not null and `cancel` when not null.
+//
+// # Safety
+// As `gbx_rollout_z_cancellable`; `ws` as `gbx_predict_ws`'s.
+enum GbxStatus gbx_rollout_ws(const struct GbxModel *model,
+                              struct GbxWorkspace *ws,
+                              const double *x0,
+                              const double *u,
+                              size_t steps,
+                              double *xs,
+                              double *z,
+                              const int32_t *cancel);
 
 // `gbx_predict` that also writes `z` [batch]: each row's max_abs_z of (x, u).
 //

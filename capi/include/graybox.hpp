@@ -26,6 +26,24 @@ inline void check(GbxStatus status) {
   if (status != GBX_STATUS_OK) throw Error(status, gbx_last_error());
 }
 
+// A caller-owned workspace (gbx_workspace_new): the scratch of one model's calls of up to
+// max_batch states, for one thread at a time; the Model calls that take it allocate nothing.
+class Workspace {
+ public:
+  Workspace(const GbxModel* model, size_t max_batch) {
+    GbxWorkspace* w = nullptr;
+    check(gbx_workspace_new(model, max_batch, &w));
+    handle_.reset(w);
+  }
+  GbxWorkspace* get() const { return handle_.get(); }
+
+ private:
+  struct Free {
+    void operator()(GbxWorkspace* w) const { gbx_workspace_free(w); }
+  };
+  std::unique_ptr<GbxWorkspace, Free> handle_;
+};
+
 class Model {
  public:
   explicit Model(const std::string& path) {
@@ -79,6 +97,23 @@ class Model {
   void rollout_z(const double* x0, const double* u, size_t steps, double* xs, double* z,
                  const int32_t* cancel = nullptr) const {
     check(gbx_rollout_z_cancellable(get(), x0, u, steps, xs, z, cancel));
+  }
+
+  // The calls in a workspace of the caller's (real-time loops: one per thread), every
+  // option at once; `accel`, `z` and `cancel` may be null.
+  Workspace workspace(size_t max_batch) const { return Workspace(get(), max_batch); }
+  void predict(Workspace& ws, const double* x, const double* u, size_t batch, double* x_next,
+               double* accel = nullptr, double* z = nullptr,
+               const int32_t* cancel = nullptr) const {
+    check(gbx_predict_ws(get(), ws.get(), x, u, batch, x_next, accel, z, cancel));
+  }
+  void linearize(Workspace& ws, const double* x, const double* u, size_t batch, double* a,
+                 double* b, double* z = nullptr, const int32_t* cancel = nullptr) const {
+    check(gbx_linearize_ws(get(), ws.get(), x, u, batch, a, b, z, cancel));
+  }
+  void rollout(Workspace& ws, const double* x0, const double* u, size_t steps, double* xs,
+               double* z = nullptr, const int32_t* cancel = nullptr) const {
+    check(gbx_rollout_ws(get(), ws.get(), x0, u, steps, xs, z, cancel));
   }
 
   const GbxModel* get() const { return handle_.get(); }

@@ -9,9 +9,15 @@
 //! (`tests/header.rs` fails when the committed one differs from a fresh generation).
 //!
 //! Thread safety: a loaded model is immutable; one handle may be used from any number of
-//! threads at once. Per-call scratch lives in the calling thread's workspace (the multibody
-//! `Data` and the evaluator's buffers), never in the handle. The message of a failed call is
-//! kept per thread (`gbx_last_error`).
+//! threads at once. Per-call scratch lives in a workspace, never in the handle: the caller's
+//! own (`gbx_workspace_new`, passed to the `_ws` calls: one thread's at a time), or the
+//! calling thread's (the other calls). The message of a failed call is kept per thread
+//! (`gbx_last_error`).
+//!
+//! Real-time use: a workspace made for a model and its largest batch holds all the scratch
+//! its calls need, so predict, linearize and rollout with it take nothing from the system
+//! allocator, by construction (`tests/no_allocation.rs` counts). Calls run on the caller's
+//! thread: the library starts no thread.
 //!
 //! Cancellation: the `_cancellable` variants of predict, linearize and rollout take a flag the
 //! caller sets from elsewhere (another thread, a signal handler) to stop a long call, which
@@ -22,6 +28,7 @@
 
 use std::ffi::{CStr, c_char};
 use std::path::Path;
+use std::ptr::null_mut;
 
 use graybox_core::error::Error;
 use graybox_core::infer::Evaluator;
@@ -31,14 +38,23 @@ use boundary::guard;
 
 mod boundary;
 mod calls;
-pub mod pool;
+mod workspace;
 mod z;
 
+pub use workspace::*;
 pub use z::*;
 
-/// Blocks for predict, linearize and rollout come from per-thread lists (`pool`).
-#[global_allocator]
-static ALLOCATOR: pool::Pool = pool::Pool;
+/// The version of this ABI, as `gbx_abi_version` returns it. Version 2: caller-owned
+/// workspaces (`gbx_workspace_new`, the `_ws` calls), and no allocator of the library's own
+/// (version 1 served its calls' memory from per-thread lists it installed process-wide).
+pub const GBX_ABI_VERSION: u32 = 2;
+
+/// The ABI version of the loaded library (`GBX_ABI_VERSION` of the header it was built
+/// with): a caller compiled against another header should refuse to run.
+#[unsafe(no_mangle)]
+pub extern "C" fn gbx_abi_version() -> u32 {
+    GBX_ABI_VERSION
+}
 
 /// What a call returns: `GBX_STATUS_OK`, or why it failed (`gbx_last_error` says more).
 #[repr(C)]
@@ -237,7 +253,7 @@ pub unsafe extern "C" fn gbx_predict_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::predict(model, x, u, batch, x_next, accel, None, cancel) }
+    unsafe { calls::predict(model, null_mut(), x, u, batch, x_next, accel, None, cancel) }
 }
 
 /// The one-step map's Jacobians at `batch` points: `a` [batch, 2n, 2n] = ∂x′/∂x and
@@ -276,7 +292,7 @@ pub unsafe extern "C" fn gbx_linearize_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::linearize(model, x, u, batch, a, b, None, cancel) }
+    unsafe { calls::linearize(model, null_mut(), x, u, batch, a, b, None, cancel) }
 }
 
 /// `steps` steps from `x0` [2n] under the inputs `u` [steps, m]: `xs` [steps + 1, 2n] gets x0
@@ -313,7 +329,7 @@ pub unsafe extern "C" fn gbx_rollout_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::rollout(model, x0, u, steps, xs, None, cancel) }
+    unsafe { calls::rollout(model, null_mut(), x0, u, steps, xs, None, cancel) }
 }
 
 /// The message of this thread's last failed call ("" before any): valid until this thread's

@@ -1,5 +1,5 @@
 //! examples/c/control_loop.c, built with the system's C compiler against this library and
-//! run on every recorded model: 1000 steps of gbx_predict_z in a C loop, the first ten equal
+//! run on every recorded model: 1000 steps of gbx_predict_ws in a C loop, the first ten equal
 //! to the service's recorded Rollout bit for bit, and a warning on stderr when the loop takes
 //! the model far from its training data.
 
@@ -136,6 +136,8 @@ fn the_cpp_wrapper_owns_the_model_and_throws_the_librarys_errors() {
         out.contains("ten steps from rest: z at the last = "),
         "{out}"
     );
+    // The workspace's rollout is the thread's own, bit for bit.
+    assert!(out.contains("the same in a workspace: equal"), "{out}");
     // GBX_STATUS_IO, with the message naming the file.
     assert!(
         out.contains("status 3: i/o error: cannot read no/such/model.gbx"),

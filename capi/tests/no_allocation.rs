@@ -1,12 +1,13 @@
-//! Real-time use: once warmed up, gbx_predict and gbx_linearize (and their `_z` variants)
-//! take every block they need from the calling thread's lists and none from the system
-//! allocator (which may lock or page in). The library's allocator counts, per thread, the
-//! allocations made inside those calls and how many of them reached the system.
+//! Real-time use: once a workspace is made for a model and its largest batch, the `_ws` calls
+//! (predict with and without q̈, linearize, rollout, each with z) take nothing from the
+//! system allocator and start no thread, at 1, 8, 32 and 256 states, on the six recorded
+//! models. This test binary installs its own counting allocator: the library has none.
 
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
 use std::ffi::CString;
 use std::ptr::{null, null_mut};
 
-use graybox_c::pool::{Counts, counts};
 use graybox_c::*;
 
 const MODELS: [&str; 6] = [
@@ -17,6 +18,56 @@ const MODELS: [&str; 6] = [
     "compat/mvf",
     "compat/wb-x3",
 ];
+
+/// Counts this thread's allocations and reallocations (the harness's other threads allocate
+/// as they please).
+struct Counting;
+
+thread_local! {
+    static CALLS: Cell<usize> = const { Cell::new(0) };
+}
+
+fn count() {
+    // `try_with`: a thread's allocations after its locals are gone are not ours.
+    let _ = CALLS.try_with(|c| c.set(c.get() + 1));
+}
+
+// SAFETY: every call is passed to the system allocator unchanged.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        // SAFETY: the caller's layout, as GlobalAlloc requires.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        count();
+        // SAFETY: as above.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        // SAFETY: a block of ours with its layout, as GlobalAlloc requires.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: as above.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static ALLOCATOR: Counting = Counting;
+
+fn allocations(f: impl FnOnce()) -> usize {
+    let before = CALLS.with(Cell::get);
+    f();
+    CALLS.with(Cell::get) - before
+}
+
+/// The process's threads now (Linux: one entry per thread under /proc/self/task).
+fn threads() -> usize {
+    std::fs::read_dir("/proc/self/task").unwrap().count()
+}
 
 struct Loaded {
     model: *mut GbxModel,
@@ -36,138 +87,156 @@ fn load(name: &str) -> Loaded {
     Loaded { model, n, m }
 }
 
-/// One predict (with q̈ when asked) and one linearize of `batch` states near the origin, each
-/// also with its z.
-fn calls(l: &Loaded, batch: usize, accel: bool) {
+/// A call's inputs and outputs for `batch` states, allocated before the count starts.
+struct Buffers {
+    x: Vec<f64>,
+    u: Vec<f64>,
+    next: Vec<f64>,
+    acc: Vec<f64>,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    z: Vec<f64>,
+    us: Vec<f64>,
+    xs: Vec<f64>,
+}
+
+const STEPS: usize = 5;
+
+fn buffers(l: &Loaded, batch: usize) -> Buffers {
     let nx = 2 * l.n;
-    let x: Vec<f64> = (0..batch * nx).map(|i| 0.1 + 0.01 * i as f64).collect();
-    let u = vec![0.2; batch * l.m];
-    let (mut next, mut acc) = (vec![0.0; batch * nx], vec![0.0; batch * l.n]);
-    let (mut a, mut b) = (vec![0.0; batch * nx * nx], vec![0.0; batch * nx * l.m]);
-    let acc = if accel { acc.as_mut_ptr() } else { null_mut() };
-    let mut z = vec![0.0; batch];
-    let u = if l.m == 0 { null() } else { u.as_ptr() };
-    // SAFETY: the buffers have the sizes the header documents.
-    unsafe {
-        let s = gbx_predict(l.model, x.as_ptr(), u, batch, next.as_mut_ptr(), acc);
-        assert_eq!(s, GbxStatus::Ok);
-        let s = gbx_linearize(
-            l.model,
-            x.as_ptr(),
-            u,
-            batch,
-            a.as_mut_ptr(),
-            b.as_mut_ptr(),
-        );
-        assert_eq!(s, GbxStatus::Ok);
-        let (x, next) = (x.as_ptr(), next.as_mut_ptr());
-        let s = gbx_predict_z(l.model, x, u, batch, next, acc, z.as_mut_ptr());
-        assert_eq!(s, GbxStatus::Ok);
-        let (a, b) = (a.as_mut_ptr(), b.as_mut_ptr());
-        let s = gbx_linearize_z(l.model, x, u, batch, a, b, z.as_mut_ptr());
-        assert_eq!(s, GbxStatus::Ok);
+    Buffers {
+        x: (0..batch * nx)
+            .map(|i| 0.1 + 0.05 * (i % 7) as f64)
+            .collect(),
+        u: (0..batch * l.m)
+            .map(|i| 0.2 - 0.1 * (i % 3) as f64)
+            .collect(),
+        next: vec![0.0; batch * nx],
+        acc: vec![0.0; batch * l.n],
+        a: vec![0.0; batch * nx * nx],
+        b: vec![0.0; batch * nx * l.m],
+        z: vec![0.0; batch.max(STEPS)],
+        us: vec![0.1; STEPS * l.m],
+        xs: vec![0.0; (STEPS + 1) * nx],
     }
 }
 
-fn since(before: Counts) -> Counts {
-    let now = counts();
-    Counts {
-        served: now.served - before.served,
-        system: now.system - before.system,
+/// Predict with and without q̈, linearize and a rollout, each with z, in `ws`.
+fn calls(l: &Loaded, ws: *mut GbxWorkspace, batch: usize, o: &mut Buffers) {
+    let ok = GbxStatus::Ok;
+    let u = if l.m == 0 { null() } else { o.u.as_ptr() };
+    let us = if l.m == 0 { null() } else { o.us.as_ptr() };
+    let (x, z) = (o.x.as_ptr(), o.z.as_mut_ptr());
+    // SAFETY: the buffers have the sizes the header documents; no cancel flag.
+    unsafe {
+        let (next, acc) = (o.next.as_mut_ptr(), o.acc.as_mut_ptr());
+        let s = gbx_predict_ws(l.model, ws, x, u, batch, next, acc, z, null());
+        assert_eq!(s, ok);
+        let s = gbx_predict_ws(l.model, ws, x, u, batch, next, null_mut(), z, null());
+        assert_eq!(s, ok);
+        let (a, b) = (o.a.as_mut_ptr(), o.b.as_mut_ptr());
+        assert_eq!(
+            gbx_linearize_ws(l.model, ws, x, u, batch, a, b, z, null()),
+            ok
+        );
+        let xs = o.xs.as_mut_ptr();
+        assert_eq!(gbx_rollout_ws(l.model, ws, x, us, STEPS, xs, z, null()), ok);
     }
 }
 
 #[test]
-fn after_a_warm_up_call_predict_and_linearize_take_nothing_from_the_system() {
+fn with_a_workspace_calls_take_nothing_from_the_system_and_start_no_thread() {
     for name in MODELS {
         let l = load(name);
-        calls(&l, 1, true);
-        calls(&l, 1, false);
-        let before = counts();
-        for k in 0..1000 {
-            calls(&l, 1, k % 2 == 0);
+        let mut ws = null_mut();
+        // The count sees the library's allocations: making the workspace takes its memory.
+        // SAFETY: a loaded model and a place for the pointer.
+        let made = allocations(|| {
+            assert_eq!(
+                unsafe { gbx_workspace_new(l.model, 256, &mut ws) },
+                GbxStatus::Ok
+            )
+        });
+        assert!(made > 0, "{name}: the allocator counted nothing");
+        for batch in [1, 8, 32, 256] {
+            let mut o = buffers(&l, batch);
+            let before = threads();
+            // A thread's start allocates on the starting thread (its handle, its closure), so
+            // the count would see one; the live threads are compared as well.
+            let made = allocations(|| calls(&l, ws, batch, &mut o));
+            assert_eq!(made, 0, "{name}, {batch} states: {made} allocations");
+            assert_eq!(
+                threads(),
+                before,
+                "{name}, {batch} states: a thread was left"
+            );
+
+            // The calls without a workspace of the caller's (this thread's own) give the same
+            // answers bit for bit.
+            let mut fresh = buffers(&l, batch);
+            calls(&l, null_mut(), batch, &mut fresh);
+            for (got, want) in [(&o.next, &fresh.next), (&o.a, &fresh.a), (&o.xs, &fresh.xs)] {
+                let bits = |v: &[f64]| v.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(got), bits(want), "{name}, {batch} states");
+            }
         }
-        let d = since(before);
-        // The count sees the calls' allocations (the core's vectors), so zero below is the
-        // lists' doing, not an allocator that was not asked.
-        assert!(d.served > 0, "{name}: no allocation was counted");
-        assert_eq!(
-            d.system, 0,
-            "{name}: {} system allocations after warm-up",
-            d.system
-        );
-        // SAFETY: loaded above, freed once.
-        unsafe { gbx_model_free(l.model) };
+        // SAFETY: made and loaded above, each freed once.
+        unsafe {
+            gbx_workspace_free(ws);
+            gbx_model_free(l.model);
+        }
     }
 }
 
 #[test]
-fn a_larger_batch_than_any_before_reaches_the_system_once() {
+fn a_workspace_is_refused_a_zero_batch_and_a_null_model() {
     let l = load("inference/cartpole-wb");
-    calls(&l, 1, true);
-    let before = counts();
-    calls(&l, 8, true);
-    assert!(since(before).system > 0, "larger blocks came from nowhere");
-    let before = counts();
-    calls(&l, 8, true);
-    assert_eq!(since(before).system, 0);
-    // SAFETY: loaded above, freed once.
-    unsafe { gbx_model_free(l.model) };
+    let mut ws = null_mut();
+    // SAFETY: a loaded model (or null, which is refused) and a place for the pointer.
+    unsafe {
+        assert_eq!(
+            gbx_workspace_new(l.model, 0, &mut ws),
+            GbxStatus::InvalidArgument
+        );
+        assert!(ws.is_null());
+        assert_eq!(
+            gbx_workspace_new(null(), 8, &mut ws),
+            GbxStatus::InvalidArgument
+        );
+        assert_eq!(gbx_abi_version(), GBX_ABI_VERSION);
+        gbx_model_free(l.model);
+    }
 }
 
 #[test]
-fn blocks_freed_on_other_threads_and_at_their_end_stay_sound() {
+fn workspaces_on_several_threads_give_the_same_answers() {
     let l = load("inference/ur5-residual");
-    let kept: Vec<Vec<u8>> =
-        graybox_c::pool::pooled(|| (0..64).map(|i| vec![i; 40 * i as usize + 1]).collect());
     let (model, n, m) = (l.model as usize, l.n, l.m);
-    let workers: Vec<_> = (0..4)
-        .map(|_| {
-            std::thread::spawn(move || {
-                let l = Loaded {
-                    model: model as *mut GbxModel,
-                    n,
-                    m,
-                };
-                for k in 0..50 {
-                    calls(&l, 1 + k % 3, k % 2 == 0);
-                }
+    let answer = |threads: usize| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                std::thread::spawn(move || {
+                    let l = Loaded {
+                        model: model as *mut GbxModel,
+                        n,
+                        m,
+                    };
+                    let mut ws = null_mut();
+                    // SAFETY: a loaded model shared read-only; this thread's workspace.
+                    unsafe { gbx_workspace_new(l.model, 8, &mut ws) };
+                    let mut o = buffers(&l, 8);
+                    calls(&l, ws, 8, &mut o);
+                    // SAFETY: made above, freed once.
+                    unsafe { gbx_workspace_free(ws) };
+                    (o.next, o.a)
+                })
             })
-        })
-        .collect();
-    // Pooled blocks of this thread, freed on another that then ends.
-    std::thread::spawn(move || {
-        for (i, v) in kept.iter().enumerate() {
-            assert!(v.iter().all(|&b| b == i as u8));
-        }
-        drop(kept);
-    })
-    .join()
-    .unwrap();
-    workers.into_iter().for_each(|w| w.join().unwrap());
-    calls(&l, 2, true);
+            .collect();
+        let all: Vec<_> = workers.into_iter().map(|w| w.join().unwrap()).collect();
+        all
+    };
+    let answers = answer(4);
+    assert!(answers.windows(2).all(|w| w[0] == w[1]));
     // SAFETY: every thread that used it has ended.
     unsafe { gbx_model_free(l.model) };
-}
-
-#[test]
-fn over_aligned_grown_and_shrunk_blocks_keep_their_alignment_and_bytes() {
-    #[repr(align(64))]
-    struct Line([u8; 64]);
-    graybox_c::pool::pooled(|| {
-        let lines: Vec<Box<Line>> = (0..8).map(|i| Box::new(Line([i; 64]))).collect();
-        for (i, l) in lines.iter().enumerate() {
-            assert_eq!(&raw const **l as usize % 64, 0);
-            assert!(l.0.iter().all(|&b| b == i as u8));
-        }
-        // Growing past a block's class moves it, past the largest class to the system;
-        // shrinking stays in place.
-        let mut v: Vec<u32> = Vec::new();
-        for i in 0..1_000_000 {
-            v.push(i);
-        }
-        v.truncate(10);
-        v.shrink_to_fit();
-        assert_eq!(v, (0..10).collect::<Vec<_>>());
-    });
 }

@@ -1,6 +1,6 @@
 /*
  * A controller's loop on a graybox model, in the controller's own process (no service): load
- * a model file, step it 1000 times with gbx_predict_z from the caller's buffers, warn on
+ * a model file, step it 1000 times with gbx_predict_ws in a workspace of its own, warn on
  * stderr when the loop takes the model far from its training data, and check the first steps
  * against a rollout the service recorded.
  *
@@ -46,8 +46,16 @@ int main(int argc, char **argv) {
         fprintf(stderr, "usage: %s MODEL.gbx [RECORD.txt]\n", argv[0]);
         return 2;
     }
+    if (gbx_abi_version() != GBX_ABI_VERSION) {
+        fprintf(stderr, "libgraybox_c is ABI %u, this program was built for %u\n",
+                gbx_abi_version(), GBX_ABI_VERSION);
+        return 1;
+    }
     GbxModel *model = NULL;
-    if (gbx_model_load(argv[1], &model) != GBX_STATUS_OK) {
+    GbxWorkspace *ws = NULL;
+    /* The loop's scratch, made once for one state per call: the steps allocate nothing. */
+    if (gbx_model_load(argv[1], &model) != GBX_STATUS_OK ||
+        gbx_workspace_new(model, 1, &ws) != GBX_STATUS_OK) {
         fprintf(stderr, "load: %s\n", gbx_last_error());
         return 1;
     }
@@ -90,7 +98,7 @@ int main(int argc, char **argv) {
         } else {
             memset(u, 0, m * sizeof(double));
         }
-        if (gbx_predict_z(model, x, u, 1, next, NULL, &z) != GBX_STATUS_OK) {
+        if (gbx_predict_ws(model, ws, x, u, 1, next, NULL, &z, NULL) != GBX_STATUS_OK) {
             fprintf(stderr, "step %zu: %s\n", t, gbx_last_error());
             return 1;
         }
@@ -139,6 +147,7 @@ int main(int argc, char **argv) {
         }
         printf("\n");
     }
+    gbx_workspace_free(ws);
     gbx_model_free(model);
     return 0;
 }

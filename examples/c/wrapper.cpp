@@ -18,6 +18,10 @@ int main(int argc, char** argv) {
   std::vector<double> xs(11 * 2 * model.n()), us(10 * model.m(), 0.0), z(10);
   model.rollout_z(x.data(), us.data(), 10, xs.data(), z.data());
   std::printf("ten steps from rest: z at the last = %.3g\n", z[9]);
+  graybox::Workspace ws = model.workspace(1);
+  std::vector<double> again(11 * 2 * model.n());
+  model.rollout(ws, x.data(), us.data(), 10, again.data());
+  std::printf("the same in a workspace: %s\n", again == xs ? "equal" : "different");
   try {
     graybox::Model missing("no/such/model.gbx");
   } catch (const graybox::Error& e) {

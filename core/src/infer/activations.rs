@@ -13,28 +13,29 @@
 //! ∂²h = s ∂²z + s' ∂_q z ∂_ε z     (mixed)
 //! ```
 
+use crate::arena::{AVec, Arena, avec};
 use crate::simd::{mad, multiversion, tanh_kernel};
 
 /// Activations and derivatives of a batch: blocks `[outer + 1][inner + 1][batch][width]`,
-/// block (0, 0) the values.
+/// block (0, 0) the values; in the call's arena.
 #[derive(Debug, Clone)]
-pub struct Activations {
+pub struct Activations<'a> {
     pub batch: usize,
     pub width: usize,
     pub inner: usize,
     pub outer: usize,
-    pub data: Vec<f64>,
+    pub data: AVec<'a, f64>,
 }
 
-impl Activations {
-    pub fn zeros(batch: usize, width: usize, inner: usize, outer: usize) -> Self {
+impl<'a> Activations<'a> {
+    pub fn zeros(a: &'a Arena, batch: usize, width: usize, inner: usize, outer: usize) -> Self {
         let len = (inner + 1) * (outer + 1) * batch * width;
         Self {
             batch,
             width,
             inner,
             outer,
-            data: vec![0.0; len],
+            data: avec![in a; 0.0; len],
         }
     }
 
@@ -57,19 +58,21 @@ impl Activations {
     }
 
     /// `self × W + b` (bias on the values only); W row-major `[width, out]`.
-    pub fn linear(&self, w: &[f64], bias: &[f64], out: usize) -> Activations {
-        let mut z = Activations::zeros(self.batch, out, self.inner, self.outer);
+    pub fn linear(&self, a: &'a Arena, w: &[f64], bias: &[f64], out: usize) -> Activations<'a> {
+        let mut z = Activations::zeros(a, self.batch, out, self.inner, self.outer);
         for r in 0..self.batch {
             z.data[r * out..(r + 1) * out].copy_from_slice(bias);
         }
-        matmul_acc(&self.data, w, &mut z.data, self.width, out);
+        let mut narrow = avec![in a; 0.0; (out % LANES) * self.width];
+        matmul_acc(&self.data, w, &mut z.data, self.width, out, &mut narrow);
         z
     }
 
     /// tanh applied to the values, with the chain rule on every derivative block.
-    pub fn tanh(&mut self) {
+    pub fn tanh(&mut self, a: &Arena) {
         let len = self.block_len();
-        activate(&mut self.data, len, self.inner, self.outer);
+        let mut slope = avec![in a; 0.0; if self.data.len() > len { len } else { 0 }];
+        activate(&mut self.data, len, self.inner, self.outer, &mut slope);
     }
 }
 
@@ -77,8 +80,9 @@ multiversion! {
     /// c += a × w for row-major a `[rows, k]`, w `[k, out]`, c `[rows, out]`, in register
     /// tiles. The layers are narrow (k, out ≤ 64 typically): w stays in L1, so no packing,
     /// which dominated a single state's time with a general GEMM (and measured no faster than
-    /// these tiles at 1024 states).
-    fn matmul_acc(a: &[f64], w: &[f64], c: &mut [f64], k: usize, out: usize) => matmul_kernel
+    /// these tiles at 1024 states). `narrow`: room for the last `out % 8` columns of w,
+    /// transposed (`(out % 8) · k`).
+    fn matmul_acc(a: &[f64], w: &[f64], c: &mut [f64], k: usize, out: usize, narrow: &mut [f64]) => matmul_kernel
 }
 
 /// Doubles per vector in a register tile: one AVX-512 register, two AVX2 ones.
@@ -88,7 +92,14 @@ const LANES: usize = 8;
 const TILE_ROWS: usize = 4;
 
 #[inline(always)]
-fn matmul_kernel<const FMA: bool>(a: &[f64], w: &[f64], c: &mut [f64], k: usize, out: usize) {
+fn matmul_kernel<const FMA: bool>(
+    a: &[f64],
+    w: &[f64],
+    c: &mut [f64],
+    k: usize,
+    out: usize,
+    narrow: &mut [f64],
+) {
     let rows = a.len() / k;
     let mut j0 = 0;
     while j0 + 2 * LANES <= out {
@@ -100,7 +111,7 @@ fn matmul_kernel<const FMA: bool>(a: &[f64], w: &[f64], c: &mut [f64], k: usize,
         j0 += LANES;
     }
     if j0 < out {
-        narrow_columns::<FMA>(a, w, c, k, out, j0);
+        narrow_columns::<FMA>(a, w, c, k, out, j0, narrow);
     }
 }
 
@@ -175,8 +186,8 @@ fn narrow_columns<const FMA: bool>(
     k: usize,
     out: usize,
     j0: usize,
+    wt: &mut [f64],
 ) {
-    let mut wt = vec![0.0; (out - j0) * k];
     for (kk, w) in w.chunks_exact(out).enumerate() {
         for (j, &v) in w[j0..].iter().enumerate() {
             wt[j * k + kk] = v;
@@ -204,17 +215,26 @@ fn narrow_columns<const FMA: bool>(
 
 multiversion! {
     /// The activation of a jet's buffer (blocks of `len`): see the module comment.
-    fn activate(data: &mut [f64], len: usize, ni: usize, no: usize) => activate_kernel
+    /// `s`: room for the slope 1 − h² of every value (`len`) when there are derivatives.
+    fn activate(data: &mut [f64], len: usize, ni: usize, no: usize, s: &mut [f64]) => activate_kernel
 }
 
 #[inline(always)]
-fn activate_kernel<const FMA: bool>(data: &mut [f64], len: usize, ni: usize, no: usize) {
+fn activate_kernel<const FMA: bool>(
+    data: &mut [f64],
+    len: usize,
+    ni: usize,
+    no: usize,
+    s: &mut [f64],
+) {
     let (values, rest) = data.split_at_mut(len);
     tanh_kernel::<FMA>(values);
     if rest.is_empty() {
         return;
     }
-    let s: Vec<f64> = values.iter().map(|h| 1.0 - h * h).collect();
+    for (s, h) in s.iter_mut().zip(values.iter()) {
+        *s = 1.0 - h * h;
+    }
     // Mixed blocks first: they need the first-order blocks before those are scaled.
     for o in 1..=no {
         for i in 1..=ni {
@@ -234,7 +254,7 @@ fn activate_kernel<const FMA: bool>(data: &mut [f64], len: usize, ni: usize, no:
                 continue; // the values, or a mixed block (done above)
             }
             let k = o * (ni + 1) + i;
-            for (d, s) in rest[(k - 1) * len..k * len].iter_mut().zip(&s) {
+            for (d, s) in rest[(k - 1) * len..k * len].iter_mut().zip(s.iter()) {
                 *d *= s;
             }
         }
@@ -267,7 +287,8 @@ mod tests {
                 }
             }
             let mut got = c0;
-            matmul_acc(&a, &w, &mut got, k, out);
+            let mut narrow = vec![0.0; (out % LANES) * k];
+            matmul_acc(&a, &w, &mut got, k, out, &mut narrow);
             for (g, w) in got.iter().zip(&want) {
                 assert!((g - w).abs() < 1e-13, "{rows}×{k}×{out}: {g} vs {w}");
             }
@@ -280,12 +301,13 @@ mod tests {
         use crate::physics::scalar::Scalar;
         // z(q, ε) = a + b q + c ε + d q ε at one unit: the jet's blocks vs Dual<Dual<f64>>.
         let (a, b, c, d) = (0.3, -0.7, 1.1, 0.4);
-        let mut jet = Activations::zeros(1, 1, 1, 1);
+        let arena = Arena::new();
+        let mut jet = Activations::zeros(&arena, 1, 1, 1, 1);
         jet.set(0, 0, 0, 0, a);
         jet.set(0, 1, 0, 0, b);
         jet.set(1, 0, 0, 0, c);
         jet.set(1, 1, 0, 0, d);
-        jet.tanh();
+        jet.tanh(&arena);
         let inner = |v: f64, dq: f64| -> Dual<f64> { Dual::new(v, vec![Some(dq)]) };
         let z: Dual<Dual<f64>> = Dual::new(inner(a, b), vec![Some(inner(c, d))]);
         let h = z.tanh();

@@ -2,14 +2,15 @@
 //! Python module and the benchmarks call; a batch is cut in chunks that a caller's stop can
 //! interrupt.
 
-use super::col::{Col, Column};
 use super::limits::Pass;
-use super::{Evaluator, columns, continuous, ensemble, to_rows};
+use super::workspace::with_workspace;
+use super::{Evaluator, continuous};
+use crate::arena::{AVec, Arena};
 use crate::control::linalg::Mat;
 use crate::control::plan::Dynamics;
 
-/// Batches at least this large run on two threads: a thread costs ~20–40 µs, a step of 64
-/// states ~0.35 ms on one (measured: 64 states in 0.26 ms split vs 0.35–0.48 ms not).
+/// Batches at least this large run in two halves on the caller's rayon pool (the global one
+/// outside any): a hand-off costs a few µs, a step of 64 states ~0.35 ms on one thread.
 const PARALLEL_ROWS: usize = 32;
 
 /// Batched entry points over row-major arrays: what the service and the benchmarks call.
@@ -28,38 +29,18 @@ impl Evaluator {
         want_accel: bool,
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
-        if let Some(members) = &self.members {
-            return ensemble::mean_prediction(members, x, u, want_accel, stop);
-        }
-        let parts = self.split(x, u, Pass::Step, stop, |x, u| {
-            if self.multibody.is_some() {
-                self.predict_each(x, u, want_accel)
-            } else if x.len() == 2 * self.config.n {
-                self.predict_cols::<f64>(x, u, want_accel)
-            } else {
-                self.predict_cols::<Col>(x, u, want_accel)
-            }
-        })?;
-        let mut next = vec![];
-        let mut acc = want_accel.then(Vec::new);
-        for (x, a) in parts {
-            next.extend(x);
-            acc.iter_mut().zip(a).for_each(|(acc, a)| acc.extend(a));
-        }
-        Some((next, acc))
-    }
-
-    pub(super) fn predict_cols<C: Column>(
-        &self,
-        x: &[f64],
-        u: &[f64],
-        want_accel: bool,
-    ) -> (Vec<f64>, Option<Vec<f64>>) {
         let n = self.config.n;
-        let (x, u) = (columns::<C>(x, 2 * n), columns::<C>(u, self.config.m));
-        let next = to_rows(&self.step(&x, &u));
-        let acc = want_accel.then(|| to_rows(&self.accel(&x[..n], &x[n..], &u)));
-        (next, acc)
+        let mut next = vec![0.0; x.len()];
+        let mut acc = vec![0.0; if want_accel { x.len() / 2 } else { 0 }];
+        let outs = (
+            (&mut next[..], 2 * n),
+            (&mut acc[..], if want_accel { n } else { 0 }),
+        );
+        self.in_halves(x, u, Pass::Step, stop, outs, |x, u, next, acc| {
+            let acc = want_accel.then_some(acc);
+            with_workspace(|ws| self.predict_into(ws, x, u, next, acc, &|| false));
+        })?;
+        Some((next, want_accel.then_some(acc)))
     }
 
     /// A `[B, 2n, 2n]` and B `[B, 2n, m]` for a batch: the state's and input's coordinates
@@ -76,71 +57,67 @@ impl Evaluator {
         u: &[f64],
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
-        if let Some(members) = &self.members {
-            return ensemble::mean_linearization(members, x, u, stop);
-        }
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let parts = self.split(x, u, Pass::Linearize, stop, |x, u| {
-            let multibody = (self.multibody.as_ref()).and_then(|model| {
-                let rows = x.chunks(nx).zip(u.chunks(m));
-                rows.map(|(x, u)| self.multibody_jacobian(model, x, u))
-                    .collect::<Option<Vec<_>>>()
-            });
-            if let Some(rows) = multibody {
-                rows.concat()
-            } else if x.len() == nx {
-                self.jacobian_rows(columns::<f64>(x, nx), columns(u, m))
-            } else {
-                self.jacobian_rows(columns::<Col>(x, nx), columns(u, m))
-            }
+        let mut a = vec![0.0; x.len() * nx];
+        let mut b = vec![0.0; x.len() * m];
+        let outs = ((&mut a[..], nx * nx), (&mut b[..], nx * m));
+        self.in_halves(x, u, Pass::Linearize, stop, outs, |x, u, a, b| {
+            with_workspace(|ws| self.linearize_into(ws, x, u, a, b, &|| false));
         })?;
-        let (mut a, mut b) = (Vec::with_capacity(x.len() * nx), Vec::new());
-        for row in parts.concat().chunks(nx + m) {
-            a.extend(&row[..nx]);
-            b.extend(&row[nx..]);
-        }
         Some((a, b))
     }
 
-    /// Per sample, per output coordinate, the row [∂x'_i/∂x, ∂x'_i/∂u].
-    fn jacobian_rows<C: Column>(&self, x: Vec<C>, u: Vec<C>) -> Vec<f64> {
-        continuous::dual_rows(x, u, |x, u| self.step(x, u))
+    /// One state's rows [∂x'_i/∂x, ∂x'_i/∂u], in the arena: by the multibody algorithms'
+    /// derivatives where they apply, else dual numbers through the step.
+    pub(super) fn state_jacobian<'a>(
+        &'a self,
+        a: &'a Arena,
+        x: &[f64],
+        u: &[f64],
+    ) -> AVec<'a, f64> {
+        if let Some(rows) =
+            (self.multibody.as_ref()).and_then(|r| self.multibody_jacobian(a, r, x, u))
+        {
+            return rows;
+        }
+        continuous::dual_rows_in(a, x, u, |x, u| self.step_in(a, x, u))
     }
 
     /// Runs `f` over a batch in chunks whose intermediate work is bounded (see [`limits`]),
-    /// each in two halves on two threads when it is large enough for the thread to pay off;
-    /// the parts in order, or `None` when `stop` says so before a chunk (a 10⁶-state batch
-    /// takes seconds: a caller's deadline must not wait for all of it).
-    pub(super) fn split<T: Send>(
+    /// each in two halves on the caller's rayon pool when it is large enough to pay off (the
+    /// pool's threads live on, each with its workspace: no thread is started per call),
+    /// each part writing its rows of the two outputs (`width` values a row); `None` when
+    /// `stop` says so before a chunk (a 10⁶-state batch takes seconds: a caller's deadline
+    /// must not wait for all of it).
+    #[allow(clippy::type_complexity)]
+    fn in_halves(
         &self,
         x: &[f64],
         u: &[f64],
         pass: Pass,
         stop: &dyn Fn() -> bool,
-        f: impl Fn(&[f64], &[f64]) -> T + Sync,
-    ) -> Option<Vec<T>> {
+        ((first, w1), (second, w2)): ((&mut [f64], usize), (&mut [f64], usize)),
+        f: impl Fn(&[f64], &[f64], &mut [f64], &mut [f64]) + Sync,
+    ) -> Option<()> {
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let chunk = 2 * self.chunk_states(pass);
-        let mut parts = Vec::new();
-        for (x, u) in x.chunks(chunk * nx).zip(u.chunks(chunk * m)) {
+        let (rows, chunk) = (x.len() / nx, 2 * self.chunk_states(pass));
+        for s in (0..rows).step_by(chunk) {
             if stop() {
                 return None;
             }
-            let rows = x.len() / nx;
-            if rows < PARALLEL_ROWS {
-                parts.push(f(x, u));
+            let e = rows.min(s + chunk);
+            let (x, u) = (&x[nx * s..nx * e], &u[m * s..m * e]);
+            let (o1, o2) = (&mut first[w1 * s..w1 * e], &mut second[w2 * s..w2 * e]);
+            if e - s < PARALLEL_ROWS {
+                f(x, u, o1, o2);
                 continue;
             }
-            let half = rows / 2;
-            let (x0, x1) = x.split_at(half * nx);
-            let (u0, u1) = u.split_at(half * m);
-            std::thread::scope(|s| {
-                let second = s.spawn(|| f(x1, u1));
-                parts.push(f(x0, u0));
-                parts.push(second.join().expect("inference thread"));
-            });
+            let h = (e - s) / 2;
+            let ((x0, x1), (u0, u1)) = (x.split_at(nx * h), u.split_at(m * h));
+            let ((a0, a1), (b0, b1)) = (o1.split_at_mut(w1 * h), o2.split_at_mut(w2 * h));
+            rayon::join(|| f(x0, u0, a0, b0), || f(x1, u1, a1, b1));
         }
-        Some(parts)
+        Some(())
     }
 
     /// `steps` states after x0 under inputs `u_t = input(t, x_t)`, each handed to `emit`
@@ -152,10 +129,11 @@ impl Evaluator {
         input: impl Fn(usize, &[f64]) -> Vec<f64>,
         mut emit: impl FnMut(&[f64], &[f64]) -> bool,
     ) {
-        let mut x = x0.to_vec();
+        let (mut x, mut next) = (x0.to_vec(), vec![0.0; x0.len()]);
         for t in 0..steps {
             let u = input(t, &x);
-            x = self.mean_step(&x[..], &u);
+            with_workspace(|ws| self.predict_into(ws, &x, &u, &mut next, None, &|| false));
+            std::mem::swap(&mut x, &mut next);
             if !emit(&x, &u) {
                 return;
             }

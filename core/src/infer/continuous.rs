@@ -3,62 +3,53 @@
 //! by the integrator's one-step map. The Jacobians are dual numbers pushed through q̈ alone,
 //! as Linearize pushes them through a whole step.
 
+use std::ops::Deref;
+
 use super::Evaluator;
-use super::col::{Col, Column};
 use super::ensemble::mean;
 use super::limits::Pass;
-use super::{columns, to_rows};
+use super::workspace::with_workspace;
+use crate::arena::{AVec, Arena, CollectIn};
 use crate::control::dircol::Continuous;
 use crate::control::linalg::Mat;
-use crate::physics::dual::{Dual, Tangents, groups_of};
+use crate::physics::dual::{Dual, Jet, WIDTH, groups_of};
+
+/// A dual number over one state's directions (x's then u's), a group of eight at a time.
+pub(super) type Outer = Jet<WIDTH>;
 
 impl Evaluator {
-    /// f at each row of `[B, 2n]` states and `[B, m]` inputs: q̇, then q̈.
-    fn derivative_rows<C: Column>(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
-        let (n, m) = (self.config.n, self.config.m);
-        let xc: Vec<C> = columns(x, 2 * n);
-        let uc: Vec<C> = columns(u, m);
-        let acc = self.accel(&xc[..n], &xc[n..], &uc);
-        let mut cols = xc[n..].to_vec();
-        cols.extend(acc);
-        to_rows(&cols)
-    }
-
-    /// Per row, per output coordinate of f, the row [∂f_i/∂x, ∂f_i/∂u].
-    fn derivative_jacobian_rows<C: Column>(&self, x: Vec<C>, u: Vec<C>) -> Vec<f64> {
+    /// f = (q̇, q̈) at each row of `[B, 2n]` states and `[B, m]` inputs, in an arena.
+    fn derivative_in<'a, S: super::Lanes>(&'a self, a: &'a Arena, x: &[S], u: &[S]) -> AVec<'a, S> {
         let n = self.config.n;
-        dual_rows(x, u, |x, u| {
-            let mut f = x[n..].to_vec();
-            f.extend(self.accel(&x[..n], &x[n..], u));
-            f
-        })
+        let qdd = self.evaluate_in(a, self.rows(x, u), false);
+        let rows = x.chunks(2 * n).zip(qdd.chunks(n));
+        rows.flat_map(|(x, qdd)| x[n..].iter().chain(qdd).cloned())
+            .collect_in(a)
     }
 }
 
-/// `f`'s Jacobian at each row of the columns `x` and `u`: every coordinate a dual variable
-/// (x's then u's directions), a group of directions at a time (`dual::groups`); per row, per
-/// output, the row [∂f_i/∂x, ∂f_i/∂u].
-pub(super) fn dual_rows<C: Column>(
-    x: Vec<C>,
-    u: Vec<C>,
-    f: impl Fn(&[Dual<C, C::Tangents>], &[Dual<C, C::Tangents>]) -> Vec<Dual<C, C::Tangents>>,
-) -> Vec<f64> {
-    let (nx, rows) = (x.len(), x[0].rows());
-    let xu: Vec<C> = x.into_iter().chain(u).collect();
-    let (dirs, one) = (xu.len(), xu[0].lift(1.0));
-    let mut out: Vec<f64> = vec![];
-    for group in groups_of(dirs, C::Tangents::WIDTH) {
-        let seeded = Dual::seeded(&xu, &one, group.clone());
+/// One state's Jacobian of `f`: every coordinate of (x, u) a dual variable, a group of
+/// directions at a time (`dual::groups_of`); per output, the row [∂f_i/∂x, ∂f_i/∂u].
+pub(super) fn dual_rows_in<'a, Y: Deref<Target = [Outer]>>(
+    a: &'a Arena,
+    x: &[f64],
+    u: &[f64],
+    f: impl Fn(&[Outer], &[Outer]) -> Y,
+) -> AVec<'a, f64> {
+    let nx = x.len();
+    let xu: AVec<f64> = x.iter().chain(u).copied().collect_in(a);
+    let dirs = xu.len();
+    let mut out = AVec::new_in(a);
+    for group in groups_of(dirs, WIDTH) {
+        let seeded = Dual::seeded_in(a, &xu, &1.0, group.clone());
         let y = f(&seeded[..nx], &seeded[nx..]);
         if out.is_empty() {
-            out = vec![0.0; rows * y.len() * dirs];
+            out.resize(y.len() * dirs, 0.0);
         }
-        for b in 0..rows {
-            for (i, yi) in y.iter().enumerate() {
-                let at = (b * y.len() + i) * dirs + group.start;
-                for k in 0..group.len() {
-                    out[at + k] = yi.tangent(k).map_or(0.0, |t| t.get(b));
-                }
+        for (i, yi) in y.iter().enumerate() {
+            let at = i * dirs + group.start;
+            for k in 0..group.len() {
+                out[at + k] = yi.tangent(k).copied().unwrap_or(0.0);
             }
         }
     }
@@ -79,10 +70,15 @@ impl Continuous for Evaluator {
         if let Some(members) = self.ensemble() {
             return mean(members.iter().map(|e| e.derivative(x, u)));
         }
-        let parts = self.split(x, u, Pass::Step, &|| false, |x, u| {
-            self.derivative_rows::<Col>(x, u)
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let mut out = Vec::with_capacity(x.len());
+        with_workspace(|ws| {
+            for r in self.units(x.len() / nx, Pass::Step) {
+                let (x, u) = (&x[nx * r.start..nx * r.end], &u[m * r.start..m * r.end]);
+                out.extend(self.derivative_in(ws.reset().0, x, u));
+            }
         });
-        parts.expect("never stopped").concat()
+        out
     }
     fn derivative_jacobian(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
         if let Some(members) = self.ensemble() {
@@ -96,14 +92,18 @@ impl Continuous for Evaluator {
             return self.jacobians(a, b);
         }
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let parts = self.split(x, u, Pass::Linearize, &|| false, |x, u| {
-            self.derivative_jacobian_rows(columns::<Col>(x, nx), columns(u, m))
+        let (mut ja, mut jb) = (Vec::with_capacity(x.len() * nx), Vec::new());
+        with_workspace(|ws| {
+            for b in 0..x.len() / nx {
+                let (x, u) = (&x[nx * b..][..nx], &u[m * b..][..m]);
+                let a = ws.reset().0;
+                let rows = dual_rows_in(a, x, u, |x, u| self.derivative_in(a, x, u));
+                for row in rows.chunks(nx + m) {
+                    ja.extend(&row[..nx]);
+                    jb.extend(&row[nx..]);
+                }
+            }
         });
-        let (mut a, mut b) = (Vec::with_capacity(x.len() * nx), Vec::new());
-        for row in parts.expect("never stopped").concat().chunks(nx + m) {
-            a.extend(&row[..nx]);
-            b.extend(&row[nx..]);
-        }
-        self.jacobians(a, b)
+        self.jacobians(ja, jb)
     }
 }

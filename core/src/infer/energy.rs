@@ -83,7 +83,7 @@ struct Row {
     parts: Vec<NamedPart>,
 }
 
-impl<S: super::col::Lanes> PotentialValue<S> for JetNets<'_, S> {
+impl<S: super::lanes::Lanes> PotentialValue<S> for JetNets<'_, S> {
     fn potential_value(&self) -> S {
         self.potential().clone()
     }

@@ -26,35 +26,6 @@ pub(super) fn mean(parts: impl Iterator<Item = Vec<f64>>) -> Vec<f64> {
     sum
 }
 
-/// The members' mean x' (and q̈), or None when `stop` said so.
-pub(super) fn mean_prediction(
-    members: &[Evaluator],
-    x: &[f64],
-    u: &[f64],
-    want_accel: bool,
-    stop: &dyn Fn() -> bool,
-) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
-    let each: Vec<(Vec<f64>, Option<Vec<f64>>)> = (members.iter())
-        .map(|m| m.predict_until(x, u, want_accel, stop))
-        .collect::<Option<_>>()?;
-    let accel = want_accel.then(|| mean(each.iter().filter_map(|e| e.1.clone())));
-    Some((mean(each.into_iter().map(|e| e.0)), accel))
-}
-
-/// The members' mean A and B, or None when `stop` said so.
-pub(super) fn mean_linearization(
-    members: &[Evaluator],
-    x: &[f64],
-    u: &[f64],
-    stop: &dyn Fn() -> bool,
-) -> Option<(Vec<f64>, Vec<f64>)> {
-    let each: Vec<(Vec<f64>, Vec<f64>)> = (members.iter())
-        .map(|m| m.linearize_until(x, u, stop))
-        .collect::<Option<_>>()?;
-    let b = mean(each.iter().map(|e| e.1.clone()));
-    Some((mean(each.into_iter().map(|e| e.0)), b))
-}
-
 /// Each member's predictions and their spread.
 pub struct MemberPredictions {
     /// Per member, x' `[B, 2n]`.
@@ -114,14 +85,6 @@ impl Evaluator {
         let accel = want_accel.then(|| mean(each.iter().filter_map(|e| e.1.clone())));
         let next = each.into_iter().map(|e| e.0).collect();
         Some(MemberPredictions::of(next, accel))
-    }
-
-    /// One step of the mean dynamics for one state (a single model's own step).
-    pub(super) fn mean_step(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
-        match &self.members {
-            Some(members) => mean(members.iter().map(|m| m.step(x, u))),
-            None => self.step(x, u),
-        }
     }
 }
 

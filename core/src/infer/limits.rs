@@ -48,7 +48,6 @@ impl Evaluator {
         let nets: usize = self
             .weights
             .networks()
-            .into_iter()
             .map(|net| 3 * net.widest() * lanes)
             .sum();
         let structure = 4 * (n * (n + 1) / 2 + 4 * n * n + n * m) * lanes;
@@ -64,20 +63,30 @@ impl Evaluator {
     /// under the training data's statistics: how far outside the data the model is asked to
     /// answer (a network saturates there and its outputs are finite but meaningless).
     pub fn max_abs_z(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
+        self.max_abs_z_rows(x, u).collect()
+    }
+
+    /// [`Evaluator::max_abs_z`] into the caller's `[B]` buffer.
+    pub fn max_abs_z_into(&self, x: &[f64], u: &[f64], out: &mut [f64]) {
+        out.iter_mut()
+            .zip(self.max_abs_z_rows(x, u))
+            .for_each(|(o, z)| *o = z);
+    }
+
+    fn max_abs_z_rows<'x>(&'x self, x: &'x [f64], u: &'x [f64]) -> impl Iterator<Item = f64> + 'x {
         let (n, m) = (self.config.n, self.config.m);
         let s = &self.config.scaling;
         let z = |v: f64, mean: f64, std: f64| ((v - mean) / std).abs();
         // Rows by index, not `u.chunks(m)`: a model without inputs has empty rows of u.
         x.chunks(2 * n)
             .enumerate()
-            .map_while(|(b, x)| Some((x, u.get(b * m..(b + 1) * m)?)))
-            .map(|(x, u)| {
+            .map_while(move |(b, x)| Some((x, u.get(b * m..(b + 1) * m)?)))
+            .map(move |(x, u)| {
                 let q = (0..n).map(|i| z(x[i], s.q_mean[i], s.q_std[i]));
                 let qd = (0..n).map(|i| z(x[n + i], s.qdot_mean[i], s.qdot_std[i]));
                 let uz = (0..m).map(|i| z(u[i], s.u_mean[i], s.u_std[i]));
                 q.chain(qd).chain(uz).fold(0.0, f64::max)
             })
-            .collect()
     }
 }
 

@@ -7,28 +7,31 @@
 
 pub mod activations;
 mod calls;
-pub mod col;
 mod continuous;
 mod energy;
 pub mod energy_report;
 mod ensemble;
 mod gains;
 pub mod horizons;
+mod lanes;
 pub mod limits;
 mod multibody;
 mod nets;
+mod pack;
 pub mod particles;
 mod weights;
+mod workspace;
 
 use std::sync::Arc;
 
 use activations::Activations;
 pub use energy::{Energies, NamedPart};
 pub use nets::Mlp64;
-use nets::{JetNets, input_jet, networks, periodic_full_jet, periodic_q_jet};
+use nets::{JetNets, NetOutputs, input_jet, networks, periodic_full_jet, periodic_q_jet};
 use weights::Weights;
+pub use workspace::{Workspace, with_workspace};
 
-use col::{Column, Lanes};
+use lanes::Lanes;
 
 use crate::arena::{AVec, Arena, CollectIn};
 use crate::error::{Error, Result};
@@ -37,7 +40,7 @@ use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::{Columns, Structure, Terms};
 use crate::physics::dynamics::acceleration;
-use crate::physics::multibody::forward_dynamics;
+use crate::physics::multibody::forward_dynamics_in;
 use crate::physics::scalar::Scalar;
 
 /// A trained model ready for f64 inference.
@@ -75,11 +78,11 @@ impl Evaluator {
         Ok(eval)
     }
 
-    /// q̈ for a batch given as columns: q and q̇ n coordinates, u m coordinates, each a whole
-    /// batch. The networks run once over the batch (matrix products), then the structure
-    /// (Cholesky factor, Coriolis term, solve) once on their output columns.
-    pub fn accel<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C]) -> Vec<C> {
-        self.evaluate(q, qd, u, false)
+    /// q̈ at one state.
+    pub fn accel<S: Lanes>(&self, q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
+        let a = Arena::new();
+        let x: AVec<S> = q.iter().chain(qd).cloned().collect_in(&a);
+        self.evaluate_in(&a, self.rows(&x, u), false).to_vec()
     }
 
     /// The terms of M q̈ = F − c − ∂V/∂q at one state (L with its q-derivatives, ∂V/∂q, F)
@@ -91,77 +94,131 @@ impl Evaluator {
         qd: &[f64],
         u: &[f64],
     ) -> Option<Terms<'a, f64>> {
-        self.with_structure_in(arena, (q, qd, u), |s, nets, x| s.terms(nets, x))
+        let x: AVec<f64> = q.iter().chain(qd).copied().collect_in(arena);
+        let x = self.rows(&x, u);
+        self.with_structure_in(arena, x, |s, outs| {
+            s.terms(&JetNets::new(arena, outs, 0), &x.row(0))
+        })
     }
 
-    /// τ = F − ∂V′/∂q of a model on the multibody algorithms, for a batch.
-    fn torques<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C]) -> Vec<C> {
-        self.evaluate(q, qd, u, true)
+    /// `[B, 2n]` states and `[B, m]` inputs as the evaluator reads them.
+    fn rows<'x, S>(&self, x: &'x [S], u: &'x [S]) -> Rows<'x, S> {
+        let (n, m) = (self.config.n, self.config.m);
+        Rows { x, u, n, m }
     }
 
-    /// q̈, or (`torques`, for a model on the multibody algorithms) the τ it would take.
-    fn evaluate<C: Lanes>(&self, q: &[C], qd: &[C], u: &[C], torques: bool) -> Vec<C> {
-        self.evaluate_in(&Arena::new(), q, qd, u, torques).to_vec()
-    }
-
-    /// [`Evaluator::evaluate`] in an arena.
-    fn evaluate_in<'a, C: Lanes>(
-        &'a self,
-        a: &'a Arena,
-        q: &[C],
-        qd: &[C],
-        u: &[C],
-        torques: bool,
-    ) -> AVec<'a, C> {
-        let structured = self.with_structure_in(a, (q, qd, u), |s, nets, x| {
-            self.structure(s, nets, x, torques)
+    /// q̈ `[B, n]` for a batch in an arena, or (`torques`, for a model on the multibody
+    /// algorithms) the τ it would take. The networks run once over the batch (matrix
+    /// products), then the structure (Cholesky factor, Coriolis term, solve) on their rows:
+    /// a group of states at a time (`Lanes::Group`), or state by state in f64 for the
+    /// multibody algorithms.
+    fn evaluate_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: Rows<S>, torques: bool) -> AVec<'a, S> {
+        let mut out = AVec::with_capacity_in(x.len() * x.n, a);
+        let structured = self.with_structure_in(a, x, |s, outs| {
+            if self.multibody.is_none() {
+                return self.structure_groups(a, s, outs, x, torques, &mut out);
+            }
+            for b in 0..x.len() {
+                let nets = JetNets::<S>::new(a, outs, b);
+                out.extend(self.structure(s, &nets, &x.row(b), torques));
+            }
         });
-        if let Some(out) = structured {
+        if structured.is_some() {
             return out;
         }
         let Weights::Naive(net) = &self.weights else {
             unreachable!("the weights follow the spec")
         };
         let sc = &self.config.scaling;
-        let out = net.jet(&self.full_input((q, qd, u)));
-        (0..self.config.n)
-            .map(|j| {
-                C::read(&out, 0, j)
+        let acc = net.jet(a, &self.full_input(a, &x, true));
+        for b in 0..x.len() {
+            out.extend((0..x.n).map(|j| {
+                S::read(&acc, b, 0, j)
                     .scale(sc.acc_std[j])
                     .shift(sc.acc_mean[j])
-            })
-            .collect_in(a)
-    }
-
-    /// The networks' input from (q, q̇, u): standardized, angles as (sin, cos).
-    fn full_input<C: Lanes>(&self, (q, qd, u): (&[C], &[C], &[C])) -> Activations {
-        let sc = &self.config.scaling;
-        let outer = outer_dirs((q, qd, u));
-        if !self.config.periodic.is_empty() {
-            return periodic_full_jet((q, qd, u), sc, &self.config.periodic, outer);
+            }));
         }
-        let mut v = standardize(q, &sc.q_mean, &sc.q_std);
-        v.extend(standardize(qd, &sc.qdot_mean, &sc.qdot_std));
-        v.extend(standardize(u, &sc.u_mean, &sc.u_std));
-        input_jet(&v, None, outer)
+        out
     }
 
-    /// `f` on a structured model's assembly, its networks' outputs on the batch and the
-    /// batch itself; `None` for a naive model.
-    fn with_structure<C: Lanes, T>(
+    /// The structure on the batch a group of states at a time (the last group's missing
+    /// states repeat its last, and are dropped), its rows appended to `out`.
+    fn structure_groups<'a, S: Lanes>(
         &self,
-        x: (&[C], &[C], &[C]),
-        f: impl FnOnce(&Structure<f64>, &JetNets<C>, &Columns<C>) -> T,
-    ) -> Option<T> {
-        self.with_structure_in(&Arena::new(), x, |s, nets, x| f(s, nets, x))
+        a: &'a Arena,
+        s: &Structure<'a, f64>,
+        outs: &NetOutputs,
+        x: Rows<S>,
+        torques: bool,
+        out: &mut AVec<'a, S>,
+    ) {
+        for b0 in (0..x.len()).step_by(S::GROUP) {
+            let lanes = (x.len() - b0).min(S::GROUP);
+            let at = |k: usize| b0 + k.min(lanes - 1);
+            let cols = |part: usize, width: usize| -> AVec<S::Group> {
+                (0..width)
+                    .map(|j| S::group(|k| x.part(part, at(k))[j].clone()))
+                    .collect_in(a)
+            };
+            let (q, qd, u) = (cols(0, x.n), cols(1, x.n), cols(2, x.m));
+            let nets = JetNets::<S::Group>::new(a, outs, b0);
+            let y = self.structure(
+                s,
+                &nets,
+                &Columns {
+                    q: &q,
+                    qd: &qd,
+                    u: &u,
+                },
+                torques,
+            );
+            for k in 0..lanes {
+                out.extend(y.iter().map(|g| S::lane(g, k)));
+            }
+        }
     }
 
-    /// [`Evaluator::with_structure`] with the assembly's vectors in `arena`.
-    fn with_structure_in<'a, C: Lanes, T>(
+    /// The networks' input from (q, q̇, u) (u only `with_u`): standardized, angles as
+    /// (sin, cos).
+    fn full_input<'a, S: Lanes>(&self, a: &'a Arena, x: &Rows<S>, with_u: bool) -> Activations<'a> {
+        let sc = &self.config.scaling;
+        let outer = x.outer_dirs();
+        if !self.config.periodic.is_empty() {
+            return periodic_full_jet(a, x, with_u, sc, &self.config.periodic, outer);
+        }
+        let (n, m) = (x.n, if with_u { x.m } else { 0 });
+        let value = |b: usize, j: usize| match j {
+            j if j < n => standard(&x.q(b)[j], sc.q_mean[j], sc.q_std[j]),
+            j if j < 2 * n => standard(&x.qd(b)[j - n], sc.qdot_mean[j - n], sc.qdot_std[j - n]),
+            j => standard(
+                &x.u(b)[j - 2 * n],
+                sc.u_mean[j - 2 * n],
+                sc.u_std[j - 2 * n],
+            ),
+        };
+        input_jet(a, (x.len(), 2 * n + m), value, None, outer)
+    }
+
+    /// `f` on a structured model's assembly, its networks' outputs on one state and the
+    /// state itself; `None` for a naive model.
+    fn with_structure<T>(
+        &self,
+        (q, qd, u): (&[f64], &[f64], &[f64]),
+        f: impl FnOnce(&Structure<f64>, &JetNets<f64>, &Columns<f64>) -> T,
+    ) -> Option<T> {
+        let a = Arena::new();
+        let x: AVec<f64> = q.iter().chain(qd).copied().collect_in(&a);
+        let x = self.rows(&x, u);
+        self.with_structure_in(&a, x, |s, outs| f(s, &JetNets::new(&a, outs, 0), &x.row(0)))
+    }
+
+    /// `f` on a structured model's assembly (its vectors in `arena`) and its networks'
+    /// outputs on the batch; `None` for a naive model.
+    fn with_structure_in<'a, S: Lanes, T>(
         &'a self,
         arena: &'a Arena,
-        (q, qd, u): (&[C], &[C], &[C]),
-        f: impl FnOnce(&Structure<'a, f64>, &JetNets<C>, &Columns<C>) -> T,
+        x: Rows<S>,
+        f: impl FnOnce(&Structure<'a, f64>, &NetOutputs) -> T,
     ) -> Option<T> {
         let (
             ModelSpec::Structured {
@@ -176,21 +233,23 @@ impl Evaluator {
             return None;
         };
         let (sc, angles) = (&self.config.scaling, &self.config.periodic);
-        let outer = outer_dirs((q, qd, u));
-        let inv_std: Vec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect();
+        let outer = x.outer_dirs();
+        let inv_std: AVec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect_in(arena);
         let q_jet = |inner: bool| {
             if angles.is_empty() {
-                let q_std = standardize(q, &sc.q_mean, &sc.q_std);
-                input_jet(&q_std, inner.then_some(&inv_std[..]), outer)
+                let value = |b: usize, j: usize| standard(&x.q(b)[j], sc.q_mean[j], sc.q_std[j]);
+                let inner = inner.then_some(&inv_std[..]);
+                input_jet(arena, (x.len(), x.n), value, inner, outer)
             } else {
-                periodic_q_jet(q, sc, angles, inner, outer)
+                periodic_q_jet(arena, &x, sc, angles, inner, outer)
             }
         };
         let outputs = networks(
+            arena,
             w,
             q_jet,
-            || self.full_input((q, qd, u)),
-            || self.full_input((q, qd, &[])),
+            || self.full_input(arena, &x, true),
+            || self.full_input(arena, &x, false),
         );
         let structure = Structure {
             mass,
@@ -199,15 +258,11 @@ impl Evaluator {
             template: self.config.template(),
             scaling: sc,
             values: w.values(),
-            n: q.len(),
-            m: u.len(),
+            n: x.n,
+            m: x.m,
             arena,
         };
-        Some(f(
-            &structure,
-            &JetNets::new(&outputs),
-            &Columns { q, qd, u },
-        ))
+        Some(f(&structure, &outputs))
     }
 
     /// q̈ from the networks' outputs: the structure assembled from the spec (the same
@@ -241,7 +296,7 @@ impl Evaluator {
             return if torques {
                 tau
             } else {
-                AVec::from_iter_in(forward_dynamics(model, x.q, x.qd, &tau), structure.arena)
+                forward_dynamics_in(structure.arena, model, x.q, x.qd, &tau)
             };
         }
         let t = structure.terms(nets, x);
@@ -249,31 +304,78 @@ impl Evaluator {
     }
 
     /// One step of the model's integrator: x = [q, q̇] (2n coordinates), u (m) → x'.
-    pub fn step<C: Lanes>(&self, x: &[C], u: &[C]) -> Vec<C> {
+    pub fn step<S: Lanes>(&self, x: &[S], u: &[S]) -> Vec<S> {
         self.step_in(&Arena::new(), x, u).to_vec()
     }
 
-    /// [`Evaluator::step`] in an arena.
-    pub fn step_in<'a, C: Lanes>(&'a self, a: &'a Arena, x: &[C], u: &[C]) -> AVec<'a, C> {
+    /// One step of the integrator for `[B, 2n]` states under `[B, m]` inputs, in an arena:
+    /// each stage's q̈ for the whole batch at once (`evaluate_in`).
+    pub fn step_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: &[S], u: &[S]) -> AVec<'a, S> {
         let n = self.config.n;
         let x = AVec::from_iter_in(x.iter().cloned(), a);
-        (self.config.integrator).step(&x, self.config.dt, |x: &AVec<C>| {
-            let (q, qd) = x.split_at(n);
-            let mut dx = AVec::from_iter_in(qd.iter().cloned(), a);
-            dx.extend(self.evaluate_in(a, q, qd, u, false));
+        (self.config.integrator).step(&x, self.config.dt, |x: &AVec<S>| {
+            let qdd = self.evaluate_in(a, self.rows(x, u), false);
+            let mut dx = AVec::with_capacity_in(x.len(), a);
+            for (x, qdd) in x.chunks(2 * n).zip(qdd.chunks(n)) {
+                dx.extend(x[n..].iter().cloned());
+                dx.extend(qdd.iter().cloned());
+            }
             dx
         })
     }
 }
 
-/// The most outer (linearization) directions any input carries.
-fn outer_dirs<C: Lanes>((q, qd, u): (&[C], &[C], &[C])) -> usize {
-    q.iter()
-        .chain(qd)
-        .chain(u)
-        .map(Lanes::dirs)
-        .max()
-        .unwrap_or(0)
+/// States row by row: x `[B, 2n]` (q then q̇ in each row) and u `[B, m]`.
+pub(super) struct Rows<'x, S> {
+    pub(super) x: &'x [S],
+    pub(super) u: &'x [S],
+    pub(super) n: usize,
+    pub(super) m: usize,
+}
+
+impl<S> Clone for Rows<'_, S> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<S> Copy for Rows<'_, S> {}
+
+impl<'x, S: Lanes> Rows<'x, S> {
+    fn len(&self) -> usize {
+        self.x.len() / (2 * self.n)
+    }
+    fn q(&self, b: usize) -> &'x [S] {
+        &self.x[2 * self.n * b..][..self.n]
+    }
+    fn qd(&self, b: usize) -> &'x [S] {
+        &self.x[2 * self.n * b + self.n..][..self.n]
+    }
+    fn u(&self, b: usize) -> &'x [S] {
+        &self.u[self.m * b..][..self.m]
+    }
+    /// State b's q (`part` 0), q̇ (1) or u (2).
+    fn part(&self, part: usize, b: usize) -> &'x [S] {
+        match part {
+            0 => self.q(b),
+            1 => self.qd(b),
+            _ => self.u(b),
+        }
+    }
+    fn row(&self, b: usize) -> Columns<'x, S> {
+        Columns {
+            q: self.q(b),
+            qd: self.qd(b),
+            u: self.u(b),
+        }
+    }
+    /// The most outer (linearization) directions any input carries.
+    fn outer_dirs(&self) -> usize {
+        (self.x.iter().chain(self.u))
+            .map(Lanes::dirs)
+            .max()
+            .unwrap_or(0)
+    }
 }
 
 /// A model can leave its range (states far outside the training data, huge inputs): its
@@ -291,21 +393,6 @@ pub fn finite_rows(field: &str, what: &str, out: &[f64], width: usize) -> Result
     }
 }
 
-/// Row-major `[B, width]` as `width` batch coordinates.
-fn columns<C: Column>(rows: &[f64], width: usize) -> Vec<C> {
-    (0..width).map(|j| C::gather(rows, width, j)).collect()
-}
-
-/// Batch coordinates back to row-major `[B, width]`.
-fn to_rows<C: Column>(cols: &[C]) -> Vec<f64> {
-    (0..cols[0].rows())
-        .flat_map(|b| cols.iter().map(move |c| c.get(b)))
-        .collect()
-}
-
-fn standardize<S: Scalar>(x: &[S], mean: &[f64], std: &[f64]) -> Vec<S> {
-    x.iter()
-        .zip(mean.iter().zip(std))
-        .map(|(x, (m, sd))| x.shift(-m).scale(1.0 / sd))
-        .collect()
+fn standard<S: Scalar>(x: &S, mean: f64, std: f64) -> S {
+    x.shift(-mean).scale(1.0 / std)
 }

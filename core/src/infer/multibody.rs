@@ -12,6 +12,7 @@
 
 use super::Evaluator;
 use super::weights::Weights;
+use crate::arena::{AVec, Arena, CollectIn, avec};
 use crate::model::ModelConfig;
 use crate::physics::dual::{Dual, Jet};
 use crate::physics::multibody::{Model as Robot, with_data};
@@ -53,83 +54,70 @@ impl Evaluator {
         self.multibody.is_some()
     }
 
-    /// `predict_cols` state by state in f64: O(n) work each, where batch columns would
-    /// allocate a column for every operation of the recursion (64 UR5 states: 0.9 ms as
-    /// columns).
-    pub(super) fn predict_each(
-        &self,
-        x: &[f64],
-        u: &[f64],
-        want_accel: bool,
-    ) -> (Vec<f64>, Option<Vec<f64>>) {
-        let (nx, m) = (2 * self.config.n, self.config.m);
-        let mut next = Vec::with_capacity(x.len());
-        let mut acc = want_accel.then(|| Vec::with_capacity(x.len() / 2));
-        for (x, u) in x.chunks(nx).zip(u.chunks(m)) {
-            let (x, a) = self.predict_cols::<f64>(x, u, want_accel);
-            next.extend(x);
-            acc.iter_mut().zip(a).for_each(|(acc, a)| acc.extend(a));
-        }
-        (next, acc)
-    }
-
     /// Per output coordinate of one state's step, the row [∂x'_i/∂x, ∂x'_i/∂u] (as
-    /// `jacobian_rows`); `None` beyond 64 directions (then dual numbers do it).
-    pub(super) fn multibody_jacobian(
-        &self,
+    /// `jacobian_rows`), in the arena; `None` beyond 64 directions (then dual numbers do it).
+    pub(super) fn multibody_jacobian<'a>(
+        &'a self,
+        a: &'a Arena,
         model: &Robot,
         x: &[f64],
         u: &[f64],
-    ) -> Option<Vec<f64>> {
+    ) -> Option<AVec<'a, f64>> {
         Some(match x.len() + u.len() {
-            0..=8 => self.step_jacobian::<8>(model, x, u),
-            9..=16 => self.step_jacobian::<16>(model, x, u),
-            17..=32 => self.step_jacobian::<32>(model, x, u),
-            33..=64 => self.step_jacobian::<64>(model, x, u),
+            0..=8 => self.step_jacobian::<8>(a, model, x, u),
+            9..=16 => self.step_jacobian::<16>(a, model, x, u),
+            17..=32 => self.step_jacobian::<32>(a, model, x, u),
+            33..=64 => self.step_jacobian::<64>(a, model, x, u),
             _ => return None,
         })
     }
 
-    fn step_jacobian<const N: usize>(&self, model: &Robot, x: &[f64], u: &[f64]) -> Vec<f64> {
+    fn step_jacobian<'a, const N: usize>(
+        &'a self,
+        a: &'a Arena,
+        model: &Robot,
+        x: &[f64],
+        u: &[f64],
+    ) -> AVec<'a, f64> {
         let (n, nx, dirs) = (self.config.n, x.len(), x.len() + u.len());
-        let xu: Vec<Jet<N>> = Dual::seeded(&[x, u].concat(), &1.0, 0..dirs);
+        let xu: AVec<f64> = x.iter().chain(u).copied().collect_in(a);
+        let xu: AVec<Jet<N>> = Dual::seeded_in(a, &xu, &1.0, 0..dirs);
         let (xj, uj) = xu.split_at(nx);
-        let y = self
-            .config
-            .integrator
-            .step(&xj.to_vec(), self.config.dt, |x: &Vec<Jet<N>>| {
-                let (q, qd) = x.split_at(n);
-                let mut dx = qd.to_vec();
-                dx.extend(self.stage(model, q, qd, uj));
-                dx
-            });
-        y.iter().flat_map(|y| y.dense()[..dirs].to_vec()).collect()
+        let xj = AVec::from_iter_in(xj.iter().cloned(), a);
+        let y = (self.config.integrator).step(&xj, self.config.dt, |x: &AVec<Jet<N>>| {
+            let mut dx = AVec::from_iter_in(x[n..].iter().cloned(), a);
+            dx.extend(self.stage(a, model, x, uj));
+            dx
+        });
+        (y.iter().flat_map(|y| y.dense()[..dirs].iter().copied())).collect_in(a)
     }
 
     /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u): the
     /// implicit-function derivative (`Data::fd_tangents`) along their ∂q, ∂q̇ and ∂τ.
-    fn stage<const N: usize>(
-        &self,
+    fn stage<'a, const N: usize>(
+        &'a self,
+        a: &'a Arena,
         model: &Robot,
-        q: &[Jet<N>],
-        qd: &[Jet<N>],
+        x: &[Jet<N>],
         u: &[Jet<N>],
-    ) -> Vec<Jet<N>> {
-        let value = |x: &[Jet<N>]| x.iter().map(|j| j.v).collect::<Vec<f64>>();
+    ) -> AVec<'a, Jet<N>> {
+        let (q, qd) = x.split_at(self.config.n);
+        let value = |x: &[Jet<N>]| -> AVec<f64> { x.iter().map(|j| j.v).collect_in(a) };
         let (qv, qdv) = (value(q), value(qd));
         let n = qv.len();
         // τ over the stage's own dual numbers carries its tangents in the step's directions.
-        let tau = self.torques(q, qd, u);
+        let tau = self.evaluate_in(a, self.rows(x, u), true);
         let tau_v = value(&tau);
-        let tangents = |x: &[Jet<N>]| x.iter().flat_map(|j| *j.dense()).collect::<Vec<f64>>();
+        let tangents =
+            |x: &[Jet<N>]| -> AVec<f64> { x.iter().flat_map(|j| *j.dense()).collect_in(a) };
         let (dq, dqd, dtau) = (tangents(q), tangents(qd), tangents(&tau));
         with_data(|data| {
             data.fd_partials(model, &qv, &qdv, &tau_v);
-            let mut out = vec![0.0; n * N];
+            let mut out = avec![in a; 0.0; n * N];
             data.fd_tangents(&dq, &dqd, &dtau, N, &mut out);
             (data.qdd.iter().zip(out.chunks_exact(N)))
                 .map(|(&v, d)| Jet::from_dense(v, d.try_into().expect("N tangents")))
-                .collect()
+                .collect_in(a)
         })
     }
 }

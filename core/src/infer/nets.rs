@@ -4,9 +4,11 @@
 use std::collections::HashMap;
 use std::ops::Range;
 
+use super::Rows;
 use super::activations::Activations;
-use super::col::Lanes;
+use super::lanes::Lanes;
 use super::weights::{Components, Forces};
+use crate::arena::{AVec, Arena, CollectIn};
 use crate::error::{Error, Result};
 use crate::model::NamedArray;
 use crate::physics::assembly::Networks;
@@ -55,13 +57,13 @@ impl Mlp64 {
     }
 
     /// The network on a batch with derivatives (see [`jet`]): one matrix product per layer.
-    pub fn jet(&self, input: &Activations) -> Activations {
+    pub fn jet<'a>(&self, a: &'a Arena, input: &Activations<'a>) -> Activations<'a> {
         let last = self.layers.len() - 1;
         let mut x: Option<Activations> = None;
         for (l, (_, d_out, w, b)) in self.layers.iter().enumerate() {
-            let mut z = x.as_ref().unwrap_or(input).linear(w, b, *d_out);
+            let mut z = x.as_ref().unwrap_or(input).linear(a, w, b, *d_out);
             if l != last {
-                z.tanh();
+                z.tanh(a);
             }
             x = Some(z);
         }
@@ -69,21 +71,23 @@ impl Mlp64 {
     }
 }
 
-/// A batch's network inputs as a jet: values and outer tangents from the columns; with
-/// `inner_scale`, input k also gets the inner tangent ∂x_k/∂q_k = inner_scale[k].
-pub(super) fn input_jet<C: Lanes>(
-    cols: &[C],
+/// A batch's network inputs as a jet: `rows` states of `width` inputs, input j of state b
+/// `value(b, j)` with its outer tangents; with `inner_scale`, input k also gets the inner
+/// tangent ∂x_k/∂q_k = inner_scale[k].
+pub(super) fn input_jet<'a, S: Lanes>(
+    a: &'a Arena,
+    (rows, width): (usize, usize),
+    value: impl Fn(usize, usize) -> S,
     inner_scale: Option<&[f64]>,
     outer: usize,
-) -> Activations {
-    let batch = cols[0].rows();
+) -> Activations<'a> {
     let inner = inner_scale.map_or(0, <[f64]>::len);
-    let mut jet = Activations::zeros(batch, cols.len(), inner, outer);
-    for (j, x) in cols.iter().enumerate() {
-        x.write(&mut jet, 0, j);
-    }
-    for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
-        for b in 0..batch {
+    let mut jet = Activations::zeros(a, rows, width, inner, outer);
+    for b in 0..rows {
+        for j in 0..width {
+            value(b, j).write(&mut jet, b, 0, j);
+        }
+        for (k, &s) in inner_scale.unwrap_or(&[]).iter().enumerate() {
             jet.set(0, k + 1, b, k, s);
         }
     }
@@ -94,26 +98,34 @@ pub(super) fn input_jet<C: Lanes>(
 /// is an angle: standardized q, with (sin q, cos q) in place of an angle. The tangents of
 /// (sin q, cos q), cos q and −sin q, depend on the sample and carry outer tangents of their
 /// own (the second derivatives a linearization needs).
-pub(super) fn periodic_q_jet<C: Lanes>(
-    q: &[C],
+pub(super) fn periodic_q_jet<'a, S: Lanes>(
+    a: &'a Arena,
+    x: &Rows<S>,
     sc: &Scaling,
     angles: &[bool],
     inner: bool,
     outer: usize,
-) -> Activations {
-    let n = q.len();
-    // The features and their ∂/∂q as the fused step builds them, written into the jet, a
-    // group of directions at a time.
-    let values = sc.q_features(q, angles, 0..0);
-    let mut jet = Activations::zeros(q[0].rows(), values.len(), if inner { n } else { 0 }, outer);
-    for (j, f) in values.iter().enumerate() {
-        f.v.write(&mut jet, 0, j);
-    }
-    for dirs in groups(if inner { n } else { 0 }) {
-        for (j, f) in sc.q_features(q, angles, dirs.clone()).iter().enumerate() {
-            for k in 0..f.dirs() {
-                if let Some(t) = f.tangent(k) {
-                    t.write(&mut jet, dirs.start + k + 1, j);
+) -> Activations<'a> {
+    let inner_dirs = if inner { x.n } else { 0 };
+    let width = x.n + angles.iter().take(x.n).filter(|&&a| a).count();
+    let mut jet = Activations::zeros(a, x.len(), width, inner_dirs, outer);
+    let mut features = AVec::with_capacity_in(width, a);
+    for b in 0..x.len() {
+        // The features and their ∂/∂q as the fused step builds them, written into the jet, a
+        // group of directions at a time.
+        features.clear();
+        sc.q_features_into(x.q(b), angles, 0..0, &mut features);
+        for (j, f) in features.iter().enumerate() {
+            f.v.write(&mut jet, b, 0, j);
+        }
+        for dirs in groups(inner_dirs) {
+            features.clear();
+            sc.q_features_into(x.q(b), angles, dirs.clone(), &mut features);
+            for (j, f) in features.iter().enumerate() {
+                for k in 0..f.dirs() {
+                    if let Some(t) = f.tangent(k) {
+                        t.write(&mut jet, b, dirs.start + k + 1, j);
+                    }
                 }
             }
         }
@@ -121,21 +133,19 @@ pub(super) fn periodic_q_jet<C: Lanes>(
     jet
 }
 
-/// The networks' input from [q, q̇, u] with angles (see [`periodic_q_jet`]).
-pub(super) fn periodic_full_jet<C: Lanes>(
-    (q, qd, u): (&[C], &[C], &[C]),
+/// The networks' input from [q, q̇, u] (u only `with_u`) with angles (see
+/// [`periodic_q_jet`]).
+pub(super) fn periodic_full_jet<'a, S: Lanes>(
+    a: &'a Arena,
+    x: &Rows<S>,
+    with_u: bool,
     sc: &Scaling,
     angles: &[bool],
     outer: usize,
-) -> Activations {
-    let q_part = periodic_q_jet(q, sc, angles, false, outer);
-    let rest: Vec<C> = qd
-        .iter()
-        .zip(sc.qdot_mean.iter().zip(&sc.qdot_std))
-        .chain(u.iter().zip(sc.u_mean.iter().zip(&sc.u_std)))
-        .map(|(x, (m, s))| x.shift(-m).scale(1.0 / s))
-        .collect();
-    let mut jet = Activations::zeros(q_part.batch, q_part.width + rest.len(), 0, outer);
+) -> Activations<'a> {
+    let q_part = periodic_q_jet(a, x, sc, angles, false, outer);
+    let m = if with_u { x.m } else { 0 };
+    let mut jet = Activations::zeros(a, x.len(), q_part.width + x.n + m, 0, outer);
     for o in 0..=outer {
         for b in 0..q_part.batch {
             for j in 0..q_part.width {
@@ -143,29 +153,38 @@ pub(super) fn periodic_full_jet<C: Lanes>(
             }
         }
     }
-    for (j, x) in rest.iter().enumerate() {
-        x.write(&mut jet, 0, q_part.width + j);
+    for b in 0..x.len() {
+        let rest = (x.qd(b).iter().zip(sc.qdot_mean.iter().zip(&sc.qdot_std)))
+            .chain((x.u(b)[..m].iter()).zip(sc.u_mean.iter().zip(&sc.u_std)))
+            .map(|(x, (m, s))| x.shift(-m).scale(1.0 / s));
+        for (j, v) in rest.enumerate() {
+            v.write(&mut jet, b, 0, q_part.width + j);
+        }
     }
     jet
 }
 
 /// The networks' outputs as the assembly reads them.
 pub(super) struct JetNets<'a, S> {
-    outs: &'a NetOutputs,
+    outs: &'a NetOutputs<'a>,
+    /// The state of the batch read.
+    row: usize,
     /// V's output and its q-derivatives, read once.
-    potential: Option<(S, Vec<S>)>,
+    potential: Option<(S, AVec<'a, S>)>,
 }
 
 impl<'a, S: Lanes> JetNets<'a, S> {
-    pub(super) fn new(outs: &'a NetOutputs) -> Self {
+    /// State `row`'s outputs.
+    pub(super) fn new(a: &'a Arena, outs: &'a NetOutputs<'a>, row: usize) -> Self {
         let read = |p: &Activations| {
             (
-                S::read(p, 0, 0),
-                (1..=p.inner).map(|i| S::read(p, i, 0)).collect(),
+                S::read(p, row, 0, 0),
+                (1..=p.inner).map(|i| S::read(p, row, i, 0)).collect_in(a),
             )
         };
         Self {
             outs,
+            row,
             potential: outs.potential.as_ref().map(read),
         }
     }
@@ -181,8 +200,8 @@ impl<S: Lanes> Networks<S> for JetNets<'_, S> {
     fn mass(&self, j: usize, dirs: Range<usize>) -> Dual<S> {
         let jet = self.outs.mass.as_ref().expect("mass outputs");
         Dual::new(
-            S::read(jet, 0, j),
-            dirs.map(|k| Some(S::read(jet, k + 1, j))),
+            S::read(jet, self.row, 0, j),
+            dirs.map(|k| Some(S::read(jet, self.row, k + 1, j))),
         )
     }
     fn potential_grad(&self, k: usize) -> S {
@@ -190,45 +209,56 @@ impl<S: Lanes> Networks<S> for JetNets<'_, S> {
         grad.get(k).cloned().unwrap_or_else(|| v.lift(0.0))
     }
     fn force(&self, j: usize) -> S {
-        S::read(self.outs.force.as_ref().expect("force outputs"), 0, j)
+        S::read(
+            self.outs.force.as_ref().expect("force outputs"),
+            self.row,
+            0,
+            j,
+        )
     }
     fn damping(&self, j: usize) -> S {
-        S::read(self.outs.damping.as_ref().expect("damping outputs"), 0, j)
+        S::read(
+            self.outs.damping.as_ref().expect("damping outputs"),
+            self.row,
+            0,
+            j,
+        )
     }
 }
 
 /// Network outputs of one batch, computed before the structure.
-pub(super) struct NetOutputs {
-    pub(super) mass: Option<Activations>,
-    pub(super) potential: Option<Activations>,
-    pub(super) force: Option<Activations>,
-    pub(super) damping: Option<Activations>,
+pub(super) struct NetOutputs<'a> {
+    pub(super) mass: Option<Activations<'a>>,
+    pub(super) potential: Option<Activations<'a>>,
+    pub(super) force: Option<Activations<'a>>,
+    pub(super) damping: Option<Activations<'a>>,
 }
 
 /// The structured model's networks on a batch. `q_jet(true)` is the standardized q with
 /// its ∂/∂q directions; `full()` the standardized (q, q̇, u), `state()` (q, q̇).
-pub(super) fn networks(
+pub(super) fn networks<'a>(
+    a: &'a Arena,
     w: &Components,
-    q_jet: impl Fn(bool) -> Activations,
-    full: impl Fn() -> Activations,
-    state: impl Fn() -> Activations,
-) -> NetOutputs {
+    q_jet: impl Fn(bool) -> Activations<'a>,
+    full: impl Fn() -> Activations<'a>,
+    state: impl Fn() -> Activations<'a>,
+) -> NetOutputs<'a> {
     let (mass_net, potential_net) = (w.mass_net(), w.potential_net());
     // M's and V's networks both read q with its ∂/∂q directions: one input jet for both.
     let q_in = (mass_net.is_some() || potential_net.is_some()).then(|| q_jet(true));
     let q_in = || q_in.as_ref().expect("built when a network reads it");
     NetOutputs {
-        mass: mass_net.map(|net| net.jet(q_in())),
-        potential: potential_net.map(|net| net.jet(q_in())),
+        mass: mass_net.map(|net| net.jet(a, q_in())),
+        potential: potential_net.map(|net| net.jet(a, q_in())),
         force: match &w.forces {
-            Some(Forces::Net(net)) => Some(net.jet(&full())),
+            Some(Forces::Net(net)) => Some(net.jet(a, &full())),
             Some(Forces::ControlAffine { b_net, .. } | Forces::Passive { b_net, .. }) => {
-                Some(b_net.jet(&q_jet(false)))
+                Some(b_net.jet(a, &q_jet(false)))
             }
             _ => None,
         },
         damping: match &w.forces {
-            Some(Forces::Passive { damping_net, .. }) => Some(damping_net.jet(&state())),
+            Some(Forces::Passive { damping_net, .. }) => Some(damping_net.jet(a, &state())),
             _ => None,
         },
     }

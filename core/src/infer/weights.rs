@@ -202,9 +202,9 @@ impl Weights {
     }
 
     /// Every network, for cost estimates.
-    pub(super) fn networks(&self) -> Vec<&Mlp64> {
+    pub(super) fn networks(&self) -> impl Iterator<Item = &Mlp64> {
         let c = match self {
-            Weights::Naive(net) => return vec![net],
+            Weights::Naive(net) => return [Some(net), None, None, None].into_iter().flatten(),
             Weights::Structured(c) => c,
         };
         let force = match &c.forces {
@@ -219,7 +219,6 @@ impl Weights {
         [c.mass_net(), c.potential_net(), force, damping]
             .into_iter()
             .flatten()
-            .collect()
     }
 }
 

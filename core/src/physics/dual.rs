@@ -7,11 +7,11 @@
 //! ([`Tangents`]), always inline, so no operation allocates:
 //! - [`Sparse`] (the default): at most N optional tangents, a missing one an exact zero that
 //!   costs no arithmetic, which matters when the scalar is a column of the training tape
-//!   (parameters and constants carry no tangent at all) or a batch column;
+//!   (parameters and constants carry no tangent at all);
 //! - [`Dense`] ([`Jet`]): N plain f64 tangents, each operation one loop over them that the
 //!   compiler vectorises, for recursions where every value soon depends on every direction
 //!   (a robot's step Jacobian over its 2n + m directions: 15× faster than sparse ones there;
-//!   any one state's Linearize, `infer::col::Column::Tangents`).
+//!   every state's Linearize, `infer::continuous::Outer`).
 
 use super::scalar::Scalar;
 use crate::arena::{AVec, Arena, CollectIn};

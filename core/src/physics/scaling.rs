@@ -92,6 +92,18 @@ impl Scaling {
         dirs: Range<usize>,
     ) -> Vec<Dual<S>> {
         let mut out = vec![];
+        self.q_features_into(q, angles, dirs, &mut out);
+        out
+    }
+
+    /// [`Scaling::q_features`] appended to `out` (an arena's vector on the inference path).
+    pub fn q_features_into<S: Scalar>(
+        &self,
+        q: &[S],
+        angles: &[bool],
+        dirs: Range<usize>,
+        out: &mut impl Extend<Dual<S>>,
+    ) {
         for (k, qk) in q.iter().enumerate() {
             let with = |v: S, d: S| -> Dual<S> {
                 if !dirs.contains(&k) {
@@ -101,14 +113,12 @@ impl Scaling {
             };
             if angles.get(k).copied().unwrap_or(false) {
                 let (sin, cos) = (qk.sin(), qk.cos());
-                out.push(with(sin.clone(), cos.clone()));
-                out.push(with(cos, -sin));
+                out.extend([with(sin.clone(), cos.clone()), with(cos, -sin)]);
             } else {
                 let inv = 1.0 / self.q_std[k];
-                out.push(with(qk.shift(-self.q_mean[k]).scale(inv), qk.lift(inv)));
+                out.extend([with(qk.shift(-self.q_mean[k]).scale(inv), qk.lift(inv))]);
             }
         }
-        out
     }
 
     /// The input from [q, q̇, u]: q's as [`Scaling::q_features`] gives it, then q̇ and u

@@ -410,7 +410,7 @@ impl Template {
     ) -> AVec<'a, S> {
         match self {
             Template::Formula(f) => f.forces_in(a, p, q, qd, u),
-            Template::Urdf(t) => AVec::from_iter_in(t.forces(p, q, qd, u), a),
+            Template::Urdf(t) => t.forces_in(a, p, q, qd, u),
             Template::DoublePendulum => {
                 let (b1, b2, e1, e2) = (&p[5], &p[6], &p[7], &p[8]);
                 avec![in a;

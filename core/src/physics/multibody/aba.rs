@@ -9,6 +9,7 @@ use super::data::{Data, parent_and_child, with_workspace};
 use super::spatial::six::{
     add, add_assign, add_scaled, apply, cross_force, dot, scaled, sub_outer,
 };
+use crate::arena::{AVec, Arena, CollectIn};
 use crate::physics::scalar::Scalar;
 
 impl<S: Scalar> Data<S> {
@@ -69,8 +70,19 @@ pub fn crba_forward<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> V
 
 /// q̈: ABA without mimic joints, else CRBA and Cholesky.
 pub fn forward_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], tau: &[S]) -> Vec<S> {
+    forward_dynamics_in(&Arena::new(), model, q, qd, tau).to_vec()
+}
+
+/// [`forward_dynamics`] in an arena.
+pub fn forward_dynamics_in<'a, S: Scalar>(
+    a: &'a Arena,
+    model: &Model,
+    q: &[S],
+    qd: &[S],
+    tau: &[S],
+) -> AVec<'a, S> {
     with_workspace(model, q, |data| {
         data.forward_dynamics(model, q, qd, tau);
-        data.qdd.clone()
+        data.qdd.iter().cloned().collect_in(a)
     })
 }

@@ -2,6 +2,7 @@
 //! physically consistent inertial parameters.
 
 pub mod export;
+mod forces;
 pub mod frame;
 mod mimic;
 mod multibody;

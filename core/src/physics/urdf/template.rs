@@ -88,7 +88,7 @@ pub struct UrdfTemplate {
     pub tree: Tree,
     params: Vec<ParamInfo>,
     /// The coordinate each input drives.
-    actuated: Vec<usize>,
+    pub(super) actuated: Vec<usize>,
     periodic: Vec<bool>,
     /// The robot with its URDF's inertias and the document's gravity, built once: the
     /// kinematics that M and V over trainable values run on (its inertias never enter).
@@ -258,7 +258,7 @@ impl UrdfTemplate {
     }
 
     /// Moving bodies: the coordinates' and the mimic joints'.
-    fn nb(&self) -> usize {
+    pub(super) fn nb(&self) -> usize {
         self.tree.bodies.len()
     }
 
@@ -348,38 +348,6 @@ impl UrdfTemplate {
             .map(|v| (v[0].clone(), [1, 2, 3].map(|k| v[0].clone() * v[k].clone())))
             .collect();
         potential_energy_of(&self.robot, q, &moments)
-    }
-
-    /// F = S u − d∘q̇ − f∘tanh(q̇/ε), per joint; a mimic joint's force enters the coordinate
-    /// it follows times its multiplier, and moves at the multiplier times its velocity.
-    pub fn forces<S: Scalar>(&self, p: &[S], _q: &[S], qd: &[S], u: &[S]) -> Vec<S> {
-        let mut out: Vec<Option<S>> = vec![None; self.n()];
-        let per_eps = 1.0 / self.doc.coulomb_eps;
-        for (i, b) in self.tree.bodies.iter().enumerate() {
-            let k = self.nb() * PER_BODY + PER_JOINT * i;
-            let (d, f) = (&p[k], &p[k + 1]);
-            let c = b.drive.coordinate;
-            let g = b.drive.multiplier;
-            let v = if g == 1.0 {
-                qd[c].clone()
-            } else {
-                qd[c].scale(g)
-            };
-            let mut e = -(d.clone() * v.clone()) - f.clone() * v.scale(per_eps).tanh();
-            if g != 1.0 {
-                e = e.scale(g);
-            }
-            out[c] = Some(match out[c].take() {
-                Some(sum) => sum + e,
-                None => e,
-            });
-        }
-        for (a, &c) in self.actuated.iter().enumerate() {
-            out[c] = out[c].take().map(|f| f + u[a].clone());
-        }
-        out.into_iter()
-            .map(|f| f.expect("every coordinate has its own joint"))
-            .collect()
     }
 
     /// The robot at these physical values as the multibody algorithms take it

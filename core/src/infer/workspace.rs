@@ -1,0 +1,232 @@
+//! The caller's scratch for the evaluator's calls (MuJoCo's `mjData`, Pinocchio's `Data`):
+//! an [`Arena`] every intermediate vector of a call lives in, emptied at the start of each
+//! unit of work (one state, or one chunk of a batch), and the buffer an ensemble's members
+//! write into before their mean. Sized once per model and largest batch
+//! ([`Workspace::for_model`]), a call reaches the system allocator no more.
+//!
+//! The `_into` entry points write into the caller's buffers; the batched `Vec` entry points
+//! (`calls.rs`) are wrappers over them with this thread's workspace.
+
+use std::cell::RefCell;
+use std::ops::Range;
+
+use super::Evaluator;
+use super::limits::Pass;
+use crate::arena::Arena;
+
+/// Per-call scratch for one thread: reused call after call.
+#[derive(Default)]
+pub struct Workspace {
+    arena: Arena,
+    /// An ensemble's member outputs before they join the mean.
+    spare: Vec<f64>,
+}
+
+/// A thread's workspace shrinks back after a call that grew it beyond this (a huge batch's
+/// chunk), so idle service threads do not each keep the largest call's scratch.
+const KEPT_BYTES: usize = 16 << 20;
+
+/// What one unit of a batch may take from the arena (it frees nothing until the unit ends):
+/// its states share the networks' matrix products, which gain little beyond 64 states.
+const UNIT_BYTES: usize = 8 << 20;
+const UNIT_ROWS: usize = 64;
+
+thread_local! {
+    static WORKSPACE: RefCell<Workspace> = RefCell::new(Workspace::default());
+}
+
+/// `f` with this thread's workspace; a fresh one when it is in use further up the stack.
+pub fn with_workspace<R>(f: impl FnOnce(&mut Workspace) -> R) -> R {
+    WORKSPACE.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut ws) => {
+            let out = f(&mut ws);
+            if ws.arena.allocated_bytes() > KEPT_BYTES {
+                *ws = Workspace::default();
+            }
+            out
+        }
+        Err(_) => f(&mut Workspace::default()),
+    })
+}
+
+impl Workspace {
+    /// A workspace in which `eval`'s Predict (with q̈), Linearize and Rollout of up to
+    /// `max_batch` states allocate nothing: each call's largest use, measured by running it
+    /// once on zeros, in one block.
+    pub fn for_model(eval: &Evaluator, max_batch: usize) -> Self {
+        let (nx, m, b) = (2 * eval.config.n, eval.config.m, max_batch.max(1));
+        let mut ws = Workspace::default();
+        let mut most = 0;
+        let (x, u) = (vec![0.0; b * nx], vec![0.0; b * m]);
+        let (mut next, mut acc) = (vec![0.0; b * nx], vec![0.0; b * nx / 2]);
+        let (mut ja, mut jb) = (vec![0.0; b * nx * nx], vec![0.0; b * nx * m]);
+        for batch in [1, b] {
+            let (x, u) = (&x[..batch * nx], &u[..batch * m]);
+            let never = &|| false;
+            let next = &mut next[..batch * nx];
+            eval.predict_into(&mut ws, x, u, next, Some(&mut acc[..batch * nx / 2]), never);
+            most = most.max(ws.arena.allocated_bytes());
+            let (ja, jb) = (&mut ja[..batch * nx * nx], &mut jb[..batch * nx * m]);
+            eval.linearize_into(&mut ws, x, u, ja, jb, never);
+            most = most.max(ws.arena.allocated_bytes());
+        }
+        ws.arena = Arena::with_capacity(most);
+        ws
+    }
+
+    /// The arena, emptied for a unit of work.
+    pub(super) fn reset(&mut self) -> (&Arena, &mut Vec<f64>) {
+        self.arena.reset();
+        (&self.arena, &mut self.spare)
+    }
+}
+
+/// out = the mean of `each(k)` over `members`, summed in member order (as `ensemble::mean`),
+/// for a call's two outputs; `each(k, first, second)` writes member k's.
+fn mean_into(
+    members: usize,
+    spare: &mut Vec<f64>,
+    (first, second): (&mut [f64], &mut [f64]),
+    mut each: impl FnMut(usize, &mut [f64], &mut [f64]),
+) {
+    each(0, first, second);
+    spare.resize(first.len() + second.len(), 0.0);
+    let (t1, t2) = spare.split_at_mut(first.len());
+    for k in 1..members {
+        each(k, t1, t2);
+        for (s, v) in first
+            .iter_mut()
+            .zip(&*t1)
+            .chain(second.iter_mut().zip(&*t2))
+        {
+            *s += v;
+        }
+    }
+    let k = members as f64;
+    first.iter_mut().chain(second).for_each(|s| *s /= k);
+}
+
+impl Evaluator {
+    /// A batch of `rows` states as units of work: a Linearize state by state (its jets already
+    /// have a row per direction and ∂/∂q), a step's states together up to what the arena may
+    /// hold (`limits` estimates a state's live work; a unit keeps each RK4 stage's).
+    pub(super) fn units(&self, rows: usize, pass: Pass) -> impl Iterator<Item = Range<usize>> {
+        let per = match pass {
+            Pass::Linearize => 1,
+            Pass::Step => {
+                (UNIT_BYTES / (4 * self.work_bytes_per_state(pass)).max(1)).clamp(1, UNIT_ROWS)
+            }
+        };
+        (0..rows).step_by(per).map(move |s| s..rows.min(s + per))
+    }
+
+    /// x' (`next`, `[B, 2n]`) and q̈ when asked (`acc`, `[B, n]`) for `[B, 2n]` states and
+    /// `[B, m]` inputs, into the caller's buffers; `None` when `stop` said so before a unit.
+    pub fn predict_into(
+        &self,
+        ws: &mut Workspace,
+        x: &[f64],
+        u: &[f64],
+        next: &mut [f64],
+        mut acc: Option<&mut [f64]>,
+        stop: &dyn Fn() -> bool,
+    ) -> Option<()> {
+        let (n, m) = (self.config.n, self.config.m);
+        let rows = x.len() / (2 * n);
+        for r in self.units(rows, Pass::Step) {
+            if stop() {
+                return None;
+            }
+            let (a, spare) = ws.reset();
+            let (x, u) = (
+                &x[2 * n * r.start..2 * n * r.end],
+                &u[m * r.start..m * r.end],
+            );
+            let next = &mut next[2 * n * r.start..2 * n * r.end];
+            let acc =
+                (acc.as_deref_mut().map(|v| &mut v[n * r.start..n * r.end])).unwrap_or_default();
+            match self.ensemble() {
+                Some(ms) => mean_into(ms.len(), spare, (next, acc), |k, next, acc| {
+                    ms[k].predict_unit(a, x, u, next, acc)
+                }),
+                None => self.predict_unit(a, x, u, next, acc),
+            }
+        }
+        Some(())
+    }
+
+    /// One unit's x' and (unless `acc` is empty) q̈.
+    fn predict_unit(&self, a: &Arena, x: &[f64], u: &[f64], next: &mut [f64], acc: &mut [f64]) {
+        next.copy_from_slice(&self.step_in(a, x, u));
+        if !acc.is_empty() {
+            acc.copy_from_slice(&self.evaluate_in(a, self.rows(x, u), false));
+        }
+    }
+
+    /// A `[B, 2n, 2n]` and B `[B, 2n, m]` (as `linearize_batch`) into the caller's buffers;
+    /// `None` when `stop` said so before a unit.
+    pub fn linearize_into(
+        &self,
+        ws: &mut Workspace,
+        x: &[f64],
+        u: &[f64],
+        ja: &mut [f64],
+        jb: &mut [f64],
+        stop: &dyn Fn() -> bool,
+    ) -> Option<()> {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let rows = x.len() / nx;
+        for r in self.units(rows, Pass::Linearize) {
+            if stop() {
+                return None;
+            }
+            let (a, spare) = ws.reset();
+            let (x, u) = (&x[nx * r.start..nx * r.end], &u[m * r.start..m * r.end]);
+            let ja = &mut ja[nx * nx * r.start..nx * nx * r.end];
+            let jb = &mut jb[nx * m * r.start..nx * m * r.end];
+            match self.ensemble() {
+                Some(ms) => mean_into(ms.len(), spare, (ja, jb), |k, ja, jb| {
+                    ms[k].linearize_unit(a, x, u, ja, jb)
+                }),
+                None => self.linearize_unit(a, x, u, ja, jb),
+            }
+        }
+        Some(())
+    }
+
+    /// One state's A and B: per output coordinate of x', the row [∂x'_i/∂x, ∂x'_i/∂u] cut
+    /// in its A and B parts.
+    fn linearize_unit(&self, a: &Arena, x: &[f64], u: &[f64], ja: &mut [f64], jb: &mut [f64]) {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let rows = self.state_jacobian(a, x, u);
+        for (i, row) in rows.chunks(nx + m).enumerate() {
+            ja[i * nx..(i + 1) * nx].copy_from_slice(&row[..nx]);
+            jb[i * m..(i + 1) * m].copy_from_slice(&row[nx..]);
+        }
+    }
+
+    /// `steps` states after x0 under the inputs `u` (`[steps, m]`) into `xs`
+    /// (`[steps + 1, 2n]`, x0 first); the steps taken: fewer when `stop` said so after a step
+    /// (the states so far are in `xs`).
+    pub fn rollout_into(
+        &self,
+        ws: &mut Workspace,
+        x0: &[f64],
+        u: &[f64],
+        xs: &mut [f64],
+        stop: &dyn Fn() -> bool,
+    ) -> usize {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        xs[..nx].copy_from_slice(x0);
+        let steps = xs.len() / nx - 1;
+        for t in 0..steps {
+            let (done, rest) = xs.split_at_mut((t + 1) * nx);
+            let u = &u[t * m..(t + 1) * m];
+            self.predict_into(ws, &done[t * nx..], u, &mut rest[..nx], None, &|| false);
+            if stop() {
+                return t + 1;
+            }
+        }
+        steps
+    }
+}
