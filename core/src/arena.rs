@@ -13,3 +13,11 @@ pub use bumpalo::vec as avec;
 
 /// A vector in an arena.
 pub type AVec<'a, T> = bumpalo::collections::Vec<'a, T>;
+
+/// `len` zeros in `a`, written in one fill (`avec![in a; 0.0; len]` pushes them one at a time,
+/// which took a fifth of a small network's evaluation).
+pub fn zeros(a: &Arena, len: usize) -> AVec<'_, f64> {
+    let mut v = AVec::with_capacity_in(len, a);
+    v.resize(len, 0.0);
+    v
+}

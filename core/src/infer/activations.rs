@@ -13,7 +13,7 @@
 //! ∂²h = s ∂²z + s' ∂_q z ∂_ε z     (mixed)
 //! ```
 
-use crate::arena::{AVec, Arena, avec};
+use crate::arena::{AVec, Arena, zeros};
 use crate::simd::{mad, multiversion, tanh_kernel};
 
 /// Activations and derivatives of a batch: blocks `[outer + 1][inner + 1][batch][width]`,
@@ -35,7 +35,7 @@ impl<'a> Activations<'a> {
             width,
             inner,
             outer,
-            data: avec![in a; 0.0; len],
+            data: zeros(a, len),
         }
     }
 
@@ -63,7 +63,7 @@ impl<'a> Activations<'a> {
         for r in 0..self.batch {
             z.data[r * out..(r + 1) * out].copy_from_slice(bias);
         }
-        let mut narrow = avec![in a; 0.0; (out % LANES) * self.width];
+        let mut narrow = zeros(a, (out % LANES) * self.width);
         matmul_acc(&self.data, w, &mut z.data, self.width, out, &mut narrow);
         z
     }
@@ -71,7 +71,7 @@ impl<'a> Activations<'a> {
     /// tanh applied to the values, with the chain rule on every derivative block.
     pub fn tanh(&mut self, a: &Arena) {
         let len = self.block_len();
-        let mut slope = avec![in a; 0.0; if self.data.len() > len { len } else { 0 }];
+        let mut slope = zeros(a, if self.data.len() > len { len } else { 0 });
         activate(&mut self.data, len, self.inner, self.outer, &mut slope);
     }
 }

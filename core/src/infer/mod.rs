@@ -110,12 +110,14 @@ impl Evaluator {
     /// q̈ `[B, n]` for a batch in an arena, or (`torques`, for a model on the multibody
     /// algorithms) the τ it would take. The networks run once over the batch (matrix
     /// products), then the structure (Cholesky factor, Coriolis term, solve) on their rows:
-    /// a group of states at a time (`Lanes::Group`), or state by state in f64 for the
-    /// multibody algorithms.
+    /// a group of states at a time (`Lanes::Group`), or state by state for a few states and
+    /// for the multibody algorithms (their recursion in f64).
     fn evaluate_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: Rows<S>, torques: bool) -> AVec<'a, S> {
         let mut out = AVec::with_capacity_in(x.len() * x.n, a);
         let structured = self.with_structure_in(a, x, |s, outs| {
-            if self.multibody.is_none() {
+            // A pack of eight pays for its lanes whether or not they hold a state: fewer
+            // than half, state by state.
+            if self.multibody.is_none() && x.len() >= S::GROUP.div_ceil(2) {
                 return self.structure_groups(a, s, outs, x, torques, &mut out);
             }
             for b in 0..x.len() {

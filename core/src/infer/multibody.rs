@@ -12,7 +12,7 @@
 
 use super::Evaluator;
 use super::weights::Weights;
-use crate::arena::{AVec, Arena, CollectIn, avec};
+use crate::arena::{AVec, Arena, CollectIn, zeros};
 use crate::model::ModelConfig;
 use crate::physics::dual::{Dual, Jet};
 use crate::physics::multibody::{Model as Robot, with_data};
@@ -113,7 +113,7 @@ impl Evaluator {
         let (dq, dqd, dtau) = (tangents(q), tangents(qd), tangents(&tau));
         with_data(|data| {
             data.fd_partials(model, &qv, &qdv, &tau_v);
-            let mut out = avec![in a; 0.0; n * N];
+            let mut out = zeros(a, n * N);
             data.fd_tangents(&dq, &dqd, &dtau, N, &mut out);
             (data.qdd.iter().zip(out.chunks_exact(N)))
                 .map(|(&v, d)| Jet::from_dense(v, d.try_into().expect("N tangents")))
