@@ -189,7 +189,7 @@ fn with_a_workspace_calls_take_nothing_from_the_system_and_start_no_thread() {
 }
 
 #[test]
-fn a_workspace_is_refused_a_zero_batch_and_a_null_model() {
+fn a_workspace_is_refused_a_zero_batch_and_a_null_model_and_made_for_any_batch() {
     let l = load("inference/cartpole-wb");
     let mut ws = null_mut();
     // SAFETY: a loaded model (or null, which is refused) and a place for the pointer.
@@ -204,6 +204,12 @@ fn a_workspace_is_refused_a_zero_batch_and_a_null_model() {
             GbxStatus::InvalidArgument
         );
         assert_eq!(gbx_abi_version(), GBX_ABI_VERSION);
+        // A call's scratch is one unit's: the largest batch there is costs no more.
+        assert_eq!(
+            gbx_workspace_new(l.model, usize::MAX, &mut ws),
+            GbxStatus::Ok
+        );
+        gbx_workspace_free(ws);
         gbx_model_free(l.model);
     }
 }

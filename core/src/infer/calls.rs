@@ -9,8 +9,8 @@ use crate::arena::{AVec, Arena};
 use crate::control::linalg::Mat;
 use crate::control::plan::Dynamics;
 
-/// Batches at least this large run in two halves on the caller's rayon pool (the global one
-/// outside any): a hand-off costs a few µs, a step of 64 states ~0.35 ms on one thread.
+/// Batches at least this large run in two halves when the caller runs in a rayon pool: a
+/// hand-off costs a few µs, a step of 64 states ~0.3 ms on one thread.
 const PARALLEL_ROWS: usize = 32;
 
 /// Batched entry points over row-major arrays: what the service and the benchmarks call.
@@ -83,9 +83,10 @@ impl Evaluator {
         continuous::dual_rows_in(a, x, u, |x, u| self.step_in(a, x, u))
     }
 
-    /// Runs `f` over a batch in chunks whose intermediate work is bounded (see [`limits`]),
-    /// each in two halves on the caller's rayon pool when it is large enough to pay off (the
-    /// pool's threads live on, each with its workspace: no thread is started per call),
+    /// Runs `f` over a batch in chunks whose intermediate work is bounded (see [`limits`]) on
+    /// the caller's thread, or, when the caller runs in a rayon pool of its own (its way of
+    /// asking for threads), each chunk in two halves on that pool when it is large enough to
+    /// pay off (the pool's threads live on, each with its workspace; no thread is started),
     /// each part writing its rows of the two outputs (`width` values a row); `None` when
     /// `stop` says so before a chunk (a 10⁶-state batch takes seconds: a caller's deadline
     /// must not wait for all of it).
@@ -108,7 +109,7 @@ impl Evaluator {
             let e = rows.min(s + chunk);
             let (x, u) = (&x[nx * s..nx * e], &u[m * s..m * e]);
             let (o1, o2) = (&mut first[w1 * s..w1 * e], &mut second[w2 * s..w2 * e]);
-            if e - s < PARALLEL_ROWS {
+            if e - s < PARALLEL_ROWS || rayon::current_thread_index().is_none() {
                 f(x, u, o1, o2);
                 continue;
             }

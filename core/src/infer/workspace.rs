@@ -52,15 +52,21 @@ pub fn with_workspace<R>(f: impl FnOnce(&mut Workspace) -> R) -> R {
 impl Workspace {
     /// A workspace in which `eval`'s Predict (with q̈), Linearize and Rollout of up to
     /// `max_batch` states allocate nothing: each call's largest use, measured by running it
-    /// once on zeros, in one block.
+    /// once on zeros, in one block. A call's scratch is one unit's (at most `UNIT_ROWS`
+    /// states), so a batch beyond that costs no more, and neither does a huge `max_batch` here.
     pub fn for_model(eval: &Evaluator, max_batch: usize) -> Self {
-        let (nx, m, b) = (2 * eval.config.n, eval.config.m, max_batch.max(1));
+        let (nx, m, b) = (
+            2 * eval.config.n,
+            eval.config.m,
+            max_batch.clamp(1, UNIT_ROWS),
+        );
         let mut ws = Workspace::default();
         let mut most = 0;
         let (x, u) = (vec![0.0; b * nx], vec![0.0; b * m]);
         let (mut next, mut acc) = (vec![0.0; b * nx], vec![0.0; b * nx / 2]);
         let (mut ja, mut jb) = (vec![0.0; b * nx * nx], vec![0.0; b * nx * m]);
-        for batch in [1, b] {
+        // A few states run one by one, more in packs: the largest of each way, and the most.
+        for batch in [1, 2, 3, b].into_iter().filter(|&k| k <= b) {
             let (x, u) = (&x[..batch * nx], &u[..batch * m]);
             let never = &|| false;
             let next = &mut next[..batch * nx];
