@@ -7,6 +7,7 @@ use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::ffi::CString;
 use std::ptr::{null, null_mut};
+use std::sync::Mutex;
 
 use graybox_c::*;
 
@@ -62,6 +63,14 @@ fn allocations(f: impl FnOnce()) -> usize {
     let before = CALLS.with(Cell::get);
     f();
     CALLS.with(Cell::get) - before
+}
+
+/// This binary's tests one at a time: the harness runs them on threads of its own, which
+/// would start and end inside another test's count of the process's threads.
+static SERIAL: Mutex<()> = Mutex::new(());
+
+fn serial() -> std::sync::MutexGuard<'static, ()> {
+    SERIAL.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 /// The process's threads now (Linux: one entry per thread under /proc/self/task).
@@ -146,6 +155,7 @@ fn calls(l: &Loaded, ws: *mut GbxWorkspace, batch: usize, o: &mut Buffers) {
 
 #[test]
 fn with_a_workspace_calls_take_nothing_from_the_system_and_start_no_thread() {
+    let _serial = serial();
     for name in MODELS {
         let l = load(name);
         let mut ws = null_mut();
@@ -190,6 +200,7 @@ fn with_a_workspace_calls_take_nothing_from_the_system_and_start_no_thread() {
 
 #[test]
 fn a_workspace_is_refused_a_zero_batch_and_a_null_model_and_made_for_any_batch() {
+    let _serial = serial();
     let l = load("inference/cartpole-wb");
     let mut ws = null_mut();
     // SAFETY: a loaded model (or null, which is refused) and a place for the pointer.
@@ -216,6 +227,7 @@ fn a_workspace_is_refused_a_zero_batch_and_a_null_model_and_made_for_any_batch()
 
 #[test]
 fn workspaces_on_several_threads_give_the_same_answers() {
+    let _serial = serial();
     let l = load("inference/ur5-residual");
     let (model, n, m) = (l.model as usize, l.n, l.m);
     let answer = |threads: usize| {
