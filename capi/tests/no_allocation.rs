@@ -3,8 +3,6 @@
 //! system allocator and start no thread, at 1, 8, 32 and 256 states, on the six recorded
 //! models. This test binary installs its own counting allocator: the library has none.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::ffi::CString;
 use std::ptr::{null, null_mut};
 use std::sync::Mutex;
@@ -20,50 +18,9 @@ const MODELS: [&str; 6] = [
     "compat/wb-x3",
 ];
 
-/// Counts this thread's allocations and reallocations (the harness's other threads allocate
-/// as they please).
-struct Counting;
-
-thread_local! {
-    static CALLS: Cell<usize> = const { Cell::new(0) };
-}
-
-fn count() {
-    // `try_with`: a thread's allocations after its locals are gone are not ours.
-    let _ = CALLS.try_with(|c| c.set(c.get() + 1));
-}
-
-// SAFETY: every call is passed to the system allocator unchanged.
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: the caller's layout, as GlobalAlloc requires.
-        unsafe { System.alloc(layout) }
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        count();
-        // SAFETY: as above.
-        unsafe { System.alloc_zeroed(layout) }
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        count();
-        // SAFETY: a block of ours with its layout, as GlobalAlloc requires.
-        unsafe { System.realloc(ptr, layout, new_size) }
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        // SAFETY: as above.
-        unsafe { System.dealloc(ptr, layout) }
-    }
-}
-
-#[global_allocator]
-static ALLOCATOR: Counting = Counting;
-
-fn allocations(f: impl FnOnce()) -> usize {
-    let before = CALLS.with(Cell::get);
-    f();
-    CALLS.with(Cell::get) - before
-}
+#[path = "../../core/tests/counting/mod.rs"]
+mod counting;
+use counting::allocations;
 
 /// This binary's tests one at a time: the harness runs them on threads of its own, which
 /// would start and end inside another test's count of the process's threads.
