@@ -115,9 +115,10 @@ impl Evaluator {
     fn evaluate_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: Rows<S>, torques: bool) -> AVec<'a, S> {
         let mut out = AVec::with_capacity_in(x.len() * x.n, a);
         let structured = self.with_structure_in(a, x, |s, outs| {
-            // A pack of eight pays for its lanes whether or not they hold a state: fewer
-            // than half, state by state.
-            if self.multibody.is_none() && x.len() >= S::GROUP.div_ceil(2) {
+            // A pack pays for its lanes whether or not they hold a state, and a state alone
+            // costs 4–8× its lane (the white-box cartpole, the formula double pendulum):
+            // fewer than an eighth of a pack, state by state.
+            if self.multibody.is_none() && x.len() >= S::GROUP.div_ceil(8) {
                 return self.structure_groups(a, s, outs, x, torques, &mut out);
             }
             for b in 0..x.len() {

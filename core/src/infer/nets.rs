@@ -118,7 +118,7 @@ pub(super) fn periodic_q_jet<'a, S: Lanes>(
         for (j, f) in features.iter().enumerate() {
             f.v.write(&mut jet, b, 0, j);
         }
-        for dirs in groups(inner_dirs) {
+        for dirs in groups::<S>(inner_dirs) {
             features.clear();
             sc.q_features_into(x.q(b), angles, dirs.clone(), &mut features);
             for (j, f) in features.iter().enumerate() {

@@ -23,7 +23,7 @@ pub const PASSIVE_EPS: f64 = 1e-3;
 
 /// The networks' outputs for a batch, read by index; each is asked for only when the spec
 /// has that network.
-pub trait Networks<S> {
+pub trait Networks<S: Scalar> {
     /// Output j of the mass network (the raw entries of L) with its q-tangents in the
     /// directions `dirs`.
     fn mass(&self, j: usize, dirs: Range<usize>) -> Dual<S>;
@@ -227,7 +227,7 @@ impl<'a, P> Structure<'a, P> {
             PotentialSpec::Template { residual } => {
                 let p = self.physical_dual(&x.q()[0]);
                 let zero = || x.q()[0].lift(0.0);
-                let grad = groups(n).flat_map(|dirs| {
+                let grad = groups::<S>(n).flat_map(|dirs| {
                     let v = (self.template()).potential_in(
                         self.arena,
                         &p,

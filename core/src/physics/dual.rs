@@ -125,9 +125,10 @@ impl<const N: usize> Tangents<f64> for Dense<N> {
 /// less than tangents on the heap did and keeps every dual number a fixed size.
 pub const WIDTH: usize = 8;
 
-/// The directions 0..n in groups of at most [`WIDTH`].
-pub fn groups(n: usize) -> impl Iterator<Item = Range<usize>> + Clone {
-    groups_of(n, WIDTH)
+/// The directions 0..n in groups of as many as a dual number over `S` holds
+/// ([`Scalar::Tangents`]).
+pub fn groups<S: Scalar>(n: usize) -> impl Iterator<Item = Range<usize>> + Clone {
+    groups_of(n, <S::Tangents as Tangents<S>>::WIDTH)
 }
 
 /// The directions 0..n in groups of at most `width`.
@@ -137,7 +138,7 @@ pub fn groups_of(n: usize, width: usize) -> impl Iterator<Item = Range<usize>> +
 
 /// A value with its tangents, kept as `T` says: [`WIDTH`] sparse ones unless named otherwise.
 #[derive(Debug, Clone)]
-pub struct Dual<S, T = Sparse<S, WIDTH>> {
+pub struct Dual<S: Scalar, T = <S as Scalar>::Tangents> {
     pub v: S,
     /// ∂v/∂x_k for each direction k.
     d: T,
@@ -283,6 +284,7 @@ impl<S: Scalar, T: Tangents<S>> Neg for Dual<S, T> {
 }
 
 impl<S: Scalar, T: Tangents<S>> Scalar for Dual<S, T> {
+    type Tangents = Sparse<Self, WIDTH>;
     fn cos(&self) -> Self {
         self.chain(self.v.cos(), || -self.v.sin())
     }

@@ -102,7 +102,7 @@ impl<'a, S: Scalar> Factor<'a, S> {
     ) -> Self {
         let mut l = None;
         let mut dl = AVec::with_capacity_in(n, a);
-        for dirs in groups(n) {
+        for dirs in groups::<S>(n) {
             let group = f(dirs.clone());
             dl.extend((0..dirs.len()).map(|k| group.map(|e| e.tangent(k).cloned())));
             l.get_or_insert_with(|| group.map(|e| e.v.clone()));
@@ -216,7 +216,7 @@ where
     let factor = Factor::from_groups(a, n, |dirs| {
         cholesky(a, &mass(&Dual::seeded_in(a, q, &1.0, dirs)))
     });
-    let grad_v: AVec<f64> = groups(n)
+    let grad_v: AVec<f64> = groups::<f64>(n)
         .flat_map(|dirs| {
             let v = potential(&Dual::seeded_in(a, q, &1.0, dirs.clone()));
             (0..dirs.len()).map(move |k| v.tangent(k).copied().unwrap_or(0.0))

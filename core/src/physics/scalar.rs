@@ -9,6 +9,7 @@
 //!   ∂/∂q in forward mode (so that training's one reverse pass also differentiates them,
 //!   docs/dynamics.md#forward-mode-input-derivatives).
 
+use super::dual::{Sparse, Tangents, WIDTH};
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// `'static`: every number type owns its values (what lets f64 callers share a thread's
@@ -22,6 +23,10 @@ pub trait Scalar:
     + Div<Output = Self>
     + Neg<Output = Self>
 {
+    /// Where a dual number over this scalar keeps its tangents (`Dual<S>`), which sets how
+    /// many directions a group holds ([`groups`](super::dual::groups)): a wide scalar (a
+    /// `Pack` of 32 states) keeps fewer, since every operation moves all its slots.
+    type Tangents: Tangents<Self>;
     fn cos(&self) -> Self;
     fn sin(&self) -> Self;
     fn sqrt(&self) -> Self;
@@ -47,6 +52,7 @@ pub trait Scalar:
 }
 
 impl Scalar for f64 {
+    type Tangents = Sparse<f64, WIDTH>;
     fn cos(&self) -> Self {
         f64::cos(*self)
     }

@@ -192,7 +192,7 @@ pub fn velocity_stiffness(t: &Template, p: &[f64], q: &[f64]) -> Vec<Vec<f64>> {
     let n = t.n();
     let (zero, u) = (vec![0.0; n], constants(&vec![0.0; t.m()]));
     let mut rows = vec![Vec::with_capacity(n); n];
-    for dirs in groups(n) {
+    for dirs in groups::<f64>(n) {
         let qd = Dual::seeded(&zero, &1.0, dirs.clone());
         let f: Vec<Dual<f64>> = t.forces(&constants(p), &constants(q), &qd, &u);
         for (row, fi) in rows.iter_mut().zip(&f) {

@@ -131,7 +131,7 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
     let n = config.n;
     // M's and V's networks read q with its ∂/∂q, a group of directions at a time.
     let q_in: Vec<_> =
-        (groups(n).map(|dirs| (dirs.len(), sc.q_features(q, angles, dirs)))).collect();
+        (groups::<Var>(n).map(|dirs| (dirs.len(), sc.q_features(q, angles, dirs)))).collect();
     let of_q = |name: &str| -> Option<Vec<Vec<Dual<Var>>>> {
         (q_in.iter().map(|(dirs, x)| net(name, x, *dirs))).collect()
     };

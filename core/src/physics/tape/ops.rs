@@ -6,6 +6,7 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use super::{Op, Ref, Slot, Tape, Var};
+use crate::physics::dual::{Sparse, WIDTH};
 use crate::physics::scalar::Scalar;
 
 #[derive(Debug, Clone, Copy)]
@@ -342,6 +343,7 @@ impl Neg for Var {
 }
 
 impl Scalar for Var {
+    type Tangents = Sparse<Var, WIDTH>;
     fn cos(&self) -> Self {
         self.unary(Unary::Cos)
     }
