@@ -22,9 +22,11 @@ impl Evaluator {
     fn derivative_in<'a, S: super::Lanes>(&'a self, a: &'a Arena, x: &[S], u: &[S]) -> AVec<'a, S> {
         let n = self.config.n;
         let qdd = self.evaluate_in(a, self.rows(x, u), false);
-        let rows = x.chunks(2 * n).zip(qdd.chunks(n));
-        rows.flat_map(|(x, qdd)| x[n..].iter().chain(qdd).cloned())
-            .collect_in(a)
+        let mut f = AVec::with_capacity_in(x.len(), a);
+        for (x, qdd) in x.chunks(2 * n).zip(qdd.chunks(n)) {
+            f.extend(x[n..].iter().chain(qdd).cloned());
+        }
+        f
     }
 }
 

@@ -85,11 +85,16 @@ impl Evaluator {
         let (xj, uj) = xu.split_at(nx);
         let xj = AVec::from_iter_in(xj.iter().cloned(), a);
         let y = (self.config.integrator).step(&xj, self.config.dt, |x: &AVec<Jet<N>>| {
-            let mut dx = AVec::from_iter_in(x[n..].iter().cloned(), a);
+            let mut dx = AVec::with_capacity_in(2 * n, a);
+            dx.extend(x[n..].iter().cloned());
             dx.extend(self.stage(a, model, x, uj));
             dx
         });
-        (y.iter().flat_map(|y| y.dense()[..dirs].iter().copied())).collect_in(a)
+        let mut rows = zeros(a, y.len() * dirs);
+        for (row, y) in rows.chunks_exact_mut(dirs).zip(&y) {
+            row.copy_from_slice(&y.dense()[..dirs]);
+        }
+        rows
     }
 
     /// q̈ at one stage of the integrator, its tangents those of the stage's (q, q̇, u): the
@@ -108,8 +113,15 @@ impl Evaluator {
         // τ over the stage's own dual numbers carries its tangents in the step's directions.
         let tau = self.evaluate_in(a, self.rows(x, u), true);
         let tau_v = value(&tau);
-        let tangents =
-            |x: &[Jet<N>]| -> AVec<f64> { x.iter().flat_map(|j| *j.dense()).collect_in(a) };
+        // Each jet's N tangents in one copy (a flat_map's unknown length grew the vector
+        // by doublings, each a copy).
+        let tangents = |x: &[Jet<N>]| -> AVec<f64> {
+            let mut out = zeros(a, x.len() * N);
+            for (o, j) in out.chunks_exact_mut(N).zip(x) {
+                o.copy_from_slice(j.dense());
+            }
+            out
+        };
         let (dq, dqd, dtau) = (tangents(q), tangents(qd), tangents(&tau));
         with_data(|data| {
             data.fd_partials(model, &qv, &qdv, &tau_v);
