@@ -85,10 +85,12 @@ impl App {
             short_calls: Arc::new(inference::Heavy::new(
                 settings.max_short_calls,
                 "--max-short-calls",
+                "short",
             )),
             long_calls: Arc::new(inference::Heavy::new(
                 settings.max_heavy_calls,
                 "--max-heavy-calls",
+                "long",
             )),
             streaming: Arc::new(inference::Heavy::streaming(
                 settings.max_heavy_calls,

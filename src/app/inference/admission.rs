@@ -2,6 +2,10 @@
 //! pool, a bounded number waits. Short calls (a controller's batch), long calls (plans,
 //! evaluations, large batches) and rollout streams each have a pool of their own, so that
 //! seconds of planning never queue a controller's Predict behind them.
+//!
+//! A class of calls computes on threads of its own, made once with it (a rayon pool of as
+//! many threads as it has permits): a lone large batch splits over the idle ones
+//! (`infer::calls`), and no call ever starts a thread.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -54,6 +58,8 @@ pub struct Heavy {
     busy: Arc<AtomicUsize>,
     /// The setting that sizes this pool, named when a call is turned away.
     flag: &'static str,
+    /// The threads its calls compute on; `None`: each on its blocking thread alone.
+    threads: Option<Arc<rayon::ThreadPool>>,
 }
 
 /// Decrements the computing count when the computation ends, however it ends.
@@ -75,8 +81,31 @@ impl Drop for Waiting<'_> {
 }
 
 impl Heavy {
-    /// A pool for calls: `permits` at once (set by `flag`), a bounded queue behind them.
-    pub fn new(permits: usize, flag: &'static str) -> Self {
+    /// A pool for calls: `permits` at once (set by `flag`), a bounded queue behind them,
+    /// computing on as many threads named `graybox-{name}-k`. Without threads (one permit,
+    /// or none to be had) each call computes on its blocking thread alone.
+    pub fn new(permits: usize, flag: &'static str, name: &'static str) -> Self {
+        let threads = (permits > 1)
+            .then(|| {
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(permits)
+                    .thread_name(move |k| format!("graybox-{name}-{k}"))
+                    .build()
+            })
+            .and_then(|built| {
+                built
+                    .inspect_err(|e| tracing::warn!(error = %e, name, "no threads for its calls"))
+                    .ok()
+                    .map(Arc::new)
+            });
+        Self::with_threads(permits, flag, threads)
+    }
+
+    fn with_threads(
+        permits: usize,
+        flag: &'static str,
+        threads: Option<Arc<rayon::ThreadPool>>,
+    ) -> Self {
         let permits = permits.max(1);
         Self {
             permits: Arc::new(Semaphore::new(permits)),
@@ -84,6 +113,7 @@ impl Heavy {
             max_waiting: permits * WAITING_PER_PERMIT,
             busy: Arc::default(),
             flag,
+            threads,
         }
     }
 
@@ -95,15 +125,17 @@ impl Heavy {
     /// A pool for rollout streams: their chunks queue without a cap (a waiting stream is a
     /// parked task holding no thread, and streams are capped per connection), apart from
     /// calls, so that many streams cannot crowd Predict, Linearize or Tvlqr out.
+    /// A rollout's steps run one after another, so a stream needs no threads of its own.
     pub fn streaming(permits: usize, flag: &'static str) -> Self {
         Self {
             max_waiting: usize::MAX,
-            ..Self::new(permits, flag)
+            ..Self::with_threads(permits, flag, None)
         }
     }
 
-    /// Runs `f` on the blocking pool once a permit is free; the permit is held until `f`
-    /// returns, even if the caller has gone.
+    /// Runs `f` once a permit is free, on this pool's threads (its blocking thread waits),
+    /// or on the blocking pool; the permit is held until `f` returns, even if the caller has
+    /// gone.
     pub async fn run<T: Send + 'static>(
         &self,
         f: impl FnOnce() -> T + Send + 'static,
@@ -125,10 +157,14 @@ impl Heavy {
         drop(guard);
         self.busy.fetch_add(1, Ordering::SeqCst);
         let busy = self.busy.clone();
+        let threads = self.threads.clone();
         tokio::task::spawn_blocking(move || {
             let _permit = permit;
             let _busy = Busy(busy);
-            f()
+            match threads {
+                Some(pool) => pool.install(f),
+                None => f(),
+            }
         })
         .await
         .map_err(|e| Error::Internal(format!("inference task failed: {e}")))
@@ -143,7 +179,7 @@ mod tests {
     /// UNAVAILABLE), not that it is too large (it was a 413).
     #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
     async fn past_the_queue_a_call_is_busy_not_too_large() {
-        let heavy = Arc::new(Heavy::new(1, "--max-heavy-calls"));
+        let heavy = Arc::new(Heavy::new(1, "--max-heavy-calls", "long"));
         let (release, held) = std::sync::mpsc::channel::<()>();
         let held = Arc::new(std::sync::Mutex::new(held));
         let running = {
@@ -175,6 +211,28 @@ mod tests {
         running.await.unwrap().unwrap().unwrap();
         for w in waiting {
             w.await.unwrap().unwrap();
+        }
+    }
+
+    /// A class of several permits computes on its own named threads, where a batch may split
+    /// (`rayon::current_thread_index`); one permit, or a stream, on the blocking thread.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn calls_compute_on_the_class_threads() {
+        let whose = || {
+            let name = std::thread::current().name().map(str::to_owned);
+            (rayon::current_thread_index(), name)
+        };
+        let (index, name) = Heavy::new(2, "--max-short-calls", "short")
+            .run(whose)
+            .await
+            .unwrap();
+        assert!(index.is_some(), "not on the class's threads");
+        assert!(name.is_some_and(|n| n.starts_with("graybox-short-")));
+        for alone in [
+            Heavy::new(1, "--max-heavy-calls", "long"),
+            Heavy::streaming(2, "--max-heavy-calls"),
+        ] {
+            assert_eq!(alone.run(whose).await.unwrap().0, None);
         }
     }
 }
