@@ -39,6 +39,38 @@ fn calls_allocate_nothing_once_the_workspace_is_made() {
     }
 }
 
+/// A workspace made on one thread and used on another, new one: the multibody algorithms'
+/// scratch travels with the workspace (it used to be each thread's own, made at the thread's
+/// first call), so the new thread's first calls allocate nothing either.
+#[test]
+fn a_workspace_brings_its_scratch_to_a_new_thread() {
+    for name in MODELS {
+        let eval = load(name);
+        let mut ws = Workspace::for_model(&eval, 8);
+        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (x, u) = (vec![0.1; 8 * nx], vec![0.2; 8 * m]);
+        let (mut next, mut a, mut b) = (
+            vec![0.0; 8 * nx],
+            vec![0.0; 8 * nx * nx],
+            vec![0.0; 8 * nx * m],
+        );
+        let calls = std::thread::scope(|s| {
+            s.spawn(|| {
+                allocations(|| {
+                    eval.predict_into(&mut ws, &x, &u, &mut next, None, &|| false);
+                    eval.linearize_into(&mut ws, &x, &u, &mut a, &mut b, &|| false);
+                })
+            })
+            .join()
+            .unwrap()
+        });
+        assert_eq!(
+            calls, 0,
+            "{name}: a new thread's first calls allocated {calls} times"
+        );
+    }
+}
+
 /// Predict (with and without q̈), Linearize and a rollout from each of `batch` states.
 fn calls_at(eval: &Evaluator, ws: &mut Workspace, name: &str, batch: usize) {
     let (n, m) = (eval.config.n, eval.config.m);

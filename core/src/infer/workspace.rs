@@ -13,13 +13,17 @@ use std::ops::Range;
 use super::Evaluator;
 use super::limits::Pass;
 use crate::arena::Arena;
+use crate::physics::multibody::{Lent, lending};
 
-/// Per-call scratch for one thread: reused call after call.
+/// Per-call scratch for one thread at a time: reused call after call.
 #[derive(Default)]
 pub struct Workspace {
     arena: Arena,
     /// An ensemble's member outputs before they join the mean.
     spare: Vec<f64>,
+    /// The multibody algorithms' scratch (`multibody::Data`), lent to the thread that runs a
+    /// call of a model on them.
+    data: Lent,
 }
 
 /// A thread's workspace shrinks back after a call that grew it beyond this (a huge batch's
@@ -80,6 +84,17 @@ impl Workspace {
         ws
     }
 
+    /// `f` on this workspace, its multibody scratch lent to this thread for `eval`'s calls.
+    fn lend<R>(&mut self, eval: &Evaluator, f: impl FnOnce(&mut Self) -> R) -> R {
+        if !eval.is_multibody() {
+            return f(self);
+        }
+        let mut data = self.data.take();
+        let out = lending(&mut data, || f(self));
+        self.data = data;
+        out
+    }
+
     /// The arena, emptied for a unit of work.
     pub(super) fn reset(&mut self) -> (&Arena, &mut Vec<f64>) {
         self.arena.reset();
@@ -134,6 +149,18 @@ impl Evaluator {
         x: &[f64],
         u: &[f64],
         next: &mut [f64],
+        acc: Option<&mut [f64]>,
+        stop: &dyn Fn() -> bool,
+    ) -> Option<()> {
+        ws.lend(self, |ws| self.predict_units(ws, x, u, next, acc, stop))
+    }
+
+    fn predict_units(
+        &self,
+        ws: &mut Workspace,
+        x: &[f64],
+        u: &[f64],
+        next: &mut [f64],
         mut acc: Option<&mut [f64]>,
         stop: &dyn Fn() -> bool,
     ) -> Option<()> {
@@ -172,6 +199,18 @@ impl Evaluator {
     /// A `[B, 2n, 2n]` and B `[B, 2n, m]` (as `linearize_batch`) into the caller's buffers;
     /// `None` when `stop` said so before a unit.
     pub fn linearize_into(
+        &self,
+        ws: &mut Workspace,
+        x: &[f64],
+        u: &[f64],
+        ja: &mut [f64],
+        jb: &mut [f64],
+        stop: &dyn Fn() -> bool,
+    ) -> Option<()> {
+        ws.lend(self, |ws| self.linearize_units(ws, x, u, ja, jb, stop))
+    }
+
+    fn linearize_units(
         &self,
         ws: &mut Workspace,
         x: &[f64],
@@ -225,14 +264,16 @@ impl Evaluator {
         let (nx, m) = (2 * self.config.n, self.config.m);
         xs[..nx].copy_from_slice(x0);
         let steps = xs.len() / nx - 1;
-        for t in 0..steps {
-            let (done, rest) = xs.split_at_mut((t + 1) * nx);
-            let u = &u[t * m..(t + 1) * m];
-            self.predict_into(ws, &done[t * nx..], u, &mut rest[..nx], None, &|| false);
-            if stop() {
-                return t + 1;
+        ws.lend(self, |ws| {
+            for t in 0..steps {
+                let (done, rest) = xs.split_at_mut((t + 1) * nx);
+                let u = &u[t * m..(t + 1) * m];
+                self.predict_units(ws, &done[t * nx..], u, &mut rest[..nx], None, &|| false);
+                if stop() {
+                    return t + 1;
+                }
             }
-        }
-        steps
+            steps
+        })
     }
 }

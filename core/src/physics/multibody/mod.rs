@@ -28,7 +28,7 @@ pub mod rnea;
 pub mod spatial;
 
 pub use aba::{aba, crba_forward, forward_dynamics, forward_dynamics_in};
-pub use data::{Data, with_data};
+pub use data::{Data, Lent, lending, with_data};
 pub use derivatives::{Derivatives, fd_over_dual, forward_dynamics_derivatives, id_partials};
 pub use energy::{kinetic_energy, potential_energy, potential_energy_of};
 pub use joint::{Drive, JointModel, Placement};
