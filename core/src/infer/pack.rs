@@ -12,8 +12,8 @@
 
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
-use crate::physics::dual::Sparse;
 use crate::physics::scalar::Scalar;
+use crate::physics::tangents::Sparse;
 
 /// States per pack.
 pub const PACK: usize = 32;

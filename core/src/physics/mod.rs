@@ -23,6 +23,7 @@ pub mod parts;
 pub mod scalar;
 pub mod scaling;
 pub mod stiffness;
+pub mod tangents;
 pub mod tape;
 pub mod templates;
 pub mod urdf;

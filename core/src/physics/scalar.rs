@@ -9,11 +9,11 @@
 //!   ∂/∂q in forward mode (so that training's one reverse pass also differentiates them,
 //!   docs/dynamics.md#forward-mode-input-derivatives).
 
-use super::dual::{Sparse, Tangents, WIDTH};
+use super::tangents::{Sparse, Tangents, WIDTH};
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 /// `'static`: every number type owns its values (what lets f64 callers share a thread's
-/// multibody workspace, `multibody::data::with_workspace`).
+/// multibody workspace, `multibody::thread_data::with_workspace`).
 pub trait Scalar:
     'static
     + Clone

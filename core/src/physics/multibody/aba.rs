@@ -5,10 +5,11 @@
 //! transform of the textbook recursion is the identity.
 
 use super::Model;
-use super::data::{Data, parent_and_child, with_workspace};
+use super::data::{Data, parent_and_child};
 use super::spatial::six::{
     add, add_assign, add_scaled, apply, cross_force, dot, scaled, sub_outer,
 };
+use super::thread_data::with_workspace;
 use crate::arena::{AVec, Arena, CollectIn};
 use crate::physics::scalar::Scalar;
 

@@ -13,10 +13,11 @@
 //! π_i: wᵀI a − (v × w)ᵀ I v (since (v ×* f)·w = −f·(v × w)), read in the body's frame.
 
 use super::Model;
-use super::data::{Data, with_data};
+use super::data::Data;
 use super::spatial::PER_BODY;
 use super::spatial::six::{V6, ZERO6, add, add_scaled, apply, cross, dot};
 use super::spatial::{M3, V3};
+use super::thread_data::with_data;
 
 /// ∂(mᵀ I(π) b)/∂π for one body's standard parameters (m, h, I about the origin), for
 /// motions m = (ω₁, v₁), b = (ω₂, v₂) in its frame:

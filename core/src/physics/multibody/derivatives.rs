@@ -11,8 +11,9 @@
 
 use super::Model;
 use super::aba::forward_dynamics;
-use super::data::{Data, parent_and_child, with_data};
+use super::data::{Data, parent_and_child};
 use super::spatial::six::{V6, Variation, ZERO6, add, add_scaled, apply, cross, cross_force, dot};
+use super::thread_data::with_data;
 use crate::physics::dual::{Dual, Jet};
 
 /// q̈ with ∂q̈/∂q and ∂q̈/∂q̇ (n×n each, row i is q̈ᵢ's gradient).

@@ -26,14 +26,16 @@ pub mod joint;
 pub mod regressor;
 pub mod rnea;
 pub mod spatial;
+pub mod thread_data;
 
 pub use aba::{aba, crba_forward, forward_dynamics, forward_dynamics_in};
-pub use data::{Data, Lent, lending, with_data};
+pub use data::Data;
 pub use derivatives::{Derivatives, fd_over_dual, forward_dynamics_derivatives, id_partials};
 pub use energy::{kinetic_energy, potential_energy, potential_energy_of};
 pub use joint::{Drive, JointModel, Placement};
 pub use rnea::{bias, coriolis, crba, crba_with, gravity_torques, inverse_dynamics};
 pub use spatial::{Inertial, PER_BODY};
+pub use thread_data::{Lent, lending, with_data};
 
 use crate::physics::scalar::Scalar;
 use spatial::Xform;

@@ -1,12 +1,13 @@
 //! Inverse dynamics by the recursive Newton–Euler algorithm (Featherstone 2008, Table 5.1)
 //! and M(q) by the composite rigid-body algorithm (Table 6.2), over the coordinates (mimic
-//! joints contracted with G), as entry points for one call (`data::with_workspace`): the
+//! joints contracted with G), as entry points for one call (`thread_data::with_workspace`): the
 //! algorithms themselves are `Data`'s (`Data::accelerations` and `Data::torques` are RNEA's
 //! two passes, `Data::mass` is CRBA), written once for every scalar.
 
 use super::Model;
-use super::data::{Data, with_workspace};
+use super::data::Data;
 use super::spatial::Inertial;
+use super::thread_data::with_workspace;
 use crate::physics::scalar::Scalar;
 
 fn at_rest<S: Scalar>(q: &[S]) -> Vec<S> {

@@ -6,8 +6,8 @@
 use std::ops::{Add, Div, Mul, Neg, Sub};
 
 use super::{Op, Ref, Slot, Tape, Var};
-use crate::physics::dual::{Sparse, WIDTH};
 use crate::physics::scalar::Scalar;
+use crate::physics::tangents::{Sparse, WIDTH};
 
 #[derive(Debug, Clone, Copy)]
 pub(super) enum Unary {
