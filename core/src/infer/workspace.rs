@@ -149,43 +149,33 @@ impl Evaluator {
         x: &[f64],
         u: &[f64],
         next: &mut [f64],
-        acc: Option<&mut [f64]>,
-        stop: &dyn Fn() -> bool,
-    ) -> Option<()> {
-        ws.lend(self, |ws| self.predict_units(ws, x, u, next, acc, stop))
-    }
-
-    fn predict_units(
-        &self,
-        ws: &mut Workspace,
-        x: &[f64],
-        u: &[f64],
-        next: &mut [f64],
         mut acc: Option<&mut [f64]>,
         stop: &dyn Fn() -> bool,
     ) -> Option<()> {
-        let (n, m) = (self.config.n, self.config.m);
-        let rows = x.len() / (2 * n);
-        for r in self.units(rows, Pass::Step) {
-            if stop() {
-                return None;
+        ws.lend(self, |ws| {
+            let (n, m) = (self.config.n, self.config.m);
+            let rows = x.len() / (2 * n);
+            for r in self.units(rows, Pass::Step) {
+                if stop() {
+                    return None;
+                }
+                let (a, spare) = ws.reset();
+                let (x, u) = (
+                    &x[2 * n * r.start..2 * n * r.end],
+                    &u[m * r.start..m * r.end],
+                );
+                let next = &mut next[2 * n * r.start..2 * n * r.end];
+                let acc = (acc.as_deref_mut().map(|v| &mut v[n * r.start..n * r.end]))
+                    .unwrap_or_default();
+                match self.ensemble() {
+                    Some(ms) => mean_into(ms.len(), spare, (next, acc), |k, next, acc| {
+                        ms[k].predict_unit(a, x, u, next, acc)
+                    }),
+                    None => self.predict_unit(a, x, u, next, acc),
+                }
             }
-            let (a, spare) = ws.reset();
-            let (x, u) = (
-                &x[2 * n * r.start..2 * n * r.end],
-                &u[m * r.start..m * r.end],
-            );
-            let next = &mut next[2 * n * r.start..2 * n * r.end];
-            let acc =
-                (acc.as_deref_mut().map(|v| &mut v[n * r.start..n * r.end])).unwrap_or_default();
-            match self.ensemble() {
-                Some(ms) => mean_into(ms.len(), spare, (next, acc), |k, next, acc| {
-                    ms[k].predict_unit(a, x, u, next, acc)
-                }),
-                None => self.predict_unit(a, x, u, next, acc),
-            }
-        }
-        Some(())
+            Some(())
+        })
     }
 
     /// One unit's x' and (unless `acc` is empty) q̈.
@@ -207,36 +197,26 @@ impl Evaluator {
         jb: &mut [f64],
         stop: &dyn Fn() -> bool,
     ) -> Option<()> {
-        ws.lend(self, |ws| self.linearize_units(ws, x, u, ja, jb, stop))
-    }
-
-    fn linearize_units(
-        &self,
-        ws: &mut Workspace,
-        x: &[f64],
-        u: &[f64],
-        ja: &mut [f64],
-        jb: &mut [f64],
-        stop: &dyn Fn() -> bool,
-    ) -> Option<()> {
-        let (nx, m) = (2 * self.config.n, self.config.m);
-        let rows = x.len() / nx;
-        for r in self.units(rows, Pass::Linearize) {
-            if stop() {
-                return None;
+        ws.lend(self, |ws| {
+            let (nx, m) = (2 * self.config.n, self.config.m);
+            let rows = x.len() / nx;
+            for r in self.units(rows, Pass::Linearize) {
+                if stop() {
+                    return None;
+                }
+                let (a, spare) = ws.reset();
+                let (x, u) = (&x[nx * r.start..nx * r.end], &u[m * r.start..m * r.end]);
+                let ja = &mut ja[nx * nx * r.start..nx * nx * r.end];
+                let jb = &mut jb[nx * m * r.start..nx * m * r.end];
+                match self.ensemble() {
+                    Some(ms) => mean_into(ms.len(), spare, (ja, jb), |k, ja, jb| {
+                        ms[k].linearize_unit(a, x, u, ja, jb)
+                    }),
+                    None => self.linearize_unit(a, x, u, ja, jb),
+                }
             }
-            let (a, spare) = ws.reset();
-            let (x, u) = (&x[nx * r.start..nx * r.end], &u[m * r.start..m * r.end]);
-            let ja = &mut ja[nx * nx * r.start..nx * nx * r.end];
-            let jb = &mut jb[nx * m * r.start..nx * m * r.end];
-            match self.ensemble() {
-                Some(ms) => mean_into(ms.len(), spare, (ja, jb), |k, ja, jb| {
-                    ms[k].linearize_unit(a, x, u, ja, jb)
-                }),
-                None => self.linearize_unit(a, x, u, ja, jb),
-            }
-        }
-        Some(())
+            Some(())
+        })
     }
 
     /// One state's A and B: per output coordinate of x', the row [∂x'_i/∂x, ∂x'_i/∂u] cut
@@ -264,16 +244,14 @@ impl Evaluator {
         let (nx, m) = (2 * self.config.n, self.config.m);
         xs[..nx].copy_from_slice(x0);
         let steps = xs.len() / nx - 1;
-        ws.lend(self, |ws| {
-            for t in 0..steps {
-                let (done, rest) = xs.split_at_mut((t + 1) * nx);
-                let u = &u[t * m..(t + 1) * m];
-                self.predict_units(ws, &done[t * nx..], u, &mut rest[..nx], None, &|| false);
-                if stop() {
-                    return t + 1;
-                }
+        for t in 0..steps {
+            let (done, rest) = xs.split_at_mut((t + 1) * nx);
+            let u = &u[t * m..(t + 1) * m];
+            self.predict_into(ws, &done[t * nx..], u, &mut rest[..nx], None, &|| false);
+            if stop() {
+                return t + 1;
             }
-            steps
-        })
+        }
+        steps
     }
 }
