@@ -1,5 +1,5 @@
 //! The numbers the evaluator's structure runs on. A batch's networks run once over all its
-//! states (matrix products); the structure then reads its states' rows of their outputs: 32
+//! states (matrix products); the structure then reads its states' rows of their outputs: 64
 //! plain states at a time as a [`Pack`], or one state as a dual number whose tangents are the
 //! directions a linearization differentiates in ("outer" tangents, see [`Activations`]),
 //! dense and inline (`Jet`) because within a step every value soon depends on every
@@ -10,7 +10,7 @@ use super::pack::{PACK, Pack};
 use crate::physics::dual::{Dual, Tangents};
 use crate::physics::scalar::Scalar;
 
-/// What the evaluator runs on: states' coordinates, alone, 32 at once, or with their
+/// What the evaluator runs on: states' coordinates, alone, 64 at once, or with their
 /// outer tangents.
 pub trait Lanes: Scalar {
     /// What the structure runs a group of these on, and how many states a group holds.

@@ -1,22 +1,24 @@
-//! A coordinate of 32 states as one number. A batch's structure (Cholesky factor, Coriolis
-//! term, solve, a formula template's expressions) runs 32 states at a time: each operation
-//! of the generic equations is one loop over 32 lanes, so a formula's interpretation and a
-//! dual number's bookkeeping are paid once for 32 states (a 3000-term potential's energy
+//! A coordinate of 64 states as one number. A batch's structure (Cholesky factor, Coriolis
+//! term, solve, a formula template's expressions) runs 64 states at a time: each operation
+//! of the generic equations is one loop over 64 lanes, so a formula's interpretation and a
+//! dual number's bookkeeping are paid once for 64 states (a 3000-term potential's energy
 //! report ran ~10× longer state by state), with no heap: a `Pack` is `Copy`, and so is
-//! everything built of it. Why 32: the white-box cartpole's and formula double pendulum's
-//! Predict of 1024 states took 1.6× and 2× as long in packs of 8 (the fixed cost of each
-//! operation paid four times as often) and 1.8× as long in packs of 128 (values past L1).
+//! everything built of it. Why 64, a unit of a batch's rows (`workspace::UNIT_ROWS`): the
+//! white-box cartpole's and formula double pendulum's Predict of 1024 states took 1.1–1.15×
+//! as long in packs of 32 and 1.4× / 1.0× in packs of 128 (in units of 128 rows; a pack
+//! wider than a unit computes lanes that hold no state). Values this wide are copied by
+//! every by-value operation, so the hot loops use the operators in place (`a *= &b`).
 //!
 //! Every operation is f64's own, lane by lane: a batch gives the same numbers, bit for bit,
 //! as its states one at a time.
 
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 use crate::physics::scalar::Scalar;
 use crate::physics::tangents::Sparse;
 
 /// States per pack.
-pub const PACK: usize = 32;
+pub const PACK: usize = 64;
 
 /// The directions a dual number over a `Pack` carries (`Scalar::Tangents`): every
 /// operation moves all its slots, so as few as a white-box template of n = 2 needs in one
@@ -37,33 +39,30 @@ impl Pack {
     }
 }
 
-impl Add for Pack {
-    type Output = Pack;
-    fn add(self, o: Pack) -> Pack {
-        self.zip(&o, |a, b| a + b)
-    }
+/// `a ∘ b` and `a ∘= &b`, lane by lane.
+macro_rules! lanewise {
+    ($trait:ident, $method:ident, $assign:ident, $assign_method:ident, $op:tt) => {
+        impl $trait for Pack {
+            type Output = Pack;
+            fn $method(mut self, o: Pack) -> Pack {
+                self.$assign_method(&o);
+                self
+            }
+        }
+        impl $assign<&Pack> for Pack {
+            fn $assign_method(&mut self, o: &Pack) {
+                for (a, b) in self.0.iter_mut().zip(&o.0) {
+                    *a = *a $op *b;
+                }
+            }
+        }
+    };
 }
 
-impl Sub for Pack {
-    type Output = Pack;
-    fn sub(self, o: Pack) -> Pack {
-        self.zip(&o, |a, b| a - b)
-    }
-}
-
-impl Mul for Pack {
-    type Output = Pack;
-    fn mul(self, o: Pack) -> Pack {
-        self.zip(&o, |a, b| a * b)
-    }
-}
-
-impl Div for Pack {
-    type Output = Pack;
-    fn div(self, o: Pack) -> Pack {
-        self.zip(&o, |a, b| a / b)
-    }
-}
+lanewise!(Add, add, AddAssign, add_assign, +);
+lanewise!(Sub, sub, SubAssign, sub_assign, -);
+lanewise!(Mul, mul, MulAssign, mul_assign, *);
+lanewise!(Div, div, DivAssign, div_assign, /);
 
 impl Neg for Pack {
     type Output = Pack;

@@ -34,6 +34,8 @@ const KEPT_BYTES: usize = 16 << 20;
 /// its states share the networks' matrix products, which gain little beyond 64 states.
 const UNIT_BYTES: usize = 8 << 20;
 const UNIT_ROWS: usize = 64;
+// A unit's states fill whole packs.
+const _: () = assert!(UNIT_ROWS.is_multiple_of(super::pack::PACK));
 
 thread_local! {
     static WORKSPACE: RefCell<Workspace> = RefCell::new(Workspace::default());

@@ -149,20 +149,19 @@ impl<'a, P> Structure<'a, P> {
     where
         P: Coef<S>,
     {
-        let p = self
-            .values
-            .physical
-            .expect("a template model has physical values");
-        p.iter().map(|v| v.value(like)).collect_in(self.arena)
+        (self.physical_values().iter().map(|v| v.value(like))).collect_in(self.arena)
+    }
+
+    fn physical_values(&self) -> &'a [P] {
+        (self.values.physical).expect("a template model has physical values")
     }
 
     fn physical_dual<S: Scalar>(&self, like: &S) -> AVec<'a, Dual<S>>
     where
         P: Coef<S>,
     {
-        self.physical(like)
-            .into_iter()
-            .map(Dual::constant)
+        let p = self.physical_values().iter();
+        p.map(|v| Dual::constant(v.value(like)))
             .collect_in(self.arena)
     }
 

@@ -15,7 +15,7 @@
 
 use super::scalar::Scalar;
 use crate::arena::{AVec, Arena, CollectIn};
-use std::ops::{Add, Div, Mul, Neg, Range, Sub};
+use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Range, Sub, SubAssign};
 
 pub use super::tangents::{Dense, Sparse, Tangents, WIDTH};
 
@@ -111,61 +111,23 @@ impl<S: Scalar, T: Tangents<S>> Dual<S, T> {
     }
 }
 
-impl<S: Scalar, T: Tangents<S>> Add for Dual<S, T> {
-    type Output = Self;
-    fn add(self, o: Self) -> Self {
-        let d = self.d.zip(&o.d, |a, b| match (a, b) {
-            (Some(a), Some(b)) => Some(a.clone() + b.clone()),
-            (Some(a), None) => Some(a.clone()),
-            (None, Some(b)) => Some(b.clone()),
-            (None, None) => None,
-        });
-        Self { v: self.v + o.v, d }
-    }
+/// The operators by value, as the rules in place below: one copy of the rules.
+macro_rules! by_value {
+    ($trait:ident, $method:ident, $op:tt) => {
+        impl<S: Scalar, T: Tangents<S>> $trait for Dual<S, T> {
+            type Output = Self;
+            fn $method(mut self, o: Self) -> Self {
+                self $op &o;
+                self
+            }
+        }
+    };
 }
 
-impl<S: Scalar, T: Tangents<S>> Sub for Dual<S, T> {
-    type Output = Self;
-    fn sub(self, o: Self) -> Self {
-        let d = self.d.zip(&o.d, |a, b| match (a, b) {
-            (Some(a), Some(b)) => Some(a.clone() - b.clone()),
-            (Some(a), None) => Some(a.clone()),
-            (None, Some(b)) => Some(-b.clone()),
-            (None, None) => None,
-        });
-        Self { v: self.v - o.v, d }
-    }
-}
-
-#[allow(clippy::suspicious_arithmetic_impl)] // the product rule
-impl<S: Scalar, T: Tangents<S>> Mul for Dual<S, T> {
-    type Output = Self;
-    fn mul(self, o: Self) -> Self {
-        let d = self.d.zip(&o.d, |a, b| match (a, b) {
-            (Some(a), Some(b)) => Some(a.clone() * o.v.clone() + self.v.clone() * b.clone()),
-            (Some(a), None) => Some(a.clone() * o.v.clone()),
-            (None, Some(b)) => Some(self.v.clone() * b.clone()),
-            (None, None) => None,
-        });
-        Self { v: self.v * o.v, d }
-    }
-}
-
-#[allow(clippy::suspicious_arithmetic_impl)] // the quotient rule
-impl<S: Scalar, T: Tangents<S>> Div for Dual<S, T> {
-    type Output = Self;
-    fn div(self, o: Self) -> Self {
-        let v = self.v.clone() / o.v.clone();
-        // (a/b)' = (a' − (a/b) b') / b
-        let d = self.d.zip(&o.d, |a, b| match (a, b) {
-            (Some(a), Some(b)) => Some((a.clone() - v.clone() * b.clone()) / o.v.clone()),
-            (Some(a), None) => Some(a.clone() / o.v.clone()),
-            (None, Some(b)) => Some(-(v.clone() * b.clone()) / o.v.clone()),
-            (None, None) => None,
-        });
-        Self { v, d }
-    }
-}
+by_value!(Add, add, +=);
+by_value!(Sub, sub, -=);
+by_value!(Mul, mul, *=);
+by_value!(Div, div, /=);
 
 impl<S: Scalar, T: Tangents<S>> Neg for Dual<S, T> {
     type Output = Self;
@@ -175,6 +137,77 @@ impl<S: Scalar, T: Tangents<S>> Neg for Dual<S, T> {
             d: self.d.map_owned(|t| -t),
         }
     }
+}
+
+// The sum, product and quotient rules, in place: a wide value (a dual number over a `Pack`)
+// is updated where it lies instead of copied into each intermediate. Each tangent's
+// operations keep the order the answers were recorded with: a′ b + a b′, (a′ − (a/b) b′) / b.
+
+impl<S: Scalar, T: Tangents<S>> AddAssign<&Self> for Dual<S, T> {
+    fn add_assign(&mut self, o: &Self) {
+        self.d.update(&o.d, |a, b| match (a, b) {
+            (Some(a), Some(b)) => *a += b,
+            (a @ None, Some(b)) => *a = Some(b.clone()),
+            (_, None) => {}
+        });
+        self.v += &o.v;
+    }
+}
+
+impl<S: Scalar, T: Tangents<S>> SubAssign<&Self> for Dual<S, T> {
+    fn sub_assign(&mut self, o: &Self) {
+        self.d.update(&o.d, |a, b| match (a, b) {
+            (Some(a), Some(b)) => *a -= b,
+            (a @ None, Some(b)) => *a = Some(-b.clone()),
+            (_, None) => {}
+        });
+        self.v -= &o.v;
+    }
+}
+
+#[allow(clippy::suspicious_op_assign_impl)] // the product rule
+impl<S: Scalar, T: Tangents<S>> MulAssign<&Self> for Dual<S, T> {
+    fn mul_assign(&mut self, o: &Self) {
+        let v = &self.v;
+        self.d.update(&o.d, |a, b| match (a, b) {
+            (Some(a), Some(b)) => {
+                *a *= &o.v;
+                *a += &product(v, b);
+            }
+            (Some(a), None) => *a *= &o.v,
+            (a @ None, Some(b)) => *a = Some(product(v, b)),
+            (None, None) => {}
+        });
+        self.v *= &o.v;
+    }
+}
+
+#[allow(clippy::suspicious_op_assign_impl)] // the quotient rule
+impl<S: Scalar, T: Tangents<S>> DivAssign<&Self> for Dual<S, T> {
+    fn div_assign(&mut self, o: &Self) {
+        self.v /= &o.v;
+        let v = &self.v;
+        self.d.update(&o.d, |a, b| match (a, b) {
+            (Some(a), Some(b)) => {
+                *a -= &product(v, b);
+                *a /= &o.v;
+            }
+            (Some(a), None) => *a /= &o.v,
+            (a @ None, Some(b)) => {
+                let mut t = -product(v, b);
+                t /= &o.v;
+                *a = Some(t);
+            }
+            (None, None) => {}
+        });
+    }
+}
+
+/// a · b, one copy of a.
+fn product<S: Scalar>(a: &S, b: &S) -> S {
+    let mut p = a.clone();
+    p *= b;
+    p
 }
 
 impl<S: Scalar, T: Tangents<S>> Scalar for Dual<S, T> {
@@ -317,6 +350,37 @@ mod tests {
                 assert_eq!(a.v.to_bits(), b.v.to_bits(), "{name}");
                 for k in 0..2 {
                     assert_eq!(a.tangent(k), b.tangent(k), "{name} at {x}: {a:?} vs {b:?}");
+                }
+            }
+        }
+    }
+
+    /// A missing tangent is an exact zero: each rule's branches for one side without a
+    /// tangent give what the dense rules give with a 0 there, to the bit.
+    #[test]
+    fn missing_tangents_act_as_zeros() {
+        type Op = fn(&mut Dual<f64>, &Dual<f64>);
+        type DenseOp = fn(&mut Jet<2>, &Jet<2>);
+        let ops: [(&str, Op, DenseOp); 4] = [
+            ("add", |a, b| *a += b, |a, b| *a += b),
+            ("sub", |a, b| *a -= b, |a, b| *a -= b),
+            ("mul", |a, b| *a *= b, |a, b| *a *= b),
+            ("div", |a, b| *a /= b, |a, b| *a /= b),
+        ];
+        let patterns = [[Some(0.7), None], [None, Some(-1.3)], [None, None]];
+        for (name, sparse, dense) in ops {
+            for ta in patterns {
+                for tb in patterns {
+                    let (mut a, b) = (Dual::new(1.9, ta), Dual::new(-0.6, tb));
+                    let zero = |t: [Option<f64>; 2]| t.map(|t| Some(t.unwrap_or(0.0)));
+                    let (mut ja, jb) = (Jet::new(1.9, zero(ta)), Jet::new(-0.6, zero(tb)));
+                    sparse(&mut a, &b);
+                    dense(&mut ja, &jb);
+                    assert_eq!(a.v.to_bits(), ja.v.to_bits(), "{name}");
+                    for k in 0..2 {
+                        let got = a.tangent(k).copied().unwrap_or(0.0);
+                        assert_eq!(got, ja.dense()[k], "{name} {ta:?} {tb:?} direction {k}");
+                    }
                 }
             }
         }

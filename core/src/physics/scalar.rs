@@ -10,10 +10,14 @@
 //!   docs/dynamics.md#forward-mode-input-derivatives).
 
 use super::tangents::{Sparse, Tangents, WIDTH};
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 /// `'static`: every number type owns its values (what lets f64 callers share a thread's
 /// multibody workspace, `multibody::thread_data::with_workspace`).
+///
+/// The operators in place (`a += &b`) give what `a = a + b` gives, to the bit; they exist
+/// for wide values (a dual number over a `Pack` of 64 states is ~1.5 kB), which the
+/// by-value operators copy several times per operation.
 pub trait Scalar:
     'static
     + Clone
@@ -22,6 +26,10 @@ pub trait Scalar:
     + Mul<Output = Self>
     + Div<Output = Self>
     + Neg<Output = Self>
+    + for<'a> AddAssign<&'a Self>
+    + for<'a> SubAssign<&'a Self>
+    + for<'a> MulAssign<&'a Self>
+    + for<'a> DivAssign<&'a Self>
 {
     /// Where a dual number over this scalar keeps its tangents (`Dual<S>`), which sets how
     /// many directions a group holds ([`groups`](super::dual::groups)): a wide scalar (a
@@ -44,7 +52,9 @@ pub trait Scalar:
     /// self + c.
     fn shift(&self, c: f64) -> Self;
     fn square(&self) -> Self {
-        self.clone() * self.clone()
+        let mut s = self.clone();
+        s *= self;
+        s
     }
     fn tanh(&self) -> Self;
     /// The constant `c` as a value of the same kind (and shape) as `self`.

@@ -24,6 +24,9 @@ pub trait Tangents<S>: Clone + 'static {
     fn map_owned(self, f: impl Fn(S) -> S) -> Self;
     /// `f` of each direction's pair of tangents, `None` where it gives a zero.
     fn zip(&self, o: &Self, f: impl Fn(Option<&S>, Option<&S>) -> Option<S>) -> Self;
+    /// `f` on each direction's tangent in place (`None` a zero, which `f` may fill), given
+    /// the other's.
+    fn update(&mut self, o: &Self, f: impl FnMut(&mut Option<S>, Option<&S>));
 }
 
 /// At most N optional tangents, only those in use initialized.
@@ -61,6 +64,14 @@ impl<S: Clone + 'static, const N: usize> Tangents<S> for Sparse<S, N> {
     fn zip(&self, o: &Self, f: impl Fn(Option<&S>, Option<&S>) -> Option<S>) -> Self {
         let n = self.0.len().max(o.0.len());
         Self((0..n).map(|k| f(self.get(k), o.get(k))).collect())
+    }
+    fn update(&mut self, o: &Self, mut f: impl FnMut(&mut Option<S>, Option<&S>)) {
+        while self.0.len() < o.0.len() {
+            self.0.push(None);
+        }
+        for (k, t) in self.0.iter_mut().enumerate() {
+            f(t, o.get(k));
+        }
     }
 }
 
@@ -101,6 +112,13 @@ impl<const N: usize> Tangents<f64> for Dense<N> {
         Self(std::array::from_fn(|k| {
             f(Some(&self.0[k]), Some(&o.0[k])).unwrap_or(0.0)
         }))
+    }
+    fn update(&mut self, o: &Self, mut f: impl FnMut(&mut Option<f64>, Option<&f64>)) {
+        for (t, b) in self.0.iter_mut().zip(&o.0) {
+            let mut a = Some(*t);
+            f(&mut a, Some(b));
+            *t = a.unwrap_or(0.0);
+        }
     }
 }
 

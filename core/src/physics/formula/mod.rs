@@ -192,41 +192,46 @@ impl Expr {
         self.eval_in(&Arena::new(), sym, like)
     }
 
-    /// [`Expr::eval`] with its operand stack in `a`.
+    /// [`Expr::eval`] with its operand stack in `a`. Each operation updates the stack's top
+    /// in place: a wide value (a dual number over a `Pack`) is not copied in and out.
     pub fn eval_in<S: Scalar>(&self, a: &Arena, sym: &dyn Fn(Symbol) -> S, like: &S) -> S {
+        const OPERANDS: &str = "a parsed program has its operands";
         let mut stack: AVec<S> = AVec::with_capacity_in(self.stack, a);
-        let pop = |stack: &mut AVec<S>| stack.pop().expect("a parsed program has its operands");
         for op in &self.ops {
-            let v = match *op {
-                Op::Num(v) => like.lift(v),
-                Op::Sym(s, _) => sym(s),
-                Op::Neg => -pop(&mut stack),
-                Op::PowI(k) => powi(pop(&mut stack), k, like),
-                Op::Call(Func::Atan2) => {
-                    let x = pop(&mut stack);
-                    pop(&mut stack).atan2(&x)
-                }
-                Op::Call(f) => call(f, pop(&mut stack)),
-                Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Pow => {
-                    let b = pop(&mut stack);
-                    let a = pop(&mut stack);
+            match *op {
+                Op::Num(v) => stack.push(like.lift(v)),
+                Op::Sym(s, _) => stack.push(sym(s)),
+                Op::Add | Op::Sub | Op::Mul | Op::Div | Op::Pow | Op::Call(Func::Atan2) => {
+                    let [.., a, b] = &mut stack[..] else {
+                        unreachable!("{OPERANDS}")
+                    };
                     match op {
-                        Op::Add => a + b,
-                        Op::Sub => a - b,
-                        Op::Mul => a * b,
-                        Op::Div => a / b,
-                        _ => (b * a.ln()).exp(),
+                        Op::Add => *a += b,
+                        Op::Sub => *a -= b,
+                        Op::Mul => *a *= b,
+                        Op::Div => *a /= b,
+                        Op::Call(_) => *a = a.atan2(b),
+                        _ => *a = (b.clone() * a.ln()).exp(),
                     }
+                    stack.truncate(stack.len() - 1);
                 }
-            };
-            stack.push(v);
+                Op::Neg | Op::PowI(_) | Op::Call(_) => {
+                    let x = stack.last_mut().expect(OPERANDS);
+                    *x = match *op {
+                        Op::Neg => -x.clone(),
+                        Op::PowI(k) => powi(x.clone(), k, like),
+                        Op::Call(f) => call(f, x),
+                        _ => unreachable!("a unary operation"),
+                    };
+                }
+            }
         }
-        pop(&mut stack)
+        stack.pop().expect(OPERANDS)
     }
 }
 
 /// A function of one argument.
-fn call<S: Scalar>(f: Func, x: S) -> S {
+fn call<S: Scalar>(f: Func, x: &S) -> S {
     match f {
         Func::Sin => x.sin(),
         Func::Cos => x.cos(),
@@ -235,8 +240,8 @@ fn call<S: Scalar>(f: Func, x: S) -> S {
         Func::Log => x.ln(),
         Func::Sqrt => x.sqrt(),
         Func::Tanh => x.tanh(),
-        Func::Sinh => (x.exp() - (-x).exp()).scale(0.5),
-        Func::Cosh => (x.exp() + (-x).exp()).scale(0.5),
+        Func::Sinh => (x.exp() - (-x.clone()).exp()).scale(0.5),
+        Func::Cosh => (x.exp() + (-x.clone()).exp()).scale(0.5),
         Func::Atan2 => unreachable!("atan2 takes two operands"),
     }
 }

@@ -3,7 +3,7 @@
 //! A value every row shares (length 1) broadcasts against a column, and its adjoint is the
 //! column's summed.
 
-use std::ops::{Add, Div, Mul, Neg, Sub};
+use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssign};
 
 use super::{Op, Ref, Slot, Tape, Var};
 use crate::physics::scalar::Scalar;
@@ -328,12 +328,21 @@ macro_rules! operator {
             }
         }
     };
+    ($trait:ident, $method:ident, $assign:ident, $assign_method:ident, $op:expr) => {
+        operator!($trait, $method, $op);
+        /// The same node: a `Var` is a handle, so in place saves nothing here.
+        impl $assign<&Var> for Var {
+            fn $assign_method(&mut self, o: &Var) {
+                *self = self.binary(o, $op);
+            }
+        }
+    };
 }
 
-operator!(Add, add, Binary::Add);
-operator!(Sub, sub, Binary::Sub);
-operator!(Mul, mul, Binary::Mul);
-operator!(Div, div, Binary::Div);
+operator!(Add, add, AddAssign, add_assign, Binary::Add);
+operator!(Sub, sub, SubAssign, sub_assign, Binary::Sub);
+operator!(Mul, mul, MulAssign, mul_assign, Binary::Mul);
+operator!(Div, div, DivAssign, div_assign, Binary::Div);
 
 impl Neg for Var {
     type Output = Var;

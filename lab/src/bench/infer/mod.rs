@@ -10,7 +10,7 @@ use clap::Args;
 use serde_json::{Value, json};
 
 use graybox::control::linalg::Mat;
-use graybox::error::Result;
+use graybox::error::{Error, Result};
 use graybox::infer::Evaluator;
 use graybox::physics::templates::Template;
 use graybox::sim::{SimConfig, simulate};
@@ -57,6 +57,11 @@ pub struct BenchInferArgs {
     /// ratio taken to its own round's Rust figure.
     #[arg(long, default_value_t = 3)]
     pub rounds: usize,
+    /// Run the in-process figures inside a rayon pool of this many threads, as the service
+    /// runs its calls (a batch splits over the pool's idle threads); 1: the caller's thread
+    /// alone, as an embedding program without a pool.
+    #[arg(long, default_value_t = 1)]
+    pub threads: usize,
 }
 
 /// Latency percentiles of a set of samples, in microseconds.
@@ -129,8 +134,22 @@ fn weights() -> (Mat, Mat, Mat) {
 }
 
 pub fn run(a: BenchInferArgs) -> Result<()> {
+    let pool = match a.threads {
+        0 => return Err(Error::invalid("--threads", "must be at least 1")),
+        1 => None,
+        k => Some(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(k)
+                .build()
+                .map_err(|e| Error::invalid("--threads", format!("could not start {k}: {e}")))?,
+        ),
+    };
+    let in_pool = |f: &(dyn Fn() -> Result<()> + Sync)| match &pool {
+        Some(pool) => pool.install(f),
+        None => f(),
+    };
     if let Some(path) = &a.model {
-        return model::figures(&a, path);
+        return in_pool(&|| model::figures(&a, path));
     }
     let t = Template::DoublePendulum;
     let data = simulate(
@@ -144,8 +163,10 @@ pub fn run(a: BenchInferArgs) -> Result<()> {
     )?;
     let p = problem(&data);
     let eval = Arc::new(trained_mvf(&data)?);
-    in_process(&eval, &p, a.calls);
-    plan::in_process()?;
+    in_pool(&|| {
+        in_process(&eval, &p, a.calls);
+        plan::in_process()
+    })?;
     if !a.in_process_only {
         let rt = tokio::runtime::Builder::new_multi_thread()
             .enable_all()
