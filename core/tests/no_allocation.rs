@@ -1,6 +1,6 @@
 //! A caller-owned workspace (`infer::Workspace`): once made for a model and its largest
 //! batch, Predict (with and without q̈), Linearize and Rollout into the caller's buffers take
-//! nothing from the system allocator, at 1, 8, 32 and 256 states, on the six recorded models
+//! nothing from the system allocator, at 1, 8, 32, 81 and 256 states, on the six recorded models
 //! (a Lagrangian MVF, white-box models from built-in and formula templates, a URDF robot on
 //! the multibody algorithms with a residual network, an older file's MVF and an ensemble of
 //! three). This binary installs its own counting allocator (`counting`).
@@ -33,7 +33,7 @@ fn calls_allocate_nothing_once_the_workspace_is_made() {
     for name in MODELS {
         let eval = load(name);
         let mut ws = Workspace::for_model(&eval, 256);
-        for batch in [1, 8, 32, 256] {
+        for batch in [1, 8, 32, 81, 256] {
             calls_at(&eval, &mut ws, name, batch);
         }
     }

@@ -1,21 +1,23 @@
 //! The numbers the evaluator's structure runs on. A batch's networks run once over all its
-//! states (matrix products); the structure then reads its states' rows of their outputs: 64
-//! plain states at a time as a [`Pack`], or one state as a dual number whose tangents are the
+//! states (matrix products); the structure then reads its states' rows of their outputs: a
+//! pack of plain states at a time as a [`Pack`], or one state as a dual number whose tangents are the
 //! directions a linearization differentiates in ("outer" tangents, see [`Activations`]),
 //! dense and inline (`Jet`) because within a step every value soon depends on every
 //! direction.
 
 use super::activations::Activations;
-use super::pack::{PACK, Pack};
+use super::pack::Pack;
 use crate::physics::dual::{Dual, Tangents};
 use crate::physics::scalar::Scalar;
 
-/// What the evaluator runs on: states' coordinates, alone, 64 at once, or with their
+/// What the evaluator runs on: states' coordinates, alone, N at once, or with their
 /// outer tangents.
 pub trait Lanes: Scalar {
-    /// What the structure runs a group of these on, and how many states a group holds.
-    type Group: Lanes;
-    const GROUP: usize;
+    /// What the structure runs a group of N of these on: N states' f64 coordinates as a
+    /// `Pack<N>`; a value that already stands for its group (a pack, a dual number), itself.
+    type Group<const N: usize>: Lanes;
+    /// Whether N of these make a group, or each is a group of its own.
+    const GROUPS: bool;
     /// Outer directions carried.
     fn dirs(&self) -> usize;
     /// Stores this coordinate (value and outer tangents) as unit j of state b (and the states
@@ -25,15 +27,15 @@ pub trait Lanes: Scalar {
     /// Output unit j of state b (and the states after it that this holds, the batch's last
     /// again past its end) in the jet's inner block i, with its outer tangents.
     fn read(jet: &Activations, b: usize, i: usize, j: usize) -> Self;
-    /// A group from its states' values: `lane(k)` for k < GROUP.
-    fn group(lane: impl Fn(usize) -> Self) -> Self::Group;
+    /// A group from its states' values: `lane(k)` for k < N.
+    fn group<const N: usize>(lane: impl Fn(usize) -> Self) -> Self::Group<N>;
     /// State k of a group.
-    fn lane(group: &Self::Group, k: usize) -> Self;
+    fn lane<const N: usize>(group: &Self::Group<N>, k: usize) -> Self;
 }
 
 impl Lanes for f64 {
-    type Group = Pack;
-    const GROUP: usize = PACK;
+    type Group<const N: usize> = Pack<N>;
+    const GROUPS: bool = true;
     fn dirs(&self) -> usize {
         0
     }
@@ -43,17 +45,17 @@ impl Lanes for f64 {
     fn read(jet: &Activations, b: usize, i: usize, j: usize) -> Self {
         jet.at(0, i, b, j)
     }
-    fn group(lane: impl Fn(usize) -> Self) -> Pack {
+    fn group<const N: usize>(lane: impl Fn(usize) -> Self) -> Pack<N> {
         Pack(std::array::from_fn(lane))
     }
-    fn lane(group: &Pack, k: usize) -> Self {
+    fn lane<const N: usize>(group: &Pack<N>, k: usize) -> Self {
         group.0[k]
     }
 }
 
-impl Lanes for Pack {
-    type Group = Pack;
-    const GROUP: usize = 1;
+impl<const M: usize> Lanes for Pack<M> {
+    type Group<const N: usize> = Self;
+    const GROUPS: bool = false;
     fn dirs(&self) -> usize {
         0
     }
@@ -67,17 +69,17 @@ impl Lanes for Pack {
             jet.at(0, i, (b + k).min(jet.batch - 1), j)
         }))
     }
-    fn group(lane: impl Fn(usize) -> Self) -> Pack {
+    fn group<const N: usize>(lane: impl Fn(usize) -> Self) -> Self {
         lane(0)
     }
-    fn lane(group: &Pack, _: usize) -> Self {
+    fn lane<const N: usize>(group: &Self, _: usize) -> Self {
         *group
     }
 }
 
 impl<T: Tangents<f64>> Lanes for Dual<f64, T> {
-    type Group = Self;
-    const GROUP: usize = 1;
+    type Group<const N: usize> = Self;
+    const GROUPS: bool = false;
     fn dirs(&self) -> usize {
         Dual::dirs(self)
     }
@@ -96,10 +98,10 @@ impl<T: Tangents<f64>> Lanes for Dual<f64, T> {
             (1..=jet.outer).map(|o| Some(jet.at(o, i, b, j))),
         )
     }
-    fn group(lane: impl Fn(usize) -> Self) -> Self {
+    fn group<const N: usize>(lane: impl Fn(usize) -> Self) -> Self {
         lane(0)
     }
-    fn lane(group: &Self, _: usize) -> Self {
+    fn lane<const N: usize>(group: &Self, _: usize) -> Self {
         group.clone()
     }
 }

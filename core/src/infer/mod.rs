@@ -22,6 +22,7 @@ pub mod particles;
 mod weights;
 mod workspace;
 
+use std::ops::Range;
 use std::sync::Arc;
 
 use activations::Activations;
@@ -32,6 +33,7 @@ use weights::Weights;
 pub use workspace::{Workspace, with_workspace};
 
 use lanes::Lanes;
+use pack::{NARROW, PACK};
 
 use crate::arena::{AVec, Arena, CollectIn};
 use crate::error::{Error, Result};
@@ -110,20 +112,29 @@ impl Evaluator {
     /// q̈ `[B, n]` for a batch in an arena, or (`torques`, for a model on the multibody
     /// algorithms) the τ it would take. The networks run once over the batch (matrix
     /// products), then the structure (Cholesky factor, Coriolis term, solve) on their rows:
-    /// a group of states at a time (`Lanes::Group`), or state by state for a few states and
+    /// a pack of states at a time (`Lanes::Group`), or state by state for a few states and
     /// for the multibody algorithms (their recursion in f64).
     fn evaluate_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: Rows<S>, torques: bool) -> AVec<'a, S> {
         let mut out = AVec::with_capacity_in(x.len() * x.n, a);
         let structured = self.with_structure_in(a, x, |s, outs| {
-            // A pack pays for its lanes whether or not they hold a state, and a state alone
-            // costs 4–8× its lane (the white-box cartpole, the formula double pendulum):
-            // fewer than an eighth of a pack, state by state.
-            if self.multibody.is_none() && x.len() >= S::GROUP.div_ceil(8) {
-                return self.structure_groups(a, s, outs, x, torques, &mut out);
+            let rows = 0..x.len();
+            if self.multibody.is_some() {
+                return self.structure_rows(a, s, outs, x, rows, torques, &mut out);
             }
-            for b in 0..x.len() {
-                let nets = JetNets::<S>::new(a, outs, b);
-                out.extend(self.structure(s, &nets, &x.row(b), torques));
+            if !S::GROUPS {
+                return self.structure_groups::<S, 1>(a, s, outs, x, rows, torques, &mut out);
+            }
+            // Whole packs of PACK states, then packs of NARROW. A pack pays for its lanes
+            // whether or not they hold a state, and a state alone costs 4–8× its lane (the
+            // white-box cartpole, the formula double pendulum): fewer than an eighth of a
+            // narrow pack, state by state.
+            let wide = x.len() / PACK * PACK;
+            self.structure_groups::<S, PACK>(a, s, outs, x, 0..wide, torques, &mut out);
+            let rest = wide..x.len();
+            if rest.len() >= NARROW / 8 {
+                self.structure_groups::<S, NARROW>(a, s, outs, x, rest, torques, &mut out);
+            } else {
+                self.structure_rows(a, s, outs, x, rest, torques, &mut out);
             }
         });
         if structured.is_some() {
@@ -144,27 +155,49 @@ impl Evaluator {
         out
     }
 
-    /// The structure on the batch a group of states at a time (the last group's missing
-    /// states repeat its last, and are dropped), its rows appended to `out`.
-    fn structure_groups<'a, S: Lanes>(
+    /// The structure on the batch's `rows` state by state, appended to `out`.
+    #[allow(clippy::too_many_arguments)] // evaluate_in's pieces, each of what it holds
+    fn structure_rows<'a, S: Lanes>(
         &self,
         a: &'a Arena,
         s: &Structure<'a, f64>,
         outs: &NetOutputs,
         x: Rows<S>,
+        rows: Range<usize>,
         torques: bool,
         out: &mut AVec<'a, S>,
     ) {
-        for b0 in (0..x.len()).step_by(S::GROUP) {
-            let lanes = (x.len() - b0).min(S::GROUP);
+        for b in rows {
+            let nets = JetNets::<S>::new(a, outs, b);
+            out.extend(self.structure(s, &nets, &x.row(b), torques));
+        }
+    }
+
+    /// The structure on the batch's `rows` N states at a time (a group of N when `S` makes
+    /// groups; the last group's missing states repeat its last, and are dropped), appended
+    /// to `out`.
+    #[allow(clippy::too_many_arguments)] // evaluate_in's pieces, each of what it holds
+    fn structure_groups<'a, S: Lanes, const N: usize>(
+        &self,
+        a: &'a Arena,
+        s: &Structure<'a, f64>,
+        outs: &NetOutputs,
+        x: Rows<S>,
+        rows: Range<usize>,
+        torques: bool,
+        out: &mut AVec<'a, S>,
+    ) {
+        let per = if S::GROUPS { N } else { 1 };
+        for b0 in rows.clone().step_by(per) {
+            let lanes = (rows.end - b0).min(per);
             let at = |k: usize| b0 + k.min(lanes - 1);
-            let cols = |part: usize, width: usize| -> AVec<S::Group> {
+            let cols = |part: usize, width: usize| -> AVec<S::Group<N>> {
                 (0..width)
-                    .map(|j| S::group(|k| x.part(part, at(k))[j].clone()))
+                    .map(|j| S::group::<N>(|k| x.part(part, at(k))[j].clone()))
                     .collect_in(a)
             };
             let (q, qd, u) = (cols(0, x.n), cols(1, x.n), cols(2, x.m));
-            let nets = JetNets::<S::Group>::new(a, outs, b0);
+            let nets = JetNets::<S::Group<N>>::new(a, outs, b0);
             let y = self.structure(
                 s,
                 &nets,
@@ -176,7 +209,7 @@ impl Evaluator {
                 torques,
             );
             for k in 0..lanes {
-                out.extend(y.iter().map(|g| S::lane(g, k)));
+                out.extend(y.iter().map(|g| S::lane::<N>(g, k)));
             }
         }
     }

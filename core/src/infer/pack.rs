@@ -1,13 +1,17 @@
-//! A coordinate of 64 states as one number. A batch's structure (Cholesky factor, Coriolis
-//! term, solve, a formula template's expressions) runs 64 states at a time: each operation
-//! of the generic equations is one loop over 64 lanes, so a formula's interpretation and a
-//! dual number's bookkeeping are paid once for 64 states (a 3000-term potential's energy
-//! report ran ~10× longer state by state), with no heap: a `Pack` is `Copy`, and so is
-//! everything built of it. Why 64, a unit of a batch's rows (`workspace::UNIT_ROWS`): the
+//! A coordinate of N states as one number. A batch's structure (Cholesky factor, Coriolis
+//! term, solve, a formula template's expressions) runs a pack of states at a time: each
+//! operation of the generic equations is one loop over its lanes, so a formula's
+//! interpretation and a dual number's bookkeeping are paid once per pack (a 3000-term
+//! potential's energy report ran ~10× longer state by state), with no heap: a `Pack` is
+//! `Copy`, and so is everything built of it.
+//!
+//! Two widths. A batch's whole units (`workspace::UNIT_ROWS`) run in packs of 64: the
 //! white-box cartpole's and formula double pendulum's Predict of 1024 states took 1.1–1.15×
-//! as long in packs of 32 and 1.4× / 1.0× in packs of 128 (in units of 128 rows; a pack
-//! wider than a unit computes lanes that hold no state). Values this wide are copied by
-//! every by-value operation, so the hot loops use the operators in place (`a *= &b`).
+//! as long in packs of 32, and 1.4× / 1.0× in packs of 128 (in units of 128 rows). A
+//! remainder runs in packs of 16, since a pack computes all its lanes whether or not they
+//! hold a state: iLQR plans, whose line search steps 10 states at a time, took 1.5–1.8× as
+//! long with those in one pack of 64. Values this wide are copied by every by-value operation, so the hot loops use the
+//! operators in place (`a *= &b`).
 //!
 //! Every operation is f64's own, lane by lane: a batch gives the same numbers, bit for bit,
 //! as its states one at a time.
@@ -17,24 +21,28 @@ use std::ops::{Add, AddAssign, Div, DivAssign, Mul, MulAssign, Neg, Sub, SubAssi
 use crate::physics::scalar::Scalar;
 use crate::physics::tangents::Sparse;
 
-/// States per pack.
+/// States per pack of a batch's whole units (`workspace::UNIT_ROWS`).
 pub const PACK: usize = 64;
+
+/// States per pack of a batch's remainder (a unit of fewer rows: the 10 step sizes of a
+/// plan's line search, a collocation's last knots).
+pub const NARROW: usize = 16;
 
 /// The directions a dual number over a `Pack` carries (`Scalar::Tangents`): every
 /// operation moves all its slots, so as few as a white-box template of n = 2 needs in one
 /// pass (eight slots made the same Predicts 1.2–1.5× slower).
 const DIRS: usize = 2;
 
-/// One coordinate of [`PACK`] states.
+/// One coordinate of N states ([`PACK`] or [`NARROW`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Pack(pub [f64; PACK]);
+pub struct Pack<const N: usize = PACK>(pub [f64; N]);
 
-impl Pack {
-    fn map(&self, f: impl Fn(f64) -> f64) -> Pack {
+impl<const N: usize> Pack<N> {
+    fn map(&self, f: impl Fn(f64) -> f64) -> Self {
         Pack(std::array::from_fn(|k| f(self.0[k])))
     }
 
-    fn zip(&self, o: &Pack, f: impl Fn(f64, f64) -> f64) -> Pack {
+    fn zip(&self, o: &Self, f: impl Fn(f64, f64) -> f64) -> Self {
         Pack(std::array::from_fn(|k| f(self.0[k], o.0[k])))
     }
 }
@@ -42,15 +50,15 @@ impl Pack {
 /// `a ∘ b` and `a ∘= &b`, lane by lane.
 macro_rules! lanewise {
     ($trait:ident, $method:ident, $assign:ident, $assign_method:ident, $op:tt) => {
-        impl $trait for Pack {
-            type Output = Pack;
-            fn $method(mut self, o: Pack) -> Pack {
+        impl<const N: usize> $trait for Pack<N> {
+            type Output = Self;
+            fn $method(mut self, o: Self) -> Self {
                 self.$assign_method(&o);
                 self
             }
         }
-        impl $assign<&Pack> for Pack {
-            fn $assign_method(&mut self, o: &Pack) {
+        impl<const N: usize> $assign<&Self> for Pack<N> {
+            fn $assign_method(&mut self, o: &Self) {
                 for (a, b) in self.0.iter_mut().zip(&o.0) {
                     *a = *a $op *b;
                 }
@@ -64,17 +72,17 @@ lanewise!(Sub, sub, SubAssign, sub_assign, -);
 lanewise!(Mul, mul, MulAssign, mul_assign, *);
 lanewise!(Div, div, DivAssign, div_assign, /);
 
-impl Neg for Pack {
-    type Output = Pack;
-    fn neg(self) -> Pack {
+impl<const N: usize> Neg for Pack<N> {
+    type Output = Self;
+    fn neg(self) -> Self {
         self.map(|v| -v)
     }
 }
 
-impl Scalar for Pack {
+impl<const N: usize> Scalar for Pack<N> {
     /// Two directions a group: a white-box template's ∂/∂q of n = 2 in one pass, and a
     /// dual number of 200 bytes rather than the 650 that eight slots of a `Pack` take.
-    type Tangents = Sparse<Pack, DIRS>;
+    type Tangents = Sparse<Self, DIRS>;
     fn cos(&self) -> Self {
         self.map(f64::cos)
     }
@@ -109,7 +117,7 @@ impl Scalar for Pack {
         self.map(f64::tanh)
     }
     fn lift(&self, c: f64) -> Self {
-        Pack([c; PACK])
+        Pack([c; N])
     }
 }
 

@@ -71,8 +71,12 @@ impl Workspace {
         let (x, u) = (vec![0.0; b * nx], vec![0.0; b * m]);
         let (mut next, mut acc) = (vec![0.0; b * nx], vec![0.0; b * nx / 2]);
         let (mut ja, mut jb) = (vec![0.0; b * nx * nx], vec![0.0; b * nx * m]);
-        // A few states run one by one, more in packs: the largest of each way, and the most.
-        for batch in [1, 2, 3, b].into_iter().filter(|&k| k <= b) {
+        // One state runs alone, more in narrow packs, a unit's whole rows in one wide pack:
+        // the largest of each way, and the most.
+        for batch in [1, 2, 3, b - 1, b]
+            .into_iter()
+            .filter(|&k| 1 <= k && k <= b)
+        {
             let (x, u) = (&x[..batch * nx], &u[..batch * m]);
             let never = &|| false;
             let next = &mut next[..batch * nx];
