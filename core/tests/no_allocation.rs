@@ -5,10 +5,10 @@
 //! the multibody algorithms with a residual network, an older file's MVF and an ensemble of
 //! three). This binary installs its own counting allocator (`counting`).
 
-use std::path::Path;
-
 use graybox_core::infer::{Evaluator, Workspace};
-use graybox_core::model::file::ModelFile;
+
+mod recorded;
+use recorded::load;
 
 mod counting;
 use counting::allocations;
@@ -21,12 +21,6 @@ const MODELS: [&str; 6] = [
     "compat/mvf",
     "compat/wb-x3",
 ];
-
-fn load(name: &str) -> Evaluator {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../tests/fixtures/{name}.gbx"));
-    let bytes = std::fs::read(path).unwrap();
-    Evaluator::from_file(&ModelFile::from_bytes(&bytes).unwrap()).unwrap()
-}
 
 #[test]
 fn calls_allocate_nothing_once_the_workspace_is_made() {

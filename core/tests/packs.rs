@@ -3,10 +3,8 @@
 //! and one state alone (`infer::pack`), on the recorded models whose structure runs in packs
 //! (a Lagrangian MVF, white-box models from built-in and formula templates, an ensemble).
 
-use std::path::Path;
-
-use graybox_core::infer::Evaluator;
-use graybox_core::model::file::ModelFile;
+mod recorded;
+use recorded::load;
 
 const MODELS: [&str; 4] = [
     "inference/dp-mvf",
@@ -14,12 +12,6 @@ const MODELS: [&str; 4] = [
     "inference/formula-dp-wb",
     "compat/wb-x3",
 ];
-
-fn load(name: &str) -> Evaluator {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../tests/fixtures/{name}.gbx"));
-    let bytes = std::fs::read(path).unwrap();
-    Evaluator::from_file(&ModelFile::from_bytes(&bytes).unwrap()).unwrap()
-}
 
 #[test]
 fn a_batch_answers_as_its_states_alone() {
