@@ -2,6 +2,8 @@
 //! them: 81 states are a unit of 64 in one wide pack, then a unit of 17 in a narrow pack of 16
 //! and one state alone (`infer::pack`), on the recorded models whose structure runs in packs
 //! (a Lagrangian MVF, white-box models from built-in and formula templates, an ensemble).
+//! Likewise their Jacobians, whose dual numbers run several states' networks in one product
+//! (and the UR5's, state by state on the multibody derivatives, in a unit of several).
 
 mod recorded;
 use recorded::load;
@@ -36,6 +38,47 @@ fn a_batch_answers_as_its_states_alone() {
                 bits(&acc[b * n..(b + 1) * n]),
                 bits(&acc1.unwrap()),
                 "{name}: q̈ of {b}"
+            );
+        }
+    }
+}
+
+/// The step's A and B (Linearize) and the continuous dynamics' (collocation) of a batch of
+/// 21 states (units of several, on every model and the UR5) as of each state alone.
+#[test]
+fn a_batch_linearizes_as_its_states_alone() {
+    use graybox_core::control::dircol::Continuous;
+    let batch = 21;
+    for name in MODELS.iter().chain(&["inference/ur5-residual"]) {
+        let eval = load(name);
+        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let x: Vec<f64> = (0..batch * nx).map(|i| (0.37 * i as f64).sin()).collect();
+        let u: Vec<f64> = (0..batch * m).map(|i| (0.91 * i as f64).cos()).collect();
+        let (a, b) = eval.linearize_batch(&x, &u);
+        let (fa, fb) = eval.derivative_jacobian(&x, &u);
+        for k in 0..batch {
+            let (x1, u1) = (&x[k * nx..(k + 1) * nx], &u[k * m..(k + 1) * m]);
+            let (a1, b1) = eval.linearize_batch(x1, u1);
+            assert_eq!(
+                bits(&a[k * nx * nx..][..nx * nx]),
+                bits(&a1),
+                "{name}: A of {k}"
+            );
+            assert_eq!(
+                bits(&b[k * nx * m..][..nx * m]),
+                bits(&b1),
+                "{name}: B of {k}"
+            );
+            let (fa1, fb1) = eval.derivative_jacobian(x1, u1);
+            assert_eq!(
+                bits(&fa[k].data),
+                bits(&fa1[0].data),
+                "{name}: ∂f/∂x of {k}"
+            );
+            assert_eq!(
+                bits(&fb[k].data),
+                bits(&fb1[0].data),
+                "{name}: ∂f/∂u of {k}"
             );
         }
     }

@@ -67,20 +67,21 @@ impl Evaluator {
         Some((a, b))
     }
 
-    /// One state's rows [∂x'_i/∂x, ∂x'_i/∂u], in the arena: by the multibody algorithms'
-    /// derivatives where they apply, else dual numbers through the step.
-    pub(super) fn state_jacobian<'a>(
-        &'a self,
-        a: &'a Arena,
-        x: &[f64],
-        u: &[f64],
-    ) -> AVec<'a, f64> {
-        if let Some(rows) =
-            (self.multibody.as_ref()).and_then(|r| self.multibody_jacobian(a, r, x, u))
-        {
-            return rows;
+    /// Each of a unit's states' rows [∂x'_i/∂x, ∂x'_i/∂u], in the arena: by the multibody
+    /// algorithms' derivatives state by state where they apply, else dual numbers through
+    /// the unit's step.
+    pub(super) fn jacobian_rows<'a>(&'a self, a: &'a Arena, x: &[f64], u: &[f64]) -> AVec<'a, f64> {
+        let (nx, m) = (2 * self.config.n, self.config.m);
+        let Some(robot) = self.jacobian_robot() else {
+            return continuous::dual_rows_in(a, (nx, m), x, u, |x, u| self.step_in(a, x, u));
+        };
+        let mut rows = AVec::with_capacity_in(x.len() * (nx + m), a);
+        // By index, not `u.chunks(m)`: a robot without inputs has empty rows of u.
+        for b in 0..x.len() / nx {
+            let (x, u) = (&x[nx * b..][..nx], &u[m * b..][..m]);
+            rows.extend_from_slice(&self.multibody_jacobian(a, robot, x, u));
         }
-        continuous::dual_rows_in(a, x, u, |x, u| self.step_in(a, x, u))
+        rows
     }
 
     /// Runs `f` over a batch in chunks whose intermediate work is bounded (see [`limits`]) on

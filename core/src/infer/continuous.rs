@@ -9,7 +9,7 @@ use super::Evaluator;
 use super::ensemble::mean;
 use super::limits::Pass;
 use super::workspace::with_workspace;
-use crate::arena::{AVec, Arena, CollectIn};
+use crate::arena::{AVec, Arena};
 use crate::control::dircol::Continuous;
 use crate::control::linalg::Mat;
 use crate::physics::dual::{Dual, Jet, WIDTH, groups_of};
@@ -30,28 +30,43 @@ impl Evaluator {
     }
 }
 
-/// One state's Jacobian of `f`: every coordinate of (x, u) a dual variable, a group of
-/// directions at a time (`dual::groups_of`); per output, the row [∂f_i/∂x, ∂f_i/∂u].
+/// The Jacobians of `f` at each of a batch's states (`[B, nx]` and `[B, m]`): each state's
+/// coordinates of (x, u) are dual variables of its own, a group of directions at a time
+/// (`dual::groups_of`, the same group in every state), so that the networks run once over the
+/// batch (matrix products) rather than once per state. Per state and output, in order, the
+/// row [∂f_i/∂x, ∂f_i/∂u].
 pub(super) fn dual_rows_in<'a, Y: Deref<Target = [Outer]>>(
     a: &'a Arena,
+    (nx, m): (usize, usize),
     x: &[f64],
     u: &[f64],
     f: impl Fn(&[Outer], &[Outer]) -> Y,
 ) -> AVec<'a, f64> {
-    let nx = x.len();
-    let xu: AVec<f64> = x.iter().chain(u).copied().collect_in(a);
-    let dirs = xu.len();
+    let (states, dirs) = (x.len() / nx, nx + m);
     let mut out = AVec::new_in(a);
+    if states == 0 {
+        return out;
+    }
     for group in groups_of(dirs, WIDTH) {
-        let seeded = Dual::seeded_in(a, &xu, &1.0, group.clone());
-        let y = f(&seeded[..nx], &seeded[nx..]);
+        let mut xs = AVec::with_capacity_in(x.len(), a);
+        let mut us = AVec::with_capacity_in(u.len(), a);
+        for b in 0..states {
+            let xu = x[nx * b..][..nx].iter().chain(&u[m * b..][..m]);
+            for (k, &v) in xu.enumerate() {
+                let d = match group.contains(&k) {
+                    true => Dual::variable(v, k - group.start, group.len(), 1.0),
+                    false => Dual::constant(v),
+                };
+                if k < nx { xs.push(d) } else { us.push(d) }
+            }
+        }
+        let y = f(&xs, &us);
         if out.is_empty() {
             out.resize(y.len() * dirs, 0.0);
         }
-        for (i, yi) in y.iter().enumerate() {
-            let at = i * dirs + group.start;
-            for k in 0..group.len() {
-                out[at + k] = yi.tangent(k).copied().unwrap_or(0.0);
+        for (row, yi) in out.chunks_exact_mut(dirs).zip(y.iter()) {
+            for (k, o) in row[group.clone()].iter_mut().enumerate() {
+                *o = yi.tangent(k).copied().unwrap_or(0.0);
             }
         }
     }
@@ -96,10 +111,10 @@ impl Continuous for Evaluator {
         let (nx, m) = (2 * self.config.n, self.config.m);
         let (mut ja, mut jb) = (Vec::with_capacity(x.len() * nx), Vec::new());
         with_workspace(|ws| {
-            for b in 0..x.len() / nx {
-                let (x, u) = (&x[nx * b..][..nx], &u[m * b..][..m]);
+            for r in self.units(x.len() / nx, Pass::Linearize) {
+                let (x, u) = (&x[nx * r.start..nx * r.end], &u[m * r.start..m * r.end]);
                 let a = ws.reset().0;
-                let rows = dual_rows_in(a, x, u, |x, u| self.derivative_in(a, x, u));
+                let rows = dual_rows_in(a, (nx, m), x, u, |x, u| self.derivative_in(a, x, u));
                 for row in rows.chunks(nx + m) {
                     ja.extend(&row[..nx]);
                     jb.extend(&row[nx..]);

@@ -18,6 +18,9 @@ use crate::physics::dual::{Dual, Jet};
 use crate::physics::multibody::{Model as Robot, with_data};
 use crate::physics::templates::Template;
 
+/// The most directions (2n + m) a step's Jacobian takes by the multibody derivatives.
+const MULTIBODY_DIRS: usize = 64;
+
 /// The robot as the multibody algorithms take it, for a structured model whose M is a URDF
 /// template's; gravity is in it when V is the template's too.
 pub(super) fn model_of(config: &ModelConfig, weights: &Weights) -> Option<Robot> {
@@ -54,22 +57,30 @@ impl Evaluator {
         self.multibody.is_some()
     }
 
-    /// Per output coordinate of one state's step, the row [∂x'_i/∂x, ∂x'_i/∂u] (as
-    /// `jacobian_rows`), in the arena; `None` beyond 64 directions (then dual numbers do it).
+    /// The robot whose algorithms' derivatives give a step's Jacobian: a multibody model's
+    /// of at most [`MULTIBODY_DIRS`] directions (beyond, dual numbers through the step do it).
+    pub(super) fn jacobian_robot(&self) -> Option<&Robot> {
+        let dirs = 2 * self.config.n + self.config.m;
+        self.multibody.as_ref().filter(|_| dirs <= MULTIBODY_DIRS)
+    }
+
+    /// Per output coordinate of one state's step, the row [∂x'_i/∂x, ∂x'_i/∂u], in the
+    /// arena; the jets' width the smallest that holds the state's directions (a 7-joint arm's
+    /// 21 in 24, not 32: every jet operation is a loop over its width).
     pub(super) fn multibody_jacobian<'a>(
         &'a self,
         a: &'a Arena,
         model: &Robot,
         x: &[f64],
         u: &[f64],
-    ) -> Option<AVec<'a, f64>> {
-        Some(match x.len() + u.len() {
+    ) -> AVec<'a, f64> {
+        match x.len() + u.len() {
             0..=8 => self.step_jacobian::<8>(a, model, x, u),
             9..=16 => self.step_jacobian::<16>(a, model, x, u),
-            17..=32 => self.step_jacobian::<32>(a, model, x, u),
-            33..=64 => self.step_jacobian::<64>(a, model, x, u),
-            _ => return None,
-        })
+            17..=24 => self.step_jacobian::<24>(a, model, x, u),
+            25..=32 => self.step_jacobian::<32>(a, model, x, u),
+            _ => self.step_jacobian::<MULTIBODY_DIRS>(a, model, x, u),
+        }
     }
 
     fn step_jacobian<'a, const N: usize>(

@@ -134,16 +134,11 @@ fn mean_into(
 }
 
 impl Evaluator {
-    /// A batch of `rows` states as units of work: a Linearize state by state (its jets already
-    /// have a row per direction and ∂/∂q), a step's states together up to what the arena may
-    /// hold (`limits` estimates a state's live work; a unit keeps each RK4 stage's).
+    /// A batch of `rows` states as units of work: states together (their networks one matrix
+    /// product) up to what the arena may hold (`limits` estimates a state's live work in the
+    /// pass; a unit keeps each RK4 stage's).
     pub(super) fn units(&self, rows: usize, pass: Pass) -> impl Iterator<Item = Range<usize>> {
-        let per = match pass {
-            Pass::Linearize => 1,
-            Pass::Step => {
-                (UNIT_BYTES / (4 * self.work_bytes_per_state(pass)).max(1)).clamp(1, UNIT_ROWS)
-            }
-        };
+        let per = (UNIT_BYTES / (4 * self.work_bytes_per_state(pass)).max(1)).clamp(1, UNIT_ROWS);
         (0..rows).step_by(per).map(move |s| s..rows.min(s + per))
     }
 
@@ -225,11 +220,11 @@ impl Evaluator {
         })
     }
 
-    /// One state's A and B: per output coordinate of x', the row [∂x'_i/∂x, ∂x'_i/∂u] cut
-    /// in its A and B parts.
+    /// A unit's A and B: per state and output coordinate of x', the row [∂x'_i/∂x, ∂x'_i/∂u]
+    /// cut in its A and B parts.
     fn linearize_unit(&self, a: &Arena, x: &[f64], u: &[f64], ja: &mut [f64], jb: &mut [f64]) {
         let (nx, m) = (2 * self.config.n, self.config.m);
-        let rows = self.state_jacobian(a, x, u);
+        let rows = self.jacobian_rows(a, x, u);
         for (i, row) in rows.chunks(nx + m).enumerate() {
             ja[i * nx..(i + 1) * nx].copy_from_slice(&row[..nx]);
             jb[i * m..(i + 1) * m].copy_from_slice(&row[nx..]);

@@ -8,6 +8,7 @@ mod hessian;
 mod qp;
 mod sqp;
 pub mod transcription;
+mod triplets;
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -22,6 +22,7 @@ use clarabel::solver::{
 
 use super::hessian::Curvature;
 use super::transcription::{Entry, Layout};
+use super::triplets::Triplets;
 use crate::control::plan::{Bounds, PlanRequest};
 
 /// What the QP gives: the step, the defect rows' multipliers and the largest multiplier of a
@@ -189,23 +190,5 @@ impl Subproblem<'_> {
                 b.push(z - lo);
             }
         }
-    }
-}
-
-#[derive(Default)]
-struct Triplets {
-    rows: Vec<usize>,
-    cols: Vec<usize>,
-    values: Vec<f64>,
-}
-
-impl Triplets {
-    fn push(&mut self, i: usize, j: usize, v: f64) {
-        self.rows.push(i);
-        self.cols.push(j);
-        self.values.push(v);
-    }
-    fn matrix(self, rows: usize, cols: usize) -> CscMatrix<f64> {
-        CscMatrix::new_from_triplets(rows, cols, self.rows, self.cols, self.values)
     }
 }
