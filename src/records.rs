@@ -22,6 +22,18 @@ pub struct DatasetInfo {
     pub warnings: Vec<Warning>,
 }
 
+impl DatasetInfo {
+    /// Configuration values per row (q, q_next).
+    pub fn nq(&self) -> usize {
+        self.n as usize
+    }
+
+    /// Velocities per row (qdot, qdot_next).
+    pub fn nv(&self) -> usize {
+        self.n as usize
+    }
+}
+
 pub use graybox_core::records::Warning;
 
 // `model` and `training` are not columns: `store::jobs` reads them from the stored request.

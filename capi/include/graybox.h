@@ -27,10 +27,13 @@
 #include <stddef.h>
 #include <stdint.h>
 
-// The version of this ABI, as `gbx_abi_version` returns it. Version 2: caller-owned
-// workspaces (`gbx_workspace_new`, the `_ws` calls), and no allocator of the library's own
-// (version 1 served its calls' memory from per-thread lists it installed process-wide).
-#define GBX_ABI_VERSION 2
+// The version of this ABI, as `gbx_abi_version` returns it (and the library's soname,
+// libgraybox_c.so.3). Version 3: states are [q, v] with nq configuration values and nv
+// velocities (`gbx_model_nq`, `gbx_model_nv`), Jacobians 2nv wide in the tangent space.
+// Version 2: caller-owned workspaces (`gbx_workspace_new`, the `_ws` calls), and no
+// allocator of the library's own (version 1 served its calls' memory from per-thread lists
+// it installed process-wide).
+#define GBX_ABI_VERSION 3
 
 // What a call returns: `GBX_STATUS_OK`, or why it failed (`gbx_last_error` says more).
 typedef enum GbxStatus {
@@ -81,7 +84,28 @@ enum GbxStatus gbx_model_load_buffer(const uint8_t *data, size_t len, struct Gbx
 // `model` is null or a pointer a load function gave that has not been freed.
 void gbx_model_free(struct GbxModel *model);
 
-// The model's number of coordinates n (a state is [q, q̇], 2n values).
+// The model's configuration values nq: a state is [q, v], nq + nv values.
+//
+// # Safety
+// `model` is a loaded model.
+size_t gbx_model_nq(const struct GbxModel *model);
+
+// The model's velocities nv (its degrees of freedom): accelerations are nv values, and
+// Jacobians 2nv × 2nv (A) and 2nv × m (B) in the tangent space.
+//
+// # Safety
+// `model` is a loaded model.
+size_t gbx_model_nv(const struct GbxModel *model);
+
+// The model's neutral state into `x` [nq + nv]: every coordinate 0 (a rotation kept as a
+// unit complex number at (1, 0)), at rest; where a loop that knows no state of its own starts.
+//
+// # Safety
+// `model` is a loaded model; `x` holds nq + nv values.
+enum GbxStatus gbx_model_neutral(const struct GbxModel *model, double *x);
+
+// Deprecated: `gbx_model_nv`. The number of coordinates n of a model whose nq = nv = n
+// (a state [q, q̇] of 2n values); for any other model it is nv, and a state is nq + nv.
 //
 // # Safety
 // `model` is a loaded model.
@@ -109,9 +133,9 @@ double gbx_model_dt(const struct GbxModel *model);
 // `model` is a loaded model.
 const char *gbx_model_warning(const struct GbxModel *model);
 
-// One step for `batch` states: `x` [batch, 2n] and `u` [batch, m] row-major give
-// `x_next` [batch, 2n] and, when `accel` is not null, q̈ [batch, n]. An ensemble answers
-// with its members' mean, as the service does.
+// One step for `batch` states: `x` [batch, nq + nv] (each row q then v) and `u`
+// [batch, m] row-major give `x_next` [batch, nq + nv] and, when `accel` is not null, v̇
+// [batch, nv]. An ensemble answers with its members' mean, as the service does.
 //
 // # Safety
 // `model` is a loaded model; the arrays hold the sizes above (`u` may be null when m = 0).
@@ -138,8 +162,9 @@ enum GbxStatus gbx_predict_cancellable(const struct GbxModel *model,
                                        double *accel,
                                        const int32_t *cancel);
 
-// The one-step map's Jacobians at `batch` points: `a` [batch, 2n, 2n] = ∂x′/∂x and
-// `b` [batch, 2n, m] = ∂x′/∂u, row-major.
+// The one-step map's Jacobians at `batch` points in the tangent space,
+// x′ ⊖ x̄′ = A (x ⊖ x̄) + B (u − ū): `a` [batch, 2nv, 2nv] and `b` [batch, 2nv, m],
+// row-major (for a model with nq = nv = n, ∂x′/∂x and ∂x′/∂u).
 //
 // # Safety
 // `model` is a loaded model; the arrays hold the sizes above (`u` and `b` may be null when
@@ -165,8 +190,8 @@ enum GbxStatus gbx_linearize_cancellable(const struct GbxModel *model,
                                          double *b,
                                          const int32_t *cancel);
 
-// `steps` steps from `x0` [2n] under the inputs `u` [steps, m]: `xs` [steps + 1, 2n] gets x0
-// and every state after it.
+// `steps` steps from `x0` [nq + nv] under the inputs `u` [steps, m]: `xs`
+// [steps + 1, nq + nv] gets x0 and every state after it.
 //
 // # Safety
 // `model` is a loaded model; the arrays hold the sizes above (`u` may be null when m = 0).
@@ -212,7 +237,7 @@ enum GbxStatus gbx_workspace_new(const struct GbxModel *model,
 void gbx_workspace_free(struct GbxWorkspace *ws);
 
 // `gbx_predict` in the caller's workspace `ws` (null: this thread's own), with every option:
-// `accel` [batch, n] when not null, `z` [batch] (as `gbx_predict_z`) when not null, and
+// `accel` [batch, nv] when not null, `z` [batch] (as `gbx_predict_z`) when not null, and
 // `cancel` (as `gbx_predict_cancellable`) when not null.
 //
 // # Safety

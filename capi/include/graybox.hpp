@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "graybox.h"
 
@@ -57,7 +58,17 @@ class Model {
     handle_.reset(m);
   }
 
-  size_t n() const { return gbx_model_n(get()); }
+  // A state is [q, v]: nq configuration values, nv velocities.
+  size_t nq() const { return gbx_model_nq(get()); }
+  size_t nv() const { return gbx_model_nv(get()); }
+  // Deprecated: nv() (equal to nq() and nv() for a model whose every joint is one number).
+  size_t n() const { return gbx_model_nv(get()); }
+  // The neutral state [q, v] (every coordinate 0, a rotation at (1, 0), at rest).
+  std::vector<double> neutral() const {
+    std::vector<double> x(nq() + nv());
+    check(gbx_model_neutral(get(), x.data()));
+    return x;
+  }
   size_t m() const { return gbx_model_m(get()); }
   double dt() const { return gbx_model_dt(get()); }
   // Null when the file proved it is whole; else why it loaded without that proof (a file from
@@ -67,17 +78,17 @@ class Model {
   // Each call below stops when a non-null `cancel` turns nonzero (set by another thread or a
   // signal handler), throwing Error with GBX_STATUS_CANCELLED.
 
-  // x [batch, 2n], u [batch, m] -> x_next [batch, 2n] (and q̈ [batch, n] unless null).
+  // x [batch, nq + nv], u [batch, m] -> x_next [batch, nq + nv] (and v̇ [batch, nv] unless null).
   void predict(const double* x, const double* u, size_t batch, double* x_next,
                double* accel = nullptr, const int32_t* cancel = nullptr) const {
     check(gbx_predict_cancellable(get(), x, u, batch, x_next, accel, cancel));
   }
-  // A [batch, 2n, 2n] and B [batch, 2n, m] of the one-step map.
+  // A [batch, 2nv, 2nv] and B [batch, 2nv, m] of the one-step map, in the tangent space.
   void linearize(const double* x, const double* u, size_t batch, double* a, double* b,
                  const int32_t* cancel = nullptr) const {
     check(gbx_linearize_cancellable(get(), x, u, batch, a, b, cancel));
   }
-  // xs [steps + 1, 2n] from x0 [2n] under u [steps, m].
+  // xs [steps + 1, nq + nv] from x0 [nq + nv] under u [steps, m].
   void rollout(const double* x0, const double* u, size_t steps, double* xs,
                const int32_t* cancel = nullptr) const {
     check(gbx_rollout_cancellable(get(), x0, u, steps, xs, cancel));

@@ -47,13 +47,13 @@ pub(crate) unsafe fn predict(
 ) -> GbxStatus {
     guard(|| {
         let m = model_ref(model)?;
-        let (nx, b) = (2 * m.n, batch_of(batch)?);
+        let (nx, b) = (m.nq + m.nv, batch_of(batch)?);
         let lx = values("x", b, nx)?;
         values("u", b, m.m)?;
         // SAFETY (all seven): the caller promises these sizes, the flag and the workspace.
         let (x, u) = unsafe { (input(x, b, nx, "x")?, input(u, b, m.m, "u")?) };
         let out = unsafe { output(x_next, lx, "x_next")? };
-        let acc = (!accel.is_null()).then(|| unsafe { output(accel, b * m.n, "accel") });
+        let acc = (!accel.is_null()).then(|| unsafe { output(accel, b * m.nv, "accel") });
         let acc = acc.transpose()?;
         let z = unsafe { z_out(z, b)? };
         let cancel = unsafe { Cancel::new(cancel) };
@@ -87,10 +87,10 @@ pub(crate) unsafe fn linearize(
 ) -> GbxStatus {
     guard(|| {
         let m = model_ref(model)?;
-        let (nx, k) = (2 * m.n, batch_of(batch)?);
+        let (nx, ndx, k) = (m.nq + m.nv, 2 * m.nv, batch_of(batch)?);
         values("x", k, nx)?;
         values("u", k, m.m)?;
-        let (la, lb) = (values("a", k, nx * nx)?, values("b", k, nx * m.m)?);
+        let (la, lb) = (values("a", k, ndx * ndx)?, values("b", k, ndx * m.m)?);
         // SAFETY (all seven): the caller promises these sizes, the flag and the workspace.
         let (x, u) = unsafe { (input(x, k, nx, "x")?, input(u, k, m.m, "u")?) };
         let ja = unsafe { output(a, la, "a")? };
@@ -103,8 +103,8 @@ pub(crate) unsafe fn linearize(
         let stop = || cancel.set();
         let done = unsafe { with_ws(ws, |ws| m.eval.linearize_into(ws, x, u, ja, jb, &stop)) };
         done.ok_or(Error::Cancelled)?;
-        finite_rows("x", "Jacobian", ja, nx * nx)?;
-        finite_rows("x", "Jacobian", jb, nx * m.m)?;
+        finite_rows("x", "Jacobian", ja, ndx * ndx)?;
+        finite_rows("x", "Jacobian", jb, ndx * m.m)?;
         if let Some(z) = z {
             m.eval.max_abs_z_into(x, u, z);
         }
@@ -127,7 +127,7 @@ pub(crate) unsafe fn rollout(
 ) -> GbxStatus {
     guard(|| {
         let m = model_ref(model)?;
-        let nx = 2 * m.n;
+        let nx = m.nq + m.nv;
         values("u", steps, m.m)?;
         let lxs = values("xs", steps.saturating_add(1), nx)?;
         // SAFETY (all six): the caller promises these sizes, the flag and the workspace.

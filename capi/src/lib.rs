@@ -44,10 +44,13 @@ mod z;
 pub use workspace::*;
 pub use z::*;
 
-/// The version of this ABI, as `gbx_abi_version` returns it. Version 2: caller-owned
-/// workspaces (`gbx_workspace_new`, the `_ws` calls), and no allocator of the library's own
-/// (version 1 served its calls' memory from per-thread lists it installed process-wide).
-pub const GBX_ABI_VERSION: u32 = 2;
+/// The version of this ABI, as `gbx_abi_version` returns it (and the library's soname,
+/// libgraybox_c.so.3). Version 3: states are [q, v] with nq configuration values and nv
+/// velocities (`gbx_model_nq`, `gbx_model_nv`), Jacobians 2nv wide in the tangent space.
+/// Version 2: caller-owned workspaces (`gbx_workspace_new`, the `_ws` calls), and no
+/// allocator of the library's own (version 1 served its calls' memory from per-thread lists
+/// it installed process-wide).
+pub const GBX_ABI_VERSION: u32 = 3;
 
 /// The ABI version of the loaded library (`GBX_ABI_VERSION` of the header it was built
 /// with): a caller compiled against another header should refuse to run.
@@ -78,7 +81,8 @@ pub enum GbxStatus {
 /// A loaded model (opaque to C): immutable and shareable across threads.
 pub struct GbxModel {
     eval: Evaluator,
-    n: usize,
+    nq: usize,
+    nv: usize,
     m: usize,
     dt: f64,
     /// Why the file does not prove it is whole, when it loaded anyway (`gbx_model_warning`).
@@ -92,7 +96,8 @@ fn loaded(file: ModelFile) -> Result<Box<GbxModel>, Error> {
     let warning = (file.unchecked_warning())
         .map(|w| std::ffi::CString::new(w.message.replace('\0', " ")).unwrap_or_default());
     Ok(Box::new(GbxModel {
-        n: c.n,
+        nq: c.nq(),
+        nv: c.nv(),
         m: c.m,
         dt: c.dt,
         eval,
@@ -165,14 +170,53 @@ pub unsafe extern "C" fn gbx_model_free(model: *mut GbxModel) {
     }
 }
 
-/// The model's number of coordinates n (a state is [q, q̇], 2n values).
+/// The model's configuration values nq: a state is [q, v], nq + nv values.
+///
+/// # Safety
+/// `model` is a loaded model.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_nq(model: *const GbxModel) -> usize {
+    // SAFETY: the caller promises a loaded model.
+    unsafe { model.as_ref() }.map_or(0, |m| m.nq)
+}
+
+/// The model's velocities nv (its degrees of freedom): accelerations are nv values, and
+/// Jacobians 2nv × 2nv (A) and 2nv × m (B) in the tangent space.
+///
+/// # Safety
+/// `model` is a loaded model.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_nv(model: *const GbxModel) -> usize {
+    // SAFETY: the caller promises a loaded model.
+    unsafe { model.as_ref() }.map_or(0, |m| m.nv)
+}
+
+/// The model's neutral state into `x` [nq + nv]: every coordinate 0 (a rotation kept as a
+/// unit complex number at (1, 0)), at rest; where a loop that knows no state of its own starts.
+///
+/// # Safety
+/// `model` is a loaded model; `x` holds nq + nv values.
+#[unsafe(no_mangle)]
+pub unsafe extern "C" fn gbx_model_neutral(model: *const GbxModel, x: *mut f64) -> GbxStatus {
+    guard(|| {
+        let m = model_ref(model)?;
+        let neutral = m.eval.config.space.origin_state();
+        // SAFETY: the caller promises nq + nv values.
+        let out = unsafe { boundary::output(x, neutral.len(), "x")? };
+        out.copy_from_slice(&neutral);
+        Ok(())
+    })
+}
+
+/// Deprecated: `gbx_model_nv`. The number of coordinates n of a model whose nq = nv = n
+/// (a state [q, q̇] of 2n values); for any other model it is nv, and a state is nq + nv.
 ///
 /// # Safety
 /// `model` is a loaded model.
 #[unsafe(no_mangle)]
 pub unsafe extern "C" fn gbx_model_n(model: *const GbxModel) -> usize {
     // SAFETY: the caller promises a loaded model.
-    unsafe { model.as_ref() }.map_or(0, |m| m.n)
+    unsafe { gbx_model_nv(model) }
 }
 
 /// The model's number of inputs m.
@@ -215,9 +259,9 @@ fn model_ref<'a>(model: *const GbxModel) -> Result<&'a GbxModel, Error> {
     unsafe { model.as_ref() }.ok_or_else(|| Error::invalid("model", "is a null pointer"))
 }
 
-/// One step for `batch` states: `x` [batch, 2n] and `u` [batch, m] row-major give
-/// `x_next` [batch, 2n] and, when `accel` is not null, q̈ [batch, n]. An ensemble answers
-/// with its members' mean, as the service does.
+/// One step for `batch` states: `x` [batch, nq + nv] (each row q then v) and `u`
+/// [batch, m] row-major give `x_next` [batch, nq + nv] and, when `accel` is not null, v̇
+/// [batch, nv]. An ensemble answers with its members' mean, as the service does.
 ///
 /// # Safety
 /// `model` is a loaded model; the arrays hold the sizes above (`u` may be null when m = 0).
@@ -256,8 +300,9 @@ pub unsafe extern "C" fn gbx_predict_cancellable(
     unsafe { calls::predict(model, null_mut(), x, u, batch, x_next, accel, None, cancel) }
 }
 
-/// The one-step map's Jacobians at `batch` points: `a` [batch, 2n, 2n] = ∂x′/∂x and
-/// `b` [batch, 2n, m] = ∂x′/∂u, row-major.
+/// The one-step map's Jacobians at `batch` points in the tangent space,
+/// x′ ⊖ x̄′ = A (x ⊖ x̄) + B (u − ū): `a` [batch, 2nv, 2nv] and `b` [batch, 2nv, m],
+/// row-major (for a model with nq = nv = n, ∂x′/∂x and ∂x′/∂u).
 ///
 /// # Safety
 /// `model` is a loaded model; the arrays hold the sizes above (`u` and `b` may be null when
@@ -295,8 +340,8 @@ pub unsafe extern "C" fn gbx_linearize_cancellable(
     unsafe { calls::linearize(model, null_mut(), x, u, batch, a, b, None, cancel) }
 }
 
-/// `steps` steps from `x0` [2n] under the inputs `u` [steps, m]: `xs` [steps + 1, 2n] gets x0
-/// and every state after it.
+/// `steps` steps from `x0` [nq + nv] under the inputs `u` [steps, m]: `xs`
+/// [steps + 1, nq + nv] gets x0 and every state after it.
 ///
 /// # Safety
 /// `model` is a loaded model; the arrays hold the sizes above (`u` may be null when m = 0).

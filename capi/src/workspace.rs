@@ -53,7 +53,7 @@ pub unsafe extern "C" fn gbx_workspace_free(ws: *mut GbxWorkspace) {
 }
 
 /// `gbx_predict` in the caller's workspace `ws` (null: this thread's own), with every option:
-/// `accel` [batch, n] when not null, `z` [batch] (as `gbx_predict_z`) when not null, and
+/// `accel` [batch, nv] when not null, `z` [batch] (as `gbx_predict_z`) when not null, and
 /// `cancel` (as `gbx_predict_cancellable`) when not null.
 ///
 /// # Safety

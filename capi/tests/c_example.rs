@@ -20,6 +20,27 @@ fn library_dir() -> PathBuf {
     exe.parent().unwrap().to_path_buf()
 }
 
+/// The soname of this ABI's library.
+fn soname() -> String {
+    format!("libgraybox_c.so.{}", graybox_c::GBX_ABI_VERSION)
+}
+
+/// The library says its soname, the ABI version's, so that a program built for another ABI
+/// does not load it.
+#[test]
+fn the_librarys_soname_is_its_abi_version() {
+    let out = Command::new("readelf")
+        .arg("-d")
+        .arg(library_dir().join("libgraybox_c.so"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains(&format!("Library soname: [{}]", soname())),
+        "{text}"
+    );
+}
+
 fn numbers(v: &Value, out: &mut String) {
     match v {
         Value::Array(a) => a.iter().for_each(|v| numbers(v, out)),
@@ -40,6 +61,10 @@ fn build(compiler: &str, std: &str, source: &str, libs: &[&str]) -> PathBuf {
     let stem = source.split('.').next().unwrap();
     let tmp = std::env::temp_dir().join(format!("graybox-{stem}-{}", std::process::id()));
     std::fs::create_dir_all(&tmp).unwrap();
+    // The program looks for the library by its soname, as an installed one is named.
+    let soname = tmp.join(soname());
+    let _ = std::fs::remove_file(&soname);
+    std::os::unix::fs::symlink(lib.join("libgraybox_c.so"), &soname).unwrap();
     let exe = tmp.join(stem);
     let built = Command::new(compiler)
         .args(["-O2", std, "-Wall", "-Wextra", "-Werror", "-I"])
@@ -48,7 +73,7 @@ fn build(compiler: &str, std: &str, source: &str, libs: &[&str]) -> PathBuf {
         .arg("-o")
         .arg(&exe)
         .arg(format!("-L{}", lib.display()))
-        .arg(format!("-Wl,-rpath,{}", lib.display()))
+        .arg(format!("-Wl,-rpath,{}", tmp.display()))
         .args(libs)
         .output()
         .unwrap();
@@ -70,9 +95,10 @@ fn the_c_example_runs_a_control_loop_with_the_services_answers() {
     for (name, entry) in record.as_object().unwrap() {
         let calls = entry["calls"].as_array().unwrap();
         let rollout = calls.iter().find(|c| c["rpc"] == "rollout").unwrap();
-        let (n, m) = (entry["n"].as_u64().unwrap(), entry["m"].as_u64().unwrap());
+        let nx = rollout["x0"].as_array().unwrap().len();
+        let m = entry["m"].as_u64().unwrap();
         let steps = rollout["u"].as_array().unwrap().len();
-        let mut txt = format!("{n} {m} {steps}\n");
+        let mut txt = format!("{nx} {m} {steps}\n");
         numbers(&rollout["x0"], &mut txt);
         numbers(&rollout["u"], &mut txt);
         numbers(&rollout["answer"]["xs"], &mut txt);

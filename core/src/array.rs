@@ -75,7 +75,7 @@ pub fn finite(field: &str, data: &[f64], width: usize) -> Result<()> {
 /// errors, so that a client learns what a row is rather than only its width.
 fn meaning(field: &str) -> &'static str {
     match field.rsplit('.').next().unwrap_or(field) {
-        "x" | "x_bar" | "x0" => " (each row a state x = [q, q̇]: 2n values)",
+        "x" | "x_bar" | "x0" => " (each row a state x = [q, v]: nq + nv values)",
         "u" | "u_bar" => " (each row the inputs u: m values)",
         _ => "",
     }

@@ -12,8 +12,9 @@ use crate::arena::Arena;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::physics::dynamics::{constants, white_box_acceleration};
-use crate::physics::integrator::Integrator;
+use crate::physics::integrator::{Integrator, States};
 use crate::physics::multibody;
+use crate::physics::space::Space;
 use crate::physics::stiffness;
 use crate::physics::templates::Template;
 use crate::records::Warning;
@@ -45,6 +46,7 @@ pub fn configurations(ds: &Dataset, k: usize) -> Vec<Vec<f64>> {
 pub struct TemplateSystem {
     pub template: Template,
     pub params: Vec<f64>,
+    pub space: Space,
     /// A URDF robot for the multibody algorithms (docs/robots.md#multibody-dynamics).
     multibody: Option<multibody::Model>,
 }
@@ -56,6 +58,7 @@ impl TemplateSystem {
             _ => None,
         };
         Self {
+            space: template.space(),
             template,
             params,
             multibody,
@@ -73,6 +76,7 @@ impl TemplateSystem {
         let p = constants(&self.params);
         white_box_acceleration(
             &Arena::new(),
+            &self.space,
             |q| self.template.mass(&p, q),
             |q| self.template.potential(&p, q),
             &tau,
@@ -92,8 +96,8 @@ impl TemplateSystem {
         }
         let m = self.template.mass(&self.params, q);
         let t = 0.5
-            * (0..q.len())
-                .flat_map(|i| (0..q.len()).map(move |j| (i, j)))
+            * (0..qd.len())
+                .flat_map(|i| (0..qd.len()).map(move |j| (i, j)))
                 .map(|(i, j)| qd[i] * m[i][j] * qd[j])
                 .sum::<f64>();
         (t, self.template.potential(&self.params, q))
@@ -135,9 +139,10 @@ pub fn true_step(
     dt: f64,
     integrator: Integrator,
 ) -> Vec<f64> {
-    let n = sys.template.n();
-    integrator.step(&x.to_vec(), dt, |x: &Vec<f64>| {
-        let (q, qd) = x.split_at(n);
+    let nq = sys.space.nq();
+    let states = States::new(&sys.space, 1);
+    integrator.step(&states, &x.to_vec(), dt, |x: &Vec<f64>| {
+        let (q, qd) = x.split_at(nq);
         let qdd = sys.acceleration(q, qd, u);
         qd.iter().chain(&qdd).copied().collect()
     })
@@ -147,7 +152,7 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
     if cfg.count == 0 {
         return Err(Error::invalid("count", "must be at least 1"));
     }
-    cfg.check(template.m())?;
+    cfg.check(template)?;
     let (n, m) = (template.n(), template.m());
     let sys = TemplateSystem::new(template.clone(), params);
     let mut rng = Rng::new(cfg.seed);
@@ -172,9 +177,22 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
 }
 
 impl SimConfig {
-    /// The ranges and σs are usable for a system of `m` inputs.
-    fn check(&self, m: usize) -> Result<()> {
-        let cfg = self;
+    /// The ranges and σs are usable for the template's system, whose every joint is one
+    /// number: a dataset's rows are still q and q̇ of n values each.
+    pub(crate) fn check(&self, template: &Template) -> Result<()> {
+        let (cfg, m, space) = (self, template.m(), template.space());
+        if !space.is_flat() {
+            return Err(Error::invalid(
+                "template",
+                format!(
+                    "template '{}' has nq = {} ≠ nv = {}; simulated datasets hold q and qdot of \
+                     one width",
+                    template.name(),
+                    space.nq(),
+                    space.nv()
+                ),
+            ));
+        }
         for (name, v) in [
             ("dt", cfg.dt),
             ("q_range", cfg.q_range),

@@ -41,12 +41,12 @@ fn a_workspace_brings_its_scratch_to_a_new_thread() {
     for name in MODELS {
         let eval = load(name);
         let mut ws = Workspace::for_model(&eval, 8);
-        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (nx, ndx, m) = (eval.config.nx(), eval.config.ndx(), eval.config.m);
         let (x, u) = (vec![0.1; 8 * nx], vec![0.2; 8 * m]);
         let (mut next, mut a, mut b) = (
             vec![0.0; 8 * nx],
-            vec![0.0; 8 * nx * nx],
-            vec![0.0; 8 * nx * m],
+            vec![0.0; 8 * ndx * ndx],
+            vec![0.0; 8 * ndx * m],
         );
         let calls = std::thread::scope(|s| {
             s.spawn(|| {
@@ -67,8 +67,8 @@ fn a_workspace_brings_its_scratch_to_a_new_thread() {
 
 /// Predict (with and without q̈), Linearize and a rollout from each of `batch` states.
 fn calls_at(eval: &Evaluator, ws: &mut Workspace, name: &str, batch: usize) {
-    let (n, m) = (eval.config.n, eval.config.m);
-    let nx = 2 * n;
+    let (n, m) = (eval.config.nv(), eval.config.m);
+    let (nx, ndx) = (eval.config.nx(), eval.config.ndx());
     let x: Vec<f64> = (0..batch * nx)
         .map(|i| 0.1 + 0.05 * (i % 7) as f64)
         .collect();
@@ -76,7 +76,7 @@ fn calls_at(eval: &Evaluator, ws: &mut Workspace, name: &str, batch: usize) {
     let steps = 5;
     let us = vec![0.1; steps * m];
     let (mut next, mut acc) = (vec![0.0; batch * nx], vec![0.0; batch * n]);
-    let (mut a, mut b) = (vec![0.0; batch * nx * nx], vec![0.0; batch * nx * m]);
+    let (mut a, mut b) = (vec![0.0; batch * ndx * ndx], vec![0.0; batch * ndx * m]);
     let mut xs = vec![0.0; (steps + 1) * nx];
     let never = &|| false;
     let calls = allocations(|| {

@@ -20,12 +20,11 @@ fn a_batch_answers_as_its_states_alone() {
     let batch = 81;
     for name in MODELS {
         let eval = load(name);
-        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (nx, n, m) = (eval.config.nx(), eval.config.nv(), eval.config.m);
         let x: Vec<f64> = (0..batch * nx).map(|i| (0.37 * i as f64).sin()).collect();
         let u: Vec<f64> = (0..batch * m).map(|i| (0.91 * i as f64).cos()).collect();
         let (next, acc) = eval.predict(&x, &u, true);
         let acc = acc.unwrap();
-        let n = nx / 2;
         for b in 0..batch {
             let (x1, u1) = (&x[b * nx..(b + 1) * nx], &u[b * m..(b + 1) * m]);
             let (next1, acc1) = eval.predict(x1, u1, true);
@@ -51,7 +50,7 @@ fn a_batch_linearizes_as_its_states_alone() {
     let batch = 21;
     for name in MODELS.iter().chain(&["inference/ur5-residual"]) {
         let eval = load(name);
-        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (nx, ndx, m) = (eval.config.nx(), eval.config.ndx(), eval.config.m);
         let x: Vec<f64> = (0..batch * nx).map(|i| (0.37 * i as f64).sin()).collect();
         let u: Vec<f64> = (0..batch * m).map(|i| (0.91 * i as f64).cos()).collect();
         let (a, b) = eval.linearize_batch(&x, &u);
@@ -60,12 +59,12 @@ fn a_batch_linearizes_as_its_states_alone() {
             let (x1, u1) = (&x[k * nx..(k + 1) * nx], &u[k * m..(k + 1) * m]);
             let (a1, b1) = eval.linearize_batch(x1, u1);
             assert_eq!(
-                bits(&a[k * nx * nx..][..nx * nx]),
+                bits(&a[k * ndx * ndx..][..ndx * ndx]),
                 bits(&a1),
                 "{name}: A of {k}"
             );
             assert_eq!(
-                bits(&b[k * nx * m..][..nx * m]),
+                bits(&b[k * ndx * m..][..ndx * m]),
                 bits(&b1),
                 "{name}: B of {k}"
             );

@@ -112,7 +112,7 @@ fn close(got: &ParticleTrack, want: &ParticleTrack, what: &str) {
 fn particles_follow_the_members_round_robin_under_inputs() {
     let eval = load("tests/fixtures/compat/wb-x3.gbx");
     assert_eq!(eval.member_count(), 3);
-    let (nx, m, steps) = (2 * eval.config.n, eval.config.m, 20);
+    let (nx, m, steps) = (eval.config.nx(), eval.config.m, 20);
     let x0 = [0.3, -0.6, 1.0, -0.5];
     let u = inputs(steps, m, 20.0);
     let input = |t: usize, _: &[f64]| u[t * m..(t + 1) * m].to_vec();
@@ -132,7 +132,7 @@ fn particles_follow_the_members_round_robin_under_inputs() {
 #[test]
 fn a_policy_applies_to_each_particles_own_state() {
     let eval = load("tests/fixtures/compat/wb-x3.gbx");
-    let (nx, m, steps) = (2 * eval.config.n, eval.config.m, 15);
+    let (nx, m, steps) = (eval.config.nx(), eval.config.m, 15);
     let x0 = [0.2, 0.1, 0.0, 0.0];
     // A proportional-derivative pull toward the origin around zero nominal inputs.
     let k: Vec<f64> = (0..steps)
@@ -142,7 +142,7 @@ fn a_policy_applies_to_each_particles_own_state() {
         xbar: vec![0.0; (steps + 1) * nx],
         ubar: vec![0.0; steps * m],
         k,
-        nx,
+        space: eval.config.space.clone(),
         m,
     };
     let input = |t: usize, x: &[f64]| policy.input(t, x);
@@ -157,7 +157,7 @@ fn a_policy_applies_to_each_particles_own_state() {
 #[test]
 fn a_single_models_particles_are_its_own_rollout_with_no_spread() {
     let eval = load("tests/fixtures/inference/dp-mvf.gbx");
-    let (nx, m, steps) = (2 * eval.config.n, eval.config.m, 10);
+    let (nx, m, steps) = (eval.config.nx(), eval.config.m, 10);
     let x0 = [0.3, -0.6, 1.0, -0.5];
     let u = inputs(steps, m, 1.0);
     let input = |t: usize, _: &[f64]| u[t * m..(t + 1) * m].to_vec();
@@ -177,7 +177,7 @@ fn a_single_models_particles_are_its_own_rollout_with_no_spread() {
 #[test]
 fn a_state_that_leaves_the_finite_numbers_names_its_step() {
     let eval = load("tests/fixtures/compat/wb-x3.gbx");
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     // Ordinary inputs for five steps, then one no model can follow.
     let input = |t: usize, _: &[f64]| vec![if t == 5 { 1e300 } else { 1.0 }; m];
     let err = particle_rollout(&eval, &[0.0; 4], 3, 10, input, &|| false).unwrap_err();

@@ -62,12 +62,14 @@ int main(int argc, char **argv) {
     if (gbx_model_warning(model)) {
         fprintf(stderr, "warning: %s: %s\n", argv[1], gbx_model_warning(model));
     }
-    size_t n = gbx_model_n(model), m = gbx_model_m(model), nx = 2 * n, steps = 0;
+    /* A state is [q, v]: nq configuration values, nv velocities. */
+    size_t m = gbx_model_m(model), nx = gbx_model_nq(model) + gbx_model_nv(model), steps = 0;
     double *x0 = calloc(nx, sizeof(double)), *inputs = NULL, *expected = NULL;
+    gbx_model_neutral(model, x0);
     if (argc == 3) {
-        size_t rn, rm;
+        size_t rnx, rm;
         FILE *f = fopen(argv[2], "r");
-        if (!f || fscanf(f, "%zu %zu %zu", &rn, &rm, &steps) != 3 || rn != n || rm != m) {
+        if (!f || fscanf(f, "%zu %zu %zu", &rnx, &rm, &steps) != 3 || rnx != nx || rm != m) {
             fprintf(stderr, "%s: not a record of this model\n", argv[2]);
             return 1;
         }
@@ -84,7 +86,7 @@ int main(int argc, char **argv) {
 
     double x[64], next[64], u[64] = {0};
     if (nx > 64 || m > 64) {
-        fprintf(stderr, "this example holds at most 32 coordinates and 64 inputs\n");
+        fprintf(stderr, "this example holds states of at most 64 values and 64 inputs\n");
         return 1;
     }
     memcpy(x, x0, nx * sizeof(double));
@@ -142,7 +144,7 @@ int main(int argc, char **argv) {
                steps);
     } else {
         printf("%d steps of %g s from rest; q ends at", LOOP_STEPS, gbx_model_dt(model));
-        for (size_t i = 0; i < n; i++) {
+        for (size_t i = 0; i < gbx_model_nq(model); i++) {
             printf(" %.6g", x[i]);
         }
         printf("\n");

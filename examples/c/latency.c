@@ -42,11 +42,12 @@ int main(int argc, char **argv) {
         fprintf(stderr, "load: %s\n", gbx_last_error());
         return 1;
     }
-    size_t n = gbx_model_n(model), m = gbx_model_m(model), nx = 2 * n;
+    /* A state is nq + nv values; A is 2nv × 2nv and B 2nv × m (the tangent space). */
+    size_t nv = gbx_model_nv(model), m = gbx_model_m(model), nx = gbx_model_nq(model) + nv;
     size_t calls = strtoul(argv[2], NULL, 10);
     double *x = malloc(nx * sizeof(double)), *u = malloc((m + 1) * sizeof(double));
-    double *next = malloc(nx * sizeof(double)), *a = malloc(nx * nx * sizeof(double));
-    double *b = malloc((nx * m + 1) * sizeof(double)), *us = malloc((calls + 1) * sizeof(double));
+    double *next = malloc(nx * sizeof(double)), *a = malloc(4 * nv * nv * sizeof(double));
+    double *b = malloc((2 * nv * m + 1) * sizeof(double)), *us = malloc((calls + 1) * sizeof(double));
     for (size_t i = 0; i < nx + m; i++) {
         if (scanf("%lf", i < nx ? &x[i] : &u[i - nx]) != 1) {
             fprintf(stderr, "the state needs %zu numbers on stdin\n", nx + m);

@@ -12,14 +12,15 @@ int main(int argc, char** argv) {
     return 2;
   }
   graybox::Model model(argv[1]);
-  std::vector<double> x(2 * model.n(), 0.0), u(model.m(), 0.0), next(2 * model.n());
+  const size_t nx = model.nq() + model.nv();
+  std::vector<double> x = model.neutral(), u(model.m(), 0.0), next(nx);
   model.predict(x.data(), u.data(), 1, next.data());
-  std::printf("one step of %g s from rest: qdot[0] = %.6g\n", model.dt(), next[model.n()]);
-  std::vector<double> xs(11 * 2 * model.n()), us(10 * model.m(), 0.0), z(10);
+  std::printf("one step of %g s from rest: qdot[0] = %.6g\n", model.dt(), next[model.nq()]);
+  std::vector<double> xs(11 * nx), us(10 * model.m(), 0.0), z(10);
   model.rollout_z(x.data(), us.data(), 10, xs.data(), z.data());
   std::printf("ten steps from rest: z at the last = %.3g\n", z[9]);
   graybox::Workspace ws = model.workspace(1);
-  std::vector<double> again(11 * 2 * model.n());
+  std::vector<double> again(11 * nx);
   model.rollout(ws, x.data(), us.data(), 10, again.data());
   std::printf("the same in a workspace: %s\n", again == xs ? "equal" : "different");
   try {

@@ -80,7 +80,7 @@ fn job_estimate(
     data: &DatasetInfo,
     val_count: usize,
 ) -> (budget::JobEstimate, usize) {
-    let (n, m) = (data.n as usize, data.m as usize);
+    let (n, m) = (data.nv(), data.m as usize);
     let count = data.count as usize;
     let train = if job.validation_dataset_id.is_some() {
         count
@@ -94,8 +94,8 @@ fn job_estimate(
         _ => 0,
     };
     // A bad `periodic` is refused by the data check; here it counts as no angles.
-    let angles = crate::train::setup::periodic(&job.spec, &job.training, n)
-        .map_or(0, |p| p.iter().filter(|&&a| a).count());
+    let angles = crate::train::setup::run_space(&job.spec, &job.training, (data.nq(), n))
+        .map_or(0, |s| s.q_features() - s.nv());
     let dims = budget::Dims { n, m, angles };
     // A window keeps every step's integrator stages for the backward pass.
     let steps = batch.saturating_mul(job.training.horizon);

@@ -236,8 +236,11 @@ impl App {
                 })
         };
         let data = find("dataset_id", job.dataset_id.clone()).await?;
+        let space =
+            crate::train::setup::run_space(&job.spec, &job.training, (data.nq(), data.nv()))
+                .map_err(Error::unprocessable)?;
         job.spec
-            .check_dims(data.n as usize, data.m as usize)
+            .check_dims(&space, data.m as usize)
             .map_err(Error::unprocessable)?;
         let Some(vid) = &job.validation_dataset_id else {
             if job.training.val_fraction > 0.0 && data.count < 2 {
@@ -275,7 +278,7 @@ impl App {
         let job = job.clone();
         tokio::task::spawn_blocking(move || {
             let physical = physical_init(&job.spec, &job.init)?;
-            crate::train::setup::periodic(&job.spec, &job.training, data.n)?;
+            crate::train::setup::run_space(&job.spec, &job.training, (data.n, data.n))?;
             crate::train::setup::scaling(&job.spec, physical.as_deref(), &data)?;
             check_windows(&job, &data)
         })

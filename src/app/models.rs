@@ -122,9 +122,10 @@ impl App {
             },
         };
         let spec = serde_json::to_string(&file.config.spec).expect("json");
-        let (store, n, m, dt) = (
+        let (store, n, nq, m, dt) = (
             self.store.clone(),
-            file.config.n as i64,
+            file.config.nv() as i64,
+            file.config.nq() as i64,
             file.config.m as i64,
             file.config.dt,
         );
@@ -132,6 +133,7 @@ impl App {
             let new = NewModel {
                 name: &name,
                 n,
+                nq,
                 m,
                 dt,
                 spec: &spec,
@@ -194,16 +196,17 @@ impl App {
 fn check_model_file(file: &ModelFile, max_dof: usize, max_params: usize) -> Result<()> {
     let c = &file.config;
     c.spec.validate()?;
-    if c.n == 0 || c.m == 0 || c.n > max_dof {
+    let (nq, nv) = (c.nq(), c.nv());
+    if nv == 0 || c.m == 0 || nv > max_dof {
         return Err(Error::invalid(
             "config",
             format!(
-                "n = {} and m = {} must be ≥ 1 (n ≤ {max_dof}, --max-dof)",
-                c.n, c.m
+                "nv = {nv} and m = {} must be ≥ 1 (nv ≤ {max_dof}, --max-dof)",
+                c.m
             ),
         ));
     }
-    c.spec.check_dims(c.n, c.m)?;
+    c.spec.check_dims(&c.space, c.m)?;
     let (lo, hi) = crate::data::DT_RANGE;
     if !(c.dt.is_finite() && (lo..=hi).contains(&c.dt)) {
         return Err(Error::invalid(
@@ -213,24 +216,23 @@ fn check_model_file(file: &ModelFile, max_dof: usize, max_params: usize) -> Resu
     }
     file.to_bytes()?; // finite scalings and values
     let sc = &c.scaling;
-    let per_coordinate = [
-        &sc.q_mean,
-        &sc.q_std,
+    let per_velocity = [
         &sc.qdot_mean,
         &sc.qdot_std,
         &sc.acc_mean,
+        &sc.acc_std,
+        &sc.force_scale,
     ];
-    let sized = per_coordinate.iter().all(|v| v.len() == c.n)
-        && [&sc.acc_std, &sc.force_scale]
-            .iter()
-            .all(|v| v.len() == c.n)
+    let sized = [&sc.q_mean, &sc.q_std].iter().all(|v| v.len() == nq)
+        && per_velocity.iter().all(|v| v.len() == nv)
         && [&sc.u_mean, &sc.u_std].iter().all(|v| v.len() == c.m);
     let spreads = [&sc.q_std, &sc.qdot_std, &sc.u_std, &sc.acc_std];
     // The evaluator divides by the spreads: a zero would make every answer non-finite.
     if !sized || spreads.iter().any(|v| v.iter().any(|s| *s <= 0.0)) {
         return Err(Error::invalid(
             "config.scaling",
-            "needs n values per coordinate statistic (m per input one), standard deviations > 0",
+            "needs nq values per configuration statistic (q_mean, q_std), nv per velocity one, \
+             m per input one, standard deviations > 0",
         ));
     }
     // Counted from the spec, before the evaluator copies the weights; the evaluator then
@@ -258,9 +260,9 @@ fn trainable_params(c: &ModelConfig) -> usize {
         _ => 0,
     };
     let dims = budget::Dims {
-        n: c.n,
+        n: c.nv(),
         m: c.m,
-        angles: c.q_inputs() - c.n,
+        angles: c.q_inputs() - c.nv(),
     };
     budget::estimate(&c.spec, dims, 0, 0, physical).params
 }

@@ -31,6 +31,12 @@ pub struct ModelView {
     pub name: String,
     /// The model spec (JSON).
     pub spec: Value,
+    /// Configuration values: a state is [q, v], nq + nv values.
+    pub nq: i64,
+    /// Velocities (the degrees of freedom): accelerations and forces are nv wide, Linearize's
+    /// A 2nv × 2nv.
+    pub nv: i64,
+    /// Deprecated: `nv` (equal to nq and nv for a model whose every joint is one number).
     pub n: i64,
     pub m: i64,
     pub dt: f64,
@@ -160,6 +166,8 @@ impl From<ModelRow> for ModelView {
             origin: m.origin,
             name: m.name,
             spec: serde_json::from_str(&m.spec).unwrap_or(Value::Null),
+            nq: m.nq.unwrap_or(m.n),
+            nv: m.n,
             n: m.n,
             m: m.m,
             dt: m.dt,

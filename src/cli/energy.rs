@@ -6,7 +6,7 @@ use clap::Args;
 use serde_json::json;
 
 use crate::data::Dataset;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::infer::Evaluator;
 use crate::infer::energy_report::REPORT_SEED;
 
@@ -36,15 +36,7 @@ pub(super) fn energy(a: EnergyArgs) -> Result<()> {
     eval.check_energy()?;
     let data = Dataset::load(&a.data, a.dt)?;
     let c = &eval.config;
-    if (data.n, data.m) != (c.n, c.m) {
-        return Err(Error::invalid(
-            "data",
-            format!(
-                "has n = {}, m = {} but the model has n = {}, m = {}",
-                data.n, data.m, c.n, c.m
-            ),
-        ));
-    }
+    c.check_data("data", (data.nq(), data.nv(), data.m))?;
     let (x, _) = data.states();
     if a.report {
         let report = eval.energy_report(&x, a.seed, &|| false)?;
@@ -55,7 +47,7 @@ pub(super) fn energy(a: EnergyArgs) -> Result<()> {
     let e = eval
         .energy_until(&x, &data.u, &|| false)?
         .expect("never stopped");
-    let n = c.n;
+    let n = c.nv();
     // As the service refuses them: the rows are the data's transitions.
     e.check_finite("data", n)?;
     let row = |v: &[f64], k: usize| v[k * n..(k + 1) * n].to_vec();

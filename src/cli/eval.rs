@@ -8,7 +8,7 @@ use serde_json::json;
 
 use crate::backend::{self, Backend, Precision};
 use crate::data::Dataset;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::infer::Evaluator;
 use crate::infer::horizons::{check_horizons, horizon_errors};
 use crate::model::Model;
@@ -81,15 +81,7 @@ fn eval_ensemble(file: &ModelFile, data: &Dataset, device: &burn::tensor::Device
 fn eval_horizons(file: &ModelFile, data: &Dataset, horizons: &[usize]) -> Result<()> {
     let e = Evaluator::from_file(file)?;
     let c = &e.config;
-    if (data.n, data.m) != (c.n, c.m) {
-        return Err(Error::invalid(
-            "data",
-            format!(
-                "has n = {}, m = {} but the model has n = {}, m = {}",
-                data.n, data.m, c.n, c.m
-            ),
-        ));
-    }
+    c.check_data("data", (data.nq(), data.nv(), data.m))?;
     let longest = data.segments().iter().map(|s| s.length).max().unwrap_or(0);
     let horizons = check_horizons(horizons, usize::MAX)?;
     let found = horizon_errors(&e, data, &horizons, &|| false).expect("never stopped");
@@ -111,7 +103,9 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
     let members = file.member_count();
     let mut out = json!({
         "spec": c.spec,
-        "n": c.n,
+        "nq": c.nq(),
+        "nv": c.nv(),
+        "n": c.nv(),
         "m": c.m,
         "dt": c.dt,
         "integrator": c.integrator,
@@ -139,7 +133,8 @@ pub(super) fn inspect(a: InspectArgs) -> Result<()> {
         // maps the rows of q, q̇ and u to joints.
         out["coordinates"] = json!(t.coordinates());
         out["inputs"] = json!(t.inputs());
-        out["periodic"] = json!(c.periodic);
+        out["periodic"] = json!(c.space.periodic());
+        out["joints"] = json!(c.space.joints());
         let spread = |name: &String| -> Spread {
             Spread::of(&physical.iter().map(|p| p[name]).collect::<Vec<_>>())
         };

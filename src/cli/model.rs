@@ -13,7 +13,7 @@ use crate::sim::parse_assignments;
 
 #[derive(Args, Debug)]
 pub struct ModelArgs {
-    /// Template: double_pendulum, pendulum, cartpole, a template document's JSON file, or a
+    /// Template: double_pendulum, pendulum, cartpole, planar_body, a template document's JSON file, or a
     /// URDF file.
     #[arg(long)]
     pub template: String,
@@ -41,7 +41,8 @@ pub(super) fn model(a: ModelArgs) -> Result<()> {
     for w in &warnings {
         eprintln!("warning: {}", w.message);
     }
-    let mut out = json!({"out": a.out, "template": t.name(), "n": file.config.n,
+    let c = &file.config;
+    let mut out = json!({"out": a.out, "template": t.name(), "nq": c.nq(), "nv": c.nv(),
         "m": file.config.m, "dt": a.dt, "integrator": a.integrator,
         "physical_parameters": file.made.as_ref().map(|m| &m.physical_parameters)});
     if !warnings.is_empty() {

@@ -185,10 +185,11 @@ fn initial_states(text: &str, a: &PlanArgs, nx: usize) -> Result<Mat> {
 pub(super) fn run(a: PlanArgs) -> Result<()> {
     let file = super::model::read(&a.model)?;
     let eval = Evaluator::from_file(&file)?;
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    eval.check_plannable()?;
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     let req = request(&a, nx, m)?.with_effort_limits(&eval.effort_limits());
     // Looked at the start's and the goal's configurations besides q = 0.
-    let q = |x: &[f64]| x[..eval.config.n].to_vec();
+    let q = |x: &[f64]| x[..eval.config.nq()].to_vec();
     if let Some(w) = file.stiffness_warning(&[q(&req.x0), q(&req.goal)]) {
         eprintln!("warning: {}", w.message);
     }
@@ -197,7 +198,7 @@ pub(super) fn run(a: PlanArgs) -> Result<()> {
     let seconds = started.elapsed().as_secs_f64();
     let rows =
         |v: &[f64], w: usize| -> Vec<Vec<f64>> { v.chunks(w).map(<[f64]>::to_vec).collect() };
-    let k: Vec<Vec<Vec<f64>>> = p.gains.k.iter().map(|k| rows(&k.data, nx)).collect();
+    let k: Vec<Vec<Vec<f64>>> = p.gains.k.iter().map(|k| rows(&k.data, k.cols)).collect();
     let mut out = json!({
         "x": rows(&p.x, nx), "u": rows(&p.u, m), "K": k, "cost": p.cost, "costs": p.costs,
         "iterations": p.iterations, "converged": p.converged, "goal_error": p.goal_error,

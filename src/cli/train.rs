@@ -36,7 +36,7 @@ pub struct TrainArgs {
     /// A JSON model spec file instead of a named model.
     #[arg(long, conflicts_with = "model")]
     pub spec: Option<PathBuf>,
-    /// Template for the white-box parts: double_pendulum, pendulum, cartpole, a robot's URDF
+    /// Template for the white-box parts: double_pendulum, pendulum, cartpole, planar_body, a robot's URDF
     /// file (.urdf), or a template document's JSON file (a formula template or a URDF's).
     #[arg(long)]
     pub template: Option<String>,

@@ -1,15 +1,19 @@
 //! The loss's constant tensors, built once per device: each state entry's weight
 //! [1…1, λ…λ] and, when some coordinate is an angle, where its wrapped error replaces Δ².
+//! A rotation kept as a unit complex number needs no mask: the squared errors of its two
+//! values sum to |z′ − z|² = 2(1 − cos Δθ), the angle's own distance
+//! (docs/dynamics.md#configuration-space).
 
 use burn::tensor::{Device, Tensor, TensorData};
 
 use super::ModelConfig;
+use crate::physics::space::Joint;
 
 #[derive(Debug, Clone)]
 pub(super) struct Loss {
-    /// `[1, 2n]`: 1 for positions, λ for velocities.
+    /// `[1, nq + nv]`: 1 for configuration values, λ for velocities.
     weights: Tensor<2>,
-    /// `[1, 2n]` each: 1 at the angles' position entries (`wrap`), 1 elsewhere (`keep`).
+    /// `[1, nq + nv]` each: 1 at the angles' entries (`wrap`), 1 elsewhere (`keep`).
     periodic: Option<(Tensor<2>, Tensor<2>)>,
 }
 
@@ -20,11 +24,15 @@ fn row(values: Vec<f64>, device: &Device) -> Tensor<2> {
 
 impl Loss {
     pub(super) fn new(c: &ModelConfig, device: &Device) -> Self {
-        let n = c.n;
-        let mask = |angle: bool| (0..2 * n).map(move |k| f64::from(c.is_periodic(k) == angle));
+        let (nq, nv) = (c.nq(), c.nv());
+        let mut angles = vec![false; nq + nv];
+        for p in c.space.placed().filter(|p| p.joint == Joint::Angle) {
+            angles[p.q.start] = true;
+        }
+        let mask = |angle: bool| angles.iter().map(move |&a| f64::from(a == angle));
         Self {
-            weights: row([vec![1.0; n], vec![c.lambda; n]].concat(), device),
-            periodic: (!c.periodic.is_empty()).then(|| {
+            weights: row([vec![1.0; nq], vec![c.lambda; nv]].concat(), device),
+            periodic: angles.contains(&true).then(|| {
                 (
                     row(mask(true).collect(), device),
                     row(mask(false).collect(), device),
@@ -37,7 +45,7 @@ impl Loss {
         self.weights.device()
     }
 
-    /// Σ over a batch of the weighted per-entry loss of state errors `[batch, 2n]`.
+    /// Σ over a batch of the weighted per-entry loss of state errors `[batch, nq + nv]`.
     pub(super) fn sum(&self, err: Tensor<2>) -> Tensor<1> {
         (self.squared_error(err) * self.weights.clone()).sum()
     }

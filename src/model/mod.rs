@@ -47,7 +47,8 @@ impl Model {
         seed: u64,
         device: &Device,
     ) -> Result<Self> {
-        let (n, m) = (config.n, config.m);
+        // M is nv × nv and F nv wide; the networks read q's features (`q_in`).
+        let (n, m) = (config.nv(), config.m);
         let mut rng = Rng::derive(seed, 0x1_417);
         let widths = init::Widths {
             n,

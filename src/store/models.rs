@@ -19,7 +19,10 @@ pub struct ModelRow {
     /// "trained" or "uploaded".
     pub origin: String,
     pub name: String,
+    /// Velocities nv.
     pub n: i64,
+    /// Configuration values nq; NULL for a model stored before the column (nq = n).
+    pub nq: Option<i64>,
     pub m: i64,
     pub dt: f64,
     /// JSON of the model spec.
@@ -35,7 +38,7 @@ pub struct ModelRow {
 }
 
 const COLUMNS: &str =
-    "seq, id, job_id, origin, name, n, m, dt, spec, report, sha256, created_at, energy";
+    "seq, id, job_id, origin, name, n, nq, m, dt, spec, report, sha256, created_at, energy";
 
 fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
     super::dialect::sql::<D>(s, COLUMNS)
@@ -44,7 +47,9 @@ fn sql<D: Dialect>(s: &'static str) -> sqlx::AssertSqlSafe<String> {
 /// A model's record and file, as `finish_job` (trained) and `insert_model` (uploaded) store it.
 pub struct NewModel<'a> {
     pub name: &'a str,
+    /// Velocities nv and configuration values nq.
     pub n: i64,
+    pub nq: i64,
     pub m: i64,
     pub dt: f64,
     /// The spec (JSON).
@@ -67,8 +72,9 @@ macro_rules! insert_row {
         };
         let r = sqlx::query(sql::<$D>(
             "INSERT INTO models (id, job_id, origin, name, n, m, dt, spec, report, file, sha256,
-                 created_at, blob_key)
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13) RETURNING {COLUMNS}",
+                 created_at, blob_key, nq)
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13, $14)
+             RETURNING {COLUMNS}",
         ))
         .bind(id)
         .bind(job_id)
@@ -83,6 +89,7 @@ macro_rules! insert_row {
         .bind(sha256_hex(m.file))
         .bind(now_rfc3339())
         .bind(&placed.key)
+        .bind(m.nq)
         .fetch_one(&mut *$tx)
         .await?;
         row::<_, ModelRow>(&r)

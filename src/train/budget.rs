@@ -63,7 +63,8 @@ fn mlp(d_in: usize, hidden: &[usize], d_out: usize) -> (usize, usize) {
 pub struct Dims {
     pub n: usize,
     pub m: usize,
-    /// Coordinates that are angles: a network sees (sin q, cos q) for each, one input more.
+    /// Network inputs from q beyond one per velocity: an angle's (sin q, cos q) and a
+    /// rotation's (cos θ, sin θ) are one input more each.
     pub angles: usize,
 }
 

@@ -10,6 +10,7 @@ use crate::model::spec::ModelSpec;
 use crate::physics::integrator::Integrator;
 use crate::physics::params::{Part, physical_problem};
 use crate::physics::scaling::Scaling;
+use crate::physics::space::Space;
 use crate::sim::unknown_param;
 
 /// Training hyper-parameters; every field has the CLI's default.
@@ -267,23 +268,44 @@ pub fn prepare(
     cfg.validate()?;
     spec.validate()?;
     spec.check_trainable()?;
-    spec.check_dims(data.n, data.m)?;
+    let space = run_space(spec, cfg, (data.n, data.n))?;
+    spec.check_dims(&space, data.m)?;
     let physical = physical_init(spec, init)?;
     let (train_ds, val_ds) = split_data(data, val, cfg)?;
     crate::train::windows::check(&train_ds, cfg.horizon)?;
     let scaling = scaling(spec, physical.as_deref(), &train_ds)?;
-    let periodic = periodic(spec, cfg, data.n)?;
     let config = ModelConfig {
         spec: spec.clone(),
-        n: data.n,
+        space,
         m: data.m,
         dt: data.dt,
         integrator: cfg.integrator,
         lambda: cfg.lambda,
         scaling,
-        periodic,
     };
     Ok((config, physical, train_ds, val_ds))
+}
+
+/// The run's configuration space for data of (nq, nv) widths: its template's when that has a
+/// joint of nq ≠ nv (a rotation kept as a unit complex number), else n coordinates with the
+/// run's angles (`periodic`). Data of other widths is refused naming what the space takes.
+pub fn run_space(spec: &ModelSpec, cfg: &TrainConfig, (nq, nv): (usize, usize)) -> Result<Space> {
+    let space = match spec.template().map(|t| t.space()) {
+        Some(own) if !own.is_flat() => own,
+        _ => Space::flat(nv, &periodic(spec, cfg, nv)?),
+    };
+    if (space.nq(), space.nv()) != (nq, nv) {
+        return Err(Error::invalid(
+            "dataset_id",
+            format!(
+                "the dataset has nq = {nq}, nv = {nv} (q and qdot's widths); the model's \
+                 configuration space takes nq = {}, nv = {}",
+                space.nq(),
+                space.nv()
+            ),
+        ));
+    }
+    Ok(space)
 }
 
 /// The run's angles: the job's `periodic`, else its template's, one per coordinate; none
@@ -304,5 +326,5 @@ pub fn periodic(spec: &ModelSpec, cfg: &TrainConfig, n: usize) -> Result<Vec<boo
             ),
         ));
     }
-    Ok(ModelConfig::stored_periodic(given))
+    Ok(Space::flat(n, &given).periodic())
 }

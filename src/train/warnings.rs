@@ -7,6 +7,7 @@ use std::collections::BTreeMap;
 use super::windows::Windows;
 use crate::data::Dataset;
 use crate::model::report::EpochMetrics;
+use crate::physics::space::{Joint, Space};
 use crate::records::Warning;
 
 /// Runs shorter than this are not judged on progress (loss, parameters).
@@ -18,36 +19,44 @@ pub const MOVED_REL: f64 = 1e-6;
 
 /// The loss of predicting q̈ = 0 (every integrator then gives q′ = q + q̇Δt, q̇′ = q̇) on `ds`,
 /// with the model's velocity weight λ: the bar a model must clear to have learned anything.
-/// An angle (`periodic[j]`) is compared as the model's loss compares it, 2(1 − cos Δ), so
-/// that wrapped data (a jump of 2π) does not make the bar too easy.
-pub fn zero_acceleration_loss(ds: &Dataset, lambda: f64, periodic: &[bool]) -> f64 {
-    zero_acceleration_window_loss(ds, &Windows::one_step(ds.count()), lambda, periodic)
+/// Configurations are compared as the model's loss compares them: an angle by 2(1 − cos Δ),
+/// so that wrapped data (a jump of 2π) does not make the bar too easy, and a rotation kept as
+/// a unit complex number by |z′ − z|².
+pub fn zero_acceleration_loss(ds: &Dataset, lambda: f64, space: &Space) -> f64 {
+    zero_acceleration_window_loss(ds, &Windows::one_step(ds.count()), lambda, space)
 }
 
 /// The same bar over `windows`, as a multi-step run's loss is taken: from each window's first
-/// state, q̈ = 0 rolled out for the window's steps (step k: q + (k+1)Δt·q̇, q̇), each step's
-/// error against the data weighted as the run weighs it. One-step windows give
+/// state, v̇ = 0 rolled out for the window's steps (step k: integrate(q, (k+1)Δt·v), v), each
+/// step's error against the data weighted as the run weighs it. One-step windows give
 /// [`zero_acceleration_loss`].
 pub fn zero_acceleration_window_loss(
     ds: &Dataset,
     windows: &Windows,
     lambda: f64,
-    periodic: &[bool],
+    space: &Space,
 ) -> f64 {
-    let n = ds.n;
+    let (nq, nv) = (ds.nq(), ds.nv());
     let mut total = 0.0;
+    let mut ahead_q = Vec::with_capacity(nq);
     for &start in &windows.starts {
+        let (q, v) = (&ds.q[start * nq..][..nq], &ds.qdot[start * nv..][..nv]);
         for (k, w) in windows.weights.iter().enumerate() {
-            let (row, ahead) = ((start + k) * n, (k + 1) as f64 * ds.dt);
-            for j in 0..n {
-                let (q, v) = (ds.q[start * n + j], ds.qdot[start * n + j]);
-                let dq = ds.q_next[row + j] - (q + v * ahead);
-                let dv = ds.qdot_next[row + j] - v;
-                let position = if periodic.get(j).copied().unwrap_or(false) {
-                    2.0 * (1.0 - dq.cos())
-                } else {
-                    dq * dq
+            let (row, ahead) = (start + k, (k + 1) as f64 * ds.dt);
+            ahead_q.clear();
+            space.integrate_into(q, ahead, v, &mut ahead_q);
+            let (q_next, v_next) = (
+                &ds.q_next[row * nq..][..nq],
+                &ds.qdot_next[row * nv..][..nv],
+            );
+            for p in space.placed() {
+                let dq = |i: usize| q_next[i] - ahead_q[i];
+                let position = match p.joint {
+                    Joint::Real => dq(p.q.start) * dq(p.q.start),
+                    Joint::Angle => 2.0 * (1.0 - dq(p.q.start).cos()),
+                    Joint::Circle => p.q.clone().map(|i| dq(i) * dq(i)).sum(),
                 };
+                let dv = v_next[p.v] - v[p.v];
                 total += w * (position + lambda * dv * dv);
             }
         }
@@ -215,12 +224,12 @@ mod tests {
             let s = (k + 1) as f64 * dt;
             (0.5 * a * s * s).powi(2) + lambda * (a * s).powi(2)
         };
-        let one = zero_acceleration_loss(&ds, lambda, &[false]);
+        let one = zero_acceleration_loss(&ds, lambda, &Space::flat(1, &[]));
         assert!((one - miss(0)).abs() < 1e-12, "{one}");
         let windows = Windows::of(&ds, 5, 0.9);
         assert_eq!(windows.count(), rows - 4);
         let want: f64 = (0..5).map(|k| windows.weights[k] * miss(k)).sum();
-        let got = zero_acceleration_window_loss(&ds, &windows, lambda, &[false]);
+        let got = zero_acceleration_window_loss(&ds, &windows, lambda, &Space::flat(1, &[]));
         // Sums of a few hundred terms of size ~1: equal to rounding.
         assert!((got - want).abs() < 1e-12 * want, "{got} vs {want}");
         assert!(got > 5.0 * one, "the longer windows set a higher bar");
@@ -326,7 +335,7 @@ mod tests {
             ],
         )
         .unwrap();
-        let l = zero_acceleration_loss(&ds, 0.5, &[]);
+        let l = zero_acceleration_loss(&ds, 0.5, &Space::flat(ds.n, &[]));
         assert!((l - 0.5).abs() < 1e-12, "{l}");
     }
 
@@ -348,10 +357,10 @@ mod tests {
         )
         .unwrap();
         let on_circle = 2.0 * (1.0 - 0.1f64.cos());
-        let l = zero_acceleration_loss(&ds, 1.0, &[true]);
+        let l = zero_acceleration_loss(&ds, 1.0, &Space::flat(1, &[true]));
         assert!((l - on_circle).abs() < 1e-12, "{l}");
         assert!(
-            zero_acceleration_loss(&ds, 1.0, &[false]) > 15.0,
+            zero_acceleration_loss(&ds, 1.0, &Space::flat(1, &[])) > 15.0,
             "not wrapped: ~(2π)²/2"
         );
     }

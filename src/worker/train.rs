@@ -121,7 +121,8 @@ async fn store_model(
     let spec_json = serde_json::to_string(&file.config.spec).expect("json");
     let model = NewModel {
         name: spec.display_name(),
-        n: file.config.n as i64,
+        n: file.config.nv() as i64,
+        nq: file.config.nq() as i64,
         m: file.config.m as i64,
         dt: file.config.dt,
         spec: &spec_json,

@@ -245,7 +245,7 @@ async fn dynamics_rpcs_against_independent_references() {
     assert_eq!(wrong_width.code(), Code::InvalidArgument);
     // The message says what a row of x is, not only its width.
     assert!(
-        wrong_width.message().contains("x = [q, q̇]"),
+        wrong_width.message().contains("x = [q, v]: nq + nv"),
         "{}",
         wrong_width.message()
     );
@@ -309,7 +309,7 @@ async fn dynamics_rpcs_against_independent_references() {
         ..tv
     };
     let err = c.tvlqr(small_q).await.unwrap_err();
-    assert!(err.message().contains("2n × 2n"), "{}", err.message());
+    assert!(err.message().contains("2nv × 2nv"), "{}", err.message());
     let info = c
         .get_model(pb::GetModelRequest {
             model_id: wb.clone(),

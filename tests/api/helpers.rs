@@ -202,6 +202,13 @@ pub fn job_body(dataset_id: &str, model: &str, epochs: usize) -> Value {
            "training": {"epochs": epochs, "batch_size": 64}})
 }
 
+/// s·I, n × n, as an array message.
+pub fn eye(n: usize, s: f64) -> Option<pb::Array> {
+    let mut d = vec![0.0; n * n];
+    (0..n).for_each(|i| d[i * n + i] = s);
+    arr(&[n as u64, n as u64], d)
+}
+
 /// An array message of this shape.
 pub fn arr(shape: &[u64], data: Vec<f64>) -> Option<pb::Array> {
     Some(pb::Array {

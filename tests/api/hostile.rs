@@ -419,13 +419,12 @@ fn model_files_with_non_finite_numbers_are_not_written() {
     use graybox::physics::scaling::Scaling;
     let config = ModelConfig {
         spec: ModelSpec::named("naive", None).unwrap(),
-        n: 1,
+        space: graybox::physics::space::Space::flat(1, &[]),
         m: 1,
         dt: 0.01,
         integrator: Default::default(),
         lambda: 1.0,
-        scaling: Scaling::identity(1, 1),
-        periodic: vec![],
+        scaling: Scaling::identity(1, 1, 1),
     };
     let array = |v: f64| NamedArray {
         name: "naive.layers.0.bias".into(),

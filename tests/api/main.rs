@@ -2,6 +2,7 @@
 
 mod chaos;
 mod cluster;
+mod configuration;
 mod crash;
 mod datasets;
 mod ensemble;

@@ -12,12 +12,6 @@ use tonic::Code;
 
 use crate::helpers::*;
 
-fn eye(n: usize, s: f64) -> Option<pb::Array> {
-    let mut d = vec![0.0; n * n];
-    (0..n).for_each(|i| d[i * n + i] = s);
-    arr(&[n as u64, n as u64], d)
-}
-
 fn plan_req(model: &str, horizon: u64, max_iterations: u32, restarts: u32) -> pb::PlanRequest {
     pb::PlanRequest {
         id: String::new(),

@@ -137,7 +137,7 @@ async fn the_job_form_starts_from_the_services_defaults() {
     );
     assert_eq!(
         d["templates"],
-        serde_json::json!(["double_pendulum", "pendulum", "cartpole"])
+        serde_json::json!(["double_pendulum", "pendulum", "cartpole", "planar_body"])
     );
 }
 

@@ -15,6 +15,7 @@ use graybox::model::Model;
 use graybox::model::params_io::{NamedArray, import};
 use graybox::model::spec::ModelSpec;
 use graybox::physics::integrator::Integrator;
+use graybox::physics::space::Space;
 use graybox::physics::templates::Template;
 use graybox::sim::{SimConfig, simulate};
 use graybox::train::{TrainConfig, Trainer};
@@ -139,7 +140,7 @@ fn case_models(dev: &Device) -> Vec<(&'static str, Model)> {
             let mut c = config(spec, n, m);
             c.integrator = integrator;
             if periodic {
-                c.periodic = (0..n).map(|k| k == 0).collect();
+                c.space = Space::flat(n, &[true]);
             }
             let model = Model::init(c, None, 5, dev).unwrap();
             (what, perturb(&model, dev))

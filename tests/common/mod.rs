@@ -13,6 +13,7 @@ use graybox::model::spec::ModelSpec;
 use graybox::model::{Model, ModelConfig};
 use graybox::physics::integrator::Integrator;
 use graybox::physics::scaling::Scaling;
+use graybox::physics::space::Space;
 use graybox::physics::templates::Template;
 use graybox::rng::Rng;
 
@@ -54,7 +55,7 @@ pub fn paper_samples(n: usize, m: usize, count: usize, seed: u64) -> (Rows, Rows
 
 /// A model config with scalings of roughly paper-data size, without needing a dataset.
 pub fn config(spec: ModelSpec, n: usize, m: usize) -> ModelConfig {
-    let mut s = Scaling::identity(n, m);
+    let mut s = Scaling::identity(n, n, m);
     s.q_std = vec![1.8; n];
     s.qdot_std = vec![5.8; n];
     s.u_std = vec![120.0; m];
@@ -62,13 +63,12 @@ pub fn config(spec: ModelSpec, n: usize, m: usize) -> ModelConfig {
     s.force_scale = vec![30.0; n];
     ModelConfig {
         spec,
-        n,
+        space: Space::flat(n, &[]),
         m,
         dt: 0.01,
         integrator: Integrator::Rk4,
         lambda: 1.0,
         scaling: s,
-        periodic: vec![],
     }
 }
 
@@ -186,7 +186,7 @@ impl ModuleVisitor for GradCollector<'_> {
 /// One step's loss on `rows` random rows (|x| ≤ 2, |u| ≤ 5, targets like x) and each
 /// parameter tensor's gradient.
 pub fn random_loss_and_gradients(model: &Model, dev: &Device, rows: usize) -> (f64, Vec<Vec<f64>>) {
-    let (n, m) = (model.config.n, model.config.m);
+    let (n, m) = (model.config.nv(), model.config.m);
     let mut r = Rng::new(8);
     let mut draw = |w: usize, s: f64| -> Vec<Vec<f64>> {
         (0..rows)

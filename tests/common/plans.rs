@@ -73,13 +73,12 @@ pub fn linear_file(dt: f64, stiffness: f64) -> ModelFile {
     .unwrap();
     let config = ModelConfig {
         spec,
-        n: 2,
+        space: graybox::physics::space::Space::flat(2, &[]),
         m: 2,
         dt,
         integrator: Integrator::Rk4,
         lambda: 1.0,
-        scaling: Scaling::identity(2, 2),
-        periodic: vec![],
+        scaling: Scaling::identity(2, 2, 2),
     };
     let dev = graybox::backend::device(
         graybox::backend::Backend::Flex,

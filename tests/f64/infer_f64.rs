@@ -143,7 +143,7 @@ fn build(
     dev: &Device,
 ) -> (Model, Evaluator) {
     let mut cfg: ModelConfig = config(spec, n, m);
-    cfg.periodic = periodic;
+    cfg.space = graybox::physics::space::Space::flat(n, &periodic);
     cfg.scaling.q_mean = vec![0.1; n];
     cfg.scaling.u_mean = vec![-2.0; m];
     let model = Model::init(cfg, None, 3, dev).unwrap();
@@ -330,7 +330,7 @@ fn a_robots_continuous_dynamics_match_its_multibody_path() {
     let t = Template::from_document(&serde_json::json!({"kind": "urdf", "urdf": urdf})).unwrap();
     let file = ModelFile::from_template(&t, &t.defaults(), 0.01, Integrator::Rk4).unwrap();
     let eval = Evaluator::from_file(&file).unwrap();
-    let (n, m) = (eval.config.n, eval.config.m);
+    let (n, m) = (eval.config.nv(), eval.config.m);
     let (q, qd, u) = paper_samples(n, m, 5, 4);
     let x: Vec<f64> = (0..5)
         .flat_map(|i| [q[i].clone(), qd[i].clone()].concat())

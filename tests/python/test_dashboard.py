@@ -21,6 +21,7 @@ CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 EPOCHS = {"W-B": 12, "MVF": 8}
 
 playwright = pytest.importorskip("playwright.sync_api")
+expect = playwright.expect
 
 
 def series(page, selector):
@@ -178,7 +179,8 @@ def test_dashboard_in_a_real_browser(fresh, browser, graybox_bin, tmp_path):
     page.goto(base + f'/#/models/{job["model_id"]}')
     page.wait_for_selector(".replay-chart canvas")
     page.select_option("#replay-dataset", ds["id"])
-    page.wait_for_function("document.querySelector('#replay-index').value === '0'")
+    # Playwright's own wait: a string predicate is eval'd in the page, which its policy forbids.
+    expect(page.locator("#replay-index")).to_have_value("0")
     page.click("#replay-button")
     page.wait_for_selector('.replay-chart[data-variable="q0"] canvas')
     replay = series(page, '.replay-chart[data-variable="q0"]')

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import serve
-from test_dashboard import browser, series  # noqa: F401  (a fixture, used by name)
+from test_dashboard import browser, expect, series  # noqa: F401  (a fixture, used by name)
 from test_dashboard_pages import page  # noqa: F401  (a fixture, used by name)
 
 
@@ -47,7 +47,8 @@ def replay(page, base, model, ds):
     page.goto(base + f"/#/models/{model['id']}")
     page.wait_for_selector("#replay-dataset")
     page.select_option("#replay-dataset", ds["id"])
-    page.wait_for_function("document.querySelector('#replay-index').value === '0'")
+    # Playwright's own wait: a string predicate is eval'd in the page, which its policy forbids.
+    expect(page.locator("#replay-index")).to_have_value("0")
     page.click("#replay-button")
 
 

@@ -14,7 +14,7 @@ import pytest
 from PIL import Image
 
 from conftest import serve
-from test_dashboard import browser, series  # noqa: F401  (a fixture, used by name)
+from test_dashboard import browser, expect, series  # noqa: F401  (a fixture, used by name)
 from test_dashboard_pages import page  # noqa: F401  (a fixture, used by name)
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -109,7 +109,8 @@ def replay(page, base, model_id, ds):
     page.goto(base + f"/#/models/{model_id}")
     page.wait_for_selector("#replay-dataset")
     page.select_option("#replay-dataset", ds["id"])
-    page.wait_for_function("document.querySelector('#replay-index').value === '0'")
+    # Playwright's own wait: a string predicate is eval'd in the page, which its policy forbids.
+    expect(page.locator("#replay-index")).to_have_value("0")
     page.click("#replay-button")
     page.wait_for_selector('.replay-chart[data-variable="q0"] canvas')
 
@@ -119,7 +120,7 @@ def test_an_ensembles_replay_draws_the_members_spread_as_a_band(service, trained
     ds, jobs = trained
     model_id = jobs["ensemble"]["model_id"]
     replay(page, s.rest.base, model_id, ds)
-    page.wait_for_function("document.querySelector('#replay-spread-note').textContent !== ''")
+    expect(page.locator("#replay-spread-note")).not_to_have_text("")
     assert f"{MEMBERS} particles" in page.inner_text("#replay-spread-note")
     status, r = s.rest.get(f"/v1/models/{model_id}/rollout?dataset_id={ds['id']}&index=0"
                            f"&particles={MEMBERS}")

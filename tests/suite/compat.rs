@@ -30,7 +30,7 @@ const MODELS: [&str; 4] = ["mvf", "wb", "naive", "wb-x3"];
 /// of x' too.
 fn outputs(file: &ModelFile) -> Value {
     let eval = Evaluator::from_file(file).unwrap();
-    let (nx, m) = (2 * file.config.n, file.config.m);
+    let (nx, m) = (file.config.nx(), file.config.m);
     let (x, u) = (points(5, nx, 1), points(5, m, 2));
     let (next, accel) = eval.predict(&x, &u, true);
     let (a, b) = eval.linearize_batch(&x[..3 * nx], &u[..3 * m]);

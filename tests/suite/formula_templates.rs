@@ -83,6 +83,7 @@ fn accel(f: &FormulaTemplate, p: &[f64], q: &[f64], qd: &[f64], u: &[f64]) -> Ve
     let pd = constants(p);
     white_box_acceleration(
         &Arena::new(),
+        &graybox::physics::space::Space::flat(q.len(), &[]),
         |q| f.mass(&pd, q),
         |q| f.potential(&pd, q),
         &f.forces(p, q, qd, u),
@@ -167,7 +168,9 @@ fn furuta_pendulum_conserves_energy_unforced() {
         let mut x: Vec<f64> = q0.iter().chain(&qd0).copied().collect();
         let mut drift: f64 = 0.0;
         for _ in 0..1000 {
-            x = Integrator::Rk4.step(&x, 1e-3, |x: &Vec<f64>| {
+            let space = graybox::physics::space::Space::flat(2, &[]);
+            let states = graybox::physics::integrator::States::new(&space, 1);
+            x = Integrator::Rk4.step(&states, &x, 1e-3, |x: &Vec<f64>| {
                 let qdd = accel(&f, &p, &x[..2], &x[2..], &[0.0]);
                 x[2..].iter().chain(&qdd).copied().collect()
             });

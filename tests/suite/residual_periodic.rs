@@ -230,7 +230,7 @@ fn a_template_model_keeps_its_angles_periodic() {
     let (dt, values) = (0.01, t.defaults());
     let made = ModelFile::from_template(&t, &values, dt, Integrator::Rk4).unwrap();
     let file = ModelFile::from_bytes(&made.to_bytes().unwrap()).unwrap();
-    assert_eq!(file.config.periodic, [true, true]);
+    assert_eq!(file.config.space.periodic(), [true, true]);
 
     // q₁ just below π moving up: the next q₁ is just above π, which a logger writes as −π + ε.
     let x = [PI - 0.005, 0.3, 2.0, -1.0];

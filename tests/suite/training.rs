@@ -100,7 +100,7 @@ fn white_box_parts_need_a_template() {
     )
     .err()
     .unwrap();
-    assert!(err.to_string().contains("n = 1"), "{err}");
+    assert!(err.to_string().contains("nv = 1"), "{err}");
 }
 
 /// One training step on flex and on ndarray from the same initialization. f32 rounding differs

@@ -523,7 +523,7 @@ fn white_box_urdf_identifies_the_true_arm() {
     }
     let sim = |seed| balanced_data(&nominal, &truth, 1024, seed);
     let (data, val) = (sim(1), sim(2));
-    let baseline = zero_acceleration_loss(&val, TrainConfig::default().lambda, &nominal.periodic());
+    let baseline = zero_acceleration_loss(&val, TrainConfig::default().lambda, &nominal.space());
     let device = graybox::backend::device(Backend::Flex, Precision::F32)
         .unwrap()
         .autodiff();

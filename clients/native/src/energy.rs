@@ -16,10 +16,10 @@ pub fn energy<'py>(
     x: ArrayIn<'py>,
     u: Option<ArrayIn<'py>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let (n, m) = (eval.config.n, eval.config.m);
+    let (n, m) = (eval.config.nv(), eval.config.m);
     // A naive model is refused before its arguments are read, as the service refuses it.
     eval.check_energy().or_py(py)?;
-    let xs = rows("x", Some(&x), 2 * n).or_py(py)?;
+    let xs = rows("x", Some(&x), eval.config.nx()).or_py(py)?;
     let us = inputs(&xs, rows("u", u.as_ref(), m).or_py(py)?, m).or_py(py)?;
     let (b, single) = (xs.rows, xs.single);
     admit(py, &eval.energy_cost(b))?;

@@ -53,7 +53,7 @@ fn load(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<Model> {
     let names = match c.template() {
         Some(t) => (t.coordinates(), t.inputs()),
         None => (
-            (1..=c.n).map(|i| format!("q{i}")).collect(),
+            (1..=c.nv()).map(|i| format!("q{i}")).collect(),
             (1..=c.m).map(|i| format!("u{i}")).collect(),
         ),
     };
@@ -88,13 +88,18 @@ fn bad_source(e: Error) -> Error {
 
 #[pymethods]
 impl Model {
-    /// n, m, dt, the ensemble's member count, the integrator, and the coordinates' and
-    /// inputs' names, as a `graybox_native.Info` (attributes, and item access as a dict's).
+    /// nq and nv (a state is [q, v], nq + nv values; `n`, deprecated, is nv), m, dt, the
+    /// ensemble's member count, the integrator, the joints, and the coordinates' and inputs'
+    /// names, as a `graybox_native.Info` (attributes, and item access as a dict's).
     #[getter]
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let c = &self.eval.config;
         let d = PyDict::new(py);
-        d.set_item("n", c.n)?;
+        d.set_item("nq", c.nq())?;
+        d.set_item("nv", c.nv())?;
+        d.set_item("n", c.nv())?;
+        let joints: Vec<&str> = c.space.joints().iter().map(|j| j.name()).collect();
+        d.set_item("joints", joints)?;
         d.set_item("m", c.m)?;
         d.set_item("dt", c.dt)?;
         d.set_item("members", self.eval.member_count())?;
@@ -108,18 +113,20 @@ impl Model {
     fn __repr__(&self) -> String {
         let c = &self.eval.config;
         format!(
-            "graybox_native.Model(n={}, m={}, dt={}, members={})",
-            c.n,
+            "graybox_native.Model(nq={}, nv={}, m={}, dt={}, members={})",
+            c.nq(),
+            c.nv(),
             c.m,
             c.dt,
             self.eval.member_count()
         )
     }
 
-    /// x' = f(x, u) for x [2n] and u [m], or a batch x [B, 2n] and u [B, m]; with
-    /// `want_accel` also q̈ ([n] or [B, n]). An ensemble answers with its members' mean;
+    /// x' = f(x, u) for x [nq + nv] and u [m], or a batch x [B, nq + nv] and u [B, m]; with
+    /// `want_accel` also v̇ ([nv] or [B, nv]). An ensemble answers with its members' mean;
     /// `return_std` adds their standard deviation of x' (zeros for a single model) and
-    /// `members` every member's x' ([K, 2n] or [K, B, 2n]), in that order after x' (and q̈);
+    /// `members` every member's x' ([K, nq + nv] or [K, B, nq + nv]), in that order after x'
+    /// (and v̇);
     /// `return_z` adds max_abs_z last (a float, or [B]): the largest |z-score| of q, q̇ and u
     /// under the training data's statistics (above ~4, treat the answer with doubt).
     #[pyo3(signature = (x, u=None, want_accel=false, return_std=false, members=false,
@@ -135,8 +142,8 @@ impl Model {
         members: bool,
         return_z: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let (n, m) = (self.eval.config.n, self.eval.config.m);
-        let nx = 2 * n;
+        let (n, m) = (self.eval.config.nv(), self.eval.config.m);
+        let nx = self.eval.config.nx();
         let xs = rows("x", Some(&x), nx).or_py(py)?;
         let us = inputs(&xs, rows("u", u.as_ref(), m).or_py(py)?, m).or_py(py)?;
         let (b, single) = (xs.rows, xs.single);
@@ -184,7 +191,7 @@ impl Model {
         one_or_tuple(py, items)
     }
 
-    /// One step: x' for x [2n] and u [m] (or batches), as `predict` with no extras.
+    /// One step: x' for x [nq + nv] and u [m] (or batches), as `predict` with no extras.
     #[pyo3(signature = (x, u=None))]
     fn step<'py>(
         &self,
@@ -195,8 +202,9 @@ impl Model {
         self.predict(py, x, u, false, false, false, false)
     }
 
-    /// A = ∂f/∂x and B = ∂f/∂u of the one-step map: [2n, 2n] and [2n, m] at one point,
-    /// [B, 2n, 2n] and [B, 2n, m] for a batch. An ensemble's are its members' mean.
+    /// A and B of the one-step map in the tangent space, x' ⊖ x̄' = A (x ⊖ x̄) + B (u − ū):
+    /// [2nv, 2nv] and [2nv, m] at one point, [B, 2nv, 2nv] and [B, 2nv, m] for a batch (for
+    /// nq = nv, ∂f/∂x and ∂f/∂u). An ensemble's are its members' mean.
     /// `return_z` adds max_abs_z (a float, or [B]) as (A, B, z).
     #[pyo3(signature = (x, u=None, return_z=false))]
     fn linearize<'py>(
@@ -206,7 +214,8 @@ impl Model {
         u: Option<ArrayIn<'py>>,
         return_z: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let (nx, m) = (2 * self.eval.config.n, self.eval.config.m);
+        let c = &self.eval.config;
+        let (nx, ndx, m) = (c.nx(), c.ndx(), c.m);
         let xs = rows("x", Some(&x), nx).or_py(py)?;
         let us = inputs(&xs, rows("u", u.as_ref(), m).or_py(py)?, m).or_py(py)?;
         let eval = &self.eval;
@@ -216,16 +225,16 @@ impl Model {
             let Some((a, b)) = eval.linearize_until(&xs.data, &us, &|| interrupt.stop()) else {
                 return Ok(None);
             };
-            finite_rows("x", "linearization", &a, nx * nx)?;
-            finite_rows("x", "linearization", &b, nx * m)?;
+            finite_rows("x", "linearization", &a, ndx * ndx)?;
+            finite_rows("x", "linearization", &b, ndx * m)?;
             let z = return_z.then(|| eval.max_abs_z(&xs.data, &us));
             Ok(Some((a, b, z)))
         });
         let (a, b, z) = interrupt.answer(py, out)?;
         let (single, rows) = (xs.single, xs.rows);
         let mut items = vec![
-            array(py, a, &shaped(single, rows, &[nx, nx]))?,
-            array(py, b, &shaped(single, rows, &[nx, m]))?,
+            array(py, a, &shaped(single, rows, &[ndx, ndx]))?,
+            array(py, b, &shaped(single, rows, &[ndx, m]))?,
         ];
         if let Some(z) = z {
             items.push(z_of(py, z, single)?);
@@ -233,14 +242,14 @@ impl Model {
         one_or_tuple(py, items)
     }
 
-    /// The states x_0..x_T ([T+1, 2n]) from x0 under inputs u [T, m], or under a TVLQR
-    /// policy (x_bar [T+1 or T, 2n], u_bar [T, m], K [T, m, 2n]) applying
-    /// u_t = ū_t − K_t(x_t − x̄_t). `with_inputs` also returns the applied inputs [T, m] and
+    /// The states x_0..x_T ([T+1, nq + nv]) from x0 under inputs u [T, m], or under a TVLQR
+    /// policy (x_bar [T+1 or T, nq + nv], u_bar [T, m], K [T, m, 2nv]) applying
+    /// u_t = ū_t − K_t(x_t ⊖ x̄_t). `with_inputs` also returns the applied inputs [T, m] and
     /// `return_z` max_abs_z [T] of each (x_t, u_t), last: (xs, us, z).
     ///
     /// `particles` P (1..1024) propagates P particles from x0, particle p following ensemble
     /// member p mod K throughout (TS∞), a policy's input computed from its own state: xs is
-    /// their mean and their standard deviation [T+1, 2n] follows it, (xs, std, …); the
+    /// their mean and their standard deviation [T+1, nq + nv] follows it, (xs, std, …); the
     /// inputs are the particles' mean, z the largest over them.
     #[pyo3(signature = (x0, u=None, policy=None, with_inputs=false, return_z=false,
         particles=None))]

@@ -17,6 +17,7 @@ use graybox_core::control::policy::Policy;
 use graybox_core::error::{Error, Result};
 use graybox_core::infer::Evaluator;
 use graybox_core::infer::limits::Cost;
+use graybox_core::physics::space::Space;
 
 /// The input at step t in state x.
 pub type Inputs = Box<dyn Fn(usize, &[f64]) -> Vec<f64> + Send + Sync>;
@@ -25,9 +26,10 @@ pub type Inputs = Box<dyn Fn(usize, &[f64]) -> Vec<f64> + Send + Sync>;
 pub fn rollout_inputs(
     u: Option<&ArrayIn<'_>>,
     policy: Option<&(ArrayIn<'_>, ArrayIn<'_>, ArrayIn<'_>)>,
-    nx: usize,
+    space: &Space,
     m: usize,
 ) -> Result<(usize, Inputs)> {
+    let (nx, ndx) = (space.nq() + space.nv(), 2 * space.nv());
     match (u, policy) {
         (Some(_), Some(_)) => Err(Error::invalid("policy", "give u or policy, not both")),
         (None, None) => Err(Error::invalid("u", "give u [T, m] or a policy")),
@@ -65,20 +67,20 @@ pub fn rollout_inputs(
                     ),
                 ));
             }
-            if ks != [steps, m, nx] {
+            if ks != [steps, m, ndx] {
                 return Err(Error::invalid(
                     "policy.K",
-                    format!("expected shape [{steps}, {m}, {nx}], got {ks:?}"),
+                    format!("expected shape [{steps}, {m}, {ndx}], got {ks:?}"),
                 ));
             }
             finite("policy.x_bar", &xbar, nx)?;
             finite("policy.u_bar", &ubar, m)?;
-            finite("policy.K", &k, m * nx)?;
+            finite("policy.K", &k, m * ndx)?;
             let p = Policy {
                 xbar,
                 ubar,
                 k,
-                nx,
+                space: space.clone(),
                 m,
             };
             Ok((steps, Box::new(move |t, x| p.input(t, x))))
@@ -86,14 +88,14 @@ pub fn rollout_inputs(
     }
 }
 
-/// K [T, m, 2n] and S [T+1, 2n, 2n] along (x̄, ū).
+/// K [T, m, 2nv] and S [T+1, 2nv, 2nv] along (x̄, ū), on tangent-space deviations.
 pub fn tvlqr<'py>(
     py: Python<'py>,
     eval: &Evaluator,
     (xbar, ubar): (ArrayIn<'py>, ArrayIn<'py>),
     [q, r, qf]: [ArrayIn<'py>; 3],
 ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, ndx, m) = (eval.config.nx(), eval.config.ndx(), eval.config.m);
     let checked = || -> Result<_> {
         let ((xbar, xs), (ubar, us)) = (values(&xbar), values(&ubar));
         let t = match us[..] {
@@ -117,9 +119,9 @@ pub fn tvlqr<'py>(
         finite("xbar", &xbar, nx)?;
         finite("ubar", &ubar, m)?;
         let weights = [
-            matrix("Q", &q, nx, nx)?,
+            matrix("Q", &q, ndx, ndx)?,
             matrix("R", &r, m, m)?,
-            matrix("Qf", &qf, nx, nx)?,
+            matrix("Qf", &qf, ndx, ndx)?,
         ];
         Ok((xbar, ubar, weights, t))
     };
@@ -141,8 +143,8 @@ pub fn tvlqr<'py>(
     let gains = interrupt.answer(py, gains)?;
     let flat = |mats: Vec<Mat>| mats.into_iter().flat_map(|m| m.data).collect::<Vec<_>>();
     Ok((
-        array(py, flat(gains.k), &[t, m, nx])?,
-        array(py, flat(gains.s), &[t + 1, nx, nx])?,
+        array(py, flat(gains.k), &[t, m, ndx])?,
+        array(py, flat(gains.s), &[t + 1, ndx, ndx])?,
     ))
 }
 
@@ -175,7 +177,8 @@ fn horizon(py: Python<'_>, horizon: i128) -> PyResult<usize> {
 
 /// The core's request from the arguments, checked against the model as the service does.
 fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>, horizon: usize) -> Result<PlanRequest> {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    eval.check_plannable()?;
+    let (nx, ndx, m) = (eval.config.nx(), eval.config.ndx(), eval.config.m);
     let count = |field: &str, v: i128| whole(field, v, usize::MAX as u64).map(|v| v as usize);
     let flat = |v: &Option<ArrayIn<'_>>| v.as_ref().map(|v| values(v).0);
     let rows = |name: &str, v: &Option<ArrayIn<'_>>, width: usize| -> Result<Option<Mat>> {
@@ -188,9 +191,9 @@ fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>, horizon: usize) -> Result<Pla
         x0: values(&a.x0).0,
         goal: values(&a.goal).0,
         horizon,
-        q: matrix("Q", q, nx, nx)?,
+        q: matrix("Q", q, ndx, ndx)?,
         r: matrix("R", r, m, m)?,
-        qf: matrix("Qf", qf, nx, nx)?,
+        qf: matrix("Qf", qf, ndx, ndx)?,
         u_min: flat(&a.u_bounds[0]),
         u_max: flat(&a.u_bounds[1]),
         u_init: rows("u_init", &a.u_init, m)?,
@@ -224,12 +227,13 @@ pub fn plan<'py>(
     let interrupt = Interrupt::new();
     let p = py.detach(|| eval.plan(&req, &|| interrupt.stop()).map(Some));
     let p = interrupt.answer(py, p)?;
-    let (nx, m, t) = (2 * eval.config.n, eval.config.m, req.horizon);
+    let c = &eval.config;
+    let (nx, ndx, m, t) = (c.nx(), c.ndx(), c.m, req.horizon);
     let d = PyDict::new(py);
     d.set_item("x", array(py, p.x, &[t + 1, nx])?)?;
     d.set_item("u", array(py, p.u, &[t, m])?)?;
     let k: Vec<f64> = p.gains.k.into_iter().flat_map(|k| k.data).collect();
-    d.set_item("K", array(py, k, &[t, m, nx])?)?;
+    d.set_item("K", array(py, k, &[t, m, ndx])?)?;
     d.set_item("cost", p.cost)?;
     d.set_item("costs", array(py, p.costs.clone(), &[p.costs.len()])?)?;
     d.set_item("iterations", p.iterations)?;

@@ -29,7 +29,7 @@ pub fn rollout<'py>(
     policy: Option<(ArrayIn<'py>, ArrayIn<'py>, ArrayIn<'py>)>,
     want: Want,
 ) -> PyResult<Vec<Bound<'py, PyAny>>> {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     // The service checks the count first: a bad count is named before any other argument.
     let particles = want
         .particles
@@ -42,9 +42,10 @@ pub fn rollout<'py>(
         .or_py(py)?;
     let x0 = rows("x0", Some(&x0), nx).or_py(py)?;
     if !x0.single {
-        return Err(Error::invalid("x0", "is one state [2n], not a batch")).or_py(py);
+        return Err(Error::invalid("x0", "is one state [nq + nv], not a batch")).or_py(py);
     }
-    let (steps, input) = rollout_inputs(u.as_ref(), policy.as_ref(), nx, m).or_py(py)?;
+    let (steps, input) =
+        rollout_inputs(u.as_ref(), policy.as_ref(), &eval.config.space, m).or_py(py)?;
     let cost = match particles {
         Some(p) => eval.particle_rollout_cost(steps, p, policy.is_some()),
         None => eval.rollout_cost(steps, policy.is_some()),
@@ -98,7 +99,7 @@ fn mean_rollout(
     input: &Inputs,
     stop: &dyn Fn() -> bool,
 ) -> Result<Option<Track>, Error> {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     let (mut xs, mut us) = (x0.to_vec(), Vec::with_capacity(steps * m));
     let (mut stopped, mut left, mut done) = (false, None, 0);
     eval.rollout(

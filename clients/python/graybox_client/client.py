@@ -25,14 +25,15 @@ from ._pb import dynamics_pb2_grpc as pb_grpc
 from ._shared import GrayboxError, PlanResult
 
 Array = NDArray[np.float64]
-# A TVLQR policy: x̄ [T+1 or T, 2n], ū [T, m], K [T, m, 2n].
+# A TVLQR policy: x̄ [T+1 or T, nq + nv], ū [T, m], K [T, m, 2nv].
 Policy = Sequence[ArrayLike]
 
 
 @dataclass
 class ModelInfo:
     """A trained model as GetModel and ListModels describe it; `spec` and `metrics` are the
-    server's JSON, parsed."""
+    server's JSON, parsed. A state is [q, v]: `nq` configuration values and `nv` velocities
+    (Linearize's A is [2nv, 2nv]); `n`, deprecated, is `nv`."""
 
     id: str
     job_id: str
@@ -43,6 +44,8 @@ class ModelInfo:
     spec: dict[str, Any]
     metrics: dict[str, Any]
     created_at: str
+    nq: int = 0
+    nv: int = 0
 
 
 def to_array(a: Any) -> pb.Array:
@@ -58,7 +61,7 @@ def from_array(a: pb.Array) -> Array:
 def _model_info(m: pb.ModelInfo) -> ModelInfo:
     # The JSON fields are parsed here so that callers get plain dicts, not strings.
     return ModelInfo(
-        id=m.id, job_id=m.job_id, name=m.name, n=m.n, m=m.m, dt=m.dt,
+        id=m.id, job_id=m.job_id, name=m.name, n=m.n, m=m.m, dt=m.dt, nq=m.nq, nv=m.nv,
         spec=json.loads(m.spec_json) if m.spec_json else {},
         metrics=json.loads(m.metrics_json) if m.metrics_json else {},
         created_at=m.created_at,
@@ -74,7 +77,7 @@ def _z(values: Sequence[float], rows: int, single: bool) -> Union[float, Array]:
 
 
 def _batch(x: ArrayLike, u: ArrayLike) -> tuple[Array, Array, bool]:
-    """(x, u) as [B, ·] arrays and whether the caller gave a single point ([2n] and [m])."""
+    """(x, u) as [B, ·] arrays and whether the caller gave a single point ([nq + nv] and [m])."""
     xs = np.asarray(x, dtype=np.float64)
     us = np.asarray(u, dtype=np.float64)
     single = xs.ndim == 1
@@ -148,13 +151,13 @@ class Client:
 
     def predict(self, model_id: str, x: ArrayLike, u: ArrayLike, want_accel: bool = False,
                 return_z: bool = False, return_std: bool = False, members: bool = False) -> Any:
-        """x' = f(x, u) for x [2n] and u [m], or a batch x [B, 2n] and u [B, m]; with
+        """x' = f(x, u) for x [nq + nv] and u [m], or a batch x [B, nq + nv] and u [B, m]; with
         `want_accel` also q̈ ([n] or [B, n]) as (x_next, accel); with `return_z` also
         max_abs_z (a float, or [B]) last: (x_next, z) or (x_next, accel, z).
 
         An ensemble's x' and q̈ are its members' means. `return_std` adds, after x' (and q̈),
         the members' standard deviation of x' per coordinate (zeros for a single model);
-        `members` adds every member's x' ([K, 2n] or [K, B, 2n]) after that."""
+        `members` adds every member's x' ([K, nq + nv] or [K, B, nq + nv]) after that."""
         xb, ub, single = _batch(x, u)
         r = self._call(self.stub.Predict, pb.PredictRequest(
             model_id=model_id, x=to_array(xb), u=to_array(ub), want_accel=want_accel,
@@ -180,9 +183,9 @@ class Client:
                        return_z: bool = False,
                        particles: Optional[int] = None) -> Iterator[tuple[Any, ...]]:
         """The streamed rollout as it arrives: (index of the chunk's first state, states
-        [c, 2n], inputs applied in the chunk [c', m]), with `return_z` also max_abs_z [c'] of
+        [c, nq + nv], inputs applied in the chunk [c', m]), with `return_z` also max_abs_z [c'] of
         each applied input and the state it was applied at. Arguments as `rollout`; with
-        `particles`, the states are the particles' mean and their spread [c, 2n] comes last."""
+        `particles`, the states are the particles' mean and their spread [c, nq + nv] comes last."""
         if u is not None and policy is not None:
             raise ValueError("give u or policy, not both")
         req = pb.RolloutRequest(model_id=model_id, chunk=chunk or 0,
@@ -224,15 +227,16 @@ class Client:
                 policy: Optional[Policy] = None, chunk: Optional[int] = None,
                 with_inputs: bool = False, return_z: bool = False,
                 particles: Optional[int] = None) -> Any:
-        """The states x_0..x_T ([T+1, 2n]) from x0 under inputs u [T, m] or a TVLQR policy
-        (x_bar [T+1 or T, 2n], u_bar [T, m], K [T, m, 2n]) applying u_t = ū_t − K_t(x_t − x̄_t).
+        """The states x_0..x_T ([T+1, nq + nv]) from x0 under inputs u [T, m] or a TVLQR policy
+        (x_bar [T+1 or T, nq + nv], u_bar [T, m], K [T, m, 2nv]) applying
+        u_t = ū_t − K_t(x_t ⊖ x̄_t).
         `chunk` is the states per streamed message (server default 1000, capped so that a
         message stays within 256 KiB); the chunks are joined. `with_inputs` also returns the
         applied inputs [T, m] as (xs, us); `return_z` also max_abs_z [T] of (x_t, u_t) last:
         (xs, z) or (xs, us, z).
 
         `particles` P (1..1024) propagates P particles, particle p following ensemble member
-        p mod K throughout (TS∞): xs is their mean, and their standard deviation [T+1, 2n]
+        p mod K throughout (TS∞): xs is their mean, and their standard deviation [T+1, nq + nv]
         follows it: (xs, std, …); the inputs are the particles' mean, z the largest."""
         xs: list[Array] = []
         stds: list[Array] = []
@@ -275,8 +279,9 @@ class Client:
 
     def linearize(self, model_id: str, x: ArrayLike, u: ArrayLike,
                   return_z: bool = False) -> tuple[Any, ...]:
-        """A = ∂f/∂x and B = ∂f/∂u of the one-step map: [2n, 2n] and [2n, m] at one point,
-        [B, 2n, 2n] and [B, 2n, m] for a batch; with `return_z` also max_abs_z (a float, or
+        """A and B of the one-step map in the tangent space, x' ⊖ x̄' = A (x ⊖ x̄) + B (u − ū):
+        [2nv, 2nv] and [2nv, m] at one point, [B, 2nv, 2nv] and [B, 2nv, m] for a batch (for
+        nq = nv, ∂f/∂x and ∂f/∂u); with `return_z` also max_abs_z (a float, or
         [B]) as (A, B, z)."""
         xb, ub, single = _batch(x, u)
         r = self._call(self.stub.Linearize, pb.LinearizeRequest(
@@ -286,7 +291,7 @@ class Client:
         return (*out, _z(r.max_abs_z, len(a), single)) if return_z else out
 
     def energy(self, model_id: str, x: ArrayLike, u: ArrayLike) -> dict[str, Any]:
-        """Energy and work at x [2n] under u [m], or a batch x [B, 2n] and u [B, m]: a dict of
+        """Energy and work at x [nq + nv] under u [m], or a batch x [B, nq + nv] and u [B, m]: a dict of
         `kinetic`, `potential`, `total`, `power` (q̇ᵀF) — floats, or [B] — and the dynamics
         M q̈ + c + ∇V = F term by term, `inertial`, `coriolis`, `gravity`, `applied` ([n] or
         [B, n]), with `parts`: F's named parts, {name: [n] or [B, n]}, and `damping`, the
@@ -309,7 +314,7 @@ class Client:
 
     def tvlqr(self, model_id: str, xbar: ArrayLike, ubar: ArrayLike, Q: ArrayLike, R: ArrayLike,
               Qf: ArrayLike) -> tuple[Array, Array]:
-        """TVLQR gains K [T, m, 2n] and cost-to-go S [T+1, 2n, 2n] along x̄ [T+1, 2n],
+        """TVLQR gains K [T, m, 2nv] and cost-to-go S [T+1, 2nv, 2nv] along x̄ [T+1, nq + nv],
         ū [T, m], for the cost Σ δxᵀQδx + δuᵀRδu + δx_TᵀQf δx_T (no ½)."""
         r = self._call(self.stub.Tvlqr, pb.TvlqrRequest(
             model_id=model_id, x_bar=to_array(xbar), u_bar=to_array(ubar),

@@ -36,6 +36,16 @@ pub const FIELDS: [&str; 5] = ["q", "qdot", "u", "q_next", "qdot_next"];
 pub const DT_RANGE: (f64, f64) = (1e-5, 10.0);
 
 impl Dataset {
+    /// Configuration values per row (q, q_next).
+    pub fn nq(&self) -> usize {
+        self.n
+    }
+
+    /// Velocities per row (qdot, qdot_next).
+    pub fn nv(&self) -> usize {
+        self.n
+    }
+
     pub fn count(&self) -> usize {
         self.q.len().checked_div(self.n).unwrap_or(0)
     }

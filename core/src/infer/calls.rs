@@ -15,7 +15,7 @@ const PARALLEL_ROWS: usize = 32;
 
 /// Batched entry points over row-major arrays: what the service and the benchmarks call.
 impl Evaluator {
-    /// x' (and q̈ when asked) for `[B, 2n]` states and `[B, m]` inputs.
+    /// x' (and v̇ when asked) for `[B, nq + nv]` states and `[B, m]` inputs.
     pub fn predict(&self, x: &[f64], u: &[f64], want_accel: bool) -> (Vec<f64>, Option<Vec<f64>>) {
         self.predict_until(x, u, want_accel, &|| false)
             .expect("never stopped")
@@ -29,12 +29,12 @@ impl Evaluator {
         want_accel: bool,
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
-        let n = self.config.n;
+        let (nx, nv) = (self.config.nx(), self.config.nv());
         let mut next = vec![0.0; x.len()];
-        let mut acc = vec![0.0; if want_accel { x.len() / 2 } else { 0 }];
+        let mut acc = vec![0.0; if want_accel { x.len() / nx * nv } else { 0 }];
         let outs = (
-            (&mut next[..], 2 * n),
-            (&mut acc[..], if want_accel { n } else { 0 }),
+            (&mut next[..], nx),
+            (&mut acc[..], if want_accel { nv } else { 0 }),
         );
         self.in_halves(x, u, Pass::Step, stop, outs, |x, u, next, acc| {
             let acc = want_accel.then_some(acc);
@@ -43,8 +43,9 @@ impl Evaluator {
         Some((next, want_accel.then_some(acc)))
     }
 
-    /// A `[B, 2n, 2n]` and B `[B, 2n, m]` for a batch: the state's and input's coordinates
-    /// are dual variables (2n + m directions, each sample its own), pushed through one step.
+    /// A `[B, 2nv, 2nv]` and B `[B, 2nv, m]` for a batch, in the tangent space
+    /// (x' ⊖ x̄' = A (x ⊖ x̄) + B (u − ū)): the state's deviations and the input are dual
+    /// variables (2nv + m directions, each sample its own), pushed through one step.
     pub fn linearize_batch(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
         self.linearize_until(x, u, &|| false)
             .expect("never stopped")
@@ -57,23 +58,25 @@ impl Evaluator {
         u: &[f64],
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
-        let (nx, m) = (2 * self.config.n, self.config.m);
-        let mut a = vec![0.0; x.len() * nx];
-        let mut b = vec![0.0; x.len() * m];
-        let outs = ((&mut a[..], nx * nx), (&mut b[..], nx * m));
+        let (nx, ndx, m) = (self.config.nx(), self.config.ndx(), self.config.m);
+        let rows = x.len() / nx;
+        let mut a = vec![0.0; rows * ndx * ndx];
+        let mut b = vec![0.0; rows * ndx * m];
+        let outs = ((&mut a[..], ndx * ndx), (&mut b[..], ndx * m));
         self.in_halves(x, u, Pass::Linearize, stop, outs, |x, u, a, b| {
             with_workspace(|ws| self.linearize_into(ws, x, u, a, b, &|| false));
         })?;
         Some((a, b))
     }
 
-    /// Each of a unit's states' rows [∂x'_i/∂x, ∂x'_i/∂u], in the arena: by the multibody
-    /// algorithms' derivatives state by state where they apply, else dual numbers through
-    /// the unit's step.
+    /// Each of a unit's states' rows [∂x'_i/∂δx, ∂x'_i/∂u] (in the tangent space), in the
+    /// arena: by the multibody algorithms' derivatives state by state where they apply, else
+    /// dual numbers through the unit's step.
     pub(super) fn jacobian_rows<'a>(&'a self, a: &'a Arena, x: &[f64], u: &[f64]) -> AVec<'a, f64> {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         let Some(robot) = self.jacobian_robot() else {
-            return continuous::dual_rows_in(a, (nx, m), x, u, |x, u| self.step_in(a, x, u));
+            let space = (&self.config.space, continuous::Output::State);
+            return continuous::dual_rows_in(a, space, m, x, u, |x, u| self.step_in(a, x, u));
         };
         let mut rows = AVec::with_capacity_in(x.len() * (nx + m), a);
         // By index, not `u.chunks(m)`: a robot without inputs has empty rows of u.
@@ -101,7 +104,7 @@ impl Evaluator {
         ((first, w1), (second, w2)): ((&mut [f64], usize), (&mut [f64], usize)),
         f: impl Fn(&[f64], &[f64], &mut [f64], &mut [f64]) + Sync,
     ) -> Option<()> {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         let (rows, chunk) = (x.len() / nx, 2 * self.chunk_states(pass));
         for s in (0..rows).step_by(chunk) {
             if stop() {
@@ -146,7 +149,7 @@ impl Evaluator {
 /// Plans run on the model's one-step map and its exact Jacobians (`control::plan`).
 impl Dynamics for Evaluator {
     fn nx(&self) -> usize {
-        2 * self.config.n
+        self.config.nx()
     }
     fn m(&self) -> usize {
         self.config.m

@@ -111,7 +111,7 @@ impl Evaluator {
         }
     }
 
-    /// The energies of `[B, 2n]` states under `[B, m]` inputs, or `None` when `stop` says so
+    /// The energies of `[B, nq + nv]` states under `[B, m]` inputs, or `None` when `stop` says so
     /// (polled every state).
     pub fn energy_until(
         &self,
@@ -120,7 +120,7 @@ impl Evaluator {
         stop: &dyn Fn() -> bool,
     ) -> Result<Option<Energies>> {
         self.check_energy()?;
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         let members: Vec<&Evaluator> = match &self.members {
             Some(members) => members.iter().collect(),
             None => vec![self],
@@ -139,14 +139,14 @@ impl Evaluator {
     }
 
     fn energy_row(&self, x: &[f64], u: &[f64]) -> Row {
-        let (q, qd) = x.split_at(self.config.n);
+        let (q, qd) = x.split_at(self.config.nq());
         let mut row = self
             .with_structure((q, qd, u), |s, nets, cols| match &self.multibody {
                 Some(model) => multibody_row(model, s, nets, cols),
                 None => assembled_row(s, nets, cols),
             })
             .expect("checked: a structured model");
-        let applied = sum_parts(&row.parts, self.config.n);
+        let applied = sum_parts(&row.parts, self.config.nv());
         row.power = qd.iter().zip(applied).map(|(v, f)| v * f).sum();
         row
     }
@@ -155,10 +155,10 @@ impl Evaluator {
 /// T and every term from the assembly: M = L Lᵀ with L's q-derivatives for c.
 fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> Row {
     let parts = named_parts(s, nets, x);
-    let applied = sum_parts(&parts, s.n);
+    let applied = sum_parts(&parts, s.n());
     let t = s.terms(nets, x);
     let l = &t.factor.l;
-    let gravity = (t.grad_v.as_deref()).map_or_else(|| vec![0.0; s.n], <[f64]>::to_vec);
+    let gravity = (t.grad_v.as_deref()).map_or_else(|| vec![0.0; s.n()], <[f64]>::to_vec);
     let qdd = acceleration(&t.factor, t.grad_v.as_deref(), &applied, x.qd);
     let w = tri_t_mul(l, x.qd);
     Row {
@@ -182,7 +182,7 @@ fn multibody_row(
 ) -> Row {
     let (q, qd) = (x.q, x.qd);
     let parts = named_parts(s, nets, x);
-    let applied = sum_parts(&parts, s.n);
+    let applied = sum_parts(&parts, s.n());
     let tau = s.multibody_torques(nets, x);
     let qdd = forward_dynamics(model, q, qd, &tau);
     let m = crba(model, q);

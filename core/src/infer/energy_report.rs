@@ -37,7 +37,7 @@ impl Evaluator {
         e
     }
 
-    /// The report on states `[N ≥ 1, 2n]` drawn from a dataset (`seed` picks them), or `None`
+    /// The report on states `[N ≥ 1, nq + nv]` drawn from a dataset (`seed` picks them), or `None`
     /// when `stop` says so.
     pub fn energy_report(
         &self,
@@ -46,7 +46,7 @@ impl Evaluator {
         stop: &dyn Fn() -> bool,
     ) -> Result<Option<EnergyReport>> {
         self.check_energy()?;
-        let nx = 2 * self.config.n;
+        let nx = self.config.nx();
         let mut rng = Rng::new(seed);
         let Some((scale, drift, switched_off)) =
             self.drift(&sample(states, nx, DRIFT_ROLLOUTS, &mut rng), stop)?
@@ -77,7 +77,7 @@ impl Evaluator {
         starts: &[f64],
         stop: &dyn Fn() -> bool,
     ) -> Result<Option<(f64, Vec<EnergyDrift>, Vec<String>)>> {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         let b = starts.len() / nx;
         let idle = vec![0.0; b * m];
         let Some(e0) = self.energy_until(starts, &idle, stop)? else {
@@ -117,16 +117,16 @@ impl Evaluator {
     }
 
     fn passivity(&self, states: &[f64], stop: &dyn Fn() -> bool) -> Result<Option<Passivity>> {
-        let (n, m) = (self.config.n, self.config.m);
-        let b = states.len() / (2 * n);
+        let (nq, nv, m) = (self.config.nq(), self.config.nv(), self.config.m);
+        let b = states.len() / (nq + nv);
         let Some(e) = self.energy_until(states, &vec![0.0; b * m], stop)? else {
             return Ok(None);
         };
         let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
         let injecting: Vec<f64> = (0..b)
             .filter_map(|k| {
-                let qd = &states[k * 2 * n + n..(k + 1) * 2 * n];
-                let f = &e.applied[k * n..(k + 1) * n];
+                let qd = &states[k * (nq + nv) + nq..(k + 1) * (nq + nv)];
+                let f = &e.applied[k * nv..(k + 1) * nv];
                 let p = e.power[k];
                 (p > POWER_TOLERANCE * norm(qd) * norm(f)).then_some(p)
             })

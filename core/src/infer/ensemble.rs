@@ -89,10 +89,26 @@ impl Evaluator {
 }
 
 impl Evaluator {
+    /// Plans are made for models whose every joint is one number: iLQR's and collocation's
+    /// deviations, costs and bounds are still taken on q as numbers (Predict, Linearize, Tvlqr
+    /// and rollouts work on the configuration space). Checked before a plan request's sizes.
+    pub fn check_plannable(&self) -> Result<()> {
+        if self.config.space.is_flat() {
+            return Ok(());
+        }
+        Err(crate::error::Error::FailedPrecondition(format!(
+            "plans are made for models whose every joint is one number; this one has nq = {} \
+             ≠ nv = {} (a rotation kept as a unit complex number)",
+            self.config.nq(),
+            self.config.nv()
+        )))
+    }
+
     /// A plan by the request's method (`control::make_plan`); an ensemble's also by its
     /// `ensemble_cost`, with the members' spread along it (`control::ensemble`). A single
     /// model plans as itself whatever `ensemble_cost` says.
     pub fn plan(&self, req: &PlanRequest, stop: &(dyn Fn() -> bool + Sync)) -> Result<Plan> {
+        self.check_plannable()?;
         match self.ensemble() {
             Some(members) => crate::control::ensemble::plan(self, members, req, stop),
             None => make_plan(self, req, stop),

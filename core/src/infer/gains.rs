@@ -6,7 +6,8 @@ use crate::control::tvlqr::{Gains, tvlqr};
 use crate::error::{Error, Result};
 
 impl Evaluator {
-    /// TVLQR gains along a nominal `x̄ [(T+1), 2n]`, `ū [T, m]` (defects ignored).
+    /// TVLQR gains along a nominal `x̄ [(T+1), nq + nv]`, `ū [T, m]` (defects ignored), on
+    /// tangent-space deviations: Q and Qf are 2nv × 2nv, K m × 2nv.
     pub fn tvlqr(&self, xbar: &[f64], ubar: &[f64], q: &Mat, r: &Mat, qf: &Mat) -> Result<Gains> {
         self.tvlqr_until(xbar, ubar, [q, r, qf], &|| false)
     }
@@ -20,20 +21,20 @@ impl Evaluator {
         [q, r, qf]: [&Mat; 3],
         stop: &dyn Fn() -> bool,
     ) -> Result<Gains> {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, ndx, m) = (self.config.nx(), self.config.ndx(), self.config.m);
         let t = ubar.len() / m;
         let (a, b) = self
             .linearize_until(&xbar[..t * nx], ubar, stop)
             .ok_or(Error::Cancelled)?;
-        finite_rows("x_bar", "linearization", &a, nx * nx)?;
-        finite_rows("x_bar", "linearization", &b, nx * m)?;
+        finite_rows("x_bar", "linearization", &a, ndx * ndx)?;
+        finite_rows("x_bar", "linearization", &b, ndx * m)?;
         let (a, b) = self.jacobians(a, b);
         tvlqr(&a, &b, q, r, qf)
     }
 
-    /// Flat `[T, nx, nx]` and `[T, nx, m]` Jacobians as matrices.
+    /// Flat `[T, 2nv, 2nv]` and `[T, 2nv, m]` Jacobians as matrices.
     pub(super) fn jacobians(&self, a: Vec<f64>, b: Vec<f64>) -> (Vec<Mat>, Vec<Mat>) {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.ndx(), self.config.m);
         (
             a.chunks(nx * nx)
                 .map(|a| Mat::new(nx, nx, a.to_vec()))

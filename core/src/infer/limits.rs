@@ -39,7 +39,8 @@ impl Evaluator {
     /// Cholesky factor with its q-derivatives, the Coriolis products, the solve), each counted
     /// four times for the RK4 stages' live copies, then doubled for allocator slack.
     pub fn work_bytes_per_state(&self, pass: Pass) -> usize {
-        let (n, m) = (self.config.n, self.config.m);
+        // The tangent's width stands for n: what the structure's matrices and directions are.
+        let (n, m) = (self.config.nv(), self.config.m);
         let outer = match pass {
             Pass::Step => 0,
             Pass::Linearize => 2 * n + m,
@@ -59,7 +60,7 @@ impl Evaluator {
         (CHUNK_WORK_BYTES / self.work_bytes_per_state(pass).max(1)).max(1)
     }
 
-    /// Per row of `[B, 2n]` states and `[B, m]` inputs, the largest |z-score| of q, q̇ and u
+    /// Per row of `[B, nq + nv]` states and `[B, m]` inputs, the largest |z-score| of q, q̇ and u
     /// under the training data's statistics: how far outside the data the model is asked to
     /// answer (a network saturates there and its outputs are finite but meaningless).
     pub fn max_abs_z(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
@@ -74,16 +75,16 @@ impl Evaluator {
     }
 
     fn max_abs_z_rows<'x>(&'x self, x: &'x [f64], u: &'x [f64]) -> impl Iterator<Item = f64> + 'x {
-        let (n, m) = (self.config.n, self.config.m);
+        let (nq, nv, m) = (self.config.nq(), self.config.nv(), self.config.m);
         let s = &self.config.scaling;
         let z = |v: f64, mean: f64, std: f64| ((v - mean) / std).abs();
         // Rows by index, not `u.chunks(m)`: a model without inputs has empty rows of u.
-        x.chunks(2 * n)
+        x.chunks(nq + nv)
             .enumerate()
             .map_while(move |(b, x)| Some((x, u.get(b * m..(b + 1) * m)?)))
             .map(move |(x, u)| {
-                let q = (0..n).map(|i| z(x[i], s.q_mean[i], s.q_std[i]));
-                let qd = (0..n).map(|i| z(x[n + i], s.qdot_mean[i], s.qdot_std[i]));
+                let q = (0..nq).map(|i| z(x[i], s.q_mean[i], s.q_std[i]));
+                let qd = (0..nv).map(|i| z(x[nq + i], s.qdot_mean[i], s.qdot_std[i]));
                 let uz = (0..m).map(|i| z(u[i], s.u_mean[i], s.u_std[i]));
                 q.chain(qd).chain(uz).fold(0.0, f64::max)
             })
@@ -143,7 +144,7 @@ impl Evaluator {
 
     /// x' (and q̈ with `accel`) for `b` states; with `members`, every member's x' as well.
     pub fn predict_cost(&self, b: usize, accel: bool, members: bool) -> Cost {
-        let (n, nx, m) = (self.config.n, 2 * self.config.n, self.config.m);
+        let (n, nx, m) = (self.config.nv(), self.config.nx(), self.config.m);
         let k = self.member_count();
         // x' (and its σ), q̈, max |z|; every member's x' when asked.
         let states = 1 + usize::from(k > 1 || members) + if members { k } else { 0 };
@@ -162,7 +163,7 @@ impl Evaluator {
 
     /// A and B at `b` states.
     pub fn linearize_cost(&self, b: usize) -> Cost {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.ndx(), self.config.m);
         let response_bytes = 8 * b * (nx * nx + nx * m + 1);
         let work = b.min(2 * self.chunk_states(Pass::Linearize))
             * self.work_bytes_per_state(Pass::Linearize);
@@ -180,7 +181,7 @@ impl Evaluator {
     /// The energies of `b` states (`energy::energy_until`): T, V, E and the power, then the
     /// four terms and F's named parts, n each.
     pub fn energy_cost(&self, b: usize) -> Cost {
-        let (n, m, k) = (self.config.n, self.config.m, self.member_count());
+        let (n, m, k) = (self.config.nv(), self.config.m, self.member_count());
         let parts = self.force_part_count();
         let response_bytes = 8 * b * (4 + n * (4 + parts));
         // The inputs, the answer's arrays and its message; each member's row of one state
@@ -190,13 +191,13 @@ impl Evaluator {
             field: "x",
             way_out: FEWER_STATES.into(),
             response_bytes,
-            memory_bytes: 8 * b * (2 * n + m) + 2 * response_bytes + row,
+            memory_bytes: 8 * b * (self.config.nx() + m) + 2 * response_bytes + row,
         }
     }
 
     /// TVLQR's gains along a nominal of `t` steps.
     pub fn tvlqr_cost(&self, t: usize) -> Cost {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.ndx(), self.config.m);
         let (jac, gains) = (nx * nx + nx * m, m * nx + nx * nx);
         let work = t.min(2 * self.chunk_states(Pass::Linearize))
             * self.work_bytes_per_state(Pass::Linearize);
@@ -213,7 +214,7 @@ impl Evaluator {
     /// it in chunks): its inputs (a policy's nominal and gains with `policy`), states and
     /// applied inputs.
     pub fn rollout_cost(&self, steps: usize, policy: bool) -> Cost {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         let given = if policy { nx + m + m * nx } else { m };
         let response_bytes = 8 * ((steps + 1) * nx + steps * m);
         Cost {
@@ -231,7 +232,7 @@ impl Evaluator {
     /// one step's work for every particle, and the answer: the mean and spread of every
     /// state, the mean inputs and z.
     pub fn particle_rollout_cost(&self, steps: usize, particles: usize, policy: bool) -> Cost {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         let given = if policy { nx + m + m * nx } else { m };
         let response_bytes = 8 * (2 * (steps + 1) * nx + steps * (m + 1));
         let per_steps = 8 * steps * given + response_bytes;
@@ -254,7 +255,7 @@ impl Evaluator {
     /// A plan of the request's horizon, method and ensemble cost (the request validated).
     pub fn plan_cost(&self, req: &PlanRequest) -> Cost {
         let t = req.horizon;
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         // The members' average cost plans on all of them stacked: K·nx states.
         let k = self.member_count();
         let stacked = k > 1 && req.ensemble_cost == EnsembleCost::Mean;

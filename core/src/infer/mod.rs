@@ -42,6 +42,7 @@ use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
 use crate::physics::assembly::{Columns, Structure, Terms};
 use crate::physics::dynamics::acceleration;
+use crate::physics::integrator::States;
 use crate::physics::multibody::forward_dynamics_in;
 use crate::physics::scalar::Scalar;
 
@@ -103,19 +104,19 @@ impl Evaluator {
         })
     }
 
-    /// `[B, 2n]` states and `[B, m]` inputs as the evaluator reads them.
+    /// `[B, nq + nv]` states and `[B, m]` inputs as the evaluator reads them.
     fn rows<'x, S>(&self, x: &'x [S], u: &'x [S]) -> Rows<'x, S> {
-        let (n, m) = (self.config.n, self.config.m);
-        Rows { x, u, n, m }
+        let (nq, nv, m) = (self.config.nq(), self.config.nv(), self.config.m);
+        Rows { x, u, nq, nv, m }
     }
 
-    /// q̈ `[B, n]` for a batch in an arena, or (`torques`, for a model on the multibody
+    /// v̇ `[B, nv]` for a batch in an arena, or (`torques`, for a model on the multibody
     /// algorithms) the τ it would take. The networks run once over the batch (matrix
     /// products), then the structure (Cholesky factor, Coriolis term, solve) on their rows:
     /// a pack of states at a time (`Lanes::Group`), or state by state for a few states and
     /// for the multibody algorithms (their recursion in f64).
     fn evaluate_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: Rows<S>, torques: bool) -> AVec<'a, S> {
-        let mut out = AVec::with_capacity_in(x.len() * x.n, a);
+        let mut out = AVec::with_capacity_in(x.len() * x.nv, a);
         let structured = self.with_structure_in(a, x, |s, outs| {
             let rows = 0..x.len();
             if self.multibody.is_some() {
@@ -146,7 +147,7 @@ impl Evaluator {
         let sc = &self.config.scaling;
         let acc = net.jet(a, &self.full_input(a, &x, true));
         for b in 0..x.len() {
-            out.extend((0..x.n).map(|j| {
+            out.extend((0..x.nv).map(|j| {
                 S::read(&acc, b, 0, j)
                     .scale(sc.acc_std[j])
                     .shift(sc.acc_mean[j])
@@ -196,7 +197,7 @@ impl Evaluator {
                     .map(|j| S::group::<N>(|k| x.part(part, at(k))[j].clone()))
                     .collect_in(a)
             };
-            let (q, qd, u) = (cols(0, x.n), cols(1, x.n), cols(2, x.m));
+            let (q, qd, u) = (cols(0, x.nq), cols(1, x.nv), cols(2, x.m));
             let nets = JetNets::<S::Group<N>>::new(a, outs, b0);
             let y = self.structure(
                 s,
@@ -214,15 +215,15 @@ impl Evaluator {
         }
     }
 
-    /// The networks' input from (q, q̇, u) (u only `with_u`): standardized, angles as
-    /// (sin, cos).
+    /// The networks' input from (q, v, u) (u only `with_u`): standardized, angles as
+    /// (sin, cos) and rotations as (cos, sin).
     fn full_input<'a, S: Lanes>(&self, a: &'a Arena, x: &Rows<S>, with_u: bool) -> Activations<'a> {
         let sc = &self.config.scaling;
         let outer = x.outer_dirs();
-        if !self.config.periodic.is_empty() {
-            return periodic_full_jet(a, x, with_u, sc, &self.config.periodic, outer);
+        if !self.config.space.is_real() {
+            return periodic_full_jet(a, x, with_u, sc, &self.config.space, outer);
         }
-        let (n, m) = (x.n, if with_u { x.m } else { 0 });
+        let (n, m) = (x.nq, if with_u { x.m } else { 0 });
         let value = |b: usize, j: usize| match j {
             j if j < n => standard(&x.q(b)[j], sc.q_mean[j], sc.q_std[j]),
             j if j < 2 * n => standard(&x.qd(b)[j - n], sc.qdot_mean[j - n], sc.qdot_std[j - n]),
@@ -268,16 +269,16 @@ impl Evaluator {
         else {
             return None;
         };
-        let (sc, angles) = (&self.config.scaling, &self.config.periodic);
+        let (sc, space) = (&self.config.scaling, &self.config.space);
         let outer = x.outer_dirs();
         let inv_std: AVec<f64> = sc.q_std.iter().map(|s| 1.0 / s).collect_in(arena);
         let q_jet = |inner: bool| {
-            if angles.is_empty() {
+            if space.is_real() {
                 let value = |b: usize, j: usize| standard(&x.q(b)[j], sc.q_mean[j], sc.q_std[j]);
                 let inner = inner.then_some(&inv_std[..]);
-                input_jet(arena, (x.len(), x.n), value, inner, outer)
+                input_jet(arena, (x.len(), x.nq), value, inner, outer)
             } else {
-                periodic_q_jet(arena, &x, sc, angles, inner, outer)
+                periodic_q_jet(arena, &x, sc, space, inner, outer)
             }
         };
         let outputs = networks(
@@ -294,7 +295,7 @@ impl Evaluator {
             template: self.config.template(),
             scaling: sc,
             values: w.values(),
-            n: x.n,
+            space,
             m: x.m,
             arena,
         };
@@ -339,33 +340,36 @@ impl Evaluator {
         acceleration(&t.factor, t.grad_v.as_deref(), &less(t.forces), x.qd)
     }
 
-    /// One step of the model's integrator: x = [q, q̇] (2n coordinates), u (m) → x'.
+    /// One step of the model's integrator: x = [q, v] (nq + nv values), u (m) → x'.
     pub fn step<S: Lanes>(&self, x: &[S], u: &[S]) -> Vec<S> {
         self.step_in(&Arena::new(), x, u).to_vec()
     }
 
-    /// One step of the integrator for `[B, 2n]` states under `[B, m]` inputs, in an arena:
-    /// each stage's q̈ for the whole batch at once (`evaluate_in`).
+    /// One step of the integrator for `[B, nq + nv]` states under `[B, m]` inputs, in an
+    /// arena: each stage's v̇ for the whole batch at once (`evaluate_in`), each stage's
+    /// configuration moved along its tangent by `integrate` (`physics::integrator`).
     pub fn step_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: &[S], u: &[S]) -> AVec<'a, S> {
-        let n = self.config.n;
+        let (nq, nv) = (self.config.nq(), self.config.nv());
         let x = AVec::from_iter_in(x.iter().cloned(), a);
-        (self.config.integrator).step(&x, self.config.dt, |x: &AVec<S>| {
-            let qdd = self.evaluate_in(a, self.rows(x, u), false);
-            let mut dx = AVec::with_capacity_in(x.len(), a);
-            for (x, qdd) in x.chunks(2 * n).zip(qdd.chunks(n)) {
-                dx.extend(x[n..].iter().cloned());
-                dx.extend(qdd.iter().cloned());
+        let states = States::new(&self.config.space, x.len() / (nq + nv));
+        (self.config.integrator).step(&states, &x, self.config.dt, |x: &AVec<S>| {
+            let vdot = self.evaluate_in(a, self.rows(x, u), false);
+            let mut dx = AVec::with_capacity_in(2 * nv * states.rows, a);
+            for (x, vdot) in x.chunks(nq + nv).zip(vdot.chunks(nv)) {
+                dx.extend(x[nq..].iter().cloned());
+                dx.extend(vdot.iter().cloned());
             }
             dx
         })
     }
 }
 
-/// States row by row: x `[B, 2n]` (q then q̇ in each row) and u `[B, m]`.
+/// States row by row: x `[B, nq + nv]` (q then v in each row) and u `[B, m]`.
 pub(super) struct Rows<'x, S> {
     pub(super) x: &'x [S],
     pub(super) u: &'x [S],
-    pub(super) n: usize,
+    pub(super) nq: usize,
+    pub(super) nv: usize,
     pub(super) m: usize,
 }
 
@@ -379,13 +383,13 @@ impl<S> Copy for Rows<'_, S> {}
 
 impl<'x, S: Lanes> Rows<'x, S> {
     fn len(&self) -> usize {
-        self.x.len() / (2 * self.n)
+        self.x.len() / (self.nq + self.nv)
     }
     fn q(&self, b: usize) -> &'x [S] {
-        &self.x[2 * self.n * b..][..self.n]
+        &self.x[(self.nq + self.nv) * b..][..self.nq]
     }
     fn qd(&self, b: usize) -> &'x [S] {
-        &self.x[2 * self.n * b + self.n..][..self.n]
+        &self.x[(self.nq + self.nv) * b + self.nq..][..self.nv]
     }
     fn u(&self, b: usize) -> &'x [S] {
         &self.u[self.m * b..][..self.m]

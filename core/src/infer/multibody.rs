@@ -15,6 +15,7 @@ use super::weights::Weights;
 use crate::arena::{AVec, Arena, CollectIn, zeros};
 use crate::model::ModelConfig;
 use crate::physics::dual::{Dual, Jet};
+use crate::physics::integrator::States;
 use crate::physics::multibody::{Model as Robot, with_data};
 use crate::physics::templates::Template;
 
@@ -60,8 +61,11 @@ impl Evaluator {
     /// The robot whose algorithms' derivatives give a step's Jacobian: a multibody model's
     /// of at most [`MULTIBODY_DIRS`] directions (beyond, dual numbers through the step do it).
     pub(super) fn jacobian_robot(&self) -> Option<&Robot> {
-        let dirs = 2 * self.config.n + self.config.m;
-        self.multibody.as_ref().filter(|_| dirs <= MULTIBODY_DIRS)
+        let dirs = self.config.ndx() + self.config.m;
+        let flat = self.config.space.is_flat();
+        self.multibody
+            .as_ref()
+            .filter(|_| flat && dirs <= MULTIBODY_DIRS)
     }
 
     /// Per output coordinate of one state's step, the row [∂x'_i/∂x, ∂x'_i/∂u], in the
@@ -90,12 +94,14 @@ impl Evaluator {
         x: &[f64],
         u: &[f64],
     ) -> AVec<'a, f64> {
-        let (n, nx, dirs) = (self.config.n, x.len(), x.len() + u.len());
+        // A robot's joints are each one number: nq = nv = n.
+        let (n, nx, dirs) = (self.config.nv(), x.len(), x.len() + u.len());
         let xu: AVec<f64> = x.iter().chain(u).copied().collect_in(a);
         let xu: AVec<Jet<N>> = Dual::seeded_in(a, &xu, &1.0, 0..dirs);
         let (xj, uj) = xu.split_at(nx);
         let xj = AVec::from_iter_in(xj.iter().cloned(), a);
-        let y = (self.config.integrator).step(&xj, self.config.dt, |x: &AVec<Jet<N>>| {
+        let states = States::new(&self.config.space, 1);
+        let y = (self.config.integrator).step(&states, &xj, self.config.dt, |x: &AVec<Jet<N>>| {
             let mut dx = AVec::with_capacity_in(2 * n, a);
             dx.extend(x[n..].iter().cloned());
             dx.extend(self.stage(a, model, x, uj));
@@ -117,7 +123,7 @@ impl Evaluator {
         x: &[Jet<N>],
         u: &[Jet<N>],
     ) -> AVec<'a, Jet<N>> {
-        let (q, qd) = x.split_at(self.config.n);
+        let (q, qd) = x.split_at(self.config.nq());
         let value = |x: &[Jet<N>]| -> AVec<f64> { x.iter().map(|j| j.v).collect_in(a) };
         let (qv, qdv) = (value(q), value(qd));
         let n = qv.len();

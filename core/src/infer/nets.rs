@@ -14,6 +14,7 @@ use crate::model::NamedArray;
 use crate::physics::assembly::Networks;
 use crate::physics::dual::{Dual, groups};
 use crate::physics::scaling::Scaling;
+use crate::physics::space::Space;
 
 /// An MLP's weights: per layer, W row-major `[in, out]` and b `[out]`.
 #[derive(Debug, Clone)]
@@ -94,33 +95,34 @@ pub(super) fn input_jet<'a, S: Lanes>(
     jet
 }
 
-/// The networks' input from q with ∂/∂q (inner tangents, when `inner`) when some coordinate
-/// is an angle: standardized q, with (sin q, cos q) in place of an angle. The tangents of
-/// (sin q, cos q), cos q and −sin q, depend on the sample and carry outer tangents of their
-/// own (the second derivatives a linearization needs).
+/// The networks' input from q with ∂/∂q in the tangent directions (inner tangents, when
+/// `inner`) when some joint is not a plain coordinate: standardized q, with (sin q, cos q) in
+/// place of an angle and (cos θ, sin θ) for a rotation (`Scaling::q_features_into`). Their
+/// tangents depend on the sample and carry outer tangents of their own (the second
+/// derivatives a linearization needs).
 pub(super) fn periodic_q_jet<'a, S: Lanes>(
     a: &'a Arena,
     x: &Rows<S>,
     sc: &Scaling,
-    angles: &[bool],
+    space: &Space,
     inner: bool,
     outer: usize,
 ) -> Activations<'a> {
-    let inner_dirs = if inner { x.n } else { 0 };
-    let width = x.n + angles.iter().take(x.n).filter(|&&a| a).count();
+    let inner_dirs = if inner { x.nv } else { 0 };
+    let width = space.q_features();
     let mut jet = Activations::zeros(a, x.len(), width, inner_dirs, outer);
     let mut features = AVec::with_capacity_in(width, a);
     for b in 0..x.len() {
         // The features and their ∂/∂q as the fused step builds them, written into the jet, a
         // group of directions at a time.
         features.clear();
-        sc.q_features_into(x.q(b), angles, 0..0, &mut features);
+        sc.q_features_into(x.q(b), space, 0..0, &mut features);
         for (j, f) in features.iter().enumerate() {
             f.v.write(&mut jet, b, 0, j);
         }
         for dirs in groups::<S>(inner_dirs) {
             features.clear();
-            sc.q_features_into(x.q(b), angles, dirs.clone(), &mut features);
+            sc.q_features_into(x.q(b), space, dirs.clone(), &mut features);
             for (j, f) in features.iter().enumerate() {
                 for k in 0..f.dirs() {
                     if let Some(t) = f.tangent(k) {
@@ -133,19 +135,19 @@ pub(super) fn periodic_q_jet<'a, S: Lanes>(
     jet
 }
 
-/// The networks' input from [q, q̇, u] (u only `with_u`) with angles (see
+/// The networks' input from [q, v, u] (u only `with_u`) with angles or rotations (see
 /// [`periodic_q_jet`]).
 pub(super) fn periodic_full_jet<'a, S: Lanes>(
     a: &'a Arena,
     x: &Rows<S>,
     with_u: bool,
     sc: &Scaling,
-    angles: &[bool],
+    space: &Space,
     outer: usize,
 ) -> Activations<'a> {
-    let q_part = periodic_q_jet(a, x, sc, angles, false, outer);
+    let q_part = periodic_q_jet(a, x, sc, space, false, outer);
     let m = if with_u { x.m } else { 0 };
-    let mut jet = Activations::zeros(a, x.len(), q_part.width + x.n + m, 0, outer);
+    let mut jet = Activations::zeros(a, x.len(), q_part.width + x.nv + m, 0, outer);
     for o in 0..=outer {
         for b in 0..q_part.batch {
             for j in 0..q_part.width {

@@ -55,7 +55,7 @@ pub struct ParticleTrack {
 }
 
 impl ParticleTrack {
-    /// Appends the mean and spread of the particles' states `[P, 2n]` as a row.
+    /// Appends the mean and spread of the particles' states `[P, nq + nv]` as a row.
     pub fn push_states(&mut self, states: &[f64], nx: usize) {
         for j in 0..nx {
             let column: Vec<f64> = states.iter().skip(j).step_by(nx).copied().collect();
@@ -80,7 +80,7 @@ pub fn particle_rollout(
     stop: &dyn Fn() -> bool,
 ) -> Result<ParticleTrack> {
     check_particles(count)?;
-    let nx = 2 * eval.config.n;
+    let nx = eval.config.nx();
     if x0.len() != nx || x0.iter().any(|v| !v.is_finite()) {
         return Err(Error::invalid("x0", format!("must be {nx} finite values")));
     }
@@ -91,7 +91,7 @@ pub fn particle_rollout(
     Ok(track)
 }
 
-/// `steps` steps of every particle from their states `[P, 2n]` at step `t` (`input` is asked
+/// `steps` steps of every particle from their states `[P, nq + nv]` at step `t` (`input` is asked
 /// for steps t, t + 1, …), each step's answer appended to `track` and the states left where
 /// the last step took them. On an error (`stop`, or [`diverged`] naming the step) the track
 /// and the states hold the steps before it.
@@ -104,7 +104,7 @@ pub fn advance(
     track: &mut ParticleTrack,
     stop: &dyn Fn() -> bool,
 ) -> Result<()> {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     for s in 0..steps {
         if stop() {
             return Err(Error::Cancelled);
@@ -125,7 +125,7 @@ pub fn advance(
 
 /// One step of every particle: those of one member as one batch on that member.
 fn step(eval: &Evaluator, xs: &[f64], us: &[f64]) -> Vec<f64> {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     let (p, k) = (xs.len() / nx, eval.member_count());
     let mut next = vec![0.0; xs.len()];
     for member in 0..k.min(p) {

@@ -161,7 +161,8 @@ fn missing(name: &str) -> Error {
 
 impl Weights {
     pub(super) fn from_file(file: &ModelFile) -> Result<Self> {
-        let (n, m) = (file.config.n, file.config.m);
+        // M is nv × nv and F nv wide; the networks read q's features (`q_in`).
+        let (n, m) = (file.config.nv(), file.config.m);
         let arrays = Arrays {
             by_name: file.params.iter().map(|a| (a.name.as_str(), a)).collect(),
             n,

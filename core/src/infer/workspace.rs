@@ -65,16 +65,16 @@ impl Workspace {
     /// once on zeros, in one block. A call's scratch is one unit's (at most `UNIT_ROWS`
     /// states), so a batch beyond that costs no more, and neither does a huge `max_batch` here.
     pub fn for_model(eval: &Evaluator, max_batch: usize) -> Self {
-        let (nx, m, b) = (
-            2 * eval.config.n,
-            eval.config.m,
-            max_batch.clamp(1, UNIT_ROWS),
-        );
+        let c = &eval.config;
+        let (nx, ndx, nv, m, b) = (c.nx(), c.ndx(), c.nv(), c.m, max_batch.clamp(1, UNIT_ROWS));
         let mut ws = Workspace::default();
         let mut most = 0;
-        let (x, u) = (vec![0.0; b * nx], vec![0.0; b * m]);
-        let (mut next, mut acc) = (vec![0.0; b * nx], vec![0.0; b * nx / 2]);
-        let (mut ja, mut jb) = (vec![0.0; b * nx * nx], vec![0.0; b * nx * m]);
+        // States at the space's origin (a rotation's (1, 0)), where every model evaluates.
+        let x0 = c.space.origin_state();
+        let x: Vec<f64> = x0.iter().copied().cycle().take(b * nx).collect();
+        let u = vec![0.0; b * m];
+        let (mut next, mut acc) = (vec![0.0; b * nx], vec![0.0; b * nv]);
+        let (mut ja, mut jb) = (vec![0.0; b * ndx * ndx], vec![0.0; b * ndx * m]);
         // One state runs alone, more in narrow packs, a unit's whole rows in one wide pack:
         // the largest of each way, and the most.
         for batch in [1, 2, 3, b - 1, b]
@@ -84,9 +84,9 @@ impl Workspace {
             let (x, u) = (&x[..batch * nx], &u[..batch * m]);
             let never = &|| false;
             let next = &mut next[..batch * nx];
-            eval.predict_into(&mut ws, x, u, next, Some(&mut acc[..batch * nx / 2]), never);
+            eval.predict_into(&mut ws, x, u, next, Some(&mut acc[..batch * nv]), never);
             most = most.max(ws.arena.allocated_bytes());
-            let (ja, jb) = (&mut ja[..batch * nx * nx], &mut jb[..batch * nx * m]);
+            let (ja, jb) = (&mut ja[..batch * ndx * ndx], &mut jb[..batch * ndx * m]);
             eval.linearize_into(&mut ws, x, u, ja, jb, never);
             most = most.max(ws.arena.allocated_bytes());
         }
@@ -150,8 +150,9 @@ impl Evaluator {
         (0..rows).step_by(per).map(move |s| s..rows.min(s + per))
     }
 
-    /// x' (`next`, `[B, 2n]`) and q̈ when asked (`acc`, `[B, n]`) for `[B, 2n]` states and
-    /// `[B, m]` inputs, into the caller's buffers; `None` when `stop` said so before a unit.
+    /// x' (`next`, `[B, nq + nv]`) and v̇ when asked (`acc`, `[B, nv]`) for `[B, nq + nv]`
+    /// states and `[B, m]` inputs, into the caller's buffers; `None` when `stop` said so
+    /// before a unit.
     pub fn predict_into(
         &self,
         ws: &mut Workspace,
@@ -162,19 +163,16 @@ impl Evaluator {
         stop: &dyn Fn() -> bool,
     ) -> Option<()> {
         ws.lend(self, |ws| {
-            let (n, m) = (self.config.n, self.config.m);
-            let rows = x.len() / (2 * n);
+            let (nx, nv, m) = (self.config.nx(), self.config.nv(), self.config.m);
+            let rows = x.len() / nx;
             for r in self.units(rows, Pass::Step) {
                 if stop() {
                     return None;
                 }
                 let (a, spare) = ws.reset();
-                let (x, u) = (
-                    &x[2 * n * r.start..2 * n * r.end],
-                    &u[m * r.start..m * r.end],
-                );
-                let next = &mut next[2 * n * r.start..2 * n * r.end];
-                let acc = (acc.as_deref_mut().map(|v| &mut v[n * r.start..n * r.end]))
+                let (x, u) = (&x[nx * r.start..nx * r.end], &u[m * r.start..m * r.end]);
+                let next = &mut next[nx * r.start..nx * r.end];
+                let acc = (acc.as_deref_mut().map(|v| &mut v[nv * r.start..nv * r.end]))
                     .unwrap_or_default();
                 match self.ensemble() {
                     Some(ms) => mean_into(ms.len(), spare, (next, acc), |k, next, acc| {
@@ -187,7 +185,7 @@ impl Evaluator {
         })
     }
 
-    /// One unit's x' and (unless `acc` is empty) q̈.
+    /// One unit's x' and (unless `acc` is empty) v̇.
     fn predict_unit(&self, a: &Arena, x: &[f64], u: &[f64], next: &mut [f64], acc: &mut [f64]) {
         next.copy_from_slice(&self.step_in(a, x, u));
         if !acc.is_empty() {
@@ -195,8 +193,8 @@ impl Evaluator {
         }
     }
 
-    /// A `[B, 2n, 2n]` and B `[B, 2n, m]` (as `linearize_batch`) into the caller's buffers;
-    /// `None` when `stop` said so before a unit.
+    /// A `[B, 2nv, 2nv]` and B `[B, 2nv, m]` (as `linearize_batch`) into the caller's
+    /// buffers; `None` when `stop` said so before a unit.
     pub fn linearize_into(
         &self,
         ws: &mut Workspace,
@@ -207,7 +205,7 @@ impl Evaluator {
         stop: &dyn Fn() -> bool,
     ) -> Option<()> {
         ws.lend(self, |ws| {
-            let (nx, m) = (2 * self.config.n, self.config.m);
+            let (nx, ndx, m) = (self.config.nx(), self.config.ndx(), self.config.m);
             let rows = x.len() / nx;
             for r in self.units(rows, Pass::Linearize) {
                 if stop() {
@@ -215,8 +213,8 @@ impl Evaluator {
                 }
                 let (a, spare) = ws.reset();
                 let (x, u) = (&x[nx * r.start..nx * r.end], &u[m * r.start..m * r.end]);
-                let ja = &mut ja[nx * nx * r.start..nx * nx * r.end];
-                let jb = &mut jb[nx * m * r.start..nx * m * r.end];
+                let ja = &mut ja[ndx * ndx * r.start..ndx * ndx * r.end];
+                let jb = &mut jb[ndx * m * r.start..ndx * m * r.end];
                 match self.ensemble() {
                     Some(ms) => mean_into(ms.len(), spare, (ja, jb), |k, ja, jb| {
                         ms[k].linearize_unit(a, x, u, ja, jb)
@@ -228,19 +226,19 @@ impl Evaluator {
         })
     }
 
-    /// A unit's A and B: per state and output coordinate of x', the row [∂x'_i/∂x, ∂x'_i/∂u]
-    /// cut in its A and B parts.
+    /// A unit's A and B: per state and tangent coordinate of x', the row
+    /// [∂x'_i/∂δx, ∂x'_i/∂u] cut in its A and B parts.
     fn linearize_unit(&self, a: &Arena, x: &[f64], u: &[f64], ja: &mut [f64], jb: &mut [f64]) {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (ndx, m) = (self.config.ndx(), self.config.m);
         let rows = self.jacobian_rows(a, x, u);
-        for (i, row) in rows.chunks(nx + m).enumerate() {
-            ja[i * nx..(i + 1) * nx].copy_from_slice(&row[..nx]);
-            jb[i * m..(i + 1) * m].copy_from_slice(&row[nx..]);
+        for (i, row) in rows.chunks(ndx + m).enumerate() {
+            ja[i * ndx..(i + 1) * ndx].copy_from_slice(&row[..ndx]);
+            jb[i * m..(i + 1) * m].copy_from_slice(&row[ndx..]);
         }
     }
 
     /// `steps` states after x0 under the inputs `u` (`[steps, m]`) into `xs`
-    /// (`[steps + 1, 2n]`, x0 first); the steps taken: fewer when `stop` said so after a step
+    /// (`[steps + 1, nq + nv]`, x0 first); the steps taken: fewer when `stop` said so after a step
     /// (the states so far are in `xs`).
     pub fn rollout_into(
         &self,
@@ -250,7 +248,7 @@ impl Evaluator {
         xs: &mut [f64],
         stop: &dyn Fn() -> bool,
     ) -> usize {
-        let (nx, m) = (2 * self.config.n, self.config.m);
+        let (nx, m) = (self.config.nx(), self.config.m);
         xs[..nx].copy_from_slice(x0);
         let steps = xs.len() / nx - 1;
         for t in 0..steps {

@@ -138,13 +138,12 @@ impl ModelFile {
         // cost its true difference, not (2π)². None marked is stored empty, as training does.
         let config = ModelConfig {
             spec: ModelSpec::named("W-B", Some(t.clone()))?,
-            n: t.n(),
+            space: t.space(),
             m: t.m(),
             dt,
             integrator,
             lambda: 1.0,
-            scaling: Scaling::identity(t.n(), t.m()),
-            periodic: ModelConfig::stored_periodic(t.periodic()),
+            scaling: Scaling::identity(t.nq(), t.n(), t.m()),
         };
         let params = vec![NamedArray {
             name: names::PHYSICAL_VALUES.to_string(),

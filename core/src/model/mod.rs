@@ -8,11 +8,13 @@ pub mod report;
 mod scaling;
 pub mod spec;
 mod spec_json;
+mod stored;
 
 use serde::{Deserialize, Serialize};
 
 use crate::physics::integrator::Integrator;
 use crate::physics::scaling::Scaling;
+use crate::physics::space::Space;
 use crate::physics::templates::Template;
 use spec::ModelSpec;
 
@@ -47,19 +49,17 @@ pub struct NamedArray {
 
 /// Everything that defines a model apart from its trainable values.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "stored::Stored", into = "stored::Stored")]
 pub struct ModelConfig {
     pub spec: ModelSpec,
-    pub n: usize,
+    /// The configuration space: nq configuration values, nv velocities (`physics::space`).
+    pub space: Space,
     pub m: usize,
     pub dt: f64,
     pub integrator: Integrator,
     /// Weight of the velocity error in the loss.
     pub lambda: f64,
     pub scaling: Scaling,
-    /// Which coordinates are angles (empty: none, as in every file before this field): the
-    /// networks see (sin q, cos q) for them and the loss compares them on the circle.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub periodic: Vec<bool>,
 }
 
 impl ModelConfig {
@@ -67,27 +67,57 @@ impl ModelConfig {
         self.spec.template()
     }
 
-    /// `periodic` as a file stores it: none marked is empty, as in every file before the field.
-    pub fn stored_periodic(angles: Vec<bool>) -> Vec<bool> {
-        if angles.contains(&true) {
-            angles
-        } else {
-            vec![]
-        }
+    /// Configuration values: q's width.
+    pub fn nq(&self) -> usize {
+        self.space.nq()
     }
 
-    /// Whether coordinate k is an angle.
+    /// Velocities: v's width, and that of every force, acceleration and tangent.
+    pub fn nv(&self) -> usize {
+        self.space.nv()
+    }
+
+    /// A state's width, nq + nv.
+    pub fn nx(&self) -> usize {
+        self.nq() + self.nv()
+    }
+
+    /// A tangent state's width, 2·nv: the rows and columns of a linearization.
+    pub fn ndx(&self) -> usize {
+        2 * self.nv()
+    }
+
+    /// Whether velocity k is an angle's.
     pub fn is_periodic(&self, k: usize) -> bool {
-        self.periodic.get(k).copied().unwrap_or(false)
+        self.space.is_angle(k)
     }
 
-    /// The width of a network input made of q: one per coordinate, two per angle.
+    /// The width of a network input made of q (`Space::q_features`).
     pub fn q_inputs(&self) -> usize {
-        self.n + (0..self.n).filter(|&k| self.is_periodic(k)).count()
+        self.space.q_features()
     }
 
-    /// The width of a network input made of [q, q̇, u].
+    /// Data of (nq, nv, m) widths fits the model; else an error naming `field` and both.
+    pub fn check_data(
+        &self,
+        field: &str,
+        (nq, nv, m): (usize, usize, usize),
+    ) -> crate::error::Result<()> {
+        let own = (self.nq(), self.nv(), self.m);
+        if (nq, nv, m) == own {
+            return Ok(());
+        }
+        Err(crate::error::Error::invalid(
+            field,
+            format!(
+                "has nq = {nq}, nv = {nv}, m = {m} but the model has nq = {}, nv = {}, m = {}",
+                own.0, own.1, own.2
+            ),
+        ))
+    }
+
+    /// The width of a network input made of [q, v, u].
     pub fn full_inputs(&self) -> usize {
-        self.q_inputs() + self.n + self.m
+        self.q_inputs() + self.nv() + self.m
     }
 }

@@ -8,6 +8,7 @@ use super::spec_json;
 use crate::error::{Error, Result};
 use crate::physics::params::Part;
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec, structured_hidden};
+use crate::physics::space::Space;
 use crate::physics::templates::Template;
 use crate::physics::urdf::UrdfTemplate;
 
@@ -310,18 +311,34 @@ impl ModelSpec {
     }
 
     /// Checks the spec against a dataset's dimensions.
-    pub fn check_dims(&self, n: usize, m: usize) -> Result<()> {
+    /// The spec fits data on this configuration space with m inputs: its template's sizes
+    /// are the data's, and a quadratic potential ½ qᵀKq reads q as numbers (a flat space).
+    pub fn check_dims(&self, space: &Space, m: usize) -> Result<()> {
+        let (nq, nv) = (space.nq(), space.nv());
         if let Some(t) = self.template()
-            && (t.n() != n || t.m() != m)
+            && (t.nq() != nq || t.n() != nv || t.m() != m)
         {
             return Err(Error::invalid(
                 "template",
                 format!(
-                    "template '{}' has n = {}, m = {} but the dataset has n = {n}, m = {m}",
+                    "template '{}' has nq = {}, nv = {}, m = {} but the data has nq = {nq}, \
+                     nv = {nv}, m = {m}",
                     t.name(),
+                    t.nq(),
                     t.n(),
                     t.m()
                 ),
+            ));
+        }
+        if let ModelSpec::Structured {
+            potential: PotentialSpec::Quadratic,
+            ..
+        } = self
+            && !space.is_flat()
+        {
+            return Err(Error::invalid(
+                "spec.potential",
+                "a quadratic potential ½ qᵀKq needs every joint to be one number (nq = nv)",
             ));
         }
         Ok(())

@@ -11,6 +11,7 @@ use super::dual::{Dual, groups};
 use super::dynamics::{Factor, cholesky, tri_index};
 use super::mass_matrix::{factor_from_outputs, outputs};
 use super::scalar::Scalar;
+use super::space::Space;
 use super::templates::Template;
 use crate::arena::{AVec, Arena, CollectIn};
 use crate::physics::parts::{ForceSpec, MassSpec, PotentialSpec};
@@ -121,7 +122,8 @@ pub struct Structure<'a, P> {
     pub template: Option<&'a Template>,
     pub scaling: &'a Scaling,
     pub values: Values<'a, P>,
-    pub n: usize,
+    /// The configuration space: q's nq values, and nv of everything else.
+    pub space: &'a Space,
     pub m: usize,
     /// Where its vectors are made.
     pub arena: &'a Arena,
@@ -138,6 +140,11 @@ impl<'a, P> Structure<'a, P> {
             grad_v: self.potential_grad(nets, x),
             forces: self.generalized_forces(nets, x),
         }
+    }
+
+    /// The tangent's width nv: M is nv × nv, ∇V and F nv wide.
+    pub fn n(&self) -> usize {
+        self.space.nv()
     }
 
     pub(super) fn template(&self) -> &'a Template {
@@ -165,9 +172,10 @@ impl<'a, P> Structure<'a, P> {
             .collect_in(self.arena)
     }
 
-    /// q as dual variables in the directions `dirs`, for the analytic parts that need ∂/∂q.
+    /// q as dual numbers in the tangent directions `dirs` (q ⊕ ε e_k), for the analytic parts
+    /// that need ∂/∂q.
     fn q_vars<S: Scalar>(&self, x: &impl Inputs<S>, dirs: Range<usize>) -> AVec<'a, Dual<S>> {
-        Dual::seeded_in(self.arena, x.q(), &x.one(), dirs)
+        self.space.seeded_in(self.arena, x.q(), &x.one(), dirs)
     }
 
     /// L(q) = the Cholesky factor of M(q), with its q-tangents.
@@ -175,7 +183,7 @@ impl<'a, P> Structure<'a, P> {
     where
         P: Coef<S>,
     {
-        let n = self.n;
+        let n = self.n();
         let a = self.arena;
         Factor::from_groups(a, n, |dirs| match self.mass {
             MassSpec::Mlp { .. } => {
@@ -202,7 +210,7 @@ impl<'a, P> Structure<'a, P> {
     where
         P: Coef<S>,
     {
-        let (n, s, a) = (self.n, self.scaling, self.arena);
+        let (n, s, a) = (self.n(), self.scaling, self.arena);
         let network = || self.potential_network_grad(nets);
         match self.potential {
             PotentialSpec::Zero => None,
@@ -245,7 +253,7 @@ impl<'a, P> Structure<'a, P> {
     /// ∂V/∂q of the potential's network (in the data's units).
     fn potential_network_grad<S: Scalar>(&self, nets: &impl Networks<S>) -> AVec<'a, S> {
         let scale = self.scaling.potential_scale();
-        (0..self.n)
+        (0..self.n())
             .map(|k| nets.potential_grad(k).scale(scale))
             .collect_in(self.arena)
     }
@@ -310,7 +318,7 @@ impl<'a, P> Structure<'a, P> {
     /// The force network's output in the data's units (a general F, or a template's residual).
     pub(super) fn force_network<S: Scalar>(&self, nets: &impl Networks<S>) -> AVec<'a, S> {
         let s = self.scaling;
-        (0..self.n)
+        (0..self.n())
             .map(|j| nets.force(j).scale(s.force_scale[j]))
             .collect_in(self.arena)
     }
@@ -324,7 +332,7 @@ impl<'a, P> Structure<'a, P> {
     where
         P: Coef<S>,
     {
-        let (n, m, s, a) = (self.n, self.m, self.scaling, self.arena);
+        let (n, m, s, a) = (self.n(), self.m, self.scaling, self.arena);
         let b_scale = |k: usize| s.force_scale[k / m] / s.u_std[k % m];
         match self.forces {
             ForceSpec::ControlAffine { .. } | ForceSpec::Passive { .. } => (0..n * m)
@@ -364,7 +372,7 @@ impl<'a, P> Structure<'a, P> {
         let s = self.scaling;
         let eta = self.values.eta.expect("eta");
         let qd = x.qd();
-        let damping = (0..self.n).map(|i| {
+        let damping = (0..self.n()).map(|i| {
             eta[i]
                 .mul_div(s.force_scale[i], s.qdot_std[i])
                 .times(&qd[i])
@@ -374,7 +382,7 @@ impl<'a, P> Structure<'a, P> {
 
     /// B u (B `n·m` row-major).
     pub(super) fn input_force<S: Scalar>(&self, b: &[S], x: &impl Inputs<S>) -> AVec<'a, S> {
-        let (n, m, u) = (self.n, self.m, x.u());
+        let (n, m, u) = (self.n(), self.m, x.u());
         (0..n)
             .map(|i| {
                 (0..m)
@@ -393,7 +401,7 @@ impl<'a, P> Structure<'a, P> {
         nets: &impl Networks<S>,
         x: &impl Inputs<S>,
     ) -> AVec<'a, S> {
-        let (n, s, arena) = (self.n, self.scaling, self.arena);
+        let (n, s, arena) = (self.n(), self.scaling, self.arena);
         let root: AVec<f64> = (0..n)
             .map(|i| (s.force_scale[i] / s.qdot_std[i]).sqrt())
             .collect_in(arena);

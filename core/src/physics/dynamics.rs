@@ -12,6 +12,7 @@ use std::ops::{Deref, Range};
 
 use super::dual::{Dual, groups};
 use super::scalar::Scalar;
+use super::space::Space;
 use crate::arena::{AVec, Arena, CollectIn};
 use crate::linalg::cholesky::{Packed, Summed, factor_in_place, solve_by};
 
@@ -198,10 +199,12 @@ pub fn constants(values: &[f64]) -> Vec<Dual<f64>> {
     values.iter().map(|&v| Dual::constant(v)).collect()
 }
 
-/// q̈ in f64 of a white-box mechanism: M(q) and V(q) over dual numbers (their q-tangents give
-/// ∂M/∂q for the Coriolis term and ∇V), and the generalized forces.
+/// v̇ in f64 of a white-box mechanism on `space`: M(q) and V(q) over dual numbers (their
+/// tangents along each velocity give ∂M/∂q for the Coriolis term and ∇V), and the generalized
+/// forces.
 pub fn white_box_acceleration<'a, M, R>(
     a: &'a Arena,
+    space: &Space,
     mass: impl Fn(&[Dual<f64>]) -> M,
     potential: impl Fn(&[Dual<f64>]) -> Dual<f64>,
     forces: &[f64],
@@ -212,13 +215,13 @@ where
     M: Deref<Target = [R]>,
     R: Deref<Target = [Dual<f64>]>,
 {
-    let n = q.len();
+    let n = space.nv();
     let factor = Factor::from_groups(a, n, |dirs| {
-        cholesky(a, &mass(&Dual::seeded_in(a, q, &1.0, dirs)))
+        cholesky(a, &mass(&space.seeded_in(a, q, &1.0, dirs)))
     });
     let grad_v: AVec<f64> = groups::<f64>(n)
         .flat_map(|dirs| {
-            let v = potential(&Dual::seeded_in(a, q, &1.0, dirs.clone()));
+            let v = potential(&space.seeded_in(a, q, &1.0, dirs.clone()));
             (0..dirs.len()).map(move |k| v.tangent(k).copied().unwrap_or(0.0))
         })
         .collect_in(a);

@@ -64,8 +64,8 @@ impl<'a, P> Structure<'a, P> {
             PotentialSpec::Quadratic => {
                 let k = self.values.potential_quad.expect("quadratic potential");
                 let mut twice = zero;
-                for i in 0..self.n {
-                    for j in 0..self.n {
+                for i in 0..self.n() {
+                    for j in 0..self.n() {
                         let kij = &k[tri_index(i.max(j), i.min(j))];
                         twice = twice + kij.times(&(q[i].clone() * q[j].clone()));
                     }

@@ -22,6 +22,7 @@ pub mod params;
 pub mod parts;
 pub mod scalar;
 pub mod scaling;
+pub mod space;
 pub mod stiffness;
 pub mod tangents;
 pub mod tape;

@@ -12,6 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use super::dual::Dual;
 use super::scalar::Scalar;
+use super::space::{Joint, Space};
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Scaling {
@@ -46,11 +47,12 @@ impl Scaling {
         .all(|v| v.iter().all(|x| x.is_finite()))
     }
 
-    /// Identity scalings (used where no data is at hand, e.g. in unit tests).
-    pub fn identity(n: usize, m: usize) -> Self {
+    /// Identity scalings (used where no data is at hand, e.g. in unit tests) for nq
+    /// configuration values, n velocities and m inputs.
+    pub fn identity(nq: usize, n: usize, m: usize) -> Self {
         Self {
-            q_mean: vec![0.0; n],
-            q_std: vec![1.0; n],
+            q_mean: vec![0.0; nq],
+            q_std: vec![1.0; nq],
             qdot_mean: vec![0.0; n],
             qdot_std: vec![1.0; n],
             u_mean: vec![0.0; m],
@@ -83,16 +85,17 @@ impl Scaling {
 /// The networks' inputs as values of any number type (the training tape's; the f64
 /// evaluator builds the same inputs in its batched form).
 impl Scaling {
-    /// The input from q: standardized, an angle (`angles[k]`) as (sin q_k, cos q_k); each
-    /// input carries its ∂/∂q in the directions `dirs` (none for an empty range).
+    /// The input from q: standardized, an angle as (sin q_k, cos q_k), a rotation as its
+    /// (cos θ, sin θ) itself; each input carries its ∂/∂q in the tangent directions `dirs`
+    /// (none for an empty range).
     pub fn q_features<S: Scalar>(
         &self,
         q: &[S],
-        angles: &[bool],
+        space: &Space,
         dirs: Range<usize>,
     ) -> Vec<Dual<S>> {
         let mut out = vec![];
-        self.q_features_into(q, angles, dirs, &mut out);
+        self.q_features_into(q, space, dirs, &mut out);
         out
     }
 
@@ -100,31 +103,40 @@ impl Scaling {
     pub fn q_features_into<S: Scalar>(
         &self,
         q: &[S],
-        angles: &[bool],
+        space: &Space,
         dirs: Range<usize>,
         out: &mut impl Extend<Dual<S>>,
     ) {
-        for (k, qk) in q.iter().enumerate() {
+        for p in space.placed() {
             let with = |v: S, d: S| -> Dual<S> {
-                if !dirs.contains(&k) {
+                if !dirs.contains(&p.v) {
                     return Dual::constant(v);
                 }
-                Dual::variable(v, k - dirs.start, dirs.len(), d)
+                Dual::variable(v, p.v - dirs.start, dirs.len(), d)
             };
-            if angles.get(k).copied().unwrap_or(false) {
-                let (sin, cos) = (qk.sin(), qk.cos());
-                out.extend([with(sin.clone(), cos.clone()), with(cos, -sin)]);
-            } else {
-                let inv = 1.0 / self.q_std[k];
-                out.extend([with(qk.shift(-self.q_mean[k]).scale(inv), qk.lift(inv))]);
+            let k = p.q.start;
+            let qk = &q[k];
+            match p.joint {
+                Joint::Angle => {
+                    let (sin, cos) = (qk.sin(), qk.cos());
+                    out.extend([with(sin.clone(), cos.clone()), with(cos, -sin)]);
+                }
+                Joint::Circle => {
+                    let (c, s) = (qk.clone(), q[k + 1].clone());
+                    out.extend([with(c.clone(), -s.clone()), with(s, c)]);
+                }
+                Joint::Real => {
+                    let inv = 1.0 / self.q_std[k];
+                    out.extend([with(qk.shift(-self.q_mean[k]).scale(inv), qk.lift(inv))]);
+                }
             }
         }
     }
 
     /// The input from [q, q̇, u]: q's as [`Scaling::q_features`] gives it, then q̇ and u
     /// standardized.
-    pub fn full_features<S: Scalar>(&self, q: &[S], qd: &[S], u: &[S], angles: &[bool]) -> Vec<S> {
-        let mut out: Vec<S> = (self.q_features(q, angles, 0..0).into_iter())
+    pub fn full_features<S: Scalar>(&self, q: &[S], qd: &[S], u: &[S], space: &Space) -> Vec<S> {
+        let mut out: Vec<S> = (self.q_features(q, space, 0..0).into_iter())
             .map(|d| d.v)
             .collect();
         let standardized = |x: &[S], mean: &[f64], std: &[f64]| -> Vec<S> {

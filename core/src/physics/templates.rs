@@ -2,13 +2,13 @@
 //! parameters, written once over [`Scalar`] so that the same equations serve training (the
 //! tape's columns), simulation and inference (f64), and their q-derivatives (dual numbers).
 
-use std::borrow::Cow;
 use std::sync::Arc;
 
 use super::formula_template::FormulaTemplate;
 use super::multibody::crba;
 use super::params::{ParamInfo, Part};
 use super::scalar::Scalar;
+use super::space::Space;
 use super::urdf::template::{KIND as URDF, UrdfTemplate};
 use crate::arena::{AVec, Arena, CollectIn, avec};
 use crate::error::{Error, Result};
@@ -24,6 +24,8 @@ pub enum Template {
     DoublePendulum,
     Pendulum,
     Cartpole,
+    /// A rigid body in a vertical plane, its heading a unit complex number (nq = 4, nv = 3).
+    PlanarBody,
     Formula(Arc<FormulaTemplate>),
     Urdf(Arc<UrdfTemplate>),
 }
@@ -39,100 +41,17 @@ pub struct Combination {
     pub eval: CombinationFn,
 }
 
-use Part::{Forces as F, Mass as M, Potential as V};
+mod planar_body;
+mod tables;
 
-const fn p(
-    name: &'static str,
-    default: f64,
-    positive: bool,
-    used_by: &'static [Part],
-) -> ParamInfo {
-    ParamInfo {
-        name: Cow::Borrowed(name),
-        default,
-        positive,
-        min: None,
-        fixed: false,
-        used_by: Cow::Borrowed(used_by),
-    }
-}
-
-const DOUBLE_PENDULUM: &[ParamInfo] = &[
-    p("m1", 10.0, true, &[M, V]),
-    p("m2", 10.0, true, &[M, V]),
-    p("l1", 1.0, true, &[M, V]),
-    p("l2", 1.0, true, &[M, V]),
-    p("g", 10.0, true, &[V]),
-    p("b1", 1.0, false, &[F]),
-    p("b2", 1.0, false, &[F]),
-    p("eta1", -0.5, false, &[F]),
-    p("eta2", -0.5, false, &[F]),
-];
-
-const PENDULUM: &[ParamInfo] = &[
-    p("m", 1.0, true, &[M, V]),
-    p("l", 1.0, true, &[M, V]),
-    p("g", 10.0, true, &[V]),
-    p("b", 1.0, false, &[F]),
-    p("eta", -0.1, false, &[F]),
-];
-
-const CARTPOLE: &[ParamInfo] = &[
-    p("mc", 1.0, true, &[M]),
-    p("mp", 0.5, true, &[M, V]),
-    p("l", 1.0, true, &[M, V]),
-    p("g", 10.0, true, &[V]),
-    p("b", 1.0, false, &[F]),
-    p("eta_x", -0.1, false, &[F]),
-    p("eta_th", -0.1, false, &[F]),
-];
-
-macro_rules! combo {
-    ($name:literal, [$($part:ident),*], |$v:ident| $e:expr) => {
-        Combination { name: $name, needs: &[$($part),*], eval: |$v| $e }
-    };
-}
-
-const DOUBLE_PENDULUM_COMBOS: &[Combination] = &[
-    combo!("m1/m2", [M], |v| v("m1") / v("m2")),
-    combo!("l1/l2", [M], |v| v("l1") / v("l2")),
-    combo!("g/l1", [M, V], |v| v("g") / v("l1")),
-    combo!("b1/(m1*l1^2)", [M, F], |v| v("b1")
-        / (v("m1") * v("l1").powi(2))),
-    combo!("b2/(m1*l1^2)", [M, F], |v| v("b2")
-        / (v("m1") * v("l1").powi(2))),
-    combo!("eta1/(m1*l1^2)", [M, F], |v| v("eta1")
-        / (v("m1") * v("l1").powi(2))),
-    combo!("eta2/(m1*l1^2)", [M, F], |v| v("eta2")
-        / (v("m1") * v("l1").powi(2))),
-    combo!("b1/b2", [F], |v| v("b1") / v("b2")),
-    combo!("eta1/b1", [F], |v| v("eta1") / v("b1")),
-    combo!("eta2/b2", [F], |v| v("eta2") / v("b2")),
-];
-
-const PENDULUM_COMBOS: &[Combination] = &[
-    combo!("g/l", [M, V], |v| v("g") / v("l")),
-    combo!("b/(m*l^2)", [M, F], |v| v("b") / (v("m") * v("l").powi(2))),
-    combo!("eta/(m*l^2)", [M, F], |v| v("eta")
-        / (v("m") * v("l").powi(2))),
-    combo!("eta/b", [F], |v| v("eta") / v("b")),
-];
-
-const CARTPOLE_COMBOS: &[Combination] = &[
-    combo!("mc/mp", [M], |v| v("mc") / v("mp")),
-    combo!("l", [M], |v| v("l")),
-    combo!("g", [M, V], |v| v("g")),
-    combo!("b/mp", [M, F], |v| v("b") / v("mp")),
-    combo!("eta_x/mp", [M, F], |v| v("eta_x") / v("mp")),
-    combo!("eta_th/mp", [M, F], |v| v("eta_th") / v("mp")),
-    combo!("eta_x/b", [F], |v| v("eta_x") / v("b")),
-];
+use tables::*;
 
 impl Template {
-    pub const ALL: [Template; 3] = [
+    pub const ALL: [Template; 4] = [
         Template::DoublePendulum,
         Template::Pendulum,
         Template::Cartpole,
+        Template::PlanarBody,
     ];
 
     pub fn name(&self) -> &str {
@@ -140,6 +59,7 @@ impl Template {
             Template::DoublePendulum => "double_pendulum",
             Template::Pendulum => "pendulum",
             Template::Cartpole => "cartpole",
+            Template::PlanarBody => "planar_body",
             Template::Formula(f) => &f.doc.name,
             Template::Urdf(u) => &u.doc.name,
         }
@@ -243,9 +163,10 @@ impl Template {
         })
     }
 
-    /// The coordinates' names (a built-in's are q1, q2, …).
+    /// The coordinates' names, one per velocity (a built-in's are q1, q2, …).
     pub fn coordinates(&self) -> Vec<String> {
         match self {
+            Template::PlanarBody => ["x", "y", "theta"].map(String::from).to_vec(),
             Template::Formula(f) => f.doc.coordinates.clone(),
             Template::Urdf(u) => u.coordinates(),
             _ => (1..=self.n()).map(|i| format!("q{i}")).collect(),
@@ -261,11 +182,25 @@ impl Template {
         }
     }
 
-    /// Number of generalized coordinates.
+    /// The configuration space: its joints, with what each template marks as angles.
+    pub fn space(&self) -> Space {
+        match self {
+            Template::PlanarBody => planar_body::space(),
+            _ => Space::flat(self.n(), &self.periodic()),
+        }
+    }
+
+    /// Configuration values.
+    pub fn nq(&self) -> usize {
+        self.space().nq()
+    }
+
+    /// Velocities (the degrees of freedom): M is nv × nv, F nv wide.
     pub fn n(&self) -> usize {
         match self {
             Template::DoublePendulum | Template::Cartpole => 2,
             Template::Pendulum => 1,
+            Template::PlanarBody => 3,
             Template::Formula(f) => f.n(),
             Template::Urdf(u) => u.n(),
         }
@@ -276,6 +211,7 @@ impl Template {
         match self {
             Template::DoublePendulum => 2,
             Template::Pendulum | Template::Cartpole => 1,
+            Template::PlanarBody => 3,
             Template::Formula(f) => f.m(),
             Template::Urdf(u) => u.m(),
         }
@@ -286,6 +222,7 @@ impl Template {
             Template::DoublePendulum => DOUBLE_PENDULUM,
             Template::Pendulum => PENDULUM,
             Template::Cartpole => CARTPOLE,
+            Template::PlanarBody => PLANAR_BODY,
             Template::Formula(f) => f.params(),
             Template::Urdf(u) => u.params(),
         }
@@ -297,6 +234,7 @@ impl Template {
             Template::DoublePendulum => DOUBLE_PENDULUM_COMBOS,
             Template::Pendulum => PENDULUM_COMBOS,
             Template::Cartpole => CARTPOLE_COMBOS,
+            Template::PlanarBody => PLANAR_BODY_COMBOS,
             Template::Formula(_) | Template::Urdf(_) => &[],
         }
     }
@@ -353,6 +291,7 @@ impl Template {
                 let (m, l) = (&p[0], &p[1]);
                 avec![in a; avec![in a; (m.clone() * l.square()).scale(1.0 / 3.0)]]
             }
+            Template::PlanarBody => planar_body::mass_in(a, p, q),
             Template::Cartpole => {
                 let (mc, mp, l) = (&p[0], &p[1], &p[2]);
                 let off = mp.clone() * l.clone() * q[1].cos();
@@ -387,6 +326,7 @@ impl Template {
                 let (m, l, g) = (&p[0], &p[1], &p[2]);
                 (m.clone() * g.clone() * l.clone() * q[0].cos()).scale(-0.5)
             }
+            Template::PlanarBody => planar_body::potential(p, q),
             Template::Cartpole => {
                 let (mp, l, g) = (&p[1], &p[2], &p[3]);
                 -(mp.clone() * g.clone() * l.clone() * q[1].cos())
@@ -422,6 +362,7 @@ impl Template {
                 let (b, e) = (&p[3], &p[4]);
                 avec![in a; b.clone() * u[0].clone() + e.clone() * qd[0].clone()]
             }
+            Template::PlanarBody => planar_body::forces_in(a, p, q, qd, u),
             Template::Cartpole => {
                 let (b, ex, eth) = (&p[4], &p[5], &p[6]);
                 avec![in a;

@@ -70,7 +70,7 @@ pub fn simulate_trajectories(
             ),
         ));
     }
-    cfg.check(template.m())?;
+    cfg.check(template)?;
     let (n, m) = (template.n(), template.m());
     let sys = TemplateSystem::new(template.clone(), params);
     let mut rng = Rng::derive(cfg.seed, 0x0707_0001);

@@ -25,7 +25,7 @@ pub fn per_sample(model: &Model) -> f64 {
         .map(|a| {
             let with_tangents =
                 a.name.starts_with(names::MASS_NET) || a.name.starts_with(names::POTENTIAL_NET);
-            let dirs = if with_tangents { c.n } else { 0 };
+            let dirs = if with_tangents { c.nv() } else { 0 };
             (a.values.len() * (1 + dirs)) as f64
         })
         .sum();

@@ -72,6 +72,7 @@ pub fn run(a: BenchMultibodyArgs) -> Result<()> {
     let model = t.tree.multibody(t.doc.gravity);
     let p: Vec<f64> = t.params().iter().map(|p| p.default).collect();
     let pd = constants(&p);
+    let space = graybox::physics::space::Space::flat(n, &[]);
     let mut rng = Rng::new(a.seed);
     let mut draw = |s: f64| -> Vec<f64> { (0..n).map(|_| s * rng.normal()).collect() };
     let states: Vec<[Vec<f64>; 3]> = (0..STATES)
@@ -82,6 +83,7 @@ pub fn run(a: BenchMultibodyArgs) -> Result<()> {
     let existing = |[q, qd, tau]: &[Vec<f64>; 3]| {
         white_box_acceleration(
             &Arena::new(),
+            &space,
             |q| t.mass(&pd, q),
             |q| t.potential(&pd, q),
             tau,

@@ -74,7 +74,7 @@ pub(super) fn model_figures(
     let defaults: Vec<f64> = t.params().iter().map(|p| p.default).collect();
     let file = ModelFile::from_template(&template, &defaults, 0.01, Integrator::Rk4)?;
     let eval = Evaluator::from_file(&file)?;
-    let (n, m) = (eval.config.n, eval.config.m);
+    let (n, m) = (eval.config.nv(), eval.config.m);
     let mut rng = Rng::new(0);
     let states: Vec<(Vec<f64>, Vec<f64>)> = (0..super::multibody::STATES)
         .map(|_| {

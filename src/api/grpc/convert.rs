@@ -106,6 +106,8 @@ pub fn model_info(m: &ModelView) -> pb::ModelInfo {
         job_id: m.job_id.clone().unwrap_or_default(),
         name: m.name.clone(),
         n: m.n as u64,
+        nq: m.nq as u64,
+        nv: m.nv as u64,
         m: m.m as u64,
         dt: m.dt,
         spec_json: m.spec.to_string(),

@@ -36,7 +36,7 @@ pub enum Class {
 
 impl Class {
     /// The class of a call of `evaluations` one-step evaluations (a linearization counts
-    /// its 2n + m + 1 directions); `inline` when the call is small enough for the executor.
+    /// its 2nv + m + 1 directions); `inline` when the call is small enough for the executor.
     pub fn of(inline: bool, evaluations: usize) -> Self {
         if inline {
             Class::Inline

@@ -28,7 +28,7 @@ pub struct Energy {
 #[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct EnergyRequest {
-    /// States [q, q̇], one row of 2n values each.
+    /// States [q, v], one row of nq + nv values each.
     pub x: Vec<Vec<f64>>,
     /// Inputs, one row of m values per state.
     pub u: Vec<Vec<f64>>,
@@ -86,7 +86,7 @@ fn rows_array(field: &str, rows: Vec<Vec<f64>>) -> Result<Array> {
 }
 
 impl App {
-    /// The energies of a batch of states `[B, 2n]` under inputs `[B, m]`.
+    /// The energies of a batch of states `[B, nq + nv]` under inputs `[B, m]`.
     pub async fn energy(
         &self,
         id: &str,
@@ -97,7 +97,7 @@ impl App {
         let eval = self.evaluator(id).await?;
         eval.check_energy()?;
         let b = check_batch(&eval, &x, &u)?;
-        let (n, k) = (eval.config.n, eval.member_count());
+        let (n, k) = (eval.config.nv(), eval.member_count());
         // The core's estimate, which the in-process callers are admitted under too.
         self.admit_call(&eval.energy_cost(b))?;
         let (x, u) = (x.data, u.data);

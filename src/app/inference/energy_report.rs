@@ -34,8 +34,9 @@ impl App {
         let eval = self.evaluator(id).await?;
         eval.check_energy()?;
         let model = self.resolve_model_row(id).await?;
-        let (n, m) = (eval.config.n, eval.config.m);
-        let info = self.dataset_for_model(&req.dataset_id, (n, m)).await?;
+        let info = self
+            .dataset_for_model(&req.dataset_id, &eval.config)
+            .await?;
         // The report's work is fixed (64 rollouts of 1000 steps, at most 4096 states): only
         // the dataset's memory needs admitting, which reading it does.
         let loaded = self.read_dataset(&info).await?;

@@ -46,14 +46,14 @@ impl App {
         let max_steps = self.settings.max_rollout_steps;
         let horizons = check_horizons(&req.horizons, max_steps)?;
         let eval = self.evaluator(model_id).await?;
-        let (n, m) = (eval.config.n, eval.config.m);
+        let (nx, m) = (eval.config.nx(), eval.config.m);
         let id = req.dataset_id.clone();
-        let info = self.dataset_for_model(&id, (n, m)).await?;
+        let info = self.dataset_for_model(&id, &eval.config).await?;
         let longest = *horizons.last().expect("checked: at least one");
         let rows = info.count as usize;
         // Every start's state and inputs, its errors at each horizon, and the work of the
         // chunks being stepped (as Predict counts it): admitted before any row is read.
-        let row_bytes = 8 * (2 * 2 * n + m) + 16 * horizons.len();
+        let row_bytes = 8 * (2 * nx + m) + 16 * horizons.len();
         let work =
             rows.min(2 * eval.chunk_states(Pass::Step)) * eval.work_bytes_per_state(Pass::Step);
         self.admit(

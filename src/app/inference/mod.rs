@@ -35,9 +35,9 @@ use crate::infer::limits::Cost as CallCost;
 use crate::infer::{Evaluator, finite_rows};
 use crate::model::file::ModelFile;
 
-/// A batch of states `[B, 2n]` and inputs `[B, m]` with the same B; returns B.
+/// A batch of states `[B, nq + nv]` and inputs `[B, m]` with the same B; returns B.
 fn check_batch(eval: &Evaluator, x: &Array, u: &Array) -> Result<usize> {
-    let xr = x.rows("x", 2 * eval.config.n)?;
+    let xr = x.rows("x", eval.config.nx())?;
     let ur = u.rows("u", eval.config.m)?;
     if xr != ur {
         return Err(Error::invalid("u", format!("has {ur} rows but x has {xr}")));
@@ -51,7 +51,7 @@ fn square(field: &str, a: Array, dim: usize) -> Result<Mat> {
     if rows != dim {
         let what = match field {
             "R" => " (m × m: a weight on the inputs u)",
-            _ => " (2n × 2n: a weight on the state x = [q, q̇])",
+            _ => " (2nv × 2nv: a weight on the state's deviation x ⊖ x̄ = [δq, δv])",
         };
         return Err(Error::invalid(field, format!("must be {dim}×{dim}{what}")));
     }
@@ -80,26 +80,33 @@ pub struct Want {
     pub members: bool,
 }
 
-/// x' `[B, 2n]` (and q̈ `[B, n]` when asked) for a batch, with each row's distance from the
+/// x' `[B, nq + nv]` (and v̇ `[B, nv]` when asked) for a batch, with each row's distance from the
 /// training data. An ensemble's are the members' means, with their spread.
 pub struct Prediction {
     pub next: Array,
     pub accel: Option<Array>,
     pub max_abs_z: Vec<f64>,
     /// An ensemble's (or when members were asked for): the members' standard deviation of
-    /// x' per coordinate `[B, 2n]` (0 for a single model).
+    /// x' per coordinate `[B, nq + nv]` (0 for a single model).
     pub std: Option<Array>,
-    /// When asked for: every member's x' `[K, B, 2n]`.
+    /// When asked for: every member's x' `[K, B, nq + nv]`.
     pub members: Option<Array>,
     /// K: 1 for a single model.
     pub member_count: usize,
 }
 
 impl Prediction {
-    fn of(b: usize, n: usize, next: Vec<f64>, accel: Option<Vec<f64>>, z: Vec<f64>) -> Self {
+    /// `b` states of `nx` values and accelerations of `nv`.
+    fn of(
+        b: usize,
+        (nx, nv): (usize, usize),
+        next: Vec<f64>,
+        accel: Option<Vec<f64>>,
+        z: Vec<f64>,
+    ) -> Self {
         Self {
-            next: Array::new(&[b, 2 * n], next),
-            accel: accel.map(|a| Array::new(&[b, n], a)),
+            next: Array::new(&[b, nx], next),
+            accel: accel.map(|a| Array::new(&[b, nv], a)),
             max_abs_z: z,
             std: None,
             members: None,
@@ -108,15 +115,16 @@ impl Prediction {
     }
 }
 
-/// A `[B, 2n, 2n]` and B `[B, 2n, m]`, with each row's distance from the data.
+/// A `[B, 2nv, 2nv]` and B `[B, 2nv, m]` (the tangent space), with each row's distance from
+/// the data.
 pub struct Linearization {
     pub a: Array,
     pub b: Array,
     pub max_abs_z: Vec<f64>,
 }
 
-/// TVLQR along a nominal of T steps: the gains K `[T, m, 2n]` and the cost-to-go S
-/// `[T+1, 2n, 2n]`.
+/// TVLQR along a nominal of T steps: the gains K `[T, m, 2nv]` and the cost-to-go S
+/// `[T+1, 2nv, 2nv]`.
 pub struct TvlqrGains {
     pub k: Array,
     pub s: Array,
@@ -264,7 +272,7 @@ impl App {
         done.ok_or_else(passed)
     }
 
-    /// x' (and q̈ when asked) for a batch.
+    /// x' (and v̇ when asked) for a batch.
     pub async fn predict(
         &self,
         id: &str,
@@ -275,7 +283,7 @@ impl App {
     ) -> Result<Prediction> {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, &x, &u)?;
-        let (n, nx) = (eval.config.n, 2 * eval.config.n);
+        let (n, nx) = (eval.config.nv(), eval.config.nx());
         let k = eval.member_count();
         let spread = k > 1 || want.members;
         self.admit_call(&eval.predict_cost(b, want.accel, want.members))?;
@@ -286,10 +294,10 @@ impl App {
                 let max_abs_z = eval.max_abs_z(&x, &u);
                 if !spread {
                     let (next, accel) = eval.predict_until(&x, &u, want.accel, stop)?;
-                    return Some(Prediction::of(b, n, next, accel, max_abs_z));
+                    return Some(Prediction::of(b, (nx, n), next, accel, max_abs_z));
                 }
                 let p = eval.predict_members_until(&x, &u, want.accel, stop)?;
-                let mut out = Prediction::of(b, n, p.mean, p.accel, max_abs_z);
+                let mut out = Prediction::of(b, (nx, n), p.mean, p.accel, max_abs_z);
                 out.member_count = k;
                 out.std = Some(Array::new(&[b, nx], p.std));
                 out.members = (want.members).then(|| Array::new(&[k, b, nx], p.next.concat()));
@@ -300,7 +308,7 @@ impl App {
         Ok(out)
     }
 
-    /// A and B for a batch, row-major `[B, 2n, 2n]` and `[B, 2n, m]`.
+    /// A and B for a batch in the tangent space, row-major `[B, 2nv, 2nv]` and `[B, 2nv, m]`.
     pub async fn linearize(
         &self,
         id: &str,
@@ -310,7 +318,7 @@ impl App {
     ) -> Result<Linearization> {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, &x, &u)?;
-        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (nx, m) = (eval.config.ndx(), eval.config.m);
         self.admit_call(&eval.linearize_cost(b))?;
         let (x, u) = (x.data, u.data);
         let rows = b * eval.member_count();
@@ -330,7 +338,8 @@ impl App {
         Ok(out)
     }
 
-    /// TVLQR gains along a nominal (x̄, ū); defects are ignored. K `[T, m, 2n]`, S `[T+1, 2n, 2n]`.
+    /// TVLQR gains along a nominal (x̄, ū) on tangent-space deviations; defects are ignored.
+    /// K `[T, m, 2nv]`, S `[T+1, 2nv, 2nv]`.
     pub async fn tvlqr(
         &self,
         id: &str,
@@ -340,7 +349,7 @@ impl App {
         deadline: Option<Instant>,
     ) -> Result<TvlqrGains> {
         let eval = self.evaluator(id).await?;
-        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (nx, ndx, m) = (eval.config.nx(), eval.config.ndx(), eval.config.m);
         let t_x = xbar.rows("x_bar", nx)?;
         let t = ubar.rows("u_bar", m)?;
         if t_x != t + 1 {
@@ -357,12 +366,12 @@ impl App {
         }
         let [q, r, qf] = weights;
         let (qm, rm, qfm) = (
-            square("Q", q, nx)?,
+            square("Q", q, ndx)?,
             square("R", r, m)?,
-            square("Qf", qf, nx)?,
+            square("Qf", qf, ndx)?,
         );
         self.admit_call(&eval.tvlqr_cost(t))?;
-        let class = Class::of(false, t * eval.member_count() * (nx + m + 1));
+        let class = Class::of(false, t * eval.member_count() * (ndx + m + 1));
         self.heavy_until(class, "tvlqr", deadline, move |stop| {
             match eval.tvlqr_until(&xbar.data, &ubar.data, [&qm, &rm, &qfm], stop) {
                 Err(Error::Cancelled) => None,

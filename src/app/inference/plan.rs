@@ -19,9 +19,10 @@ impl App {
         deadline: Option<Instant>,
     ) -> Result<Plan> {
         let eval = self.evaluator(id).await?;
+        eval.check_plannable()?;
         let horizon = u64::try_from(req.horizon).unwrap_or(u64::MAX);
         check_horizon(horizon, self.settings.max_plan_horizon)?;
-        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (nx, m) = (eval.config.nx(), eval.config.m);
         let req = req.with_effort_limits(&eval.effort_limits());
         validate(&req, nx, m)?;
         self.admit_call(&eval.plan_cost(&req))?;

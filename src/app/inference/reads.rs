@@ -11,6 +11,7 @@ use tokio::sync::{OnceCell, OwnedSemaphorePermit};
 use crate::app::App;
 use crate::data::Dataset;
 use crate::error::{Error, Result};
+use crate::model::ModelConfig;
 use crate::records::DatasetInfo;
 
 /// A dataset loaded for reads, holding its share of the memory budget while it is loaded.
@@ -84,17 +85,19 @@ impl App {
     pub(crate) async fn dataset_for_model(
         &self,
         id: &str,
-        (n, m): (usize, usize),
+        model: &ModelConfig,
     ) -> Result<DatasetInfo> {
         let info: DatasetInfo = (self.store.get_dataset(id).await?)
             .ok_or_else(|| Error::NotFound(format!("dataset {id}")))?
             .into();
-        if (info.n as usize, info.m as usize) != (n, m) {
+        let (nq, nv, m) = (model.nq(), model.nv(), model.m);
+        let (dq, dv, dm) = (info.nq(), info.nv(), info.m as usize);
+        if (dq, dv, dm) != (nq, nv, m) {
             return Err(Error::invalid(
                 "dataset_id",
                 format!(
-                    "dataset {id} has n = {}, m = {}; the model has n = {n}, m = {m}",
-                    info.n, info.m
+                    "dataset {id} has nq = {dq}, nv = {dv}, m = {dm}; the model has nq = {nq}, \
+                     nv = {nv}, m = {m}"
                 ),
             ));
         }

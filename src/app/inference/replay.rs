@@ -136,8 +136,8 @@ impl App {
             particles::check_particles(p)?;
         }
         let eval = self.evaluator(model_id).await?;
-        let (n, m) = (eval.config.n, eval.config.m);
-        let info = self.dataset_for_model(dataset_id, (n, m)).await?;
+        let (nx, m) = (eval.config.nx(), eval.config.m);
+        let info = self.dataset_for_model(dataset_id, &eval.config).await?;
         // Uploaded boundaries are known without the rows; chains are found in them.
         let uploaded = self.store.dataset_trajectories(dataset_id).await?.flatten();
         let mut loaded = None;
@@ -150,7 +150,7 @@ impl App {
                 chains
             }
         };
-        let seg = self.replayable(&segments, dataset_id, index, (n, m), particles)?;
+        let seg = self.replayable(&segments, dataset_id, index, (nx, m), particles)?;
         let loaded = match loaded {
             Some(read) => read,
             None => self.read_dataset(&info).await?,
@@ -189,7 +189,7 @@ impl App {
         segments: &[Segment],
         dataset_id: &str,
         index: usize,
-        (n, m): (usize, usize),
+        (nx, m): (usize, usize),
         particles: Option<usize>,
     ) -> Result<Segment> {
         let seg = *segments.get(index).ok_or_else(|| {
@@ -215,9 +215,9 @@ impl App {
                 seg.length
             )));
         }
-        let spread = if particles.is_some() { 4 * n } else { 0 };
-        let bytes = 8 * (4 * n + m + spread) * (seg.length + 1);
-        let states = 8 * 2 * n * particles.unwrap_or(0);
+        let spread = if particles.is_some() { 2 * nx } else { 0 };
+        let bytes = 8 * (2 * nx + m + spread) * (seg.length + 1);
+        let states = 8 * nx * particles.unwrap_or(0);
         self.admit(
             "index",
             &Cost {
@@ -256,11 +256,11 @@ fn replay_segment(
     m: usize,
     stop: &dyn Fn() -> bool,
 ) -> Option<(Series, Series)> {
-    let n = recorded.q[0].len();
+    let nq = recorded.q[0].len();
     let x0: Vec<f64> = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
     let mut predicted = Series {
-        q: vec![x0[..n].to_vec()],
-        qdot: vec![x0[n..].to_vec()],
+        q: vec![x0[..nq].to_vec()],
+        qdot: vec![x0[nq..].to_vec()],
     };
     let steps = recorded.q.len() - 1;
     eval.rollout(
@@ -268,8 +268,8 @@ fn replay_segment(
         steps,
         |t, _| inputs[t * m..(t + 1) * m].to_vec(),
         |x, _| {
-            predicted.q.push(x[..n].to_vec());
-            predicted.qdot.push(x[n..].to_vec());
+            predicted.q.push(x[..nq].to_vec());
+            predicted.qdot.push(x[nq..].to_vec());
             !stop()
         },
     );
@@ -285,11 +285,11 @@ fn particle_replay(
     count: usize,
     stop: &dyn Fn() -> bool,
 ) -> Option<ParticleSeries> {
-    let (n, m) = (eval.config.n, eval.config.m);
+    let (nq, nx, m) = (eval.config.nq(), eval.config.nx(), eval.config.m);
     let x0 = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
     let mut states = x0.repeat(count);
     let mut track = ParticleTrack::default();
-    track.push_states(&states, 2 * n);
+    track.push_states(&states, nx);
     let input = |t: usize, _: &[f64]| inputs[t * m..(t + 1) * m].to_vec();
     let steps = recorded.q.len() - 1;
     // A particle's state leaving the finite numbers ends it early, and the track then holds
@@ -299,8 +299,8 @@ fn particle_replay(
         return None;
     }
     let series = |rows: &[f64]| Series {
-        q: rows.chunks(2 * n).map(|x| x[..n].to_vec()).collect(),
-        qdot: rows.chunks(2 * n).map(|x| x[n..].to_vec()).collect(),
+        q: rows.chunks(nx).map(|x| x[..nq].to_vec()).collect(),
+        qdot: rows.chunks(nx).map(|x| x[nq..].to_vec()).collect(),
     };
     Some(ParticleSeries {
         count,

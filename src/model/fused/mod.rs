@@ -116,7 +116,7 @@ impl FusedStep {
         let inputs: Vec<Var> = (0..width)
             .map(|j| Var::input(&tape, rows.iter().skip(j).step_by(width).copied().collect()))
             .collect();
-        let nx = 2 * self.config.n;
+        let nx = self.config.nx();
         let recipe = record::Recipe {
             config: &self.config,
             layout: &self.layout,
@@ -205,11 +205,11 @@ impl FusedStep {
 
 impl RowFunction for FusedStep {
     fn input_width(&self) -> usize {
-        2 * self.config.n + self.config.m
+        self.config.nx() + self.config.m
     }
 
     fn output_width(&self) -> usize {
-        2 * self.config.n
+        self.config.nx()
     }
 
     fn forward(&self, rows: &[f64], params: &[f64]) -> Vec<f64> {

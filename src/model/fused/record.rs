@@ -14,6 +14,7 @@ use crate::model::{ModelConfig, names};
 use crate::physics::assembly::{Columns, Networks, Structure, Values};
 use crate::physics::dual::{Dual, WIDTH, groups};
 use crate::physics::dynamics::acceleration;
+use crate::physics::integrator::States;
 use crate::physics::multibody;
 use crate::physics::scalar::Scalar;
 use crate::physics::tape::{Layer, Tape, Var, forward_dynamics, mlp};
@@ -63,7 +64,8 @@ pub(super) struct Recipe<'a> {
     pub robot: Option<&'a multibody::Model>,
 }
 
-/// x' of the block's states `x` (2n columns) under inputs `u` (m columns).
+/// x' of the block's states `x` (nq + nv columns) under inputs `u` (m columns): RK4 on the
+/// configuration space as inference steps it (`Integrator::step`).
 pub(super) fn step(
     recipe: &Recipe<'_>,
     tape: &Rc<RefCell<Tape>>,
@@ -71,12 +73,13 @@ pub(super) fn step(
     u: &[Var],
 ) -> Vec<Var> {
     let config = recipe.config;
-    let n = config.n;
+    let nq = config.nq();
     let values = record_values(config, recipe.layout, tape);
+    let states = States::new(&config.space, 1);
     config
         .integrator
-        .step(&x.to_vec(), config.dt, |x: &Vec<Var>| {
-            let (q, qd) = x.split_at(n);
+        .step(&states, &x.to_vec(), config.dt, |x: &Vec<Var>| {
+            let (q, qd) = x.split_at(nq);
             let mut dx = qd.to_vec();
             dx.extend(accel(recipe, &values, q, qd, u));
             dx
@@ -102,13 +105,13 @@ fn record_values(config: &ModelConfig, layout: &Layout, tape: &Rc<RefCell<Tape>>
     }
 }
 
-/// q̈ of the block: the naive network, or the structure assembled from the spec.
+/// v̇ of the block: the naive network, or the structure assembled from the spec.
 fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) -> Vec<Var> {
     let (config, layout) = (recipe.config, recipe.layout);
     let sc = &config.scaling;
-    let angles = &config.periodic;
+    let space = &config.space;
     let full = || -> Vec<Dual<Var>> {
-        (sc.full_features(q, qd, u, angles).into_iter())
+        (sc.full_features(q, qd, u, space).into_iter())
             .map(Dual::constant)
             .collect()
     };
@@ -128,10 +131,10 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
             .map(|(j, o)| o.v.scale(sc.acc_std[j]).shift(sc.acc_mean[j]))
             .collect();
     };
-    let n = config.n;
-    // M's and V's networks read q with its ∂/∂q, a group of directions at a time.
+    let n = config.nv();
+    // M's and V's networks read q with its ∂/∂q along each velocity, a group at a time.
     let q_in: Vec<_> =
-        (groups::<Var>(n).map(|dirs| (dirs.len(), sc.q_features(q, angles, dirs)))).collect();
+        (groups::<Var>(n).map(|dirs| (dirs.len(), sc.q_features(q, space, dirs)))).collect();
     let of_q = |name: &str| -> Option<Vec<Vec<Dual<Var>>>> {
         (q_in.iter().map(|(dirs, x)| net(name, x, *dirs))).collect()
     };
@@ -140,7 +143,7 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
         potential: of_q(names::POTENTIAL_NET)
             .map(|groups| groups.into_iter().map(|mut v| v.remove(0)).collect()),
         force: net(names::FORCE_NET, &full(), 0)
-            .or_else(|| net(names::B_NET, &sc.q_features(q, angles, 0..0), 0)),
+            .or_else(|| net(names::B_NET, &sc.q_features(q, space, 0..0), 0)),
         // [q, q̇]: the full input without u's last m entries.
         damping: layout.net(names::DAMPING_NET).map(|_| {
             let mut x = full();
@@ -161,7 +164,7 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
             eta: r.eta.as_deref(),
             physical: r.physical.as_deref(),
         },
-        n,
+        space,
         m: config.m,
         arena: &Arena::new(),
     };

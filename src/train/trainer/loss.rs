@@ -8,7 +8,7 @@ use burn::tensor::{Device, Tensor, TensorData};
 
 use super::Trainer;
 use crate::data::Dataset;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::model::Model;
 use crate::train::shards::{self, ParamGrads};
 use crate::train::windows::Windows;
@@ -136,16 +136,7 @@ pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
 }
 
 fn check_shape(model: &Model, ds: &Dataset) -> Result<()> {
-    if ds.n != model.config.n || ds.m != model.config.m {
-        return Err(Error::invalid(
-            "data",
-            format!(
-                "dataset has n = {}, m = {} but the model has n = {}, m = {}",
-                ds.n, ds.m, model.config.n, model.config.m
-            ),
-        ));
-    }
-    Ok(())
+    (model.config).check_data("data", (ds.nq(), ds.nv(), ds.m))
 }
 
 /// An ensemble on a dataset (the `eval` command): the one-step loss of the members' mean

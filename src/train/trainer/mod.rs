@@ -258,13 +258,11 @@ impl Trainer {
         batch_size: usize,
     ) -> Result<TrainConfig> {
         let c = &self.model.config;
-        if (data.n, data.m) != (c.n, c.m) || data.dt != c.dt {
+        c.check_data("data", (data.nq(), data.nv(), data.m))?;
+        if data.dt != c.dt {
             return Err(Error::invalid(
                 "data",
-                format!(
-                    "has n = {}, m = {}, dt = {} but the model has n = {}, m = {}, dt = {}",
-                    data.n, data.m, data.dt, c.n, c.m, c.dt
-                ),
+                format!("has dt = {} but the model has dt = {}", data.dt, c.dt),
             ));
         }
         let cfg = TrainConfig {
@@ -349,7 +347,7 @@ impl Trainer {
 /// The zero-acceleration loss of `ds` over `windows` with `model`'s loss weights, and the
 /// windows' steps.
 fn baseline(ds: &Dataset, windows: &Windows, c: &ModelConfig) -> (f64, usize) {
-    let loss = zero_acceleration_window_loss(ds, windows, c.lambda, &c.periodic);
+    let loss = zero_acceleration_window_loss(ds, windows, c.lambda, &c.space);
     (loss, windows.horizon())
 }
 

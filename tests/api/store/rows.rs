@@ -121,7 +121,9 @@ async fn a_template_is_stored_once_by_content_and_kept_while_a_job_uses_it() {
 pub fn model(file: &[u8]) -> NewModel<'_> {
     NewModel {
         name: "MVF",
+        // nq apart from n (nv), so that a read that swapped or dropped them shows.
         n: 2,
+        nq: 4,
         m: 2,
         dt: 0.01,
         spec: "{}",
@@ -140,7 +142,11 @@ async fn an_uploaded_model_is_stored_once_by_content_and_its_file_read_back_veri
     let (again, created) = s.insert_model(model(&bytes)).await.unwrap();
     assert!((!created, again.id.as_str()) == (true, m.id.as_str()));
     assert_eq!(s.model_file(&m.id).await.unwrap(), Some(bytes.clone()));
-    assert_eq!(s.get_model(&m.id).await.unwrap().unwrap().sha256, m.sha256);
+    let read = s.get_model(&m.id).await.unwrap().unwrap();
+    assert_eq!(
+        (read.sha256.as_str(), read.n, read.nq),
+        (m.sha256.as_str(), 2, Some(4))
+    );
     let (other, _) = s.insert_model(model(b"other")).await.unwrap();
     let (page, more) = s.list_models(None, 1).await.unwrap();
     assert_eq!((page[0].id.as_str(), more), (other.id.as_str(), true));

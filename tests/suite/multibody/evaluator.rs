@@ -42,7 +42,7 @@ fn agree(what: &str, e: &Evaluator, states: usize) {
     );
     let reference = e.clone().assembled();
     assert!(!reference.is_multibody());
-    let (n, m) = (e.config.n, e.config.m);
+    let (n, m) = (e.config.nv(), e.config.m);
     let mut rng = Rng::new(3);
     let mut draw = |k: usize, r: f64| (0..k).map(|_| rng.uniform_in(-r, r)).collect::<Vec<_>>();
     for s in 0..states {
@@ -86,7 +86,7 @@ fn white_box_robots_equal_the_assembly() {
         let file = ModelFile::from_template(&t, &t.defaults(), 0.01, Integrator::Rk4).unwrap();
         let e = reloaded(&file);
         agree(name, &e, states);
-        let (n, m) = (e.config.n, e.config.m);
+        let (n, m) = (e.config.nv(), e.config.m);
         let mut rng = Rng::new(5);
         let x: Vec<f64> = (0..40 * 2 * n).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
         let u: Vec<f64> = (0..40 * m).map(|_| rng.uniform_in(-1.0, 1.0)).collect();
@@ -170,7 +170,7 @@ fn multibody_jacobians_equal_central_differences() {
         let t = template(name);
         let file = ModelFile::from_template(&t, &t.defaults(), 0.01, Integrator::Rk4).unwrap();
         let e = reloaded(&file);
-        let (n, m) = (e.config.n, e.config.m);
+        let (n, m) = (e.config.nv(), e.config.m);
         let mut rng = Rng::new(9);
         for _ in 0..3 {
             let x: Vec<f64> = (0..2 * n)

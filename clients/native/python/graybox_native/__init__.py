@@ -3,7 +3,7 @@
     import graybox_native
     model = graybox_native.load("arm.gbx")          # a path, or the file's bytes
     model.info.n, model.info.dt                      # also model.info["n"], as a dict's
-    x_next = model.predict(x, u)                     # x [2n], u [m] (or batches [B, ...])
+    x_next = model.predict(x, u)                     # x [nq + nv], u [m] (or batches [B, ...])
     x_next, z = model.predict(x, u, return_z=True)   # z: how far x, u are from the data
     A, B = model.linearize(x, u)
     xs, std = ensemble.rollout(x0, us, particles=50) # particles' mean and spread
@@ -51,16 +51,22 @@ else:
 
 @dataclass(frozen=True, eq=False)
 class Info(Mapping[str, Any]):
-    """What `Model.info` tells of a loaded model: `n` coordinates, `m` inputs, the time step
-    `dt` (s), the ensemble's `members` (1 for a single model), its `integrator`, and the
-    `coordinates`' and `inputs`' names. Also a read-only mapping of those names, as `info`
-    was a dict: `info["n"]`, `dict(info)` and `info == {...}` work as they did."""
+    """What `Model.info` tells of a loaded model: its `nq` configuration values and `nv`
+    velocities (a state is [q, v], nq + nv values; Linearize's A is [2nv, 2nv]), `n`
+    (deprecated: nv), `m` inputs, the time step `dt` (s), the ensemble's `members` (1 for a
+    single model), its `integrator`, its `joints` ("real", "angle", "circle": one per
+    velocity), and the `coordinates`' and `inputs`' names. Also a read-only mapping of those
+    names, as `info` was a dict: `info["n"]`, `dict(info)` and `info == {...}` work as they
+    did."""
 
+    nq: int
+    nv: int
     n: int
     m: int
     dt: float
     members: int
     integrator: str
+    joints: list[str]
     coordinates: list[str]
     inputs: list[str]
 

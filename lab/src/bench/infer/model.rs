@@ -27,7 +27,8 @@ const ROLLOUT: usize = 500;
 pub(super) fn figures(a: &super::BenchInferArgs, path: &Path) -> Result<()> {
     let calls = a.calls;
     let eval = Evaluator::from_file(&ModelFile::load(path)?)?;
-    let (n, m) = (eval.config.n, eval.config.m);
+    // The benchmarks' models are flat (nq = nv = n): states are drawn as numbers.
+    let (n, m) = (eval.config.nv(), eval.config.m);
     let mut rng = Rng::new(0);
     let batch = |rows: usize, width: usize, rng: &mut Rng| -> Vec<f64> {
         (0..rows * width)

@@ -75,6 +75,22 @@ pub(super) fn one_state(
     Ok(())
 }
 
+/// The soname the shared library at `lib` says it is (`readelf -d`).
+fn soname_of(lib: &Path) -> Result<String> {
+    let out = Command::new("readelf")
+        .arg("-d")
+        .arg(lib)
+        .output()
+        .map_err(|e| failed("readelf", e))?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    let name = text
+        .lines()
+        .find_map(|l| l.split("Library soname: [").nth(1))
+        .and_then(|rest| rest.split(']').next());
+    name.map(str::to_string)
+        .ok_or_else(|| failed("library", format!("{} names no soname", lib.display())))
+}
+
 /// examples/c/latency.c built against the library at `lib`, in a fresh temporary directory.
 fn build(lib: &Path) -> Result<PathBuf> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
@@ -84,6 +100,10 @@ fn build(lib: &Path) -> Result<PathBuf> {
     let dir = dir.parent().expect("a file has a directory");
     let tmp = std::env::temp_dir().join(format!("graybox-latency-{}", std::process::id()));
     std::fs::create_dir_all(&tmp)?;
+    // The program looks for the library by its soname (libgraybox_c.so.<ABI version>).
+    let soname = tmp.join(soname_of(&dir.join("libgraybox_c.so"))?);
+    let _ = std::fs::remove_file(&soname);
+    std::os::unix::fs::symlink(dir.join("libgraybox_c.so"), &soname)?;
     let exe = tmp.join("latency");
     let out = Command::new("cc")
         .args(["-O2", "-std=c11", "-D_POSIX_C_SOURCE=199309L", "-I"])
@@ -92,7 +112,7 @@ fn build(lib: &Path) -> Result<PathBuf> {
         .arg("-o")
         .arg(&exe)
         .arg(format!("-L{}", dir.display()))
-        .arg(format!("-Wl,-rpath,{}", dir.display()))
+        .arg(format!("-Wl,-rpath,{}", tmp.display()))
         .arg("-lgraybox_c")
         .output()
         .map_err(|e| failed("compiler", e))?;

@@ -125,7 +125,7 @@ fn points(eval: &Evaluator, ds: &Dataset, train_range: f64) -> Result<Points> {
             "the calibration model is one member".into(),
         ));
     }
-    let periodic = &eval.config.periodic;
+    let periodic = &eval.config.space.periodic();
     let coord_error: Vec<f64> = (0..rows * 2 * n)
         .map(|k| {
             let d = p.mean[k] - truth[k];

@@ -170,7 +170,7 @@ fn policy(xbar: &[f64], ubar: &[f64], gains: &Gains) -> Policy {
             .iter()
             .flat_map(|k| k.data.iter().copied())
             .collect(),
-        nx: 4,
+        space: graybox::physics::space::Space::flat(2, &[]),
         m: 2,
     }
 }

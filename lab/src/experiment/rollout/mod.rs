@@ -359,7 +359,7 @@ fn true_trajectories(s: &RolloutSettings) -> Vec<Trajectory> {
 
 /// A model's positions `[STEPS + 1, n]` from the trajectory's x₀ under its inputs.
 fn predict(e: &Evaluator, t: &Trajectory) -> Vec<f64> {
-    let (n, m) = (e.config.n, e.config.m);
+    let (n, m) = (e.config.nq(), e.config.m);
     let mut q = t.x0[..n].to_vec();
     e.rollout(
         &t.x0,

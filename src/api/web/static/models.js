@@ -11,12 +11,12 @@ async function modelsView(view) {
     tbody.replaceChildren(...data.items.map((m) => el("tr", { "data-model": m.id },
       el("td", { class: "name" }, el("a", { href: `#/models/${m.id}`, text: m.name }), el("div", { class: "muted small", text: m.id })),
       el("td", { text: m.origin }),
-      el("td", { class: "num", text: m.n }), el("td", { class: "num", text: m.m }), el("td", { class: "num", text: m.dt }),
+      el("td", { class: "num", text: sizes(m) }), el("td", { class: "num", text: m.m }), el("td", { class: "num", text: m.dt }),
       el("td", { class: "num", text: fmtBestLoss(m.metrics?.best_val_loss, m.metrics?.best_val_loss_steps) }), timeCell(m.created_at))));
     empty.textContent = data.items.length ? "" : "No models yet: they appear when a job succeeds, or upload a model file.";
   }
   view.append(el("h1", { text: "Models" }), el("div", { class: "table-wrap" }, el("table", { id: "models-table" },
-    el("thead", {}, el("tr", {}, ["model", "origin", "n", "m", "Δt", "best val loss", "created"].map((h, i) =>
+    el("thead", {}, el("tr", {}, ["model", "origin", "nq / nv", "m", "Δt", "best val loss", "created"].map((h, i) =>
       el("th", { scope: "col", class: i === 6 ? "hide-narrow" : undefined, text: h })))), tbody)),
   empty, modelUploadForm(load));
   await load();
@@ -40,7 +40,7 @@ async function modelView(view, id) {
     el("div", { class: "card" }, factList([
       ["id", m.id], ["origin", m.origin],
       ["job", m.job_id ? el("a", { href: `#/jobs/${m.job_id}`, text: m.job_id }) : "uploaded"],
-      ["n (coordinates)", `${m.n}: ${coordinateNames(m).join(", ")}`], ["m (inputs)", String(m.m)], ["Δt", `${m.dt} s`],
+      ["nq / nv (configuration / velocities)", `${sizes(m)}: ${coordinateNames(m).join(", ")}`], ["m (inputs)", String(m.m)], ["Δt", `${m.dt} s`],
       [bestLossLabel(m.metrics?.best_val_loss_steps), fmtLoss(m.metrics?.best_val_loss)], ["epochs", String(m.metrics?.epochs ?? "–")],
       ["created", fmtTime(m.created_at)],
     ])),
@@ -210,6 +210,8 @@ function specView(spec) {
     el("pre", { text: d })))];
 }
 
+// A state is [q, v]: nq configuration values and nv velocities (one number when they agree).
+const sizes = (m) => (m.nq === m.nv ? String(m.nv) : `${m.nq} / ${m.nv}`);
 const coordinateNames = (m) => m.coordinates || Array.from({ length: m.n }, (_, i) => `q${i + 1}`);
 
 // The dataset's trajectories a model can be rolled along (two steps or more), longest first;

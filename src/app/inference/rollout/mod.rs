@@ -17,6 +17,7 @@ use crate::error::{Error, Result};
 use crate::infer::Evaluator;
 use crate::infer::limits::Pass;
 use crate::infer::particles::{check_particles, diverged};
+use crate::physics::space::Space;
 
 /// A Rollout chunk's bytes at most (states, inputs and z of one message): a stream whose
 /// reader stalls holds one chunk in its channel and one being sent, so 600 stalled streams
@@ -38,7 +39,7 @@ pub struct RolloutShape {
 }
 
 /// The inputs of a rollout as requested: a sequence `[T, m]`, or a feedback policy with
-/// x̄ `[T or T+1, 2n]`, ū `[T, m]` and K `[T, m, 2n]`.
+/// x̄ `[T or T+1, nq + nv]`, ū `[T, m]` and K `[T, m, 2nv]`.
 pub enum RolloutInputs {
     U(Array),
     Policy {
@@ -56,7 +57,8 @@ enum Inputs {
 
 impl Inputs {
     /// The checked inputs and the number of steps T.
-    fn check(req: RolloutInputs, nx: usize, m: usize) -> Result<(Self, usize)> {
+    fn check(req: RolloutInputs, space: &Space, m: usize) -> Result<(Self, usize)> {
+        let (nx, ndx) = (space.nq() + space.nv(), 2 * space.nv());
         match req {
             RolloutInputs::U(u) => {
                 let t = u.rows("u", m)?;
@@ -71,9 +73,9 @@ impl Inputs {
                         format!("needs T or T+1 rows for T = {t}, got {tx}"),
                     ));
                 }
-                let expected = [t as u64, m as u64, nx as u64];
+                let expected = [t as u64, m as u64, ndx as u64];
                 if k.shape != expected
-                    || t.checked_mul(m * nx) != Some(k.data.len())
+                    || t.checked_mul(m * ndx) != Some(k.data.len())
                     || k.data.iter().any(|v| !v.is_finite())
                 {
                     return Err(Error::invalid(
@@ -88,7 +90,7 @@ impl Inputs {
                     xbar: x_bar.data,
                     ubar: u_bar.data,
                     k: k.data,
-                    nx,
+                    space: space.clone(),
                     m,
                 };
                 Ok((Inputs::Policy(policy), t))
@@ -101,13 +103,13 @@ impl Inputs {
 /// applied in it, and for each input the largest |z| of the (state, input) it was applied at.
 pub struct RolloutChunk {
     pub start: usize,
-    /// States `[S, 2n]`.
+    /// States `[S, nq + nv]`.
     pub x: Array,
     /// Inputs `[T, m]`.
     pub u: Array,
     /// T values.
     pub max_abs_z: Vec<f64>,
-    /// With particles: their standard deviation per coordinate `[S, 2n]` (`x` is their mean).
+    /// With particles: their standard deviation per coordinate `[S, nq + nv]` (`x` is their mean).
     pub x_std: Option<Array>,
 }
 
@@ -128,11 +130,11 @@ impl App {
             check_particles(p)?;
         }
         let eval = self.evaluator(id).await?;
-        let (nx, m) = (2 * eval.config.n, eval.config.m);
+        let (nx, m) = (eval.config.nx(), eval.config.m);
         if x0.len() != nx || x0.iter().any(|v| !v.is_finite()) {
             return Err(Error::invalid("x0", format!("must be {nx} finite values")));
         }
-        let (inputs, steps) = Inputs::check(inputs, nx, m)?;
+        let (inputs, steps) = Inputs::check(inputs, &eval.config.space, m)?;
         let max = self.settings.max_rollout_steps;
         if steps > max {
             return Err(Error::ResourceExhausted(format!(
@@ -273,7 +275,7 @@ fn compute_piece(
     take: usize,
     first: bool,
 ) -> Piece {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     let mut states = if first { x.clone() } else { vec![] };
     let (mut applied, mut from) = (Vec::with_capacity(take * m), Vec::with_capacity(take * nx));
     let mut last = x.clone();

@@ -6,7 +6,7 @@ use crate::array::Array;
 use crate::infer::Evaluator;
 use crate::infer::particles::{ParticleTrack, advance};
 
-/// `take` steps of every particle from their states `xs` `[P, 2n]` at step `t` (the first
+/// `take` steps of every particle from their states `xs` `[P, nq + nv]` at step `t` (the first
 /// piece also carries x0's row); the piece continues from the particles' states.
 pub(super) fn piece(
     eval: &Evaluator,
@@ -16,7 +16,7 @@ pub(super) fn piece(
     take: usize,
     first: bool,
 ) -> Piece {
-    let (nx, m) = (2 * eval.config.n, eval.config.m);
+    let (nx, m) = (eval.config.nx(), eval.config.m);
     let mut track = ParticleTrack::default();
     if first {
         track.push_states(&xs, nx);
