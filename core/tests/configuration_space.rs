@@ -83,6 +83,9 @@ fn the_sizes_and_the_file_say_nq_and_nv() {
         text.contains(r#""joints":["real","real","circle"]"#),
         "{text}"
     );
+    // The stiffness check looks at the origin's configuration, (1, 0) for the heading: a
+    // light damping at Δt = 0.01 is far from stiff.
+    assert!(made(&Template::PlanarBody).stiffness_warning(&[]).is_none());
 }
 
 /// One step from several states: the rotation's (cos, sin) of the angle model's θ′, the rest

@@ -105,15 +105,21 @@ impl Space {
         self.joints.iter().all(|j| *j == Joint::Real)
     }
 
-    /// The state [q, v] at the origin: every coordinate 0, a rotation at (1, 0), at rest.
-    pub fn origin_state(&self) -> Vec<f64> {
-        let mut x = Vec::with_capacity(self.nq + self.nv());
+    /// The configuration at the origin: every coordinate 0, a rotation at (1, 0).
+    pub fn origin(&self) -> Vec<f64> {
+        let mut q = Vec::with_capacity(self.nq + self.nv());
         for j in &self.joints {
             match j {
-                Joint::Real | Joint::Angle => x.push(0.0),
-                Joint::Circle => x.extend([1.0, 0.0]),
+                Joint::Real | Joint::Angle => q.push(0.0),
+                Joint::Circle => q.extend([1.0, 0.0]),
             }
         }
+        q
+    }
+
+    /// The state [q, v] at the origin, at rest.
+    pub fn origin_state(&self) -> Vec<f64> {
+        let mut x = self.origin();
         x.resize(self.nq + self.nv(), 0.0);
         x
     }

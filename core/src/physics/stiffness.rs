@@ -67,8 +67,8 @@ pub fn stiffness(
     limit: f64,
     configurations: &[Vec<f64>],
 ) -> Stiffness {
-    let n = t.n();
-    let zero = vec![0.0; n];
+    // The configuration at the origin (a rotation's is (1, 0)), nq wide; velocities nv.
+    let (n, zero) = (t.n(), t.space().origin());
     let mut out = Stiffness {
         tau: f64::INFINITY,
         q: zero.clone(),
@@ -87,7 +87,7 @@ pub fn stiffness(
         _ => None,
     };
     let (mut eps, mut fastest_rest, mut curable) = (0.0f64, 0.0f64, true);
-    let qs = std::iter::once(&zero).chain(configurations.iter().filter(|q| q.len() == n));
+    let qs = std::iter::once(&zero).chain(configurations.iter().filter(|q| q.len() == zero.len()));
     let mass_at = t.mass_at(p);
     for q in qs {
         let mass = mass_at(q);
