@@ -11,6 +11,12 @@ use serde::Serialize;
 pub struct DatasetInfo {
     pub id: String,
     pub name: Option<String>,
+    /// Configuration values per row (q, q_next).
+    pub nq: i64,
+    /// Velocities per row (qdot, qdot_next): nq unless a joint's configuration is not its
+    /// velocity (a rotation kept as a unit complex number).
+    pub nv: i64,
+    /// Deprecated: `nv` (equal to nq and nv for a dataset whose q and qdot are one width).
     pub n: i64,
     pub m: i64,
     pub dt: f64,
@@ -25,12 +31,12 @@ pub struct DatasetInfo {
 impl DatasetInfo {
     /// Configuration values per row (q, q_next).
     pub fn nq(&self) -> usize {
-        self.n as usize
+        self.nq as usize
     }
 
     /// Velocities per row (qdot, qdot_next).
     pub fn nv(&self) -> usize {
-        self.n as usize
+        self.nv as usize
     }
 }
 

@@ -15,7 +15,8 @@
  * largest |z-score| of each row's q, qdot and u under the model's training data (the
  * service's max_abs_z); above ~4, treat the outputs with doubt.
  *
- * Arrays are row-major doubles: a state is [q, qdot] (2n values), an input u (m values).
+ * Arrays are row-major doubles: a state is [q, v] (nq + nv values; v and accelerations nv,
+ * Linearize's A [2nv, 2nv]), an input u (m values).
  * Every call returns GBX_STATUS_OK or why it failed.
  */
 

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 use crate::physics::dynamics::{constants, white_box_acceleration};
 use crate::physics::integrator::{Integrator, States};
 use crate::physics::multibody;
-use crate::physics::space::Space;
+use crate::physics::space::{Joint, Space};
 use crate::physics::stiffness;
 use crate::physics::templates::Template;
 use crate::records::Warning;
@@ -38,7 +38,7 @@ pub fn stiffness_warning(
 
 /// The first `k` configurations q of a dataset, where a check looks besides q = 0.
 pub fn configurations(ds: &Dataset, k: usize) -> Vec<Vec<f64>> {
-    ds.q.chunks(ds.n).take(k).map(<[f64]>::to_vec).collect()
+    ds.q.chunks(ds.nq).take(k).map(<[f64]>::to_vec).collect()
 }
 
 /// The analytic system of a template at physical parameter values `p`, in f64: the "true"
@@ -152,16 +152,15 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
     if cfg.count == 0 {
         return Err(Error::invalid("count", "must be at least 1"));
     }
-    cfg.check(template)?;
-    let (n, m) = (template.n(), template.m());
+    cfg.check(template.m())?;
+    let (space, m) = (template.space(), template.m());
+    let (nq, nv) = (space.nq(), space.nv());
     let sys = TemplateSystem::new(template.clone(), params);
     let mut rng = Rng::new(cfg.seed);
     let mut arrays: [Vec<f64>; 5] = Default::default();
     for _ in 0..cfg.count {
-        let q: Vec<f64> = (0..n)
-            .map(|_| rng.uniform_in(-cfg.q_range, cfg.q_range))
-            .collect();
-        let qd: Vec<f64> = (0..n)
+        let q = sample_q(&space, &mut rng, cfg.q_range);
+        let qd: Vec<f64> = (0..nv)
             .map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range))
             .collect();
         let u = cfg.input(&mut rng, m);
@@ -170,29 +169,30 @@ pub fn simulate(template: &Template, params: Vec<f64>, cfg: &SimConfig) -> Resul
         arrays[0].extend(&q);
         arrays[1].extend(&qd);
         arrays[2].extend(&u);
-        arrays[3].extend(&next[..n]);
-        arrays[4].extend(&next[n..]);
+        arrays[3].extend(&next[..nq]);
+        arrays[4].extend(&next[nq..]);
     }
-    Dataset::new(cfg.dt, n, m, arrays)
+    Dataset::new(cfg.dt, (nq, nv), m, arrays)
+}
+
+/// A configuration with each joint's coordinate drawn uniformly in (−r, r), in joint order: a
+/// rotation's angle θ drawn so and kept as (cos θ, sin θ).
+pub(crate) fn sample_q(space: &Space, rng: &mut Rng, r: f64) -> Vec<f64> {
+    let mut q = Vec::with_capacity(space.nq());
+    for j in space.joints() {
+        let v = rng.uniform_in(-r, r);
+        match j {
+            Joint::Real | Joint::Angle => q.push(v),
+            Joint::Circle => q.extend([v.cos(), v.sin()]),
+        }
+    }
+    q
 }
 
 impl SimConfig {
-    /// The ranges and σs are usable for the template's system, whose every joint is one
-    /// number: a dataset's rows are still q and q̇ of n values each.
-    pub(crate) fn check(&self, template: &Template) -> Result<()> {
-        let (cfg, m, space) = (self, template.m(), template.space());
-        if !space.is_flat() {
-            return Err(Error::invalid(
-                "template",
-                format!(
-                    "template '{}' has nq = {} ≠ nv = {}; simulated datasets hold q and qdot of \
-                     one width",
-                    template.name(),
-                    space.nq(),
-                    space.nv()
-                ),
-            ));
-        }
+    /// The ranges and σs are usable for a system of `m` inputs.
+    pub(crate) fn check(&self, m: usize) -> Result<()> {
+        let cfg = self;
         for (name, v) in [
             ("dt", cfg.dt),
             ("q_range", cfg.q_range),

@@ -5,6 +5,8 @@
 //! models' steps, rollouts and tangent-space Jacobians agree to rounding. The Jacobians are also
 //! checked against central differences through integrate and difference.
 
+use graybox_core::control::linalg::Mat;
+use graybox_core::control::plan::{Method, PlanRequest};
 use graybox_core::infer::Evaluator;
 use graybox_core::model::file::ModelFile;
 use graybox_core::physics::formula_template::FormulaTemplate;
@@ -83,6 +85,8 @@ fn the_sizes_and_the_file_say_nq_and_nv() {
         text.contains(r#""joints":["real","real","circle"]"#),
         "{text}"
     );
+    // A version before nq and nv refuses the file by its format.
+    assert!(text.contains(r#""format":"graybox.model/4""#), "{text}");
     // The stiffness check looks at the origin's configuration, (1, 0) for the heading: a
     // light damping at Δt = 0.01 is far from stiff.
     assert!(made(&Template::PlanarBody).stiffness_warning(&[]).is_none());
@@ -209,5 +213,162 @@ fn a_batch_answers_as_its_states_alone() {
         let (a1, b1) = body.linearize_batch(x1, u1);
         assert_eq!(a[36 * k..36 * k + 36], a1[..], "A of {k}");
         assert_eq!(b[18 * k..18 * k + 18], b1[..], "B of {k}");
+    }
+}
+
+/// The same reach asked of both models: from `x0` to `goal` (θ-model states) in a second.
+fn reach(x0: [f64; 6], goal: [f64; 6], method: Method) -> [PlanRequest; 2] {
+    let q = Mat::diag(&[10.0, 10.0, 10.0, 0.1, 0.1, 0.1]);
+    let qf = Mat::diag(&[1e3; 6]);
+    let r = Mat::diag(&[1e-3; 3]);
+    let on_theta = PlanRequest {
+        method,
+        ..PlanRequest::new(x0.to_vec(), goal.to_vec(), 100, [q, r, qf])
+    };
+    let on_body = PlanRequest {
+        x0: on_circle(&x0),
+        goal: on_circle(&goal),
+        ..on_theta.clone()
+    };
+    [on_body, on_theta]
+}
+
+/// iLQR and collocation on the body plan what they plan on the angle model, while the
+/// heading stays within half a turn of the goal (where x ⊖ g is θ − θ_g): the same inputs,
+/// states (the body's the angle model's on the circle), gains and costs.
+#[test]
+fn plans_are_the_angle_models_plans() {
+    let (body, flat) = models();
+    // Turning slowly (ω = 1 rad/s): the zero-input rollout, the first guess, stays within
+    // half a turn of the goal's heading too.
+    let (x0, goal) = (
+        [0.3, -1.2, 1.0, 1.5, -0.4, 1.0],
+        [1.0, 0.5, 2.0, 0.0, 0.0, 0.0],
+    );
+    for method in [Method::Ilqr, Method::Dircol] {
+        let [on_body, on_theta] = reach(x0, goal, method);
+        let p = body.plan(&on_body, &|| false).unwrap();
+        let w = flat.plan(&on_theta, &|| false).unwrap();
+        assert!(
+            w.converged && w.goal_error < 0.05,
+            "{method:?}: {}",
+            w.goal_error
+        );
+        assert_eq!(
+            (p.iterations, p.x.len(), p.gains.k[0].cols),
+            (w.iterations, 101 * 7, 6)
+        );
+        let want_x: Vec<f64> = w.x.chunks(6).flat_map(on_circle).collect();
+        let close = |what: &str, a: &[f64], b: &[f64], tol: f64| {
+            for (i, (a, b)) in a.iter().zip(b).enumerate() {
+                assert!(
+                    (a - b).abs() < tol * b.abs().max(1.0),
+                    "{method:?} {what}[{i}]: {a} vs {b}"
+                );
+            }
+        };
+        // The same iterations in other coordinates: iLQR's agree to ~1e-11 (each step's
+        // rounding through a hundred steps and a few iterations); collocation's sparse QP
+        // stops at its own tolerance, and rounding in other coordinates moves that stop by
+        // ~1e-9 relative (measured), so its bound is looser.
+        let tol = match method {
+            Method::Ilqr => 1e-9,
+            Method::Dircol => 1e-6,
+        };
+        close("u", &p.u, &w.u, tol);
+        close("x", &p.x, &want_x, tol);
+        close("K", &p.gains.k[0].data, &w.gains.k[0].data, tol);
+        close("cost", &[p.cost], &[w.cost], tol);
+        close("goal error", &[p.goal_error], &[w.goal_error], tol);
+    }
+}
+
+/// Across θ = ±π the body turns the short way: from θ = −3 to θ = 3 is 0.28 rad through π,
+/// which the angle model, measuring θ − θ_g, sees as 6 rad the other way. Both methods; the
+/// heading stays on the unit circle.
+#[test]
+fn plans_turn_the_short_way_round() {
+    let (body, _) = models();
+    let (x0, goal) = (
+        [0.0, 0.0, -3.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, 3.0, 0.0, 0.0, 0.0],
+    );
+    for method in [Method::Ilqr, Method::Dircol] {
+        let [req, _] = reach(x0, goal, method);
+        let p = body.plan(&req, &|| false).unwrap();
+        assert!(
+            p.goal_error < 0.05,
+            "{method:?}: goal error {}",
+            p.goal_error
+        );
+        let heading: Vec<f64> = p.x.chunks(7).map(|x| x[3].atan2(x[2])).collect();
+        // Turning the short way the heading leaves (−π, −3] ∪ [3, π] by little; the long
+        // way it would sweep through 0.
+        let nearest_zero = heading.iter().fold(f64::INFINITY, |m, h| m.min(h.abs()));
+        assert!(
+            nearest_zero > 2.5,
+            "{method:?} swept through {nearest_zero}: {heading:?}"
+        );
+        for x in p.x.chunks(7) {
+            assert!((x[2].hypot(x[3]) - 1.0).abs() < 1e-9, "{method:?}: {x:?}");
+        }
+    }
+}
+
+/// The plan's sizes on the tangent: Q is 2nv wide, and state bounds (a box on cos θ and
+/// sin θ) are refused naming the field.
+#[test]
+fn plan_requests_speak_in_nq_and_nv() {
+    let (body, _) = models();
+    let [req, _] = reach(states()[1], [0.0; 6], Method::Ilqr);
+    let wide = PlanRequest {
+        q: Mat::diag(&[1.0; 7]),
+        ..req.clone()
+    };
+    let err = body.plan(&wide, &|| false).unwrap_err().to_string();
+    assert!(err.contains("Q") && err.contains("6×6"), "{err}");
+    let bounded = PlanRequest {
+        method: Method::Dircol,
+        x_min: Some(vec![-10.0; 7]),
+        ..req
+    };
+    let err = body.plan(&bounded, &|| false).unwrap_err().to_string();
+    assert!(err.contains("x_min") && err.contains("rotation"), "{err}");
+}
+
+/// An ensemble's mean next state keeps a heading on the circle: the members' headings
+/// averaged as unit complex numbers and projected back (arg Σ z_k), the rest their average.
+#[test]
+fn an_ensembles_mean_heading_stays_on_the_circle() {
+    let t = Template::PlanarBody;
+    let member = |d: f64| {
+        let mut v = values(&t);
+        let at = t.params().iter().position(|p| p.name == "d").unwrap();
+        v[at] = d;
+        ModelFile::from_template(&t, &v, 0.01, Integrator::Rk4).unwrap()
+    };
+    let file = ModelFile::ensemble(vec![member(0.1), member(0.6)], None);
+    let file = ModelFile::from_bytes(&file.to_bytes().unwrap()).unwrap();
+    let both = Evaluator::from_file(&file).unwrap();
+    let x = on_circle(&states()[2]);
+    let next = both.predict(&x, &U, false).0;
+    let each: Vec<Vec<f64>> = (0..2)
+        .map(|k| both.member(k).predict(&x, &U, false).0)
+        .collect();
+    // The members part (different offsets of the centre of mass), so a plain mean would sit
+    // inside the circle.
+    let chord = (each[0][2] + each[1][2]).hypot(each[0][3] + each[1][3]) / 2.0;
+    assert!(chord < 1.0 - 1e-9, "{each:?}");
+    assert!((next[2].hypot(next[3]) - 1.0).abs() < 1e-15, "{next:?}");
+    let angle = |x: &[f64]| x[3].atan2(x[2]);
+    let halfway = (angle(&each[0]) + angle(&each[1])) / 2.0;
+    // Two unit vectors' sum points exactly halfway between them: rounding only.
+    assert!(
+        (angle(&next) - halfway).abs() < 1e-12,
+        "{} vs {halfway}",
+        angle(&next)
+    );
+    for i in [0, 1, 4, 5, 6] {
+        assert_eq!(next[i], (each[0][i] + each[1][i]) / 2.0, "x'[{i}]");
     }
 }

@@ -9,7 +9,7 @@ target = os.environ.get("GRAYBOX_GRPC", "127.0.0.1:50051")
 
 with Client(target) as c:
     info = c.get_model(model_id)
-    print(f"model {info.id}: n = {info.n}, m = {info.m}, dt = {info.dt} s")
+    print(f"model {info.id}: nq = {info.nq}, nv = {info.nv}, m = {info.m}, dt = {info.dt} s")
 
     # One step from rest at q = (0.3, -0.6) rad under a torque on the first joint.
     x = np.array([0.3, -0.6, 0.0, 0.0])     # [q1, q2, q1', q2']: rad, rad/s

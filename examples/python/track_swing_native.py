@@ -7,7 +7,7 @@ from graybox_native import GrayboxError
 
 model = graybox_native.load(os.environ.get("MODEL_FILE", "mvf.gbx"))  # the walkthrough's file
 info = model.info
-print(f"model file: n = {info.n}, m = {info.m}, dt = {info.dt} s")
+print(f"model file: nq = {info.nq}, nv = {info.nv}, m = {info.m}, dt = {info.dt} s")
 
 # The nominal swing: 100 steps (1 s) from rest at q = (0.3, -0.6) rad with no input, and
 # TVLQR gains along it.

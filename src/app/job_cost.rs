@@ -17,7 +17,7 @@ impl App {
         val_count: usize,
     ) -> Result<()> {
         let s = &self.settings;
-        let n = data.n as usize;
+        let n = data.nv();
         let refuse = |field: &str, message: String| {
             Err(Error::Unprocessable {
                 field: field.into(),
@@ -28,7 +28,7 @@ impl App {
             return refuse(
                 "dataset_id",
                 format!(
-                    "the dataset has n = {n} coordinates; this service trains at most {} (--max-dof)",
+                    "the dataset has nv = {n} velocities; this service trains at most {} (--max-dof)",
                     s.max_dof
                 ),
             );

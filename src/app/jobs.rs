@@ -252,12 +252,15 @@ impl App {
             return Ok((data, 0));
         };
         let v = find("validation_dataset_id", vid.clone()).await?;
-        if (v.n, v.m) != (data.n, data.m) || (v.dt - data.dt).abs() > 1e-12 * data.dt {
+        if (v.nq, v.nv, v.m) != (data.nq, data.nv, data.m)
+            || (v.dt - data.dt).abs() > 1e-12 * data.dt
+        {
             return Err(Error::Unprocessable {
                 field: "validation_dataset_id".into(),
                 message: format!(
-                    "has n = {}, m = {}, dt = {} but the training dataset has n = {}, m = {}, dt = {}",
-                    v.n, v.m, v.dt, data.n, data.m, data.dt
+                    "has nq = {}, nv = {}, m = {}, dt = {} but the training dataset has nq = {}, \
+                     nv = {}, m = {}, dt = {}",
+                    v.nq, v.nv, v.m, v.dt, data.nq, data.nv, data.m, data.dt
                 ),
             });
         }
@@ -278,7 +281,7 @@ impl App {
         let job = job.clone();
         tokio::task::spawn_blocking(move || {
             let physical = physical_init(&job.spec, &job.init)?;
-            crate::train::setup::run_space(&job.spec, &job.training, (data.n, data.n))?;
+            crate::train::setup::run_space(&job.spec, &job.training, (data.nq, data.nv))?;
             crate::train::setup::scaling(&job.spec, physical.as_deref(), &data)?;
             check_windows(&job, &data)
         })

@@ -10,6 +10,7 @@ use crate::infer::Evaluator;
 use crate::model::ModelConfig;
 use crate::model::file::ModelFile;
 use crate::model::spec::ModelSpec;
+use crate::physics::space::Joint;
 use crate::records::DatasetInfo;
 use crate::records::JobState;
 use crate::store::{ModelRow, NewModel};
@@ -34,7 +35,9 @@ impl App {
     pub async fn model_with_coordinates(&self, id: &str) -> Result<ModelView> {
         let mut view = self.resolve_model(id).await?;
         let (spec, n) = (view.spec.clone(), view.n.max(0) as usize);
-        view.coordinates = Some(off_executor(move || Ok(coordinate_names(spec, n))).await?);
+        let (names, configuration) = off_executor(move || Ok(coordinate_names(spec, n))).await?;
+        view.coordinates = Some(names);
+        view.configuration = configuration;
         Ok(view)
     }
 
@@ -267,12 +270,30 @@ fn trainable_params(c: &ModelConfig) -> usize {
     budget::estimate(&c.spec, dims, 0, 0, physical).params
 }
 
-/// The names of a stored spec's coordinates: its template's, else q1 … qn (a spec that no
-/// longer reads is named like one without a template).
-fn coordinate_names(spec: serde_json::Value, n: usize) -> Vec<String> {
-    serde_json::from_value::<ModelSpec>(spec)
+/// The names of a stored spec's n coordinates: its template's, else q1 … qn (a spec that no
+/// longer reads is named like one without a template); and where its template's space has a
+/// joint of nq ≠ nv, the names of q's nq values (a rotation θ's as cos(θ) and sin(θ)).
+fn coordinate_names(spec: serde_json::Value, n: usize) -> (Vec<String>, Option<Vec<String>>) {
+    let template = serde_json::from_value::<ModelSpec>(spec)
         .ok()
-        .and_then(|s| s.template().map(|t| t.coordinates()))
+        .and_then(|s| s.template().cloned());
+    let names = (template.as_ref())
+        .map(|t| t.coordinates())
         .filter(|names| names.len() == n)
-        .unwrap_or_else(|| (1..=n).map(|i| format!("q{i}")).collect())
+        .unwrap_or_else(|| (1..=n).map(|i| format!("q{i}")).collect());
+    let space = template
+        .map(|t| t.space())
+        .filter(|s| !s.is_flat() && s.nv() == n);
+    let configuration = space.map(|s| {
+        (s.placed())
+            .flat_map(|p| match p.joint {
+                Joint::Circle => {
+                    let name = &names[p.v];
+                    vec![format!("cos({name})"), format!("sin({name})")]
+                }
+                Joint::Real | Joint::Angle => vec![names[p.v].clone()],
+            })
+            .collect()
+    });
+    (names, configuration)
 }

@@ -54,6 +54,10 @@ pub struct ModelView {
     /// one model's read only, since naming them parses its template.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coordinates: Option<Vec<String>>,
+    /// The names of q's nq values where they are not the coordinates (nq ≠ nv: a rotation θ
+    /// kept as cos(θ) and sin(θ)); read with `coordinates`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub configuration: Option<Vec<String>>,
 }
 
 /// What a model row's report holds: a trained model's report, or how a model that was not
@@ -178,6 +182,7 @@ impl From<ModelRow> for ModelView {
             sha256: m.sha256,
             created_at: m.created_at,
             coordinates: None,
+            configuration: None,
         }
     }
 }

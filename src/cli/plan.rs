@@ -22,10 +22,10 @@ pub struct PlanArgs {
     /// A model file (.gbx) that `train` or `model` wrote, or the service served.
     #[arg(long)]
     pub model: PathBuf,
-    /// The start state, 2n comma-separated values (q then q̇).
+    /// The start state, nq + nv comma-separated values (q then v).
     #[arg(long, allow_hyphen_values = true)]
     pub x0: String,
-    /// The goal state, 2n values.
+    /// The goal state, nq + nv values.
     #[arg(long, allow_hyphen_values = true)]
     pub goal: String,
     /// Steps T (the plan lasts T·Δt, Δt the model's), at most --max-plan-horizon.
@@ -42,13 +42,14 @@ pub struct PlanArgs {
     /// else unbounded).
     #[arg(long, allow_hyphen_values = true)]
     pub u_max: Option<String>,
-    /// Diagonal of Q, 2n values (default: 1 for each q, 0.1 for each q̇).
+    /// Diagonal of Q, 2nv values weighing x ⊖ goal (default: 1 for each configuration
+    /// direction, 0.1 for each velocity).
     #[arg(long, allow_hyphen_values = true)]
     pub q_diag: Option<String>,
     /// Diagonal of R, m values (default: 1e-4 each).
     #[arg(long, allow_hyphen_values = true)]
     pub r_diag: Option<String>,
-    /// Diagonal of Q_f, 2n values (default: 1000 × Q's).
+    /// Diagonal of Q_f, 2nv values (default: 1000 × Q's).
     #[arg(long, allow_hyphen_values = true)]
     pub qf_diag: Option<String>,
     /// Extra randomised starts, at most 1000 (`control::plan::MAX_RESTARTS`).
@@ -73,14 +74,14 @@ pub struct PlanArgs {
     #[arg(long, default_value = "mean_dynamics")]
     pub ensemble_cost: String,
     /// dircol's initial states: `line` (straight from x0 to the goal) or a JSON file of T+1
-    /// rows of 2n values (default: the rollout of zero inputs).
+    /// rows of nq + nv values (default: the rollout of zero inputs).
     #[arg(long)]
     pub x_init: Option<String>,
-    /// dircol's lower state bounds, 2n values (`inf`/`-inf`: none on that coordinate), on
+    /// dircol's lower state bounds, nq + nv values (`inf`/`-inf`: none on that coordinate), on
     /// every state after x0.
     #[arg(long, allow_hyphen_values = true)]
     pub x_min: Option<String>,
-    /// dircol's upper state bounds, 2n values.
+    /// dircol's upper state bounds, nq + nv values.
     #[arg(long, allow_hyphen_values = true)]
     pub x_max: Option<String>,
     /// Where to write the plan (JSON: x, u, K, costs, goal_error; a summary goes to stdout).
@@ -107,11 +108,12 @@ fn values(field: &str, text: &str, len: usize) -> Result<Vec<f64>> {
     Ok(v)
 }
 
-fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
+/// The request from the flags: states nx wide, the state weights' diagonals ndx wide.
+fn request(a: &PlanArgs, (nx, ndx): (usize, usize), m: usize) -> Result<PlanRequest> {
     let q = match &a.q_diag {
-        Some(s) => values("q_diag", s, nx)?,
-        None => (0..nx)
-            .map(|i| if i < nx / 2 { 1.0 } else { 0.1 })
+        Some(s) => values("q_diag", s, ndx)?,
+        None => (0..ndx)
+            .map(|i| if i < ndx / 2 { 1.0 } else { 0.1 })
             .collect(),
     };
     let r = match &a.r_diag {
@@ -119,7 +121,7 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
         None => vec![1e-4; m],
     };
     let qf = match &a.qf_diag {
-        Some(s) => values("qf_diag", s, nx)?,
+        Some(s) => values("qf_diag", s, ndx)?,
         None => q.iter().map(|v| 1000.0 * v).collect(),
     };
     let bound =
@@ -155,7 +157,7 @@ fn request(a: &PlanArgs, nx: usize, m: usize) -> Result<PlanRequest> {
     })
 }
 
-/// `--x-init`: `line`, or a JSON file's `[[…2n values], …]` rows.
+/// `--x-init`: `line`, or a JSON file's `[[…nq + nv values], …]` rows.
 fn initial_states(text: &str, a: &PlanArgs, nx: usize) -> Result<Mat> {
     let rows = usize::try_from(a.horizon)
         .unwrap_or(usize::MAX)
@@ -185,9 +187,8 @@ fn initial_states(text: &str, a: &PlanArgs, nx: usize) -> Result<Mat> {
 pub(super) fn run(a: PlanArgs) -> Result<()> {
     let file = super::model::read(&a.model)?;
     let eval = Evaluator::from_file(&file)?;
-    eval.check_plannable()?;
-    let (nx, m) = (eval.config.nx(), eval.config.m);
-    let req = request(&a, nx, m)?.with_effort_limits(&eval.effort_limits());
+    let (nx, ndx, m) = (eval.config.nx(), eval.config.ndx(), eval.config.m);
+    let req = request(&a, (nx, ndx), m)?.with_effort_limits(&eval.effort_limits());
     // Looked at the start's and the goal's configurations besides q = 0.
     let q = |x: &[f64]| x[..eval.config.nq()].to_vec();
     if let Some(w) = file.stiffness_warning(&[q(&req.x0), q(&req.goal)]) {

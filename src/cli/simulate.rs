@@ -112,7 +112,7 @@ pub(super) fn simulate(a: SimulateArgs) -> Result<()> {
         eprintln!("warning: {}", w.message);
     }
     write_atomic(&a.out, ds.to_json().as_bytes())?;
-    let mut out = json!({"out": a.out, "system": t.name(), "count": ds.count(), "n": ds.n, "m": ds.m, "dt": ds.dt});
+    let mut out = json!({"out": a.out, "system": t.name(), "count": ds.count(), "nq": ds.nq, "nv": ds.nv, "n": ds.nv, "m": ds.m, "dt": ds.dt});
     if let Some(k) = a.trajectories {
         out["trajectories"] = json!(k);
         out["substeps"] = json!(a.substeps);

@@ -31,7 +31,9 @@ impl From<DatasetRow> for records::DatasetInfo {
     }
 }
 
-const COLUMNS: &str = "seq, id, name, n, m, dt, count, sha256, created_at, warnings";
+// `n` is the velocities' width; `nq` is NULL for a dataset stored before it (nq = n).
+const COLUMNS: &str = "seq, id, name, COALESCE(nq, n) AS nq, n AS nv, n, m, dt, count, sha256, \
+                       created_at, warnings";
 
 /// Little-endian f64 of q | q̇ | u | q' | q̇', each row-major.
 pub fn encode(ds: &Dataset) -> Vec<u8> {
@@ -42,8 +44,14 @@ pub fn encode(ds: &Dataset) -> Vec<u8> {
         .collect()
 }
 
-fn decode(blob: &[u8], n: usize, m: usize, dt: f64, count: usize) -> Result<Dataset> {
-    let widths = [n, n, m, n, n];
+fn decode(
+    blob: &[u8],
+    (nq, nv): (usize, usize),
+    m: usize,
+    dt: f64,
+    count: usize,
+) -> Result<Dataset> {
+    let widths = [nq, nv, m, nq, nv];
     let values = count.checked_mul(widths.iter().sum::<usize>());
     if values.and_then(|v| v.checked_mul(8)) != Some(blob.len()) {
         return Err(Error::corrupt(
@@ -61,14 +69,23 @@ fn decode(blob: &[u8], n: usize, m: usize, dt: f64, count: usize) -> Result<Data
             .collect();
         rest = tail;
     }
-    Dataset::new(dt, n, m, arrays)
+    Dataset::new(dt, (nq, nv), m, arrays)
 }
 
-/// The identity of a dataset: its dimensions, Δt and every value.
+/// The identity of a dataset: its dimensions, Δt and every value (nq too where it is not nv,
+/// so that a dataset of one width keeps the identity it always had).
 pub fn sha256(ds: &Dataset, blob: &[u8]) -> String {
     let mut h = Sha256::new();
-    for v in [ds.n as u64, ds.m as u64, ds.count() as u64, ds.dt.to_bits()] {
+    for v in [
+        ds.nv as u64,
+        ds.m as u64,
+        ds.count() as u64,
+        ds.dt.to_bits(),
+    ] {
         h.update(v.to_le_bytes());
+    }
+    if ds.nq != ds.nv {
+        h.update((ds.nq as u64).to_le_bytes());
     }
     h.update(blob);
     hex::encode(h.finalize())
@@ -143,13 +160,14 @@ impl Store {
             }
             let r = sqlx::query(sql::<D>(
                 "INSERT INTO datasets (id, name, sha256, n, m, dt, count, data, created_at, warnings,
-                                       trajectories, blob_key)
-                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12) RETURNING {COLUMNS}",
+                                       trajectories, blob_key, nq)
+                 VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11, $12, $13)
+                 RETURNING {COLUMNS}",
             ))
             .bind(new_id("ds"))
             .bind(name)
             .bind(&sha)
-            .bind(ds.n as i64)
+            .bind(ds.nv as i64)
             .bind(ds.m as i64)
             .bind(ds.dt)
             .bind(ds.count() as i64)
@@ -158,6 +176,7 @@ impl Store {
             .bind(warnings)
             .bind(lengths)
             .bind(&placed.key)
+            .bind(ds.nq as i64)
             .fetch_one(&mut *tx)
             .await?;
             tx.commit().await?;
@@ -182,22 +201,38 @@ impl Store {
         if !super::could_be_id(id) {
             return Ok(None);
         }
-        type Stored = (i64, i64, f64, i64, Vec<u8>, Option<String>, Option<String>);
+        type Stored = (
+            i64,
+            i64,
+            i64,
+            f64,
+            i64,
+            Vec<u8>,
+            Option<String>,
+            Option<String>,
+        );
         let r: Option<Stored> = on_db!(self, pool, D => {
             sqlx::query_as(
-                "SELECT n, m, dt, count, data, blob_key, trajectories FROM datasets WHERE id = $1",
+                "SELECT COALESCE(nq, n), n, m, dt, count, data, blob_key, trajectories
+                 FROM datasets WHERE id = $1",
             )
                 .bind(id)
                 .fetch_optional(pool)
                 .await?
         });
-        let Some((n, m, dt, count, inline, key, lengths)) = r else {
+        let Some((nq, nv, m, dt, count, inline, key, lengths)) = r else {
             return Ok(None);
         };
         let Some(blob) = self.fetch(inline, key, ("datasets", "id", id)).await? else {
             return Ok(None);
         };
-        let ds = decode(&blob, n as usize, m as usize, dt, count as usize)?;
+        let ds = decode(
+            &blob,
+            (nq as usize, nv as usize),
+            m as usize,
+            dt,
+            count as usize,
+        )?;
         drop(blob);
         match lengths.as_deref().map(trajectory_lengths).transpose()? {
             Some(lengths) => (ds.with_trajectories(lengths))

@@ -179,10 +179,10 @@ pub(super) fn split_data(
     cfg: &TrainConfig,
 ) -> Result<(Dataset, Option<Dataset>)> {
     if let Some(v) = val {
-        if (v.n, v.m) != (data.n, data.m) {
+        if (v.nq, v.nv, v.m) != (data.nq, data.nv, data.m) {
             return Err(Error::invalid(
                 "validation_data",
-                "must have the same n and m as the training data",
+                "must have the same nq, nv and m as the training data",
             ));
         }
         if (v.dt - data.dt).abs() > 1e-12 * data.dt {
@@ -268,7 +268,7 @@ pub fn prepare(
     cfg.validate()?;
     spec.validate()?;
     spec.check_trainable()?;
-    let space = run_space(spec, cfg, (data.n, data.n))?;
+    let space = run_space(spec, cfg, (data.nq, data.nv))?;
     spec.check_dims(&space, data.m)?;
     let physical = physical_init(spec, init)?;
     let (train_ds, val_ds) = split_data(data, val, cfg)?;

@@ -210,7 +210,8 @@ mod tests {
         let (a, dt, lambda, rows) = (2.0, 0.1, 0.5, 20);
         let t = |k: usize| k as f64 * dt;
         let ds = Dataset {
-            n: 1,
+            nq: 1,
+            nv: 1,
             m: 1,
             dt,
             q: (0..rows).map(|k| 0.5 * a * t(k) * t(k)).collect(),
@@ -324,7 +325,7 @@ mod tests {
         // q' = q + q̇dt exactly, q̇' = q̇ + 1: only the velocity error counts, λ-weighted.
         let ds = Dataset::new(
             0.1,
-            1,
+            (1, 1),
             1,
             [
                 vec![0.0, 1.0],
@@ -335,7 +336,7 @@ mod tests {
             ],
         )
         .unwrap();
-        let l = zero_acceleration_loss(&ds, 0.5, &Space::flat(ds.n, &[]));
+        let l = zero_acceleration_loss(&ds, 0.5, &Space::flat(ds.nv, &[]));
         assert!((l - 0.5).abs() < 1e-12, "{l}");
     }
 
@@ -345,7 +346,7 @@ mod tests {
         // 2(1 − cos 0.1) on the circle; sample 1 moves 0.1 off the zero-acceleration guess.
         let ds = Dataset::new(
             0.1,
-            1,
+            (1, 1),
             1,
             [
                 vec![3.1, 0.0],

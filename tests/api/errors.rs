@@ -178,7 +178,8 @@ async fn bad_input_table() {
             Some("u[2]"),
         ),
         case(
-            "n mismatch between fields",
+            // qdot may be narrower than q (nv < nq), but qdot_next has qdot's width.
+            "qdot and qdot_next of different widths",
             "POST",
             "/v1/datasets",
             with(&|v| {
@@ -188,7 +189,7 @@ async fn bad_input_table() {
             }),
             400,
             "invalid_argument",
-            Some("qdot"),
+            Some("qdot_next"),
         ),
         case(
             "row count mismatch",

@@ -317,7 +317,10 @@ async fn dynamics_rpcs_against_independent_references() {
         .await
         .unwrap()
         .into_inner();
-    assert_eq!((info.n, info.m, info.name.as_str()), (2, 2, "W-B"));
+    assert_eq!(
+        (info.n, info.nq, info.nv, info.m, info.name.as_str()),
+        (2, 2, 2, 2, "W-B")
+    );
     assert!(
         c.list_models(pb::ListModelsRequest::default())
             .await

@@ -1,7 +1,8 @@
 """The dashboard's energy panels in headless Chromium, as a person reads them: a model's
 stored energy report in a sentence and a table equal to the API's, and along a replay the
 energy chart (T, V, E and E(0) plus the work of F) and, per coordinate, the terms of
-M q̈ + c + ∇V = F, each the API's numbers; a naive model's replay says it has no energy."""
+M q̈ + c + ∇V = F, each the API's numbers; a naive model's replay says it has no energy; a
+model whose heading is a rotation (nq = 4, nv = 3) replays q's four values by name."""
 
 import subprocess
 
@@ -122,3 +123,49 @@ def test_a_naive_models_replay_says_it_has_no_energy(service, trained, page):
     page.wait_for_selector("#energy-note")
     assert "no mass matrix" in page.inner_text("#energy-note")
     assert page.locator("#energy-chart").count() == 0
+
+
+@pytest.fixture(scope="module")
+def planar(service, graybox_bin):
+    """A W-B model of the planar body (q = (x, y, cos θ, sin θ), v = (ẋ, ẏ, ω)) and its data."""
+    s, tmp = service
+    data = tmp / "planar.json"
+    subprocess.run([graybox_bin, "simulate", "--template", "planar_body", "--out", str(data),
+                    "--trajectories", "2", "--steps", "30"], check=True, capture_output=True)
+    status, ds = s.rest.post("/v1/datasets?name=planar", raw=data.read_bytes())
+    assert status == 201, ds
+    status, job = s.rest.post("/v1/jobs", {
+        "dataset_id": ds["id"], "model": "W-B", "template": "planar_body",
+        "training": {"epochs": 1, "batch_size": 16, "lr": 1e-9}})
+    assert status == 201, job
+    job = s.rest.wait_job(job["id"])
+    assert job["state"] == "succeeded", job
+    status, model = s.rest.get(f"/v1/models/{job['model_id']}")
+    assert status == 200 and (model["nq"], model["nv"]) == (4, 3), model
+    return ds, model
+
+
+def test_a_rotation_replays_as_its_cos_and_sin(service, planar, page):
+    """Four charts of q (the heading's cos and sin by name, without a unit), three of the
+    rates, three of the terms of the dynamics: each the API's numbers."""
+    s, _ = service
+    ds, model = planar
+    assert model["configuration"] == ["x", "y", "cos(theta)", "sin(theta)"], model
+    replay(page, s.rest.base, model, ds)
+    page.wait_for_selector('.split-chart[data-coordinate="2"] canvas')
+    status, r = s.rest.get(f"/v1/models/{model['id']}/rollout?dataset_id={ds['id']}&index=0")
+    assert status == 200, r
+    charts = page.locator(".replay-chart")
+    variables = [charts.nth(i).get_attribute("data-variable") for i in range(charts.count())]
+    assert variables == ["q0", "q1", "q2", "q3", "qdot0", "qdot1", "qdot2"], variables
+    captions = page.locator(".replay-chart").locator("xpath=..").locator("figcaption").all_inner_texts()
+    assert captions[:4] == ["x", "y", "cos(theta)", "sin(theta)"], captions
+    assert captions[6] == "theta rate", captions
+    for i, key in ((3, "q"), (2, "qdot")):
+        drawn = series(page, f'.replay-chart[data-variable="{key}{i}"]')["series"]
+        assert np.allclose(drawn["recorded"], [row[i] for row in r["recorded"][key]]), key
+        assert np.allclose(drawn["predicted"], [row[i] for row in r["predicted"][key]]), key
+    # The heading's recorded values stay on the unit circle.
+    heading = np.array(r["recorded"]["q"])[:, 2:4]
+    assert np.allclose(np.hypot(heading[:, 0], heading[:, 1]), 1.0)
+    assert page.locator('.split-chart[data-coordinate="3"]').count() == 0

@@ -131,29 +131,6 @@ def test_a_file_from_before_checksums_loads_with_a_warning(graybox_bin, tmp_path
         graybox_native.load(str(made))
 
 
-def test_a_model_of_nq_4_and_nv_3_answers_in_its_widths(graybox_bin, tmp_path):
-    """The planar body (its heading a unit complex number): states of nq + nv = 7, v̇ of 3,
-    Jacobians 6 wide in the tangent space, and a state of 6 refused naming x."""
-    made = tmp_path / "body.gbx"
-    subprocess.run([graybox_bin, "model", "--template", "planar_body", "--dt", "0.01",
-                    "--out", str(made)], check=True, capture_output=True)
-    model = graybox_native.load(str(made))
-    info = model.info
-    assert (info.nq, info.nv, info.n, info.m) == (4, 3, 3, 3), info
-    assert info.joints == ["real", "real", "circle"], info
-    th = 0.7
-    x = np.array([0.1, -0.2, np.cos(th), np.sin(th), 0.5, 0.0, 1.0])
-    x_next, accel = model.predict(x, np.ones(3), want_accel=True)
-    assert x_next.shape == (7,) and accel.shape == (3,)
-    # The heading stays on the unit circle (rounding of a few operations).
-    assert abs(np.hypot(x_next[2], x_next[3]) - 1.0) < 1e-12
-    A, B = model.linearize(x, np.ones(3))
-    assert A.shape == (6, 6) and B.shape == (6, 3)
-    with pytest.raises(GrayboxError) as e:
-        model.predict(x[:6], np.ones(3))
-    assert e.value.field == "x", e.value
-
-
 def test_an_edited_model_file_is_refused(graybox_bin, tmp_path):
     """One weight changed in a file graybox wrote, a member removed, or an ensemble's members
     deleted (which would leave one model answering with no spread, as if certain): each

@@ -136,14 +136,14 @@ def test_python_example(walkthrough):
     assert Path(ids["WORK"], "mvf-windows.gbx").is_file()
     assert "refused: 422 training.epochs must be between" in out, out
     # gRPC: TVLQR brings the perturbed start back to the swing, open loop does not.
-    assert f"model {ids['MODEL']}: n = 2, m = 2" in out, out
+    assert f"model {ids['MODEL']}: nq = 2, nv = 2, m = 2" in out, out
     # Then in process with graybox_native, the loop closed a step at a time: the same.
     loops = re.findall(r"open loop ([\d.]+), TVLQR ([\d.]+)", out)
     assert len(loops) == 2, out
     for open_loop, tvlqr in loops:
         assert float(tvlqr) < 0.5 * float(open_loop), out
     assert "refused: INVALID_ARGUMENT" in out, out
-    assert "model file: n = 2, m = 2" in out, out
+    assert "model file: nq = 2, nv = 2, m = 2" in out, out
     assert "refused: INVALID_ARGUMENT x" in out, out
 
 

@@ -28,7 +28,7 @@ fn json_round_trip() {
     let back = Dataset::from_json(&ds.to_json(), None).unwrap();
     assert_eq!(ds, back);
     let g = Dataset::from_json(GOOD, None).unwrap();
-    assert_eq!((g.n, g.m, g.count()), (2, 1, 2));
+    assert_eq!((g.nq, g.nv, g.m, g.count()), (2, 2, 1, 2));
 }
 
 #[test]
@@ -66,9 +66,10 @@ fn bad_files_name_the_field() {
             "u",
         ),
         (
-            "n mismatch between fields",
+            // qdot may be narrower than q (nv < nq), but qdot_next has qdot's width.
+            "qdot and qdot_next of different widths",
             GOOD.replace(r#""qdot":[[0,0],[1,1]]"#, r#""qdot":[[0],[1]]"#),
-            "qdot",
+            "qdot_next",
         ),
         (
             "field not an array",
@@ -191,7 +192,7 @@ fn trajectory_files_load() {
     )
     .unwrap();
     let ds = Dataset::load(&path, Some(0.1)).unwrap();
-    assert_eq!((ds.count(), ds.n, ds.m, ds.dt), (2, 1, 1, 0.1));
+    assert_eq!((ds.count(), ds.nq, ds.nv, ds.m, ds.dt), (2, 1, 1, 1, 0.1));
     assert_eq!(ds.q_next, [0.1, 0.2]);
     assert_eq!(ds.qdot_next, [1.0, 1.1]);
     let err = Dataset::load(&path, None).unwrap_err();
@@ -213,7 +214,7 @@ fn paper_data_raises_no_warnings_and_degrees_do() {
         // The angles (all of q for the pendulums, θ for the cart-pole) to degrees.
         let angles: Vec<usize> = match t {
             Template::Cartpole => vec![1],
-            _ => (0..ds.n).collect(),
+            _ => (0..ds.nq).collect(),
         };
         for a in [
             &mut deg.q,
@@ -222,7 +223,7 @@ fn paper_data_raises_no_warnings_and_degrees_do() {
             &mut deg.qdot_next,
         ] {
             for (k, v) in a.iter_mut().enumerate() {
-                if angles.contains(&(k % ds.n)) {
+                if angles.contains(&(k % ds.nq)) {
                     *v = v.to_degrees();
                 }
             }

@@ -246,7 +246,7 @@ fn a_template_model_keeps_its_angles_periodic() {
     let row = |q1_next: f64| {
         Dataset::new(
             dt,
-            2,
+            (2, 2),
             2,
             [
                 x[..2].to_vec(),

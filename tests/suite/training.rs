@@ -288,7 +288,7 @@ fn extended_run_trains_on_and_resumes_on_the_grown_data() {
         let cat = |a: &[f64], b: &[f64]| [a, b].concat();
         Dataset::new(
             first.dt,
-            2,
+            (2, 2),
             2,
             [
                 cat(&first.q, &m.q),

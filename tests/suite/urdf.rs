@@ -486,7 +486,7 @@ fn balanced_data(t: &Template, truth: &[f64], count: usize, seed: u64) -> Datase
             a.extend(v.iter());
         }
     }
-    Dataset::new(0.01, n, m, arrays).unwrap()
+    Dataset::new(0.01, (n, n), m, arrays).unwrap()
 }
 
 /// M(q) and g(q) = ∂V/∂q of a template at `values`.

@@ -273,8 +273,9 @@ impl Model {
         one_or_tuple(py, items)
     }
 
-    /// TVLQR gains K [T, m, 2n] and cost-to-go S [T+1, 2n, 2n] along x̄ [T+1, 2n], ū [T, m],
-    /// for the cost Σ δxᵀQδx + δuᵀRδu + δx_TᵀQf δx_T (no ½).
+    /// TVLQR gains K [T, m, 2nv] and cost-to-go S [T+1, 2nv, 2nv] along x̄ [T+1, nq + nv],
+    /// ū [T, m], for the cost Σ δxᵀQδx + δuᵀRδu + δx_TᵀQf δx_T (no ½; δx = x ⊖ x̄, Q and Qf
+    /// [2nv, 2nv]).
     #[pyo3(signature = (xbar, ubar, Q, R, Qf))]
     #[allow(non_snake_case)]
     fn tvlqr<'py>(

@@ -177,7 +177,6 @@ fn horizon(py: Python<'_>, horizon: i128) -> PyResult<usize> {
 
 /// The core's request from the arguments, checked against the model as the service does.
 fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>, horizon: usize) -> Result<PlanRequest> {
-    eval.check_plannable()?;
     let (nx, ndx, m) = (eval.config.nx(), eval.config.ndx(), eval.config.m);
     let count = |field: &str, v: i128| whole(field, v, usize::MAX as u64).map(|v| v as usize);
     let flat = |v: &Option<ArrayIn<'_>>| v.as_ref().map(|v| values(v).0);
@@ -209,7 +208,7 @@ fn request(eval: &Evaluator, a: &PlanArgs<'_, '_>, horizon: usize) -> Result<Pla
         time_limit: time_limit_in(whole("time_limit_ms", a.time_limit_ms, u64::MAX)?),
     };
     let req = req.with_effort_limits(&eval.effort_limits());
-    validate(&req, nx, m)?;
+    validate(&req, (nx, ndx), m)?;
     Ok(req)
 }
 

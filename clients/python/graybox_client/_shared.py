@@ -35,12 +35,12 @@ class GrayboxError(Exception):
 
 @dataclass
 class PlanResult:
-    """A plan: states `x` [T+1, 2n], inputs `u` [T, m], TVLQR gains `K` [T, m, 2n] along them
-    (u = ū − K(x − x̄)), the `cost`, `costs` (the initial guess's, then after each accepted
+    """A plan: states `x` [T+1, nq + nv], inputs `u` [T, m], TVLQR gains `K` [T, m, 2nv] along
+    them (u = ū − K(x ⊖ x̄)), the `cost`, `costs` (the initial guess's, then after each accepted
     iteration; non-increasing for iLQR), `iterations`, `converged`, `goal_error`
-    (‖x_T − goal‖₂), the `method` that made it, and for direct collocation its largest defect
+    (‖x_T ⊖ goal‖₂), the `method` that made it, and for direct collocation its largest defect
     (`constraint_violation`) and how far the model's one-step rollout of `u` strays from `x`
-    (`rollout_deviation`); both 0 for iLQR. An ensemble's plan also has `x_std` [T+1, 2n], the
+    (`rollout_deviation`); both 0 for iLQR. An ensemble's plan also has `x_std` [T+1, nq + nv], the
     members' standard deviation of each state along `u` (None for a single model)."""
 
     x: NDArray[np.float64]

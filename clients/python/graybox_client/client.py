@@ -328,17 +328,18 @@ class Client:
              seed: int = 0, time_limit_ms: int = 0, method: str = "ilqr",
              x_init: Optional[ArrayLike] = None, x_min: Optional[ArrayLike] = None,
              x_max: Optional[ArrayLike] = None, ensemble_cost: str = "") -> PlanResult:
-        """A trajectory of `horizon` steps from x0 toward `goal` minimizing
-        Σ (x_t−g)ᵀQ(x_t−g) + u_tᵀRu_t + (x_T−g)ᵀQf(x_T−g) with u_min ≤ u_t ≤ u_max (None:
-        unbounded), by iLQR with input bounds on the model, and TVLQR gains along it.
+        """A trajectory of `horizon` steps from x0 toward `goal` (states of nq + nv) minimizing
+        Σ (x_t⊖g)ᵀQ(x_t⊖g) + u_tᵀRu_t + (x_T⊖g)ᵀQf(x_T⊖g) with u_min ≤ u_t ≤ u_max (None:
+        unbounded), by iLQR with input bounds on the model, and TVLQR gains along it. Q and
+        Qf are [2nv, 2nv]: they weigh x ⊖ g, a rotation's part by its shortest turn.
         `u_init` [T, m] is the first guess (zeros by default); `restarts` (at most 1000) adds
         that many randomised guesses (uniform within the bounds) and keeps the best;
         `max_iterations=0` runs no iteration (the best guess's rollout with its gains);
         `time_limit_ms` returns the best so far with converged = False. `method` is "ilqr"
         (shooting on the model's one-step map) or "dircol" (direct collocation on its
-        continuous dynamics), whose initial states `x_init` [T+1, 2n] may be given (default:
-        the rollout of `u_init`), and bounds on every state after x0, `x_min`/`x_max` [2n]
-        (±inf: none on that coordinate). On an ensemble, `ensemble_cost` "mean_dynamics" (the
+        continuous dynamics), whose initial states `x_init` [T+1, nq + nv] may be given
+        (default: the rollout of `u_init`), and bounds on every state after x0,
+        `x_min`/`x_max` [nq + nv] (±inf: none on that coordinate; refused when nq ≠ nv). On an ensemble, `ensemble_cost` "mean_dynamics" (the
         default) plans on the members' average next state and "mean" minimizes the members'
         average cost (x is then their mean state, K their gains for a shared deviation)."""
         def flat(v: Optional[ArrayLike]) -> list[float]:

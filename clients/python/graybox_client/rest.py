@@ -342,10 +342,10 @@ class RestClient:
         return items
 
     def energy(self, model_id: str, x: ArrayLike, u: ArrayLike) -> Json:
-        """Energy and work at a batch of states x [B, 2n] under u [B, m]: `kinetic`,
+        """Energy and work at a batch of states x [B, nq + nv] under u [B, m]: `kinetic`,
         `potential`, `total`, `power` ([B]), `inertial`, `coriolis`, `gravity`, `applied`
-        ([B, n]; inertial + coriolis + gravity = applied) and `parts`, F's named parts
-        (dicts of `name`, `damping`, `values` [B, n]). 409 for a naive model."""
+        ([B, nv]; inertial + coriolis + gravity = applied) and `parts`, F's named parts
+        (dicts of `name`, `damping`, `values` [B, nv]). 409 for a naive model."""
         body = {"x": [list(map(float, r)) for r in np.asarray(x, dtype=np.float64)],
                 "u": [list(map(float, r)) for r in np.asarray(u, dtype=np.float64)]}
         return self._json("POST", f"/v1/models/{model_id}/energy", body)

@@ -20,7 +20,7 @@
 use super::dircol::Continuous;
 use super::linalg::Mat;
 use super::make_plan;
-use super::plan::{Dynamics, EnsembleCost, Plan, PlanRequest, validate};
+use super::plan::{Dynamics, EnsembleCost, Plan, PlanRequest, norm, validate};
 use crate::error::Result;
 
 /// A plan for an ensemble whose mean dynamics are `mean` and whose members are `members`
@@ -32,9 +32,9 @@ pub fn plan<S: Dynamics + Continuous>(
     req: &PlanRequest,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Result<Plan> {
-    let nx = Dynamics::nx(mean);
-    validate(req, nx, Dynamics::m(mean))?;
-    let stacked = Stacked { members, nx };
+    let (nx, ndx) = (Dynamics::nx(mean), mean.ndx());
+    validate(req, (nx, ndx), Dynamics::m(mean))?;
+    let stacked = Stacked { members, nx, ndx };
     let k = members.len();
     match req.ensemble_cost {
         EnsembleCost::MeanDynamics => {
@@ -45,7 +45,9 @@ pub fn plan<S: Dynamics + Continuous>(
         }
         EnsembleCost::Mean => {
             let plan = make_plan(&stacked, &stacked_request(req, k), stop)?;
-            Ok(unstack(plan, k, nx, &req.goal))
+            Ok(unstack(plan, k, (nx, ndx), |x| {
+                mean.difference(&req.goal, x)
+            }))
         }
     }
 }
@@ -54,17 +56,20 @@ pub fn plan<S: Dynamics + Continuous>(
 struct Stacked<'a, S> {
     members: &'a [S],
     nx: usize,
+    /// A member's deviation's width.
+    ndx: usize,
 }
 
 impl<S> Stacked<'_, S> {
-    /// `f(member, its block of x)` for each member, scattered back into stacked rows.
-    fn each(&self, x: &[f64], f: impl Fn(&S, &[f64]) -> Vec<f64>) -> Vec<f64> {
+    /// `f(member, its block of x)` for each member, `width` wide a row, scattered back into
+    /// stacked rows.
+    fn each(&self, x: &[f64], width: usize, f: impl Fn(&S, &[f64]) -> Vec<f64>) -> Vec<f64> {
         let (k, nx) = (self.members.len(), self.nx);
-        let mut out = vec![0.0; x.len()];
+        let mut out = vec![0.0; x.len() / nx * width];
         for (j, member) in self.members.iter().enumerate() {
             let y = f(member, &block(x, j, nx, k * nx));
-            for (row, part) in out.chunks_mut(k * nx).zip(y.chunks(nx)) {
-                row[j * nx..(j + 1) * nx].copy_from_slice(part);
+            for (row, part) in out.chunks_mut(k * width).zip(y.chunks(width)) {
+                row[j * width..(j + 1) * width].copy_from_slice(part);
             }
         }
         out
@@ -77,9 +82,9 @@ impl<S> Stacked<'_, S> {
         x: &[f64],
         f: impl Fn(&S, &[f64]) -> (Vec<Mat>, Vec<Mat>),
     ) -> (Vec<Mat>, Vec<Mat>) {
-        let (k, nx) = (self.members.len(), self.nx);
+        let (k, nx) = (self.members.len(), self.ndx);
         let each: Vec<(Vec<Mat>, Vec<Mat>)> = (self.members.iter().enumerate())
-            .map(|(j, member)| f(member, &block(x, j, nx, k * nx)))
+            .map(|(j, member)| f(member, &block(x, j, self.nx, k * self.nx)))
             .collect();
         let m = each[0].1.first().map_or(0, |b| b.cols);
         (0..each[0].0.len())
@@ -120,16 +125,36 @@ impl<S: Dynamics> Dynamics for Stacked<'_, S> {
         self.members[0].m()
     }
     fn step(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
-        self.each(x, |s, x| s.step(x, u))
+        self.each(x, self.nx, |s, x| s.step(x, u))
     }
     fn linearize(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
         self.jacobians(x, |s, x| s.linearize(x, u))
     }
+    fn ndx(&self) -> usize {
+        self.members.len() * self.ndx
+    }
+    fn difference(&self, x0: &[f64], x1: &[f64]) -> Vec<f64> {
+        let nx = self.nx;
+        (self.members.iter().zip(x0.chunks(nx).zip(x1.chunks(nx))))
+            .flat_map(|(s, (a, b))| s.difference(a, b))
+            .collect()
+    }
+    fn chart_of(&self, x: &[f64]) -> Vec<f64> {
+        (self.members.iter().zip(x.chunks(self.nx)))
+            .flat_map(|(s, x)| s.chart_of(x))
+            .collect()
+    }
+    fn state_at(&self, c: &[f64]) -> Vec<f64> {
+        (self.members.iter().zip(c.chunks(self.ndx)))
+            .flat_map(|(s, c)| s.state_at(c))
+            .collect()
+    }
 }
 
 impl<S: Continuous> Continuous for Stacked<'_, S> {
+    /// A member's derivative is a tangent, `ndx` wide.
     fn nx(&self) -> usize {
-        self.members.len() * self.nx
+        self.members.len() * self.ndx
     }
     fn m(&self) -> usize {
         self.members[0].m()
@@ -138,7 +163,7 @@ impl<S: Continuous> Continuous for Stacked<'_, S> {
         self.members[0].dt()
     }
     fn derivative(&self, x: &[f64], u: &[f64]) -> Vec<f64> {
-        self.each(x, |s, x| s.derivative(x, u))
+        self.each(x, self.ndx, |s, x| s.derivative(x, u))
     }
     fn derivative_jacobian(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>) {
         self.jacobians(x, |s, x| s.derivative_jacobian(x, u))
@@ -184,27 +209,29 @@ fn stacked_request(req: &PlanRequest, k: usize) -> PlanRequest {
 }
 
 /// The stacked plan in one state's terms: the members' mean states and their spread, the
-/// gains and cost-to-go for a deviation every member shares, the mean's distance to the goal.
-fn unstack(mut plan: Plan, k: usize, nx: usize, goal: &[f64]) -> Plan {
+/// gains and cost-to-go for a deviation every member shares, the mean's distance to the goal
+/// (`off_goal`: x ⊖ g).
+fn unstack(
+    mut plan: Plan,
+    k: usize,
+    (nx, ndx): (usize, usize),
+    off_goal: impl Fn(&[f64]) -> Vec<f64>,
+) -> Plan {
     let (x, std) = spread(&plan.x, k, nx);
     // K_t is [m, K·nx]: a shared δx moves every block. S_t is [K·nx, K·nx]: δXᵀ S δX with
     // δX = (δx, …, δx) sums every block.
     let fold = |w: &Mat, rows: usize| {
-        let mut out = Mat::zeros(rows, nx);
+        let mut out = Mat::zeros(rows, ndx);
         for r in 0..w.rows {
             for c in 0..w.cols {
-                out.data[(r % rows) * nx + c % nx] += w.data[r * w.cols + c];
+                out.data[(r % rows) * ndx + c % ndx] += w.data[r * w.cols + c];
             }
         }
         out
     };
     plan.gains.k = plan.gains.k.iter().map(|g| fold(g, g.rows)).collect();
-    plan.gains.s = plan.gains.s.iter().map(|s| fold(s, nx)).collect();
-    let end = &x[x.len() - nx..];
-    plan.goal_error = (end.iter().zip(goal))
-        .map(|(a, g)| (a - g).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    plan.gains.s = plan.gains.s.iter().map(|s| fold(s, ndx)).collect();
+    plan.goal_error = norm(&off_goal(&x[x.len() - nx..]));
     plan.x = x;
     plan.x_std = Some(std);
     plan

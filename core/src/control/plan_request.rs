@@ -174,8 +174,9 @@ pub fn check_horizon(horizon: u64, max: usize) -> Result<usize> {
     }
 }
 
-/// Every field of a request checked, each error naming it.
-pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
+/// Every field of a request checked, each error naming it: states (x0, the goal, x_init,
+/// the state bounds) nx wide, the state weights ndx × ndx (they weigh deviations x ⊖ g).
+pub fn validate(req: &PlanRequest, (nx, ndx): (usize, usize), m: usize) -> Result<()> {
     let finite = |name: &str, v: &[f64], len: usize| -> Result<()> {
         if v.len() != len {
             return Err(Error::invalid(
@@ -196,8 +197,8 @@ pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
     if req.horizon == 0 {
         return Err(Error::invalid("horizon", "must be at least 1"));
     }
-    check_weight("Q", &req.q, nx, false)?;
-    check_weight("Qf", &req.qf, nx, false)?;
+    check_weight("Q", &req.q, ndx, false)?;
+    check_weight("Qf", &req.qf, ndx, false)?;
     check_weight("R", &req.r, m, true)?;
     if let Some(lo) = &req.u_min {
         check_bound("u_min", lo, m)?;
@@ -234,7 +235,7 @@ pub fn validate(req: &PlanRequest, nx: usize, m: usize) -> Result<()> {
             return Err(Error::invalid(
                 "x_init",
                 format!(
-                    "needs [{}, {nx}] (the horizon + 1, 2n), got [{}, {}]",
+                    "needs [{}, {nx}] (the horizon + 1, nq + nv), got [{}, {}]",
                     req.horizon.saturating_add(1),
                     x.rows,
                     x.cols

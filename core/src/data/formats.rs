@@ -122,19 +122,21 @@ impl Dataset {
             widths[k] = width;
             arrays[k] = flat;
         }
-        let n = widths[0];
-        for k in [1, 3, 4] {
-            if widths[k] != n {
+        // q and q_next share nq, qdot and qdot_next nv (nq unless a joint's configuration is
+        // not its velocity: docs/dynamics.md#configuration-space).
+        let (nq, nv) = (widths[0], widths[1]);
+        for (k, of, w) in [(3, "q", nq), (4, "qdot", nv)] {
+            if widths[k] != w {
                 return Err(Error::invalid(
                     FIELDS[k],
                     format!(
-                        "rows have {} values but q rows have {n}; q, qdot, q_next and qdot_next share n",
-                        widths[k]
+                        "rows have {} values but {of} rows have {w}; {} shares {of}'s width",
+                        widths[k], FIELDS[k]
                     ),
                 ));
             }
         }
-        Self::new(dt, n, widths[2], arrays)
+        Self::new(dt, (nq, nv), widths[2], arrays)
     }
 
     /// Parses the CSV form (header `q0..,qdot0..,u0..,q_next0..,qdot_next0..`).
@@ -148,26 +150,30 @@ impl Dataset {
             .ok_or_else(|| Error::invalid("csv", "empty file: expected a header row"))?;
         let cols: Vec<&str> = header.split(',').map(str::trim).collect();
         let count_prefix = |p: &str| cols.iter().filter(|c| strip_index(c, p).is_some()).count();
-        let n = count_prefix("q");
-        let m = count_prefix("u");
-        let columns = |n: usize, m: usize| -> Vec<String> {
+        let (nq, nv, m) = (count_prefix("q"), count_prefix("qdot"), count_prefix("u"));
+        let columns = |nq: usize, nv: usize, m: usize| -> Vec<String> {
             let mut out = vec![];
             for f in FIELDS {
-                let w = if f == "u" { m } else { n };
+                let w = match f {
+                    "u" => m,
+                    "q" | "q_next" => nq,
+                    _ => nv,
+                };
                 out.extend((0..w).map(|i| format!("{f}{i}")));
             }
             out
         };
-        let expected = columns(n, m);
-        if n == 0 || m == 0 {
+        let expected = columns(nq, nv, m);
+        if nq == 0 || nv == 0 || m == 0 {
             return Err(Error::invalid(
                 "csv.header",
                 format!(
-                    "found {n} q columns and {m} u columns, got {}: the header names n columns \
-                     each of q, qdot, q_next and qdot_next and m of u, numbered from 0, in the \
-                     order q, qdot, u, q_next, qdot_next (for n = 2, m = 1: {})",
+                    "found {nq} q columns, {nv} qdot columns and {m} u columns, got {}: the \
+                     header names nq columns each of q and q_next, nv each of qdot and \
+                     qdot_next and m of u, numbered from 0, in the order q, qdot, u, q_next, \
+                     qdot_next (for nq = nv = 2, m = 1: {})",
                     cols.join(","),
-                    columns(2, 1).join(",")
+                    columns(2, 2, 1).join(",")
                 ),
             ));
         }
@@ -175,7 +181,7 @@ impl Dataset {
             return Err(Error::invalid(
                 "csv.header",
                 format!(
-                    "expected columns {} (n = {n}, m = {m} from the header), got {}",
+                    "expected columns {} (nq = {nq}, nv = {nv}, m = {m} from the header), got {}",
                     expected.join(","),
                     cols.join(",")
                 ),
@@ -209,7 +215,7 @@ impl Dataset {
                 arrays[field].push(x);
             }
         }
-        Self::new(dt, n, m, arrays)
+        Self::new(dt, (nq, nv), m, arrays)
     }
 
     /// The dataset as a JSON file: in trajectory form when it has trajectories (one without
@@ -219,12 +225,12 @@ impl Dataset {
             a.chunks(w).collect()
         }
         if self.trajectories.is_some() {
-            let (n, m) = (self.n, self.m);
+            let (nq, nv, m) = (self.nq, self.nv, self.m);
             let one = |s: super::trajectories::Segment| {
                 let (a, b) = (s.start, s.start + s.length);
                 TrajectoryJson {
-                    q: states(&self.q, &self.q_next, a, b, n),
-                    qdot: states(&self.qdot, &self.qdot_next, a, b, n),
+                    q: states(&self.q, &self.q_next, a, b, nq),
+                    qdot: states(&self.qdot, &self.qdot_next, a, b, nv),
                     u: rows(&self.u[a * m..b * m], m),
                 }
             };
@@ -237,11 +243,11 @@ impl Dataset {
         }
         serde_json::to_string(&DatasetJson {
             dt: self.dt,
-            q: rows(&self.q, self.n),
-            qdot: rows(&self.qdot, self.n),
+            q: rows(&self.q, self.nq),
+            qdot: rows(&self.qdot, self.nv),
             u: rows(&self.u, self.m),
-            q_next: rows(&self.q_next, self.n),
-            qdot_next: rows(&self.qdot_next, self.n),
+            q_next: rows(&self.q_next, self.nq),
+            qdot_next: rows(&self.qdot_next, self.nv),
         })
         .expect("plain arrays serialize")
     }
@@ -299,10 +305,11 @@ impl Dataset {
                         .into(),
                 });
             }
-            let (n, m) = *widths.get_or_insert((tr.q[0].len(), tr.u[0].len()));
+            let first = (tr.q[0].len(), tr.qdot[0].len(), tr.u[0].len());
+            let (nq, nv, m) = *widths.get_or_insert(first);
             let field = |f: &str| format!("trajectories[{k}].{f}");
-            same_widths(&tr.q, n, field("q"))?;
-            same_widths(&tr.qdot, n, field("qdot"))?;
+            same_widths(&tr.q, nq, field("q"))?;
+            same_widths(&tr.qdot, nv, field("qdot"))?;
             same_widths(&tr.u, m, field("u"))?;
             for t in 0..steps {
                 arrays[0].extend_from_slice(&tr.q[t]);
@@ -313,8 +320,8 @@ impl Dataset {
             }
             lengths.push(steps);
         }
-        let (n, m) = widths.unwrap_or((0, 0));
-        Self::new(dt, n, m, arrays)?.with_trajectories(lengths)
+        let (nq, nv, m) = widths.unwrap_or((0, 0, 0));
+        Self::new(dt, (nq, nv), m, arrays)?.with_trajectories(lengths)
     }
 }
 

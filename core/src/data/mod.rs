@@ -14,7 +14,11 @@ use crate::rng::Rng;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dataset {
     pub dt: f64,
-    pub n: usize,
+    /// Configuration values per row (q, q_next).
+    pub nq: usize,
+    /// Velocities per row (qdot, qdot_next): nq unless a joint's configuration is not its
+    /// velocity (a rotation kept as a unit complex number, docs/dynamics.md#configuration-space).
+    pub nv: usize,
     pub m: usize,
     pub q: Vec<f64>,
     pub qdot: Vec<f64>,
@@ -38,24 +42,25 @@ pub const DT_RANGE: (f64, f64) = (1e-5, 10.0);
 impl Dataset {
     /// Configuration values per row (q, q_next).
     pub fn nq(&self) -> usize {
-        self.n
+        self.nq
     }
 
     /// Velocities per row (qdot, qdot_next).
     pub fn nv(&self) -> usize {
-        self.n
+        self.nv
     }
 
     pub fn count(&self) -> usize {
-        self.q.len().checked_div(self.n).unwrap_or(0)
+        self.q.len().checked_div(self.nq).unwrap_or(0)
     }
 
-    /// Builds a dataset from row-major arrays, checking every invariant.
-    pub fn new(dt: f64, n: usize, m: usize, arrays: [Vec<f64>; 5]) -> Result<Self> {
+    /// Builds a dataset from row-major arrays of (nq, nv) widths, checking every invariant.
+    pub fn new(dt: f64, (nq, nv): (usize, usize), m: usize, arrays: [Vec<f64>; 5]) -> Result<Self> {
         let [q, qdot, u, q_next, qdot_next] = arrays;
         let d = Dataset {
             dt,
-            n,
+            nq,
+            nv,
             m,
             q,
             qdot,
@@ -104,9 +109,10 @@ impl Dataset {
                 ),
             ));
         }
-        if self.n == 0 {
+        if self.nq == 0 || self.nv == 0 {
+            let field = if self.nq == 0 { "q" } else { "qdot" };
             return Err(Error::invalid(
-                "q",
+                field,
                 "rows must have at least one coordinate",
             ));
         }
@@ -139,11 +145,11 @@ impl Dataset {
 
     fn fields(&self) -> [(&'static str, &Vec<f64>, usize); 5] {
         [
-            ("q", &self.q, self.n),
-            ("qdot", &self.qdot, self.n),
+            ("q", &self.q, self.nq),
+            ("qdot", &self.qdot, self.nv),
             ("u", &self.u, self.m),
-            ("q_next", &self.q_next, self.n),
-            ("qdot_next", &self.qdot_next, self.n),
+            ("q_next", &self.q_next, self.nq),
+            ("qdot_next", &self.qdot_next, self.nv),
         ]
     }
 
@@ -156,13 +162,14 @@ impl Dataset {
         };
         Dataset {
             dt: self.dt,
-            n: self.n,
+            nq: self.nq,
+            nv: self.nv,
             m: self.m,
-            q: take(&self.q, self.n),
-            qdot: take(&self.qdot, self.n),
+            q: take(&self.q, self.nq),
+            qdot: take(&self.qdot, self.nv),
             u: take(&self.u, self.m),
-            q_next: take(&self.q_next, self.n),
-            qdot_next: take(&self.qdot_next, self.n),
+            q_next: take(&self.q_next, self.nq),
+            qdot_next: take(&self.qdot_next, self.nv),
             trajectories: None,
         }
     }
@@ -181,11 +188,11 @@ impl Dataset {
         (self.subset(train), self.subset(val))
     }
 
-    /// State rows x = [q, q̇] (count × 2n) and targets x' = [q', q̇'].
+    /// State rows x = [q, v] (count × (nq + nv)) and targets x' = [q', v'].
     pub fn states(&self) -> (Vec<f64>, Vec<f64>) {
         let join = |a: &[f64], b: &[f64]| -> Vec<f64> {
-            a.chunks(self.n)
-                .zip(b.chunks(self.n))
+            a.chunks(self.nq)
+                .zip(b.chunks(self.nv))
                 .flat_map(|(x, y)| x.iter().chain(y).copied())
                 .collect()
         };

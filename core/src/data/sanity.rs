@@ -30,10 +30,17 @@ pub const VELOCITY_MISMATCH_MAX: f64 = 0.5;
 pub const ACCEL_RMS_MAX: f64 = 1e4;
 
 impl Dataset {
-    /// Every finding of the checks, per coordinate.
+    /// Every finding of the checks, per coordinate. Where q and qdot differ in width (a
+    /// rotation kept as a unit complex number) a velocity is not one coordinate's rate, so the
+    /// velocity check is left out; the spans are q's and the accelerations qdot's.
     pub fn warnings(&self) -> Vec<Warning> {
         let mut out = vec![];
-        for i in 0..self.n {
+        if self.nq != self.nv {
+            out.extend((0..self.nq).filter_map(|i| self.span_warning(i)));
+            out.extend((0..self.nv).filter_map(|i| self.accel_warning(i)));
+            return out;
+        }
+        for i in 0..self.nq {
             out.extend(self.span_warning(i));
             out.extend(self.velocity_warning(i));
             out.extend(self.accel_warning(i));
@@ -41,15 +48,18 @@ impl Dataset {
         out
     }
 
-    /// Coordinate `i` of every row of `a` (n wide).
-    fn coordinate<'a>(&self, a: &'a [f64], i: usize) -> impl Iterator<Item = f64> + 'a {
-        a.iter().skip(i).step_by(self.n).copied()
+    /// Coordinate `i` of every row of a q array (nq wide).
+    fn of_q<'a>(&self, a: &'a [f64], i: usize) -> impl Iterator<Item = f64> + 'a {
+        a.iter().skip(i).step_by(self.nq).copied()
+    }
+
+    /// Velocity `i` of every row of a qdot array (nv wide).
+    fn of_v<'a>(&self, a: &'a [f64], i: usize) -> impl Iterator<Item = f64> + 'a {
+        a.iter().skip(i).step_by(self.nv).copied()
     }
 
     fn span_warning(&self, i: usize) -> Option<Warning> {
-        let values = self
-            .coordinate(&self.q, i)
-            .chain(self.coordinate(&self.q_next, i));
+        let values = self.of_q(&self.q, i).chain(self.of_q(&self.q_next, i));
         let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
             (lo.min(v), hi.max(v))
         });
@@ -75,8 +85,8 @@ impl Dataset {
     /// The first and third quartiles of coordinate `i` over q and q′ (the values at a quarter
     /// and three quarters of the sorted list), found by selection, not a full sort.
     fn quartiles(&self, i: usize) -> (f64, f64) {
-        let mut v: Vec<f64> = (self.coordinate(&self.q, i))
-            .chain(self.coordinate(&self.q_next, i))
+        let mut v: Vec<f64> = (self.of_q(&self.q, i))
+            .chain(self.of_q(&self.q_next, i))
             .collect();
         let last = v.len() - 1;
         let mut at = |k: usize| *v.select_nth_unstable_by(k, f64::total_cmp).1;
@@ -86,12 +96,9 @@ impl Dataset {
     fn velocity_warning(&self, i: usize) -> Option<Warning> {
         let (mut diff, mut fd, mut mid) = (0.0, 0.0, 0.0);
         let rows = self
-            .coordinate(&self.q, i)
-            .zip(self.coordinate(&self.q_next, i))
-            .zip(
-                self.coordinate(&self.qdot, i)
-                    .zip(self.coordinate(&self.qdot_next, i)),
-            );
+            .of_q(&self.q, i)
+            .zip(self.of_q(&self.q_next, i))
+            .zip(self.of_v(&self.qdot, i).zip(self.of_v(&self.qdot_next, i)));
         for ((q, q1), (v, v1)) in rows {
             let m = 0.5 * (v + v1);
             // An angle wrapped to (−π, π] jumps by whole turns: those are not a mismatch.
@@ -122,8 +129,8 @@ impl Dataset {
 
     fn accel_warning(&self, i: usize) -> Option<Warning> {
         let sum: f64 = self
-            .coordinate(&self.qdot, i)
-            .zip(self.coordinate(&self.qdot_next, i))
+            .of_v(&self.qdot, i)
+            .zip(self.of_v(&self.qdot_next, i))
             .map(|(v, v1)| ((v1 - v) / self.dt).powi(2))
             .sum();
         let rms = (sum / self.count() as f64).sqrt();
@@ -155,7 +162,7 @@ mod tests {
             q1.push(a * (t + dt).sin());
             v1.push(a * (t + dt).cos());
         }
-        Dataset::new(dt, 1, 1, [q, v, vec![0.0; count], q1, v1]).unwrap()
+        Dataset::new(dt, (1, 1), 1, [q, v, vec![0.0; count], q1, v1]).unwrap()
     }
 
     fn codes(d: &Dataset) -> Vec<String> {
@@ -192,7 +199,13 @@ mod tests {
         let k = t.len();
         let q = t.iter().map(|t| wrap(3.0 * t)).collect();
         let q1 = t.iter().map(|t| wrap(3.0 * (t + dt))).collect();
-        let d = Dataset::new(dt, 1, 1, [q, vec![3.0; k], vec![0.0; k], q1, vec![3.0; k]]).unwrap();
+        let d = Dataset::new(
+            dt,
+            (1, 1),
+            1,
+            [q, vec![3.0; k], vec![0.0; k], q1, vec![3.0; k]],
+        )
+        .unwrap();
         assert!(d.q.iter().zip(&d.q_next).any(|(a, b)| (a - b).abs() > PI));
         assert!(codes(&d).is_empty(), "{:?}", codes(&d));
     }

@@ -34,15 +34,14 @@ pub fn from_lengths(lengths: &[usize]) -> Vec<Segment> {
 /// The maximal chains of rows i, i+1, … with (q′, q̇′)ᵢ = (q, q̇)ᵢ₊₁ bit for bit: a recording
 /// cut into transitions chains back whole, shuffled or sampled rows are chains of one.
 pub fn chains(d: &Dataset) -> Vec<Segment> {
-    let n = d.n;
-    // Row i of `a` against row i + 1 of `b`, bit for bit.
-    let same = |a: &[f64], b: &[f64], i: usize| {
+    // Row i of `a` against row i + 1 of `b` (rows of n), bit for bit.
+    let same = |a: &[f64], b: &[f64], n: usize, i: usize| {
         a[i * n..(i + 1) * n]
             .iter()
             .zip(&b[(i + 1) * n..(i + 2) * n])
             .all(|(x, y)| x.to_bits() == y.to_bits())
     };
-    let follows = |i: usize| same(&d.q_next, &d.q, i) && same(&d.qdot_next, &d.qdot, i);
+    let follows = |i: usize| same(&d.q_next, &d.q, d.nq, i) && same(&d.qdot_next, &d.qdot, d.nv, i);
     let mut lengths = vec![];
     let mut length = 0;
     for i in 0..d.count() {
@@ -118,7 +117,7 @@ mod tests {
         let k = states.len();
         Dataset::new(
             0.1,
-            1,
+            (1, 1),
             1,
             [
                 states.to_vec(),

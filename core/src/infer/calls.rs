@@ -161,4 +161,16 @@ impl Dynamics for Evaluator {
         let (a, b) = self.linearize_batch(x, u);
         self.jacobians(a, b)
     }
+    fn ndx(&self) -> usize {
+        self.config.ndx()
+    }
+    fn difference(&self, x0: &[f64], x1: &[f64]) -> Vec<f64> {
+        self.config.space.state_difference(x0, x1)
+    }
+    fn chart_of(&self, x: &[f64]) -> Vec<f64> {
+        self.config.space.state_chart(x)
+    }
+    fn state_at(&self, c: &[f64]) -> Vec<f64> {
+        self.config.space.state_from_chart(c)
+    }
 }

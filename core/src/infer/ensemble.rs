@@ -1,8 +1,8 @@
 //! An ensemble's evaluator (README "Ensembles and uncertainty"): the batched entry points
 //! answer with the members' mean, so every caller (Predict, Linearize, TVLQR, Plan's
 //! dynamics, collocation's continuous dynamics, rollouts, the error against horizon) runs on
-//! the mean dynamics: the average of the members' next states, whose Jacobians are the
-//! average of theirs. A single model's answers never pass through here.
+//! the mean dynamics: the average of the members' next states (a rotation's projected back
+//! onto the circle), whose Jacobians are the average of theirs. A single model's answers never pass through here.
 
 use super::Evaluator;
 use crate::control::ensemble::mean_std;
@@ -28,13 +28,14 @@ pub(super) fn mean(parts: impl Iterator<Item = Vec<f64>>) -> Vec<f64> {
 
 /// Each member's predictions and their spread.
 pub struct MemberPredictions {
-    /// Per member, x' `[B, 2n]`.
+    /// Per member, x' `[B, nq + nv]`.
     pub next: Vec<Vec<f64>>,
-    /// The members' mean x' and, per coordinate, their sample standard deviation (0 for one
-    /// member; see `model::report::Spread`).
+    /// The members' mean x' (a rotation's on the circle: `Space::project_states`) and, per
+    /// coordinate, their sample standard deviation (0 for one member; see
+    /// `model::report::Spread`).
     pub mean: Vec<f64>,
     pub std: Vec<f64>,
-    /// The members' mean q̈ `[B, n]`, when asked for.
+    /// The members' mean v̇ `[B, nv]`, when asked for.
     pub accel: Option<Vec<f64>>,
 }
 
@@ -84,31 +85,17 @@ impl Evaluator {
             .collect::<Option<_>>()?;
         let accel = want_accel.then(|| mean(each.iter().filter_map(|e| e.1.clone())));
         let next = each.into_iter().map(|e| e.0).collect();
-        Some(MemberPredictions::of(next, accel))
+        let mut p = MemberPredictions::of(next, accel);
+        self.config.space.project_states(&mut p.mean);
+        Some(p)
     }
 }
 
 impl Evaluator {
-    /// Plans are made for models whose every joint is one number: iLQR's and collocation's
-    /// deviations, costs and bounds are still taken on q as numbers (Predict, Linearize, Tvlqr
-    /// and rollouts work on the configuration space). Checked before a plan request's sizes.
-    pub fn check_plannable(&self) -> Result<()> {
-        if self.config.space.is_flat() {
-            return Ok(());
-        }
-        Err(crate::error::Error::FailedPrecondition(format!(
-            "plans are made for models whose every joint is one number; this one has nq = {} \
-             ≠ nv = {} (a rotation kept as a unit complex number)",
-            self.config.nq(),
-            self.config.nv()
-        )))
-    }
-
     /// A plan by the request's method (`control::make_plan`); an ensemble's also by its
     /// `ensemble_cost`, with the members' spread along it (`control::ensemble`). A single
     /// model plans as itself whatever `ensemble_cost` says.
     pub fn plan(&self, req: &PlanRequest, stop: &(dyn Fn() -> bool + Sync)) -> Result<Plan> {
-        self.check_plannable()?;
         match self.ensemble() {
             Some(members) => crate::control::ensemble::plan(self, members, req, stop),
             None => make_plan(self, req, stop),

@@ -9,6 +9,7 @@ use crate::data::trajectories::Segment;
 use crate::error::{Error, Result};
 use crate::model::file::ModelFile;
 pub use crate::model::report::HorizonError;
+use crate::physics::space::Joint;
 
 /// Where a training's end looks, in steps (those its validation trajectories are long enough
 /// for).
@@ -67,7 +68,8 @@ pub fn horizon_errors(
     horizons: &[usize],
     stop: &dyn Fn() -> bool,
 ) -> Option<Vec<HorizonError>> {
-    let (n, m) = (ds.n, ds.m);
+    let (nq, nv, m) = (ds.nq, ds.nv, ds.m);
+    let nx = nq + nv;
     let longest = *horizons.last().expect("checked: at least one horizon");
     // (start row, transitions left in its trajectory), and each start's current state.
     let mut alive: Vec<(usize, usize)> = (ds.segments().iter())
@@ -75,9 +77,9 @@ pub fn horizon_errors(
         .collect();
     let mut x: Vec<f64> = (alive.iter())
         .flat_map(|&(r, _)| {
-            ds.q[r * n..(r + 1) * n]
+            ds.q[r * nq..(r + 1) * nq]
                 .iter()
-                .chain(&ds.qdot[r * n..(r + 1) * n])
+                .chain(&ds.qdot[r * nv..(r + 1) * nv])
         })
         .copied()
         .collect();
@@ -90,12 +92,12 @@ pub fn horizon_errors(
         let step = k + 1;
         if let Some(slot) = horizons.iter().position(|&h| h == step) {
             found[slot] = (alive.iter().enumerate())
-                .map(|(b, &(r, _))| errors(e, ds, &x[b * 2 * n..(b + 1) * 2 * n], r + k))
+                .map(|(b, &(r, _))| errors(e, ds, &x[b * nx..(b + 1) * nx], r + k))
                 .collect();
         }
         // Keep the starts whose trajectory goes on.
         let keep: Vec<bool> = alive.iter().map(|&(_, left)| left > step).collect();
-        x = (x.chunks(2 * n).zip(&keep))
+        x = (x.chunks(nx).zip(&keep))
             .filter(|(_, k)| **k)
             .flat_map(|(row, _)| row.iter().copied())
             .collect();
@@ -121,19 +123,24 @@ pub fn horizon_errors(
     )
 }
 
-/// (position, velocity) error of predicted state `x` against the next state of row `r`.
+/// (position, velocity) error of predicted state `x` against the next state of row `r`: the
+/// norm of difference(q′, q̂′) per joint (an angle's wrapped to (−π, π], a rotation's the angle
+/// between them) and of v̂′ − v′.
 fn errors(e: &Evaluator, ds: &Dataset, x: &[f64], r: usize) -> (f64, f64) {
-    let n = ds.n;
+    let (nq, nv) = (ds.nq, ds.nv);
     let wrap = |d: f64| d.sin().atan2(d.cos());
     let norm = |it: &mut dyn Iterator<Item = f64>| {
         let s: f64 = it.map(|d| d * d).sum::<f64>().sqrt();
         if s.is_finite() { s } else { f64::INFINITY }
     };
-    let q = norm(&mut (0..n).map(|i| {
-        let d = x[i] - ds.q_next[r * n + i];
-        if e.config.is_periodic(i) { wrap(d) } else { d }
+    let space = &e.config.space;
+    let q_next = &ds.q_next[r * nq..(r + 1) * nq];
+    let q = norm(&mut space.placed().map(|p| match p.joint {
+        Joint::Real => x[p.q.start] - q_next[p.q.start],
+        Joint::Angle => wrap(x[p.q.start] - q_next[p.q.start]),
+        Joint::Circle => space.difference(q_next, &x[..nq])[p.v],
     }));
-    let v = norm(&mut (0..n).map(|i| x[n + i] - ds.qdot_next[r * n + i]));
+    let v = norm(&mut (0..nv).map(|i| x[nq + i] - ds.qdot_next[r * nv + i]));
     (q, v)
 }
 

@@ -175,9 +175,12 @@ impl Evaluator {
                 let acc = (acc.as_deref_mut().map(|v| &mut v[nv * r.start..nv * r.end]))
                     .unwrap_or_default();
                 match self.ensemble() {
-                    Some(ms) => mean_into(ms.len(), spare, (next, acc), |k, next, acc| {
-                        ms[k].predict_unit(a, x, u, next, acc)
-                    }),
+                    Some(ms) => {
+                        mean_into(ms.len(), spare, (next, acc), |k, next, acc| {
+                            ms[k].predict_unit(a, x, u, next, acc)
+                        });
+                        self.config.space.project_states(next);
+                    }
                     None => self.predict_unit(a, x, u, next, acc),
                 }
             }

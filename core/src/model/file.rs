@@ -33,8 +33,17 @@ pub const FORMAT_EMBEDDED_TEMPLATE: &str = "graybox.model/2";
 /// The format of an ensemble's files (any template): its members' parameters in `members`.
 pub const FORMAT_ENSEMBLE: &str = "graybox.model/3";
 
+/// The format of a model whose configuration space has a joint of nq ≠ nv (`joints` in its
+/// config), single or an ensemble. A version that predates nq and nv would read such a file's
+/// `n` (its nv) as n numbers and answer for another space; this format makes it refuse the
+/// file by name instead.
+pub const FORMAT_JOINTS: &str = "graybox.model/4";
+
 /// The format a file with this configuration is written in.
 fn format_of(config: &ModelConfig) -> &'static str {
+    if !config.space.is_flat() {
+        return FORMAT_JOINTS;
+    }
     match config.template() {
         Some(Template::Formula(_) | Template::Urdf(_)) => FORMAT_EMBEDDED_TEMPLATE,
         _ => FORMAT,
@@ -90,7 +99,9 @@ impl ModelFile {
         if files.is_empty() {
             return first;
         }
-        first.format = FORMAT_ENSEMBLE.to_string();
+        if first.format != FORMAT_JOINTS {
+            first.format = FORMAT_ENSEMBLE.to_string();
+        }
         first.members = files.into_iter().map(|f| f.params).collect();
         first.report = report;
         first
@@ -198,18 +209,24 @@ impl ModelFile {
         }
         let mut f: ModelFile =
             serde_json::from_slice(bytes).map_err(|e| Error::corrupt("model file", e))?;
-        let known = [FORMAT, FORMAT_EMBEDDED_TEMPLATE, FORMAT_ENSEMBLE];
+        let known = [
+            FORMAT,
+            FORMAT_EMBEDDED_TEMPLATE,
+            FORMAT_ENSEMBLE,
+            FORMAT_JOINTS,
+        ];
         if !known.contains(&f.format.as_str()) {
             return Err(Error::corrupt(
                 "model file",
                 format!("format '{}' is not one of {}", f.format, known.join(", ")),
             ));
         }
-        if !f.members.is_empty() && f.format != FORMAT_ENSEMBLE {
+        if !f.members.is_empty() && ![FORMAT_ENSEMBLE, FORMAT_JOINTS].contains(&f.format.as_str()) {
             return Err(Error::corrupt(
                 "model file",
                 format!(
-                    "format '{}' has no members (an ensemble is {FORMAT_ENSEMBLE})",
+                    "format '{}' has no members (an ensemble is {FORMAT_ENSEMBLE}, or \
+                     {FORMAT_JOINTS} on a space of nq ≠ nv)",
                     f.format
                 ),
             ));

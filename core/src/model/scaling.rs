@@ -35,8 +35,8 @@ fn column_stats(a: &[f64], width: usize) -> (Vec<f64>, Vec<f64>) {
 impl Scaling {
     /// `mass` gives the analytic M at the initial physical parameters when M is white-box.
     pub fn from_data(ds: &Dataset, mass: Option<(&Template, &[f64])>) -> Self {
-        let (n, m) = (ds.n, ds.m);
-        let (q_mean, q_std) = column_stats(&ds.q, n);
+        let (nq, n, m) = (ds.nq, ds.nv, ds.m);
+        let (q_mean, q_std) = column_stats(&ds.q, nq);
         let (qdot_mean, qdot_std) = column_stats(&ds.qdot, n);
         let (u_mean, u_std) = column_stats(&ds.u, m);
         let acc: Vec<f64> = ds
@@ -51,7 +51,7 @@ impl Scaling {
             Some((t, p)) => {
                 let mass = t.mass_at(p);
                 let tau: Vec<f64> =
-                    ds.q.chunks(n)
+                    ds.q.chunks(nq)
                         .zip(acc.chunks(n))
                         .flat_map(|(q, a)| {
                             let mm = mass(q);

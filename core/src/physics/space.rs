@@ -219,6 +219,55 @@ impl Space {
         out
     }
 
+    /// Rows of states [q, v] moved onto the space: each rotation's (c, s) scaled to unit
+    /// length. An ensemble's mean of unit complex numbers lies inside the circle; its
+    /// projection is their mean on the circle (the extrinsic mean, arg Σ z_k). A no-op on a
+    /// flat space, so such a mean stays the plain average to the bit.
+    pub fn project_states(&self, x: &mut [f64]) {
+        if self.is_flat() {
+            return;
+        }
+        for row in x.chunks_mut(self.nq + self.nv()) {
+            for p in self.placed().filter(|p| p.joint == Joint::Circle) {
+                let (c, s) = (row[p.q.start], row[p.q.start + 1]);
+                let r = c.hypot(s);
+                if r > 0.0 {
+                    row[p.q.start] = c / r;
+                    row[p.q.start + 1] = s / r;
+                }
+            }
+        }
+    }
+
+    /// A state [q, v] in the chart where every joint is one number ([θ, v], 2nv wide): a
+    /// rotation (c, s) by its angle θ = atan2(s, c) ∈ (−π, π], every other value as it is.
+    /// For today's joints (the line and the circle, both commutative) integrate is addition
+    /// in this chart, so a problem solved in it is solved on the space.
+    pub fn state_chart(&self, x: &[f64]) -> Vec<f64> {
+        let mut c = Vec::with_capacity(2 * self.nv());
+        for p in self.placed() {
+            c.push(match p.joint {
+                Joint::Real | Joint::Angle => x[p.q.start],
+                Joint::Circle => x[p.q.start + 1].atan2(x[p.q.start]),
+            });
+        }
+        c.extend_from_slice(&x[self.nq..]);
+        c
+    }
+
+    /// The state at chart coordinates [θ, v] ([`Space::state_chart`]'s inverse).
+    pub fn state_from_chart(&self, c: &[f64]) -> Vec<f64> {
+        let mut x = Vec::with_capacity(self.nq + self.nv());
+        for p in self.placed() {
+            match p.joint {
+                Joint::Real | Joint::Angle => x.push(c[p.v]),
+                Joint::Circle => x.extend([c[p.v].cos(), c[p.v].sin()]),
+            }
+        }
+        x.extend_from_slice(&c[self.nv()..]);
+        x
+    }
+
     /// q as dual numbers in the tangent directions `dirs` (velocity indices):
     /// q ⊕ ε e_k for each k in `dirs`, to first order. A line's coordinate k carries `one` in
     /// direction k; a rotation (c, s) carries (−s, c) in its velocity's direction.

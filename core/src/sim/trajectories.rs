@@ -4,7 +4,7 @@
 //! recording step or (`substeps`) at a finer one, as a system evolving continuously is
 //! recorded by a sensor sampling every Δt.
 
-use super::{SimConfig, TemplateSystem, true_step};
+use super::{SimConfig, TemplateSystem, sample_q, true_step};
 use crate::data::Dataset;
 use crate::error::{Error, Result};
 use crate::physics::integrator::Integrator;
@@ -70,15 +70,15 @@ pub fn simulate_trajectories(
             ),
         ));
     }
-    cfg.check(template)?;
-    let (n, m) = (template.n(), template.m());
+    cfg.check(template.m())?;
+    let (space, m) = (template.space(), template.m());
+    let (nq, nv) = (space.nq(), space.nv());
     let sys = TemplateSystem::new(template.clone(), params);
     let mut rng = Rng::derive(cfg.seed, 0x0707_0001);
     let mut arrays: [Vec<f64>; 5] = Default::default();
     for _ in 0..shape.count {
-        let q0 = (0..n).map(|_| rng.uniform_in(-cfg.q_range, cfg.q_range));
-        let q0: Vec<f64> = q0.collect();
-        let qd0 = (0..n).map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range));
+        let q0 = sample_q(&space, &mut rng, cfg.q_range);
+        let qd0 = (0..nv).map(|_| rng.uniform_in(-cfg.qdot_range, cfg.qdot_range));
         let mut x: Vec<f64> = q0.into_iter().chain(qd0).collect();
         let mut u = Vec::with_capacity(shape.steps * m);
         for k in 0..shape.steps {
@@ -95,15 +95,15 @@ pub fn simulate_trajectories(
             for _ in 1..shape.substeps {
                 next = true_step(&sys, &next, uk, h, Integrator::Rk4);
             }
-            arrays[0].extend(&x[..n]);
-            arrays[1].extend(&x[n..]);
+            arrays[0].extend(&x[..nq]);
+            arrays[1].extend(&x[nq..]);
             arrays[2].extend(uk);
-            arrays[3].extend(&next[..n]);
-            arrays[4].extend(&next[n..]);
+            arrays[3].extend(&next[..nq]);
+            arrays[4].extend(&next[nq..]);
             x = next;
         }
     }
-    Dataset::new(cfg.dt, n, m, arrays)?.with_trajectories(vec![shape.steps; shape.count])
+    Dataset::new(cfg.dt, (nq, nv), m, arrays)?.with_trajectories(vec![shape.steps; shape.count])
 }
 
 /// `count` trajectories of `steps` transitions of the double pendulum at its default values

@@ -69,7 +69,7 @@ pub fn train(
 /// row's next state is the following row's state (so windows still chain).
 pub fn observed(ds: &Dataset, std: [f64; 2], seed: u64) -> Dataset {
     let mut rng = Rng::derive(seed, 0x0B5E_0000);
-    let n = ds.n;
+    let n = ds.nv; // the double pendulum's: q and q̇ of one width
     let mut out = ds.clone();
     // q's n values, then q̇'s.
     let mut noise = || -> Vec<f64> { (0..2 * n).map(|i| std[i / n] * rng.normal()).collect() };
@@ -101,7 +101,7 @@ mod tests {
     fn observed_states_are_noisy_and_still_chain() {
         let exact = trajectories(2, 20, 0, 0, Recording::default()).unwrap();
         let noisy = observed(&exact, [0.01, 0.1], 3);
-        let n = exact.n;
+        let n = exact.nv;
         let differs = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x != y);
         assert!(differs(&exact.q, &noisy.q) && differs(&exact.qdot_next, &noisy.qdot_next));
         // The spread of the added noise is the one asked for (a seeded sample of 80: within 20%).

@@ -19,12 +19,10 @@ impl App {
         deadline: Option<Instant>,
     ) -> Result<Plan> {
         let eval = self.evaluator(id).await?;
-        eval.check_plannable()?;
         let horizon = u64::try_from(req.horizon).unwrap_or(u64::MAX);
         check_horizon(horizon, self.settings.max_plan_horizon)?;
-        let (nx, m) = (eval.config.nx(), eval.config.m);
         let req = req.with_effort_limits(&eval.effort_limits());
-        validate(&req, nx, m)?;
+        validate(&req, (eval.config.nx(), eval.config.ndx()), eval.config.m)?;
         self.admit_call(&eval.plan_cost(&req))?;
         // The solver polls `stop` at every time step of every pass (`control::plan`).
         self.heavy_until(Class::Long, "plan", deadline, move |stop| {

@@ -74,8 +74,8 @@ impl Drop for Reading {
 /// Bytes loading a dataset takes: its arrays three times (the bytes as the store hands them
 /// over, their copy, and the arrays decoded from them are alive together while it loads).
 pub fn load_cost(info: &DatasetInfo) -> usize {
-    let (n, m) = (info.n.max(0) as usize, info.m.max(0) as usize);
-    let values = (info.count.max(0) as usize).saturating_mul(4 * n + m);
+    let (nq, nv, m) = (info.nq(), info.nv(), info.m.max(0) as usize);
+    let values = (info.count.max(0) as usize).saturating_mul(2 * (nq + nv) + m);
     values.saturating_mul(3 * 8)
 }
 

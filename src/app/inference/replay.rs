@@ -232,17 +232,17 @@ impl App {
 /// The recorded states of `seg` (T + 1) and its inputs (T rows of m), copied out of the
 /// dataset so that the rollout does not keep the whole of it.
 fn recorded_segment(ds: &Dataset, seg: Segment) -> (Series, Vec<f64>) {
-    let n = ds.n;
-    let row = |a: &[f64], i: usize| a[i * n..(i + 1) * n].to_vec();
+    let (nq, nv) = (ds.nq, ds.nv);
+    let row = |a: &[f64], n: usize, i: usize| a[i * n..(i + 1) * n].to_vec();
     let rows = seg.start..seg.start + seg.length;
     let mut recorded = Series {
-        q: rows.clone().map(|i| row(&ds.q, i)).collect(),
-        qdot: rows.clone().map(|i| row(&ds.qdot, i)).collect(),
+        q: rows.clone().map(|i| row(&ds.q, nq, i)).collect(),
+        qdot: rows.clone().map(|i| row(&ds.qdot, nv, i)).collect(),
     };
     // Not empty (`replayable`): the last transition's next state ends the recording.
     let last = seg.start + seg.length - 1;
-    recorded.q.push(row(&ds.q_next, last));
-    recorded.qdot.push(row(&ds.qdot_next, last));
+    recorded.q.push(row(&ds.q_next, nq, last));
+    recorded.qdot.push(row(&ds.qdot_next, nv, last));
     let inputs = ds.u[seg.start * ds.m..(seg.start + seg.length) * ds.m].to_vec();
     (recorded, inputs)
 }

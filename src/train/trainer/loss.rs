@@ -13,17 +13,20 @@ use crate::model::Model;
 use crate::train::shards::{self, ParamGrads};
 use crate::train::windows::Windows;
 
-/// One set of transitions as host arrays: x = [q, q̇], u, target x'.
+/// One set of transitions as host arrays: x = [q, v], u, target x'.
 pub(super) struct HostData {
     x: Vec<f64>,
     u: Vec<f64>,
     y: Vec<f64>,
-    n2: usize,
+    /// A state's width, nq + nv.
+    nx: usize,
+    /// Of which q's.
+    nq: usize,
     m: usize,
 }
 
 impl HostData {
-    /// The states [q, q̇], `[N, 2n]`.
+    /// The states [q, v], `[N, nq + nv]`.
     pub(super) fn states(&self) -> &[f64] {
         &self.x
     }
@@ -34,18 +37,18 @@ impl HostData {
             x,
             u: ds.u.clone(),
             y,
-            n2: 2 * ds.n,
+            nx: ds.nq + ds.nv,
+            nq: ds.nq,
             m: ds.m,
         }
     }
 
     /// The first `k` rows' q.
     pub(super) fn configurations(&self, k: usize) -> Vec<Vec<f64>> {
-        let n = self.n2 / 2;
         self.x
-            .chunks(self.n2)
+            .chunks(self.nx)
             .take(k)
-            .map(|x| x[..n].to_vec())
+            .map(|x| x[..self.nq].to_vec())
             .collect()
     }
 
@@ -68,11 +71,11 @@ impl HostData {
         weights: &[f64],
         device: &Device,
     ) -> Tensor<1> {
-        let x = Self::take(&self.x, self.n2, idx, 0, device);
+        let x = Self::take(&self.x, self.nx, idx, 0, device);
         let step = |k: usize| {
             (
                 Self::take(&self.u, self.m, idx, k, device),
-                Self::take(&self.y, self.n2, idx, k, device),
+                Self::take(&self.y, self.nx, idx, k, device),
             )
         };
         if let [_] = weights {
@@ -158,9 +161,9 @@ pub fn evaluate_members(members: &[Model], ds: &Dataset) -> Result<EnsembleEval>
     let models: Vec<Model> = members.iter().map(Model::valid).collect();
     let (data, device, k) = (HostData::new(ds), first.device(), members.len() as f64);
     let all: Vec<usize> = (0..ds.count()).collect();
-    let (mut loss, mut ss) = (0.0, vec![0.0; data.n2]);
+    let (mut loss, mut ss) = (0.0, vec![0.0; data.nx]);
     for rows in all.chunks(4096) {
-        let x = HostData::take(&data.x, data.n2, rows, 0, &device);
+        let x = HostData::take(&data.x, data.nx, rows, 0, &device);
         let u = HostData::take(&data.u, data.m, rows, 0, &device);
         let each: Vec<Tensor<2>> = (models.iter())
             .map(|m| m.step(x.clone(), u.clone()))
@@ -168,7 +171,7 @@ pub fn evaluate_members(members: &[Model], ds: &Dataset) -> Result<EnsembleEval>
         let mean = (each.iter().skip(1))
             .fold(each[0].clone(), |a, p| a + p.clone())
             .div_scalar(k);
-        let y = HostData::take(&data.y, data.n2, rows, 0, &device);
+        let y = HostData::take(&data.y, data.nx, rows, 0, &device);
         loss += scalar(models[0].error_sum(mean.clone(), y));
         for p in each {
             let d = (p - mean.clone()).square().sum_dim(0).into_data();

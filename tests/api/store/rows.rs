@@ -12,7 +12,10 @@ async fn a_dataset_is_stored_once_read_back_exactly_and_listed_newest_first() {
     let ds = small_dataset(1);
     let (first, created) = s.insert_dataset(Some("arm"), &ds).await.unwrap();
     assert!(created);
-    assert_eq!((first.n, first.m, first.count), (2, 2, 16));
+    assert_eq!(
+        (first.nq, first.nv, first.n, first.m, first.count),
+        (2, 2, 2, 2, 16)
+    );
     assert_eq!(first.name.as_deref(), Some("arm"));
     // The same content again: the first row, and its trajectory lengths filled in.
     let as_trajectories = ds.clone().with_trajectories(vec![8, 8]).unwrap();

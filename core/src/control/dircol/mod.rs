@@ -4,6 +4,7 @@
 //! (docs/control.md#direct-collocation). `transcription` lays the program out, `sqp` solves
 //! it with `qp`'s subproblems; this module makes the starts and the answer.
 
+mod chart;
 mod hessian;
 mod qp;
 mod sqp;
@@ -73,7 +74,19 @@ pub fn plan<S: Dynamics + Continuous>(
     req: &PlanRequest,
     stop: &(dyn Fn() -> bool + Sync),
 ) -> Result<Plan> {
-    validate(req, Dynamics::nx(sys), Dynamics::m(sys))?;
+    validate(req, (Dynamics::nx(sys), sys.ndx()), Dynamics::m(sys))?;
+    if sys.ndx() != Dynamics::nx(sys) {
+        return chart::plan(sys, req, stop);
+    }
+    collocate(sys, req, stop)
+}
+
+/// Collocation of a checked request on a system whose every joint is one number.
+fn collocate<S: Dynamics + Continuous>(
+    sys: &S,
+    req: &PlanRequest,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Result<Plan> {
     let c = Collocation {
         sys,
         req,

@@ -199,23 +199,21 @@ impl<S: Dynamics + Continuous> Collocation<'_, S> {
         Ok(None)
     }
 
-    /// ∇J: 2W(z − goal) at the knots' states, 2R u at the inputs, 0 at the midpoints.
+    /// ∇J: 2W(z ⊖ goal) at the knots' states, 2R u at the inputs, 0 at the midpoints.
     fn gradient(&self, z: &[f64]) -> Vec<f64> {
         let (l, req) = (&self.layout, self.req);
         let mut g = vec![0.0; l.len()];
-        let mut put = |at: usize, w: &crate::control::linalg::Mat, target: Option<&[f64]>| {
+        let mut put = |at: usize, w: &crate::control::linalg::Mat, d: &[f64]| {
             for i in 0..w.rows {
-                g[at + i] = 2.0
-                    * (0..w.cols)
-                        .map(|j| w.at(i, j) * (z[at + j] - target.map_or(0.0, |t| t[j])))
-                        .sum::<f64>();
+                g[at + i] = 2.0 * (0..w.cols).map(|j| w.at(i, j) * d[j]).sum::<f64>();
             }
         };
+        let off_goal = |k: usize| self.sys.difference(&req.goal, &z[l.x(k)..][..l.nx]);
         for k in 0..l.intervals {
-            put(l.x(k), &req.q, Some(&req.goal));
-            put(l.u(k), &req.r, None);
+            put(l.x(k), &req.q, &off_goal(k));
+            put(l.u(k), &req.r, &z[l.u(k)..][..l.m]);
         }
-        put(l.x(l.intervals), &req.qf, Some(&req.goal));
+        put(l.x(l.intervals), &req.qf, &off_goal(l.intervals));
         g
     }
 }

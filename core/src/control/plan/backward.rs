@@ -26,20 +26,16 @@ impl<D: Dynamics> Planner<'_, D> {
         warm: &[Vec<f64>],
     ) -> Result<Option<Backward>> {
         let (nx, m, t) = (self.sys.nx(), self.sys.m(), self.req.horizon);
+        // Deviations, gains and the cost-to-go live in the tangent space.
+        let ndx = self.sys.ndx();
         let req = self.req;
         let col = |v: Vec<f64>| Mat::new(v.len(), 1, v);
         let scaled =
             |w: &Mat, s: f64| Mat::new(w.rows, w.cols, w.data.iter().map(|v| v * s).collect());
-        let dx = |s: usize| -> Vec<f64> {
-            cur.x[s * nx..(s + 1) * nx]
-                .iter()
-                .zip(&req.goal)
-                .map(|(x, g)| x - g)
-                .collect()
-        };
+        let dx = |s: usize| self.off_goal(&cur.x[s * nx..(s + 1) * nx]);
         let mut vx = scaled(&req.qf, 2.0).mul(&col(dx(t)));
         let mut vxx = scaled(&req.qf, 2.0);
-        let (mut k_ff, mut k_fb) = (vec![Vec::new(); t], vec![Mat::zeros(m, nx); t]);
+        let (mut k_ff, mut k_fb) = (vec![Vec::new(); t], vec![Mat::zeros(m, ndx); t]);
         let mut expected = 0.0;
         let mut mu_eye = Mat::zeros(m, m);
         (0..m).for_each(|i| mu_eye.data[i * m + i] = mu);
@@ -62,17 +58,18 @@ impl<D: Dynamics> Planner<'_, D> {
             let Some(qp) = box_qp(&quu, &qu.data, &lo, &hi, &warm[s]) else {
                 return Ok(None);
             };
-            let mut kmat = Mat::zeros(m, nx);
+            let mut kmat = Mat::zeros(m, ndx);
             let free: Vec<usize> = (0..m).filter(|&i| qp.free[i]).collect();
             if !free.is_empty() {
-                let mut rhs = Mat::zeros(free.len(), nx);
+                let mut rhs = Mat::zeros(free.len(), ndx);
                 for (r, &i) in free.iter().enumerate() {
-                    rhs.data[r * nx..(r + 1) * nx].copy_from_slice(&qux.data[i * nx..(i + 1) * nx]);
+                    rhs.data[r * ndx..(r + 1) * ndx]
+                        .copy_from_slice(&qux.data[i * ndx..(i + 1) * ndx]);
                 }
                 let sol = cholesky_solve(&qp.l_free, &rhs);
                 for (r, &i) in free.iter().enumerate() {
-                    for j in 0..nx {
-                        kmat.data[i * nx + j] = -sol.at(r, j);
+                    for j in 0..ndx {
+                        kmat.data[i * ndx + j] = -sol.at(r, j);
                     }
                 }
             }

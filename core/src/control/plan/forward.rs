@@ -42,12 +42,10 @@ impl<D: Dynamics> Planner<'_, D> {
             let (mut xb, mut ub) = (Vec::with_capacity(rows * nx), Vec::with_capacity(rows * m));
             for (r, alpha) in alphas.iter().enumerate() {
                 let x = &xs[r][s * nx..(s + 1) * nx];
-                let xbar = &cur.x[s * nx..(s + 1) * nx];
+                let dx = self.sys.difference(&cur.x[s * nx..(s + 1) * nx], x);
                 let mut u: Vec<f64> = (0..m)
                     .map(|i| {
-                        let fb: f64 = (0..nx)
-                            .map(|j| back.gains[s].at(i, j) * (x[j] - xbar[j]))
-                            .sum();
+                        let fb: f64 = (0..dx.len()).map(|j| back.gains[s].at(i, j) * dx[j]).sum();
                         cur.u[s * m + i] + alpha * back.k[s][i] + fb
                     })
                     .collect();

@@ -42,8 +42,26 @@ pub trait Dynamics {
     fn m(&self) -> usize;
     /// x′ for `[B, nx]` states and `[B, m]` inputs, row-major.
     fn step(&self, x: &[f64], u: &[f64]) -> Vec<f64>;
-    /// A_t = ∂f/∂x and B_t = ∂f/∂u at each row of `[T, nx]` states and `[T, m]` inputs.
+    /// A_t and B_t at each row of `[T, nx]` states and `[T, m]` inputs: the one-step map's
+    /// Jacobians in the tangent space, x′ ⊖ x̄′ = A (x ⊖ x̄) + B (u − ū), `[ndx, ndx]` and
+    /// `[ndx, m]`.
     fn linearize(&self, x: &[f64], u: &[f64]) -> (Vec<Mat>, Vec<Mat>);
+    /// The width of a state's deviation x ⊖ x̄ (2nv; nx when every joint is one number).
+    fn ndx(&self) -> usize {
+        self.nx()
+    }
+    /// x1 ⊖ x0 for one state each: the deviation every cost, gain and feedback reads.
+    fn difference(&self, x0: &[f64], x1: &[f64]) -> Vec<f64> {
+        x1.iter().zip(x0).map(|(a, b)| a - b).collect()
+    }
+    /// One state in coordinates where every joint is one number (`ndx` wide; a rotation by its
+    /// angle), and back: collocation's variables on a space of nq ≠ nv (`dircol::chart`).
+    fn chart_of(&self, x: &[f64]) -> Vec<f64> {
+        x.to_vec()
+    }
+    fn state_at(&self, c: &[f64]) -> Vec<f64> {
+        c.to_vec()
+    }
 }
 
 /// A plan: states `[T+1, nx]`, inputs `[T, m]`, TVLQR gains along it with the request's
@@ -139,7 +157,7 @@ pub(super) struct Planner<'a, D: Dynamics> {
 ///
 /// This is iLQR whatever `req.method` says; `control::make_plan` follows the method.
 pub fn plan(sys: &impl Dynamics, req: &PlanRequest, stop: &dyn Fn() -> bool) -> Result<Plan> {
-    validate(req, sys.nx(), sys.m())?;
+    validate(req, (sys.nx(), sys.ndx()), sys.m())?;
     let p = Planner::new(sys, req, stop);
     let mut rng = Rng::derive(req.seed, 0x91_A2);
     let mut best: Option<(Trajectory, Vec<f64>, bool)> = None;
@@ -211,7 +229,7 @@ impl<'a, D: Dynamics> Planner<'a, D> {
         u
     }
 
-    /// (x_s − g)ᵀ W (x_s − g), W = Q before the horizon and Q_f at it.
+    /// (x_s ⊖ g)ᵀ W (x_s ⊖ g), W = Q before the horizon and Q_f at it.
     fn state_cost(&self, x: &[f64], s: usize) -> f64 {
         let nx = self.sys.nx();
         let w = if s == self.req.horizon {
@@ -219,12 +237,12 @@ impl<'a, D: Dynamics> Planner<'a, D> {
         } else {
             &self.req.q
         };
-        let d: Vec<f64> = x[s * nx..(s + 1) * nx]
-            .iter()
-            .zip(&self.req.goal)
-            .map(|(a, b)| a - b)
-            .collect();
-        quadratic(w, d)
+        quadratic(w, self.off_goal(&x[s * nx..(s + 1) * nx]))
+    }
+
+    /// x ⊖ g.
+    pub(super) fn off_goal(&self, x: &[f64]) -> Vec<f64> {
+        self.sys.difference(&self.req.goal, x)
     }
 
     /// u_sᵀ R u_s.
@@ -395,13 +413,7 @@ impl<'a, D: Dynamics> Planner<'a, D> {
             }
             e => e,
         })?;
-        let end = &t.x[horizon * nx..];
-        let goal_error = end
-            .iter()
-            .zip(&self.req.goal)
-            .map(|(x, g)| (x - g).powi(2))
-            .sum::<f64>()
-            .sqrt();
+        let goal_error = norm(&self.off_goal(&t.x[horizon * nx..]));
         Ok(Plan {
             iterations: costs.len() - 1,
             cost: t.cost,
@@ -417,6 +429,11 @@ impl<'a, D: Dynamics> Planner<'a, D> {
             x_std: None,
         })
     }
+}
+
+/// ‖d‖₂.
+pub fn norm(d: &[f64]) -> f64 {
+    d.iter().map(|v| v.powi(2)).sum::<f64>().sqrt()
 }
 
 /// dᵀ W d.

@@ -112,3 +112,25 @@ fn tangent_rows_are_differences_derivative() {
         }
     }
 }
+
+/// The chart is the state's inverse, and moving in it is integrate on the space: the
+/// chart's addition of a tangent δ lands where state_integrate does.
+#[test]
+fn the_chart_adds_as_the_space_integrates() {
+    let s = planar();
+    let [c, sn] = unit(2.9);
+    let x = [0.4, c, sn, -1.2, 0.5, -0.3, 2.0];
+    let chart = s.state_chart(&x);
+    assert_eq!(chart.len(), 6);
+    let back = s.state_from_chart(&chart);
+    for (a, b) in back.iter().zip(&x) {
+        // One atan2 and one cos/sin of order-one values.
+        assert!((a - b).abs() < 1e-15, "{back:?} vs {x:?}");
+    }
+    let d = [0.1, 0.9, -0.2, 0.3, 0.0, -1.0];
+    let moved: Vec<f64> = chart.iter().zip(&d).map(|(a, b)| a + b).collect();
+    let there = s.state_integrate(&x, &d);
+    for (a, b) in s.state_from_chart(&moved).iter().zip(&there) {
+        assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+    }
+}

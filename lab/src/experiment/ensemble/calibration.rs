@@ -107,7 +107,8 @@ pub fn evaluate(
 
 /// Each sample's true error and spread.
 fn points(eval: &Evaluator, ds: &Dataset, train_range: f64) -> Result<Points> {
-    let (n, rows) = (ds.n, ds.count());
+    // The double pendulum's data: q and q̇ of one width.
+    let (n, rows) = (ds.nv, ds.count());
     let mut x = Vec::with_capacity(rows * 2 * n);
     let mut truth = Vec::with_capacity(rows * 2 * n);
     for i in 0..rows {

@@ -84,7 +84,7 @@ pub(super) fn run_one(
         Ok(bytes) => {
             let st: RunState = serde_json::from_slice(&bytes)
                 .map_err(|e| Error::corrupt(state_path.display().to_string(), e))?;
-            let data = Dataset::new(DT, 2, 2, st.data)?;
+            let data = Dataset::new(DT, (2, 2), 2, st.data)?;
             let states = st.checkpoint.into_vec();
             let trainer = Ensemble::resume_states(states, &data, None, &device)?;
             (trainer, data, st.episodes_done)
@@ -274,7 +274,7 @@ fn append(data: &Dataset, more: &Dataset) -> Result<Dataset> {
     let cat = |a: &[f64], b: &[f64]| [a, b].concat();
     Dataset::new(
         DT,
-        2,
+        (2, 2),
         2,
         [
             cat(&data.q, &more.q),

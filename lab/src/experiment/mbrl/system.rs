@@ -222,7 +222,8 @@ fn transitions(states: &[f64], u: &[f64]) -> Dataset {
     let [q, qdot, u, q_next, qdot_next] = a;
     Dataset {
         dt: DT,
-        n: 2,
+        nq: 2,
+        nv: 2,
         m: 2,
         q,
         qdot,

@@ -174,8 +174,8 @@ async function loadDatasetNames(ids) {
 // coordinates); null where only the data know.
 function coordinateUnits(m) {
   const t = m.spec?.template;
-  const builtin = { pendulum: ["rad"], double_pendulum: ["rad", "rad"], cartpole: ["m", "rad"] };
-  if (typeof t === "string") return builtin[t] ?? Array(m.n).fill(null);
+  const builtin = { pendulum: ["rad"], double_pendulum: ["rad", "rad"], cartpole: ["m", "rad"], planar_body: ["m", "m", "rad"] };
+  if (typeof t === "string") return builtin[t] ?? Array(m.nv).fill(null);
   if (t?.kind === "urdf" && typeof t.urdf === "string") {
     const robot = new DOMParser().parseFromString(t.urdf, "application/xml").documentElement;
     // The robot's own joints: a <transmission> names joints too, without a type.
@@ -184,7 +184,7 @@ function coordinateUnits(m) {
     return coordinateNames(m).map((name) => byType[types.get(name)] ?? null);
   }
   const periodic = Array.isArray(t?.periodic) ? t.periodic : [];
-  return Array.from({ length: m.n }, (_, i) => (periodic[i] ? "rad" : null));
+  return Array.from({ length: m.nv }, (_, i) => (periodic[i] ? "rad" : null));
 }
 
 // Energies and forces are in joules and newtons (metres) when the template is in SI units: a

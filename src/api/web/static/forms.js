@@ -90,7 +90,7 @@ async function newJobView(view) {
     return;
   }
   const D = GRAYBOX_DEFAULTS;
-  const dsLabel = (d) => `${d.name || d.id} (n = ${d.n}, m = ${d.m}, ${d.count} rows)`;
+  const dsLabel = (d) => `${d.name || d.id} (${widths(d)}, m = ${d.m}, ${d.count} rows)`;
   const name = el("input", { type: "text", id: "job-name", placeholder: "optional: the model's name" });
   const dataset = el("select", { id: "job-dataset" }, datasets.map((d) => el("option", { value: d.id, text: dsLabel(d) })));
   const validation = el("select", { id: "job-validation" }, el("option", { value: "", text: "none: hold out val_fraction of the dataset" }),
@@ -285,9 +285,9 @@ async function datasetsView(view) {
     const data = await api("GET", `/v1/datasets?page_size=${PAGE_SIZE}`);
     tbody.replaceChildren(...data.items.map((d) => el("tr", { "data-dataset": d.id },
       el("td", { class: "name" }, el("span", { class: "dataset-name", text: d.name || "–" }), el("div", { class: "muted small", text: d.id })),
-      el("td", { class: "num", text: d.n }), el("td", { class: "num", text: d.m }),
+      el("td", { class: "num", text: d.nq === d.nv ? String(d.nv) : `${d.nq} / ${d.nv}` }), el("td", { class: "num", text: d.m }),
       el("td", { class: "num", text: d.count }), el("td", { class: "num", text: d.dt }),
-      el("td", { class: "num", text: `${((d.count * (4 * d.n + d.m) * 8) / 1024).toFixed(1)} KiB` }),
+      el("td", { class: "num", text: `${((d.count * (2 * (d.nq + d.nv) + d.m) * 8) / 1024).toFixed(1)} KiB` }),
       el("td", { class: "wrap" }, d.warnings?.length ? el("details", { class: "warnings" },
         el("summary", { text: `⚠ ${d.warnings.length} warning${d.warnings.length > 1 ? "s" : ""}` }),
         el("ul", {}, d.warnings.map((w) => el("li", { text: `${w.field ? `${w.field}: ` : ""}${w.message}` })))) : "–"),
@@ -295,7 +295,12 @@ async function datasetsView(view) {
       el("td", {}, deleteButton(`/v1/datasets/${d.id}`, `dataset ${d.name || d.id}`, listStatus, load)))));
   }
   view.append(el("h1", { text: "Datasets" }), form, listStatus, el("div", { class: "table-wrap" }, el("table", { id: "datasets-table" },
-    el("thead", {}, el("tr", {}, ["dataset", "n", "m", "count", "Δt", "size", "warnings", "created", ""].map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined, text: h })))),
+    el("thead", {}, el("tr", {}, ["dataset", "nq / nv", "m", "count", "Δt", "size", "warnings", "created", ""].map((h, i) => el("th", { scope: "col", class: i === 7 ? "hide-narrow" : undefined, text: h })))),
     tbody)));
   await load();
+}
+
+// A dataset's widths: n when q and qdot agree, else nq and nv.
+function widths(d) {
+  return d.nq === d.nv ? `n = ${d.nv}` : `nq = ${d.nq}, nv = ${d.nv}`;
 }

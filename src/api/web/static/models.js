@@ -104,7 +104,7 @@ async function energyCharts(m, r, dt, host) {
   const x = (k) => [...r.predicted.q[k], ...r.predicted.qdot[k]];
   // The state at each step's start and at its end under that step's input, for the work.
   const rows = [...Array(T).keys()].flatMap((k) => [[x(k), r.u[k]], [x(k + 1), r.u[k]]]);
-  const per = Math.max(2, 2 * Math.floor(20000 / (24 * (2 * m.n + m.m))));
+  const per = Math.max(2, 2 * Math.floor(20000 / (24 * (m.nq + m.nv + m.m))));
   const parts = [];
   for (let s = 0; s < rows.length; s += per) {
     const chunk = rows.slice(s, s + per);
@@ -130,7 +130,7 @@ async function energyCharts(m, r, dt, host) {
   });
   const names = coordinateNames(m);
   const named = parts[0].parts.map((p) => p.name);
-  for (let i = 0; i < m.n; i++) {
+  for (let i = 0; i < m.nv; i++) {
     const col = (key) => start(key).map((row) => row[i]);
     const series = { "M q̈": col("inertial"), "c (Coriolis)": col("coriolis"), "∇V (gravity)": col("gravity") };
     for (const name of named) {
@@ -212,7 +212,7 @@ function specView(spec) {
 
 // A state is [q, v]: nq configuration values and nv velocities (one number when they agree).
 const sizes = (m) => (m.nq === m.nv ? String(m.nv) : `${m.nq} / ${m.nv}`);
-const coordinateNames = (m) => m.coordinates || Array.from({ length: m.n }, (_, i) => `q${i + 1}`);
+const coordinateNames = (m) => m.coordinates || Array.from({ length: m.nv }, (_, i) => `q${i + 1}`);
 
 // The dataset's trajectories a model can be rolled along (two steps or more), longest first;
 // none for a dataset of independent transitions (`graybox simulate --count`, rows whose next
@@ -235,9 +235,10 @@ async function rolloutTrajectories(dataset) {
 async function replayPanel(view, m) {
   const names = coordinateNames(m);
   const units = coordinateUnits(m);
+  const configuration = m.configuration ? m.configuration.map((c) => [c, units[names.indexOf(c)] ?? null]) : names.map((c, i) => [c, units[i]]);
   // An ensemble replays as one particle per member too: their spread is the band.
   const members = m.metrics?.ensemble?.members?.length ?? 1;
-  const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items.filter((d) => d.n === m.n && d.m === m.m);
+  const datasets = (await api("GET", "/v1/datasets?page_size=1000")).items.filter((d) => d.nq === m.nq && d.nv === m.nv && d.m === m.m);
   const dsSelect = el("select", { id: "replay-dataset" }, datasets.map((d) => el("option", { value: d.id, text: `${d.name || d.id} (${d.count} rows)` })));
   // First the data its training held out, else the data it trained on (the newest dataset
   // may have nothing to do with this model).
@@ -255,7 +256,7 @@ async function replayPanel(view, m) {
   view.append(el("h2", { text: "Rollout against data" }), el("p", { class: "muted",
     text: "The model predicts a recorded trajectory from its first state with its recorded inputs; recorded and predicted q and q̇ over time." }));
   if (!datasets.length) {
-    view.append(el("p", { text: `No dataset with n = ${m.n}, m = ${m.m}.` }));
+    view.append(el("p", { text: `No dataset with nq = ${m.nq}, nv = ${m.nv}, m = ${m.m}.` }));
     horizonPanel(view, [], null, { stored: m.metrics?.horizon_errors, unit: sharedUnit(units) });
     return;
   }
@@ -292,10 +293,11 @@ async function replayPanel(view, m) {
       spreadNote.textContent = spread ? `Shaded: the mean ± σ of ${spread.count} particles, one per member, each rolled out ` +
         "on its member alone; “predicted” is the mean dynamics, what the service serves." : "";
       for (const key of ["q", "qdot"]) {
-        for (let i = 0; i < m.n; i++) {
-          // Coordinates by their names: a URDF's joints, a formula's coordinates.
-          const label = key === "q" ? names[i] : `${names[i]} rate`;
-          const unit = key === "q" ? units[i] : rateUnit(units[i]);
+        for (let i = 0; i < (key === "q" ? m.nq : m.nv); i++) {
+          // Coordinates by their names: a URDF's joints, a formula's coordinates; q's values
+          // by theirs where a rotation keeps two (cos θ, sin θ, without a unit).
+          const label = key === "q" ? configuration[i][0] : `${names[i]} rate`;
+          const unit = key === "q" ? configuration[i][1] : rateUnit(units[i]);
           const host = el("div", { class: "replay-chart", "data-variable": `${key}${i}`, role: "img", "aria-label": `${label}, recorded and predicted` });
           charts.append(el("figure", {}, el("figcaption", { text: label }), host));
           const series = { recorded: r.recorded[key].map((row) => row[i]), predicted: r.predicted[key].map((row) => row[i]) };
