@@ -53,9 +53,12 @@ const ROUTES: &[Route] = &[
     Route(
         "post",
         "/v1/datasets",
-        "Upload a dataset (JSON arrays, trajectories, or CSV with ?dt=)",
+        "Upload a dataset (JSON arrays, trajectories, or CSV with ?dt=), or a robot's CSV log \
+         with ?time= (docs/logs.md)",
         Some("object"),
-        &["?name", "?dt"],
+        &[
+            "?name", "?dt", "?time", "?q", "?qdot", "?u", "?wrapped", "?gap", "?window", "?order",
+        ],
     ),
     Route(
         "get",

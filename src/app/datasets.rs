@@ -3,15 +3,29 @@
 use serde_json::Value;
 
 use super::App;
+use super::templates::off_executor;
 use crate::data::Dataset;
+use crate::data::log::{ImportOptions, ImportSummary, LogColumns, import_csv};
 use crate::error::{Error, Result};
 use crate::names::check_name;
 use crate::records::DatasetInfo;
 
-/// What a POST /v1/datasets body was, with the Δt given beside it (`?dt=`).
+/// What a POST /v1/datasets body was, with the Δt given beside it (`?dt=`), or a robot's log
+/// with the columns and options of its import (`?time=…`, docs/logs.md).
 pub enum Upload {
-    Json { value: Value, dt: Option<f64> },
-    Csv { text: String, dt: Option<f64> },
+    Json {
+        value: Value,
+        dt: Option<f64>,
+    },
+    Csv {
+        text: String,
+        dt: Option<f64>,
+    },
+    Log {
+        bytes: Vec<u8>,
+        columns: LogColumns,
+        options: ImportOptions,
+    },
 }
 
 /// An upload's outcome: the stored dataset, whether this upload created it, and a note when
@@ -23,16 +37,31 @@ pub struct Uploaded {
     pub created: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
+    /// A log's import: what it kept, dropped and estimated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub import: Option<ImportSummary>,
 }
 
 impl App {
     /// Validates and stores a dataset; the same arrays again return the stored one
     /// (`created = false`).
     pub async fn upload_dataset(&self, name: Option<String>, upload: Upload) -> Result<Uploaded> {
+        let mut import = None;
         let (ds, body_name) = match upload {
             Upload::Csv { text, dt } => {
                 let dt = dt.ok_or_else(|| Error::invalid("dt", "a CSV upload needs ?dt="))?;
                 (Dataset::from_csv(&text, dt)?, None)
+            }
+            Upload::Log {
+                bytes,
+                columns,
+                options,
+            } => {
+                // Fitting every grid time is seconds of work for a long log: off the executor.
+                let (ds, summary) =
+                    off_executor(move || import_csv(&bytes, &columns, &options)).await?;
+                import = Some(summary);
+                (ds, None)
             }
             Upload::Json { value, dt } => {
                 let body_name = match value.get("name") {
@@ -67,6 +96,7 @@ impl App {
             dataset,
             created,
             note,
+            import,
         })
     }
 

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 mod energy;
 mod eval;
 mod health;
+mod import;
 mod model;
 mod plan;
 mod serve;
@@ -78,6 +79,9 @@ pub struct Cli {
 pub enum Command {
     /// Sample a transition dataset from a white-box template (the paper's sampling).
     Simulate(SimulateArgs),
+    /// A robot's log (CSV: time, positions, optionally velocities, inputs) as a dataset of
+    /// trajectories on an even grid, velocities estimated where the log has none.
+    Import(import::ImportArgs),
     /// Train a model on a dataset and write the best-validation model file.
     Train(TrainArgs),
     /// The training loss of a model file on a dataset.
@@ -169,6 +173,7 @@ pub fn exit_code(result: Result<()>, health: bool) -> ExitCode {
 pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Simulate(a) => simulate::simulate(a),
+        Command::Import(a) => import::import(a),
         Command::Train(a) => train::train(a),
         Command::Eval(a) => eval::eval(a),
         Command::Inspect(a) => eval::inspect(a),

@@ -14,6 +14,7 @@ mod grpc;
 mod helpers;
 mod hostile;
 mod jobs;
+mod logs;
 mod model_uploads;
 mod multistep;
 mod nodes;

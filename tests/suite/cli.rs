@@ -8,6 +8,8 @@ mod careless;
 mod ensemble;
 #[path = "cli/formula_limits.rs"]
 mod formula_limits;
+#[path = "cli/import.rs"]
+mod import;
 #[path = "cli/messages.rs"]
 mod messages;
 #[path = "cli/model_files.rs"]

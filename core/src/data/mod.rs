@@ -2,6 +2,7 @@
 //! `formats.rs`, the sanity warnings in `sanity.rs`.
 
 mod formats;
+pub mod log;
 mod sanity;
 pub mod trajectories;
 

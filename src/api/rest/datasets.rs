@@ -12,6 +12,7 @@ use super::{
 };
 use crate::app::datasets::Upload;
 use crate::app::uploads::BodyKind;
+use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns};
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -48,7 +49,9 @@ async fn upload(
     let limit = s.limit(BodyKind::Dataset);
     let dt = float_param(&params, "dt")?;
     let bytes = body_bytes(body, limit)?;
-    let upload = if is_csv(&headers, &bytes) {
+    let upload = if params.contains_key("time") {
+        log_upload(&params, bytes.to_vec())?
+    } else if is_csv(&headers, &bytes) {
         let text = String::from_utf8(Vec::from(bytes))
             .map_err(|_| ApiError::bad_request("body", "CSV must be UTF-8"))?;
         Upload::Csv { text, dt }
@@ -64,6 +67,50 @@ async fn upload(
         .upload_dataset(params.get("name").cloned(), upload)
         .await?;
     Ok((stored_status(uploaded.created), axum::Json(uploaded)))
+}
+
+/// A robot's log (`?time=COL&q=COLS&u=COLS[&qdot=COLS][&wrapped=COLS][&dt=S][&gap=5]
+/// [&window=15][&order=3]`, the CSV body as `graybox import` reads it), allowed the memory its
+/// body reserved (`BodyKind::cost`).
+fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
+    let list = |name: &str| -> Vec<String> {
+        params.get(name).map_or_else(Vec::new, |v| {
+            (v.split(','))
+                .map(str::trim)
+                .filter(|s| !s.is_empty())
+                .map(str::to_string)
+                .collect()
+        })
+    };
+    let count = |name: &str, default: usize| -> ApiResult<usize> {
+        match int_param(params, name)? {
+            None => Ok(default),
+            Some(v) => usize::try_from(v)
+                .map_err(|_| ApiError::bad_request(name, format!("must be ≥ 0, got {v}"))),
+        }
+    };
+    let defaults = ImportOptions::default();
+    let options = ImportOptions {
+        dt: float_param(params, "dt")?,
+        gap: float_param(params, "gap")?.unwrap_or(defaults.gap),
+        fit: Fit {
+            window: count("window", DEFAULT_FIT.window)?,
+            order: count("order", DEFAULT_FIT.order)?,
+        },
+        wrapped: list("wrapped"),
+        memory: Some(BodyKind::Dataset.cost(bytes.len())),
+    };
+    let columns = LogColumns {
+        time: params.get("time").cloned().unwrap_or_default(),
+        q: list("q"),
+        qdot: list("qdot"),
+        u: list("u"),
+    };
+    Ok(Upload::Log {
+        bytes,
+        columns,
+        options,
+    })
 }
 
 async fn list(State(s): State<RestState>, p: Params) -> ApiResult<impl IntoResponse> {

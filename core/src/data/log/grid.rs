@@ -1,0 +1,119 @@
+//! One trajectory of a log on an even grid of times: its states from the local fit, each
+//! input its mean over a step.
+
+use super::{Fit, LogColumns};
+
+/// One trajectory's samples: times and the selected columns (q, then qdot if given, then u).
+pub(super) struct Piece<'a> {
+    pub(super) time: &'a [f64],
+    pub(super) columns: Vec<&'a [f64]>,
+}
+
+/// One grid time's state [q, q̇].
+type State = Vec<f64>;
+
+impl Piece<'_> {
+    /// The states at t₀ + k·dt within the trajectory, or None when it has too few samples
+    /// to fit. Velocities given are the fit's value of them (and checked against the
+    /// positions' rate in `check`); else the positions' rate.
+    pub(super) fn on_grid(
+        &self,
+        cols: &LogColumns,
+        fit: Fit,
+        dt: f64,
+        check: &mut Check,
+    ) -> Option<Vec<State>> {
+        let nq = cols.q.len();
+        if self.time.len() < fit.order + 1 {
+            return None;
+        }
+        let (t0, t1) = (self.time[0], self.time[self.time.len() - 1]);
+        // Grid points up to the last sample, allowing for the rounding of k·dt.
+        let count = ((t1 - t0) / dt * (1.0 + 1e-12)).floor() as usize + 1;
+        let states = (0..count)
+            .map(|k| {
+                let s = fit.stencil(self.time, t0 + k as f64 * dt);
+                let (q, rate): (Vec<f64>, Vec<f64>) =
+                    self.columns[..nq].iter().map(|c| s.apply(c)).unzip();
+                let qdot: Vec<f64> = if cols.qdot.is_empty() {
+                    rate
+                } else {
+                    let given: Vec<f64> = (self.columns[nq..2 * nq].iter())
+                        .map(|c| s.apply(c).0)
+                        .collect();
+                    check.add(&rate, &given);
+                    given
+                };
+                [q, qdot].concat()
+            })
+            .collect();
+        Some(states)
+    }
+
+    /// The transitions between consecutive grid states, each under its inputs' mean over the
+    /// step, appended to the dataset's arrays.
+    pub(super) fn transitions(
+        &self,
+        states: &[State],
+        (nq, m): (usize, usize),
+        dt: f64,
+        arrays: &mut [Vec<f64>; 5],
+    ) {
+        let inputs = &self.columns[self.columns.len() - m..];
+        let t0 = self.time[0];
+        for (k, pair) in states.windows(2).enumerate() {
+            let a = t0 + k as f64 * dt;
+            arrays[0].extend_from_slice(&pair[0][..nq]);
+            arrays[1].extend_from_slice(&pair[0][nq..]);
+            arrays[2].extend(inputs.iter().map(|u| mean_over(self.time, u, a, a + dt)));
+            arrays[3].extend_from_slice(&pair[1][..nq]);
+            arrays[4].extend_from_slice(&pair[1][nq..]);
+        }
+    }
+}
+
+/// Sums of the velocity check's squared differences.
+#[derive(Default)]
+pub(super) struct Check {
+    sum: f64,
+    count: usize,
+}
+
+impl Check {
+    fn add(&mut self, estimated: &[f64], given: &[f64]) {
+        for (a, b) in estimated.iter().zip(given) {
+            self.sum += (a - b).powi(2);
+            self.count += 1;
+        }
+    }
+
+    pub(super) fn rms(&self) -> Option<f64> {
+        (self.count > 0).then(|| (self.sum / self.count as f64).sqrt())
+    }
+}
+
+/// The mean over [a, b] of the piecewise-linear signal through (times, y), held at its end
+/// values outside them.
+fn mean_over(times: &[f64], y: &[f64], a: f64, b: f64) -> f64 {
+    let at = |t: f64| -> f64 {
+        let k = times.partition_point(|&s| s <= t);
+        match k {
+            0 => y[0],
+            k if k == times.len() => y[k - 1],
+            k => {
+                let (t0, t1) = (times[k - 1], times[k]);
+                y[k - 1] + (y[k] - y[k - 1]) * (t - t0) / (t1 - t0)
+            }
+        }
+    };
+    // The trapezoid rule is exact on each linear piece between the knots inside [a, b].
+    let mut knots = vec![a];
+    let first = times.partition_point(|&s| s <= a);
+    knots.extend(times[first..].iter().copied().take_while(|&s| s < b));
+    knots.push(b);
+    let area: f64 = knots
+        .windows(2)
+        .map(|w| 0.5 * (at(w[0]) + at(w[1])) * (w[1] - w[0]))
+        .sum();
+    area / (b - a)
+}

@@ -1,0 +1,385 @@
+//! A robot's log as a dataset (docs/logs.md): a CSV file with a time column, joint positions,
+//! optionally velocities, and the inputs (measured efforts), sampled with jitter, with dropped
+//! samples and pauses. The import keeps the rows with every selected value, unwraps wrapped
+//! angles, splits the log into trajectories at its pauses (a step longer than `gap` median
+//! steps), estimates velocities from positions by a local polynomial fit on the samples' own
+//! times (`fit`) when the log has none, and samples each trajectory on an even grid of `dt`
+//! (the median step by default): the positions and velocities the fit's, each input its
+//! mean over the step (the model holds u over a step).
+
+mod fit;
+mod grid;
+mod table;
+
+use serde::Serialize;
+
+pub use fit::{DEFAULT_FIT, Fit, Stencil};
+
+use self::grid::{Check, Piece};
+use super::{DT_RANGE, Dataset};
+use crate::error::{Error, Result};
+
+/// Which columns are what; `qdot` empty: estimated from `q`.
+#[derive(Debug, Clone, Default)]
+pub struct LogColumns {
+    pub time: String,
+    pub q: Vec<String>,
+    pub qdot: Vec<String>,
+    pub u: Vec<String>,
+}
+
+/// How to import.
+#[derive(Debug, Clone)]
+pub struct ImportOptions {
+    /// The dataset's step; `None`: the log's median step. At least half the median step.
+    pub dt: Option<f64>,
+    /// A step longer than this many median steps is a pause: the trajectory ends there.
+    pub gap: f64,
+    pub fit: Fit,
+    /// q columns holding an angle wrapped into a turn (a jump of more than π between two
+    /// samples is a wrap, undone).
+    pub wrapped: Vec<String>,
+    /// The most memory the import may hold, in bytes (the service's share for the upload);
+    /// `None`: no bound (the command line, on the caller's own file).
+    pub memory: Option<usize>,
+}
+
+impl Default for ImportOptions {
+    fn default() -> Self {
+        Self {
+            dt: None,
+            gap: 5.0,
+            fit: DEFAULT_FIT,
+            wrapped: vec![],
+            memory: None,
+        }
+    }
+}
+
+/// What an import did, for the dataset's summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
+pub struct ImportSummary {
+    /// Data rows in the log.
+    pub rows: usize,
+    /// Rows left out for a missing value in a selected column, and the first of them.
+    pub dropped_rows: usize,
+    pub first_dropped_row: Option<usize>,
+    /// The log's median step and the relative spread of its steps (their standard deviation
+    /// over the median), pauses left out.
+    pub median_step: f64,
+    pub jitter: f64,
+    /// Pauses that split the log, and trajectories too short for one step (left out).
+    pub pauses: usize,
+    pub short_trajectories: usize,
+    pub trajectories: usize,
+    pub transitions: usize,
+    pub dt: f64,
+    /// "estimated" (by `fit`) or "given".
+    pub velocities: String,
+    pub fit: Fit,
+    /// With velocities given: the root mean square of the fit's estimate minus the log's, over
+    /// every grid state and joint (a check of either).
+    pub velocity_check_rms: Option<f64>,
+}
+
+/// The dataset of a CSV log and what the import did.
+pub fn import_csv(
+    bytes: &[u8],
+    cols: &LogColumns,
+    opts: &ImportOptions,
+) -> Result<(Dataset, ImportSummary)> {
+    opts.fit.check()?;
+    check_options(cols, opts)?;
+    let names = table::header(bytes)?;
+    let mut at = vec![(find(&names, "time", &cols.time)?, "time")];
+    for (field, list) in [("q", &cols.q), ("qdot", &cols.qdot), ("u", &cols.u)] {
+        for c in list {
+            at.push((find(&names, field, c)?, field));
+        }
+    }
+    let read = table::read(bytes, &at, &names)?;
+    let named: Vec<(&str, String)> = at.iter().map(|(i, f)| (*f, names[*i].clone())).collect();
+    let log = Samples::keep_complete(read, &named)?;
+    log.import(cols, opts)
+}
+
+/// The column named `name` for `field`, or an error listing the log's columns.
+fn find(names: &[String], field: &str, name: &str) -> Result<usize> {
+    names.iter().position(|n| n == name).ok_or_else(|| {
+        Error::invalid(
+            field,
+            format!(
+                "no column '{name}' in the log; its columns: {}",
+                names.join(", ")
+            ),
+        )
+    })
+}
+
+fn check_options(cols: &LogColumns, opts: &ImportOptions) -> Result<()> {
+    if cols.q.is_empty() {
+        return Err(Error::invalid("q", "name at least one position column"));
+    }
+    if cols.u.is_empty() {
+        return Err(Error::invalid("u", "name at least one input column"));
+    }
+    if !cols.qdot.is_empty() && cols.qdot.len() != cols.q.len() {
+        return Err(Error::invalid(
+            "qdot",
+            format!(
+                "names {} columns for {} positions: one velocity per position, or none (then \
+                 they are estimated)",
+                cols.qdot.len(),
+                cols.q.len()
+            ),
+        ));
+    }
+    if let Some(w) = opts.wrapped.iter().find(|w| !cols.q.contains(w)) {
+        return Err(Error::invalid(
+            "wrapped",
+            format!(
+                "'{w}' is not one of the position columns ({})",
+                cols.q.join(", ")
+            ),
+        ));
+    }
+    if !(opts.gap.is_finite() && opts.gap > 1.0) {
+        return Err(Error::invalid(
+            "gap",
+            format!("must be a number of median steps above 1, got {}", opts.gap),
+        ));
+    }
+    Ok(())
+}
+
+/// The log's complete rows: times, then each selected column, in the order asked.
+struct Samples {
+    rows: usize,
+    /// Original row of each kept sample.
+    row: Vec<usize>,
+    time: Vec<f64>,
+    columns: Vec<Vec<f64>>,
+    dropped: usize,
+    first_dropped: Option<usize>,
+}
+
+impl Samples {
+    /// The rows with every selected value; a column with no value at all, time that does not
+    /// increase and a log of fewer than two complete rows are errors naming the column or row.
+    fn keep_complete(read: table::Columns, named: &[(&str, String)]) -> Result<Self> {
+        for ((field, name), v) in named.iter().zip(&read.values) {
+            if v.iter().all(|x| x.is_nan()) {
+                return Err(Error::invalid(
+                    *field,
+                    format!(
+                        "column '{name}' has no value in any of the {} rows",
+                        read.rows
+                    ),
+                ));
+            }
+        }
+        let complete: Vec<usize> = (0..read.rows)
+            .filter(|&r| read.values.iter().all(|v| !v[r].is_nan()))
+            .collect();
+        let first_dropped = (0..read.rows).find(|r| complete.binary_search(r).is_err());
+        let pick = |v: &Vec<f64>| complete.iter().map(|&r| v[r]).collect::<Vec<f64>>();
+        let s = Samples {
+            rows: read.rows,
+            time: pick(&read.values[0]),
+            columns: read.values[1..].iter().map(pick).collect(),
+            dropped: read.rows - complete.len(),
+            first_dropped,
+            row: complete,
+        };
+        if s.time.len() < 2 {
+            return Err(Error::invalid(
+                "log",
+                format!(
+                    "{} complete row(s) of {} (a row missing a selected value is left out): a \
+                     log needs at least two",
+                    s.time.len(),
+                    s.rows
+                ),
+            ));
+        }
+        if let Some(k) = (1..s.time.len()).find(|&k| s.time[k] <= s.time[k - 1]) {
+            return Err(Error::invalid(
+                "time",
+                format!(
+                    "time must increase from row to row: row {} has {} after row {}'s {}",
+                    s.row[k],
+                    s.time[k],
+                    s.row[k - 1],
+                    s.time[k - 1]
+                ),
+            ));
+        }
+        Ok(s)
+    }
+
+    fn import(
+        mut self,
+        cols: &LogColumns,
+        opts: &ImportOptions,
+    ) -> Result<(Dataset, ImportSummary)> {
+        let (nq, m) = (cols.q.len(), cols.u.len());
+        for w in &opts.wrapped {
+            let k = cols.q.iter().position(|c| c == w).expect("checked");
+            unwrap(&mut self.columns[k]);
+        }
+        let steps: Vec<f64> = self.time.windows(2).map(|w| w[1] - w[0]).collect();
+        let median = median(&steps);
+        let breaks: Vec<usize> = (0..steps.len())
+            .filter(|&k| steps[k] > opts.gap * median)
+            .map(|k| k + 1)
+            .collect();
+        let regular: Vec<f64> = steps
+            .iter()
+            .copied()
+            .filter(|s| *s <= opts.gap * median)
+            .collect();
+        let jitter = std_dev(&regular) / median;
+        let dt = opts.dt.unwrap_or(median);
+        // A finer grid than the samples invents states between them, and its size would
+        // follow the caller's dt rather than the log's rows.
+        if dt < median / 2.0 {
+            return Err(Error::invalid(
+                "dt",
+                format!("{dt} s is finer than half the log's median step ({median} s)"),
+            ));
+        }
+        let (lo, hi) = DT_RANGE;
+        if !(dt.is_finite() && (lo..=hi).contains(&dt)) {
+            return Err(Error::invalid(
+                if opts.dt.is_some() { "dt" } else { "time" },
+                format!("the step must be in [{lo:e}, {hi}] s, got {dt} (is time in seconds?)"),
+            ));
+        }
+        let mut bounds = vec![0];
+        bounds.extend(&breaks);
+        bounds.push(self.time.len());
+        self.check_memory(&bounds, dt, (nq, m), opts.memory)?;
+        let mut arrays: [Vec<f64>; 5] = Default::default();
+        let (mut lengths, mut short, mut check) = (vec![], 0, Check::default());
+        for seg in bounds.windows(2) {
+            let piece = self.piece(seg[0]..seg[1]);
+            match piece.on_grid(cols, opts.fit, dt, &mut check) {
+                Some(states) if states.len() >= 2 => {
+                    lengths.push(states.len() - 1);
+                    piece.transitions(&states, (nq, m), dt, &mut arrays);
+                }
+                _ => short += 1,
+            }
+        }
+        if lengths.is_empty() {
+            return Err(Error::invalid(
+                "log",
+                format!(
+                    "no trajectory of the log spans a step of {dt} s with {} samples to fit",
+                    opts.fit.order + 1
+                ),
+            ));
+        }
+        let transitions = lengths.iter().sum();
+        let data = Dataset::new(dt, (nq, nq), m, arrays)?.with_trajectories(lengths.clone())?;
+        let summary = ImportSummary {
+            rows: self.rows,
+            dropped_rows: self.dropped,
+            first_dropped_row: self.first_dropped,
+            median_step: median,
+            jitter,
+            pauses: breaks.len(),
+            short_trajectories: short,
+            trajectories: lengths.len(),
+            transitions,
+            dt,
+            velocities: if cols.qdot.is_empty() {
+                "estimated"
+            } else {
+                "given"
+            }
+            .into(),
+            fit: opts.fit,
+            velocity_check_rms: check.rms(),
+        };
+        Ok((data, summary))
+    }
+
+    /// Refuses, before any fit, an import whose columns and dataset would take more than
+    /// `memory` bytes: the parsed columns, and per transition its values twice (the dataset's
+    /// arrays and their stored encoding). A log of tiny cells ("0,0,0") makes far more of
+    /// them per byte than a robot's log of measured values.
+    fn check_memory(
+        &self,
+        bounds: &[usize],
+        dt: f64,
+        (nq, m): (usize, usize),
+        memory: Option<usize>,
+    ) -> Result<()> {
+        let Some(memory) = memory else {
+            return Ok(());
+        };
+        let states: f64 = bounds
+            .windows(2)
+            .map(|b| ((self.time[b[1] - 1] - self.time[b[0]]) / dt).floor() + 1.0)
+            .sum();
+        let parsed = 8.0 * (self.time.len() * (1 + self.columns.len())) as f64;
+        let needed = parsed + 16.0 * (4 * nq + m) as f64 * states;
+        if needed > memory as f64 {
+            return Err(Error::ResourceExhausted(format!(
+                "log: importing it at dt = {dt} s would hold {:.0} MB ({states} states of {} \
+                 values), over the {:.0} MB this upload may use; import it with a coarser dt or \
+                 fewer columns, or with `graybox import` and upload the dataset",
+                needed / 1e6,
+                2 * nq + m,
+                memory as f64 / 1e6
+            )));
+        }
+        Ok(())
+    }
+
+    /// The samples of rows `r` as one trajectory.
+    fn piece(&self, r: std::ops::Range<usize>) -> Piece<'_> {
+        Piece {
+            time: &self.time[r.clone()],
+            columns: self.columns.iter().map(|c| &c[r.clone()]).collect(),
+        }
+    }
+}
+
+/// Undoes wraps: a jump of more than π between two samples loses its whole turns.
+fn unwrap(y: &mut [f64]) {
+    let turn = 2.0 * std::f64::consts::PI;
+    let mut offset = 0.0;
+    for k in 1..y.len() {
+        let raw = y[k];
+        let d = raw + offset - y[k - 1];
+        if d.abs() > std::f64::consts::PI {
+            offset -= turn * (d / turn).round();
+        }
+        y[k] = raw + offset;
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+fn std_dev(v: &[f64]) -> f64 {
+    if v.len() < 2 {
+        return 0.0;
+    }
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests;

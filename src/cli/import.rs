@@ -1,0 +1,84 @@
+//! `graybox import`: a robot's log (CSV: a time column, positions, optionally velocities, the
+//! inputs) as a dataset file in the trajectory form (docs/logs.md).
+
+use std::path::PathBuf;
+
+use clap::Args;
+use serde_json::json;
+
+use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns, import_csv};
+use crate::error::{Error, Result};
+use crate::model::file::write_atomic;
+
+#[derive(Args, Debug)]
+pub struct ImportArgs {
+    /// The log: a CSV file whose header names its columns.
+    pub log: PathBuf,
+    /// The time column, in seconds.
+    #[arg(long)]
+    pub time: String,
+    /// The position columns, comma-separated (q, in the model's coordinate order).
+    #[arg(long)]
+    pub q: String,
+    /// The velocity columns, one per position (default: estimated from the positions).
+    #[arg(long)]
+    pub qdot: Option<String>,
+    /// The input columns (measured efforts or commands), comma-separated.
+    #[arg(long)]
+    pub u: String,
+    /// Position columns holding an angle wrapped into one turn (unwrapped on import).
+    #[arg(long, default_value = "")]
+    pub wrapped: String,
+    /// The dataset's time step, seconds (default: the log's median step).
+    #[arg(long)]
+    pub dt: Option<f64>,
+    /// A step longer than this many median steps is a pause: the trajectory ends there.
+    #[arg(long, default_value_t = 5.0)]
+    pub gap: f64,
+    /// Samples in the local polynomial fit of each time (Savitzky–Golay on the samples' own
+    /// times).
+    #[arg(long, default_value_t = DEFAULT_FIT.window)]
+    pub window: usize,
+    /// The fit's polynomial order.
+    #[arg(long, default_value_t = DEFAULT_FIT.order)]
+    pub order: usize,
+    /// Where to write the dataset (JSON; a summary goes to stdout).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Comma-separated column names (empty: none).
+fn names(list: &str) -> Vec<String> {
+    (list.split(','))
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(str::to_string)
+        .collect()
+}
+
+pub(super) fn import(a: ImportArgs) -> Result<()> {
+    let bytes = std::fs::read(&a.log)
+        .map_err(|e| Error::invalid("log", format!("cannot read {}: {e}", a.log.display())))?;
+    let cols = LogColumns {
+        time: a.time.trim().to_string(),
+        q: names(&a.q),
+        qdot: a.qdot.as_deref().map(names).unwrap_or_default(),
+        u: names(&a.u),
+    };
+    let opts = ImportOptions {
+        dt: a.dt,
+        gap: a.gap,
+        fit: Fit {
+            window: a.window,
+            order: a.order,
+        },
+        wrapped: names(&a.wrapped),
+        // The caller's own file: no service shares its memory.
+        memory: None,
+    };
+    let (data, summary) = import_csv(&bytes, &cols, &opts)?;
+    write_atomic(&a.out, data.to_json().as_bytes())?;
+    let mut out = json!({"out": a.out, "nq": data.nq, "nv": data.nv, "m": data.m});
+    out["import"] = serde_json::to_value(&summary).map_err(|e| Error::Internal(e.to_string()))?;
+    super::say(&out)
+}

@@ -1,0 +1,112 @@
+//! A robot's log uploaded to POST /v1/datasets (`?time=…`): imported as `graybox import` does,
+//! with the import's summary in the answer; each bad log a 400 naming the field and the
+//! column or row, a log whose import would outgrow its body's memory a 413, and nothing stored
+//! for any of them.
+
+use serde_json::Value;
+
+use crate::helpers::*;
+
+/// POST the CSV `body` with the query `query`: the status and the JSON answer.
+async fn post_log(app: &TestApp, query: &str, body: String) -> (u16, Value) {
+    let r = (app.client.post(app.url(&format!("/v1/datasets?{query}"))))
+        .header("content-type", "text/csv")
+        .body(body)
+        .send()
+        .await
+        .unwrap();
+    (r.status().as_u16(), r.json().await.unwrap())
+}
+
+/// Positions of a joint moving as sin(2t), at 2 ms ± 10 %, its efforts, and a text column.
+fn log() -> String {
+    let mut text = String::from("t,mode,j1,tau\n");
+    let mut t = 0.0f64;
+    for k in 0..600 {
+        text += &format!("{t},run,{},{}\n", (2.0 * t).sin(), (k % 7) as f64 * 0.1);
+        t += 0.002 * (1.0 + 0.1 * ((k % 5) as f64 - 2.0) / 2.0);
+    }
+    text
+}
+
+#[tokio::test]
+async fn a_log_uploads_as_trajectories_with_its_import_summary() {
+    let app = spawn_app(0).await;
+    let (s, d) = post_log(&app, "name=arm&time=t&q=j1&u=tau", log()).await;
+    assert_eq!(s, 201, "{d}");
+    assert_eq!(
+        (d["nq"].as_i64(), d["m"].as_i64()),
+        (Some(1), Some(1)),
+        "{d}"
+    );
+    let import = &d["import"];
+    assert_eq!(
+        (import["rows"].as_u64(), import["trajectories"].as_u64()),
+        (Some(600), Some(1))
+    );
+    assert_eq!(import["velocities"], "estimated");
+    assert_eq!(d["count"].as_u64(), import["transitions"].as_u64(), "{d}");
+    let (_, listed) = app.get("/v1/datasets").await;
+    let stored = listed["items"].as_array().unwrap().len();
+
+    // Each bad log names what is wrong; none is stored.
+    let bad = [
+        ("time=t&q=j9&u=tau", log(), "q", "no column 'j9'"),
+        (
+            "time=t&q=j1&u=tau",
+            "t,j1,tau\n0,0,0\n0.01,0,0\n0.005,0,0\n".into(),
+            "time",
+            "row 2",
+        ),
+        (
+            "time=t&q=j1&u=tau",
+            "t,j1,tau\n0,0,0\n0.01,high,0\n".into(),
+            "q",
+            "'high'",
+        ),
+        (
+            "time=t&q=j1&u=tau",
+            "t,j1,tau\n0,0,\n0.01,0,nan\n".into(),
+            "u",
+            "no value",
+        ),
+        (
+            "time=t&q=j1&u=tau",
+            "t,j1,tau\n0,0,0\n".into(),
+            "log",
+            "1 complete row",
+        ),
+        ("time=t&q=j1&u=tau&window=2", log(), "window", "between"),
+    ];
+    for (query, body, field, says) in bad {
+        let (s, e) = post_log(&app, query, body).await;
+        assert_eq!(
+            (s, e["error"]["field"].as_str()),
+            (400, Some(field)),
+            "{query}: {e}"
+        );
+        let message = e["error"]["message"].as_str().unwrap();
+        assert!(message.contains(says), "{query}: {message}");
+    }
+    // Whole seconds of zeros: each 7-byte row becomes a transition of ~100 bytes, more than
+    // the ten bytes per body byte an upload may hold.
+    let tiny: String = std::iter::once("t,q,u\n".to_string())
+        .chain((1..2000).map(|k| format!("{k},0,0\n")))
+        .collect();
+    let (s, e) = post_log(&app, "time=t&q=q&u=u", tiny).await;
+    assert_eq!(s, 413, "{e}");
+    assert!(
+        e["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("graybox import"),
+        "{e}"
+    );
+    let (_, listed) = app.get("/v1/datasets").await;
+    assert_eq!(
+        listed["items"].as_array().unwrap().len(),
+        stored,
+        "{listed}"
+    );
+    app.stop().await;
+}
