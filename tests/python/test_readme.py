@@ -165,6 +165,16 @@ def test_command_line_example(graybox_bin):
                  if "identifiable" in j and j.get("template") == "double_pendulum"]
     names = {c["name"] for c in inspected[-1]["identifiable"]}
     assert {"m1/m2", "l1/l2", "g/l1"} <= names, names
+    # The robot-log example: the committed log imports as two trajectories with velocities
+    # estimated, and W-B from g = 7 recovers the logged pendulum (measured: g/l 9.96, b/(ml²)
+    # 0.96; the estimated velocities and the inputs' step means bias the damping slightly).
+    imported = [j for j in json.loads("[" + _objects(done.stdout) + "]") if "import" in j]
+    assert imported and imported[0]["import"]["trajectories"] == 2, imported
+    assert imported[0]["import"]["velocities"] == "estimated"
+    pendulum = [j for j in json.loads("[" + _objects(done.stdout) + "]")
+                if "identifiable" in j and j.get("template") == "pendulum"]
+    combos = {c["name"]: c["value"] for c in pendulum[-1]["identifiable"]}
+    assert abs(combos["g/l"] - 10) < 0.1 and abs(combos["b/(m*l^2)"] - 1) < 0.1, combos
     # The formula-template example trains W-B on the cart-pole from its document.
     assert '"name":"cartpole"' in (work / "m.gbx").read_text().replace(" ", "")
     # The Control example: the swing-up on the true double pendulum reaches the top.

@@ -3,8 +3,9 @@
 //! order p through the w samples nearest t, read as its value and first derivative at t. On
 //! even samples with t at the window's middle this is the Savitzky–Golay filter exactly; with
 //! jitter the design matrix follows the samples' own times, so a jittered log is
-//! differentiated without first being resampled. A centred window has no lag (the fit is
-//! symmetric in time); at a trajectory's ends the window is one-sided.
+//! differentiated without first being resampled. The window is centred where the samples
+//! allow and one-sided at a trajectory's ends; either way a fit of order ≥ 1 reproduces a
+//! straight line, so it does not delay the signal.
 
 use serde::Serialize;
 

@@ -1,7 +1,7 @@
 //! One trajectory of a log on an even grid of times: its states from the local fit, each
 //! input its mean over a step.
 
-use super::{Fit, LogColumns};
+use super::{Fit, LogColumns, Stencil};
 
 /// One trajectory's samples: times and the selected columns (q, then qdot if given, then u).
 pub(super) struct Piece<'a> {
@@ -32,7 +32,9 @@ impl Piece<'_> {
         let count = ((t1 - t0) / dt * (1.0 + 1e-12)).floor() as usize + 1;
         let states = (0..count)
             .map(|k| {
-                let s = fit.stencil(self.time, t0 + k as f64 * dt);
+                let t = t0 + k as f64 * dt;
+                let s = fit.stencil(self.time, t);
+                check.delay(&s, self.time, t);
                 let (q, rate): (Vec<f64>, Vec<f64>) =
                     self.columns[..nq].iter().map(|c| s.apply(c)).unzip();
                 let qdot: Vec<f64> = if cols.qdot.is_empty() {
@@ -72,14 +74,25 @@ impl Piece<'_> {
     }
 }
 
-/// Sums of the velocity check's squared differences.
+/// Sums of the velocity check's squared differences, and the fit's largest delay.
 #[derive(Default)]
 pub(super) struct Check {
     sum: f64,
     count: usize,
+    pub(super) lag: f64,
 }
 
 impl Check {
+    /// The fit's delay at `t`: the centre of its value weights in time, relative to t. A fit
+    /// that reproduces a straight line (order ≥ 1) has none, one-sided windows included; this
+    /// measures it, rounding and all.
+    fn delay(&mut self, s: &Stencil, times: &[f64], t: f64) {
+        let centre: f64 = (s.value.iter().zip(&times[s.start..]))
+            .map(|(w, tj)| w * (tj - t))
+            .sum();
+        self.lag = self.lag.max(centre.abs());
+    }
+
     fn add(&mut self, estimated: &[f64], given: &[f64]) {
         for (a, b) in estimated.iter().zip(given) {
             self.sum += (a - b).powi(2);

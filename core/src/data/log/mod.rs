@@ -81,6 +81,9 @@ pub struct ImportSummary {
     /// With velocities given: the root mean square of the fit's estimate minus the log's, over
     /// every grid state and joint (a check of either).
     pub velocity_check_rms: Option<f64>,
+    /// The fit's largest delay over the grid, seconds: the centre of its weights in time
+    /// against the time it answers for (0 up to rounding: it reproduces a straight line).
+    pub lag: f64,
 }
 
 /// The dataset of a CSV log and what the import did.
@@ -302,6 +305,7 @@ impl Samples {
             .into(),
             fit: opts.fit,
             velocity_check_rms: check.rms(),
+            lag: check.lag,
         };
         Ok((data, summary))
     }
