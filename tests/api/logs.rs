@@ -102,6 +102,20 @@ async fn a_log_uploads_as_trajectories_with_its_import_summary() {
             .contains("graybox import"),
         "{e}"
     );
+    // The widest, highest-order fit over a minute at 1 kHz is more work than an upload may ask
+    // (2.9e9 operations): refused before any fit.
+    let long: String = std::iter::once("t,q,u\n".to_string())
+        .chain((0..60_000).map(|k| format!("{:.6},{:.6},{:.6}\n", k as f64 * 1e-3, 0.5, 0.25)))
+        .collect();
+    let (s, e) = post_log(&app, "time=t&q=q&u=u&window=1001&order=6", long).await;
+    assert_eq!(s, 413, "{e}");
+    assert!(
+        e["error"]["message"]
+            .as_str()
+            .unwrap()
+            .contains("narrower window"),
+        "{e}"
+    );
     let (_, listed) = app.get("/v1/datasets").await;
     assert_eq!(
         listed["items"].as_array().unwrap().len(),

@@ -56,6 +56,11 @@ impl Default for ImportOptions {
     }
 }
 
+/// The most fitting an upload may ask: window × (order + 1)² per grid time, summed. An hour
+/// of a 1 kHz log with the default fit is 9e8; 1.5e9 (30 000 times at window 1001, order 6)
+/// took 3.5 s of one core here, so the bound is seconds.
+const MAX_FIT_WORK: f64 = 2e9;
+
 /// What an import did, for the dataset's summary.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
@@ -262,7 +267,7 @@ impl Samples {
         let mut bounds = vec![0];
         bounds.extend(&breaks);
         bounds.push(self.time.len());
-        self.check_memory(&bounds, dt, (nq, m), opts.memory)?;
+        self.check_cost(&bounds, dt, (nq, m), opts)?;
         let mut arrays: [Vec<f64>; 5] = Default::default();
         let (mut lengths, mut short, mut check) = (vec![], 0, Check::default());
         for seg in bounds.windows(2) {
@@ -311,17 +316,20 @@ impl Samples {
     }
 
     /// Refuses, before any fit, an import whose columns and dataset would take more than
-    /// `memory` bytes: the parsed columns, and per transition its values twice (the dataset's
+    /// the options' `memory` bytes: the parsed columns, and per transition its values twice (the dataset's
     /// arrays and their stored encoding). A log of tiny cells ("0,0,0") makes far more of
     /// them per byte than a robot's log of measured values.
-    fn check_memory(
+    ///
+    /// With a bound on memory (the service) the fits' work is bounded too, to seconds: each grid
+    /// time solves the fit's normal equations over its window.
+    fn check_cost(
         &self,
         bounds: &[usize],
         dt: f64,
         (nq, m): (usize, usize),
-        memory: Option<usize>,
+        opts: &ImportOptions,
     ) -> Result<()> {
-        let Some(memory) = memory else {
+        let Some(memory) = opts.memory else {
             return Ok(());
         };
         let states: f64 = bounds
@@ -338,6 +346,16 @@ impl Samples {
                 needed / 1e6,
                 2 * nq + m,
                 memory as f64 / 1e6
+            )));
+        }
+        let Fit { window, order } = opts.fit;
+        let work = states * (window * (order + 1).pow(2)) as f64;
+        if work > MAX_FIT_WORK {
+            return Err(Error::ResourceExhausted(format!(
+                "log: fitting {states} grid times with a window of {window} samples (order \
+                 {order}) is {work:.1e} operations, over the {MAX_FIT_WORK:.0e} an upload may \
+                 ask; use a narrower window or a coarser dt, or `graybox import` and upload the \
+                 dataset"
             )));
         }
         Ok(())
