@@ -283,6 +283,38 @@ enum GbxStatus gbx_rollout_ws(const struct GbxModel *model,
                               double *z,
                               const int32_t *cancel);
 
+// `gbx_predict_ws` with a step of `dt` seconds instead of the model's own (`gbx_model_dt`):
+// the model's dynamics are continuous, so a model trained on a log at one rate predicts at
+// the rate the caller runs at. `dt` must be in [1e-5, 10] seconds, as a dataset's.
+//
+// # Safety
+// As `gbx_predict_ws`.
+enum GbxStatus gbx_predict_dt_ws(const struct GbxModel *model,
+                                 struct GbxWorkspace *ws,
+                                 double dt,
+                                 const double *x,
+                                 const double *u,
+                                 size_t batch,
+                                 double *x_next,
+                                 double *accel,
+                                 double *z,
+                                 const int32_t *cancel);
+
+// `gbx_rollout_ws` with steps of `dt` seconds instead of the model's own (as
+// `gbx_predict_dt_ws`).
+//
+// # Safety
+// As `gbx_rollout_ws`.
+enum GbxStatus gbx_rollout_dt_ws(const struct GbxModel *model,
+                                 struct GbxWorkspace *ws,
+                                 double dt,
+                                 const double *x0,
+                                 const double *u,
+                                 size_t steps,
+                                 double *xs,
+                                 double *z,
+                                 const int32_t *cancel);
+
 // `gbx_predict` that also writes `z` [batch]: each row's max_abs_z of (x, u).
 //
 // # Safety

@@ -126,6 +126,17 @@ class Model {
                double* z = nullptr, const int32_t* cancel = nullptr) const {
     check(gbx_rollout_ws(get(), ws.get(), x0, u, steps, xs, z, cancel));
   }
+  // The same at a step of `dt` seconds instead of the model's own (`dt()`): the dynamics are
+  // continuous, so a model trained at one rate answers at the rate the caller runs at.
+  void predict_dt(Workspace& ws, double dt, const double* x, const double* u, size_t batch,
+                  double* x_next, double* accel = nullptr, double* z = nullptr,
+                  const int32_t* cancel = nullptr) const {
+    check(gbx_predict_dt_ws(get(), ws.get(), dt, x, u, batch, x_next, accel, z, cancel));
+  }
+  void rollout_dt(Workspace& ws, double dt, const double* x0, const double* u, size_t steps,
+                  double* xs, double* z = nullptr, const int32_t* cancel = nullptr) const {
+    check(gbx_rollout_dt_ws(get(), ws.get(), dt, x0, u, steps, xs, z, cancel));
+  }
 
   const GbxModel* get() const { return handle_.get(); }
 

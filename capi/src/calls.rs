@@ -19,6 +19,25 @@ unsafe fn z_out<'a>(z: Option<*mut f64>, len: usize) -> Result<Option<&'a mut [f
     z.map(|p| unsafe { output(p, len, "z") }).transpose()
 }
 
+/// Where and how a call computes: in the caller's workspace (null: the calling thread's own)
+/// with steps of `dt` seconds (None: the model's own).
+pub(crate) struct At {
+    pub ws: *mut GbxWorkspace,
+    pub dt: Option<f64>,
+}
+
+impl At {
+    /// The calling thread's workspace and the model's step: every call before the `_ws` ones.
+    pub const OWN: At = At {
+        ws: std::ptr::null_mut(),
+        dt: None,
+    };
+
+    pub fn ws(ws: *mut GbxWorkspace) -> At {
+        At { ws, dt: None }
+    }
+}
+
 /// `f` with the caller's workspace, or this thread's own when `ws` is null.
 ///
 /// # Safety
@@ -36,7 +55,7 @@ unsafe fn with_ws<R>(ws: *mut GbxWorkspace, f: impl FnOnce(&mut Workspace) -> R)
 #[allow(clippy::too_many_arguments)]
 pub(crate) unsafe fn predict(
     model: *const GbxModel,
-    ws: *mut GbxWorkspace,
+    at: At,
     x: *const f64,
     u: *const f64,
     batch: usize,
@@ -47,6 +66,7 @@ pub(crate) unsafe fn predict(
 ) -> GbxStatus {
     guard(|| {
         let m = model_ref(model)?;
+        let dt = m.eval.step_seconds(at.dt)?;
         let (nx, b) = (m.nq + m.nv, batch_of(batch)?);
         let lx = values("x", b, nx)?;
         values("u", b, m.m)?;
@@ -58,8 +78,9 @@ pub(crate) unsafe fn predict(
         let z = unsafe { z_out(z, b)? };
         let cancel = unsafe { Cancel::new(cancel) };
         let done = unsafe {
-            with_ws(ws, |ws| {
-                m.eval.predict_into(ws, x, u, out, acc, &|| cancel.set())
+            with_ws(at.ws, |ws| {
+                m.eval
+                    .predict_into(ws, x, u, dt, out, acc, &|| cancel.set())
             })
         };
         done.ok_or(Error::Cancelled)?;
@@ -76,7 +97,7 @@ pub(crate) unsafe fn predict(
 #[allow(clippy::too_many_arguments)]
 pub(crate) unsafe fn linearize(
     model: *const GbxModel,
-    ws: *mut GbxWorkspace,
+    at: At,
     x: *const f64,
     u: *const f64,
     batch: usize,
@@ -101,7 +122,7 @@ pub(crate) unsafe fn linearize(
         let z = unsafe { z_out(z, k)? };
         let cancel = unsafe { Cancel::new(cancel) };
         let stop = || cancel.set();
-        let done = unsafe { with_ws(ws, |ws| m.eval.linearize_into(ws, x, u, ja, jb, &stop)) };
+        let done = unsafe { with_ws(at.ws, |ws| m.eval.linearize_into(ws, x, u, ja, jb, &stop)) };
         done.ok_or(Error::Cancelled)?;
         finite_rows("x", "Jacobian", ja, ndx * ndx)?;
         finite_rows("x", "Jacobian", jb, ndx * m.m)?;
@@ -117,7 +138,7 @@ pub(crate) unsafe fn linearize(
 #[allow(clippy::too_many_arguments)]
 pub(crate) unsafe fn rollout(
     model: *const GbxModel,
-    ws: *mut GbxWorkspace,
+    at: At,
     x0: *const f64,
     u: *const f64,
     steps: usize,
@@ -127,6 +148,7 @@ pub(crate) unsafe fn rollout(
 ) -> GbxStatus {
     guard(|| {
         let m = model_ref(model)?;
+        let dt = m.eval.step_seconds(at.dt)?;
         let nx = m.nq + m.nv;
         values("u", steps, m.m)?;
         let lxs = values("xs", steps.saturating_add(1), nx)?;
@@ -136,8 +158,8 @@ pub(crate) unsafe fn rollout(
         let z = unsafe { z_out(z, steps)? };
         let cancel = unsafe { Cancel::new(cancel) };
         let t = unsafe {
-            with_ws(ws, |ws| {
-                m.eval.rollout_into(ws, x0, u, xs, &|| cancel.set())
+            with_ws(at.ws, |ws| {
+                m.eval.rollout_into(ws, x0, u, dt, xs, &|| cancel.set())
             })
         };
         // z of (x_t, u_t) for every step taken, as the service's Rollout answers it: a

@@ -28,13 +28,13 @@
 
 use std::ffi::{CStr, c_char};
 use std::path::Path;
-use std::ptr::null_mut;
 
 use graybox_core::error::Error;
 use graybox_core::infer::Evaluator;
 use graybox_core::model::file::ModelFile;
 
 use boundary::guard;
+use calls::At;
 
 mod boundary;
 mod calls;
@@ -297,7 +297,7 @@ pub unsafe extern "C" fn gbx_predict_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::predict(model, null_mut(), x, u, batch, x_next, accel, None, cancel) }
+    unsafe { calls::predict(model, At::OWN, x, u, batch, x_next, accel, None, cancel) }
 }
 
 /// The one-step map's Jacobians at `batch` points in the tangent space,
@@ -337,7 +337,7 @@ pub unsafe extern "C" fn gbx_linearize_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::linearize(model, null_mut(), x, u, batch, a, b, None, cancel) }
+    unsafe { calls::linearize(model, At::OWN, x, u, batch, a, b, None, cancel) }
 }
 
 /// `steps` steps from `x0` [nq + nv] under the inputs `u` [steps, m]: `xs`
@@ -374,7 +374,7 @@ pub unsafe extern "C" fn gbx_rollout_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::rollout(model, null_mut(), x0, u, steps, xs, None, cancel) }
+    unsafe { calls::rollout(model, At::OWN, x0, u, steps, xs, None, cancel) }
 }
 
 /// The message of this thread's last failed call ("" before any): valid until this thread's

@@ -6,6 +6,7 @@
 use graybox_core::infer::Workspace;
 
 use crate::boundary::guard;
+use crate::calls::At;
 use crate::{GbxModel, GbxStatus, calls, model_ref};
 use graybox_core::error::Error;
 
@@ -74,7 +75,7 @@ pub unsafe extern "C" fn gbx_predict_ws(
 ) -> GbxStatus {
     let z = (!z.is_null()).then_some(z);
     // SAFETY: the caller's promises.
-    unsafe { calls::predict(model, ws, x, u, batch, x_next, accel, z, cancel) }
+    unsafe { calls::predict(model, At::ws(ws), x, u, batch, x_next, accel, z, cancel) }
 }
 
 /// `gbx_linearize` in the caller's workspace `ws` (null: this thread's own), with `z`
@@ -97,7 +98,7 @@ pub unsafe extern "C" fn gbx_linearize_ws(
 ) -> GbxStatus {
     let z = (!z.is_null()).then_some(z);
     // SAFETY: the caller's promises.
-    unsafe { calls::linearize(model, ws, x, u, batch, a, b, z, cancel) }
+    unsafe { calls::linearize(model, At::ws(ws), x, u, batch, a, b, z, cancel) }
 }
 
 /// `gbx_rollout` in the caller's workspace `ws` (null: this thread's own), with `z` [steps]
@@ -119,5 +120,55 @@ pub unsafe extern "C" fn gbx_rollout_ws(
 ) -> GbxStatus {
     let z = (!z.is_null()).then_some(z);
     // SAFETY: the caller's promises.
-    unsafe { calls::rollout(model, ws, x0, u, steps, xs, z, cancel) }
+    unsafe { calls::rollout(model, At::ws(ws), x0, u, steps, xs, z, cancel) }
+}
+
+/// `gbx_predict_ws` with a step of `dt` seconds instead of the model's own (`gbx_model_dt`):
+/// the model's dynamics are continuous, so a model trained on a log at one rate predicts at
+/// the rate the caller runs at. `dt` must be in [1e-5, 10] seconds, as a dataset's.
+///
+/// # Safety
+/// As `gbx_predict_ws`.
+#[unsafe(no_mangle)]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn gbx_predict_dt_ws(
+    model: *const GbxModel,
+    ws: *mut GbxWorkspace,
+    dt: f64,
+    x: *const f64,
+    u: *const f64,
+    batch: usize,
+    x_next: *mut f64,
+    accel: *mut f64,
+    z: *mut f64,
+    cancel: *const i32,
+) -> GbxStatus {
+    let z = (!z.is_null()).then_some(z);
+    let at = At { ws, dt: Some(dt) };
+    // SAFETY: the caller's promises.
+    unsafe { calls::predict(model, at, x, u, batch, x_next, accel, z, cancel) }
+}
+
+/// `gbx_rollout_ws` with steps of `dt` seconds instead of the model's own (as
+/// `gbx_predict_dt_ws`).
+///
+/// # Safety
+/// As `gbx_rollout_ws`.
+#[unsafe(no_mangle)]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn gbx_rollout_dt_ws(
+    model: *const GbxModel,
+    ws: *mut GbxWorkspace,
+    dt: f64,
+    x0: *const f64,
+    u: *const f64,
+    steps: usize,
+    xs: *mut f64,
+    z: *mut f64,
+    cancel: *const i32,
+) -> GbxStatus {
+    let z = (!z.is_null()).then_some(z);
+    let at = At { ws, dt: Some(dt) };
+    // SAFETY: the caller's promises.
+    unsafe { calls::rollout(model, at, x0, u, steps, xs, z, cancel) }
 }

@@ -5,8 +5,7 @@
 //! Each is its plain call with one more output, `z`, answered bit for bit as the service
 //! answers it.
 
-use std::ptr::null_mut;
-
+use crate::calls::At;
 use crate::{GbxModel, GbxStatus, calls};
 
 /// `gbx_predict` that also writes `z` [batch]: each row's max_abs_z of (x, u).
@@ -27,7 +26,7 @@ pub unsafe extern "C" fn gbx_predict_z(
     unsafe {
         calls::predict(
             model,
-            null_mut(),
+            At::OWN,
             x,
             u,
             batch,
@@ -55,19 +54,7 @@ pub unsafe extern "C" fn gbx_predict_z_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe {
-        calls::predict(
-            model,
-            null_mut(),
-            x,
-            u,
-            batch,
-            x_next,
-            accel,
-            Some(z),
-            cancel,
-        )
-    }
+    unsafe { calls::predict(model, At::OWN, x, u, batch, x_next, accel, Some(z), cancel) }
 }
 
 /// `gbx_linearize` that also writes `z` [batch]: each point's max_abs_z of (x, u).
@@ -85,19 +72,7 @@ pub unsafe extern "C" fn gbx_linearize_z(
     z: *mut f64,
 ) -> GbxStatus {
     // SAFETY: the caller's promises, and no flag.
-    unsafe {
-        calls::linearize(
-            model,
-            null_mut(),
-            x,
-            u,
-            batch,
-            a,
-            b,
-            Some(z),
-            std::ptr::null(),
-        )
-    }
+    unsafe { calls::linearize(model, At::OWN, x, u, batch, a, b, Some(z), std::ptr::null()) }
 }
 
 /// `gbx_linearize_z` that stops when `*cancel` turns nonzero, as
@@ -117,7 +92,7 @@ pub unsafe extern "C" fn gbx_linearize_z_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::linearize(model, null_mut(), x, u, batch, a, b, Some(z), cancel) }
+    unsafe { calls::linearize(model, At::OWN, x, u, batch, a, b, Some(z), cancel) }
 }
 
 /// `gbx_rollout` that also writes `z` [steps]: for each step t, the max_abs_z of the state
@@ -136,18 +111,7 @@ pub unsafe extern "C" fn gbx_rollout_z(
     z: *mut f64,
 ) -> GbxStatus {
     // SAFETY: the caller's promises, and no flag.
-    unsafe {
-        calls::rollout(
-            model,
-            null_mut(),
-            x0,
-            u,
-            steps,
-            xs,
-            Some(z),
-            std::ptr::null(),
-        )
-    }
+    unsafe { calls::rollout(model, At::OWN, x0, u, steps, xs, Some(z), std::ptr::null()) }
 }
 
 /// `gbx_rollout_z` that stops when `*cancel` turns nonzero (checked at every step),
@@ -167,5 +131,5 @@ pub unsafe extern "C" fn gbx_rollout_z_cancellable(
     cancel: *const i32,
 ) -> GbxStatus {
     // SAFETY: the caller's promises.
-    unsafe { calls::rollout(model, null_mut(), x0, u, steps, xs, Some(z), cancel) }
+    unsafe { calls::rollout(model, At::OWN, x0, u, steps, xs, Some(z), cancel) }
 }

@@ -1,5 +1,6 @@
 //! Real-time use: once a workspace is made for a model and its largest batch, the `_ws` calls
-//! (predict with and without q̈, linearize, rollout, each with z) take nothing from the
+//! (predict with and without q̈, linearize, rollout, each with z, and predict and rollout
+//! at a caller's step) take nothing from the
 //! system allocator and start no thread, at 1, 8, 32 and 256 states, on the six recorded
 //! models. This test binary installs its own counting allocator: the library has none.
 
@@ -107,6 +108,12 @@ fn calls(l: &Loaded, ws: *mut GbxWorkspace, batch: usize, o: &mut Buffers) {
         );
         let xs = o.xs.as_mut_ptr();
         assert_eq!(gbx_rollout_ws(l.model, ws, x, us, STEPS, xs, z, null()), ok);
+        // A caller's own step: the same scratch, nothing more.
+        let dt = 0.5 * gbx_model_dt(l.model);
+        let s = gbx_predict_dt_ws(l.model, ws, dt, x, u, batch, next, acc, z, null());
+        assert_eq!(s, ok);
+        let s = gbx_rollout_dt_ws(l.model, ws, dt, x, us, STEPS, xs, z, null());
+        assert_eq!(s, ok);
     }
 }
 

@@ -51,7 +51,7 @@ fn a_workspace_brings_its_scratch_to_a_new_thread() {
         let calls = std::thread::scope(|s| {
             s.spawn(|| {
                 allocations(|| {
-                    eval.predict_into(&mut ws, &x, &u, &mut next, None, &|| false);
+                    eval.predict_into(&mut ws, &x, &u, eval.config.dt, &mut next, None, &|| false);
                     eval.linearize_into(&mut ws, &x, &u, &mut a, &mut b, &|| false);
                 })
             })
@@ -79,12 +79,13 @@ fn calls_at(eval: &Evaluator, ws: &mut Workspace, name: &str, batch: usize) {
     let (mut a, mut b) = (vec![0.0; batch * ndx * ndx], vec![0.0; batch * ndx * m]);
     let mut xs = vec![0.0; (steps + 1) * nx];
     let never = &|| false;
+    let dt = eval.config.dt;
     let calls = allocations(|| {
         for _ in 0..2 {
-            eval.predict_into(ws, &x, &u, &mut next, Some(&mut acc), never);
-            eval.predict_into(ws, &x, &u, &mut next, None, never);
+            eval.predict_into(ws, &x, &u, dt, &mut next, Some(&mut acc), never);
+            eval.predict_into(ws, &x, &u, dt, &mut next, None, never);
             eval.linearize_into(ws, &x, &u, &mut a, &mut b, never);
-            eval.rollout_into(ws, &x[..nx], &us, &mut xs, never);
+            eval.rollout_into(ws, &x[..nx], &us, dt, &mut xs, never);
         }
     });
     assert_eq!(calls, 0, "{name}, {batch} states: {calls} allocations");

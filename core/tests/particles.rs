@@ -116,7 +116,7 @@ fn particles_follow_the_members_round_robin_under_inputs() {
     let x0 = [0.3, -0.6, 1.0, -0.5];
     let u = inputs(steps, m, 20.0);
     let input = |t: usize, _: &[f64]| u[t * m..(t + 1) * m].to_vec();
-    let got = particle_rollout(&eval, &x0, 6, steps, input, &|| false).unwrap();
+    let got = particle_rollout(&eval, &x0, 6, (steps, eval.config.dt), input, &|| false).unwrap();
     let want = expected(&eval, &each_particle(&eval, &x0, 6, steps, &input), nx);
     close(&got, &want, "six particles");
     assert_eq!((got.mean.len(), got.u.len()), ((steps + 1) * nx, steps * m));
@@ -146,7 +146,7 @@ fn a_policy_applies_to_each_particles_own_state() {
         m,
     };
     let input = |t: usize, x: &[f64]| policy.input(t, x);
-    let got = particle_rollout(&eval, &x0, 5, steps, input, &|| false).unwrap();
+    let got = particle_rollout(&eval, &x0, 5, (steps, eval.config.dt), input, &|| false).unwrap();
     let each = each_particle(&eval, &x0, 5, steps, &input);
     close(&got, &expected(&eval, &each, nx), "a policy");
     // Particles in different states are given different inputs.
@@ -162,11 +162,11 @@ fn a_single_models_particles_are_its_own_rollout_with_no_spread() {
     let u = inputs(steps, m, 1.0);
     let input = |t: usize, _: &[f64]| u[t * m..(t + 1) * m].to_vec();
     let mut alone = x0.to_vec();
-    eval.rollout(&x0, steps, input, |x, _| {
+    eval.rollout(&x0, (steps, eval.config.dt), input, |x, _| {
         alone.extend_from_slice(x);
         true
     });
-    let got = particle_rollout(&eval, &x0, 4, steps, input, &|| false).unwrap();
+    let got = particle_rollout(&eval, &x0, 4, (steps, eval.config.dt), input, &|| false).unwrap();
     assert!(rel(&got.mean, &alone) <= BATCH_VS_ALONE);
     // Four equal values average to themselves within a rounding of their sum.
     let scale = alone.iter().fold(1.0_f64, |a, v| a.max(v.abs()));
@@ -180,11 +180,21 @@ fn a_state_that_leaves_the_finite_numbers_names_its_step() {
     let (nx, m) = (eval.config.nx(), eval.config.m);
     // Ordinary inputs for five steps, then one no model can follow.
     let input = |t: usize, _: &[f64]| vec![if t == 5 { 1e300 } else { 1.0 }; m];
-    let err = particle_rollout(&eval, &[0.0; 4], 3, 10, input, &|| false).unwrap_err();
+    let err =
+        particle_rollout(&eval, &[0.0; 4], 3, (10, eval.config.dt), input, &|| false).unwrap_err();
     assert!(err.to_string().contains("non-finite at step 6"), "{err}");
     // The steps before it are kept, and the states are where they left the particles.
     let (mut states, mut track) = (vec![0.0; 3 * nx], ParticleTrack::default());
-    let err = advance(&eval, &mut states, 0, 10, input, &mut track, &|| false).unwrap_err();
+    let err = advance(
+        &eval,
+        &mut states,
+        0,
+        (10, eval.config.dt),
+        input,
+        &mut track,
+        &|| false,
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("at step 6"), "{err}");
     assert_eq!((track.max_abs_z.len(), track.mean.len()), (5, 5 * nx));
     assert!(states.iter().all(|v| v.is_finite()));
@@ -202,13 +212,17 @@ fn a_caller_stops_it_and_bad_arguments_are_named() {
     let eval = load("tests/fixtures/compat/wb-x3.gbx");
     let m = eval.config.m;
     let input = |_: usize, _: &[f64]| vec![0.0; m];
-    let stopped = particle_rollout(&eval, &[0.0; 4], 3, 10, input, &|| true);
+    let stopped = particle_rollout(&eval, &[0.0; 4], 3, (10, eval.config.dt), input, &|| true);
     assert!(matches!(stopped, Err(Error::Cancelled)), "{stopped:?}");
     for bad in [0, 1025] {
-        let err = particle_rollout(&eval, &[0.0; 4], bad, 10, input, &|| false).unwrap_err();
+        let err = particle_rollout(&eval, &[0.0; 4], bad, (10, eval.config.dt), input, &|| {
+            false
+        })
+        .unwrap_err();
         assert!(err.to_string().starts_with("particles:"), "{err}");
     }
-    let err = particle_rollout(&eval, &[0.0; 3], 3, 10, input, &|| false).unwrap_err();
+    let err =
+        particle_rollout(&eval, &[0.0; 3], 3, (10, eval.config.dt), input, &|| false).unwrap_err();
     assert!(err.to_string().starts_with("x0:"), "{err}");
 }
 

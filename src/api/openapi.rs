@@ -12,6 +12,7 @@ use utoipa::{OpenApi as _, ToSchema};
 use crate::app::datasets::Uploaded;
 use crate::app::inference::{
     EnergyReportRequest, EnergyRequest, EnergyView, EvaluateRequest, Evaluation, ForcePartView,
+    PredictRequest, PredictView, SimulateRequest, SimulateView,
 };
 use crate::app::jobs::JobRequest;
 use crate::infer::horizons::HorizonError;
@@ -36,6 +37,10 @@ use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
     Passivity,
     EnergyView,
     ForcePartView,
+    PredictRequest,
+    PredictView,
+    SimulateRequest,
+    SimulateView,
     HorizonError
 )))]
 struct Components;
@@ -178,6 +183,20 @@ const ROUTES: &[Route] = &[
         "/v1/models/{id}/evaluate",
         "Open-loop error against horizon on a trajectory dataset: from every window start, the model rolled out under the recorded inputs; per horizon the median and mean position and velocity errors (README \"Multi-step training\")",
         Some("EvaluateRequest"),
+        &["id"],
+    ),
+    Route(
+        "post",
+        "/v1/models/{id}/predict",
+        "x' for a batch of states (as gRPC Predict): at the model's step, or at the body's `dt` in seconds (the dynamics are continuous: a model trained at one rate predicts at another)",
+        Some("PredictRequest"),
+        &["id"],
+    ),
+    Route(
+        "post",
+        "/v1/models/{id}/simulate",
+        "The states x_0..x_T from x0 under a sequence of inputs (as gRPC Rollout, joined into one answer; at most --max-rollout-steps), `dt` seconds apart (unset: the model's step); with `particles`, their mean and spread",
+        Some("SimulateRequest"),
         &["id"],
     ),
     Route(

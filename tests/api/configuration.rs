@@ -19,14 +19,7 @@ use crate::helpers::*;
 async fn planar_body(app: &TestApp) -> String {
     let t = Template::PlanarBody;
     let file = ModelFile::from_template(&t, &t.defaults(), 0.01, Integrator::Rk4).unwrap();
-    let r = (app.client.post(app.url("/v1/models")))
-        .body(file.to_bytes().unwrap())
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(r.status().as_u16(), 201);
-    let body: Value = r.json().await.unwrap();
-    body["id"].as_str().unwrap().to_string()
+    app.upload_model(&file).await
 }
 
 /// [x, y, cos θ, sin θ, ẋ, ẏ, ω] for b states.

@@ -59,6 +59,7 @@ async fn a_replay_with_particles_has_the_spread_rollout_streams() {
         })),
         chunk: 0,
         particles: Some(3),
+        dt: None,
     };
     let mut stream = c.rollout(req).await.unwrap().into_inner();
     let (mut want_mean, mut want_std) = (vec![], vec![]);

@@ -176,6 +176,7 @@ async fn a_long_potential_is_stored_trained_and_served() {
             u: arr(&[64, 1], vec![0.1; 64]),
             want_accel: true,
             members: false,
+            dt: None,
         })
         .await
         .unwrap()

@@ -79,6 +79,7 @@ async fn dynamics_rpcs_against_independent_references() {
         })),
         chunk: 50,
         particles: None,
+        dt: None,
     };
     let mut stream = c.rollout(req).await.unwrap().into_inner();
     let mut got: Vec<f64> = vec![];
@@ -138,6 +139,7 @@ async fn dynamics_rpcs_against_independent_references() {
                         u: arr(&[1, 2], uu),
                         want_accel: false,
                         members: false,
+                        dt: None,
                     };
                     c.predict(r)
                         .await
@@ -231,6 +233,7 @@ async fn dynamics_rpcs_against_independent_references() {
         u: arr(&[1, 2], vec![0.0, 0.0]),
         want_accel: false,
         members: false,
+        dt: None,
     };
     let code =
         |r: Result<tonic::Response<pb::PredictResponse>, tonic::Status>| r.unwrap_err().code();
@@ -285,6 +288,7 @@ async fn dynamics_rpcs_against_independent_references() {
         })),
         chunk: 0,
         particles: None,
+        dt: None,
     };
     assert_eq!(
         c.rollout(long).await.unwrap_err().code(),

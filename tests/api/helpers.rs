@@ -134,6 +134,18 @@ impl TestApp {
         (status, r.json().await.unwrap_or(Value::Null))
     }
 
+    /// A model file uploaded (`POST /v1/models`, new); its id.
+    pub async fn upload_model(&self, file: &graybox::model::file::ModelFile) -> String {
+        let r = (self.client.post(self.url("/v1/models")))
+            .body(file.to_bytes().unwrap())
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status().as_u16(), 201);
+        let body: Value = r.json().await.unwrap();
+        body["id"].as_str().unwrap().to_string()
+    }
+
     /// A model's file as `GET /v1/models/{id}/checkpoint` serves it.
     pub async fn model_file(&self, id: &str) -> Vec<u8> {
         let r = self
@@ -243,5 +255,6 @@ pub fn predict_req(model: &str, b: usize) -> pb::PredictRequest {
         u: arr(&[b as u64, 2], vec![1.0; 2 * b]),
         want_accel: false,
         members: false,
+        dt: None,
     }
 }

@@ -85,6 +85,7 @@ async fn overflowing_numbers_are_rejected_not_wrapped() {
         })),
         chunk: 0,
         particles: None,
+        dt: None,
     });
     rollout
         .metadata_mut()

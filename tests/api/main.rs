@@ -25,6 +25,7 @@ mod processes;
 mod readiness;
 mod replay;
 mod shutdown;
+mod step;
 mod store;
 mod tls;
 mod uploads;

@@ -127,6 +127,39 @@ def test_rollouts_answer_z_and_particles_as_the_service(client, pairs):
                     assert std.max() <= 1e-12 * max(1.0, np.abs(xs).max()), (name, particles)
 
 
+def test_a_callers_step_answers_as_the_service_and_chains(client, pairs):
+    """`dt` on Predict and Rollout: the module and the client agree bit for bit (an ensemble's
+    members and particles too); the model's own Δt changes nothing; a rollout of steps of h is
+    the chain of predictions at h; two steps of Δt/2 land near one of Δt (RK4's error, far
+    below the states' scale) without being it; a Δt out of range is refused naming dt."""
+    rng = np.random.default_rng(9)
+    for name, (model_id, model) in pairs.items():
+        dt = model.info.dt
+        x, u = _states(model, rng, 3, 0.5)
+        _same(model.predict(x, u, dt=dt), model.predict(x, u), f"{name} own dt")
+        h = 0.5 * dt
+        for extras in PREDICT_EXTRAS:
+            want = client.predict(model_id, x, u, dt=h, **extras)
+            _same(model.predict(x, u, dt=h, **extras), want, f"{name} dt/2 {extras}")
+        us = np.repeat(u[:1], 2, axis=0)
+        for particles in (None, 3):
+            want = client.rollout(model_id, x[0], us, chunk=2, particles=particles, dt=h)
+            _same(model.rollout(x[0], us, particles=particles, dt=h), want, f"{name} {particles}")
+        xs = model.rollout(x[0], us, dt=h)
+        _same(xs[1], model.predict(x[0], u[0], dt=h), f"{name} chain")
+        one = model.predict(x[0], u[0])
+        gap = np.abs(xs[2] - one).max()
+        assert 0 < gap < 1e-3 * max(1.0, np.abs(one).max()), (name, gap)
+        for bad in (0.0, -dt, 20.0, float("nan")):
+            for call in (lambda: model.predict(x, u, dt=bad),
+                         lambda: client.predict(model_id, x, u, dt=bad),
+                         lambda: model.rollout(x[0], us, dt=bad),
+                         lambda: client.rollout(model_id, x[0], us, dt=bad)):
+                with pytest.raises(GrayboxError) as e:
+                    call()
+                assert e.value.code == "INVALID_ARGUMENT" and "dt" in str(e.value), (name, bad)
+
+
 def test_a_long_rollout_from_rest_says_where_it_left_the_data(client, pairs):
     """The README's C example: the UR5 from rest with no torque for 1000 steps falls, and its
     state leaves the training data; z says so, as the service's does."""

@@ -37,7 +37,7 @@ fn outputs(file: &ModelFile) -> Value {
     let mut out = json!({"x_next": next, "accel": accel, "a": a, "b": b});
     if eval.member_count() > 1 {
         let p = eval
-            .predict_members_until(&x, &u, false, &|| false)
+            .predict_members_until(&x, &u, eval.config.dt, false, &|| false)
             .unwrap();
         out["x_next_std"] = json!(p.std);
     }

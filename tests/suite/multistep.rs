@@ -56,7 +56,7 @@ fn a_window_loss_is_the_discounted_error_of_the_models_own_rollout() {
     let x0 = [row(&data.q, start), row(&data.qdot, start)].concat();
     let mut states = vec![];
     let u = |k: usize, _: &[f64]| data.u[(start + k) * 2..(start + k + 1) * 2].to_vec();
-    eval.rollout(&x0, 4, u, |x, _| {
+    eval.rollout(&x0, (4, eval.config.dt), u, |x, _| {
         states.push(x.to_vec());
         true
     });
@@ -311,7 +311,7 @@ fn horizon_errors_are_each_windows_own_rollout() {
                 let mut last = vec![];
                 e.rollout(
                     &x0,
-                    *h,
+                    (*h, e.config.dt),
                     |k, _| data.u[2 * (r + k)..2 * (r + k) + 2].to_vec(),
                     |x, _| {
                         last = x.to_vec();

@@ -129,8 +129,10 @@ impl Model {
     /// (and v̇);
     /// `return_z` adds max_abs_z last (a float, or [B]): the largest |z-score| of q, q̇ and u
     /// under the training data's statistics (above ~4, treat the answer with doubt).
+    /// `dt` is the step in seconds (None: the model's own, `info.dt`): the dynamics are
+    /// continuous, so a model trained at one rate predicts at another.
     #[pyo3(signature = (x, u=None, want_accel=false, return_std=false, members=false,
-        return_z=false))]
+        return_z=false, dt=None))]
     #[allow(clippy::too_many_arguments)]
     fn predict<'py>(
         &self,
@@ -141,8 +143,10 @@ impl Model {
         return_std: bool,
         members: bool,
         return_z: bool,
+        dt: Option<f64>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let (n, m) = (self.eval.config.nv(), self.eval.config.m);
+        let dt = self.eval.step_seconds(dt).or_py(py)?;
         let nx = self.eval.config.nx();
         let xs = rows("x", Some(&x), nx).or_py(py)?;
         let us = inputs(&xs, rows("u", u.as_ref(), m).or_py(py)?, m).or_py(py)?;
@@ -154,12 +158,13 @@ impl Model {
         let stop = || interrupt.stop();
         let out = py.detach(|| -> Result<_, Error> {
             let out = if spread {
-                let Some(p) = eval.predict_members_until(&xs.data, &us, want_accel, &stop) else {
+                let Some(p) = eval.predict_members_until(&xs.data, &us, dt, want_accel, &stop)
+                else {
                     return Ok(None);
                 };
                 (p.mean, p.accel, Some(p.std), Some(p.next))
             } else {
-                let Some((next, accel)) = eval.predict_until(&xs.data, &us, want_accel, &stop)
+                let Some((next, accel)) = eval.predict_until(&xs.data, &us, dt, want_accel, &stop)
                 else {
                     return Ok(None);
                 };
@@ -199,7 +204,7 @@ impl Model {
         x: ArrayIn<'py>,
         u: Option<ArrayIn<'py>>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        self.predict(py, x, u, false, false, false, false)
+        self.predict(py, x, u, false, false, false, false, None)
     }
 
     /// A and B of the one-step map in the tangent space, x' ⊖ x̄' = A (x ⊖ x̄) + B (u − ū):
@@ -250,9 +255,10 @@ impl Model {
     /// `particles` P (1..1024) propagates P particles from x0, particle p following ensemble
     /// member p mod K throughout (TS∞), a policy's input computed from its own state: xs is
     /// their mean and their standard deviation [T+1, nq + nv] follows it, (xs, std, …); the
-    /// inputs are the particles' mean, z the largest over them.
+    /// inputs are the particles' mean, z the largest over them. `dt` is the seconds between
+    /// states (None: the model's own, as `predict`'s).
     #[pyo3(signature = (x0, u=None, policy=None, with_inputs=false, return_z=false,
-        particles=None))]
+        particles=None, dt=None))]
     #[allow(clippy::too_many_arguments)]
     fn rollout<'py>(
         &self,
@@ -263,11 +269,13 @@ impl Model {
         with_inputs: bool,
         return_z: bool,
         particles: Option<i128>,
+        dt: Option<f64>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let want = rollout::Want {
             with_inputs,
             return_z,
             particles,
+            dt,
         };
         let items = rollout::rollout(py, &self.eval, x0, u, policy, want)?;
         one_or_tuple(py, items)

@@ -17,6 +17,8 @@ pub struct Want {
     pub return_z: bool,
     /// None: one rollout of the mean dynamics.
     pub particles: Option<i128>,
+    /// Seconds between states (None: the model's own).
+    pub dt: Option<f64>,
 }
 
 /// A whole rollout: states [T+1, 2n] (the particles' mean), then as asked their spread
@@ -40,6 +42,7 @@ pub fn rollout<'py>(
         })
         .transpose()
         .or_py(py)?;
+    let dt = eval.step_seconds(want.dt).or_py(py)?;
     let x0 = rows("x0", Some(&x0), nx).or_py(py)?;
     if !x0.single {
         return Err(Error::invalid("x0", "is one state [nq + nv], not a batch")).or_py(py);
@@ -54,9 +57,9 @@ pub fn rollout<'py>(
     let interrupt = Interrupt::new();
     let stop = || interrupt.stop();
     let out = py.detach(|| match particles {
-        Some(p) => particle_rollout(eval, &x0.data, p, steps, |t, x| input(t, x), &stop)
+        Some(p) => particle_rollout(eval, &x0.data, p, (steps, dt), |t, x| input(t, x), &stop)
             .map(|t| Some(Track::from(t))),
-        None => mean_rollout(eval, &x0.data, steps, &input, &stop),
+        None => mean_rollout(eval, &x0.data, (steps, dt), &input, &stop),
     });
     let track = interrupt.answer(py, out)?;
     let mut items = vec![array(py, track.x, &[steps + 1, nx])?];
@@ -95,7 +98,7 @@ impl From<ParticleTrack> for Track {
 fn mean_rollout(
     eval: &Evaluator,
     x0: &[f64],
-    steps: usize,
+    (steps, dt): (usize, f64),
     input: &Inputs,
     stop: &dyn Fn() -> bool,
 ) -> Result<Option<Track>, Error> {
@@ -104,7 +107,7 @@ fn mean_rollout(
     let (mut stopped, mut left, mut done) = (false, None, 0);
     eval.rollout(
         x0,
-        steps,
+        (steps, dt),
         |t, x| input(t, x),
         |x, u| {
             if x.iter().any(|v| !v.is_finite()) {

@@ -142,26 +142,33 @@ class Client:
     @overload
     def predict(self, model_id: str, x: ArrayLike, u: ArrayLike,
                 want_accel: Literal[False] = False, return_z: Literal[False] = False,
-                return_std: Literal[False] = False, members: Literal[False] = False) -> Array: ...
+                return_std: Literal[False] = False, members: Literal[False] = False,
+                dt: Optional[float] = None) -> Array: ...
 
     @overload
     def predict(self, model_id: str, x: ArrayLike, u: ArrayLike, want_accel: bool = False,
                 return_z: bool = False, return_std: bool = False,
-                members: bool = False) -> Any: ...
+                members: bool = False, dt: Optional[float] = None) -> Any: ...
 
     def predict(self, model_id: str, x: ArrayLike, u: ArrayLike, want_accel: bool = False,
-                return_z: bool = False, return_std: bool = False, members: bool = False) -> Any:
+                return_z: bool = False, return_std: bool = False, members: bool = False,
+                dt: Optional[float] = None) -> Any:
         """x' = f(x, u) for x [nq + nv] and u [m], or a batch x [B, nq + nv] and u [B, m]; with
         `want_accel` also q̈ ([n] or [B, n]) as (x_next, accel); with `return_z` also
         max_abs_z (a float, or [B]) last: (x_next, z) or (x_next, accel, z).
 
         An ensemble's x' and q̈ are its members' means. `return_std` adds, after x' (and q̈),
         the members' standard deviation of x' per coordinate (zeros for a single model);
-        `members` adds every member's x' ([K, nq + nv] or [K, B, nq + nv]) after that."""
+        `members` adds every member's x' ([K, nq + nv] or [K, B, nq + nv]) after that.
+
+        `dt` is the step in seconds (None: the model's own): the dynamics are continuous, so a
+        model trained at one rate predicts at another."""
         xb, ub, single = _batch(x, u)
-        r = self._call(self.stub.Predict, pb.PredictRequest(
-            model_id=model_id, x=to_array(xb), u=to_array(ub), want_accel=want_accel,
-            members=members))
+        req = pb.PredictRequest(model_id=model_id, x=to_array(xb), u=to_array(ub),
+                                want_accel=want_accel, members=members)
+        if dt is not None:
+            req.dt = dt
+        r = self._call(self.stub.Predict, req)
         x_next = from_array(r.x_next)
         out: list[Any] = [x_next[0] if single else x_next]
         if want_accel:
@@ -180,8 +187,8 @@ class Client:
 
     def rollout_chunks(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
                        policy: Optional[Policy] = None, chunk: Optional[int] = None,
-                       return_z: bool = False,
-                       particles: Optional[int] = None) -> Iterator[tuple[Any, ...]]:
+                       return_z: bool = False, particles: Optional[int] = None,
+                       dt: Optional[float] = None) -> Iterator[tuple[Any, ...]]:
         """The streamed rollout as it arrives: (index of the chunk's first state, states
         [c, nq + nv], inputs applied in the chunk [c', m]), with `return_z` also max_abs_z [c'] of
         each applied input and the state it was applied at. Arguments as `rollout`; with
@@ -192,6 +199,8 @@ class Client:
                                 x0=np.asarray(x0, dtype=np.float64).ravel().tolist())
         if particles is not None:
             req.particles = particles
+        if dt is not None:
+            req.dt = dt
         if u is not None:
             req.u.CopyFrom(to_array(u))
         elif policy is not None:
@@ -215,18 +224,18 @@ class Client:
     def rollout(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
                 policy: Optional[Policy] = None, chunk: Optional[int] = None,
                 with_inputs: Literal[False] = False, return_z: Literal[False] = False,
-                particles: None = None) -> Array: ...
+                particles: None = None, dt: Optional[float] = None) -> Array: ...
 
     @overload
     def rollout(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
                 policy: Optional[Policy] = None, chunk: Optional[int] = None,
                 with_inputs: bool = False, return_z: bool = False,
-                particles: Optional[int] = None) -> Any: ...
+                particles: Optional[int] = None, dt: Optional[float] = None) -> Any: ...
 
     def rollout(self, model_id: str, x0: ArrayLike, u: Optional[ArrayLike] = None,
                 policy: Optional[Policy] = None, chunk: Optional[int] = None,
                 with_inputs: bool = False, return_z: bool = False,
-                particles: Optional[int] = None) -> Any:
+                particles: Optional[int] = None, dt: Optional[float] = None) -> Any:
         """The states x_0..x_T ([T+1, nq + nv]) from x0 under inputs u [T, m] or a TVLQR policy
         (x_bar [T+1 or T, nq + nv], u_bar [T, m], K [T, m, 2nv]) applying
         u_t = ū_t − K_t(x_t ⊖ x̄_t).
@@ -237,14 +246,15 @@ class Client:
 
         `particles` P (1..1024) propagates P particles, particle p following ensemble member
         p mod K throughout (TS∞): xs is their mean, and their standard deviation [T+1, nq + nv]
-        follows it: (xs, std, …); the inputs are the particles' mean, z the largest."""
+        follows it: (xs, std, …); the inputs are the particles' mean, z the largest. `dt` is
+        the seconds between states (None: the model's own, as `predict`'s)."""
         xs: list[Array] = []
         stds: list[Array] = []
         us: list[Array] = []
         zs: list[Array] = []
         rows = 0
         for start, x, applied, *rest in self.rollout_chunks(model_id, x0, u, policy, chunk,
-                                                            return_z, particles):
+                                                            return_z, particles, dt):
             if start != rows:
                 raise GrayboxError("DATA_LOSS", f"a chunk starts at state {start}, expected {rows}")
             xs.append(x)

@@ -15,17 +15,39 @@ const PARALLEL_ROWS: usize = 32;
 
 /// Batched entry points over row-major arrays: what the service and the benchmarks call.
 impl Evaluator {
+    /// The step of a call in seconds: the caller's `dt` when given (the dynamics are
+    /// continuous, so a model trained at one rate answers at another), else the model's own.
+    /// One range for every surface: the one a dataset's Δt must be in (`data::DT_RANGE`).
+    pub fn step_seconds(&self, dt: Option<f64>) -> crate::error::Result<f64> {
+        let Some(dt) = dt else {
+            return Ok(self.config.dt);
+        };
+        let (lo, hi) = crate::data::DT_RANGE;
+        if dt.is_finite() && (lo..=hi).contains(&dt) {
+            return Ok(dt);
+        }
+        Err(crate::error::Error::invalid(
+            "dt",
+            format!(
+                "must be a number of seconds in [{lo:e}, {hi}] (unset: the model's own, {}), got {dt}",
+                self.config.dt
+            ),
+        ))
+    }
+
     /// x' (and v̇ when asked) for `[B, nq + nv]` states and `[B, m]` inputs.
     pub fn predict(&self, x: &[f64], u: &[f64], want_accel: bool) -> (Vec<f64>, Option<Vec<f64>>) {
-        self.predict_until(x, u, want_accel, &|| false)
+        self.predict_until(x, u, self.config.dt, want_accel, &|| false)
             .expect("never stopped")
     }
 
-    /// [`Evaluator::predict`], or `None` when `stop` says so before a chunk.
+    /// [`Evaluator::predict`] with steps of `dt` seconds (`config.dt`: the model's own), or
+    /// `None` when `stop` says so before a chunk.
     pub fn predict_until(
         &self,
         x: &[f64],
         u: &[f64],
+        dt: f64,
         want_accel: bool,
         stop: &dyn Fn() -> bool,
     ) -> Option<(Vec<f64>, Option<Vec<f64>>)> {
@@ -38,7 +60,7 @@ impl Evaluator {
         );
         self.in_halves(x, u, Pass::Step, stop, outs, |x, u, next, acc| {
             let acc = want_accel.then_some(acc);
-            with_workspace(|ws| self.predict_into(ws, x, u, next, acc, &|| false));
+            with_workspace(|ws| self.predict_into(ws, x, u, dt, next, acc, &|| false));
         })?;
         Some((next, want_accel.then_some(acc)))
     }
@@ -76,7 +98,9 @@ impl Evaluator {
         let (nx, m) = (self.config.nx(), self.config.m);
         let Some(robot) = self.jacobian_robot() else {
             let space = (&self.config.space, continuous::Output::State);
-            return continuous::dual_rows_in(a, space, m, x, u, |x, u| self.step_in(a, x, u));
+            return continuous::dual_rows_in(a, space, m, x, u, |x, u| {
+                self.step_in(a, x, u, self.config.dt)
+            });
         };
         let mut rows = AVec::with_capacity_in(x.len() * (nx + m), a);
         // By index, not `u.chunks(m)`: a robot without inputs has empty rows of u.
@@ -125,19 +149,20 @@ impl Evaluator {
         Some(())
     }
 
-    /// `steps` states after x0 under inputs `u_t = input(t, x_t)`, each handed to `emit`
-    /// (state, input) as computed; `emit` returning false stops the rollout early.
+    /// `steps` states after x0, `dt` seconds apart, under inputs `u_t = input(t, x_t)`, each
+    /// handed to `emit` (state, input) as computed; `emit` returning false stops the rollout
+    /// early.
     pub fn rollout(
         &self,
         x0: &[f64],
-        steps: usize,
+        (steps, dt): (usize, f64),
         input: impl Fn(usize, &[f64]) -> Vec<f64>,
         mut emit: impl FnMut(&[f64], &[f64]) -> bool,
     ) {
         let (mut x, mut next) = (x0.to_vec(), vec![0.0; x0.len()]);
         for t in 0..steps {
             let u = input(t, &x);
-            with_workspace(|ws| self.predict_into(ws, &x, &u, &mut next, None, &|| false));
+            with_workspace(|ws| self.predict_into(ws, &x, &u, dt, &mut next, None, &|| false));
             std::mem::swap(&mut x, &mut next);
             if !emit(&x, &u) {
                 return;

@@ -98,7 +98,9 @@ impl Evaluator {
         let conservative = self.without_damping();
         let (mut x, mut drift) = (starts.to_vec(), vec![]);
         for step in 1..=DRIFT_STEPS[DRIFT_STEPS.len() - 1] {
-            let Some((next, _)) = conservative.predict_until(&x, &idle, false, stop) else {
+            let Some((next, _)) =
+                conservative.predict_until(&x, &idle, self.config.dt, false, stop)
+            else {
                 return Ok(None);
             };
             x = next;

@@ -77,11 +77,12 @@ impl Evaluator {
         &self,
         x: &[f64],
         u: &[f64],
+        dt: f64,
         want_accel: bool,
         stop: &dyn Fn() -> bool,
     ) -> Option<MemberPredictions> {
         let each: Vec<(Vec<f64>, Option<Vec<f64>>)> = (0..self.member_count())
-            .map(|k| self.member(k).predict_until(x, u, want_accel, stop))
+            .map(|k| self.member(k).predict_until(x, u, dt, want_accel, stop))
             .collect::<Option<_>>()?;
         let accel = want_accel.then(|| mean(each.iter().filter_map(|e| e.1.clone())));
         let next = each.into_iter().map(|e| e.0).collect();

@@ -88,7 +88,7 @@ pub fn horizon_errors(
         let u: Vec<f64> = (alive.iter())
             .flat_map(|&(r, _)| ds.u[(r + k) * m..(r + k + 1) * m].iter().copied())
             .collect();
-        (x, _) = e.predict_until(&x, &u, false, stop)?;
+        (x, _) = e.predict_until(&x, &u, e.config.dt, false, stop)?;
         let step = k + 1;
         if let Some(slot) = horizons.iter().position(|&h| h == step) {
             found[slot] = (alive.iter().enumerate())

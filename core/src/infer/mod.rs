@@ -342,17 +342,18 @@ impl Evaluator {
 
     /// One step of the model's integrator: x = [q, v] (nq + nv values), u (m) → x'.
     pub fn step<S: Lanes>(&self, x: &[S], u: &[S]) -> Vec<S> {
-        self.step_in(&Arena::new(), x, u).to_vec()
+        self.step_in(&Arena::new(), x, u, self.config.dt).to_vec()
     }
 
     /// One step of the integrator for `[B, nq + nv]` states under `[B, m]` inputs, in an
     /// arena: each stage's v̇ for the whole batch at once (`evaluate_in`), each stage's
-    /// configuration moved along its tangent by `integrate` (`physics::integrator`).
-    pub fn step_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: &[S], u: &[S]) -> AVec<'a, S> {
+    /// configuration moved along its tangent by `integrate` (`physics::integrator`); a step
+    /// of `dt` seconds (the model's own, or a caller's: the dynamics are continuous).
+    pub fn step_in<'a, S: Lanes>(&'a self, a: &'a Arena, x: &[S], u: &[S], dt: f64) -> AVec<'a, S> {
         let (nq, nv) = (self.config.nq(), self.config.nv());
         let x = AVec::from_iter_in(x.iter().cloned(), a);
         let states = States::new(&self.config.space, x.len() / (nq + nv));
-        (self.config.integrator).step(&states, &x, self.config.dt, |x: &AVec<S>| {
+        (self.config.integrator).step(&states, &x, dt, |x: &AVec<S>| {
             let vdot = self.evaluate_in(a, self.rows(x, u), false);
             let mut dx = AVec::with_capacity_in(2 * nv * states.rows, a);
             for (x, vdot) in x.chunks(nq + nv).zip(vdot.chunks(nv)) {

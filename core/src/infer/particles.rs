@@ -66,7 +66,7 @@ impl ParticleTrack {
     }
 }
 
-/// A whole rollout of `count` particles from `x0` [2n] over `steps` steps, particle p on
+/// A whole rollout of `count` particles from `x0` [2n] over `steps` steps of `dt` seconds, particle p on
 /// member p mod K, under `u_t = input(t, x)` for each particle's own state x (a sequence of
 /// inputs ignores x; a TVLQR policy, `control::policy::Policy::input`, applies to it): x0's
 /// row, then every step's. `stop` is asked before each step (`Error::Cancelled`); a particle
@@ -75,7 +75,7 @@ pub fn particle_rollout(
     eval: &Evaluator,
     x0: &[f64],
     count: usize,
-    steps: usize,
+    (steps, dt): (usize, f64),
     input: impl Fn(usize, &[f64]) -> Vec<f64>,
     stop: &dyn Fn() -> bool,
 ) -> Result<ParticleTrack> {
@@ -87,11 +87,11 @@ pub fn particle_rollout(
     let mut states = x0.repeat(count);
     let mut track = ParticleTrack::default();
     track.push_states(&states, nx);
-    advance(eval, &mut states, 0, steps, input, &mut track, stop)?;
+    advance(eval, &mut states, 0, (steps, dt), input, &mut track, stop)?;
     Ok(track)
 }
 
-/// `steps` steps of every particle from their states `[P, nq + nv]` at step `t` (`input` is asked
+/// `steps` steps of `dt` seconds of every particle from their states `[P, nq + nv]` at step `t` (`input` is asked
 /// for steps t, t + 1, …), each step's answer appended to `track` and the states left where
 /// the last step took them. On an error (`stop`, or [`diverged`] naming the step) the track
 /// and the states hold the steps before it.
@@ -99,7 +99,7 @@ pub fn advance(
     eval: &Evaluator,
     states: &mut Vec<f64>,
     t: usize,
-    steps: usize,
+    (steps, dt): (usize, f64),
     input: impl Fn(usize, &[f64]) -> Vec<f64>,
     track: &mut ParticleTrack,
     stop: &dyn Fn() -> bool,
@@ -110,7 +110,7 @@ pub fn advance(
             return Err(Error::Cancelled);
         }
         let us: Vec<f64> = states.chunks(nx).flat_map(|x| input(t + s, x)).collect();
-        let next = step(eval, states, &us);
+        let next = step(eval, states, &us, dt);
         if next.iter().any(|v| !v.is_finite()) {
             return Err(diverged(t + s + 1));
         }
@@ -124,7 +124,7 @@ pub fn advance(
 }
 
 /// One step of every particle: those of one member as one batch on that member.
-fn step(eval: &Evaluator, xs: &[f64], us: &[f64]) -> Vec<f64> {
+fn step(eval: &Evaluator, xs: &[f64], us: &[f64], dt: f64) -> Vec<f64> {
     let (nx, m) = (eval.config.nx(), eval.config.m);
     let (p, k) = (xs.len() / nx, eval.member_count());
     let mut next = vec![0.0; xs.len()];
@@ -140,7 +140,10 @@ fn step(eval: &Evaluator, xs: &[f64], us: &[f64]) -> Vec<f64> {
             .flat_map(|&r| &us[r * m..(r + 1) * m])
             .copied()
             .collect();
-        let (y, _) = eval.member(member).predict(&x, &u, false);
+        let one = eval
+            .member(member)
+            .predict_until(&x, &u, dt, false, &|| false);
+        let (y, _) = one.expect("never stopped");
         for (&r, y) in rows.iter().zip(y.chunks(nx)) {
             next[r * nx..(r + 1) * nx].copy_from_slice(y);
         }

@@ -15,6 +15,9 @@ use super::limits::Pass;
 use crate::arena::Arena;
 use crate::physics::multibody::{Lent, lending};
 
+/// A unit's states, inputs and step in seconds.
+type Call<'c> = (&'c [f64], &'c [f64], f64);
+
 /// Per-call scratch for one thread at a time: reused call after call.
 #[derive(Default)]
 pub struct Workspace {
@@ -84,7 +87,8 @@ impl Workspace {
             let (x, u) = (&x[..batch * nx], &u[..batch * m]);
             let never = &|| false;
             let next = &mut next[..batch * nx];
-            eval.predict_into(&mut ws, x, u, next, Some(&mut acc[..batch * nv]), never);
+            let acc = Some(&mut acc[..batch * nv]);
+            eval.predict_into(&mut ws, x, u, c.dt, next, acc, never);
             most = most.max(ws.arena.allocated_bytes());
             let (ja, jb) = (&mut ja[..batch * ndx * ndx], &mut jb[..batch * ndx * m]);
             eval.linearize_into(&mut ws, x, u, ja, jb, never);
@@ -150,14 +154,16 @@ impl Evaluator {
         (0..rows).step_by(per).map(move |s| s..rows.min(s + per))
     }
 
-    /// x' (`next`, `[B, nq + nv]`) and v̇ when asked (`acc`, `[B, nv]`) for `[B, nq + nv]`
-    /// states and `[B, m]` inputs, into the caller's buffers; `None` when `stop` said so
-    /// before a unit.
+    /// x' (`next`, `[B, nq + nv]`) after `dt` seconds (`config.dt`: the model's own) and v̇
+    /// when asked (`acc`, `[B, nv]`) for `[B, nq + nv]` states and `[B, m]` inputs, into the
+    /// caller's buffers; `None` when `stop` said so before a unit.
+    #[allow(clippy::too_many_arguments)]
     pub fn predict_into(
         &self,
         ws: &mut Workspace,
         x: &[f64],
         u: &[f64],
+        dt: f64,
         next: &mut [f64],
         mut acc: Option<&mut [f64]>,
         stop: &dyn Fn() -> bool,
@@ -177,11 +183,11 @@ impl Evaluator {
                 match self.ensemble() {
                     Some(ms) => {
                         mean_into(ms.len(), spare, (next, acc), |k, next, acc| {
-                            ms[k].predict_unit(a, x, u, next, acc)
+                            ms[k].predict_unit(a, (x, u, dt), next, acc)
                         });
                         self.config.space.project_states(next);
                     }
-                    None => self.predict_unit(a, x, u, next, acc),
+                    None => self.predict_unit(a, (x, u, dt), next, acc),
                 }
             }
             Some(())
@@ -189,8 +195,9 @@ impl Evaluator {
     }
 
     /// One unit's x' and (unless `acc` is empty) v̇.
-    fn predict_unit(&self, a: &Arena, x: &[f64], u: &[f64], next: &mut [f64], acc: &mut [f64]) {
-        next.copy_from_slice(&self.step_in(a, x, u));
+    fn predict_unit(&self, a: &Arena, call: Call, next: &mut [f64], acc: &mut [f64]) {
+        let (x, u, dt) = call;
+        next.copy_from_slice(&self.step_in(a, x, u, dt));
         if !acc.is_empty() {
             acc.copy_from_slice(&self.evaluate_in(a, self.rows(x, u), false));
         }
@@ -240,14 +247,15 @@ impl Evaluator {
         }
     }
 
-    /// `steps` states after x0 under the inputs `u` (`[steps, m]`) into `xs`
-    /// (`[steps + 1, nq + nv]`, x0 first); the steps taken: fewer when `stop` said so after a step
-    /// (the states so far are in `xs`).
+    /// `steps` states after x0, `dt` seconds apart, under the inputs `u` (`[steps, m]`) into
+    /// `xs` (`[steps + 1, nq + nv]`, x0 first); the steps taken: fewer when `stop` said so
+    /// after a step (the states so far are in `xs`).
     pub fn rollout_into(
         &self,
         ws: &mut Workspace,
         x0: &[f64],
         u: &[f64],
+        dt: f64,
         xs: &mut [f64],
         stop: &dyn Fn() -> bool,
     ) -> usize {
@@ -257,7 +265,8 @@ impl Evaluator {
         for t in 0..steps {
             let (done, rest) = xs.split_at_mut((t + 1) * nx);
             let u = &u[t * m..(t + 1) * m];
-            self.predict_into(ws, &done[t * nx..], u, &mut rest[..nx], None, &|| false);
+            let next = &mut rest[..nx];
+            self.predict_into(ws, &done[t * nx..], u, dt, next, None, &|| false);
             if stop() {
                 return t + 1;
             }

@@ -62,6 +62,7 @@ impl Dynamics for DynamicsService {
         let want = Want {
             accel: r.want_accel,
             members: r.members,
+            dt: r.dt,
         };
         let p = self
             .app
@@ -133,6 +134,7 @@ impl Dynamics for DynamicsService {
         let shape = RolloutShape {
             chunk: usize::try_from(r.chunk).unwrap_or(usize::MAX),
             particles: r.particles.map(|p| p as usize),
+            dt: r.dt,
         };
         let rx = self
             .app

@@ -8,7 +8,9 @@ use axum::routing::{get, post};
 
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, body_bytes, int_param, json_body, page, stored};
-use crate::app::inference::{EnergyReportRequest, EnergyRequest, EvaluateRequest};
+use crate::app::inference::{
+    EnergyReportRequest, EnergyRequest, EvaluateRequest, PredictRequest, SimulateRequest,
+};
 use crate::app::requests::parse_body;
 use crate::app::uploads::BodyKind;
 
@@ -20,6 +22,8 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/models/{id}/urdf", get(urdf))
         .route("/v1/models/{id}/rollout", get(rollout))
         .route("/v1/models/{id}/evaluate", post(evaluate))
+        .route("/v1/models/{id}/predict", post(predict))
+        .route("/v1/models/{id}/simulate", post(simulate))
         .route("/v1/models/{id}/energy", post(energy))
         .route("/v1/models/{id}/energy-report", post(energy_report))
 }
@@ -32,6 +36,26 @@ async fn energy_report(
 ) -> ApiResult<impl IntoResponse> {
     let req: EnergyReportRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
     Ok(axum::Json(s.app.energy_report(&id, req).await?))
+}
+
+/// x' for a batch of states, at the model's step or the body's `dt`.
+async fn predict(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> ApiResult<impl IntoResponse> {
+    let req: PredictRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
+    Ok(axum::Json(s.app.predict_json(&id, req).await?))
+}
+
+/// A rollout from x0 under a sequence of inputs, whole.
+async fn simulate(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> ApiResult<impl IntoResponse> {
+    let req: SimulateRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
+    Ok(axum::Json(s.app.simulate_json(&id, req).await?))
 }
 
 /// T, V, E, the power of F and the split of the dynamics at a batch of states.

@@ -14,9 +14,9 @@ use crate::array::Array;
 use crate::error::{Error, Result};
 use crate::infer::Energies;
 
-/// How long a REST energy call may compute unless it says otherwise, and at most.
-const DEFAULT_SECONDS: f64 = 30.0;
-const MAX_SECONDS: f64 = 300.0;
+/// How long a REST energy, predict or simulate call may compute unless it says otherwise, and at most.
+pub(super) const DEFAULT_SECONDS: f64 = 30.0;
+pub(super) const MAX_SECONDS: f64 = 300.0;
 
 /// A batch's energies, with the model's n.
 pub struct Energy {
@@ -70,7 +70,7 @@ pub struct ForcePartView {
 }
 
 /// JSON rows as an array; ragged rows are named.
-fn rows_array(field: &str, rows: Vec<Vec<f64>>) -> Result<Array> {
+pub(super) fn rows_array(field: &str, rows: Vec<Vec<f64>>) -> Result<Array> {
     let width = rows.first().map_or(0, Vec::len);
     if let Some(k) = rows.iter().position(|r| r.len() != width) {
         return Err(Error::invalid(

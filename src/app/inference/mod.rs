@@ -10,6 +10,7 @@ mod cache;
 mod energy;
 mod energy_report;
 mod evaluate;
+mod json;
 mod plan;
 pub mod reads;
 mod replay;
@@ -20,6 +21,7 @@ pub use cache::{CACHE_SWEEP, ModelCache};
 pub use energy::{Energy, EnergyRequest, EnergyView, ForcePartView};
 pub use energy_report::EnergyReportRequest;
 pub use evaluate::{EvaluateRequest, Evaluation};
+pub use json::{PredictRequest, PredictView, SimulateRequest, SimulateView};
 pub use replay::{ParticleSeries, Replay, Series, TrajectoryItem, TrajectoryList};
 pub use rollout::{MAX_PARTICLES, RolloutChunk, RolloutInputs, RolloutShape};
 
@@ -73,11 +75,13 @@ struct Cost {
     memory_bytes: usize,
 }
 
-/// What a Predict asks for besides x': q̈, and an ensemble's every member's x'.
+/// What a Predict asks for besides x': q̈, an ensemble's every member's x', and a step of
+/// its own (None: the model's Δt).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Want {
     pub accel: bool,
     pub members: bool,
+    pub dt: Option<f64>,
 }
 
 /// x' `[B, nq + nv]` (and v̇ `[B, nv]` when asked) for a batch, with each row's distance from the
@@ -283,6 +287,7 @@ impl App {
     ) -> Result<Prediction> {
         let eval = self.evaluator(id).await?;
         let b = check_batch(&eval, &x, &u)?;
+        let dt = eval.step_seconds(want.dt)?;
         let (n, nx) = (eval.config.nv(), eval.config.nx());
         let k = eval.member_count();
         let spread = k > 1 || want.members;
@@ -293,10 +298,10 @@ impl App {
             .compute(class, "prediction", deadline, move |stop| {
                 let max_abs_z = eval.max_abs_z(&x, &u);
                 if !spread {
-                    let (next, accel) = eval.predict_until(&x, &u, want.accel, stop)?;
+                    let (next, accel) = eval.predict_until(&x, &u, dt, want.accel, stop)?;
                     return Some(Prediction::of(b, (nx, n), next, accel, max_abs_z));
                 }
-                let p = eval.predict_members_until(&x, &u, want.accel, stop)?;
+                let p = eval.predict_members_until(&x, &u, dt, want.accel, stop)?;
                 let mut out = Prediction::of(b, (nx, n), p.mean, p.accel, max_abs_z);
                 out.member_count = k;
                 out.std = Some(Array::new(&[b, nx], p.std));

@@ -265,7 +265,7 @@ fn replay_segment(
     let steps = recorded.q.len() - 1;
     eval.rollout(
         &x0,
-        steps,
+        (steps, eval.config.dt),
         |t, _| inputs[t * m..(t + 1) * m].to_vec(),
         |x, _| {
             predicted.q.push(x[..nq].to_vec());
@@ -294,7 +294,8 @@ fn particle_replay(
     let steps = recorded.q.len() - 1;
     // A particle's state leaving the finite numbers ends it early, and the track then holds
     // the states before: the band ends where the first particle ran away.
-    let ended = particles::advance(eval, &mut states, 0, steps, input, &mut track, stop);
+    let span = (steps, eval.config.dt);
+    let ended = particles::advance(eval, &mut states, 0, span, input, &mut track, stop);
     if let Err(Error::Cancelled) = ended {
         return None;
     }

@@ -254,7 +254,7 @@ fn an_ensembles_evaluator_answers_with_its_members_mean() {
     let each: Vec<Vec<f64>> = own.iter().map(|m| m.predict(&x, &u, false).0).collect();
     let (mean, _) = eval.predict(&x, &u, false);
     let p = eval
-        .predict_members_until(&x, &u, false, &|| false)
+        .predict_members_until(&x, &u, eval.config.dt, false, &|| false)
         .unwrap();
     // Sums of three numbers in another order: equal to a few ulps of the largest.
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * (1.0 + a.abs().max(b.abs()));
@@ -284,7 +284,7 @@ fn an_ensembles_evaluator_answers_with_its_members_mean() {
     let mut states = vec![];
     eval.rollout(
         &x[..4],
-        2,
+        (2, eval.config.dt),
         |_, _| u[..2].to_vec(),
         |x, _| {
             states.push(x.to_vec());
@@ -296,7 +296,7 @@ fn an_ensembles_evaluator_answers_with_its_members_mean() {
     assert_eq!(own[1].member_count(), 1);
     assert_eq!(
         own[1]
-            .predict_members_until(&x, &u, false, &|| false)
+            .predict_members_until(&x, &u, own[1].config.dt, false, &|| false)
             .unwrap()
             .std,
         vec![0.0; 8]
@@ -329,7 +329,7 @@ fn an_ensembles_eval_is_its_mean_predictions_loss() {
     let (x, y) = test.states();
     let eval = Evaluator::from_file(&file).unwrap();
     let p = eval
-        .predict_members_until(&x, &test.u, false, &|| false)
+        .predict_members_until(&x, &test.u, eval.config.dt, false, &|| false)
         .unwrap();
     let rows = test.count();
     let tensor = |v: Vec<f64>| Tensor::<2>::from_data(TensorData::new(v, [rows, 4]), &dev);

@@ -31,6 +31,7 @@ class Model:
         return_std: Literal[False] = False,
         members: Literal[False] = False,
         return_z: Literal[False] = False,
+        dt: float | None = None,
     ) -> _Array: ...
     @overload
     def predict(
@@ -41,6 +42,7 @@ class Model:
         return_std: bool = False,
         members: bool = False,
         return_z: bool = False,
+        dt: float | None = None,
     ) -> Any: ...
     def step(self, x: ArrayLike, u: ArrayLike | None = None) -> _Array: ...
     @overload
@@ -64,6 +66,7 @@ class Model:
         with_inputs: Literal[False] = False,
         return_z: Literal[False] = False,
         particles: None = None,
+        dt: float | None = None,
     ) -> _Array: ...
     @overload
     def rollout(
@@ -74,6 +77,7 @@ class Model:
         with_inputs: bool = False,
         return_z: bool = False,
         particles: int | None = None,
+        dt: float | None = None,
     ) -> Any: ...
     def tvlqr(
         self, xbar: ArrayLike, ubar: ArrayLike, Q: ArrayLike, R: ArrayLike, Qf: ArrayLike

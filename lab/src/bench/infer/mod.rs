@@ -223,7 +223,7 @@ fn in_process(eval: &Evaluator, p: &Problem, calls: usize) {
                 let mut last = 0.0;
                 eval.rollout(
                     &p.x1,
-                    ROLLOUT,
+                    (ROLLOUT, eval.config.dt),
                     |t, _| p.u500[2 * t..2 * t + 2].to_vec(),
                     |x, _| {
                         last = x[0];

@@ -66,7 +66,7 @@ pub(super) fn figures(a: &super::BenchInferArgs, path: &Path) -> Result<()> {
         time_calls(few, || {
             eval.rollout(
                 x1,
-                ROLLOUT,
+                (ROLLOUT, eval.config.dt),
                 |_, _| u1.to_vec(),
                 |x, _| {
                     std::hint::black_box(x);

@@ -119,7 +119,7 @@ fn points(eval: &Evaluator, ds: &Dataset, train_range: f64) -> Result<Points> {
         truth.extend_from_slice(&ds.qdot_next[r]);
     }
     let p = eval
-        .predict_members_until(&x, &ds.u, false, &|| false)
+        .predict_members_until(&x, &ds.u, eval.config.dt, false, &|| false)
         .ok_or_else(|| Error::Internal("prediction stopped".into()))?;
     if eval.member_count() < 2 {
         return Err(Error::Internal(

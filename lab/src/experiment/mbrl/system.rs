@@ -185,7 +185,7 @@ pub(super) fn track(sys: &Evaluator, xbar: &[f64], ubar: &[f64], gains: &Gains) 
     let mut states = vec![0.0; 4];
     sys.rollout(
         &[0.0; 4],
-        HORIZON,
+        (HORIZON, sys.config.dt),
         |t, x| clip(pol.input(t, x)),
         |x, _| {
             states.extend_from_slice(x);

@@ -363,7 +363,7 @@ fn predict(e: &Evaluator, t: &Trajectory) -> Vec<f64> {
     let mut q = t.x0[..n].to_vec();
     e.rollout(
         &t.x0,
-        STEPS,
+        (STEPS, e.config.dt),
         |k, _| t.u[k * m..(k + 1) * m].to_vec(),
         |x, _| {
             q.extend_from_slice(&x[..n]);

@@ -30,12 +30,14 @@ pub use crate::infer::particles::MAX_PARTICLES;
 /// as long as a plain one's longest (the deadline and the reader are checked between pieces).
 const PIECE_PARTICLE_STEPS: usize = 4096;
 
-/// How a rollout streams: states per chunk (0: the default), and the particles it
-/// propagates (None: one rollout of the mean dynamics).
+/// How a rollout streams: states per chunk (0: the default), the particles it propagates
+/// (None: one rollout of the mean dynamics), and the seconds between states (None: the
+/// model's Δt).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RolloutShape {
     pub chunk: usize,
     pub particles: Option<usize>,
+    pub dt: Option<f64>,
 }
 
 /// The inputs of a rollout as requested: a sequence `[T, m]`, or a feedback policy with
@@ -130,6 +132,7 @@ impl App {
             check_particles(p)?;
         }
         let eval = self.evaluator(id).await?;
+        let dt = eval.step_seconds(shape.dt)?;
         let (nx, m) = (eval.config.nx(), eval.config.m);
         if x0.len() != nx || x0.iter().any(|v| !v.is_finite()) {
             return Err(Error::invalid("x0", format!("must be {nx} finite values")));
@@ -166,6 +169,7 @@ impl App {
             eval,
             inputs: Arc::new(inputs),
             steps,
+            dt,
             chunk,
             particles,
         };
@@ -180,6 +184,8 @@ struct Rollout {
     eval: Arc<Evaluator>,
     inputs: Arc<Inputs>,
     steps: usize,
+    /// Seconds between states.
+    dt: f64,
     chunk: usize,
     /// 0: one rollout of the mean dynamics.
     particles: usize,
@@ -187,6 +193,9 @@ struct Rollout {
 
 /// A computed piece: the chunk, the state to continue from, and the error that ended it.
 type Piece = (RolloutChunk, Vec<f64>, Option<Error>);
+
+/// A piece's first step, its steps and their seconds.
+type Span = (usize, usize, f64);
 
 impl Rollout {
     async fn stream(
@@ -214,11 +223,11 @@ impl Rollout {
             let piece = {
                 let (eval, inputs) = (self.eval.clone(), self.inputs.clone());
                 let start = x.clone();
-                let particles = self.particles;
+                let (particles, span) = (self.particles, (t, take, self.dt));
                 app.streaming
                     .run(move || match particles {
-                        0 => compute_piece(&eval, &inputs, start, t, take, first),
-                        _ => particles::piece(&eval, &inputs, start, t, take, first),
+                        0 => compute_piece(&eval, &inputs, start, span, first),
+                        _ => particles::piece(&eval, &inputs, start, span, first),
                     })
                     .await
             };
@@ -266,13 +275,12 @@ fn input_at(inputs: &Inputs, m: usize, t: usize, x: &[f64]) -> Vec<f64> {
     }
 }
 
-/// `take` steps from state `x` at step `t` (the first piece also carries x0).
+/// `take` steps of `dt` from state `x` at step `t` (the first piece also carries x0).
 fn compute_piece(
     eval: &Evaluator,
     inputs: &Inputs,
     x: Vec<f64>,
-    t: usize,
-    take: usize,
+    (t, take, dt): Span,
     first: bool,
 ) -> Piece {
     let (nx, m) = (eval.config.nx(), eval.config.m);
@@ -282,7 +290,7 @@ fn compute_piece(
     let mut error = None;
     let input = |s: usize, x: &[f64]| input_at(inputs, m, t + s, x);
     let mut done = 0;
-    eval.rollout(&x, take, input, |next, u| {
+    eval.rollout(&x, (take, dt), input, |next, u| {
         if next.iter().any(|v| !v.is_finite()) {
             error = Some(diverged(t + done + 1));
             return false;

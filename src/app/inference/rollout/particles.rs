@@ -1,19 +1,18 @@
 //! A piece of a particle rollout as a streamed chunk: the computation is the core's
 //! (`infer::particles`), continued piece after piece from the particles' states.
 
-use super::{Inputs, Piece, RolloutChunk, input_at};
+use super::{Inputs, Piece, RolloutChunk, Span, input_at};
 use crate::array::Array;
 use crate::infer::Evaluator;
 use crate::infer::particles::{ParticleTrack, advance};
 
-/// `take` steps of every particle from their states `xs` `[P, nq + nv]` at step `t` (the first
+/// `take` steps of `dt` of every particle from their states `xs` `[P, nq + nv]` at step `t` (the first
 /// piece also carries x0's row); the piece continues from the particles' states.
 pub(super) fn piece(
     eval: &Evaluator,
     inputs: &Inputs,
     xs: Vec<f64>,
-    t: usize,
-    take: usize,
+    (t, take, dt): Span,
     first: bool,
 ) -> Piece {
     let (nx, m) = (eval.config.nx(), eval.config.m);
@@ -24,7 +23,7 @@ pub(super) fn piece(
     let mut xs = xs;
     let input = |step: usize, x: &[f64]| input_at(inputs, m, step, x);
     // The deadline and the reader are checked between pieces, never inside one.
-    let error = advance(eval, &mut xs, t, take, input, &mut track, &|| false).err();
+    let error = advance(eval, &mut xs, t, (take, dt), input, &mut track, &|| false).err();
     let rows = track.mean.len() / nx;
     let chunk = RolloutChunk {
         start: if first { 0 } else { t + 1 },
