@@ -62,7 +62,17 @@ const ROUTES: &[Route] = &[
          with ?time= (docs/logs.md)",
         Some("object"),
         &[
-            "?name", "?dt", "?time", "?q", "?qdot", "?u", "?wrapped", "?gap", "?window", "?order",
+            "?name",
+            "?dt",
+            "?resample",
+            "?time",
+            "?q",
+            "?qdot",
+            "?u",
+            "?wrapped",
+            "?gap",
+            "?window",
+            "?order",
         ],
     ),
     Route(

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::json;
 
-use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns, import_csv};
+use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns, column_list, import_csv};
 use crate::error::{Error, Result};
 use crate::model::file::write_atomic;
 
@@ -29,9 +29,13 @@ pub struct ImportArgs {
     /// Position columns holding an angle wrapped into one turn (unwrapped on import).
     #[arg(long, default_value = "")]
     pub wrapped: String,
-    /// The dataset's time step, seconds (default: the log's median step).
+    /// Resample on an even grid of this step, seconds (default: keep the samples' own times,
+    /// each transition its own Δt).
     #[arg(long)]
     pub dt: Option<f64>,
+    /// Resample on an even grid of the log's median step.
+    #[arg(long)]
+    pub resample: bool,
     /// A step longer than this many median steps is a pause: the trajectory ends there.
     #[arg(long, default_value_t = 5.0)]
     pub gap: f64,
@@ -47,32 +51,24 @@ pub struct ImportArgs {
     pub out: PathBuf,
 }
 
-/// Comma-separated column names (empty: none).
-fn names(list: &str) -> Vec<String> {
-    (list.split(','))
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(str::to_string)
-        .collect()
-}
-
 pub(super) fn import(a: ImportArgs) -> Result<()> {
     let bytes = std::fs::read(&a.log)
         .map_err(|e| Error::invalid("log", format!("cannot read {}: {e}", a.log.display())))?;
     let cols = LogColumns {
         time: a.time.trim().to_string(),
-        q: names(&a.q),
-        qdot: a.qdot.as_deref().map(names).unwrap_or_default(),
-        u: names(&a.u),
+        q: column_list(&a.q),
+        qdot: a.qdot.as_deref().map(column_list).unwrap_or_default(),
+        u: column_list(&a.u),
     };
     let opts = ImportOptions {
         dt: a.dt,
+        resample: a.resample,
         gap: a.gap,
         fit: Fit {
             window: a.window,
             order: a.order,
         },
-        wrapped: names(&a.wrapped),
+        wrapped: column_list(&a.wrapped),
         // The caller's own file: no service shares its memory.
         memory: None,
     };

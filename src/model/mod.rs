@@ -36,6 +36,8 @@ pub struct Model {
     pub params: Params,
     loss: Loss,
     step: Arc<FusedStep>,
+    /// The same step on rows that carry their own Δt (`step_scaled`).
+    timed: Arc<FusedStep>,
 }
 
 impl Model {
@@ -110,12 +112,14 @@ impl Model {
     /// The model of `config` with `params`; a robot's q̈ comes from the multibody
     /// algorithms (see [`Model::assembled`]).
     pub fn from_parts(config: ModelConfig, params: Params, device: &Device) -> Self {
-        let step = Arc::new(FusedStep::new(&config, &params, true));
+        let step = Arc::new(FusedStep::new(&config, &params, (true, false)));
+        let timed = Arc::new(FusedStep::new(&config, &params, (true, true)));
         Self {
             loss: Loss::new(&config, device),
             config,
             params,
             step,
+            timed,
         }
     }
 
@@ -163,7 +167,13 @@ impl Model {
 
     /// One step of the model's integrator: x = [q, q̇] `[batch, 2n]`, u `[batch, m]`.
     pub fn step(&self, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
-        self.fused_step(x, u)
+        self.fused_step(x, u, None)
+    }
+
+    /// One step of each row's own length: `scale` `[batch, 1]` is Δt_i / Δt (a dataset's
+    /// `steps` over its `dt`).
+    pub fn step_scaled(&self, x: Tensor<2>, u: Tensor<2>, scale: Tensor<2>) -> Tensor<2> {
+        self.fused_step(x, u, Some(scale))
     }
 
     /// Sum over the batch of Σ(q' − q̂')² + λ Σ(q̇' − q̂̇')² (divide by the batch size for the

@@ -14,7 +14,8 @@ impl Model {
     /// algorithms: the reference training's node is tested against, and a benchmark's
     /// baseline.
     pub fn assembled(mut self) -> Self {
-        self.step = Arc::new(FusedStep::new(&self.config, &self.params, false));
+        self.step = Arc::new(FusedStep::new(&self.config, &self.params, (false, false)));
+        self.timed = Arc::new(FusedStep::new(&self.config, &self.params, (false, true)));
         self
     }
 

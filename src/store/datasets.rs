@@ -35,11 +35,14 @@ impl From<DatasetRow> for records::DatasetInfo {
 const COLUMNS: &str = "seq, id, name, COALESCE(nq, n) AS nq, n AS nv, n, m, dt, count, sha256, \
                        created_at, warnings";
 
-/// Little-endian f64 of q | q̇ | u | q' | q̇', each row-major.
+/// Little-endian f64 of q | q̇ | u | q' | q̇', each row-major, then each transition's Δt when
+/// they differ (`Dataset::steps`; the blob's length tells whether they are there).
 pub fn encode(ds: &Dataset) -> Vec<u8> {
+    let steps = ds.steps.iter().flatten();
     [&ds.q, &ds.qdot, &ds.u, &ds.q_next, &ds.qdot_next]
         .into_iter()
         .flatten()
+        .chain(steps)
         .flat_map(|v| v.to_le_bytes())
         .collect()
 }
@@ -53,7 +56,9 @@ fn decode(
 ) -> Result<Dataset> {
     let widths = [nq, nv, m, nq, nv];
     let values = count.checked_mul(widths.iter().sum::<usize>());
-    if values.and_then(|v| v.checked_mul(8)) != Some(blob.len()) {
+    let bytes = |v: Option<usize>| v.and_then(|v| v.checked_mul(8));
+    let timed = bytes(values.and_then(|v| v.checked_add(count))) == Some(blob.len());
+    if !timed && bytes(values) != Some(blob.len()) {
         return Err(Error::corrupt(
             "dataset",
             "stored arrays do not match their dimensions",
@@ -69,7 +74,13 @@ fn decode(
             .collect();
         rest = tail;
     }
-    Dataset::new(dt, (nq, nv), m, arrays)
+    let data = Dataset::new(dt, (nq, nv), m, arrays)?;
+    if !timed {
+        return Ok(data);
+    }
+    let steps = rest.chunks_exact(8);
+    let steps = steps.map(|c| f64::from_le_bytes(c.try_into().expect("8 bytes")));
+    data.with_steps(steps.collect())
 }
 
 /// The identity of a dataset: its dimensions, Δt and every value (nq too where it is not nv,

@@ -185,7 +185,10 @@ pub(super) fn split_data(
                 "must have the same nq, nv and m as the training data",
             ));
         }
-        if (v.dt - data.dt).abs() > 1e-12 * data.dt {
+        // Steps of their own are integrated as they are (`HostData`): only uniform data must
+        // share the rate.
+        let uniform = v.steps.is_none() && data.steps.is_none();
+        if uniform && (v.dt - data.dt).abs() > 1e-12 * data.dt {
             return Err(Error::invalid(
                 "validation_data",
                 format!("dt {} differs from the training data's {}", v.dt, data.dt),

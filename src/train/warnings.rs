@@ -42,7 +42,11 @@ pub fn zero_acceleration_window_loss(
     for &start in &windows.starts {
         let (q, v) = (&ds.q[start * nq..][..nq], &ds.qdot[start * nv..][..nv]);
         for (k, w) in windows.weights.iter().enumerate() {
-            let (row, ahead) = (start + k, (k + 1) as f64 * ds.dt);
+            let row = start + k;
+            let ahead = match &ds.steps {
+                None => (k + 1) as f64 * ds.dt,
+                Some(s) => s[start..=row].iter().sum(),
+            };
             ahead_q.clear();
             space.integrate_into(q, ahead, v, &mut ahead_q);
             let (q_next, v_next) = (
@@ -220,6 +224,7 @@ mod tests {
             q_next: (1..=rows).map(|k| 0.5 * a * t(k) * t(k)).collect(),
             qdot_next: (1..=rows).map(|k| a * t(k)).collect(),
             trajectories: Some(vec![rows]),
+            steps: None,
         };
         let miss = |k: usize| {
             let s = (k + 1) as f64 * dt;

@@ -124,3 +124,67 @@ async fn a_log_uploads_as_trajectories_with_its_import_summary() {
     );
     app.stop().await;
 }
+
+/// By default a log keeps its samples' times: the stored dataset's transitions each carry
+/// their own Δt, and a model's replay of it steps them (its times are the log's); resampled,
+/// the replay's times are the grid's.
+#[tokio::test]
+async fn a_log_keeps_its_samples_times_through_storage_and_replay() {
+    use graybox::model::file::ModelFile;
+    use graybox::physics::integrator::Integrator;
+    use graybox::physics::templates::Template;
+
+    let app = spawn_app(0).await;
+    let times: Vec<f64> = (log().lines().skip(1))
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    let (s, own) = post_log(&app, "time=t&q=j1&u=tau", log()).await;
+    assert_eq!(
+        (s, &own["import"]["times"]),
+        (201, &"samples".into()),
+        "{own}"
+    );
+    let (s, grid) = post_log(&app, "time=t&q=j1&u=tau&resample=true", log()).await;
+    assert_eq!(
+        (s, &grid["import"]["times"]),
+        (201, &"grid".into()),
+        "{grid}"
+    );
+    assert_ne!(own["id"], grid["id"]);
+    let dt = own["dt"].as_f64().unwrap();
+    let t = Template::Pendulum;
+    let file = ModelFile::from_template(&t, &t.defaults(), dt, Integrator::Rk4).unwrap();
+    let model = app.upload_model(&file).await;
+    let replay = |d: &Value| {
+        format!(
+            "/v1/models/{model}/rollout?dataset_id={}&index=0",
+            d["id"].as_str().unwrap()
+        )
+    };
+    let (s, r) = app.get(&replay(&own)).await;
+    assert_eq!(s, 200, "{r}");
+    let got: Vec<f64> = r["t"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(got.len(), times.len());
+    for (k, (g, t)) in got.iter().zip(&times).enumerate() {
+        // Sums of the stored steps against the log's times: rounding of 600 additions.
+        assert!(
+            (g - (t - times[0])).abs() < 1e-12,
+            "t[{k}] = {g}, the log's {t}"
+        );
+    }
+    let (s, r) = app.get(&replay(&grid)).await;
+    assert_eq!(s, 200, "{r}");
+    let step = grid["dt"].as_f64().unwrap();
+    let got = r["t"].as_array().unwrap();
+    assert!(
+        (got[7].as_f64().unwrap() - 7.0 * step).abs() < 1e-15,
+        "{:?}",
+        &got[..8]
+    );
+    app.stop().await;
+}

@@ -165,12 +165,14 @@ def test_command_line_example(graybox_bin):
                  if "identifiable" in j and j.get("template") == "double_pendulum"]
     names = {c["name"] for c in inspected[-1]["identifiable"]}
     assert {"m1/m2", "l1/l2", "g/l1"} <= names, names
-    # The robot-log example: the committed log imports as two trajectories with velocities
-    # estimated, and W-B from g = 7 recovers the logged pendulum (measured: g/l 9.96, b/(ml²)
-    # 0.96; the estimated velocities and the inputs' step means bias the damping slightly).
+    # The robot-log example: the committed log imports as two trajectories on its samples' own
+    # times with velocities estimated, and W-B from g = 7 recovers the logged pendulum
+    # (measured: g/l 9.91, b/(ml²) 0.96; the estimated velocities and the inputs' step means
+    # bias them slightly).
     imported = [j for j in json.loads("[" + _objects(done.stdout) + "]") if "import" in j]
     assert imported and imported[0]["import"]["trajectories"] == 2, imported
     assert imported[0]["import"]["velocities"] == "estimated"
+    assert imported[0]["import"]["times"] == "samples"
     pendulum = [j for j in json.loads("[" + _objects(done.stdout) + "]")
                 if "identifiable" in j and j.get("template") == "pendulum"]
     combos = {c["name"]: c["value"] for c in pendulum[-1]["identifiable"]}

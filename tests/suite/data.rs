@@ -284,3 +284,67 @@ fn winding_trajectories_of_the_readme_recipes_raise_no_span_warning() {
         }
     }
 }
+
+/// Transitions of their own Δt: `"dt"` as one step per transition, or each trajectory's
+/// times `"t"`; the dataset's Δt their median; both forms written back as they came.
+#[test]
+fn each_transition_may_carry_its_own_step() {
+    let each = GOOD.replace(r#""dt":0.01"#, r#""dt":[0.01,0.012]"#);
+    let d = Dataset::from_json(&each, None).unwrap();
+    assert_eq!(d.steps, Some(vec![0.01, 0.012]));
+    assert_eq!((d.dt, d.step(1)), (0.011, 0.012));
+    assert_eq!(Dataset::from_json(&d.to_json(), None).unwrap(), d);
+    // Steps all equal are one dt.
+    let same = GOOD.replace(r#""dt":0.01"#, r#""dt":[0.01,0.01]"#);
+    assert_eq!(Dataset::from_json(&same, None).unwrap().steps, None);
+
+    let timed = r#"{"trajectories":[
+        {"t":[0,0.01,0.021],"q":[[0],[1],[2]],"qdot":[[0],[1],[2]],"u":[[0],[0]]},
+        {"t":[5,5.009],"q":[[0],[1]],"qdot":[[0],[1]],"u":[[0]]}]}"#;
+    let d = Dataset::from_json(timed, None).unwrap();
+    let steps = d.steps.clone().unwrap();
+    let want = [0.01, 0.011, 0.009];
+    assert!(
+        steps.iter().zip(want).all(|(a, b)| (a - b).abs() < 1e-12),
+        "{steps:?}"
+    );
+    assert_eq!(d.trajectories, Some(vec![2, 1]));
+    let back = Dataset::from_json(&d.to_json(), None).unwrap();
+    let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(a, b)| (a - b).abs() < 1e-12);
+    assert!(close(back.steps.as_ref().unwrap(), &steps) && back.q == d.q);
+    // A split keeps each row's step.
+    let (train, val) = d.split(0.34, 1);
+    for part in [&train, &val] {
+        let s = part.steps.as_ref().unwrap();
+        assert!(
+            s.iter().all(|v| want.iter().any(|w| (v - w).abs() < 1e-12)),
+            "{s:?}"
+        );
+    }
+}
+
+#[test]
+fn bad_steps_name_the_field() {
+    let bad = |text: String, dt: Option<f64>| field_of(Dataset::from_json(&text, dt).unwrap_err());
+    let with = |dt: &str| GOOD.replace(r#""dt":0.01"#, &format!(r#""dt":{dt}"#));
+    assert_eq!(
+        bad(with("[0.01]"), None),
+        "dt",
+        "one step for two transitions"
+    );
+    assert_eq!(bad(with("[]"), None), "dt");
+    assert_eq!(bad(with("[0.01,-1]"), None), "dt[1]");
+    assert_eq!(bad(with("[0.01,\"x\"]"), None), "dt[1]");
+    assert_eq!(bad(with("[0.01,0.01]"), Some(0.01)), "dt", "given twice");
+    let trajectory = |t: &str| {
+        format!(
+            r#"{{"trajectories":[{{"t":{t},"q":[[0],[1],[2]],"qdot":[[0],[1],[2]],"u":[[0],[0]]}}]}}"#
+        )
+    };
+    assert_eq!(bad(trajectory("[0,0.01,0.01]"), None), "trajectories[0].t");
+    assert_eq!(bad(trajectory("[0,0.01]"), None), "trajectories[0].t");
+    let half = r#"{"dt":0.01,"trajectories":[
+        {"t":[0,0.01],"q":[[0],[1]],"qdot":[[0],[1]],"u":[[0]]},
+        {"q":[[0],[1]],"qdot":[[0],[1]],"u":[[0]]}]}"#;
+    assert_eq!(bad(half.into(), None), "trajectories[1].t");
+}

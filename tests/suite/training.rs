@@ -6,6 +6,8 @@ use crate::common;
 mod ensemble;
 #[path = "training/fused.rs"]
 mod fused;
+#[path = "training/steps.rs"]
+mod steps;
 
 use std::sync::atomic::AtomicBool;
 

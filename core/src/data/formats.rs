@@ -9,47 +9,23 @@
 //!   given separately.
 //!
 //! Δt comes from the file or from the caller (`--dt`, `?dt=`); given both, they must agree.
+//! Transitions of their own Δt each (a log kept on its samples' times): `"dt"` an array of one
+//! step per transition, or each trajectory's `"t"`, its T + 1 states' times.
 
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 use serde_json::Value;
 
 use super::{Dataset, FIELDS};
 use crate::error::{Error, Result};
 
-#[derive(Serialize)]
-struct DatasetJson<'a> {
-    dt: f64,
-    q: Vec<&'a [f64]>,
-    qdot: Vec<&'a [f64]>,
-    u: Vec<&'a [f64]>,
-    q_next: Vec<&'a [f64]>,
-    qdot_next: Vec<&'a [f64]>,
-}
-
-#[derive(Serialize)]
-struct TrajectoriesJson<'a> {
-    dt: f64,
-    trajectories: Vec<TrajectoryJson<'a>>,
-}
-
-#[derive(Serialize)]
-struct TrajectoryJson<'a> {
-    q: Vec<&'a [f64]>,
-    qdot: Vec<&'a [f64]>,
-    u: Vec<&'a [f64]>,
-}
-
-/// Rows `a..b` of the states, then the last row's next state: a trajectory's T + 1 states.
-fn states<'d>(now: &'d [f64], next: &'d [f64], a: usize, b: usize, n: usize) -> Vec<&'d [f64]> {
-    let mut r: Vec<&[f64]> = now[a * n..b * n].chunks(n).collect();
-    r.push(&next[(b - 1) * n..b * n]);
-    r
-}
+mod export;
 
 /// One trajectory: T+1 states and T inputs.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Trajectory {
+    #[serde(default)]
+    t: Option<Vec<f64>>,
     q: Vec<Vec<f64>>,
     qdot: Vec<Vec<f64>>,
     u: Vec<Vec<f64>>,
@@ -84,7 +60,28 @@ impl Dataset {
         let obj = value
             .as_object()
             .ok_or_else(|| Error::invalid("body", "expected a JSON object"))?;
-        let dt = resolve_dt(obj.get("dt"), dt)?;
+        let each = obj.get("dt").and_then(Value::as_array);
+        let timed = (obj.get("trajectories").and_then(Value::as_array))
+            .is_some_and(|t| t.iter().any(|t| t.get("t").is_some()));
+        let (dt, each) = match (each, timed) {
+            (Some(_), _) if dt.is_some() => {
+                return Err(Error::invalid(
+                    "dt",
+                    "the data gives each transition's dt: leave out the one given separately",
+                ));
+            }
+            (Some(_), _) if obj.contains_key("trajectories") => {
+                return Err(Error::invalid(
+                    "dt",
+                    "is one number for trajectories; a trajectory's own times go in its \"t\"",
+                ));
+            }
+            (Some(a), _) => (f64::NAN, Some(steps_of(a)?)),
+            // Each trajectory's times give its steps (a dt besides is replaced by their
+            // median).
+            (None, true) => (f64::NAN, None),
+            (None, false) => (resolve_dt(obj.get("dt"), dt)?, None),
+        };
         if obj.contains_key("trajectories") {
             // One form per body: the other's arrays would be silently dropped.
             if let Some(flat) = FIELDS.iter().find(|f| obj.contains_key(**f)) {
@@ -96,9 +93,14 @@ impl Dataset {
                     ),
                 ));
             }
-            return Self::from_trajectories(value, dt);
+            return Self::from_trajectories(value, dt, timed);
         }
-        Self::from_transitions(obj, dt)
+        let first = each.as_ref().and_then(|s| s.first().copied());
+        let data = Self::from_transitions(obj, first.unwrap_or(dt))?;
+        match each {
+            Some(steps) => data.with_steps(steps),
+            None => Ok(data),
+        }
     }
 
     fn from_transitions(obj: &serde_json::Map<String, Value>, dt: f64) -> Result<Self> {
@@ -218,40 +220,6 @@ impl Dataset {
         Self::new(dt, (nq, nv), m, arrays)
     }
 
-    /// The dataset as a JSON file: in trajectory form when it has trajectories (one without
-    /// transitions has nothing to write and is left out), else as transitions.
-    pub fn to_json(&self) -> String {
-        fn rows(a: &[f64], w: usize) -> Vec<&[f64]> {
-            a.chunks(w).collect()
-        }
-        if self.trajectories.is_some() {
-            let (nq, nv, m) = (self.nq, self.nv, self.m);
-            let one = |s: super::trajectories::Segment| {
-                let (a, b) = (s.start, s.start + s.length);
-                TrajectoryJson {
-                    q: states(&self.q, &self.q_next, a, b, nq),
-                    qdot: states(&self.qdot, &self.qdot_next, a, b, nv),
-                    u: rows(&self.u[a * m..b * m], m),
-                }
-            };
-            let trajectories = self.segments().into_iter().filter(|s| s.length > 0);
-            return serde_json::to_string(&TrajectoriesJson {
-                dt: self.dt,
-                trajectories: trajectories.map(one).collect(),
-            })
-            .expect("plain arrays serialize");
-        }
-        serde_json::to_string(&DatasetJson {
-            dt: self.dt,
-            q: rows(&self.q, self.nq),
-            qdot: rows(&self.qdot, self.nv),
-            u: rows(&self.u, self.m),
-            q_next: rows(&self.q_next, self.nq),
-            qdot_next: rows(&self.qdot_next, self.nv),
-        })
-        .expect("plain arrays serialize")
-    }
-
     /// Reads a file by extension: `.csv` needs `dt`, anything else is JSON.
     pub fn load(path: &std::path::Path, dt: Option<f64>) -> Result<Self> {
         let text = std::fs::read_to_string(path)
@@ -271,7 +239,7 @@ impl Dataset {
     /// The trajectory form, read straight into the five arrays: each trajectory is read in
     /// place (no copy of its JSON) and its rows appended as numbers, so the body's parsed
     /// form is the one large thing alive beside the arrays.
-    fn from_trajectories(value: &Value, dt: f64) -> Result<Self> {
+    fn from_trajectories(value: &Value, dt: f64, timed: bool) -> Result<Self> {
         use serde::Deserialize;
         let trajs = value["trajectories"]
             .as_array()
@@ -279,6 +247,7 @@ impl Dataset {
         let mut arrays: [Vec<f64>; 5] = Default::default();
         let mut widths = None;
         let mut lengths = Vec::with_capacity(trajs.len());
+        let mut times: Vec<f64> = vec![];
         for (k, t) in trajs.iter().enumerate() {
             let tr = Trajectory::deserialize(t).map_err(|e| {
                 Error::invalid(
@@ -305,6 +274,16 @@ impl Dataset {
                         .into(),
                 });
             }
+            match &tr.t {
+                Some(t) => times.extend(trajectory_steps(t, tr.u.len(), k)?),
+                None if timed => {
+                    return Err(Error::invalid(
+                        format!("trajectories[{k}].t"),
+                        "is required: the other trajectories give their times (t)",
+                    ));
+                }
+                None => {}
+            }
             let first = (tr.q[0].len(), tr.qdot[0].len(), tr.u[0].len());
             let (nq, nv, m) = *widths.get_or_insert(first);
             let field = |f: &str| format!("trajectories[{k}].{f}");
@@ -321,7 +300,12 @@ impl Dataset {
             lengths.push(steps);
         }
         let (nq, nv, m) = widths.unwrap_or((0, 0, 0));
-        Self::new(dt, (nq, nv), m, arrays)?.with_trajectories(lengths)
+        let nominal = times.first().copied().unwrap_or(dt);
+        let data = Self::new(nominal, (nq, nv), m, arrays)?.with_trajectories(lengths)?;
+        if times.is_empty() {
+            return Ok(data);
+        }
+        data.with_steps(times)
     }
 }
 
@@ -394,4 +378,48 @@ fn parse_rows(v: Option<&Value>, name: &str) -> Result<(usize, usize, Vec<f64>)>
         }
     }
     Ok((rows.len(), width.unwrap_or(0), flat))
+}
+
+/// A transition array's `"dt"`: one number of seconds per transition.
+fn steps_of(a: &[Value]) -> Result<Vec<f64>> {
+    if a.is_empty() {
+        return Err(Error::invalid(
+            "dt",
+            "an array of steps needs one per transition",
+        ));
+    }
+    (a.iter().enumerate())
+        .map(|(i, v)| {
+            v.as_f64()
+                .ok_or_else(|| Error::invalid(format!("dt[{i}]"), "must be a number of seconds"))
+        })
+        .collect()
+}
+
+/// The steps between a trajectory's T + 1 times `t`, which must increase.
+fn trajectory_steps(t: &[f64], steps: usize, k: usize) -> Result<Vec<f64>> {
+    let field = || format!("trajectories[{k}].t");
+    if t.len() != steps + 1 {
+        return Err(Error::invalid(
+            field(),
+            format!(
+                "needs T+1 = {} times, one per state, got {}",
+                steps + 1,
+                t.len()
+            ),
+        ));
+    }
+    let d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    match d.iter().position(|s| s.is_nan() || *s <= 0.0) {
+        Some(i) => Err(Error::invalid(
+            field(),
+            format!(
+                "times must increase: t[{}] = {} after t[{i}] = {}",
+                i + 1,
+                t[i + 1],
+                t[i]
+            ),
+        )),
+        None => Ok(d),
+    }
 }

@@ -14,6 +14,7 @@ use crate::rng::Rng;
 /// Row-major arrays of `count` transitions.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dataset {
+    /// The step: every transition's, or with `steps` their median (the model's Δt).
     pub dt: f64,
     /// Configuration values per row (q, q_next).
     pub nq: usize,
@@ -30,6 +31,9 @@ pub struct Dataset {
     /// order, summing to `count`); `None` for flat rows, whose trajectories are their chains
     /// (`segments`).
     pub trajectories: Option<Vec<usize>>,
+    /// Each transition's own Δt when they differ (a robot's log kept on its samples' times:
+    /// `with_steps`); `None`: every one is `dt`.
+    pub steps: Option<Vec<f64>>,
 }
 
 pub const FIELDS: [&str; 5] = ["q", "qdot", "u", "q_next", "qdot_next"];
@@ -69,9 +73,45 @@ impl Dataset {
             q_next,
             qdot_next,
             trajectories: None,
+            steps: None,
         };
         d.validate()?;
         Ok(d)
+    }
+
+    /// The same rows, each transition `steps[i]` seconds long (in `DT_RANGE`); `dt` becomes
+    /// their median. Steps all equal to `dt` leave the dataset as it was (no `steps`).
+    pub fn with_steps(mut self, steps: Vec<f64>) -> Result<Self> {
+        if steps.len() != self.count() {
+            return Err(Error::invalid(
+                "dt",
+                format!("has {} steps for {} transitions", steps.len(), self.count()),
+            ));
+        }
+        let (lo, hi) = DT_RANGE;
+        if let Some(i) = steps
+            .iter()
+            .position(|s| !(s.is_finite() && (lo..=hi).contains(s)))
+        {
+            return Err(Error::invalid(
+                format!("dt[{i}]"),
+                format!(
+                    "must be a number of seconds in [{lo:e}, {hi}], got {}",
+                    steps[i]
+                ),
+            ));
+        }
+        if steps.iter().all(|&s| s == self.dt) {
+            return Ok(self);
+        }
+        self.dt = median(&steps);
+        self.steps = Some(steps);
+        Ok(self)
+    }
+
+    /// Transition `i`'s Δt.
+    pub fn step(&self, i: usize) -> f64 {
+        self.steps.as_ref().map_or(self.dt, |s| s[i])
     }
 
     /// The same rows as trajectories of `lengths` transitions each, in order.
@@ -172,6 +212,7 @@ impl Dataset {
             q_next: take(&self.q_next, self.nq),
             qdot_next: take(&self.qdot_next, self.nv),
             trajectories: None,
+            steps: (self.steps.as_ref()).map(|s| idx.iter().map(|&i| s[i]).collect()),
         }
     }
 
@@ -201,5 +242,17 @@ impl Dataset {
             join(&self.q, &self.qdot),
             join(&self.q_next, &self.qdot_next),
         )
+    }
+}
+
+/// The median of a non-empty list (an even count's two middles averaged).
+pub fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
     }
 }

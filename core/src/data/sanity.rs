@@ -99,11 +99,11 @@ impl Dataset {
             .of_q(&self.q, i)
             .zip(self.of_q(&self.q_next, i))
             .zip(self.of_v(&self.qdot, i).zip(self.of_v(&self.qdot_next, i)));
-        for ((q, q1), (v, v1)) in rows {
-            let m = 0.5 * (v + v1);
+        for (k, ((q, q1), (v, v1))) in rows.enumerate() {
+            let (m, dt) = (0.5 * (v + v1), self.step(k));
             // An angle wrapped to (−π, π] jumps by whole turns: those are not a mismatch.
-            let turns = ((q1 - q - m * self.dt) / std::f64::consts::TAU).round();
-            let f = (q1 - q - turns * std::f64::consts::TAU) / self.dt;
+            let turns = ((q1 - q - m * dt) / std::f64::consts::TAU).round();
+            let f = (q1 - q - turns * std::f64::consts::TAU) / dt;
             diff += (f - m) * (f - m);
             fd += f * f;
             mid += m * m;
@@ -131,7 +131,8 @@ impl Dataset {
         let sum: f64 = self
             .of_v(&self.qdot, i)
             .zip(self.of_v(&self.qdot_next, i))
-            .map(|(v, v1)| ((v1 - v) / self.dt).powi(2))
+            .enumerate()
+            .map(|(k, (v, v1))| ((v1 - v) / self.step(k)).powi(2))
             .sum();
         let rms = (sum / self.count() as f64).sqrt();
         (rms > ACCEL_RMS_MAX).then(|| {

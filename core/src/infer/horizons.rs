@@ -88,7 +88,16 @@ pub fn horizon_errors(
         let u: Vec<f64> = (alive.iter())
             .flat_map(|&(r, _)| ds.u[(r + k) * m..(r + k + 1) * m].iter().copied())
             .collect();
-        (x, _) = e.predict_until(&x, &u, e.config.dt, false, stop)?;
+        x = match &ds.steps {
+            None => e.predict_until(&x, &u, e.config.dt, false, stop)?.0,
+            // Transitions of their own Δt: each start steps its row's.
+            Some(steps) => (x.chunks(nx).zip(u.chunks(m)).zip(&alive))
+                .map(|((x, u), &(r, _))| e.predict_until(x, u, steps[r + k], false, stop))
+                .collect::<Option<Vec<_>>>()?
+                .into_iter()
+                .flat_map(|(x, _)| x)
+                .collect(),
+        };
         let step = k + 1;
         if let Some(slot) = horizons.iter().position(|&h| h == step) {
             found[slot] = (alive.iter().enumerate())

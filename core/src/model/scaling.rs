@@ -39,11 +39,8 @@ impl Scaling {
         let (q_mean, q_std) = column_stats(&ds.q, nq);
         let (qdot_mean, qdot_std) = column_stats(&ds.qdot, n);
         let (u_mean, u_std) = column_stats(&ds.u, m);
-        let acc: Vec<f64> = ds
-            .qdot_next
-            .iter()
-            .zip(&ds.qdot)
-            .map(|(b, a)| (b - a) / ds.dt)
+        let acc: Vec<f64> = (ds.qdot_next.iter().zip(&ds.qdot).enumerate())
+            .map(|(i, (b, a))| (b - a) / ds.step(i / n))
             .collect();
         let (acc_mean, acc_std) = column_stats(&acc, n);
         let force_scale = match mass {

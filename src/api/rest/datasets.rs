@@ -8,11 +8,12 @@ use axum::routing::get;
 
 use super::error::{ApiError, ApiResult};
 use super::{
-    Params, RestState, body_bytes, float_param, int_param, json_body, page, stored_status,
+    Params, RestState, body_bytes, bool_param, float_param, int_param, json_body, page,
+    stored_status,
 };
 use crate::app::datasets::Upload;
 use crate::app::uploads::BodyKind;
-use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns};
+use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns, column_list};
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -69,19 +70,11 @@ async fn upload(
     Ok((stored_status(uploaded.created), axum::Json(uploaded)))
 }
 
-/// A robot's log (`?time=COL&q=COLS&u=COLS[&qdot=COLS][&wrapped=COLS][&dt=S][&gap=5]
+/// A robot's log (`?time=COL&q=COLS&u=COLS[&qdot=COLS][&wrapped=COLS][&dt=S][&resample=true][&gap=5]
 /// [&window=15][&order=3]`, the CSV body as `graybox import` reads it), allowed the memory its
 /// body reserved (`BodyKind::cost`).
 fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
-    let list = |name: &str| -> Vec<String> {
-        params.get(name).map_or_else(Vec::new, |v| {
-            (v.split(','))
-                .map(str::trim)
-                .filter(|s| !s.is_empty())
-                .map(str::to_string)
-                .collect()
-        })
-    };
+    let list = |name: &str| params.get(name).map_or_else(Vec::new, |v| column_list(v));
     let count = |name: &str, default: usize| -> ApiResult<usize> {
         match int_param(params, name)? {
             None => Ok(default),
@@ -92,6 +85,7 @@ fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
     let defaults = ImportOptions::default();
     let options = ImportOptions {
         dt: float_param(params, "dt")?,
+        resample: bool_param(params, "resample")?,
         gap: float_param(params, "gap")?.unwrap_or(defaults.gap),
         fit: Fit {
             window: count("window", DEFAULT_FIT.window)?,

@@ -150,6 +150,18 @@ pub fn float_param(p: &HashMap<String, String>, name: &str) -> ApiResult<Option<
         .transpose()
 }
 
+/// `true` or `false` (absent: false).
+pub fn bool_param(p: &HashMap<String, String>, name: &str) -> ApiResult<bool> {
+    match p.get(name).map(String::as_str) {
+        None | Some("false") => Ok(false),
+        Some("true") => Ok(true),
+        Some(v) => Err(ApiError::bad_request(
+            name,
+            format!("'{v}' is not true or false"),
+        )),
+    }
+}
+
 /// A request body's bytes: over the limit is 413, any other failure to read it 400.
 pub fn body_bytes(
     body: Result<axum::body::Bytes, axum::extract::rejection::BytesRejection>,

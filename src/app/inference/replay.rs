@@ -156,16 +156,26 @@ impl App {
             None => self.read_dataset(&info).await?,
         };
         let (recorded, inputs) = recorded_segment(loaded.ds(), seg);
+        let ds = loaded.ds();
+        let steps: Vec<f64> = (seg.start..seg.start + seg.length)
+            .map(|i| ds.step(i))
+            .collect();
         drop(loaded);
+        let mut t = vec![0.0];
+        t.extend(steps.iter().scan(0.0, |c, d| {
+            *c += d;
+            Some(*c)
+        }));
         let u = inputs.chunks(m).map(<[f64]>::to_vec).collect();
         // No deadline on REST; the replay stops when its caller goes away.
         let replayed = self
             .heavy_until(Class::Long, "replay", None, move |stop| {
+                let inputs = (&inputs[..], &steps[..]);
                 let spread = match particles {
-                    Some(p) => Some(particle_replay(&eval, &recorded, &inputs, p, stop)?),
+                    Some(p) => Some(particle_replay(&eval, &recorded, inputs, p, stop)?),
                     None => None,
                 };
-                let (recorded, predicted) = replay_segment(&eval, recorded, &inputs, m, stop)?;
+                let (recorded, predicted) = replay_segment(&eval, recorded, inputs, stop)?;
                 Some((recorded, predicted, spread))
             })
             .await?;
@@ -174,7 +184,7 @@ impl App {
             dataset_id: dataset_id.into(),
             index,
             dt: info.dt,
-            t: (0..=seg.length).map(|k| k as f64 * info.dt).collect(),
+            t,
             recorded: replayed.0,
             predicted: replayed.1,
             u,
@@ -247,33 +257,33 @@ fn recorded_segment(ds: &Dataset, seg: Segment) -> (Series, Vec<f64>) {
     (recorded, inputs)
 }
 
-/// The recording and the model's replay of it from its first state with its `inputs`; `None`
-/// when `stop` ended it.
+/// A recording's inputs (T rows of m) and its steps' seconds (T).
+type Inputs<'a> = (&'a [f64], &'a [f64]);
+
+/// The recording and the model's replay of it from its first state with its inputs, each
+/// step as long as the recording's; `None` when `stop` ended it.
 fn replay_segment(
     eval: &crate::infer::Evaluator,
     recorded: Series,
-    inputs: &[f64],
-    m: usize,
+    (inputs, steps): Inputs,
     stop: &dyn Fn() -> bool,
 ) -> Option<(Series, Series)> {
-    let nq = recorded.q[0].len();
-    let x0: Vec<f64> = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
+    let (nq, m) = (recorded.q[0].len(), eval.config.m);
+    let mut x: Vec<f64> = [recorded.q[0].clone(), recorded.qdot[0].clone()].concat();
     let mut predicted = Series {
-        q: vec![x0[..nq].to_vec()],
-        qdot: vec![x0[nq..].to_vec()],
+        q: vec![x[..nq].to_vec()],
+        qdot: vec![x[nq..].to_vec()],
     };
-    let steps = recorded.q.len() - 1;
-    eval.rollout(
-        &x0,
-        (steps, eval.config.dt),
-        |t, _| inputs[t * m..(t + 1) * m].to_vec(),
-        |x, _| {
-            predicted.q.push(x[..nq].to_vec());
-            predicted.qdot.push(x[nq..].to_vec());
-            !stop()
-        },
-    );
-    (predicted.q.len() == steps + 1).then_some((recorded, predicted))
+    for (t, &dt) in steps.iter().enumerate() {
+        let u = &inputs[t * m..(t + 1) * m];
+        (x, _) = eval.predict_until(&x, u, dt, false, &|| false)?;
+        predicted.q.push(x[..nq].to_vec());
+        predicted.qdot.push(x[nq..].to_vec());
+        if stop() {
+            return None;
+        }
+    }
+    Some((recorded, predicted))
 }
 
 /// The replay as `count` particles from the recording's first state under its inputs; `None`
@@ -281,7 +291,7 @@ fn replay_segment(
 fn particle_replay(
     eval: &crate::infer::Evaluator,
     recorded: &Series,
-    inputs: &[f64],
+    (inputs, steps): Inputs,
     count: usize,
     stop: &dyn Fn() -> bool,
 ) -> Option<ParticleSeries> {
@@ -291,13 +301,14 @@ fn particle_replay(
     let mut track = ParticleTrack::default();
     track.push_states(&states, nx);
     let input = |t: usize, _: &[f64]| inputs[t * m..(t + 1) * m].to_vec();
-    let steps = recorded.q.len() - 1;
     // A particle's state leaving the finite numbers ends it early, and the track then holds
     // the states before: the band ends where the first particle ran away.
-    let span = (steps, eval.config.dt);
-    let ended = particles::advance(eval, &mut states, 0, span, input, &mut track, stop);
-    if let Err(Error::Cancelled) = ended {
-        return None;
+    for (t, &dt) in steps.iter().enumerate() {
+        match particles::advance(eval, &mut states, t, (1, dt), input, &mut track, stop) {
+            Err(Error::Cancelled) => return None,
+            Err(_) => break,
+            Ok(()) => {}
+        }
     }
     let series = |rows: &[f64]| Series {
         q: rows.chunks(nx).map(|x| x[..nq].to_vec()).collect(),

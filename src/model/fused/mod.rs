@@ -97,6 +97,8 @@ pub(crate) struct FusedStep {
     robot: Option<multibody::Model>,
     /// Finished tapes' storage, for the next ones.
     pool: Mutex<Vec<Buffers>>,
+    /// A row ends with its Δt_i / Δt (transitions of their own steps: `record::step`).
+    timed: bool,
 }
 
 /// One block's finished tape: where its inputs and outputs are on it.
@@ -116,13 +118,14 @@ impl FusedStep {
         let inputs: Vec<Var> = (0..width)
             .map(|j| Var::input(&tape, rows.iter().skip(j).step_by(width).copied().collect()))
             .collect();
-        let nx = self.config.nx();
+        let (nx, m) = (self.config.nx(), self.config.m);
         let recipe = record::Recipe {
             config: &self.config,
             layout: &self.layout,
             robot: self.robot.as_ref(),
         };
-        let out = record::step(&recipe, &tape, &inputs[..nx], &inputs[nx..]);
+        let scale = self.timed.then(|| &inputs[nx + m]);
+        let out = record::step(&recipe, &tape, &inputs[..nx], &inputs[nx..nx + m], scale);
         let block_inputs = inputs.iter().map(Var::id).collect();
         let outputs = out.iter().map(Var::id).collect();
         drop((inputs, out));
@@ -205,7 +208,7 @@ impl FusedStep {
 
 impl RowFunction for FusedStep {
     fn input_width(&self) -> usize {
-        self.config.nx() + self.config.m
+        self.config.nx() + self.config.m + usize::from(self.timed)
     }
 
     fn output_width(&self) -> usize {
@@ -271,8 +274,13 @@ impl ModuleVisitor for Flatten {
 
 impl FusedStep {
     /// The step of `config`'s model with parameters like `params`; a robot's q̈ by its
-    /// multibody algorithms when `multibody` (else by its template's assembly).
-    pub(super) fn new(config: &ModelConfig, params: &super::Params, multibody: bool) -> Self {
+    /// multibody algorithms when `multibody` (else by its template's assembly); rows with
+    /// their Δt_i / Δt last when `timed`.
+    pub(super) fn new(
+        config: &ModelConfig,
+        params: &super::Params,
+        (multibody, timed): (bool, bool),
+    ) -> Self {
         let mut flat = Flatten(vec![]);
         params.visit(&mut flat);
         // The networks compute in the process's precision; the rest of the step in f64.
@@ -286,6 +294,7 @@ impl FusedStep {
             precision,
             robot: if multibody { robot(config) } else { None },
             pool: Mutex::new(vec![]),
+            timed,
         }
     }
 
@@ -303,10 +312,22 @@ fn robot(config: &ModelConfig) -> Option<multibody::Model> {
 }
 
 impl Model {
-    /// x' by the fused op.
-    pub(super) fn fused_step(&self, x: Tensor<2>, u: Tensor<2>) -> Tensor<2> {
-        let f = RowFn(self.step.clone());
-        row_map(&f, Tensor::cat(vec![x, u], 1), self.flat_params())
+    /// x' by the fused op; each row `scale[i]` times Δt long when given (`[B, 1]`).
+    pub(super) fn fused_step(
+        &self,
+        x: Tensor<2>,
+        u: Tensor<2>,
+        scale: Option<Tensor<2>>,
+    ) -> Tensor<2> {
+        let (f, rows) = match scale {
+            None => (RowFn(self.step.clone()), vec![x, u]),
+            Some(s) => (RowFn(self.timed_step()), vec![x, u, s]),
+        };
+        row_map(&f, Tensor::cat(rows, 1), self.flat_params())
+    }
+
+    fn timed_step(&self) -> Arc<FusedStep> {
+        self.timed.clone()
     }
 
     /// Every parameter in one row, in the order the fused step reads them.

@@ -65,12 +65,15 @@ pub(super) struct Recipe<'a> {
 }
 
 /// x' of the block's states `x` (nq + nv columns) under inputs `u` (m columns): RK4 on the
-/// configuration space as inference steps it (`Integrator::step`).
+/// configuration space as inference steps it (`Integrator::step`). With `scale` (a column of
+/// each row's Δt_i / Δt), row i steps Δt_i: RK4 of step Δt on the field scaled by Δt_i / Δt
+/// is RK4 of step Δt_i on the field, stage for stage (the held input makes it autonomous).
 pub(super) fn step(
     recipe: &Recipe<'_>,
     tape: &Rc<RefCell<Tape>>,
     x: &[Var],
     u: &[Var],
+    scale: Option<&Var>,
 ) -> Vec<Var> {
     let config = recipe.config;
     let nq = config.nq();
@@ -82,7 +85,10 @@ pub(super) fn step(
             let (q, qd) = x.split_at(nq);
             let mut dx = qd.to_vec();
             dx.extend(accel(recipe, &values, q, qd, u));
-            dx
+            match scale {
+                Some(s) => dx.into_iter().map(|d| d * s.clone()).collect(),
+                None => dx,
+            }
         })
 }
 

@@ -23,6 +23,8 @@ pub(super) struct HostData {
     /// Of which q's.
     nq: usize,
     m: usize,
+    /// Each row's Δt_i / Δt when the transitions have steps of their own.
+    scale: Option<Vec<f64>>,
 }
 
 impl HostData {
@@ -31,8 +33,12 @@ impl HostData {
         &self.x
     }
 
-    pub(super) fn new(ds: &Dataset) -> Self {
+    /// `ds`'s transitions for a model of step `dt`: each row's Δt_i / dt is kept when a row's
+    /// step is not the model's (a log's own steps, or data at another rate).
+    pub(super) fn new(ds: &Dataset, dt: f64) -> Self {
         let (x, y) = ds.states();
+        let scale = (ds.steps.is_some() || ds.dt != dt)
+            .then(|| (0..ds.count()).map(|i| ds.step(i) / dt).collect());
         Self {
             x,
             u: ds.u.clone(),
@@ -40,6 +46,7 @@ impl HostData {
             nx: ds.nq + ds.nv,
             nq: ds.nq,
             m: ds.m,
+            scale,
         }
     }
 
@@ -61,6 +68,22 @@ impl HostData {
         Tensor::from_data(TensorData::new(v, [idx.len(), w]), device)
     }
 
+    /// x' of rows `idx + k`'s states `x` under their inputs `u`, each transition as long as
+    /// the data says.
+    fn step(
+        &self,
+        model: &Model,
+        (x, u): (Tensor<2>, Tensor<2>),
+        idx: &[usize],
+        k: usize,
+        device: &Device,
+    ) -> Tensor<2> {
+        match &self.scale {
+            Some(s) => model.step_scaled(x, u, Self::take(s, 1, idx, k, device)),
+            None => model.step(x, u),
+        }
+    }
+
     /// Σ over the windows starting at rows `idx` of each window's loss: the model's rollout
     /// from the first state under the recorded inputs against the recorded states, step k's
     /// error weighted by `weights[k]`. Gradients flow through every step.
@@ -78,7 +101,8 @@ impl HostData {
                 Self::take(&self.y, self.nx, idx, k, device),
             )
         };
-        if let [_] = weights {
+        let advance = |x, u, k| self.step(model, (x, u), idx, k, device);
+        if let ([_], None) = (weights, &self.scale) {
             // The one-step loss exactly as it always was (no weight multiplies it).
             let (u, y) = step(0);
             return model.loss_sum(x, u, y);
@@ -87,7 +111,7 @@ impl HostData {
         let mut total: Option<Tensor<1>> = None;
         for (k, w) in weights.iter().enumerate() {
             let (u, y) = step(k);
-            x = model.step(x, u);
+            x = advance(x, u, k);
             let e = model.error_sum(x.clone(), y).mul_scalar(*w);
             total = Some(match total {
                 None => e,
@@ -131,7 +155,7 @@ pub fn evaluate(model: &Model, ds: &Dataset) -> Result<f64> {
     let one_step = Windows::one_step(ds.count());
     Ok(mean_loss(
         &model.valid(),
-        &HostData::new(ds),
+        &HostData::new(ds, model.config.dt),
         &one_step,
         1,
         None,
@@ -159,14 +183,15 @@ pub fn evaluate_members(members: &[Model], ds: &Dataset) -> Result<EnsembleEval>
         .map(|m| evaluate(m, ds))
         .collect::<Result<Vec<f64>>>()?;
     let models: Vec<Model> = members.iter().map(Model::valid).collect();
-    let (data, device, k) = (HostData::new(ds), first.device(), members.len() as f64);
+    let dt = first.config.dt;
+    let (data, device, k) = (HostData::new(ds, dt), first.device(), members.len() as f64);
     let all: Vec<usize> = (0..ds.count()).collect();
     let (mut loss, mut ss) = (0.0, vec![0.0; data.nx]);
     for rows in all.chunks(4096) {
         let x = HostData::take(&data.x, data.nx, rows, 0, &device);
         let u = HostData::take(&data.u, data.m, rows, 0, &device);
         let each: Vec<Tensor<2>> = (models.iter())
-            .map(|m| m.step(x.clone(), u.clone()))
+            .map(|m| data.step(m, (x.clone(), u.clone()), rows, 0, &device))
             .collect();
         let mean = (each.iter().skip(1))
             .fold(each[0].clone(), |a, p| a + p.clone())

@@ -94,13 +94,13 @@ impl RunData {
     ) -> Self {
         let (horizon, discount) = (cfg.horizon, cfg.discount);
         let windows = Windows::of(train, horizon, discount);
-        let validation = val.map(|v| Validation::new(v, horizon, discount));
+        let validation = val.map(|v| Validation::new(v, (horizon, discount), model.dt));
         let baseline = match &validation {
             Some(v) => baseline(&v.ds, v.horizon.as_ref().unwrap_or(&v.one_step), model),
             None => baseline(train, &windows, model),
         };
         Self {
-            train: HostData::new(train),
+            train: HostData::new(train, model.dt),
             windows,
             rows: train.count(),
             val: validation,
@@ -362,11 +362,11 @@ struct Validation {
 }
 
 impl Validation {
-    fn new(ds: &Dataset, horizon: usize, discount: f64) -> Self {
+    fn new(ds: &Dataset, (horizon, discount): (usize, f64), dt: f64) -> Self {
         let windows = (horizon > 1).then(|| Windows::of(ds, horizon, discount));
         Self {
             ds: ds.clone(),
-            data: HostData::new(ds),
+            data: HostData::new(ds, dt),
             one_step: Windows::one_step(ds.count()),
             horizon: windows.filter(|w| w.count() > 0),
         }

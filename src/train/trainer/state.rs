@@ -78,7 +78,8 @@ pub(super) fn fingerprint(train: &Dataset, val: Option<&Dataset>) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for ds in std::iter::once(train).chain(val) {
         let arrays = [&ds.q, &ds.qdot, &ds.u, &ds.q_next, &ds.qdot_next];
-        for v in arrays.into_iter().flatten().chain([&ds.dt]) {
+        let steps = ds.steps.iter().flatten();
+        for v in arrays.into_iter().flatten().chain([&ds.dt]).chain(steps) {
             for b in v.to_bits().to_le_bytes() {
                 h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01B3);
             }

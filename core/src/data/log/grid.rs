@@ -1,5 +1,5 @@
-//! One trajectory of a log on an even grid of times: its states from the local fit, each
-//! input its mean over a step.
+//! One trajectory of a log at chosen times (its samples' own, or an even grid): its states
+//! from the local fit, each input its mean over a step.
 
 use super::{Fit, LogColumns, Stencil};
 
@@ -13,26 +13,34 @@ pub(super) struct Piece<'a> {
 type State = Vec<f64>;
 
 impl Piece<'_> {
-    /// The states at t₀ + k·dt within the trajectory, or None when it has too few samples
-    /// to fit. Velocities given are the fit's value of them (and checked against the
-    /// positions' rate in `check`); else the positions' rate.
-    pub(super) fn on_grid(
+    /// The times of the states: every t₀ + k·dt up to the last sample (`dt` Some), or the
+    /// samples' own.
+    pub(super) fn times(&self, dt: Option<f64>) -> Vec<f64> {
+        let Some(dt) = dt else {
+            return self.time.to_vec();
+        };
+        let (t0, t1) = (self.time[0], self.time[self.time.len() - 1]);
+        // Grid points up to the last sample, allowing for the rounding of k·dt.
+        let count = ((t1 - t0) / dt * (1.0 + 1e-12)).floor() as usize + 1;
+        (0..count).map(|k| t0 + k as f64 * dt).collect()
+    }
+
+    /// The states at `times` within the trajectory, or None when it has too few samples to
+    /// fit. Velocities given are the fit's value of them (and checked against the positions'
+    /// rate in `check`); else the positions' rate.
+    pub(super) fn states_at(
         &self,
         cols: &LogColumns,
         fit: Fit,
-        dt: f64,
+        times: &[f64],
         check: &mut Check,
     ) -> Option<Vec<State>> {
         let nq = cols.q.len();
         if self.time.len() < fit.order + 1 {
             return None;
         }
-        let (t0, t1) = (self.time[0], self.time[self.time.len() - 1]);
-        // Grid points up to the last sample, allowing for the rounding of k·dt.
-        let count = ((t1 - t0) / dt * (1.0 + 1e-12)).floor() as usize + 1;
-        let states = (0..count)
-            .map(|k| {
-                let t = t0 + k as f64 * dt;
+        let states = (times.iter())
+            .map(|&t| {
                 let s = fit.stencil(self.time, t);
                 check.delay(&s, self.time, t);
                 let (q, rate): (Vec<f64>, Vec<f64>) =
@@ -52,22 +60,21 @@ impl Piece<'_> {
         Some(states)
     }
 
-    /// The transitions between consecutive grid states, each under its inputs' mean over the
-    /// step, appended to the dataset's arrays.
+    /// The transitions between consecutive states (at `times`), each under its inputs' mean
+    /// over the step, appended to the dataset's arrays.
     pub(super) fn transitions(
         &self,
         states: &[State],
         (nq, m): (usize, usize),
-        dt: f64,
+        times: &[f64],
         arrays: &mut [Vec<f64>; 5],
     ) {
         let inputs = &self.columns[self.columns.len() - m..];
-        let t0 = self.time[0];
-        for (k, pair) in states.windows(2).enumerate() {
-            let a = t0 + k as f64 * dt;
+        for (pair, t) in states.windows(2).zip(times.windows(2)) {
+            let (a, b) = (t[0], t[1]);
             arrays[0].extend_from_slice(&pair[0][..nq]);
             arrays[1].extend_from_slice(&pair[0][nq..]);
-            arrays[2].extend(inputs.iter().map(|u| mean_over(self.time, u, a, a + dt)));
+            arrays[2].extend(inputs.iter().map(|u| mean_over(self.time, u, a, b)));
             arrays[3].extend_from_slice(&pair[1][..nq]);
             arrays[4].extend_from_slice(&pair[1][nq..]);
         }

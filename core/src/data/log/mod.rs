@@ -3,9 +3,10 @@
 //! samples and pauses. The import keeps the rows with every selected value, unwraps wrapped
 //! angles, splits the log into trajectories at its pauses (a step longer than `gap` median
 //! steps), estimates velocities from positions by a local polynomial fit on the samples' own
-//! times (`fit`) when the log has none, and samples each trajectory on an even grid of `dt`
-//! (the median step by default): the positions and velocities the fit's, each input its
-//! mean over the step (the model holds u over a step).
+//! times (`fit`) when the log has none, and takes the states at the samples' own times (each
+//! transition its own Δt: `Dataset::steps`), or on an even grid of `dt` when asked to
+//! resample: the positions and velocities the fit's, each input its mean over the step (the
+//! model holds u over a step).
 
 mod fit;
 mod grid;
@@ -16,7 +17,7 @@ use serde::Serialize;
 pub use fit::{DEFAULT_FIT, Fit, Stencil};
 
 use self::grid::{Check, Piece};
-use super::{DT_RANGE, Dataset};
+use super::{DT_RANGE, Dataset, median};
 use crate::error::{Error, Result};
 
 /// Which columns are what; `qdot` empty: estimated from `q`.
@@ -31,8 +32,11 @@ pub struct LogColumns {
 /// How to import.
 #[derive(Debug, Clone)]
 pub struct ImportOptions {
-    /// The dataset's step; `None`: the log's median step. At least half the median step.
+    /// Resample on an even grid of this step (at least half the median step); `None`: the
+    /// samples' own times, unless `resample`.
     pub dt: Option<f64>,
+    /// Resample on an even grid of the median step (`dt` unset).
+    pub resample: bool,
     /// A step longer than this many median steps is a pause: the trajectory ends there.
     pub gap: f64,
     pub fit: Fit,
@@ -48,6 +52,7 @@ impl Default for ImportOptions {
     fn default() -> Self {
         Self {
             dt: None,
+            resample: false,
             gap: 5.0,
             fit: DEFAULT_FIT,
             wrapped: vec![],
@@ -79,7 +84,10 @@ pub struct ImportSummary {
     pub short_trajectories: usize,
     pub trajectories: usize,
     pub transitions: usize,
+    /// The dataset's Δt: the grid's, or the median of its transitions' own.
     pub dt: f64,
+    /// "samples" (each transition from one sample to the next, its own Δt) or "grid".
+    pub times: String,
     /// "estimated" (by `fit`) or "given".
     pub velocities: String,
     pub fit: Fit,
@@ -89,6 +97,15 @@ pub struct ImportSummary {
     /// The fit's largest delay over the grid, seconds: the centre of its weights in time
     /// against the time it answers for (0 up to rounding: it reproduces a straight line).
     pub lag: f64,
+}
+
+/// Comma-separated column names, as the command line and REST take them (empty: none).
+pub fn column_list(list: &str) -> Vec<String> {
+    (list.split(','))
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(str::to_string)
+        .collect()
 }
 
 /// The dataset of a CSV log and what the import did.
@@ -248,7 +265,8 @@ impl Samples {
             .filter(|s| *s <= opts.gap * median)
             .collect();
         let jitter = std_dev(&regular) / median;
-        let dt = opts.dt.unwrap_or(median);
+        let grid = (opts.dt.is_some() || opts.resample).then(|| opts.dt.unwrap_or(median));
+        let dt = grid.unwrap_or(median);
         // A finer grid than the samples invents states between them, and its size would
         // follow the caller's dt rather than the log's rows.
         if dt < median / 2.0 {
@@ -270,12 +288,15 @@ impl Samples {
         self.check_cost(&bounds, dt, (nq, m), opts)?;
         let mut arrays: [Vec<f64>; 5] = Default::default();
         let (mut lengths, mut short, mut check) = (vec![], 0, Check::default());
+        let mut steps = vec![];
         for seg in bounds.windows(2) {
             let piece = self.piece(seg[0]..seg[1]);
-            match piece.on_grid(cols, opts.fit, dt, &mut check) {
+            let times = piece.times(grid);
+            match piece.states_at(cols, opts.fit, &times, &mut check) {
                 Some(states) if states.len() >= 2 => {
                     lengths.push(states.len() - 1);
-                    piece.transitions(&states, (nq, m), dt, &mut arrays);
+                    piece.transitions(&states, (nq, m), &times, &mut arrays);
+                    steps.extend(times.windows(2).map(|w| w[1] - w[0]));
                 }
                 _ => short += 1,
             }
@@ -291,6 +312,10 @@ impl Samples {
         }
         let transitions = lengths.iter().sum();
         let data = Dataset::new(dt, (nq, nq), m, arrays)?.with_trajectories(lengths.clone())?;
+        let data = match grid {
+            Some(_) => data,
+            None => data.with_steps(steps)?,
+        };
         let summary = ImportSummary {
             rows: self.rows,
             dropped_rows: self.dropped,
@@ -301,7 +326,8 @@ impl Samples {
             short_trajectories: short,
             trajectories: lengths.len(),
             transitions,
-            dt,
+            dt: data.dt,
+            times: if grid.is_some() { "grid" } else { "samples" }.into(),
             velocities: if cols.qdot.is_empty() {
                 "estimated"
             } else {
@@ -381,17 +407,6 @@ fn unwrap(y: &mut [f64]) {
             offset -= turn * (d / turn).round();
         }
         y[k] = raw + offset;
-    }
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
     }
 }
 

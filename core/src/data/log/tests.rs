@@ -34,13 +34,18 @@ fn columns() -> LogColumns {
     }
 }
 
-/// A jittered log with a pause and missing values: two trajectories, the rows without a
-/// position left out and counted, the positions and estimated velocities those of sin(3t) at
-/// the grid's times, each input the mean of 2 + t over its step.
+/// A jittered log with a pause and missing values, resampled: two trajectories, the rows
+/// without a position left out and counted, the positions and estimated velocities those of
+/// sin(3t) at the grid's times, each input the mean of 2 + t over its step.
 #[test]
 fn a_jittered_log_with_a_pause_becomes_trajectories() {
     let (text, times) = log(1e-3, 0.05);
-    let (data, s) = import_csv(text.as_bytes(), &columns(), &ImportOptions::default()).unwrap();
+    let opts = ImportOptions {
+        resample: true,
+        ..ImportOptions::default()
+    };
+    let (data, s) = import_csv(text.as_bytes(), &columns(), &opts).unwrap();
+    assert_eq!((data.steps.as_ref(), s.times.as_str()), (None, "grid"));
     assert_eq!(
         (s.rows, s.pauses, s.trajectories),
         (times.len(), 1, 2),
@@ -177,4 +182,44 @@ fn bad_logs_are_refused_naming_the_column_or_row() {
     // A step outside the accepted range (time in milliseconds, read as seconds: 1000 s steps).
     let e = refuse("t,q,u\n0,0,0\n1000,0,0\n2000,0,0\n3000,0,0\n4000,0,0\n");
     assert!(e.starts_with("time: the step must be in"), "{e}");
+}
+
+/// Kept on its samples' own times (the default): each transition from one kept sample to the
+/// next, its Δt their distance, the states sin(3t) at the samples, each input the mean of
+/// 2 + t over its step, and the dataset's Δt the median step.
+#[test]
+fn a_jittered_log_keeps_its_samples_times() {
+    let (text, times) = log(1e-3, 0.05);
+    let (data, s) = import_csv(text.as_bytes(), &columns(), &ImportOptions::default()).unwrap();
+    assert_eq!(
+        (s.times.as_str(), s.trajectories, s.pauses),
+        ("samples", 2, 1)
+    );
+    // The kept samples: every row but each 97th's (its position is missing).
+    let kept: Vec<f64> = (times.iter().enumerate())
+        .filter(|(row, _)| row % 97 != 50)
+        .map(|(_, &t)| t)
+        .collect();
+    let steps = data.steps.as_ref().expect("jittered steps are kept");
+    assert_eq!(steps.len(), kept.len() - 2, "one step fewer per trajectory");
+    assert_eq!(data.dt, median(steps));
+    let (mut k, mut worst) = (0, (0.0f64, 0.0f64, 0.0f64));
+    for seg in data.segments() {
+        let rows = seg.start..seg.start + seg.length;
+        for (row, step) in rows.zip(&steps[seg.start..]) {
+            let (a, b) = (kept[k], kept[k + 1]);
+            assert!((step - (b - a)).abs() < 1e-15, "row {row}");
+            worst.0 = worst.0.max((data.q[row] - (3.0 * a).sin()).abs());
+            worst.1 = worst.1.max((data.qdot[row] - 3.0 * (3.0 * a).cos()).abs());
+            worst.2 = worst.2.max((data.u[row] - (2.0 + 0.5 * (a + b))).abs());
+            k += 1;
+        }
+        k += 1; // the pause: the next trajectory starts at the next sample
+    }
+    // The grid's bounds: a cubic over 15 ms of sin(3t) errs by its fourth-order term; u is
+    // linear, its mean exact up to rounding.
+    assert!(
+        worst.0 < 1e-8 && worst.1 < 5e-6 && worst.2 < 1e-12,
+        "{worst:?}"
+    );
 }

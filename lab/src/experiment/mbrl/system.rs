@@ -231,6 +231,7 @@ fn transitions(states: &[f64], u: &[f64]) -> Dataset {
         q_next,
         qdot_next,
         trajectories: None,
+        steps: None,
     }
 }
 
