@@ -68,6 +68,7 @@ const ROUTES: &[Route] = &[
             "?time",
             "?q",
             "?qdot",
+            "?qddot",
             "?u",
             "?wrapped",
             "?gap",

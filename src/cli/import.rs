@@ -23,6 +23,10 @@ pub struct ImportArgs {
     /// The velocity columns, one per position (default: estimated from the positions).
     #[arg(long)]
     pub qdot: Option<String>,
+    /// Acceleration columns the log has, one per position: checked against the fit's
+    /// (`acceleration_check_rms` in the summary).
+    #[arg(long)]
+    pub qddot: Option<String>,
     /// The input columns (measured efforts or commands), comma-separated.
     #[arg(long)]
     pub u: String,
@@ -58,6 +62,7 @@ pub(super) fn import(a: ImportArgs) -> Result<()> {
         time: a.time.trim().to_string(),
         q: column_list(&a.q),
         qdot: a.qdot.as_deref().map(column_list).unwrap_or_default(),
+        qddot: a.qddot.as_deref().map(column_list).unwrap_or_default(),
         u: column_list(&a.u),
     };
     let opts = ImportOptions {

@@ -70,7 +70,7 @@ async fn upload(
     Ok((stored_status(uploaded.created), axum::Json(uploaded)))
 }
 
-/// A robot's log (`?time=COL&q=COLS&u=COLS[&qdot=COLS][&wrapped=COLS][&dt=S][&resample=true][&gap=5]
+/// A robot's log (`?time=COL&q=COLS&u=COLS[&qdot=COLS][&qddot=COLS][&wrapped=COLS][&dt=S][&resample=true][&gap=5]
 /// [&window=15][&order=3]`, the CSV body as `graybox import` reads it), allowed the memory its
 /// body reserved (`BodyKind::cost`).
 fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
@@ -98,6 +98,7 @@ fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
         time: params.get("time").cloned().unwrap_or_default(),
         q: list("q"),
         qdot: list("qdot"),
+        qddot: list("qddot"),
         u: list("u"),
     };
     Ok(Upload::Log {

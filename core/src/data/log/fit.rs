@@ -33,12 +33,13 @@ const MAX_ORDER: usize = 6;
 const MAX_WINDOW: usize = 1001;
 
 /// At one query time: the window's first sample and the weights over its samples that give the
-/// fit's value and its rate of change.
+/// fit's value, its rate of change and its second derivative (zero below order 2).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stencil {
     pub start: usize,
     pub value: Vec<f64>,
     pub rate: Vec<f64>,
+    pub second: Vec<f64>,
 }
 
 impl Stencil {
@@ -47,6 +48,12 @@ impl Stencil {
         let y = &y[self.start..self.start + self.value.len()];
         let dot = |w: &[f64]| w.iter().zip(y).map(|(w, y)| w * y).sum::<f64>();
         (dot(&self.value), dot(&self.rate))
+    }
+
+    /// The second derivative of the fit of `y`.
+    pub fn second_of(&self, y: &[f64]) -> f64 {
+        let y = &y[self.start..self.start + self.second.len()];
+        self.second.iter().zip(y).map(|(w, y)| w * y).sum()
     }
 }
 
@@ -102,8 +109,8 @@ impl Fit {
                 }
             }
         }
-        // Coefficient k of the fit is e_kᵀ G⁻¹ Aᵀ y: the weights of c₀ (the value) and c₁
-        // (the slope in τ, divided by the scale for the rate).
+        // Coefficient k of the fit is e_kᵀ G⁻¹ Aᵀ y: the weights of c₀ (the value), c₁ (the
+        // slope in τ, divided by the scale for the rate) and 2c₂ (over the scale squared).
         let weights = |k: usize, scale: f64| -> Vec<f64> {
             let mut e = vec![0.0; p + 1];
             if k <= p {
@@ -119,6 +126,7 @@ impl Fit {
             start,
             value: weights(0, 1.0),
             rate: weights(1, half),
+            second: weights(2, half * half / 2.0),
         }
     }
 }
@@ -176,12 +184,21 @@ mod tests {
         let times = jittered(200, 1e-3, 3);
         let f = |t: f64| 0.3 - 2.0 * t + 40.0 * t * t - 900.0 * t * t * t;
         let df = |t: f64| -2.0 + 80.0 * t - 2700.0 * t * t;
+        let ddf = |t: f64| 80.0 - 5400.0 * t;
         let y: Vec<f64> = times.iter().map(|&t| f(t)).collect();
         for t in [0.0, 0.0004, 0.05, 0.1234, times[199]] {
-            let (v, r) = DEFAULT_FIT.stencil(&times, t).apply(&y);
-            // Rounding of a 4 × 4 solve on scaled times and sums of 15 terms of order one.
+            let s = DEFAULT_FIT.stencil(&times, t);
+            let ((v, r), a) = (s.apply(&y), s.second_of(&y));
+            // Rounding of a 4 × 4 solve on scaled times and sums of 15 terms of order one,
+            // divided by the window's half-width (7 ms) once for the rate, twice for the
+            // second derivative.
             assert!((v - f(t)).abs() < 1e-12, "value at {t}: {v} vs {}", f(t));
             assert!((r - df(t)).abs() < 1e-8, "rate at {t}: {r} vs {}", df(t));
+            assert!(
+                (a - ddf(t)).abs() < 1e-5,
+                "second at {t}: {a} vs {}",
+                ddf(t)
+            );
         }
     }
 

@@ -54,6 +54,13 @@ impl Piece<'_> {
                     check.add(&rate, &given);
                     given
                 };
+                if !cols.qddot.is_empty() {
+                    let at = nq + cols.qdot.len();
+                    let (q, given) = (&self.columns[..nq], &self.columns[at..at + nq]);
+                    for (q, a) in q.iter().zip(given) {
+                        check.add_acceleration(s.second_of(q), s.apply(a).0);
+                    }
+                }
                 [q, qdot].concat()
             })
             .collect();
@@ -81,11 +88,13 @@ impl Piece<'_> {
     }
 }
 
-/// Sums of the velocity check's squared differences, and the fit's largest delay.
+/// Sums of the velocity and acceleration checks' squared differences, and the fit's largest
+/// delay.
 #[derive(Default)]
 pub(super) struct Check {
     sum: f64,
     count: usize,
+    acceleration: (f64, usize),
     pub(super) lag: f64,
 }
 
@@ -107,8 +116,18 @@ impl Check {
         }
     }
 
+    fn add_acceleration(&mut self, estimated: f64, given: f64) {
+        self.acceleration.0 += (estimated - given).powi(2);
+        self.acceleration.1 += 1;
+    }
+
     pub(super) fn rms(&self) -> Option<f64> {
         (self.count > 0).then(|| (self.sum / self.count as f64).sqrt())
+    }
+
+    pub(super) fn acceleration_rms(&self) -> Option<f64> {
+        let (sum, count) = self.acceleration;
+        (count > 0).then(|| (sum / count as f64).sqrt())
     }
 }
 

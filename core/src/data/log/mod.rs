@@ -10,56 +10,18 @@
 
 mod fit;
 mod grid;
+mod options;
 mod table;
 
 use serde::Serialize;
 
 pub use fit::{DEFAULT_FIT, Fit, Stencil};
+pub use options::{ImportOptions, LogColumns, column_list};
 
 use self::grid::{Check, Piece};
+use self::options::check_options;
 use super::{DT_RANGE, Dataset, median};
 use crate::error::{Error, Result};
-
-/// Which columns are what; `qdot` empty: estimated from `q`.
-#[derive(Debug, Clone, Default)]
-pub struct LogColumns {
-    pub time: String,
-    pub q: Vec<String>,
-    pub qdot: Vec<String>,
-    pub u: Vec<String>,
-}
-
-/// How to import.
-#[derive(Debug, Clone)]
-pub struct ImportOptions {
-    /// Resample on an even grid of this step (at least half the median step); `None`: the
-    /// samples' own times, unless `resample`.
-    pub dt: Option<f64>,
-    /// Resample on an even grid of the median step (`dt` unset).
-    pub resample: bool,
-    /// A step longer than this many median steps is a pause: the trajectory ends there.
-    pub gap: f64,
-    pub fit: Fit,
-    /// q columns holding an angle wrapped into a turn (a jump of more than π between two
-    /// samples is a wrap, undone).
-    pub wrapped: Vec<String>,
-    /// The most memory the import may hold, in bytes (the service's share for the upload);
-    /// `None`: no bound (the command line, on the caller's own file).
-    pub memory: Option<usize>,
-}
-
-impl Default for ImportOptions {
-    fn default() -> Self {
-        Self {
-            dt: None,
-            resample: false,
-            gap: 5.0,
-            fit: DEFAULT_FIT,
-            wrapped: vec![],
-            memory: None,
-        }
-    }
-}
 
 /// The most fitting an upload may ask: window × (order + 1)² per grid time, summed. An hour
 /// of a 1 kHz log with the default fit is 9e8; 1.5e9 (30 000 times at window 1001, order 6)
@@ -94,18 +56,12 @@ pub struct ImportSummary {
     /// With velocities given: the root mean square of the fit's estimate minus the log's, over
     /// every grid state and joint (a check of either).
     pub velocity_check_rms: Option<f64>,
+    /// With accelerations given (`qddot`): the root mean square of the fit's second derivative
+    /// of the positions minus the log's (fitted alike), over every state and joint.
+    pub acceleration_check_rms: Option<f64>,
     /// The fit's largest delay over the grid, seconds: the centre of its weights in time
     /// against the time it answers for (0 up to rounding: it reproduces a straight line).
     pub lag: f64,
-}
-
-/// Comma-separated column names, as the command line and REST take them (empty: none).
-pub fn column_list(list: &str) -> Vec<String> {
-    (list.split(','))
-        .map(str::trim)
-        .filter(|s| !s.is_empty())
-        .map(str::to_string)
-        .collect()
 }
 
 /// The dataset of a CSV log and what the import did.
@@ -118,7 +74,8 @@ pub fn import_csv(
     check_options(cols, opts)?;
     let names = table::header(bytes)?;
     let mut at = vec![(find(&names, "time", &cols.time)?, "time")];
-    for (field, list) in [("q", &cols.q), ("qdot", &cols.qdot), ("u", &cols.u)] {
+    let lists = [("q", &cols.q), ("qdot", &cols.qdot), ("qddot", &cols.qddot)];
+    for (field, list) in lists.into_iter().chain([("u", &cols.u)]) {
         for c in list {
             at.push((find(&names, field, c)?, field));
         }
@@ -140,42 +97,6 @@ fn find(names: &[String], field: &str, name: &str) -> Result<usize> {
             ),
         )
     })
-}
-
-fn check_options(cols: &LogColumns, opts: &ImportOptions) -> Result<()> {
-    if cols.q.is_empty() {
-        return Err(Error::invalid("q", "name at least one position column"));
-    }
-    if cols.u.is_empty() {
-        return Err(Error::invalid("u", "name at least one input column"));
-    }
-    if !cols.qdot.is_empty() && cols.qdot.len() != cols.q.len() {
-        return Err(Error::invalid(
-            "qdot",
-            format!(
-                "names {} columns for {} positions: one velocity per position, or none (then \
-                 they are estimated)",
-                cols.qdot.len(),
-                cols.q.len()
-            ),
-        ));
-    }
-    if let Some(w) = opts.wrapped.iter().find(|w| !cols.q.contains(w)) {
-        return Err(Error::invalid(
-            "wrapped",
-            format!(
-                "'{w}' is not one of the position columns ({})",
-                cols.q.join(", ")
-            ),
-        ));
-    }
-    if !(opts.gap.is_finite() && opts.gap > 1.0) {
-        return Err(Error::invalid(
-            "gap",
-            format!("must be a number of median steps above 1, got {}", opts.gap),
-        ));
-    }
-    Ok(())
 }
 
 /// The log's complete rows: times, then each selected column, in the order asked.
@@ -336,6 +257,7 @@ impl Samples {
             .into(),
             fit: opts.fit,
             velocity_check_rms: check.rms(),
+            acceleration_check_rms: check.acceleration_rms(),
             lag: check.lag,
         };
         Ok((data, summary))

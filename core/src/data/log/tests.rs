@@ -30,6 +30,7 @@ fn columns() -> LogColumns {
         time: "t".into(),
         q: vec!["q".into()],
         qdot: vec![],
+        qddot: vec![],
         u: vec!["u".into()],
     }
 }
@@ -105,7 +106,10 @@ fn given_velocities_are_kept_and_checked() {
         ..columns()
     };
     let (data, s) = import_csv(text.as_bytes(), &cols, &ImportOptions::default()).unwrap();
-    assert_eq!(s.velocities, "given");
+    assert_eq!(
+        (s.velocities.as_str(), s.acceleration_check_rms),
+        ("given", None)
+    );
     // The log's velocities are 0.01 off the positions' rate: the check says so.
     assert!((s.velocity_check_rms.unwrap() - 0.01).abs() < 1e-9, "{s:?}");
     assert!((data.qdot[10] - (2.0 * 10.0 * 0.002 + 0.01)).abs() < 1e-12);
@@ -222,4 +226,42 @@ fn a_jittered_log_keeps_its_samples_times() {
         worst.0 < 1e-8 && worst.1 < 5e-6 && worst.2 < 1e-12,
         "{worst:?}"
     );
+}
+
+/// Given accelerations are checked against the fit's second derivative of the positions: a
+/// log of q = t³ with q̈ = 6t off by 0.5 says 0.5 (a cubic's second derivative is exact).
+#[test]
+fn given_accelerations_are_checked() {
+    let mut text = String::from("t,q,qdd,u\n");
+    for k in 0..300 {
+        let t = 0.1 + k as f64 * 0.002;
+        text += &format!("{t},{},{},0\n", t * t * t, 6.0 * t + 0.5);
+    }
+    let cols = LogColumns {
+        qddot: vec!["qdd".into()],
+        ..columns()
+    };
+    let (_, s) = import_csv(text.as_bytes(), &cols, &ImportOptions::default()).unwrap();
+    // Rounding of the fit's weights over a 28 ms window, divided by its half-width squared.
+    assert!(
+        (s.acceleration_check_rms.unwrap() - 0.5).abs() < 1e-4,
+        "{s:?}"
+    );
+    let line = ImportOptions {
+        fit: Fit {
+            window: 5,
+            order: 1,
+        },
+        ..ImportOptions::default()
+    };
+    let e = import_csv(text.as_bytes(), &cols, &line)
+        .unwrap_err()
+        .to_string();
+    assert!(e.starts_with("order"), "{e}");
+    let two = LogColumns {
+        qddot: vec!["qdd".into(), "q".into()],
+        ..columns()
+    };
+    let e = import_csv(text.as_bytes(), &two, &ImportOptions::default()).unwrap_err();
+    assert!(e.to_string().starts_with("qddot"), "{e}");
 }
