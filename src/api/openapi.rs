@@ -58,8 +58,8 @@ const ROUTES: &[Route] = &[
     Route(
         "post",
         "/v1/datasets",
-        "Upload a dataset (JSON arrays, trajectories, or CSV with ?dt=), or a robot's CSV log \
-         with ?time= (docs/logs.md)",
+        "Upload a dataset (JSON arrays, trajectories, or CSV with ?dt=), or a robot's log (CSV \
+         or Parquet) with ?time= (docs/logs.md)",
         Some("object"),
         &[
             "?name",
@@ -74,6 +74,7 @@ const ROUTES: &[Route] = &[
             "?gap",
             "?window",
             "?order",
+            "?inputs",
         ],
     ),
     Route(

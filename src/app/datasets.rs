@@ -5,7 +5,7 @@ use serde_json::Value;
 use super::App;
 use super::templates::off_executor;
 use crate::data::Dataset;
-use crate::data::log::{ImportOptions, ImportSummary, LogColumns, import_csv};
+use crate::data::log::{ImportOptions, ImportSummary, LogColumns, import_log};
 use crate::error::{Error, Result};
 use crate::names::check_name;
 use crate::records::DatasetInfo;
@@ -59,7 +59,7 @@ impl App {
             } => {
                 // Fitting every grid time is seconds of work for a long log: off the executor.
                 let (ds, summary) =
-                    off_executor(move || import_csv(&bytes, &columns, &options)).await?;
+                    off_executor(move || import_log(&bytes, &columns, &options)).await?;
                 import = Some(summary);
                 (ds, None)
             }

@@ -1,4 +1,4 @@
-//! `graybox import`: a robot's log (CSV: a time column, positions, optionally velocities, the
+//! `graybox import`: a robot's log (CSV or Parquet: a time column, positions, optionally velocities, the
 //! inputs) as a dataset file in the trajectory form (docs/logs.md).
 
 use std::path::PathBuf;
@@ -6,13 +6,15 @@ use std::path::PathBuf;
 use clap::Args;
 use serde_json::json;
 
-use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns, column_list, import_csv};
+use crate::data::log::{
+    DEFAULT_FIT, Fit, ImportOptions, Inputs, LogColumns, column_list, import_log,
+};
 use crate::error::{Error, Result};
 use crate::model::file::write_atomic;
 
 #[derive(Args, Debug)]
 pub struct ImportArgs {
-    /// The log: a CSV file whose header names its columns.
+    /// The log: a CSV file whose header names its columns, or a Parquet file.
     pub log: PathBuf,
     /// The time column, in seconds.
     #[arg(long)]
@@ -33,6 +35,10 @@ pub struct ImportArgs {
     /// Position columns holding an angle wrapped into one turn (unwrapped on import).
     #[arg(long, default_value = "")]
     pub wrapped: String,
+    /// How the inputs go between samples: linear (a measured signal, joined by straight
+    /// lines) or held (a command held until the next sample, as a controller's output is).
+    #[arg(long, default_value = "linear")]
+    pub inputs: String,
     /// Resample on an even grid of this step, seconds (default: keep the samples' own times,
     /// each transition its own Δt).
     #[arg(long)]
@@ -74,10 +80,11 @@ pub(super) fn import(a: ImportArgs) -> Result<()> {
             order: a.order,
         },
         wrapped: column_list(&a.wrapped),
+        inputs: Inputs::parse(&a.inputs)?,
         // The caller's own file: no service shares its memory.
         memory: None,
     };
-    let (data, summary) = import_csv(&bytes, &cols, &opts)?;
+    let (data, summary) = import_log(&bytes, &cols, &opts)?;
     write_atomic(&a.out, data.to_json().as_bytes())?;
     let mut out = json!({"out": a.out, "nq": data.nq, "nv": data.nv, "m": data.m});
     out["import"] = serde_json::to_value(&summary).map_err(|e| Error::Internal(e.to_string()))?;

@@ -188,3 +188,40 @@ async fn a_log_keeps_its_samples_times_through_storage_and_replay() {
     );
     app.stop().await;
 }
+
+/// A Parquet log uploads like its CSV: the committed pendulum log in both forms makes one
+/// dataset (the second upload finds the first's arrays), its summary naming the format; a
+/// truncated Parquet file is a 400 naming the log, and stores nothing.
+#[tokio::test]
+async fn a_parquet_log_uploads_as_its_csv_does() {
+    let app = spawn_app(0).await;
+    let read = |name: &str| std::fs::read(format!("examples/logs/pendulum.{name}")).unwrap();
+    let post = |body: Vec<u8>, ct: &'static str| {
+        let url = app.url("/v1/datasets?time=time&q=theta&u=tau");
+        let request = app.client.post(url).header("content-type", ct).body(body);
+        async move {
+            let r = request.send().await.unwrap();
+            (r.status().as_u16(), r.json::<Value>().await.unwrap())
+        }
+    };
+    let (s, csv) = post(read("csv"), "text/csv").await;
+    assert_eq!(
+        (s, csv["import"]["format"].as_str()),
+        (201, Some("csv")),
+        "{csv}"
+    );
+    let parquet = read("parquet");
+    let (s, same) = post(parquet.clone(), "application/vnd.apache.parquet").await;
+    assert_eq!((s, same["created"].as_bool()), (200, Some(false)), "{same}");
+    assert_eq!(same["id"], csv["id"]);
+    assert_eq!(same["import"]["format"], "parquet");
+    let (s, e) = post(
+        parquet[..parquet.len() / 2].to_vec(),
+        "application/octet-stream",
+    )
+    .await;
+    assert_eq!((s, e["error"]["field"].as_str()), (400, Some("log")), "{e}");
+    let (_, listed) = app.get("/v1/datasets").await;
+    assert_eq!(listed["items"].as_array().unwrap().len(), 1, "{listed}");
+    app.stop().await;
+}

@@ -13,7 +13,7 @@ use super::{
 };
 use crate::app::datasets::Upload;
 use crate::app::uploads::BodyKind;
-use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, LogColumns, column_list};
+use crate::data::log::{DEFAULT_FIT, Fit, ImportOptions, Inputs, LogColumns, column_list};
 
 pub fn routes() -> Router<RestState> {
     Router::new()
@@ -71,7 +71,7 @@ async fn upload(
 }
 
 /// A robot's log (`?time=COL&q=COLS&u=COLS[&qdot=COLS][&qddot=COLS][&wrapped=COLS][&dt=S][&resample=true][&gap=5]
-/// [&window=15][&order=3]`, the CSV body as `graybox import` reads it), allowed the memory its
+/// [&window=15][&order=3][&inputs=held]`, the CSV or Parquet body as `graybox import` reads it), allowed the memory its
 /// body reserved (`BodyKind::cost`).
 fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
     let list = |name: &str| params.get(name).map_or_else(Vec::new, |v| column_list(v));
@@ -92,6 +92,9 @@ fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
             order: count("order", DEFAULT_FIT.order)?,
         },
         wrapped: list("wrapped"),
+        inputs: params
+            .get("inputs")
+            .map_or(Ok(Inputs::Linear), |v| Inputs::parse(v))?,
         memory: Some(BodyKind::Dataset.cost(bytes.len())),
     };
     let columns = LogColumns {

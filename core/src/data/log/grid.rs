@@ -1,7 +1,7 @@
 //! One trajectory of a log at chosen times (its samples' own, or an even grid): its states
 //! from the local fit, each input its mean over a step.
 
-use super::{Fit, LogColumns, Stencil};
+use super::{Fit, Inputs, LogColumns, Stencil};
 
 /// One trajectory's samples: times and the selected columns (q, then qdot if given, then u).
 pub(super) struct Piece<'a> {
@@ -74,6 +74,7 @@ impl Piece<'_> {
         states: &[State],
         (nq, m): (usize, usize),
         times: &[f64],
+        inputs_go: Inputs,
         arrays: &mut [Vec<f64>; 5],
     ) {
         let inputs = &self.columns[self.columns.len() - m..];
@@ -81,7 +82,11 @@ impl Piece<'_> {
             let (a, b) = (t[0], t[1]);
             arrays[0].extend_from_slice(&pair[0][..nq]);
             arrays[1].extend_from_slice(&pair[0][nq..]);
-            arrays[2].extend(inputs.iter().map(|u| mean_over(self.time, u, a, b)));
+            arrays[2].extend(
+                inputs
+                    .iter()
+                    .map(|u| mean_over(self.time, u, (a, b), inputs_go)),
+            );
             arrays[3].extend_from_slice(&pair[1][..nq]);
             arrays[4].extend_from_slice(&pair[1][nq..]);
         }
@@ -133,7 +138,7 @@ impl Check {
 
 /// The mean over [a, b] of the piecewise-linear signal through (times, y), held at its end
 /// values outside them.
-fn mean_over(times: &[f64], y: &[f64], a: f64, b: f64) -> f64 {
+fn mean_over(times: &[f64], y: &[f64], (a, b): (f64, f64), go: Inputs) -> f64 {
     let at = |t: f64| -> f64 {
         let k = times.partition_point(|&s| s <= t);
         match k {
@@ -145,14 +150,20 @@ fn mean_over(times: &[f64], y: &[f64], a: f64, b: f64) -> f64 {
             }
         }
     };
-    // The trapezoid rule is exact on each linear piece between the knots inside [a, b].
+    // A held value is the last sample's at or before t (the first's before it).
+    let held = |t: f64| y[times.partition_point(|&s| s <= t).max(1) - 1];
+    // The trapezoid rule is exact on each linear piece between the knots inside [a, b], the
+    // midpoint rule on each constant one.
     let mut knots = vec![a];
     let first = times.partition_point(|&s| s <= a);
     knots.extend(times[first..].iter().copied().take_while(|&s| s < b));
     knots.push(b);
     let area: f64 = knots
         .windows(2)
-        .map(|w| 0.5 * (at(w[0]) + at(w[1])) * (w[1] - w[0]))
+        .map(|w| match go {
+            Inputs::Linear => 0.5 * (at(w[0]) + at(w[1])) * (w[1] - w[0]),
+            Inputs::Held => held(0.5 * (w[0] + w[1])) * (w[1] - w[0]),
+        })
         .sum();
     area / (b - a)
 }

@@ -1,4 +1,4 @@
-//! A robot's log as a dataset (docs/logs.md): a CSV file with a time column, joint positions,
+//! A robot's log as a dataset (docs/logs.md): a CSV or Parquet file with a time column, joint positions,
 //! optionally velocities, and the inputs (measured efforts), sampled with jitter, with dropped
 //! samples and pauses. The import keeps the rows with every selected value, unwraps wrapped
 //! angles, splits the log into trajectories at its pauses (a step longer than `gap` median
@@ -16,10 +16,11 @@ mod table;
 use serde::Serialize;
 
 pub use fit::{DEFAULT_FIT, Fit, Stencil};
-pub use options::{ImportOptions, LogColumns, column_list};
+pub use options::{ImportOptions, Inputs, LogColumns, column_list};
 
 use self::grid::{Check, Piece};
 use self::options::check_options;
+use self::table::{Columns, Table};
 use super::{DT_RANGE, Dataset, median};
 use crate::error::{Error, Result};
 
@@ -32,6 +33,8 @@ const MAX_FIT_WORK: f64 = 2e9;
 #[derive(Debug, Clone, PartialEq, Serialize)]
 #[cfg_attr(feature = "openapi", derive(utoipa::ToSchema))]
 pub struct ImportSummary {
+    /// "csv" or "parquet".
+    pub format: String,
     /// Data rows in the log.
     pub rows: usize,
     /// Rows left out for a missing value in a selected column, and the first of them.
@@ -50,6 +53,8 @@ pub struct ImportSummary {
     pub dt: f64,
     /// "samples" (each transition from one sample to the next, its own Δt) or "grid".
     pub times: String,
+    /// How the inputs go between samples: "linear" or "held".
+    pub inputs: String,
     /// "estimated" (by `fit`) or "given".
     pub velocities: String,
     pub fit: Fit,
@@ -64,26 +69,29 @@ pub struct ImportSummary {
     pub lag: f64,
 }
 
-/// The dataset of a CSV log and what the import did.
-pub fn import_csv(
+/// The dataset of a log (CSV, or Parquet: `table`) and what the import did.
+pub fn import_log(
     bytes: &[u8],
     cols: &LogColumns,
     opts: &ImportOptions,
 ) -> Result<(Dataset, ImportSummary)> {
     opts.fit.check()?;
     check_options(cols, opts)?;
-    let names = table::header(bytes)?;
-    let mut at = vec![(find(&names, "time", &cols.time)?, "time")];
+    let table = Table::open(bytes)?;
+    let names = table.names();
+    let mut at = vec![(find(names, "time", &cols.time)?, "time")];
     let lists = [("q", &cols.q), ("qdot", &cols.qdot), ("qddot", &cols.qddot)];
     for (field, list) in lists.into_iter().chain([("u", &cols.u)]) {
         for c in list {
-            at.push((find(&names, field, c)?, field));
+            at.push((find(names, field, c)?, field));
         }
     }
-    let read = table::read(bytes, &at, &names)?;
+    let read = table.read(&at, opts.memory)?;
     let named: Vec<(&str, String)> = at.iter().map(|(i, f)| (*f, names[*i].clone())).collect();
     let log = Samples::keep_complete(read, &named)?;
-    log.import(cols, opts)
+    let (data, mut summary) = log.import(cols, opts)?;
+    summary.format = table.format().into();
+    Ok((data, summary))
 }
 
 /// The column named `name` for `field`, or an error listing the log's columns.
@@ -113,7 +121,7 @@ struct Samples {
 impl Samples {
     /// The rows with every selected value; a column with no value at all, time that does not
     /// increase and a log of fewer than two complete rows are errors naming the column or row.
-    fn keep_complete(read: table::Columns, named: &[(&str, String)]) -> Result<Self> {
+    fn keep_complete(read: Columns, named: &[(&str, String)]) -> Result<Self> {
         for ((field, name), v) in named.iter().zip(&read.values) {
             if v.iter().all(|x| x.is_nan()) {
                 return Err(Error::invalid(
@@ -216,7 +224,7 @@ impl Samples {
             match piece.states_at(cols, opts.fit, &times, &mut check) {
                 Some(states) if states.len() >= 2 => {
                     lengths.push(states.len() - 1);
-                    piece.transitions(&states, (nq, m), &times, &mut arrays);
+                    piece.transitions(&states, (nq, m), &times, opts.inputs, &mut arrays);
                     steps.extend(times.windows(2).map(|w| w[1] - w[0]));
                 }
                 _ => short += 1,
@@ -238,6 +246,7 @@ impl Samples {
             None => data.with_steps(steps)?,
         };
         let summary = ImportSummary {
+            format: String::new(),
             rows: self.rows,
             dropped_rows: self.dropped,
             first_dropped_row: self.first_dropped,
@@ -256,6 +265,7 @@ impl Samples {
             }
             .into(),
             fit: opts.fit,
+            inputs: opts.inputs.name().into(),
             velocity_check_rms: check.rms(),
             acceleration_check_rms: check.acceleration_rms(),
             lag: check.lag,

@@ -30,6 +30,7 @@ pub struct ImportOptions {
     /// q columns holding an angle wrapped into a turn (a jump of more than π between two
     /// samples is a wrap, undone).
     pub wrapped: Vec<String>,
+    pub inputs: Inputs,
     /// The most memory the import may hold, in bytes (the service's share for the upload);
     /// `None`: no bound (the command line, on the caller's own file).
     pub memory: Option<usize>,
@@ -43,7 +44,42 @@ impl Default for ImportOptions {
             gap: 5.0,
             fit: DEFAULT_FIT,
             wrapped: vec![],
+            inputs: Inputs::Linear,
             memory: None,
+        }
+    }
+}
+
+/// How the log's inputs go between its samples, which decides a transition's input (the mean
+/// over its step: the model holds u over a step).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Inputs {
+    /// A measured signal: a straight line from sample to sample.
+    Linear,
+    /// A command held from its sample to the next (a controller's output, zero-order hold):
+    /// on the samples' own times each transition's input is its first sample's.
+    Held,
+}
+
+impl Inputs {
+    pub fn parse(s: &str) -> Result<Self> {
+        match s.trim() {
+            "linear" => Ok(Inputs::Linear),
+            "held" => Ok(Inputs::Held),
+            other => Err(Error::invalid(
+                "inputs",
+                format!(
+                    "'{other}' is neither 'linear' (a measured signal) nor 'held' (a command \
+                     held until the next sample)"
+                ),
+            )),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Inputs::Linear => "linear",
+            Inputs::Held => "held",
         }
     }
 }

@@ -45,7 +45,7 @@ fn a_jittered_log_with_a_pause_becomes_trajectories() {
         resample: true,
         ..ImportOptions::default()
     };
-    let (data, s) = import_csv(text.as_bytes(), &columns(), &opts).unwrap();
+    let (data, s) = import_log(text.as_bytes(), &columns(), &opts).unwrap();
     assert_eq!((data.steps.as_ref(), s.times.as_str()), (None, "grid"));
     assert_eq!(
         (s.rows, s.pauses, s.trajectories),
@@ -105,7 +105,7 @@ fn given_velocities_are_kept_and_checked() {
         qdot: vec!["qd".into()],
         ..columns()
     };
-    let (data, s) = import_csv(text.as_bytes(), &cols, &ImportOptions::default()).unwrap();
+    let (data, s) = import_log(text.as_bytes(), &cols, &ImportOptions::default()).unwrap();
     assert_eq!(
         (s.velocities.as_str(), s.acceleration_check_rms),
         ("given", None)
@@ -128,11 +128,11 @@ fn wrapped_angles_are_unwrapped() {
         wrapped: vec!["q".into()],
         ..ImportOptions::default()
     };
-    let (data, _) = import_csv(text.as_bytes(), &columns(), &opts).unwrap();
+    let (data, _) = import_log(text.as_bytes(), &columns(), &opts).unwrap();
     for (k, q) in data.q.iter().enumerate() {
         assert!((q - 3.0 * k as f64 * 0.005).abs() < 1e-9, "q[{k}] = {q}");
     }
-    let err = import_csv(
+    let err = import_log(
         text.as_bytes(),
         &columns(),
         &ImportOptions {
@@ -150,7 +150,7 @@ fn wrapped_angles_are_unwrapped() {
 fn bad_logs_are_refused_naming_the_column_or_row() {
     let opts = ImportOptions::default();
     let refuse = |text: &str| {
-        import_csv(text.as_bytes(), &columns(), &opts)
+        import_log(text.as_bytes(), &columns(), &opts)
             .unwrap_err()
             .to_string()
     };
@@ -179,7 +179,7 @@ fn bad_logs_are_refused_naming_the_column_or_row() {
         ..ImportOptions::default()
     };
     let text = "t,q,u\n0,0,0\n0.01,0,0\n0.02,0,0\n0.03,0,0\n0.04,0,0\n";
-    let e = import_csv(text.as_bytes(), &columns(), &fine)
+    let e = import_log(text.as_bytes(), &columns(), &fine)
         .unwrap_err()
         .to_string();
     assert!(e.starts_with("dt: 0.004 s is finer than half"), "{e}");
@@ -194,7 +194,7 @@ fn bad_logs_are_refused_naming_the_column_or_row() {
 #[test]
 fn a_jittered_log_keeps_its_samples_times() {
     let (text, times) = log(1e-3, 0.05);
-    let (data, s) = import_csv(text.as_bytes(), &columns(), &ImportOptions::default()).unwrap();
+    let (data, s) = import_log(text.as_bytes(), &columns(), &ImportOptions::default()).unwrap();
     assert_eq!(
         (s.times.as_str(), s.trajectories, s.pauses),
         ("samples", 2, 1)
@@ -241,7 +241,7 @@ fn given_accelerations_are_checked() {
         qddot: vec!["qdd".into()],
         ..columns()
     };
-    let (_, s) = import_csv(text.as_bytes(), &cols, &ImportOptions::default()).unwrap();
+    let (_, s) = import_log(text.as_bytes(), &cols, &ImportOptions::default()).unwrap();
     // Rounding of the fit's weights over a 28 ms window, divided by its half-width squared.
     assert!(
         (s.acceleration_check_rms.unwrap() - 0.5).abs() < 1e-4,
@@ -254,7 +254,7 @@ fn given_accelerations_are_checked() {
         },
         ..ImportOptions::default()
     };
-    let e = import_csv(text.as_bytes(), &cols, &line)
+    let e = import_log(text.as_bytes(), &cols, &line)
         .unwrap_err()
         .to_string();
     assert!(e.starts_with("order"), "{e}");
@@ -262,6 +262,39 @@ fn given_accelerations_are_checked() {
         qddot: vec!["qdd".into(), "q".into()],
         ..columns()
     };
-    let e = import_csv(text.as_bytes(), &two, &ImportOptions::default()).unwrap_err();
+    let e = import_log(text.as_bytes(), &two, &ImportOptions::default()).unwrap_err();
     assert!(e.to_string().starts_with("qddot"), "{e}");
+}
+
+/// Inputs held from sample to sample (a controller's command): on the samples' own times each
+/// transition's input is its first sample's; on a grid, the mean of the steps it spans. As a
+/// measured signal (the default) they are joined by straight lines instead.
+#[test]
+fn held_inputs_are_their_samples_values() {
+    let (text, _) = log(1e-3, 0.05);
+    let held = ImportOptions {
+        inputs: Inputs::Held,
+        ..ImportOptions::default()
+    };
+    let (data, s) = import_log(text.as_bytes(), &columns(), &held).unwrap();
+    assert_eq!(s.inputs, "held");
+    // Each row's u is 2 + t: the transition from a sample holds that sample's.
+    let steps = data.steps.as_ref().unwrap();
+    let first = data.trajectories.as_ref().unwrap()[0];
+    let mut t = 0.0;
+    for (k, (u, step)) in data.u.iter().zip(steps).take(first).enumerate() {
+        // t summed from the steps rounds apart from the log's own times by ~1e-16 s.
+        assert!((u - (2.0 + t)).abs() < 1e-12, "transition {k}");
+        t += step;
+    }
+    let (linear, _) = import_log(text.as_bytes(), &columns(), &ImportOptions::default()).unwrap();
+    assert!((linear.u[0] - (2.0 + 0.5 * steps[0])).abs() < 1e-12);
+    // On a grid of 2.5 ms from t = 0, the first step spans samples of u = 2 + t held: its mean
+    // is below the line's (the held value lags the line by half a sample's step).
+    let grid = ImportOptions {
+        dt: Some(2.5e-3),
+        ..held
+    };
+    let (g, _) = import_log(text.as_bytes(), &columns(), &grid).unwrap();
+    assert!(g.u[0] > 2.0 && g.u[0] < 2.0 + 1.25e-3, "{}", g.u[0]);
 }

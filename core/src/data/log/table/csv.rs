@@ -2,14 +2,8 @@
 //! numbers (a missing value, `nan` or `NA`, is NaN), the others are never read, so a log may
 //! carry text (a controller's mode, a comment) beside what is imported.
 
+use super::Columns;
 use crate::error::{Error, Result};
-
-/// The selected columns' values in row order, each `rows` long.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Columns {
-    pub values: Vec<Vec<f64>>,
-    pub rows: usize,
-}
 
 /// The header's column names.
 pub fn header(bytes: &[u8]) -> Result<Vec<String>> {
