@@ -220,6 +220,20 @@ enum GbxStatus gbx_rollout_cancellable(const struct GbxModel *model,
 // next failing call.
 const char *gbx_last_error(void);
 
+// τ = M(q) q̈ + c(q, q̇) + ∇V(q) − F(q, q̇, 0) for `batch` states: `x` [batch, nq + nv] and
+// `qdd` [batch, nv] row-major give `tau` [batch, nv], the generalized force the inputs must
+// add (a URDF robot's joint torques). An ensemble answers with its members' mean. A naive
+// model has none: `GBX_STATUS_INVALID_ARGUMENT`, naming the model. The call allocates its
+// scratch (it is not one of the workspace's allocation-free calls).
+//
+// # Safety
+// `model` is a loaded model; the arrays hold the sizes above.
+enum GbxStatus gbx_inverse_dynamics(const struct GbxModel *model,
+                                    const double *x,
+                                    const double *qdd,
+                                    size_t batch,
+                                    double *tau);
+
 // Makes into `*out` a workspace for `model`'s calls of up to `max_batch` states (and
 // rollouts of any length): it runs each call once on zeros to size its scratch. Used with a
 // larger batch or another model, a workspace grows (taking memory from the system) rather

@@ -138,6 +138,12 @@ class Model {
     check(gbx_rollout_dt_ws(get(), ws.get(), dt, x0, u, steps, xs, z, cancel));
   }
 
+  // The generalized force tau [batch, nv] that produces accelerations qdd [batch, nv] at x
+  // [batch, nq + nv]: a robot's feed-forward torque (allocates: not for a hard real-time loop).
+  void inverse_dynamics(const double* x, const double* qdd, size_t batch, double* tau) const {
+    check(gbx_inverse_dynamics(get(), x, qdd, batch, tau));
+  }
+
   const GbxModel* get() const { return handle_.get(); }
 
  private:

@@ -38,9 +38,11 @@ use calls::At;
 
 mod boundary;
 mod calls;
+mod inverse;
 mod workspace;
 mod z;
 
+pub use inverse::*;
 pub use workspace::*;
 pub use z::*;
 

@@ -1,32 +1,14 @@
 //! A C caller's cancel flag stops a long call: `GBX_STATUS_CANCELLED`, distinct from every
 //! failure, with the call's work left undone; an unset or absent flag changes no answer.
 
-use std::ffi::{CStr, CString};
-use std::path::Path;
 use std::ptr::{null, null_mut};
 use std::sync::atomic::{AtomicI32, Ordering};
 use std::time::Duration;
 
 use graybox_c::*;
 
-fn load() -> *mut GbxModel {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/inference/dp-mvf.gbx");
-    let c = CString::new(path.to_str().unwrap()).unwrap();
-    let mut model = null_mut();
-    // SAFETY: a NUL-terminated path and a place for the pointer.
-    assert_eq!(
-        unsafe { gbx_model_load(c.as_ptr(), &mut model) },
-        GbxStatus::Ok
-    );
-    model
-}
-
-fn last_error() -> String {
-    // SAFETY: the library keeps the message alive until this thread's next failure.
-    unsafe { CStr::from_ptr(gbx_last_error()) }
-        .to_string_lossy()
-        .into_owned()
-}
+mod common;
+use common::{last_error, load};
 
 /// Distinct states and inputs, `batch` of each (n = 2, m = 2).
 fn batch(batch: usize) -> (Vec<f64>, Vec<f64>) {
@@ -41,7 +23,7 @@ fn batch(batch: usize) -> (Vec<f64>, Vec<f64>) {
 
 #[test]
 fn a_set_flag_stops_predict_and_linearize_and_an_unset_one_changes_nothing() {
-    let model = load();
+    let model = load("inference/dp-mvf");
     let (x, u) = batch(20_000);
     let (set, unset) = (AtomicI32::new(1), AtomicI32::new(0));
     let (mut plain, mut flagged) = (vec![0.0; x.len()], vec![0.0; x.len()]);
@@ -112,7 +94,7 @@ fn a_set_flag_stops_predict_and_linearize_and_an_unset_one_changes_nothing() {
 /// while it runs, with the states after that left unwritten.
 #[test]
 fn a_flag_set_from_another_thread_stops_a_long_rollout() {
-    let model = load();
+    let model = load("inference/dp-mvf");
     let steps = 1_000_000;
     let u = vec![0.1; 2 * steps];
     let x0 = [0.1, 0.2, 0.0, 0.0];

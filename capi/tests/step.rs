@@ -3,11 +3,13 @@
 //! whose file says that Δt (the model is continuous: only the integrator's step changes); and
 //! rollouts of smaller steps converging as RK4's error says.
 
-use std::ffi::{CStr, CString};
-use std::path::Path;
+use std::ffi::CStr;
 use std::ptr::{null, null_mut};
 
 use graybox_c::*;
+
+mod common;
+use common::{load, path};
 use graybox_core::model::file::ModelFile;
 
 const MODELS: [&str; 3] = [
@@ -15,21 +17,6 @@ const MODELS: [&str; 3] = [
     "inference/cartpole-wb",
     "inference/ur5-residual",
 ];
-
-fn path(name: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../tests/fixtures/{name}.gbx"))
-}
-
-fn load(name: &str) -> *mut GbxModel {
-    let c = CString::new(path(name).to_str().unwrap()).unwrap();
-    let mut model = null_mut();
-    // SAFETY: a NUL-terminated path and a place for the pointer.
-    assert_eq!(
-        unsafe { gbx_model_load(c.as_ptr(), &mut model) },
-        GbxStatus::Ok
-    );
-    model
-}
 
 /// The model whose file is `name`'s with Δt = `dt`.
 fn load_at(name: &str, dt: f64) -> *mut GbxModel {

@@ -4,38 +4,20 @@
 //! Their outputs are those of the plain calls; a null `z` is refused by name, and a cancelled
 //! rollout keeps the z of the steps it took.
 
-use std::ffi::{CStr, CString};
-use std::path::Path;
 use std::ptr::{null, null_mut};
 use std::sync::atomic::AtomicI32;
 
 use graybox_c::*;
 
-fn load(name: &str) -> *mut GbxModel {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/fixtures/inference");
-    let c = CString::new(path.join(name).to_str().unwrap()).unwrap();
-    let mut model = null_mut();
-    // SAFETY: a NUL-terminated path and a place for the pointer.
-    assert_eq!(
-        unsafe { gbx_model_load(c.as_ptr(), &mut model) },
-        GbxStatus::Ok
-    );
-    model
-}
-
-fn last_error() -> String {
-    // SAFETY: the library keeps the message alive until this thread's next failure.
-    unsafe { CStr::from_ptr(gbx_last_error()) }
-        .to_string_lossy()
-        .into_owned()
-}
+mod common;
+use common::{last_error, load};
 
 /// README: "above ~4, treat the outputs with doubt".
 const DOUBT: f64 = 4.0;
 
 #[test]
 fn a_rollout_that_leaves_the_data_sees_its_z_grow() {
-    let model = load("ur5-residual.gbx");
+    let model = load("inference/ur5-residual");
     // SAFETY (every call): a loaded model and buffers of the documented sizes.
     let (n, m) = unsafe { (gbx_model_n(model), gbx_model_m(model)) };
     let (nx, steps) = (2 * n, 1000);
@@ -96,7 +78,7 @@ fn a_rollout_that_leaves_the_data_sees_its_z_grow() {
 
 #[test]
 fn a_null_z_is_refused_and_a_cancelled_rollout_keeps_its_steps_z() {
-    let model = load("dp-mvf.gbx");
+    let model = load("inference/dp-mvf");
     let (x, u) = ([0.1, 0.2, 0.3, 0.4], [0.5, -0.5]);
     let (mut next, mut a, mut b) = ([0.0; 4], [0.0; 16], [0.0; 8]);
     // SAFETY (every call): a loaded model and buffers of the documented sizes, z aside.

@@ -12,7 +12,7 @@ use utoipa::{OpenApi as _, ToSchema};
 use crate::app::datasets::Uploaded;
 use crate::app::inference::{
     EnergyReportRequest, EnergyRequest, EnergyView, EvaluateRequest, Evaluation, ForcePartView,
-    PredictRequest, PredictView, SimulateRequest, SimulateView,
+    InverseRequest, InverseView, PredictRequest, PredictView, SimulateRequest, SimulateView,
 };
 use crate::app::jobs::JobRequest;
 use crate::infer::horizons::HorizonError;
@@ -37,6 +37,8 @@ use crate::records::{DatasetInfo, Job, JobState, Metric, Warning};
     Passivity,
     EnergyView,
     ForcePartView,
+    InverseRequest,
+    InverseView,
     PredictRequest,
     PredictView,
     SimulateRequest,
@@ -216,6 +218,13 @@ const ROUTES: &[Route] = &[
         "/v1/models/{id}/energy",
         "Energy and work at a batch of states: kinetic T, potential V, total E, the power of F, and M q̈ + c + ∇V = F term by term with F's named parts (README \"Energy and power\"); 409 for a naive model, which has none",
         Some("EnergyRequest"),
+        &["id"],
+    ),
+    Route(
+        "post",
+        "/v1/models/{id}/inverse-dynamics",
+        "Inverse dynamics at a batch of states: the generalized force τ = M q̈ + c + ∇V − F(q, q̇, 0) that produces the given accelerations (a robot's feed-forward torque), with its terms and F(q, q̇, 0)'s named parts (docs/energy.md); 409 for a naive model",
+        Some("InverseRequest"),
         &["id"],
     ),
     Route(

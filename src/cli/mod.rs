@@ -9,6 +9,7 @@ mod energy;
 mod eval;
 mod health;
 mod import;
+mod inverse;
 mod model;
 mod plan;
 mod serve;
@@ -79,8 +80,9 @@ pub struct Cli {
 pub enum Command {
     /// Sample a transition dataset from a white-box template (the paper's sampling).
     Simulate(SimulateArgs),
-    /// A robot's log (CSV: time, positions, optionally velocities, inputs) as a dataset of
-    /// trajectories on an even grid, velocities estimated where the log has none.
+    /// A robot's log (CSV or Parquet: time, positions, optionally velocities, inputs) as a
+    /// dataset of trajectories on the samples' own times (or an even grid), velocities
+    /// estimated where the log has none.
     Import(import::ImportArgs),
     /// Train a model on a dataset and write the best-validation model file.
     Train(TrainArgs),
@@ -91,6 +93,9 @@ pub enum Command {
     /// A model file's energies at a dataset's states (T, V, E, the power of F and the split
     /// of its dynamics), one JSON line each; with --report, its energy drift and passivity.
     Energy(energy::EnergyArgs),
+    /// The generalized force τ = M q̈ + c + ∇V − F(q, q̇, 0) that produces given
+    /// accelerations at given states (feed-forward torque), with its terms, one JSON line each.
+    InverseDynamics(inverse::InverseArgs),
     /// Write the white-box model of a template with given physical values (no training).
     Model(ModelArgs),
     /// Write a URDF model's identified robot: its URDF with the learned inertial and joint
@@ -178,6 +183,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Eval(a) => eval::eval(a),
         Command::Inspect(a) => eval::inspect(a),
         Command::Energy(a) => energy::energy(a),
+        Command::InverseDynamics(a) => inverse::inverse(a),
         Command::Model(a) => model::model(a),
         Command::ExportUrdf(a) => model::export_urdf(a),
         Command::Plan(a) => plan::run(a),

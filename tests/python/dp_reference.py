@@ -66,3 +66,20 @@ def dp_energy(p, q, qd, u):
     damping = np.column_stack([e1 * qd[:, 0], e2 * qd[:, 1]])
     return {"kinetic": kinetic, "potential": potential, "inertial": inertial,
             "coriolis": coriolis, "gravity": gravity, "input": bu, "damping": damping}
+
+
+def dp_inverse(p, q, qd, qdd):
+    """The generalized force that gives accelerations qdd: M q̈ + c + ∇V less the damping η q̇
+    (F at u = 0), from the closed form's terms; batched."""
+    m1, m2, l1, l2, g, b1, b2, e1, e2 = p
+    i1, i2 = m1 * l1 * l1 / 3, m2 * l2 * l2 / 3
+    c2 = np.cos(q[:, 1])
+    m11 = i1 + i2 + m2 * l1 * l1 + m2 * l1 * l2 * c2
+    m12 = i2 + 0.5 * m2 * l1 * l2 * c2
+    h = m2 * l1 * l2 * np.sin(q[:, 1])
+    s1, s12 = np.sin(q[:, 0]), np.sin(q[:, 0] + q[:, 1])
+    tau1 = (m11 * qdd[:, 0] + m12 * qdd[:, 1] - h * qd[:, 0] * qd[:, 1] - 0.5 * h * qd[:, 1] ** 2
+            + 0.5 * m1 * g * l1 * s1 + m2 * g * (l1 * s1 + 0.5 * l2 * s12) - e1 * qd[:, 0])
+    tau2 = (m12 * qdd[:, 0] + i2 * qdd[:, 1] + 0.5 * h * qd[:, 0] ** 2
+            + 0.5 * m2 * g * l2 * s12 - e2 * qd[:, 1])
+    return np.column_stack([tau1, tau2])

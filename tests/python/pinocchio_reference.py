@@ -71,6 +71,15 @@ class Reference:
         tau[order] = u + self.forces(qd)
         return np.linalg.solve(self.mass(qp), tau - h)[order]
 
+    def inverse(self, q, qd, qdd):
+        """The force graybox's inverse dynamics gives: Pinocchio's `rnea` (M q̈ + c + g) less
+        the joints' passive forces, in graybox's coordinates."""
+        qp, vp, order = self.state(q, qd)
+        ap = np.zeros(self.model.nv)
+        ap[order] = qdd
+        tau = pin.rnea(self.model, self.data, qp, vp, ap)
+        return tau[order] - self.forces(qd)
+
     def energy(self, q, qd, u):
         """T, V and the terms of M q̈ + c + g = τ in graybox's coordinates, from Pinocchio's
         `computeKineticEnergy`, `computePotentialEnergy`, `crba`, `nonLinearEffects` and

@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dp_reference import dp_energy
+from dp_reference import dp_energy, dp_inverse
 from graybox_client import Client, GrayboxError
 from pinocchio_reference import Reference
 
@@ -232,3 +232,68 @@ def test_an_uploaded_models_energy_report_is_measured_on_request_and_stored(serv
     status, body = server.rest.post(f"/v1/models/{model}/energy-report",
                                     {"dataset_id": models.dataset_id, "timeout_seconds": 0})
     assert status == 400 and body["error"]["field"] == "timeout_seconds", body
+
+
+def inverse_dynamics(server, gbx, x, qdd, n):
+    """`graybox inverse-dynamics` of the model file at states x (q, q̇) and accelerations qdd."""
+    states = server.tmp / f"{gbx.stem}-inverse.json"
+    states.write_text(json.dumps({"q": x[:, :n].tolist(), "qdot": x[:, n:].tolist(),
+                                  "qddot": qdd.tolist()}))
+    out = run(server, "inverse-dynamics", "--model", gbx, "--states", states)
+    return [json.loads(line) for line in out.splitlines()]
+
+
+def within(got, want, rel=1e-10):
+    """The issue's bound for inverse dynamics: 1e-10 of the reference's size (at least 1); the
+    two sides agree to rounding (~1e-14), and a wrong term is of the terms' own size."""
+    got, want = np.asarray(got), np.asarray(want)
+    return np.abs(got - want).max() <= rel * max(1.0, np.abs(want).max())
+
+
+def test_the_double_pendulums_inverse_dynamics_is_its_closed_form(server, dp_model):
+    gbx, _ = dp_model
+    rng = np.random.default_rng(80)
+    x, _ = states(rng, 16, 2, 2)
+    qdd = rng.normal(0.0, 10.0, (16, 2))
+    lines = inverse_dynamics(server, gbx, x, qdd, 2)
+    want = dp_inverse([DP[k] for k in DP], x[:, :2], x[:, 2:], qdd)
+    assert within([l["tau"] for l in lines], want)
+    damping = np.column_stack([DP["eta1"] * x[:, 2], DP["eta2"] * x[:, 3]])
+    assert within([l["parts"]["damping"] for l in lines], damping)
+    terms = [np.add.reduce([l["inertial"], l["coriolis"], l["gravity"]]) - l["passive"]
+             for l in lines]
+    assert within(terms, [l["tau"] for l in lines])
+
+
+def test_ur5s_inverse_dynamics_is_pinocchios_rnea(server, client, ur5):
+    """The CLI, gRPC and REST, each against Pinocchio's RNEA less the joints' force law."""
+    model, ref, n, _ = ur5
+    rng = np.random.default_rng(81)
+    x, _ = states(rng, 8, n, n, qdot=1.0)
+    qdd = rng.normal(0.0, 5.0, (8, n))
+    want = np.array([ref.inverse(x[k, :n], x[k, n:], qdd[k]) for k in range(8)])
+    lines = inverse_dynamics(server, server.tmp / "ur5-energy.gbx", x, qdd, n)
+    assert within([line["tau"] for line in lines], want)
+    assert set(lines[0]["parts"]) == {"friction"}
+    got = client.inverse_dynamics(model, x, qdd)
+    assert within(got["tau"], want) and set(got["parts"]) == {"friction"}
+    assert within(got["inertial"] + got["coriolis"] + got["gravity"] - got["passive"], want)
+    one = client.inverse_dynamics(model, x[2], qdd[2])
+    assert within(one["tau"], want[2])
+    status, rest = server.rest.post(f"/v1/models/{model}/inverse-dynamics",
+                                    {"x": x.tolist(), "qdd": qdd.tolist()})
+    assert status == 200, rest
+    assert within(rest["tau"], want) and [p["name"] for p in rest["parts"]] == ["friction"]
+
+
+def test_inverse_dynamics_names_bad_input(server, client, dp_model, naive_model):
+    _, model = dp_model
+    with pytest.raises(GrayboxError) as e:
+        client.inverse_dynamics(model, np.zeros((2, 4)), np.zeros((3, 2)))
+    assert e.value.code == "INVALID_ARGUMENT" and "qdd" in e.value.message, e.value
+    status, body = server.rest.post(f"/v1/models/{model}/inverse-dynamics",
+                                    {"x": [[0.0] * 4], "qdd": [[0.0] * 3]})
+    assert status == 400 and body["error"]["field"] == "qdd", body
+    with pytest.raises(GrayboxError) as e:
+        client.inverse_dynamics(naive_model, np.zeros(4), np.zeros(2))
+    assert e.value.code == "FAILED_PRECONDITION", e.value

@@ -189,6 +189,24 @@ def test_energy_is_the_services(client, pairs, naive):
         assert e.value.code == "FAILED_PRECONDITION" and "naive" in e.value.message, e.value
 
 
+def test_inverse_dynamics_is_the_services(client, pairs, naive):
+    rng = np.random.default_rng(10)
+    for name, (model_id, model) in pairs.items():
+        x, _ = _states(model, rng, 4)
+        qdd = rng.normal(0.0, 3.0, (4, model.info.nv))
+        for one in (False, True):
+            xs, qs = (x[0], qdd[0]) if one else (x, qdd)
+            got = model.inverse_dynamics(xs, qs)
+            _same(got, client.inverse_dynamics(model_id, xs, qs), f"{name} {one}")
+            assert "input" not in got["parts"], name
+    model_id, model = naive
+    for call in (lambda: client.inverse_dynamics(model_id, np.zeros(4), np.zeros(2)),
+                 lambda: model.inverse_dynamics(np.zeros(4), np.zeros(2))):
+        with pytest.raises(GrayboxError) as e:
+            call()
+        assert e.value.code == "FAILED_PRECONDITION" and "naive" in e.value.message, e.value
+
+
 def test_what_the_service_refuses_the_module_refuses_alike(client, pairs):
     """The same code (gRPC names no field; the module names it as well), and for the particle
     count, which the core checks for both, the same message."""

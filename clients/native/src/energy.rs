@@ -1,6 +1,7 @@
 //! Energy and power at a batch of states, as the service's Energy computes them (the core's
 //! `energy_until`, its estimate and its finiteness check), answered as the gRPC client's
-//! `energy` answers: a dict of floats (or [B]) and arrays ([n] or [B, n]).
+//! `energy` answers: a dict of floats (or [B]) and arrays ([n] or [B, n]); and inverse
+//! dynamics, as the service's InverseDynamics.
 
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -66,5 +67,52 @@ pub fn energy<'py>(
     }
     d.set_item("parts", parts)?;
     d.set_item("damping", damping)?;
+    Ok(d)
+}
+
+pub fn inverse<'py>(
+    py: Python<'py>,
+    eval: &Evaluator,
+    x: ArrayIn<'py>,
+    qdd: ArrayIn<'py>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let n = eval.config.nv();
+    eval.check_energy().or_py(py)?;
+    let xs = rows("x", Some(&x), eval.config.nx()).or_py(py)?;
+    let qs = rows("qdd", Some(&qdd), n).or_py(py)?;
+    if qs.rows != xs.rows {
+        let e = Error::invalid("qdd", format!("has {} rows but x has {}", qs.rows, xs.rows));
+        return Err(e).or_py(py);
+    }
+    let (b, single) = (xs.rows, xs.single);
+    admit(py, &eval.energy_cost(b))?;
+    let interrupt = Interrupt::new();
+    let out = py.detach(|| -> Result<_, Error> {
+        let stop = || interrupt.stop();
+        let Some(inv) = eval.inverse_dynamics_until(&xs.data, &qs.data, &stop)? else {
+            return Ok(None);
+        };
+        inv.terms.check_finite("x", n)?;
+        Ok(Some(inv))
+    });
+    let inv = interrupt.answer(py, out)?;
+    let shape = shaped(single, b, &[n]);
+    let d = PyDict::new(py);
+    let e = inv.terms;
+    let terms = [
+        ("tau", inv.tau),
+        ("inertial", e.inertial),
+        ("coriolis", e.coriolis),
+        ("gravity", e.gravity),
+        ("passive", e.applied),
+    ];
+    for (key, v) in terms {
+        d.set_item(key, array(py, v, &shape)?)?;
+    }
+    let parts = PyDict::new(py);
+    for p in e.parts.into_iter().filter(|p| p.name != "input") {
+        parts.set_item(p.name, array(py, p.values, &shape)?)?;
+    }
+    d.set_item("parts", parts)?;
     Ok(d)
 }

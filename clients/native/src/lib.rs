@@ -362,6 +362,19 @@ impl Model {
     ) -> PyResult<Bound<'py, PyDict>> {
         energy::energy(py, &self.eval, x, u)
     }
+
+    /// The generalized force τ = M q̈ + c + ∇V − F(q, q̇, 0) that produces accelerations
+    /// qdd [nv] at x [nq + nv] (or a batch [B, nv] at [B, nq + nv]), as the gRPC client's
+    /// `inverse_dynamics`: a dict of `tau`, `inertial`, `coriolis`, `gravity`, `passive`
+    /// (F(q, q̇, 0)) and `parts`, F(q, q̇, 0)'s named parts. A naive model has none.
+    fn inverse_dynamics<'py>(
+        &self,
+        py: Python<'py>,
+        x: ArrayIn<'py>,
+        qdd: ArrayIn<'py>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        energy::inverse(py, &self.eval, x, qdd)
+    }
 }
 
 /// max_abs_z as the gRPC client returns it: a float for one state, else [B].

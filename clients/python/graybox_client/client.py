@@ -322,6 +322,24 @@ class Client:
         out["damping"] = [p.name for p in r.parts if p.damping]
         return out
 
+    def inverse_dynamics(self, model_id: str, x: ArrayLike, qdd: ArrayLike) -> dict[str, Any]:
+        """The generalized force τ = M q̈ + c + ∇V − F(q, q̇, 0) that produces accelerations
+        qdd [nv] at x [nq + nv] (or a batch [B, nv] at [B, nq + nv]): a robot's feed-forward
+        torque. A dict of `tau`, `inertial`, `coriolis`, `gravity`, `passive` (F(q, q̇, 0)),
+        each [nv] or [B, nv], and `parts`, F(q, q̇, 0)'s named parts {name: [nv] or [B, nv]}.
+        A naive model has none: FAILED_PRECONDITION."""
+        xb, qb, single = _batch(x, qdd)
+        r = self._call(self.stub.InverseDynamics, pb.InverseDynamicsRequest(
+            model_id=model_id, x=to_array(xb), qdd=to_array(qb)))
+
+        def pick(a: Array) -> Any:
+            return a[0] if single else a
+
+        out: dict[str, Any] = {k: pick(from_array(getattr(r, k)))
+                               for k in ("tau", "inertial", "coriolis", "gravity", "passive")}
+        out["parts"] = {p.name: pick(from_array(p.values)) for p in r.parts}
+        return out
+
     def tvlqr(self, model_id: str, xbar: ArrayLike, ubar: ArrayLike, Q: ArrayLike, R: ArrayLike,
               Qf: ArrayLike) -> tuple[Array, Array]:
         """TVLQR gains K [T, m, 2nv] and cost-to-go S [T+1, 2nv, 2nv] along x̄ [T+1, nq + nv],

@@ -119,8 +119,20 @@ impl Evaluator {
         u: &[f64],
         stop: &dyn Fn() -> bool,
     ) -> Result<Option<Energies>> {
+        self.terms_until(x, u, None, stop)
+    }
+
+    /// Each state's energies and terms, M q̈ at the model's own q̈ or at `qdd` (`[B, nv]`)
+    /// when given, or `None` when `stop` says so (polled every state).
+    pub(super) fn terms_until(
+        &self,
+        x: &[f64],
+        u: &[f64],
+        qdd: Option<&[f64]>,
+        stop: &dyn Fn() -> bool,
+    ) -> Result<Option<Energies>> {
         self.check_energy()?;
-        let (nx, m) = (self.config.nx(), self.config.m);
+        let (nx, nv, m) = (self.config.nx(), self.config.nv(), self.config.m);
         let members: Vec<&Evaluator> = match &self.members {
             Some(members) => members.iter().collect(),
             None => vec![self],
@@ -128,22 +140,23 @@ impl Evaluator {
         // Each state's figures go straight into the answer's arrays: a batch holds its
         // answer once, not a row of small vectors per state beside it.
         let mut out = Energies::default();
-        for (x, u) in x.chunks(nx).zip(u.chunks(m)) {
+        for (k, (x, u)) in x.chunks(nx).zip(u.chunks(m)).enumerate() {
             if stop() {
                 return Ok(None);
             }
-            let each: Vec<Row> = members.iter().map(|e| e.energy_row(x, u)).collect();
+            let qdd = qdd.map(|a| &a[k * nv..(k + 1) * nv]);
+            let each: Vec<Row> = members.iter().map(|e| e.energy_row(x, u, qdd)).collect();
             out.push(mean_row(each));
         }
         Ok(Some(out))
     }
 
-    fn energy_row(&self, x: &[f64], u: &[f64]) -> Row {
+    fn energy_row(&self, x: &[f64], u: &[f64], qdd: Option<&[f64]>) -> Row {
         let (q, qd) = x.split_at(self.config.nq());
         let mut row = self
             .with_structure((q, qd, u), |s, nets, cols| match &self.multibody {
-                Some(model) => multibody_row(model, s, nets, cols),
-                None => assembled_row(s, nets, cols),
+                Some(model) => multibody_row(model, s, nets, cols, qdd),
+                None => assembled_row(s, nets, cols, qdd),
             })
             .expect("checked: a structured model");
         let applied = sum_parts(&row.parts, self.config.nv());
@@ -152,14 +165,23 @@ impl Evaluator {
     }
 }
 
-/// T and every term from the assembly: M = L Lᵀ with L's q-derivatives for c.
-fn assembled_row(s: &Structure<f64>, nets: &JetNets<f64>, x: &Columns<f64>) -> Row {
+/// T and every term from the assembly: M = L Lᵀ with L's q-derivatives for c; M q̈ at the
+/// model's q̈ or the one `given`.
+fn assembled_row(
+    s: &Structure<f64>,
+    nets: &JetNets<f64>,
+    x: &Columns<f64>,
+    given: Option<&[f64]>,
+) -> Row {
     let parts = named_parts(s, nets, x);
     let applied = sum_parts(&parts, s.n());
     let t = s.terms(nets, x);
     let l = &t.factor.l;
     let gravity = (t.grad_v.as_deref()).map_or_else(|| vec![0.0; s.n()], <[f64]>::to_vec);
-    let qdd = acceleration(&t.factor, t.grad_v.as_deref(), &applied, x.qd);
+    let qdd = match given {
+        Some(qdd) => qdd.to_vec(),
+        None => acceleration(&t.factor, t.grad_v.as_deref(), &applied, x.qd).to_vec(),
+    };
     let w = tri_t_mul(l, x.qd);
     Row {
         power: 0.0,
@@ -179,12 +201,16 @@ fn multibody_row(
     s: &Structure<f64>,
     nets: &JetNets<f64>,
     x: &Columns<f64>,
+    given: Option<&[f64]>,
 ) -> Row {
     let (q, qd) = (x.q, x.qd);
     let parts = named_parts(s, nets, x);
     let applied = sum_parts(&parts, s.n());
     let tau = s.multibody_torques(nets, x);
-    let qdd = forward_dynamics(model, q, qd, &tau);
+    let qdd = match given {
+        Some(qdd) => qdd.to_vec(),
+        None => forward_dynamics(model, q, qd, &tau),
+    };
     let m = crba(model, q);
     let rest = applied.iter().zip(&tau).map(|(f, t)| f - t);
     Row {

@@ -13,6 +13,7 @@ pub mod energy_report;
 mod ensemble;
 mod gains;
 pub mod horizons;
+mod inverse;
 mod lanes;
 pub mod limits;
 mod multibody;
@@ -27,6 +28,7 @@ use std::sync::Arc;
 
 use activations::Activations;
 pub use energy::{Energies, NamedPart};
+pub use inverse::InverseDynamics;
 pub use nets::Mlp64;
 use nets::{JetNets, NetOutputs, input_jet, networks, periodic_full_jet, periodic_q_jet};
 use weights::Weights;

@@ -114,6 +114,39 @@ impl Dynamics for DynamicsService {
         }))
     }
 
+    async fn inverse_dynamics(
+        &self,
+        req: Request<pb::InverseDynamicsRequest>,
+    ) -> Result<Response<pb::InverseDynamicsResponse>, Status> {
+        let until = deadline(&req);
+        let r = req.into_inner();
+        let (x, qdd) = (take("x", r.x)?, take("qdd", r.qdd)?);
+        let (n, inv) = self
+            .app
+            .inverse_dynamics(&r.model_id, x, qdd, until)
+            .await
+            .or_status()?;
+        let b = inv.tau.len() / n;
+        let array = |v: Vec<f64>| Some(Array::new(&[b, n], v).into());
+        let e = inv.terms;
+        Ok(Response::new(pb::InverseDynamicsResponse {
+            id: r.id,
+            tau: array(inv.tau),
+            inertial: array(e.inertial),
+            coriolis: array(e.coriolis),
+            gravity: array(e.gravity),
+            passive: array(e.applied),
+            parts: (e.parts.into_iter())
+                .filter(|p| p.name != "input")
+                .map(|p| pb::ForcePart {
+                    name: p.name.into(),
+                    damping: p.dissipation,
+                    values: array(p.values),
+                })
+                .collect(),
+        }))
+    }
+
     type RolloutStream = Pin<Box<dyn Stream<Item = Result<pb::RolloutChunk, Status>> + Send>>;
 
     async fn rollout(

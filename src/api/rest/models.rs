@@ -9,7 +9,8 @@ use axum::routing::{get, post};
 use super::error::{ApiError, ApiResult};
 use super::{Params, RestState, body_bytes, int_param, json_body, page, stored};
 use crate::app::inference::{
-    EnergyReportRequest, EnergyRequest, EvaluateRequest, PredictRequest, SimulateRequest,
+    EnergyReportRequest, EnergyRequest, EvaluateRequest, InverseRequest, PredictRequest,
+    SimulateRequest,
 };
 use crate::app::requests::parse_body;
 use crate::app::uploads::BodyKind;
@@ -25,6 +26,7 @@ pub fn routes() -> Router<RestState> {
         .route("/v1/models/{id}/predict", post(predict))
         .route("/v1/models/{id}/simulate", post(simulate))
         .route("/v1/models/{id}/energy", post(energy))
+        .route("/v1/models/{id}/inverse-dynamics", post(inverse_dynamics))
         .route("/v1/models/{id}/energy-report", post(energy_report))
 }
 
@@ -56,6 +58,16 @@ async fn simulate(
 ) -> ApiResult<impl IntoResponse> {
     let req: SimulateRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
     Ok(axum::Json(s.app.simulate_json(&id, req).await?))
+}
+
+/// The generalized force that gives accelerations at a batch of states, with its terms.
+async fn inverse_dynamics(
+    State(s): State<RestState>,
+    Path(id): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> ApiResult<impl IntoResponse> {
+    let req: InverseRequest = parse_body(json_body(body, s.limit(BodyKind::Small))?)?;
+    Ok(axum::Json(s.app.inverse_json(&id, req).await?))
 }
 
 /// T, V, E, the power of F and the split of the dynamics at a batch of states.
