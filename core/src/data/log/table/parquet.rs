@@ -67,7 +67,11 @@ impl File {
             .map(|g| usize::try_from(g.num_rows()))
             .collect::<std::result::Result<_, _>>()
             .map_err(|_| Error::invalid("log", "a Parquet row group of negative size"))?;
-        let rows: usize = groups.iter().sum();
+        // A crafted file may claim any count: summed without wrapping, and never trusted for
+        // more than a first allocation.
+        let rows = (groups.iter())
+            .try_fold(0usize, |a, &n| a.checked_add(n))
+            .ok_or_else(|| Error::invalid("log", "a Parquet file of more rows than can be"))?;
         if let Some(memory) = memory {
             // The values kept, and each selected column's pages as they are decompressed.
             let mut pages = 0u64;
@@ -76,7 +80,7 @@ impl File {
                     pages = pages.saturating_add(pages::claimed(self.chunk(g.column(col))?)?);
                 }
             }
-            let needed = (8 * rows * at.len()) as f64 + pages as f64;
+            let needed = 8.0 * rows as f64 * at.len() as f64 + pages as f64;
             if needed > memory as f64 {
                 return Err(Error::ResourceExhausted(format!(
                     "log: its {rows} rows of {} columns would take {:.0} MB to decode, over \
@@ -88,7 +92,7 @@ impl File {
                 )));
             }
         }
-        let mut values = vec![Vec::with_capacity(rows); at.len()];
+        let mut values = vec![Vec::with_capacity(rows.min(1 << 20)); at.len()];
         let mut origins = vec![None; at.len()];
         for (g, &n) in groups.iter().enumerate() {
             let group = decoding(|| self.reader.get_row_group(g))?;
