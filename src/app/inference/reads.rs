@@ -72,10 +72,12 @@ impl Drop for Reading {
 }
 
 /// Bytes loading a dataset takes: its arrays three times (the bytes as the store hands them
-/// over, their copy, and the arrays decoded from them are alive together while it loads).
+/// over, their copy, and the arrays decoded from them are alive together while it loads),
+/// counting a step per transition, which a dataset of its own Δt's carries (the row does not
+/// say whether it does).
 pub fn load_cost(info: &DatasetInfo) -> usize {
     let (nq, nv, m) = (info.nq(), info.nv(), info.m.max(0) as usize);
-    let values = (info.count.max(0) as usize).saturating_mul(2 * (nq + nv) + m);
+    let values = (info.count.max(0) as usize).saturating_mul(2 * (nq + nv) + m + 1);
     values.saturating_mul(3 * 8)
 }
 
