@@ -34,6 +34,13 @@ fn inverse_dynamics_at_the_models_acceleration_is_the_inputs_force() {
         let zero = vec![0.0; u.len()];
         let passive = eval.energy_until(&x, &zero, &|| false).unwrap().unwrap();
         assert_eq!(inv.terms.applied, passive.applied, "{name}: F(q, q̇, 0)");
+        // The parts are the passive ones: the input's, zero at u = 0, is not one of them.
+        let names: Vec<_> = inv.terms.parts.iter().map(|p| p.name).collect();
+        let want: Vec<_> = (passive.parts.iter())
+            .map(|p| p.name)
+            .filter(|n| *n != "input")
+            .collect();
+        assert_eq!(names, want, "{name}: parts");
         for i in 0..batch * nv {
             let want = forced.applied[i] - passive.applied[i];
             // q̈ solved from M and multiplied back: rounding of M's condition (≤ 1e4 here) times

@@ -75,7 +75,6 @@ pub(super) fn inverse(a: InverseArgs) -> Result<()> {
     let row = |v: &[f64], k: usize| v[k * nv..(k + 1) * nv].to_vec();
     for k in 0..rows {
         let parts: serde_json::Map<String, serde_json::Value> = (e.parts.iter())
-            .filter(|p| p.name != "input")
             .map(|p| (p.name.to_string(), json!(row(&p.values, k))))
             .collect();
         super::say(json!({

@@ -15,6 +15,7 @@ use crate::model::file::write_atomic;
 use crate::model::spec::ModelSpec;
 use crate::physics::integrator::Integrator;
 use crate::sim::parse_pairs;
+use crate::train::objective::Objective;
 use crate::train::{Ensemble, TrainConfig};
 
 #[derive(Args, Debug)]
@@ -95,6 +96,11 @@ pub struct TrainArgs {
     /// bootstrap resample.
     #[arg(long)]
     pub no_bootstrap: bool,
+    /// What the loss compares: step (the predicted states), torque (the torques the
+    /// manipulator equation asks for against the recorded inputs, docs/training.md) or both
+    /// weighted, e.g. step=1,torque=0.01.
+    #[arg(long, default_value = "step")]
+    pub loss: String,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
@@ -168,6 +174,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
         window_lr: a.window_lr,
         ensemble: a.ensemble,
         bootstrap: !a.no_bootstrap,
+        loss: Objective::parse(&a.loss)?,
     };
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;

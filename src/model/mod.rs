@@ -38,6 +38,8 @@ pub struct Model {
     step: Arc<FusedStep>,
     /// The same step on rows that carry their own Δt (`step_scaled`).
     timed: Arc<FusedStep>,
+    /// The torque loss's errors (`torque_errors`).
+    torque: Arc<FusedStep>,
 }
 
 impl Model {
@@ -112,14 +114,14 @@ impl Model {
     /// The model of `config` with `params`; a robot's q̈ comes from the multibody
     /// algorithms (see [`Model::assembled`]).
     pub fn from_parts(config: ModelConfig, params: Params, device: &Device) -> Self {
-        let step = Arc::new(FusedStep::new(&config, &params, (true, false)));
-        let timed = Arc::new(FusedStep::new(&config, &params, (true, true)));
+        let [step, timed, torque] = fused::ops(&config, &params, true);
         Self {
             loss: Loss::new(&config, device),
             config,
             params,
             step,
             timed,
+            torque,
         }
     }
 

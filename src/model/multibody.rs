@@ -4,18 +4,14 @@
 //! by forward dynamics' adjoint. The template's assembly of M(q) and V(q) stays selectable as
 //! the reference that node is tested against (`Model::assembled`).
 
-use std::sync::Arc;
-
-use super::Model;
-use super::fused::FusedStep;
+use super::{Model, fused};
 
 impl Model {
     /// The same model on the template's M(q) and V(q) assembly instead of the multibody
     /// algorithms: the reference training's node is tested against, and a benchmark's
     /// baseline.
     pub fn assembled(mut self) -> Self {
-        self.step = Arc::new(FusedStep::new(&self.config, &self.params, (false, false)));
-        self.timed = Arc::new(FusedStep::new(&self.config, &self.params, (false, true)));
+        [self.step, self.timed, self.torque] = fused::ops(&self.config, &self.params, false);
         self
     }
 

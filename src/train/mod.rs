@@ -4,6 +4,7 @@
 pub mod adam;
 pub mod budget;
 pub mod ensemble;
+pub mod objective;
 pub mod setup;
 pub mod shards;
 pub mod trainer;

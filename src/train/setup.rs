@@ -13,6 +13,8 @@ use crate::physics::scaling::Scaling;
 use crate::physics::space::Space;
 use crate::sim::unknown_param;
 
+use super::objective::Objective;
+
 /// Training hyper-parameters; every field has the CLI's default.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -58,6 +60,10 @@ pub struct TrainConfig {
     /// training windows (left out of files when true, the default).
     #[serde(skip_serializing_if = "is_true")]
     pub bootstrap: bool,
+    /// What the loss compares: the predicted states (`"step"`, the default, left out of
+    /// files), the torques (`"torque"`) or both with weights (docs/training.md#torque-loss).
+    #[serde(skip_serializing_if = "Objective::is_step")]
+    pub loss: Objective,
 }
 
 /// The most members an ensemble may have: each costs a model's training and inference. One
@@ -103,6 +109,7 @@ impl Default for TrainConfig {
             window_lr: None,
             ensemble: 1,
             bootstrap: true,
+            loss: Objective::STEP,
         }
     }
 }
@@ -270,6 +277,7 @@ pub fn prepare(
 ) -> Result<Prepared> {
     cfg.validate()?;
     spec.validate()?;
+    cfg.loss.validate(spec)?;
     spec.check_trainable()?;
     let space = run_space(spec, cfg, (data.nq, data.nv))?;
     spec.check_dims(&space, data.m)?;

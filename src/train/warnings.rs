@@ -74,10 +74,9 @@ pub struct RunSummary<'a> {
     /// The kept model's loss on the validation set (training set without one): over windows
     /// of the run's horizon when the set has them, else one-step.
     pub best_loss: f64,
-    /// The zero-acceleration loss on the same set and the same windows.
-    pub baseline: f64,
-    /// The steps of those windows (1: the one-step loss).
-    pub steps: usize,
+    /// The zero-acceleration loss on the same set and the same windows, and the steps of
+    /// those windows (1: the one-step loss); none when the loss is not the states'.
+    pub baseline: Option<(f64, usize)>,
     /// Used physical values at the start and now, by name.
     pub initial_physical: Option<&'a BTreeMap<String, f64>>,
     pub physical: &'a BTreeMap<String, f64>,
@@ -91,7 +90,9 @@ pub fn training_warnings(r: &RunSummary) -> Vec<Warning> {
     if r.history.is_empty() {
         return out;
     }
-    if r.best_loss >= r.baseline {
+    if let Some((baseline, steps)) = r.baseline
+        && r.best_loss >= baseline
+    {
         out.push(Warning::new(
             "no_better_than_zero_acceleration",
             None,
@@ -99,14 +100,14 @@ pub fn training_warnings(r: &RunSummary) -> Vec<Warning> {
                 "the best {}loss {:.4e} is not below {:.4e}, the loss of predicting no \
                  acceleration at all (q' = q + qdot·dt, qdot' = qdot){}: the model has learned \
                  nothing usable; check the data's units and dt, or train longer",
-                if r.steps > 1 {
-                    format!("{}-step ", r.steps)
+                if steps > 1 {
+                    format!("{steps}-step ")
                 } else {
                     String::new()
                 },
                 r.best_loss,
-                r.baseline,
-                if r.steps > 1 {
+                baseline,
+                if steps > 1 {
                     " over the same windows"
                 } else {
                     ""
@@ -248,8 +249,7 @@ mod tests {
         let r = RunSummary {
             history: &h,
             best_loss: 0.05,
-            baseline: 3.0,
-            steps: 1,
+            baseline: Some((3.0, 1)),
             initial_physical: Some(&p0),
             physical: &p1,
             identified: None,
@@ -264,8 +264,7 @@ mod tests {
         let r = RunSummary {
             history: &h,
             best_loss: 4.0,
-            baseline: 3.0,
-            steps: 1,
+            baseline: Some((3.0, 1)),
             initial_physical: Some(&p0),
             physical: &p0,
             identified: None,
@@ -291,8 +290,7 @@ mod tests {
             let r = RunSummary {
                 history: &h,
                 best_loss: 0.05,
-                baseline: 3.0,
-                steps: 1,
+                baseline: Some((3.0, 1)),
                 initial_physical: Some(&p0),
                 physical: &p0,
                 identified,
@@ -316,8 +314,7 @@ mod tests {
         let r = RunSummary {
             history: &h,
             best_loss: 1.0,
-            baseline: 3.0,
-            steps: 1,
+            baseline: Some((3.0, 1)),
             initial_physical: Some(&p0),
             physical: &p0,
             identified: None,

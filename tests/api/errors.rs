@@ -457,6 +457,36 @@ async fn bad_input_table() {
             Some("training.discount"),
         ),
         case(
+            "a torque loss for a naive model",
+            "POST",
+            "/v1/jobs",
+            job(&|v| {
+                v["model"] = json!("naive");
+                v["training"]["loss"] = json!("torque");
+            }),
+            422,
+            "unprocessable",
+            Some("training.loss"),
+        ),
+        case(
+            "loss weights both zero",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["loss"] = json!({"step": 0, "torque": 0})),
+            422,
+            "unprocessable",
+            Some("training.loss"),
+        ),
+        case(
+            "an unknown loss",
+            "POST",
+            "/v1/jobs",
+            job(&|v| v["training"]["loss"] = json!("energy")),
+            422,
+            "unprocessable",
+            Some("training.loss"),
+        ),
+        case(
             "one-step epochs not fewer than epochs",
             "POST",
             "/v1/jobs",

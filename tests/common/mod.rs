@@ -195,6 +195,29 @@ pub fn random_loss_and_gradients(model: &Model, dev: &Device, rows: usize) -> (f
     };
     let (x, u, y) = (draw(2 * n, 2.0), draw(m, 5.0), draw(2 * n, 2.0));
     let loss: Tensor<1> = model.loss_sum(tensor(&x, dev), tensor(&u, dev), tensor(&y, dev));
+    value_and_gradients(model, loss)
+}
+
+/// The torque loss on `rows` random rows (|q|, |q̇|, |q̈| ≤ 2, |u| ≤ 5) and every parameter's
+/// gradient.
+pub fn random_torque_loss_and_gradients(
+    model: &Model,
+    dev: &Device,
+    rows: usize,
+) -> (f64, Vec<Vec<f64>>) {
+    let (n, m) = (model.config.nv(), model.config.m);
+    let mut r = Rng::new(9);
+    let x: Vec<Vec<f64>> = (0..rows)
+        .map(|_| {
+            let mut row: Vec<f64> = (0..3 * n).map(|_| r.uniform_in(-2.0, 2.0)).collect();
+            row.extend((0..m).map(|_| r.uniform_in(-5.0, 5.0)));
+            row
+        })
+        .collect();
+    value_and_gradients(model, model.torque_sum(tensor(&x, dev)))
+}
+
+fn value_and_gradients(model: &Model, loss: Tensor<1>) -> (f64, Vec<Vec<f64>>) {
     let value = loss.clone().into_data().iter::<f64>().next().unwrap();
     let grads = loss.backward();
     let mut gc = GradCollector {

@@ -8,6 +8,8 @@ mod ensemble;
 mod fused;
 #[path = "training/steps.rs"]
 mod steps;
+#[path = "training/torque.rs"]
+mod torque;
 
 use std::sync::atomic::AtomicBool;
 

@@ -110,7 +110,7 @@ pub fn inverse<'py>(
         d.set_item(key, array(py, v, &shape)?)?;
     }
     let parts = PyDict::new(py);
-    for p in e.parts.into_iter().filter(|p| p.name != "input") {
+    for p in e.parts {
         parts.set_item(p.name, array(py, p.values, &shape)?)?;
     }
     d.set_item("parts", parts)?;

@@ -11,7 +11,8 @@
 use super::{Energies, Evaluator};
 use crate::error::{Error, Result};
 
-/// A batch's τ `[B, nv]` and its terms (`terms.applied`: F(q, q̇, 0); its named parts).
+/// A batch's τ `[B, nv]` and its terms (`terms.applied`: F(q, q̇, 0); its named parts, the
+/// passive ones only).
 #[derive(Debug, Clone, PartialEq)]
 pub struct InverseDynamics {
     pub tau: Vec<f64>,
@@ -45,9 +46,11 @@ impl Evaluator {
             ));
         }
         let u = vec![0.0; rows * m];
-        let Some(terms) = self.terms_until(x, &u, Some(qdd), stop)? else {
+        let Some(mut terms) = self.terms_until(x, &u, Some(qdd), stop)? else {
             return Ok(None);
         };
+        // The input's part is zero here by construction: τ is what the inputs must supply.
+        terms.parts.retain(|p| p.name != "input");
         let tau = (0..rows * nv)
             .map(|i| terms.inertial[i] + terms.coriolis[i] + terms.gravity[i] - terms.applied[i])
             .collect();

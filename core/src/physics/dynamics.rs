@@ -194,6 +194,31 @@ pub fn acceleration<'a, S: Scalar>(
     solve_llt(&factor.l, rhs)
 }
 
+/// The manipulator equation's residual at a given q̈, M(q) q̈ + c(q, q̇) + ∂V/∂q − F: zero
+/// where q̈ is the model's own acceleration, and the torque loss's error where q̈ and the
+/// inputs in F are measured (docs/training.md#torque-loss).
+pub fn residual<'a, S: Scalar>(
+    factor: &Factor<'a, S>,
+    grad_v: Option<&[S]>,
+    forces: &[S],
+    qd: &[S],
+    qdd: &[S],
+) -> AVec<'a, S> {
+    let l = &factor.l;
+    let w = tri_t_mul(l, qdd);
+    let mut r = coriolis(factor, qd);
+    for (i, r) in r.iter_mut().enumerate() {
+        let mw = sum((0..=i).map(|j| l.get(i, j).clone() * w[j].clone())).expect("n ≥ 1");
+        *r = mw + r.clone() - forces[i].clone();
+    }
+    if let Some(g) = grad_v {
+        for (r, g) in r.iter_mut().zip(g) {
+            *r = r.clone() + g.clone();
+        }
+    }
+    r
+}
+
 /// Values as dual numbers without tangents (parameters: constants for ∂/∂q).
 pub fn constants(values: &[f64]) -> Vec<Dual<f64>> {
     values.iter().map(|&v| Dual::constant(v)).collect()

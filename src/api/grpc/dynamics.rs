@@ -137,7 +137,6 @@ impl Dynamics for DynamicsService {
             gravity: array(e.gravity),
             passive: array(e.applied),
             parts: (e.parts.into_iter())
-                .filter(|p| p.name != "input")
                 .map(|p| pb::ForcePart {
                     name: p.name.into(),
                     damping: p.dissipation,

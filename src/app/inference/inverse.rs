@@ -90,7 +90,6 @@ impl App {
             gravity: rows(e.gravity),
             passive: rows(e.applied),
             parts: (e.parts.into_iter())
-                .filter(|p| p.name != "input")
                 .map(|p| ForcePartView {
                     name: p.name.to_string(),
                     damping: p.dissipation,

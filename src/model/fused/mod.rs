@@ -97,8 +97,19 @@ pub(crate) struct FusedStep {
     robot: Option<multibody::Model>,
     /// Finished tapes' storage, for the next ones.
     pool: Mutex<Vec<Buffers>>,
-    /// A row ends with its Δt_i / Δt (transitions of their own steps: `record::step`).
-    timed: bool,
+    kind: Kind,
+}
+
+/// What the op computes of a row.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) enum Kind {
+    /// x' of [x, u].
+    Step,
+    /// x' of [x, u, Δt_i / Δt] (transitions of their own steps: `record::step`).
+    Timed,
+    /// The torque loss's errors of [q, q̇, q̈, u], joint j's divided by the scale's j-th
+    /// value (`record::torque`).
+    Torque(Vec<f64>),
 }
 
 /// One block's finished tape: where its inputs and outputs are on it.
@@ -118,14 +129,24 @@ impl FusedStep {
         let inputs: Vec<Var> = (0..width)
             .map(|j| Var::input(&tape, rows.iter().skip(j).step_by(width).copied().collect()))
             .collect();
-        let (nx, m) = (self.config.nx(), self.config.m);
+        let (nq, nv, m) = (self.config.nq(), self.config.nv(), self.config.m);
         let recipe = record::Recipe {
             config: &self.config,
             layout: &self.layout,
             robot: self.robot.as_ref(),
         };
-        let scale = self.timed.then(|| &inputs[nx + m]);
-        let out = record::step(&recipe, &tape, &inputs[..nx], &inputs[nx..nx + m], scale);
+        let (nx, at) = (nq + nv, |r: std::ops::Range<usize>| &inputs[r]);
+        let out = match &self.kind {
+            Kind::Step => record::step(&recipe, &tape, at(0..nx), at(nx..nx + m), None),
+            Kind::Timed => {
+                let scale = Some(&inputs[nx + m]);
+                record::step(&recipe, &tape, at(0..nx), at(nx..nx + m), scale)
+            }
+            Kind::Torque(scale) => {
+                let measured = (at(0..nq), at(nq..nx), at(nx..nx + nv));
+                record::torque(&recipe, &tape, measured, at(nx + nv..nx + nv + m), scale)
+            }
+        };
         let block_inputs = inputs.iter().map(Var::id).collect();
         let outputs = out.iter().map(Var::id).collect();
         drop((inputs, out));
@@ -208,11 +229,19 @@ impl FusedStep {
 
 impl RowFunction for FusedStep {
     fn input_width(&self) -> usize {
-        self.config.nx() + self.config.m + usize::from(self.timed)
+        let (nx, m) = (self.config.nx(), self.config.m);
+        match self.kind {
+            Kind::Step => nx + m,
+            Kind::Timed => nx + m + 1,
+            Kind::Torque(_) => nx + self.config.nv() + m,
+        }
     }
 
     fn output_width(&self) -> usize {
-        self.config.nx()
+        match self.kind {
+            Kind::Step | Kind::Timed => self.config.nx(),
+            Kind::Torque(_) => self.config.nv(),
+        }
     }
 
     fn forward(&self, rows: &[f64], params: &[f64]) -> Vec<f64> {
@@ -272,14 +301,25 @@ impl ModuleVisitor for Flatten {
     }
 }
 
+/// The model's ops: its step, its step on rows of their own Δt and its torque errors; a
+/// robot's by its multibody algorithms when `multibody`.
+pub(super) fn ops(
+    config: &ModelConfig,
+    params: &super::Params,
+    multibody: bool,
+) -> [Arc<FusedStep>; 3] {
+    let torque = Kind::Torque(torque_scale(config));
+    [Kind::Step, Kind::Timed, torque]
+        .map(|k| Arc::new(FusedStep::new(config, params, (multibody, k))))
+}
+
 impl FusedStep {
-    /// The step of `config`'s model with parameters like `params`; a robot's q̈ by its
-    /// multibody algorithms when `multibody` (else by its template's assembly); rows with
-    /// their Δt_i / Δt last when `timed`.
+    /// The op of `kind` for `config`'s model with parameters like `params`; a robot's q̈
+    /// (or τ) by its multibody algorithms when `multibody` (else by its template's assembly).
     pub(super) fn new(
         config: &ModelConfig,
         params: &super::Params,
-        (multibody, timed): (bool, bool),
+        (multibody, kind): (bool, Kind),
     ) -> Self {
         let mut flat = Flatten(vec![]);
         params.visit(&mut flat);
@@ -294,13 +334,34 @@ impl FusedStep {
             precision,
             robot: if multibody { robot(config) } else { None },
             pool: Mutex::new(vec![]),
-            timed,
+            kind,
         }
     }
 
     pub(super) fn is_multibody(&self) -> bool {
         self.robot.is_some()
     }
+}
+
+/// Each joint's unit of the torque loss's error: the spread of its measured effort where
+/// every joint has an input of its own (m = nv, the efforts of a robot's log), else the
+/// model's typical force on it (`Scaling::force_scale`); a joint whose spread is zero takes
+/// the largest one's, so no error is divided by zero.
+pub(super) fn torque_scale(config: &ModelConfig) -> Vec<f64> {
+    let s = &config.scaling;
+    let own = match config.m == config.nv() {
+        true => &s.u_std,
+        false => &s.force_scale,
+    };
+    let largest = own
+        .iter()
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let floor = if largest > 0.0 { largest } else { 1.0 };
+    (own.iter())
+        .map(|&v| if v.is_finite() && v > 0.0 { v } else { floor })
+        .collect()
 }
 
 /// The tree of `config`'s robot, when its q̈ comes from the multibody algorithms (its
@@ -328,6 +389,17 @@ impl Model {
 
     fn timed_step(&self) -> Arc<FusedStep> {
         self.timed.clone()
+    }
+
+    /// The torque loss's errors of rows [q, q̇, q̈, u] `[B, nq + 2nv + m]`: the manipulator
+    /// equation's residual, each joint's in units of its scale (docs/training.md#torque-loss).
+    pub fn torque_errors(&self, rows: Tensor<2>) -> Tensor<2> {
+        row_map(&RowFn(self.torque.clone()), rows, self.flat_params())
+    }
+
+    /// Σ over the rows of their squared torque errors.
+    pub fn torque_sum(&self, rows: Tensor<2>) -> Tensor<1> {
+        self.torque_errors(rows).square().sum()
     }
 
     /// Every parameter in one row, in the order the fused step reads them.

@@ -13,11 +13,11 @@ use crate::model::spec::ModelSpec;
 use crate::model::{ModelConfig, names};
 use crate::physics::assembly::{Columns, Networks, Structure, Values};
 use crate::physics::dual::{Dual, WIDTH, groups};
-use crate::physics::dynamics::acceleration;
+use crate::physics::dynamics::{acceleration, residual};
 use crate::physics::integrator::States;
 use crate::physics::multibody;
 use crate::physics::scalar::Scalar;
-use crate::physics::tape::{Layer, Tape, Var, forward_dynamics, mlp};
+use crate::physics::tape::{Layer, Tape, Var, forward_dynamics, inverse_dynamics, mlp};
 
 /// The tape's view of the parameters.
 struct Recorded {
@@ -84,12 +84,29 @@ pub(super) fn step(
         .step(&states, &x.to_vec(), config.dt, |x: &Vec<Var>| {
             let (q, qd) = x.split_at(nq);
             let mut dx = qd.to_vec();
-            dx.extend(accel(recipe, &values, q, qd, u));
+            dx.extend(dynamics(recipe, &values, (q, qd, u), None));
             match scale {
                 Some(s) => dx.into_iter().map(|d| d * s.clone()).collect(),
                 None => dx,
             }
         })
+}
+
+/// The torque loss's errors of the block's rows (docs/training.md#torque-loss): the
+/// manipulator equation's residual M q̈ + c + ∂V/∂q − F(q, q̇, u) at measured (q, q̇, q̈) and
+/// inputs `u`, joint j's divided by `scale[j]`.
+pub(super) fn torque(
+    recipe: &Recipe<'_>,
+    tape: &Rc<RefCell<Tape>>,
+    (q, qd, qdd): (&[Var], &[Var], &[Var]),
+    u: &[Var],
+    scale: &[f64],
+) -> Vec<Var> {
+    let values = record_values(recipe.config, recipe.layout, tape);
+    let r = dynamics(recipe, &values, (q, qd, u), Some(qdd));
+    (r.into_iter().zip(scale))
+        .map(|(r, s)| r.scale(1.0 / s))
+        .collect()
 }
 
 fn record_values(config: &ModelConfig, layout: &Layout, tape: &Rc<RefCell<Tape>>) -> Recorded {
@@ -111,8 +128,15 @@ fn record_values(config: &ModelConfig, layout: &Layout, tape: &Rc<RefCell<Tape>>
     }
 }
 
-/// v̇ of the block: the naive network, or the structure assembled from the spec.
-fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) -> Vec<Var> {
+/// v̇ of the block, or with `qdd` the manipulator equation's residual at it: the naive
+/// network (whose residual is its acceleration's error: it has no M; the service refuses
+/// the torque loss for it), or the structure assembled from the spec.
+fn dynamics(
+    recipe: &Recipe<'_>,
+    r: &Recorded,
+    (q, qd, u): (&[Var], &[Var], &[Var]),
+    qdd: Option<&[Var]>,
+) -> Vec<Var> {
     let (config, layout) = (recipe.config, recipe.layout);
     let sc = &config.scaling;
     let space = &config.space;
@@ -133,9 +157,12 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
     } = &config.spec
     else {
         let out = net(names::NAIVE, &full(), 0).expect("a naive model's network");
-        return (out.into_iter().enumerate())
-            .map(|(j, o)| o.v.scale(sc.acc_std[j]).shift(sc.acc_mean[j]))
-            .collect();
+        let acc = (out.into_iter().enumerate())
+            .map(|(j, o)| o.v.scale(sc.acc_std[j]).shift(sc.acc_mean[j]));
+        return match qdd {
+            None => acc.collect(),
+            Some(qdd) => acc.zip(qdd).map(|(a, m)| a - m.clone()).collect(),
+        };
     };
     let n = config.nv();
     // M's and V's networks read q with its ∂/∂q along each velocity, a group at a time.
@@ -182,8 +209,18 @@ fn accel(recipe: &Recipe<'_>, r: &Recorded, q: &[Var], qd: &[Var], u: &[Var]) ->
             .as_deref()
             .expect("a template's M has physical values");
         let pi = urdf.standard_parameters(physical);
-        return forward_dynamics(robot, q, qd, &tau, &pi);
+        return match qdd {
+            None => forward_dynamics(robot, q, qd, &tau, &pi),
+            Some(qdd) => (inverse_dynamics(robot, q, qd, qdd, &pi).into_iter())
+                .zip(tau.iter())
+                .map(|(id, t)| id - t.clone())
+                .collect(),
+        };
     }
     let t = structure.terms(&nets, &inputs);
-    acceleration(&t.factor, t.grad_v.as_deref(), &t.forces, qd).to_vec()
+    let grad_v = t.grad_v.as_deref();
+    match qdd {
+        None => acceleration(&t.factor, grad_v, &t.forces, qd).to_vec(),
+        Some(qdd) => residual(&t.factor, grad_v, &t.forces, qd, qdd).to_vec(),
+    }
 }

@@ -10,6 +10,8 @@ use super::Trainer;
 use crate::data::Dataset;
 use crate::error::Result;
 use crate::model::Model;
+use crate::physics::space::Space;
+use crate::train::objective::{Objective, torque_rows};
 use crate::train::shards::{self, ParamGrads};
 use crate::train::windows::Windows;
 
@@ -25,6 +27,10 @@ pub(super) struct HostData {
     m: usize,
     /// Each row's Δt_i / Δt when the transitions have steps of their own.
     scale: Option<Vec<f64>>,
+    /// The loss's weights; with a torque term, each transition's row of it
+    /// (`objective::torque_rows`) and that row's width.
+    objective: Objective,
+    torque: Option<(Vec<f64>, usize)>,
 }
 
 impl HostData {
@@ -47,7 +53,16 @@ impl HostData {
             nq: ds.nq,
             m: ds.m,
             scale,
+            objective: Objective::STEP,
+            torque: None,
         }
+    }
+
+    /// The same data for a loss of `objective`'s weights, on `space`.
+    pub(super) fn with_objective(mut self, ds: &Dataset, space: &Space, o: Objective) -> Self {
+        self.objective = o;
+        self.torque = (o.torque > 0.0).then(|| (torque_rows(ds, space), ds.nq + 2 * ds.nv + ds.m));
+        self
     }
 
     /// The first `k` rows' q.
@@ -84,10 +99,38 @@ impl HostData {
         }
     }
 
-    /// Σ over the windows starting at rows `idx` of each window's loss: the model's rollout
-    /// from the first state under the recorded inputs against the recorded states, step k's
-    /// error weighted by `weights[k]`. Gradients flow through every step.
+    /// Σ over the windows starting at rows `idx` of each window's loss: the objective's
+    /// weights on the state loss and on the torque loss of the windows' transitions, step
+    /// k's weighted by `weights[k]` in both.
     fn window_loss_sum(
+        &self,
+        model: &Model,
+        idx: &[usize],
+        weights: &[f64],
+        device: &Device,
+    ) -> Tensor<1> {
+        let Objective { step, torque } = self.objective;
+        let states = (step > 0.0).then(|| self.state_loss_sum(model, idx, weights, device));
+        let torques = (self.torque.as_ref()).map(|(rows, width)| {
+            let each = weights.iter().enumerate().map(|(k, w)| {
+                let sum = model.torque_sum(Self::take(rows, *width, idx, k, device));
+                if *w == 1.0 { sum } else { sum.mul_scalar(*w) }
+            });
+            each.reduce(|a, b| a + b).expect("a window has a step")
+        });
+        match (states, torques) {
+            (Some(s), None) if step == 1.0 => s,
+            (Some(s), None) => s.mul_scalar(step),
+            (None, Some(t)) => t.mul_scalar(torque),
+            (Some(s), Some(t)) => s.mul_scalar(step) + t.mul_scalar(torque),
+            (None, None) => unreachable!("a validated objective weighs a term"),
+        }
+    }
+
+    /// Σ over the windows starting at rows `idx` of each window's state loss: the model's
+    /// rollout from the first state under the recorded inputs against the recorded states,
+    /// step k's error weighted by `weights[k]`. Gradients flow through every step.
+    fn state_loss_sum(
         &self,
         model: &Model,
         idx: &[usize],

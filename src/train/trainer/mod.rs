@@ -13,6 +13,7 @@ use std::sync::atomic::AtomicBool;
 use burn::tensor::Device;
 
 use super::adam::{Adam, AdamState};
+use super::objective::Objective;
 use super::setup::{TrainConfig, prepare};
 use super::shards;
 use super::warnings::zero_acceleration_window_loss;
@@ -62,8 +63,9 @@ pub(super) struct RunData {
     rows: usize,
     val: Option<Validation>,
     /// The zero-acceleration loss on the set and windows that pick the best epoch
-    /// (validation, else training), and the windows' steps, for the training checks.
-    baseline: (f64, usize),
+    /// (validation, else training), and the windows' steps, for the training checks; none
+    /// for a loss with a torque term, which a state's loss does not measure.
+    baseline: Option<(f64, usize)>,
     /// `fingerprint` of the training and validation sets.
     fingerprint: u64,
 }
@@ -94,13 +96,15 @@ impl RunData {
     ) -> Self {
         let (horizon, discount) = (cfg.horizon, cfg.discount);
         let windows = Windows::of(train, horizon, discount);
-        let validation = val.map(|v| Validation::new(v, (horizon, discount), model.dt));
+        let validation = val.map(|v| Validation::new(v, (horizon, discount), model, cfg.loss));
         let baseline = match &validation {
             Some(v) => baseline(&v.ds, v.horizon.as_ref().unwrap_or(&v.one_step), model),
             None => baseline(train, &windows, model),
         };
+        let step = cfg.loss.step;
+        let baseline = (cfg.loss.torque == 0.0).then_some((step * baseline.0, baseline.1));
         Self {
-            train: HostData::new(train, model.dt),
+            train: HostData::new(train, model.dt).with_objective(train, &model.space, cfg.loss),
             windows,
             rows: train.count(),
             val: validation,
@@ -362,11 +366,17 @@ struct Validation {
 }
 
 impl Validation {
-    fn new(ds: &Dataset, (horizon, discount): (usize, f64), dt: f64) -> Self {
+    fn new(
+        ds: &Dataset,
+        (horizon, discount): (usize, f64),
+        model: &ModelConfig,
+        objective: Objective,
+    ) -> Self {
         let windows = (horizon > 1).then(|| Windows::of(ds, horizon, discount));
+        let data = HostData::new(ds, model.dt).with_objective(ds, &model.space, objective);
         Self {
             ds: ds.clone(),
-            data: HostData::new(ds, dt),
+            data,
             one_step: Windows::one_step(ds.count()),
             horizon: windows.filter(|w| w.count() > 0),
         }

@@ -127,8 +127,7 @@ impl Trainer {
         training_warnings(&RunSummary {
             history: &self.state.history,
             best_loss: self.state.best_loss,
-            baseline: self.data.baseline.0,
-            steps: self.data.baseline.1,
+            baseline: self.data.baseline,
             initial_physical: self.state.initial_physical.as_ref(),
             physical: &physical,
             identified,

@@ -100,6 +100,40 @@ fn multibody_op_loss_and_gradients_equal_the_assembly() {
     }
 }
 
+/// The torque loss (inverse dynamics as one node: RNEA forward, Yᵀḡ and RNEA's derivatives
+/// backward) against the assembly's residual M q̈ + c + ∂V/∂q − F on the same models, to the
+/// same tolerances for the same reasons.
+#[test]
+fn multibody_torque_loss_and_gradients_equal_the_assembly() {
+    let dev = f64_device().autodiff();
+    let cases = [
+        ("robots/ur5", "W-B"),
+        ("arm4", "V"),
+        ("arm4", "F"),
+        ("tree+mimic", "W-B"),
+        ("tree+mimic", "V"),
+    ];
+    for (robot, name) in cases {
+        let t = urdf(robot);
+        let (n, m) = (t.n(), t.m());
+        let fused = perturb(&model(name, Some(t), n, m, 5, &dev), &dev);
+        let what = format!("{robot} {name} torque");
+        let torque = |model: &Model| {
+            let (v, g) = random_torque_loss_and_gradients(model, &dev, 12);
+            (v, g.concat())
+        };
+        let (v, g) = torque(&fused);
+        let (v_ref, g_ref) = torque(&fused.clone().assembled());
+        assert!(
+            (v - v_ref).abs() <= 1e-9 * v_ref.abs(),
+            "{what}: loss {v} vs {v_ref}"
+        );
+        let e = gradient_error(&g, &g_ref);
+        eprintln!("{what}: loss {v:e}, gradient error {e:e}");
+        assert!(e <= 1e-8, "{what}: gradient error {e:e}");
+    }
+}
+
 /// The op runs on every backend graybox selects: NdArray gives Flex's loss and gradients (the
 /// same f64 host code on both; only the tensors' round trip differs, so to rounding).
 #[test]

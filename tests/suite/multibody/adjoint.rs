@@ -122,3 +122,58 @@ fn the_reverse_pass_is_the_jets_transposed() {
         }
     }
 }
+
+/// The torque loss's node (`Data::inverse_adjoint`): ∂(ḡ·ID)/∂(q, q̇, q̈, π) equal central
+/// differences of RNEA, to 1e-6 of max(1, |ref|) with the steps and reasons of the forward
+/// dynamics' test above (ID is linear in q̈ and π, so there only rounding separates them).
+#[test]
+fn the_inverse_dynamics_adjoint_is_central_differences() {
+    use graybox::physics::multibody::adjoint::inverse_dynamics_adjoint;
+    use graybox::physics::multibody::rnea::inverse_dynamics;
+    let mut rng = Rng::new(41);
+    for name in ["robots/ur5", "robots/panda", "robots/solo12"] {
+        let (tree, fx) = fixture(name);
+        let model = tree.multibody(gravity(&fx));
+        let n = model.n;
+        let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
+        let g = random(&mut rng, n, 1.0);
+        let got = inverse_dynamics_adjoint(&model, &q, &qd, &qdd, &g);
+        let loss = |m: &multibody::Model, x: [&[f64]; 3]| -> f64 {
+            let tau = inverse_dynamics(m, x[0], x[1], x[2]);
+            tau.iter().zip(&g).map(|(a, b)| a * b).sum()
+        };
+        let h = 1e-6;
+        let along = |x: &[f64], k: usize, e: f64| {
+            let mut x = x.to_vec();
+            x[k] += e;
+            x
+        };
+        let by = |i: usize| -> Vec<f64> {
+            (0..n)
+                .map(|k| {
+                    let f = |e: f64| {
+                        let mut x = [q.clone(), qd.clone(), qdd.clone()];
+                        x[i] = along(&x[i], k, e);
+                        loss(&model, [&x[0], &x[1], &x[2]])
+                    };
+                    (f(h) - f(-h)) / (2.0 * h)
+                })
+                .collect()
+        };
+        let pi = standard_parameters(&model);
+        let fd_pi: Vec<f64> = (0..pi.len())
+            .map(|k| {
+                let hk = (1e-5 * pi[k].abs()).max(1e-8);
+                let f = |e: f64| loss(&with_parameters(&model, &along(&pi, k, e)), [&q, &qd, &qdd]);
+                (f(hk) - f(-hk)) / (2.0 * hk)
+            })
+            .collect();
+        let want = [by(0), by(1), by(2), fd_pi];
+        for (what, (got, want)) in ["q", "q̇", "q̈", "π"].iter().zip(got.iter().zip(&want)) {
+            assert!(
+                err(got, want) < 1e-6,
+                "{name} ∂/∂{what}: {got:?} vs {want:?}"
+            );
+        }
+    }
+}

@@ -137,6 +137,31 @@ impl Data<f64> {
         self.parameter_gradient(model, pi_sum);
     }
 
+    /// With the kinematics of (q, q̇) in place: the vector–Jacobian product of inverse
+    /// dynamics τ = ID(q, q̇, q̈; π) for ḡ = ∂L/∂τ (a torque loss's), without allocating.
+    /// `d_row` gets [ḡᵀ∂ID/∂q, ḡᵀ∂ID/∂q̇, M ḡ] (3n: ∂ID/∂q̈ is M, symmetric) and `pi_sum`
+    /// gains +Yᵀḡ (τ is linear in π, τ = Yπ).
+    pub fn inverse_adjoint(
+        &mut self,
+        model: &Model,
+        qdd: &[f64],
+        gbar: &[f64],
+        d_row: &mut [f64],
+        pi_sum: &mut [f64],
+    ) {
+        let n = qdd.len();
+        self.at_accelerations(model, qdd);
+        let (dq, rest) = d_row.split_at_mut(n);
+        let (dqd, dqdd) = rest.split_at_mut(n);
+        dq.fill(0.0);
+        dqd.fill(0.0);
+        self.id_gradient(model, gbar, dq, dqd);
+        for (d, row) in dqdd.iter_mut().zip(self.mass.chunks_exact(n)) {
+            *d = row.iter().zip(gbar).map(|(m, g)| m * g).sum();
+        }
+        self.parameter_gradient(model, pi_sum);
+    }
+
     /// The state at (q, q̇, q̈): kinematics, M, accelerations and forces.
     fn at_state(&mut self, model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) {
         self.kinematics(model, q, qd);
@@ -233,4 +258,24 @@ pub fn adjoint_at(model: &Model, q: &[f64], qd: &[f64], qdd: Vec<f64>, gbar: &[f
         pi: pi.into_iter().map(|p| -p).collect(),
         qdd,
     }
+}
+
+/// ∂(ḡᵀ ID(q, q̇, q̈; π)) with respect to q, q̇, q̈ and π, as the torque loss's node computes
+/// it (`Data::inverse_adjoint`).
+pub fn inverse_dynamics_adjoint(
+    model: &Model,
+    q: &[f64],
+    qd: &[f64],
+    qdd: &[f64],
+    gbar: &[f64],
+) -> [Vec<f64>; 4] {
+    let n = q.len();
+    let (mut row, mut pi) = (vec![0.0; 3 * n], vec![0.0; PER_BODY * model.bodies.len()]);
+    with_data(|data| {
+        data.kinematics(model, q, qd);
+        data.inverse_adjoint(model, qdd, gbar, &mut row, &mut pi);
+    });
+    let (dq, rest) = row.split_at(n);
+    let (dqd, dqdd) = rest.split_at(n);
+    [dq.to_vec(), dqd.to_vec(), dqdd.to_vec(), pi]
 }

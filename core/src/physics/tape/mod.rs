@@ -20,7 +20,7 @@ use std::rc::Rc;
 use std::sync::Arc;
 
 pub use mlp::{Layer, mlp};
-pub use multibody::forward_dynamics;
+pub use multibody::{forward_dynamics, inverse_dynamics};
 
 /// The precision the networks compute in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
