@@ -187,7 +187,7 @@ impl App {
         };
         let (model_name, spec) = parse_model(&req.model, template)?;
         spec.check_trainable().map_err(Error::unprocessable)?;
-        (training.loss.validate(&spec)).map_err(Error::unprocessable)?;
+        training.check_for(&spec).map_err(Error::unprocessable)?;
         let init: Vec<(String, f64)> = req.init.unwrap_or_default().into_iter().collect();
         physical_init(&spec, &init).map_err(Error::unprocessable)?;
         let job = JobSpec {

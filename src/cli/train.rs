@@ -101,6 +101,10 @@ pub struct TrainArgs {
     /// weighted, e.g. step=1,torque=0.01.
     #[arg(long, default_value = "step")]
     pub loss: String,
+    /// Start from the least-squares solution of the torque equation on the training data,
+    /// nearest --init (a URDF robot's M; docs/robots.md#least-squares).
+    #[arg(long)]
+    pub least_squares: bool,
     #[arg(long, value_enum, default_value_t = Backend::Flex)]
     pub backend: Backend,
     #[arg(long, value_enum, default_value_t = Precision::F32)]
@@ -175,6 +179,7 @@ pub(super) fn train(a: TrainArgs) -> Result<()> {
         ensemble: a.ensemble,
         bootstrap: !a.no_bootstrap,
         loss: Objective::parse(&a.loss)?,
+        least_squares: a.least_squares,
     };
     let data = load(&a.data, a.dt)?;
     let val = a.val_data.as_deref().map(|p| load(p, a.dt)).transpose()?;

@@ -7,6 +7,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::data::Dataset;
 use crate::error::{Error, Result};
+use crate::model::ModelConfig;
 use crate::model::spec::ModelSpec;
 use crate::physics::space::Space;
 
@@ -143,4 +144,29 @@ pub fn torque_rows(ds: &Dataset, space: &Space) -> Vec<f64> {
         rows.extend_from_slice(&ds.u[i * m..][..m]);
     }
     rows
+}
+
+/// The physical values a run with `least_squares` starts from: the robot's least-squares
+/// solution on `ds`'s torque rows nearest `physical` (its defaults when none are given).
+pub fn least_squares_start(
+    config: &ModelConfig,
+    physical: Option<Vec<f64>>,
+    ds: &Dataset,
+) -> Result<Vec<f64>> {
+    let (urdf, gravity) = (config.spec.multibody()).ok_or_else(|| {
+        Error::invalid(
+            "training.least_squares",
+            "needs a URDF template's mass matrix",
+        )
+    })?;
+    let start = physical.unwrap_or_else(|| urdf.params().iter().map(|p| p.default).collect());
+    let rows = torque_rows(ds, &config.space);
+    let ls = urdf.least_squares(&start, gravity, &rows, &|| false)?;
+    tracing::info!(
+        rank = ls.rank,
+        projected = ?ls.projected,
+        "least-squares start from {} transitions",
+        ds.count()
+    );
+    Ok(ls.physical)
 }

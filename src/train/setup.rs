@@ -64,6 +64,11 @@ pub struct TrainConfig {
     /// files), the torques (`"torque"`) or both with weights (docs/training.md#torque-loss).
     #[serde(skip_serializing_if = "Objective::is_step")]
     pub loss: Objective,
+    /// Start from the least-squares solution of the torque equation on the training data
+    /// (a URDF robot's M; docs/robots.md#least-squares), nearest the initial values (left out
+    /// of files when false, the default).
+    #[serde(skip_serializing_if = "is_false")]
+    pub least_squares: bool,
 }
 
 /// The most members an ensemble may have: each costs a model's training and inference. One
@@ -72,6 +77,10 @@ pub const MAX_ENSEMBLE: usize = crate::model::file::MAX_MEMBERS;
 
 fn is_true(b: &bool) -> bool {
     *b
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
 }
 
 fn is_zero(n: &usize) -> bool {
@@ -110,6 +119,7 @@ impl Default for TrainConfig {
             ensemble: 1,
             bootstrap: true,
             loss: Objective::STEP,
+            least_squares: false,
         }
     }
 }
@@ -130,6 +140,19 @@ impl TrainConfig {
         } else {
             self.horizon
         }
+    }
+
+    /// What this model must have for the loss and the start asked for.
+    pub fn check_for(&self, spec: &ModelSpec) -> Result<()> {
+        self.loss.validate(spec)?;
+        if self.least_squares && spec.multibody().is_none() {
+            return Err(Error::invalid(
+                "training.least_squares",
+                "needs a model whose mass matrix is a URDF template's (W-B, or V and F \
+                 learned on a robot's M): its torques are linear in the robot's inertias",
+            ));
+        }
+        Ok(())
     }
 
     pub fn validate(&self) -> Result<()> {
@@ -277,7 +300,7 @@ pub fn prepare(
 ) -> Result<Prepared> {
     cfg.validate()?;
     spec.validate()?;
-    cfg.loss.validate(spec)?;
+    cfg.check_for(spec)?;
     spec.check_trainable()?;
     let space = run_space(spec, cfg, (data.nq, data.nv))?;
     spec.check_dims(&space, data.m)?;

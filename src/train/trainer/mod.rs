@@ -13,7 +13,7 @@ use std::sync::atomic::AtomicBool;
 use burn::tensor::Device;
 
 use super::adam::{Adam, AdamState};
-use super::objective::Objective;
+use super::objective::{Objective, least_squares_start};
 use super::setup::{TrainConfig, prepare};
 use super::shards;
 use super::warnings::zero_acceleration_window_loss;
@@ -83,7 +83,10 @@ impl RunData {
         val: Option<&Dataset>,
         cfg: &TrainConfig,
     ) -> Result<(Start, Arc<Self>)> {
-        let (config, physical, train_ds, val_ds) = prepare(spec, init, data, val, cfg)?;
+        let (config, mut physical, train_ds, val_ds) = prepare(spec, init, data, val, cfg)?;
+        if cfg.least_squares {
+            physical = Some(least_squares_start(&config, physical, &train_ds)?);
+        }
         let run = Self::new(&train_ds, val_ds.as_ref(), cfg, &config);
         Ok(((config, physical), Arc::new(run)))
     }

@@ -4,6 +4,7 @@
 pub mod export;
 mod forces;
 pub mod frame;
+pub mod least_squares;
 mod mimic;
 mod multibody;
 pub mod parameters;

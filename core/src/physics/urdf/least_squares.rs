@@ -1,0 +1,261 @@
+//! The classic identification of a robot (docs/robots.md#least-squares): its torques are
+//! linear in the bodies' standard parameters π and the joints' damping and friction,
+//!
+//!   S u = Y(q, q̇, q̈) π + Σ_j (d_j g_j² q̇_c + f_j g_j tanh(g_j q̇_c / ε)) e_c,
+//!
+//! so the rows of a log stack into W x = b, solved in the least-squares sense. W's columns
+//! are scaled to unit norm first (mass, lever and inertia columns differ by orders), and of
+//! the minimizers the one nearest the starting values is taken (motion data determine only
+//! the base parameters: the rest of π stays where it was). The solution's bodies are then
+//! made physical (mass > 0, inertia about the centre of mass positive definite and meeting
+//! the triangle inequality) and its friction not negative, so that it can start training.
+
+use super::parameters::{PER_BODY, PER_JOINT};
+use super::template::UrdfTemplate;
+use crate::error::{Error, Result};
+use crate::physics::eigen::symmetric_eigen;
+use crate::physics::multibody::regressor::{regressor, standard_parameters};
+use crate::physics::multibody::spatial::Inertial;
+
+/// A rank below this share of the largest scaled eigenvalue is a direction the data do not
+/// determine: rounding in WᵀW of unit columns is ~1e-16 of its largest eigenvalue, squared
+/// conditioning leaves ~1e-8 of real signal resolvable.
+const RANK_TOLERANCE: f64 = 1e-12;
+
+/// A body's smallest mass and principal moment after the projection, relative to the
+/// starting body's (a massless link keeps its zero).
+const FLOOR: f64 = 1e-6;
+
+/// What the solve found.
+#[derive(Debug, Clone)]
+pub struct LeastSquares {
+    /// Physical values (the template's order), physical bodies and friction ≥ 0.
+    pub physical: Vec<f64>,
+    /// The directions of x the data determined (the regressor's rank, friction included).
+    pub rank: usize,
+    /// Bodies the projection moved (their least-squares π was not a physical body).
+    pub projected: Vec<String>,
+}
+
+impl UrdfTemplate {
+    /// The least-squares physical values for rows [q, q̇, q̈, u] (3n + m wide), starting from
+    /// and nearest to `start`; `stop` is polled every row.
+    pub fn least_squares(
+        &self,
+        start: &[f64],
+        gravity: bool,
+        rows: &[f64],
+        stop: &dyn Fn() -> bool,
+    ) -> Result<LeastSquares> {
+        let (n, nb) = (self.n(), self.nb());
+        let width = 3 * n + self.m();
+        let model = self.multibody_model(start, gravity);
+        let cols = PER_BODY * nb + PER_JOINT * nb;
+        let mut x0 = standard_parameters(&model);
+        x0.extend_from_slice(&start[PER_BODY * nb..]);
+        let (mut a, mut rhs) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
+        for row in rows.chunks_exact(width) {
+            if stop() {
+                return Err(Error::Cancelled);
+            }
+            let (q, qd, qdd) = (&row[..n], &row[n..2 * n], &row[2 * n..3 * n]);
+            let mut w = regressor(&model, q, qd, qdd);
+            self.friction_columns(qd, &mut w);
+            let b = self.input_torques(&row[3 * n..]);
+            accumulate(&w, &b, &mut a, &mut rhs);
+        }
+        let (x, rank) = nearest_minimizer(&a, &rhs, &x0);
+        Ok(self.physical_of(&x, rank, start))
+    }
+
+    /// Damping's and friction's columns, after the bodies' (their law in `forces.rs`).
+    fn friction_columns(&self, qd: &[f64], w: &mut [Vec<f64>]) {
+        let per_eps = 1.0 / self.doc.coulomb_eps;
+        let (nb, base) = (self.nb(), PER_BODY * self.nb());
+        for row in w.iter_mut() {
+            row.resize(base + PER_JOINT * nb, 0.0);
+        }
+        for (i, b) in self.tree.bodies.iter().enumerate() {
+            let (c, g) = (b.drive.coordinate, b.drive.multiplier);
+            let v = g * qd[c];
+            w[c][base + PER_JOINT * i] += g * v;
+            w[c][base + PER_JOINT * i + 1] += g * (v * per_eps).tanh();
+        }
+    }
+
+    /// S u: each actuated coordinate's input.
+    fn input_torques(&self, u: &[f64]) -> Vec<f64> {
+        let mut b = vec![0.0; self.n()];
+        for (a, &c) in self.actuated.iter().enumerate() {
+            b[c] += u[a];
+        }
+        b
+    }
+
+    /// x = [π, damping and friction] as physical values, each body made physical.
+    fn physical_of(&self, x: &[f64], rank: usize, start: &[f64]) -> LeastSquares {
+        let nb = self.nb();
+        let mut physical = Vec::with_capacity(start.len());
+        let mut projected = vec![];
+        for (i, p) in x.chunks(PER_BODY).take(nb).enumerate() {
+            let own = &start[i * PER_BODY..(i + 1) * PER_BODY];
+            let (values, moved) = physical_body(p, own);
+            if moved {
+                projected.push(self.tree.bodies[i].link.clone());
+            }
+            physical.extend(values);
+        }
+        physical.extend(x[PER_BODY * nb..].iter().map(|v| v.max(0.0)));
+        LeastSquares {
+            physical,
+            rank,
+            projected,
+        }
+    }
+}
+
+/// A += wᵀw, rhs += wᵀb for one row block.
+fn accumulate(w: &[Vec<f64>], b: &[f64], a: &mut [Vec<f64>], rhs: &mut [f64]) {
+    for (row, bi) in w.iter().zip(b) {
+        for (j, &wj) in row.iter().enumerate() {
+            if wj == 0.0 {
+                continue;
+            }
+            rhs[j] += wj * bi;
+            for (k, &wk) in row.iter().enumerate().skip(j) {
+                a[j][k] += wj * wk;
+            }
+        }
+    }
+}
+
+/// The minimizer of ‖Wx − b‖² nearest x0 in W's unit-column scaling, from the normal
+/// equations (A = WᵀW, upper triangle filled) by the eigen-decomposition of the scaled A,
+/// and the number of directions it determined.
+fn nearest_minimizer(a: &[Vec<f64>], rhs: &[f64], x0: &[f64]) -> (Vec<f64>, usize) {
+    let p = rhs.len();
+    let s: Vec<f64> = (0..p)
+        .map(|k| if a[k][k] > 0.0 { a[k][k].sqrt() } else { 1.0 })
+        .collect();
+    let scaled: Vec<Vec<f64>> = (0..p)
+        .map(|j| {
+            (0..p)
+                .map(|k| a[j.min(k)][j.max(k)] / (s[j] * s[k]))
+                .collect()
+        })
+        .collect();
+    // The residual's gradient at x0, scaled: Wᵀ(b − W x0) / s.
+    let g: Vec<f64> = (0..p)
+        .map(|j| {
+            let ax0: f64 = (0..p).map(|k| a[j.min(k)][j.max(k)] * x0[k]).sum();
+            (rhs[j] - ax0) / s[j]
+        })
+        .collect();
+    let (values, vectors) = symmetric_eigen(&scaled);
+    let top = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut dy = vec![0.0; p];
+    let mut rank = 0;
+    for (k, &l) in values.iter().enumerate() {
+        if l <= RANK_TOLERANCE * top {
+            continue;
+        }
+        rank += 1;
+        let v: Vec<f64> = (0..p).map(|i| vectors[i][k]).collect();
+        let c = v.iter().zip(&g).map(|(v, g)| v * g).sum::<f64>() / l;
+        dy.iter_mut().zip(&v).for_each(|(d, v)| *d += c * v);
+    }
+    let x = (0..p).map(|k| x0[k] + dy[k] / s[k]).collect();
+    (x, rank)
+}
+
+/// A body's physical values (m, c, Ī) from its standard parameters, made physical: a body
+/// whose mass is not above FLOOR of the start's keeps its starting values (its centre of mass,
+/// h / m, means nothing then); Ī's principal moments are at least FLOOR of the start's largest
+/// and each at most the sum of the other two. Whether anything moved.
+fn physical_body(p: &[f64], start: &[f64]) -> ([f64; PER_BODY], bool) {
+    let own: [f64; PER_BODY] = std::array::from_fn(|k| start[k]);
+    if start[0] == 0.0 && p.iter().all(|v| v.abs() < 1e-12) {
+        return (own, false);
+    }
+    if p[0] <= FLOOR * start[0].abs().max(1e-3) {
+        return (own, true);
+    }
+    let body = Inertial::of_standard(p);
+    let (c, ic) = (body.com(), body.inertia_at_com());
+    let rows: Vec<Vec<f64>> = ic.iter().map(|r| r.to_vec()).collect();
+    let (mut j, v) = symmetric_eigen(&rows);
+    let largest = [start[4], start[7], start[9]]
+        .iter()
+        .fold(0.0f64, |m, x| m.max(x.abs()));
+    let floor = FLOOR * largest.max(1e-9);
+    let mut moved = false;
+    for jk in j.iter_mut() {
+        if *jk < floor {
+            (*jk, moved) = (floor, true);
+        }
+    }
+    for k in 0..3 {
+        let others = j[(k + 1) % 3] + j[(k + 2) % 3];
+        if j[k] > others {
+            (j[k], moved) = (others, true);
+        }
+    }
+    let i = |a: usize, b: usize| match moved {
+        true => (0..3).map(|k| v[a][k] * j[k] * v[b][k]).sum::<f64>(),
+        false => ic[a][b],
+    };
+    let values = [
+        p[0],
+        c[0],
+        c[1],
+        c[2],
+        i(0, 0),
+        i(0, 1),
+        i(0, 2),
+        i(1, 1),
+        i(1, 2),
+        i(2, 2),
+    ];
+    (values, moved)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A physical body passes unchanged; one whose inertia has a negative principal moment,
+    /// or one moment above the other two's sum, comes back positive definite and within the
+    /// triangle inequality; a body the data make massless keeps its start.
+    #[test]
+    fn the_projection_makes_bodies_physical() {
+        let start = [2.0, 0.1, 0.0, 0.0, 0.3, 0.0, 0.0, 0.2, 0.0, 0.15];
+        let body =
+            |v: &[f64; PER_BODY]| crate::physics::multibody::spatial::of_physical(v).standard();
+        let (same, moved) = physical_body(&body(&start), &start);
+        assert!(!moved);
+        assert!(
+            same.iter().zip(&start).all(|(a, b)| (a - b).abs() < 1e-12),
+            "{same:?}"
+        );
+        for bad in [
+            [2.0, 0.1, 0.0, 0.0, -0.1, 0.0, 0.0, 0.2, 0.0, 0.15],
+            [2.0, 0.1, 0.0, 0.0, 0.9, 0.0, 0.0, 0.2, 0.0, 0.15],
+        ] {
+            let (p, moved) = physical_body(&body(&bad), &start);
+            assert!(moved);
+            let j = symmetric_eigen(&[
+                vec![p[4], p[5], p[6]],
+                vec![p[5], p[7], p[8]],
+                vec![p[6], p[8], p[9]],
+            ])
+            .0;
+            assert!(j.iter().all(|&x| x > 0.0), "{j:?}");
+            for k in 0..3 {
+                assert!(j[k] <= j[(k + 1) % 3] + j[(k + 2) % 3] + 1e-12, "{j:?}");
+            }
+            assert_eq!(p[0], 2.0);
+        }
+        let massless = [-0.5, 0.1, 0.0, 0.0, 0.3, 0.0, 0.0, 0.2, 0.0, 0.15];
+        assert_eq!(physical_body(&massless, &start), (start, true));
+    }
+}
