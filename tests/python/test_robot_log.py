@@ -109,3 +109,68 @@ def test_a_model_trained_on_the_log_predicts_a_held_out_run_at_another_rate(
     # loop stays within 0.01 rad (measured 9e-4) where the start's drifts by 0.1 rad.
     assert errors["trained"][0] < min(errors["start"][0] / 20, 1e-3), errors
     assert errors["trained"][1] < min(errors["start"][1] / 10, 1e-2), errors
+
+
+def midpoints(q, qdot, u, dt):
+    """Each transition's torque row as graybox reads it (docs/training.md#torque-loss): the
+    midpoint state, the mean acceleration, the held input (a dataset's trajectory has one
+    input per transition, a simulated run one per sample)."""
+    dt = np.broadcast_to(np.asarray(dt, dtype=float).reshape(-1, 1), (len(q) - 1, 1))
+    return ((q[:-1] + q[1:]) / 2, (qdot[:-1] + qdot[1:]) / 2, (qdot[1:] - qdot[:-1]) / dt,
+            u[:len(q) - 1])
+
+
+def test_least_squares_predicts_torques_as_pinocchios_regressor_does(imported, graybox_bin, arm):
+    """graybox's least-squares identification (`--least-squares`) against the classic one with
+    Pinocchio's joint-torque regressor and numpy's least squares on the same rows (the
+    imported log's transitions at their midpoints, damping and Coulomb columns beside the
+    inertias, both with damping and friction kept ≥ 0): both minimize the same residual under
+    the same bounds, so their torques at a held-out run's states agree to the solves'
+    rounding, and both are the simulator's to its integration error."""
+    import pinocchio as pin
+    from scipy.optimize import lsq_linear
+
+    tmp, data, *_ = imported
+    # The imported dataset: trajectories of samples on their own times.
+    pieces = [midpoints(*(np.array(tr[k]) for k in ("q", "qdot", "u")), np.diff(tr["t"]))
+              for tr in json.loads(Path(data).read_text())["trajectories"]]
+    rows = tuple(np.vstack([p[i] for p in pieces]) for i in range(4))
+
+    model = pin.buildModelFromUrdf(str(UR5))
+    pdata = model.createData()
+    eps = 0.01  # graybox's smoothing of Coulomb friction (the UR5 file sets none of its own)
+
+    def design(qm, vm, am):
+        blocks = []
+        for k in range(len(qm)):
+            y = pin.computeJointTorqueRegressor(model, pdata, qm[k], vm[k], am[k])
+            blocks.append(np.hstack([y, np.diag(vm[k]), np.diag(np.tanh(vm[k] / eps))]))
+        return np.vstack(blocks)
+
+    w = design(*rows[:3])
+    # Damping and friction at least 0, as graybox keeps them: bounded least squares.
+    lower = np.r_[np.full(w.shape[1] - 12, -np.inf), np.zeros(12)]
+    x = lsq_linear(w, rows[3].reshape(-1), bounds=(lower, np.inf), method="bvls",
+                   tol=1e-14).x
+
+    fitted = tmp / "ls.gbx"
+    run(graybox_bin, "train", "--data", data, "--model", "W-B", "--template", UR5,
+        "--loss", "torque", "--least-squares", "--epochs", 1, "--lr", 1e-12, "--val-fraction", 0,
+        "--precision", "f64", "--threads", 2, "--out", fitted)
+    t, hq, hv, hu = ur5_log.held_out(arm, seed=2, duration=1.0, rate=500.0)
+    qm, vm, am, um = midpoints(hq, hv, hu, float(t[1] - t[0]))
+    theirs = (design(qm, vm, am) @ x).reshape(len(qm), -1)
+    ours = graybox_native.load(fitted).inverse_dynamics(np.hstack([qm, vm]), am)["tau"]
+    scale = np.sqrt(np.mean(um ** 2))
+    gap = np.sqrt(np.mean((ours - theirs) ** 2)) / scale
+    nmse = {name: np.mean((tau - um) ** 2) / np.mean((um - um.mean(0)) ** 2)
+            for name, tau in [("graybox", ours), ("pinocchio", theirs)]}
+    print(f"graybox vs Pinocchio least squares: RMS gap {gap:.2e} of the torques' RMS; "
+          f"held-out torque NMSE {nmse}")
+    # The same minimizer of the same residual: their torques differ by rounding (graybox
+    # solves WᵀW with one refinement, scipy W itself; 1e-11 measured); 1e-5 catches any
+    # column (a sign, a friction law, a frame) or bound that differs.
+    assert gap < 1e-5, (gap, nmse)
+    # Against MuJoCo's held torques the midpoint reading errs by O(Δt²) and the log's dropped
+    # samples by more: both well below a torque's 1e-3 of its spread.
+    assert nmse["graybox"] < 1e-3 and nmse["graybox"] <= 1.01 * nmse["pinocchio"], nmse

@@ -20,7 +20,7 @@ use crate::physics::multibody::spatial::Inertial;
 /// A rank below this share of the largest scaled eigenvalue is a direction the data do not
 /// determine: rounding in WᵀW of unit columns is ~1e-16 of its largest eigenvalue, squared
 /// conditioning leaves ~1e-8 of real signal resolvable.
-const RANK_TOLERANCE: f64 = 1e-12;
+const RANK_TOLERANCE: f64 = 1e-14;
 
 /// A body's smallest mass and principal moment after the projection, relative to the
 /// starting body's (a massless link keeps its zero).
@@ -53,19 +53,45 @@ impl UrdfTemplate {
         let cols = PER_BODY * nb + PER_JOINT * nb;
         let mut x0 = standard_parameters(&model);
         x0.extend_from_slice(&start[PER_BODY * nb..]);
-        let (mut a, mut rhs) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
-        for row in rows.chunks_exact(width) {
-            if stop() {
-                return Err(Error::Cancelled);
+        // WᵀW and Wᵀ(b − W x), one pass over the rows.
+        let pass = |x: &[f64]| -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
+            let (mut a, mut g) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
+            for row in rows.chunks_exact(width) {
+                if stop() {
+                    return Err(Error::Cancelled);
+                }
+                let (q, qd, qdd) = (&row[..n], &row[n..2 * n], &row[2 * n..3 * n]);
+                let mut w = regressor(&model, q, qd, qdd);
+                self.friction_columns(qd, &mut w);
+                let mut r = self.input_torques(&row[3 * n..]);
+                for (r, w) in r.iter_mut().zip(&w) {
+                    *r -= w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>();
+                }
+                accumulate(&w, &r, &mut a, &mut g);
             }
-            let (q, qd, qdd) = (&row[..n], &row[n..2 * n], &row[2 * n..3 * n]);
-            let mut w = regressor(&model, q, qd, qdd);
-            self.friction_columns(qd, &mut w);
-            let b = self.input_torques(&row[3 * n..]);
-            accumulate(&w, &b, &mut a, &mut rhs);
+            Ok((a, g))
+        };
+        // Damping and friction are bounded below by 0: a value the solve takes below it is
+        // held there and the rest solved again (an active set, as bounded least squares
+        // does), until none is.
+        let (mut x, mut held) = (x0, vec![false; cols]);
+        let friction = PER_BODY * nb..cols;
+        loop {
+            let (a, g) = pass(&x)?;
+            let solve = Minimizer::of(&a, &held);
+            x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
+            // One refinement with the residual recomputed from the rows: the normal equations
+            // square W's conditioning, and a second pass takes back what that lost.
+            let (_, g) = pass(&x)?;
+            x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
+            let below: Vec<usize> = friction.clone().filter(|&k| x[k] < 0.0).collect();
+            if below.is_empty() {
+                return Ok(self.physical_of(&x, solve.rank, start));
+            }
+            for k in below {
+                (x[k], held[k]) = (0.0, true);
+            }
         }
-        let (x, rank) = nearest_minimizer(&a, &rhs, &x0);
-        Ok(self.physical_of(&x, rank, start))
     }
 
     /// Damping's and friction's columns, after the bodies' (their law in `forces.rs`).
@@ -105,7 +131,7 @@ impl UrdfTemplate {
             }
             physical.extend(values);
         }
-        physical.extend(x[PER_BODY * nb..].iter().map(|v| v.max(0.0)));
+        physical.extend_from_slice(&x[PER_BODY * nb..]);
         LeastSquares {
             physical,
             rank,
@@ -114,14 +140,14 @@ impl UrdfTemplate {
     }
 }
 
-/// A += wᵀw, rhs += wᵀb for one row block.
-fn accumulate(w: &[Vec<f64>], b: &[f64], a: &mut [Vec<f64>], rhs: &mut [f64]) {
-    for (row, bi) in w.iter().zip(b) {
+/// A += wᵀw (its upper triangle), g += wᵀr for one row block.
+fn accumulate(w: &[Vec<f64>], r: &[f64], a: &mut [Vec<f64>], g: &mut [f64]) {
+    for (row, ri) in w.iter().zip(r) {
         for (j, &wj) in row.iter().enumerate() {
             if wj == 0.0 {
                 continue;
             }
-            rhs[j] += wj * bi;
+            g[j] += wj * ri;
             for (k, &wk) in row.iter().enumerate().skip(j) {
                 a[j][k] += wj * wk;
             }
@@ -129,43 +155,56 @@ fn accumulate(w: &[Vec<f64>], b: &[f64], a: &mut [Vec<f64>], rhs: &mut [f64]) {
     }
 }
 
-/// The minimizer of ‖Wx − b‖² nearest x0 in W's unit-column scaling, from the normal
-/// equations (A = WᵀW, upper triangle filled) by the eigen-decomposition of the scaled A,
-/// and the number of directions it determined.
-fn nearest_minimizer(a: &[Vec<f64>], rhs: &[f64], x0: &[f64]) -> (Vec<f64>, usize) {
-    let p = rhs.len();
-    let s: Vec<f64> = (0..p)
-        .map(|k| if a[k][k] > 0.0 { a[k][k].sqrt() } else { 1.0 })
-        .collect();
-    let scaled: Vec<Vec<f64>> = (0..p)
-        .map(|j| {
-            (0..p)
-                .map(|k| a[j.min(k)][j.max(k)] / (s[j] * s[k]))
-                .collect()
-        })
-        .collect();
-    // The residual's gradient at x0, scaled: Wᵀ(b − W x0) / s.
-    let g: Vec<f64> = (0..p)
-        .map(|j| {
-            let ax0: f64 = (0..p).map(|k| a[j.min(k)][j.max(k)] * x0[k]).sum();
-            (rhs[j] - ax0) / s[j]
-        })
-        .collect();
-    let (values, vectors) = symmetric_eigen(&scaled);
-    let top = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let mut dy = vec![0.0; p];
-    let mut rank = 0;
-    for (k, &l) in values.iter().enumerate() {
-        if l <= RANK_TOLERANCE * top {
-            continue;
+/// The least-squares step of the normal equations A = WᵀW (upper triangle filled) in W's
+/// unit-column scaling, by the eigen-decomposition of the scaled A: for g = Wᵀr, the
+/// smallest step (scaled) that minimizes ‖W(x + dx) − b‖² from x with residual r, moving no
+/// `held` entry. Directions below RANK_TOLERANCE of the largest eigenvalue are left alone.
+struct Minimizer {
+    scale: Vec<f64>,
+    /// The determined directions' eigenvalues and eigenvectors (scaled).
+    directions: Vec<(f64, Vec<f64>)>,
+    rank: usize,
+}
+
+impl Minimizer {
+    fn of(a: &[Vec<f64>], held: &[bool]) -> Self {
+        let p = a.len();
+        let s: Vec<f64> = (0..p)
+            .map(|k| if a[k][k] > 0.0 { a[k][k].sqrt() } else { 1.0 })
+            .collect();
+        let scaled: Vec<Vec<f64>> = (0..p)
+            .map(|j| {
+                // A held entry's row and column are zero: its only direction has eigenvalue 0.
+                (0..p)
+                    .map(|k| match held[j] || held[k] {
+                        true => 0.0,
+                        false => a[j.min(k)][j.max(k)] / (s[j] * s[k]),
+                    })
+                    .collect()
+            })
+            .collect();
+        let (values, vectors) = symmetric_eigen(&scaled);
+        let top = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let directions: Vec<(f64, Vec<f64>)> = (values.iter().enumerate())
+            .filter(|(_, l)| **l > RANK_TOLERANCE * top)
+            .map(|(k, &l)| (l, (0..p).map(|i| vectors[i][k]).collect()))
+            .collect();
+        Self {
+            scale: s,
+            rank: directions.len(),
+            directions,
         }
-        rank += 1;
-        let v: Vec<f64> = (0..p).map(|i| vectors[i][k]).collect();
-        let c = v.iter().zip(&g).map(|(v, g)| v * g).sum::<f64>() / l;
-        dy.iter_mut().zip(&v).for_each(|(d, v)| *d += c * v);
     }
-    let x = (0..p).map(|k| x0[k] + dy[k] / s[k]).collect();
-    (x, rank)
+
+    fn step(&self, g: &[f64]) -> Vec<f64> {
+        let g: Vec<f64> = g.iter().zip(&self.scale).map(|(g, s)| g / s).collect();
+        let mut dy = vec![0.0; g.len()];
+        for (l, v) in &self.directions {
+            let c = v.iter().zip(&g).map(|(v, g)| v * g).sum::<f64>() / l;
+            dy.iter_mut().zip(v).for_each(|(d, v)| *d += c * v);
+        }
+        dy.iter().zip(&self.scale).map(|(d, s)| d / s).collect()
+    }
 }
 
 /// A body's physical values (m, c, Ī) from its standard parameters, made physical: a body
