@@ -41,6 +41,13 @@ class Reference:
 
     def __init__(self, urdf, coords, kinds):
         self.model = pin.buildModelFromXML(urdf, mimic=True)
+        # graybox's `<dynamics armature>` (Pinocchio's reader skips the attribute): the
+        # rotor inertia Pinocchio adds to M's diagonal, RNEA, ABA and the kinetic energy.
+        for j in ET.fromstring(urdf).findall("joint"):
+            dyn = j.find("dynamics")
+            if dyn is not None and dyn.get("armature") is not None:
+                idx = self.model.joints[self.model.getJointId(j.get("name"))].idx_v
+                self.model.armature[idx] = float(dyn.get("armature"))
         self.data = self.model.createData()
         self.coords, self.kinds = coords, kinds
         self.forces = joint_forces(urdf, coords)

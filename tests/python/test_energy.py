@@ -98,17 +98,25 @@ def test_the_double_pendulums_energy_and_terms_are_its_closed_form(server, clien
 
 @pytest.fixture(scope="module")
 def ur5(server):
-    urdf = ROBOTS / "ur5.urdf"
+    """UR5 with its joints' rotors: `<dynamics armature>` in its file makes each joint's
+    armature a parameter, set here to other values than the file's, which the export writes."""
+    urdf = server.tmp / "ur5-armature.urdf"
+    text = (ROBOTS / "ur5.urdf").read_text()
+    urdf.write_text(text.replace('friction="0.0"/>', 'friction="0.0" armature="0.01"/>'))
     gbx = server.tmp / "ur5-energy.gbx"
     plain = json.loads(run(server, "model", "--template", urdf, "--dt", 0.01, "--out", gbx))
     values = plain["physical_parameters"]
     changed = {k: 1.2 * v for k, v in values.items() if k.endswith(".mass") and v > 0}
     changed |= {k: 0.1 for k in values if k.endswith(".damping")}
     changed |= {k: 0.02 for k in values if k.endswith(".friction")}
+    rotors = [k for k in values if k.endswith(".armature")]
+    assert len(rotors) == 6, values
+    changed |= {k: 0.05 * (i + 1) for i, k in enumerate(rotors)}
     sets = ",".join(f"{k}={v!r}" for k, v in changed.items())
     run(server, "model", "--template", urdf, "--dt", 0.01, "--set", sets, "--out", gbx)
     export = server.tmp / "ur5-energy-export.urdf"
     run(server, "export-urdf", "--model", gbx, "--out", export)
+    assert export.read_text().count(' armature="') == 6
     info = json.loads(run(server, "inspect", "--model", gbx))
     kinds = {j.get("name"): j.get("type") for j in ET.fromstring(urdf.read_text()).findall("joint")}
     coords = info["coordinates"]

@@ -112,6 +112,13 @@ fn random(rng: &mut Rng, n: usize, scale: f64) -> Vec<f64> {
     (0..n).map(|_| scale * rng.normal()).collect()
 }
 
+/// The model with random armatures (0.01 to 0.5, of the links' own order on these robots) as
+/// parameters.
+fn with_rotors(model: multibody::Model, rng: &mut Rng) -> multibody::Model {
+    let a = (0..model.n).map(|_| rng.uniform_in(0.01, 0.5)).collect();
+    model.with_armature(a)
+}
+
 /// Every fixture robot's model, with its name.
 fn models() -> impl Iterator<Item = (&'static str, multibody::Model)> {
     FIXTURES.into_iter().map(|name| {
@@ -191,23 +198,28 @@ fn energies_equal_pinocchio() {
     }
 }
 
+/// With armatures too (every other state): ABA's pivots and CRBA's diagonal carry them.
 #[test]
 fn forward_dynamics_inverts_inverse_dynamics() {
     let mut rng = Rng::new(3);
     for name in FIXTURES {
         let (tree, fx) = fixture(name);
-        let model = tree.multibody(gravity(&fx));
+        let plain = tree.multibody(gravity(&fx));
+        let rotors = with_rotors(plain.clone(), &mut rng);
         for (s, (q, qd, _)) in states(&fx).enumerate() {
+            let model = if s % 2 == 0 { &plain } else { &rotors };
             let tau = random(&mut rng, q.len(), 10.0);
-            let qdd = forward_dynamics(&model, &q, &qd, &tau);
-            let r = residual(&model, &q, &qd, &tau, &qdd);
+            let qdd = forward_dynamics(model, &q, &qd, &tau);
+            let r = residual(model, &q, &qd, &tau, &qdd);
             assert!(r < 1e-10, "{name} {s}: residual {r}");
+            let back = inverse_dynamics(model, &q, &qd, &qdd);
+            assert!(
+                err(&back, &tau) < 1e-8,
+                "{name} {s}: ID(FD(τ)) {back:?} vs {tau:?}"
+            );
             if !model.mimic {
-                let other = crba_forward(&model, &q, &qd, &tau);
-                assert!(
-                    err(&aba(&model, &q, &qd, &tau), &other) < 1e-8,
-                    "{name} {s}"
-                );
+                let other = crba_forward(model, &q, &qd, &tau);
+                assert!(err(&aba(model, &q, &qd, &tau), &other) < 1e-8, "{name} {s}");
             }
         }
     }

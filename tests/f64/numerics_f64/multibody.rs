@@ -17,6 +17,10 @@ fn urdf(name: &str) -> Template {
         // The branching tree with a second finger that mirrors the prismatic hand, as a
         // gripper's does (Panda's is the same; its assembly is too slow for a test).
         "tree+mimic" => tree_with_mimic(),
+        // Every joint with an armature of 1 (perturbed by N(0, 0.3²) it stays positive).
+        "ur5+rotors" => std::fs::read_to_string(fixture_path("robots/ur5", "urdf"))
+            .unwrap()
+            .replace("friction=\"0.0\"/>", "friction=\"0.0\" armature=\"1.0\"/>"),
         _ => std::fs::read_to_string(fixture_path(name, "urdf")).unwrap(),
     };
     Template::Urdf(Arc::new(UrdfTemplate::from_urdf(&text).unwrap()))
@@ -72,6 +76,8 @@ fn multibody_op_loss_and_gradients_equal_the_assembly() {
     let dev = f64_device().autodiff();
     let cases = [
         ("robots/ur5", "W-B"),
+        ("ur5+rotors", "W-B"),
+        ("ur5+rotors", "F"),
         ("arm4", "V"),
         ("arm4", "F"),
         ("tree", "W-B"),
@@ -108,6 +114,7 @@ fn multibody_torque_loss_and_gradients_equal_the_assembly() {
     let dev = f64_device().autodiff();
     let cases = [
         ("robots/ur5", "W-B"),
+        ("ur5+rotors", "W-B"),
         ("arm4", "V"),
         ("arm4", "F"),
         ("tree+mimic", "W-B"),

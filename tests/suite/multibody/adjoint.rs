@@ -8,7 +8,7 @@ use graybox::physics::multibody::{self, forward_dynamics};
 use graybox::rng::Rng;
 
 use super::common::urdf::fixture;
-use super::{dual_id_partials, err, gravity, models, random, random_state};
+use super::{dual_id_partials, err, gravity, models, random, random_state, with_rotors};
 
 /// Aᵀλ for the rows of A.
 fn transposed_times(a: &[Vec<f64>], l: &[f64]) -> Vec<f64> {
@@ -18,11 +18,13 @@ fn transposed_times(a: &[Vec<f64>], l: &[f64]) -> Vec<f64> {
 }
 
 /// Yᵀλ by the O(n) recursion equals the regressor's columns times λ at random states and λ,
-/// to 1e-9 of max(1, |ref|) (the same products summed in another order).
+/// to 1e-9 of max(1, |ref|) (the same products summed in another order); with armatures, their
+/// columns too, and Y π is τ.
 #[test]
 fn the_parameter_gradient_is_the_regressor_transposed() {
     let mut rng = Rng::new(29);
     for (name, model) in models() {
+        let model = with_rotors(model, &mut rng);
         let n = model.n;
         for s in 0..3 {
             let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
@@ -31,6 +33,16 @@ fn the_parameter_gradient_is_the_regressor_transposed() {
             let want = transposed_times(&y, &l);
             let got = parameter_gradient(&model, &q, &qd, &qdd, &l);
             assert!(err(&got, &want) < 1e-9, "{name} {s}: {got:?} vs {want:?}");
+            let pi = standard_parameters(&model);
+            let y_pi: Vec<f64> = y
+                .iter()
+                .map(|r| r.iter().zip(&pi).map(|(a, b)| a * b).sum())
+                .collect();
+            let tau = multibody::inverse_dynamics(&model, &q, &qd, &qdd);
+            assert!(
+                err(&y_pi, &tau) < 1e-9,
+                "{name} {s}: Yπ {y_pi:?} vs τ {tau:?}"
+            );
         }
     }
 }
@@ -39,13 +51,13 @@ fn the_parameter_gradient_is_the_regressor_transposed() {
 /// (h = 1e-6; for π, 1e-5 of the entry and at least 1e-8: truncation ~h² times FD's third
 /// derivative and rounding ~1e-16·|FD|/h both stay below 1e-7 of the gradients here, while a
 /// missing term or sign moves them by order 1), on the UR5, the Panda (mimic finger: CRBA
-/// and Cholesky) and Solo 12 (branching).
+/// and Cholesky) and Solo 12 (branching), each with armatures (π's last n entries).
 #[test]
 fn the_adjoint_is_central_differences() {
     let mut rng = Rng::new(31);
     for name in ["robots/ur5", "robots/panda", "robots/solo12"] {
         let (tree, fx) = fixture(name);
-        let model = tree.multibody(gravity(&fx));
+        let model = with_rotors(tree.multibody(gravity(&fx)), &mut rng);
         let n = model.n;
         let (q, qd, tau, g) = (
             random(&mut rng, n, 1.5),
@@ -133,7 +145,7 @@ fn the_inverse_dynamics_adjoint_is_central_differences() {
     let mut rng = Rng::new(41);
     for name in ["robots/ur5", "robots/panda", "robots/solo12"] {
         let (tree, fx) = fixture(name);
-        let model = tree.multibody(gravity(&fx));
+        let model = with_rotors(tree.multibody(gravity(&fx)), &mut rng);
         let n = model.n;
         let [q, qd, qdd] = random_state(&mut rng, n, 1.5);
         let g = random(&mut rng, n, 1.0);

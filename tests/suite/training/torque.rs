@@ -10,8 +10,23 @@ use graybox::physics::urdf::UrdfTemplate;
 use graybox::train::objective::Objective;
 
 fn urdf_pendulum() -> Template {
+    pendulum_from(|text| text)
+}
+
+fn pendulum_from(edit: impl Fn(String) -> String) -> Template {
     let text = std::fs::read_to_string(common::urdf::fixture_path("double_pendulum", "urdf"));
-    Template::Urdf(Arc::new(UrdfTemplate::from_urdf(&text.unwrap()).unwrap()))
+    Template::Urdf(Arc::new(
+        UrdfTemplate::from_urdf(&edit(text.unwrap())).unwrap(),
+    ))
+}
+
+/// With rotors of 0.4 and 0.2 kg·m² (a quarter and an eighth of a rod's inertia about its
+/// joint).
+fn pendulum_with_rotors() -> Template {
+    pendulum_from(|text| {
+        let first = text.replacen(r#"damping="0.5"/>"#, r#"damping="0.5" armature="0.4"/>"#, 1);
+        first.replacen(r#"damping="0.5"/>"#, r#"damping="0.5" armature="0.2"/>"#, 1)
+    })
 }
 
 /// A W-B model of `t` trained on `objective` from every physical value 30 % off the truth
@@ -142,10 +157,16 @@ fn what_cannot_form_a_torque_is_refused_naming_the_loss() {
 
 /// The classic least-squares identification alone (no gradient step), from the same
 /// exact data and values 30 % off: the base parameters within 1e-3 (the midpoint reading's
-/// O(Δt²) is all that separates them), the rest of π where it started.
+/// O(Δt²) is all that separates them), the rest of π where it started; with rotors, their
+/// armatures are base parameters too (the first joint's summed with its rod's inertia about
+/// the axis, which the world-fixed axis makes one).
 #[test]
 fn least_squares_alone_gives_the_base_parameters() {
-    let t = urdf_pendulum();
+    least_squares_alone(urdf_pendulum());
+    least_squares_alone(pendulum_with_rotors());
+}
+
+fn least_squares_alone(t: Template) {
     let Template::Urdf(u) = &t else {
         unreachable!()
     };

@@ -24,7 +24,7 @@ impl<S: Scalar> Data<S> {
         for (i, body) in model.bodies.iter().enumerate().rev() {
             let s = &self.s[i];
             let u_col = apply(&self.articulated[i], s);
-            let d = dot(s, &u_col);
+            let d = dot(s, &u_col) + u_col[0].lift(model.armature_of(body.drive.coordinate));
             let u = tau[body.drive.coordinate].clone() - dot(s, &self.bias_force[i]);
             if let Some(p) = body.parent {
                 let ia = &mut self.articulated[i];

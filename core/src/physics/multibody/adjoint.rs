@@ -98,8 +98,15 @@ impl Data<f64> {
     }
 
     /// Y(q, q̇, q̈)ᵀ λ after `id_gradient` (which carried λ out to the bodies): the gradient of
-    /// λᵀ ID with respect to the standard parameters, body after body, added into `out`.
-    pub fn parameter_gradient(&self, model: &Model, out: &mut [f64]) {
+    /// λᵀ ID with respect to the standard parameters, body after body, then the armatures'
+    /// (λ∘q̈), added into `out`.
+    pub fn parameter_gradient(&self, model: &Model, lambda: &[f64], out: &mut [f64]) {
+        if model.armature.is_some() {
+            let own = &mut out[PER_BODY * model.bodies.len()..];
+            for ((o, l), a) in own.iter_mut().zip(lambda).zip(&self.qdd) {
+                *o += l * a;
+            }
+        }
         let bodies = out.chunks_exact_mut(PER_BODY).take(model.bodies.len());
         for (i, out) in bodies.enumerate() {
             let (e, p) = (&self.rot[i], &self.pos[i]);
@@ -134,7 +141,7 @@ impl Data<f64> {
         dqd.fill(0.0);
         self.id_gradient(model, lambda, dq, dqd);
         dq.iter_mut().chain(dqd.iter_mut()).for_each(|x| *x = -*x);
-        self.parameter_gradient(model, pi_sum);
+        self.parameter_gradient(model, lambda, pi_sum);
     }
 
     /// With the kinematics of (q, q̇) in place: the vector–Jacobian product of inverse
@@ -159,7 +166,7 @@ impl Data<f64> {
         for (d, row) in dqdd.iter_mut().zip(self.mass.chunks_exact(n)) {
             *d = row.iter().zip(gbar).map(|(m, g)| m * g).sum();
         }
-        self.parameter_gradient(model, pi_sum);
+        self.parameter_gradient(model, gbar, pi_sum);
     }
 
     /// The state at (q, q̇, q̈): kinematics, M, accelerations and forces.
@@ -176,7 +183,8 @@ impl Data<f64> {
     }
 }
 
-/// Y(q, q̇, q̈)ᵀ λ: the gradient of λᵀ ID with respect to the standard parameters, O(n).
+/// Y(q, q̇, q̈)ᵀ λ: the gradient of λᵀ ID with respect to the standard parameters (and the
+/// armatures), O(n).
 pub fn parameter_gradient(
     model: &Model,
     q: &[f64],
@@ -185,8 +193,8 @@ pub fn parameter_gradient(
     lambda: &[f64],
 ) -> Vec<f64> {
     id_gradient_and(model, q, qd, qdd, lambda, |data, _| {
-        let mut out = vec![0.0; PER_BODY * model.bodies.len()];
-        data.parameter_gradient(model, &mut out);
+        let mut out = vec![0.0; model.parameter_count()];
+        data.parameter_gradient(model, lambda, &mut out);
         out
     })
 }
@@ -225,7 +233,8 @@ pub struct Adjoint {
     pub q: Vec<f64>,
     pub qd: Vec<f64>,
     pub tau: Vec<f64>,
-    /// With respect to the standard parameters (`regressor`), body after body.
+    /// With respect to the standard parameters (`regressor`), body after body, then the
+    /// armatures.
     pub pi: Vec<f64>,
 }
 
@@ -246,7 +255,7 @@ pub fn forward_dynamics_adjoint(
 /// λ = M⁻¹ḡ, then the gradients, all on this thread's `Data`.
 pub fn adjoint_at(model: &Model, q: &[f64], qd: &[f64], qdd: Vec<f64>, gbar: &[f64]) -> Adjoint {
     let n = q.len();
-    let (mut row, mut pi) = (vec![0.0; 3 * n], vec![0.0; PER_BODY * model.bodies.len()]);
+    let (mut row, mut pi) = (vec![0.0; 3 * n], vec![0.0; model.parameter_count()]);
     with_data(|data| {
         data.kinematics(model, q, qd);
         data.adjoint(model, &qdd, gbar, &mut row, &mut pi);
@@ -270,7 +279,7 @@ pub fn inverse_dynamics_adjoint(
     gbar: &[f64],
 ) -> [Vec<f64>; 4] {
     let n = q.len();
-    let (mut row, mut pi) = (vec![0.0; 3 * n], vec![0.0; PER_BODY * model.bodies.len()]);
+    let (mut row, mut pi) = (vec![0.0; 3 * n], vec![0.0; model.parameter_count()]);
     with_data(|data| {
         data.kinematics(model, q, qd);
         data.inverse_adjoint(model, qdd, gbar, &mut row, &mut pi);

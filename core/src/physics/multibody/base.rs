@@ -38,7 +38,7 @@ const COEFFICIENT_ZERO: f64 = 1e-9;
 /// random states (seeded: the same robot gives the same list).
 pub fn base_parameters(model: &Model) -> Vec<BaseParameter> {
     let n = model.n;
-    let cols = super::spatial::PER_BODY * model.bodies.len();
+    let cols = model.parameter_count();
     let states = (2 * cols).div_ceil(n.max(1)) + 8;
     let mut rng = Rng::new(1990);
     let mut w: Vec<Vec<f64>> = Vec::with_capacity(states * n);

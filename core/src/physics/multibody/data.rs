@@ -291,7 +291,7 @@ impl<S: Scalar> Data<S> {
         }
         let n = self.n;
         let zero = self.a0[0].lift(0.0);
-        self.mass.fill(zero);
+        self.mass.fill(zero.clone());
         for (k, body) in model.bodies.iter().enumerate() {
             let (ck, gk) = (body.drive.coordinate, body.drive.multiplier);
             let r = apply(&self.composite[k], &self.s[k]);
@@ -309,6 +309,11 @@ impl<S: Scalar> Data<S> {
                 j = model.bodies[jj].parent;
             }
         }
+        if let Some(armature) = &model.armature {
+            for (c, &r) in armature.iter().enumerate() {
+                self.mass[c * n + c] = self.mass[c * n + c].clone() + zero.lift(r);
+            }
+        }
     }
 
     /// Sᵀ F over the coordinates into `bias`: τ = ID at the accelerations the bodies have
@@ -321,6 +326,18 @@ impl<S: Scalar> Data<S> {
             let (ck, gk) = (body.drive.coordinate, body.drive.multiplier);
             let t = dot(&self.s[k], &self.force[k]).scale(gk);
             self.bias[ck] = self.bias[ck].clone() + t;
+        }
+    }
+
+    /// With q̈ set: τ = ID(q, q̇, q̈) into `bias`, RNEA's second pass with the armatures'
+    /// a∘q̈ (which no body carries).
+    pub fn inverse_torques(&mut self, model: &Model) {
+        self.accelerations(model);
+        self.torques(model);
+        if let Some(armature) = &model.armature {
+            for ((t, &r), a) in self.bias.iter_mut().zip(armature).zip(&self.qdd) {
+                *t = t.clone() + a.scale(r);
+            }
         }
     }
 

@@ -19,6 +19,9 @@ pub fn kinetic_energy<S: Scalar>(model: &Model, q: &[S], qd: &[S]) -> S {
     for (v, h) in data.v.iter().zip(&data.momentum) {
         twice = twice + six::dot(v, h);
     }
+    for (c, v) in qd.iter().enumerate() {
+        twice = twice + v.square().scale(model.armature_of(c));
+    }
     twice.scale(0.5)
 }
 

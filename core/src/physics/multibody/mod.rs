@@ -62,6 +62,10 @@ pub struct Model {
     /// Whether some joint follows another's coordinate (then `forward_dynamics` solves with
     /// CRBA, since ABA takes one joint per coordinate).
     pub mimic: bool,
+    /// Each coordinate's armature, the rotor inertia its gear reflects (kg m² or kg), added
+    /// to M's diagonal as Pinocchio's `Model::armature` is; when present it is a parameter
+    /// like π (after it in `regressor::standard_parameters`: τ gains a∘q̈).
+    pub armature: Option<Vec<f64>>,
 }
 
 impl Model {
@@ -81,7 +85,25 @@ impl Model {
             n,
             gravity,
             mimic,
+            armature: None,
         }
+    }
+
+    /// The model with these armatures (n of them) as parameters.
+    pub fn with_armature(mut self, armature: Vec<f64>) -> Self {
+        assert_eq!(armature.len(), self.n, "one armature per coordinate");
+        self.armature = Some(armature);
+        self
+    }
+
+    /// The parameters τ is linear in: ten per body, then the armatures when it has them.
+    pub fn parameter_count(&self) -> usize {
+        PER_BODY * self.bodies.len() + self.armature.as_ref().map_or(0, Vec::len)
+    }
+
+    /// Coordinate c's armature (0 without).
+    pub fn armature_of(&self, c: usize) -> f64 {
+        self.armature.as_ref().map_or(0.0, |a| a[c])
     }
 }
 

@@ -8,30 +8,35 @@ use super::Model;
 use super::rnea::inverse_dynamics;
 use super::spatial::{Inertial, PER_BODY};
 
-/// π of the model's bodies, body after body.
+/// π of the model's bodies, body after body, then its armatures when it has them.
 pub fn standard_parameters(model: &Model) -> Vec<f64> {
-    (model.bodies.iter())
-        .flat_map(|b| b.inertia.standard())
+    let bodies = model.bodies.iter().flat_map(|b| b.inertia.standard());
+    bodies
+        .chain(model.armature.iter().flatten().copied())
         .collect()
 }
 
-/// The model with the bodies' inertias of π.
+/// The model with the bodies' inertias (and the armatures) of π.
 pub fn with_parameters(model: &Model, pi: &[f64]) -> Model {
+    assert_eq!(pi.len(), model.parameter_count(), "π's length");
     let mut m = model.clone();
     for (j, p) in m.bodies.iter_mut().zip(pi.chunks(PER_BODY)) {
         j.inertia = Inertial::of_standard(p);
     }
+    if let Some(a) = &mut m.armature {
+        a.copy_from_slice(&pi[PER_BODY * model.bodies.len()..]);
+    }
     m
 }
 
-/// Y(q, q̇, q̈), n rows of 10·bodies columns: column k is ID with π = e_k (gravity included:
-/// it acts on the inertia too). 10·bodies passes of RNEA, for identification and reports,
-/// not for a training loop.
+/// Y(q, q̇, q̈), n rows of `parameter_count` columns: column k is ID with π = e_k (gravity
+/// included: it acts on the inertia too), an armature's column its coordinate's q̈.
+/// 10·bodies passes of RNEA, for identification and reports, not for a training loop.
 pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f64>> {
-    let cols = PER_BODY * model.bodies.len();
+    let (bodies, cols) = (PER_BODY * model.bodies.len(), model.parameter_count());
     let mut unit = with_parameters(model, &vec![0.0; cols]);
     let mut y = vec![vec![0.0; cols]; q.len()];
-    for k in 0..cols {
+    for k in 0..bodies {
         let (body, p) = (k / PER_BODY, k % PER_BODY);
         let mut e = [0.0; PER_BODY];
         e[p] = 1.0;
@@ -40,6 +45,11 @@ pub fn regressor(model: &Model, q: &[f64], qd: &[f64], qdd: &[f64]) -> Vec<Vec<f
             row[k] = t;
         }
         unit.bodies[body].inertia = before;
+    }
+    if cols > bodies {
+        for (j, (row, a)) in y.iter_mut().zip(qdd).enumerate() {
+            row[bodies + j] = *a;
+        }
     }
     y
 }

@@ -19,8 +19,7 @@ pub fn inverse_dynamics<S: Scalar>(model: &Model, q: &[S], qd: &[S], qdd: &[S]) 
     with_workspace(model, q, |data| {
         data.kinematics(model, q, qd);
         data.qdd.clone_from_slice(qdd);
-        data.accelerations(model);
-        data.torques(model);
+        data.inverse_torques(model);
         data.bias.clone()
     })
 }

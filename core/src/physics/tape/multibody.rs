@@ -71,8 +71,7 @@ fn record(robot: &Model, [q, qd, third]: [&[Var]; 3], pi: &[Var], inverse: bool)
                 let out = if inverse {
                     data.kinematics(&model, q, qd);
                     data.qdd.copy_from_slice(third);
-                    data.accelerations(&model);
-                    data.torques(&model);
+                    data.inverse_torques(&model);
                     &data.bias
                 } else {
                     data.forward_dynamics(&model, q, qd, third);

@@ -212,7 +212,7 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
     // (start, end, replacement), applied from the end.
     let mut edits: Vec<(usize, usize, String)> = vec![];
     let mut links: HashMap<String, Written> = HashMap::new();
-    let mut joints: HashMap<String, (f64, f64)> = HashMap::new();
+    let mut joints: HashMap<String, ((f64, f64), Option<f64>)> = HashMap::new();
     for (b, body) in t.tree.bodies.iter().enumerate() {
         let identified = t.link_inertial(physical, b);
         // What the reader takes (`tree::link_inertial`): a physical body, or one only just not.
@@ -281,10 +281,14 @@ pub fn export(t: &UrdfTemplate, physical: &[f64]) -> Result<String> {
             }
         }
         let (damping, friction) = t.joint_dynamics(physical, b);
-        joints.insert(body.joint.clone(), (damping, friction));
+        let armature = (body.mimic.is_none())
+            .then(|| t.armature(physical).get(body.drive.coordinate).copied())
+            .flatten();
+        joints.insert(body.joint.clone(), ((damping, friction), armature));
         let joint = top("joint", &body.joint)
             .ok_or_else(|| Error::corrupt("urdf", format!("no joint '{}'", body.joint)))?;
-        let dynamics = format!("<dynamics damping=\"{damping}\" friction=\"{friction}\"/>");
+        let rotor = armature.map_or(String::new(), |a| format!(" armature=\"{a}\""));
+        let dynamics = format!("<dynamics damping=\"{damping}\" friction=\"{friction}\"{rotor}/>");
         let j = &all[joint];
         let close = j
             .close
@@ -323,7 +327,7 @@ fn check_read_back(
     t: &UrdfTemplate,
     out: &str,
     links: &HashMap<String, Written>,
-    joints: &HashMap<String, (f64, f64)>,
+    joints: &HashMap<String, ((f64, f64), Option<f64>)>,
 ) -> Result<()> {
     let wrong = |why: String| {
         Error::Internal(format!(
@@ -369,9 +373,13 @@ fn check_read_back(
         }
     }
     for (was, joint) in before.joints.iter().zip(&after.joints) {
-        let got = joint.dynamics;
-        let want = joints.get(&joint.name).copied().or(was.dynamics);
-        let bits = |d: Option<(f64, f64)>| d.map(|(a, b)| (a.to_bits(), b.to_bits()));
+        let got = (joint.dynamics, joint.armature);
+        let want =
+            (joints.get(&joint.name)).map_or((was.dynamics, was.armature), |&(d, a)| (Some(d), a));
+        let bits = |(d, a): JointValues| {
+            let d = d.map(|(a, b)| (a.to_bits(), b.to_bits()));
+            (d, a.map(f64::to_bits))
+        };
         if bits(got) != bits(want) {
             return Err(wrong(format!(
                 "joint '{}' reads back with other values",
@@ -381,6 +389,9 @@ fn check_read_back(
     }
     Ok(())
 }
+
+/// A joint's `<dynamics>` (damping, friction) and armature as read.
+type JointValues = (Option<(f64, f64)>, Option<f64>);
 
 /// A link's `<inertial>` as [`Written::values`] orders it (zeros without one).
 fn read_values(link: &read::Link) -> [f64; 13] {

@@ -57,7 +57,7 @@ fn a_document_that_does_not_read_back_is_refused() {
         check_read_back(&t, doc, &links, &HashMap::new()),
         "link 'l'",
     );
-    let joints = HashMap::from([("j".to_string(), (0.5, 0.0))]);
+    let joints = HashMap::from([("j".to_string(), ((0.5, 0.0), None))]);
     refused(check_read_back(&t, &good, &none, &joints), "joint 'j'");
     let broken = good.replace("</robot>", "</link></robot>");
     refused(

@@ -1,5 +1,6 @@
 //! The classic identification of a robot (docs/robots.md#least-squares): its torques are
-//! linear in the bodies' standard parameters π and the joints' damping and friction,
+//! linear in the bodies' standard parameters π (with the armatures, when it has them) and the
+//! joints' damping and friction,
 //!
 //!   S u = Y(q, q̇, q̈) π + Σ_j (d_j g_j² q̇_c + f_j g_j tanh(g_j q̇_c / ε)) e_c,
 //!
@@ -15,7 +16,7 @@ use super::template::UrdfTemplate;
 use crate::error::{Error, Result};
 use crate::physics::eigen::symmetric_eigen;
 use crate::physics::multibody::regressor::{regressor, standard_parameters};
-use crate::physics::multibody::spatial::Inertial;
+use crate::physics::multibody::spatial::{Inertial, physical_values};
 
 /// A rank below this share of the largest scaled eigenvalue is a direction the data do not
 /// determine: rounding in WᵀW of unit columns is ~1e-16 of its largest eigenvalue, squared
@@ -50,9 +51,9 @@ impl UrdfTemplate {
         let (n, nb) = (self.n(), self.nb());
         let width = 3 * n + self.m();
         let model = self.multibody_model(start, gravity);
-        let cols = PER_BODY * nb + PER_JOINT * nb;
+        let cols = model.parameter_count() + PER_JOINT * nb;
         let mut x0 = standard_parameters(&model);
-        x0.extend_from_slice(&start[PER_BODY * nb..]);
+        x0.extend_from_slice(&start[PER_BODY * nb..][..PER_JOINT * nb]);
         // WᵀW and Wᵀ(b − W x), one pass over the rows.
         let pass = |x: &[f64]| -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
             let (mut a, mut g) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
@@ -62,7 +63,7 @@ impl UrdfTemplate {
                 }
                 let (q, qd, qdd) = (&row[..n], &row[n..2 * n], &row[2 * n..3 * n]);
                 let mut w = regressor(&model, q, qd, qdd);
-                self.friction_columns(qd, &mut w);
+                self.friction_columns(model.parameter_count(), qd, &mut w);
                 let mut r = self.input_torques(&row[3 * n..]);
                 for (r, w) in r.iter_mut().zip(&w) {
                     *r -= w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>();
@@ -71,9 +72,9 @@ impl UrdfTemplate {
             }
             Ok((a, g))
         };
-        // Damping and friction are bounded below by 0: a value the solve takes below it is
-        // held there and the rest solved again (an active set, as bounded least squares
-        // does), until none is.
+        // Armature, damping and friction are bounded below by 0: a value the solve takes
+        // below it is held there and the rest solved again (an active set, as bounded least
+        // squares does), until none is.
         let (mut x, mut held) = (x0, vec![false; cols]);
         let friction = PER_BODY * nb..cols;
         loop {
@@ -94,10 +95,11 @@ impl UrdfTemplate {
         }
     }
 
-    /// Damping's and friction's columns, after the bodies' (their law in `forces.rs`).
-    fn friction_columns(&self, qd: &[f64], w: &mut [Vec<f64>]) {
+    /// Damping's and friction's columns, after the regressor's `base` (their law in
+    /// `forces.rs`).
+    fn friction_columns(&self, base: usize, qd: &[f64], w: &mut [Vec<f64>]) {
         let per_eps = 1.0 / self.doc.coulomb_eps;
-        let (nb, base) = (self.nb(), PER_BODY * self.nb());
+        let nb = self.nb();
         for row in w.iter_mut() {
             row.resize(base + PER_JOINT * nb, 0.0);
         }
@@ -118,7 +120,8 @@ impl UrdfTemplate {
         b
     }
 
-    /// x = [π, damping and friction] as physical values, each body made physical.
+    /// x = [π, armatures, damping and friction] as physical values (bodies, damping and
+    /// friction, armatures), each body made physical.
     fn physical_of(&self, x: &[f64], rank: usize, start: &[f64]) -> LeastSquares {
         let nb = self.nb();
         let mut physical = Vec::with_capacity(start.len());
@@ -131,7 +134,10 @@ impl UrdfTemplate {
             }
             physical.extend(values);
         }
-        physical.extend_from_slice(&x[PER_BODY * nb..]);
+        let armatures = self.armature(start).len();
+        let (armature, joints) = x[PER_BODY * nb..].split_at(armatures);
+        physical.extend_from_slice(joints);
+        physical.extend_from_slice(armature);
         LeastSquares {
             physical,
             rank,
@@ -220,7 +226,7 @@ fn physical_body(p: &[f64], start: &[f64]) -> ([f64; PER_BODY], bool) {
         return (own, true);
     }
     let body = Inertial::of_standard(p);
-    let (c, ic) = (body.com(), body.inertia_at_com());
+    let (c, mut ic) = (body.com(), body.inertia_at_com());
     let rows: Vec<Vec<f64>> = ic.iter().map(|r| r.to_vec()).collect();
     let (mut j, v) = symmetric_eigen(&rows);
     let largest = [start[4], start[7], start[9]]
@@ -239,23 +245,12 @@ fn physical_body(p: &[f64], start: &[f64]) -> ([f64; PER_BODY], bool) {
             (j[k], moved) = (others, true);
         }
     }
-    let i = |a: usize, b: usize| match moved {
-        true => (0..3).map(|k| v[a][k] * j[k] * v[b][k]).sum::<f64>(),
-        false => ic[a][b],
-    };
-    let values = [
-        p[0],
-        c[0],
-        c[1],
-        c[2],
-        i(0, 0),
-        i(0, 1),
-        i(0, 2),
-        i(1, 1),
-        i(1, 2),
-        i(2, 2),
-    ];
-    (values, moved)
+    if moved {
+        ic = std::array::from_fn(|a| {
+            std::array::from_fn(|b| (0..3).map(|k| v[a][k] * j[k] * v[b][k]).sum::<f64>())
+        });
+    }
+    (physical_values(p[0], c, &ic), moved)
 }
 
 #[cfg(test)]

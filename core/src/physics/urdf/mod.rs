@@ -1,6 +1,7 @@
 //! Robots from URDF (docs/robots.md#urdf-robots): the rigid-body tree's M(q) and V(q) with trainable,
 //! physically consistent inertial parameters.
 
+mod base;
 pub mod export;
 mod forces;
 pub mod frame;

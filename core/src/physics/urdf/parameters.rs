@@ -1,6 +1,7 @@
 //! A URDF template's parameters (docs/robots.md#physically-consistent-inertia): a body's ten
 //! physical values and a joint's two, named after the link and joint (the conversions between
-//! a body's forms are `multibody::spatial`'s).
+//! a body's forms are `multibody::spatial`'s), then each coordinate's armature when the robot
+//! has them (docs/robots.md#armature): last, so a robot without keeps its layout.
 
 use std::borrow::Cow;
 
@@ -16,20 +17,14 @@ pub(super) const BODY_FIELDS: [&str; PER_BODY] = [
     "mass", "com_x", "com_y", "com_z", "ixx", "ixy", "ixz", "iyy", "iyz", "izz",
 ];
 
-pub(super) fn params_of(tree: &Tree) -> Vec<ParamInfo> {
+pub(super) fn params_of(tree: &Tree, armature: bool) -> Vec<ParamInfo> {
     use Part::{Forces, Mass, Potential};
     const MV: &[Part] = &[Mass, Potential];
     const M: &[Part] = &[Mass];
     const F: &[Part] = &[Forces];
     let mut out = vec![];
     for b in &tree.bodies {
-        let i = &b.inertial;
-        let c = i.com();
-        let ic = i.inertia_at_com();
-        let values = [
-            i.mass, c[0], c[1], c[2], ic[0][0], ic[0][1], ic[0][2], ic[1][1], ic[1][2], ic[2][2],
-        ];
-        for (k, (field, v)) in BODY_FIELDS.iter().zip(values).enumerate() {
+        for (k, (field, v)) in BODY_FIELDS.iter().zip(b.inertial.physical()).enumerate() {
             out.push(ParamInfo {
                 name: Cow::Owned(format!("{}.{field}", b.link)),
                 default: v,
@@ -51,6 +46,20 @@ pub(super) fn params_of(tree: &Tree) -> Vec<ParamInfo> {
                 min: Some(0.0),
                 fixed: false,
                 used_by: Cow::Borrowed(F),
+            });
+        }
+    }
+    if armature {
+        for &b in &tree.coordinates {
+            let b = &tree.bodies[b];
+            out.push(ParamInfo {
+                name: Cow::Owned(format!("{}.armature", b.joint)),
+                default: b.armature.unwrap_or(0.0),
+                positive: false,
+                // As damping: a rotor that is not there starts at exactly 0.
+                min: Some(0.0),
+                fixed: false,
+                used_by: Cow::Borrowed(M),
             });
         }
     }

@@ -67,6 +67,8 @@ pub struct Joint {
     pub axis: [f64; 3],
     /// `<dynamics damping friction>`; None when absent.
     pub dynamics: Option<(f64, f64)>,
+    /// `<dynamics armature>`, graybox's (docs/robots.md#armature); None when absent.
+    pub armature: Option<f64>,
     pub mimic: Option<Mimic>,
     /// `<limit effort>` (N·m or N); None when absent.
     pub effort: Option<f64>,
@@ -307,6 +309,7 @@ fn start_joint(tag: &Tag, line: usize) -> Result<Partial> {
             child: String::new(),
             axis: [1.0, 0.0, 0.0],
             dynamics: None,
+            armature: None,
             mimic: None,
             effort: None,
         },
@@ -342,6 +345,9 @@ fn joint_part(p: &mut Partial, tag: &Tag, name: &[u8]) -> Result<()> {
                 tag.number("damping", Some(0.0))?,
                 tag.number("friction", Some(0.0))?,
             ));
+            if tag.text("armature")?.is_some() {
+                j.armature = Some(tag.number("armature", None)?);
+            }
         }
         // Only the effort: a planner's input bounds (`UrdfTemplate::effort_limits`).
         b"limit" if tag.text("effort")?.is_some() => j.effort = Some(tag.number("effort", None)?),

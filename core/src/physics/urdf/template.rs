@@ -4,12 +4,13 @@
 //! Three forms of the same values:
 //! - physical (what `init`, `--set`, reports and the export use, `params()` order): per body
 //!   `<link>.mass`, `.com_x|y|z`, `.ixx|ixy|ixz|iyy|iyz|izz` (about the centre of mass,
-//!   link-frame axes); per joint `<joint>.damping`, `.friction`. The template's equations
-//!   take these.
+//!   link-frame axes); per joint `<joint>.damping`, `.friction`; then, when the robot has
+//!   them, per coordinate `<joint>.armature` (docs/robots.md#armature). The template's
+//!   equations take these.
 //! - raw (what the optimiser moves): per body θ of the log-Cholesky pseudo-inertia
 //!   (`inertia.rs`), ordered so that raw index k feeds physical index k's part (α ↔ mass,
-//!   t ↔ centre of mass, the factor's d and s ↔ the six moments); per joint d and f as they
-//!   are. Every raw vector is a physical body.
+//!   t ↔ centre of mass, the factor's d and s ↔ the six moments); per joint d and f (and the
+//!   armatures) as they are. Every raw vector is a physical body.
 
 use serde::{Deserialize, Serialize};
 
@@ -18,8 +19,7 @@ use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::names::name_problem;
 use crate::physics::multibody::spatial::{
-    STANDARD_NAMES, V3, body_of_physical, of_physical, physical_of_raw, raw_order,
-    standard_of_physical,
+    V3, body_of_physical, of_physical, physical_of_raw, raw_order, standard_of_physical,
 };
 use crate::physics::multibody::{self, Inertial, crba_with, potential_energy_of};
 use crate::physics::params::{ParamInfo, physical_problem};
@@ -53,6 +53,11 @@ pub struct UrdfDoc {
         skip_serializing_if = "is_default_eps"
     )]
     pub coulomb_eps: f64,
+    /// Whether each coordinate has a trainable armature (rotor inertia reflected through its
+    /// gear, on M's diagonal): set here, or by any joint's `<dynamics armature>` in the file
+    /// (then set in the stored document). Absent: none, as before the option.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub armature: bool,
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -126,6 +131,7 @@ impl UrdfTemplate {
                 actuated: None,
                 periodic: vec![],
                 coulomb_eps: COULOMB_EPS,
+                armature: false,
             },
             max_dof,
         )
@@ -150,6 +156,7 @@ impl UrdfTemplate {
         // The robot's name, when it is taken, passed the same rule in `Tree::parse`.
         let tree = Tree::parse(&doc.urdf, max_dof)?;
         doc.coulomb_eps = super::settings::coulomb_eps(doc.coulomb_eps, &tree)?;
+        doc.armature |= tree.bodies.iter().any(|b| b.armature.is_some());
         if doc.name.trim().is_empty() {
             doc.name = tree.robot.clone();
         }
@@ -228,7 +235,8 @@ impl UrdfTemplate {
         // A negative damping or friction gives the robot energy (and Pinocchio's reader
         // refuses a negative friction): refused, not clamped, which would be another robot.
         for b in &tree.bodies {
-            for (what, v) in [("damping", b.damping), ("friction", b.friction)] {
+            let armature = ("armature", b.armature.unwrap_or(0.0));
+            for (what, v) in [("damping", b.damping), ("friction", b.friction), armature] {
                 if v < 0.0 {
                     return Err(bad(
                         "urdf",
@@ -240,7 +248,7 @@ impl UrdfTemplate {
                 }
             }
         }
-        let params = params_of(&tree);
+        let params = params_of(&tree, doc.armature);
         let robot = tree.multibody(doc.gravity);
         Ok(Self {
             doc,
@@ -338,7 +346,24 @@ impl UrdfTemplate {
         let bodies: Vec<_> = (p.chunks(PER_BODY).take(self.nb()))
             .map(body_of_physical)
             .collect();
-        crba_with(&self.robot, q, &bodies)
+        let mut m = crba_with(&self.robot, q, &bodies);
+        for (c, a) in self.armature(p).iter().enumerate() {
+            m[c][c] = m[c][c].clone() + a.clone();
+        }
+        m
+    }
+
+    /// Where the armatures start among the physical values (after the joints' pairs).
+    fn armature_start(&self) -> usize {
+        (PER_BODY + PER_JOINT) * self.nb()
+    }
+
+    /// The armatures of physical values, one per coordinate (none when the robot has none).
+    pub fn armature<'p, S>(&self, p: &'p [S]) -> &'p [S] {
+        match self.doc.armature {
+            true => &p[self.armature_start()..][..self.n()],
+            false => &[],
+        }
     }
 
     /// V(q) at physical values over any scalar: the multibody model's potential energy with
@@ -358,51 +383,19 @@ impl UrdfTemplate {
             .map(|b| self.link_inertial(physical, b))
             .collect();
         let g = if gravity { self.doc.gravity } else { [0.0; 3] };
-        self.tree.multibody_with(&bodies, g)
-    }
-
-    /// The base parameters at these physical values (docs/robots.md#base-parameters): each a
-    /// combination of the standard parameters `<link>.mass`, `<link>.mx|my|mz` (m c) and
-    /// `<link>.Ixx|Ixy|Ixz|Iyy|Iyz|Izz` (about the link frame's origin), named by its formula,
-    /// with its value. `gravity`: whether V is the template's (else the data sees no weight).
-    /// Empty for a robot of over `BASE_PARAMETERS_MAX_BODIES` moving bodies.
-    pub fn base_parameters(&self, physical: &[f64], gravity: bool) -> Vec<(String, f64)> {
-        use multibody::regressor::standard_parameters;
-        if self.nb() > BASE_PARAMETERS_MAX_BODIES {
-            return vec![];
+        let model = self.tree.multibody_with(&bodies, g);
+        match self.doc.armature {
+            true => model.with_armature(self.armature(physical).to_vec()),
+            false => model,
         }
-        let model = self.multibody_model(physical, gravity);
-        let pi = standard_parameters(&model);
-        let name = |k: usize| {
-            let link = &self.tree.bodies[k / PER_BODY].link;
-            format!("{link}.{}", STANDARD_NAMES[k % PER_BODY])
-        };
-        multibody::base::base_parameters(&model)
-            .into_iter()
-            .map(|b| {
-                let mut text = String::new();
-                for &(k, c) in &b.terms {
-                    // Six significant digits: link lengths and their squares, not rounding.
-                    let c: f64 = format!("{c:.5e}").parse().expect("a number");
-                    let sign = if c < 0.0 { " − " } else { " + " };
-                    if !text.is_empty() || c < 0.0 {
-                        text.push_str(if text.is_empty() { "−" } else { sign });
-                    }
-                    if c.abs() != 1.0 {
-                        text.push_str(&format!("{}·", c.abs()));
-                    }
-                    text.push_str(&name(k));
-                }
-                (text, b.value(&pi))
-            })
-            .collect()
     }
 
-    /// π, every body's standard parameters (`multibody::regressor`'s order), from physical
-    /// values (any scalar: the tape's values in training).
+    /// π, every body's standard parameters then the armatures (`multibody::regressor`'s
+    /// order), from physical values (any scalar: the tape's values in training).
     pub fn standard_parameters<S: Scalar>(&self, physical: &[S]) -> Vec<S> {
         (physical.chunks(PER_BODY).take(self.nb()))
             .flat_map(standard_of_physical)
+            .chain(self.armature(physical).iter().cloned())
             .collect()
     }
 

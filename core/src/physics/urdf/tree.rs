@@ -48,6 +48,8 @@ pub struct Body {
     /// URDF `<dynamics damping friction>` (0 when absent).
     pub damping: f64,
     pub friction: f64,
+    /// `<dynamics armature>` (graybox's; a mimic joint has none of its own).
+    pub armature: Option<f64>,
     /// The joint it mimics, as the URDF says.
     pub mimic: Option<Mimic>,
     pub drive: Drive,
@@ -366,6 +368,15 @@ fn movable_body(j: &read::Joint, parent: Option<usize>, at: Frame) -> Result<Bod
     let joint = format!("{label}:");
     within(&joint, "<dynamics> damping", damping)?;
     within(&joint, "<dynamics> friction", friction)?;
+    if let Some(a) = j.armature {
+        within(&joint, "<dynamics> armature", a)?;
+        if j.mimic.is_some() {
+            return Err(bad(format!(
+                "{joint} a mimic joint has no armature of its own: give the rotor's on the \
+                 joint it follows"
+            )));
+        }
+    }
     if let Some(e) = j.effort.filter(|e| !(e.is_finite() && *e >= 0.0)) {
         return Err(bad(format!(
             "{joint} <limit> effort must be a finite value ≥ 0, got {e}"
@@ -388,6 +399,7 @@ fn movable_body(j: &read::Joint, parent: Option<usize>, at: Frame) -> Result<Bod
         fixed: vec![],
         damping,
         friction,
+        armature: j.armature,
         mimic: j.mimic.clone(),
         drive: Drive {
             coordinate: 0,

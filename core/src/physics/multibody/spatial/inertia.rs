@@ -180,6 +180,21 @@ impl Inertial {
     }
 }
 
+impl Inertial {
+    /// The ten physical values (m, c, Ī about c: xx, xy, xz, yy, yz, zz), `of_physical`'s
+    /// inverse.
+    pub fn physical(&self) -> [f64; PER_BODY] {
+        physical_values(self.mass, self.com(), &self.inertia_at_com())
+    }
+}
+
+/// The ten physical values of a mass, a centre of mass and an inertia about it.
+pub fn physical_values(mass: f64, c: [f64; 3], ic: &[[f64; 3]; 3]) -> [f64; PER_BODY] {
+    [
+        mass, c[0], c[1], c[2], ic[0][0], ic[0][1], ic[0][2], ic[1][1], ic[1][2], ic[2][2],
+    ]
+}
+
 /// A body of physical values (m, c, Ī about c).
 pub fn of_physical(v: &[f64]) -> Inertial {
     let ic = [[v[4], v[5], v[6]], [v[5], v[7], v[8]], [v[6], v[8], v[9]]];

@@ -10,7 +10,8 @@ mod raw;
 pub mod six;
 
 pub use inertia::{
-    Inertial, PER_BODY, STANDARD_NAMES, body_of_physical, of_physical, standard_of_physical,
+    Inertial, PER_BODY, STANDARD_NAMES, body_of_physical, of_physical, physical_values,
+    standard_of_physical,
 };
 pub use raw::{MIN_MASS, MIN_SPREAD, body_inertia, physical_of_raw, raw_order};
 
