@@ -6,8 +6,8 @@ use std::sync::Arc;
 use graybox::physics::templates::Template;
 use graybox::physics::urdf::UrdfTemplate;
 
-#[path = "urdf_files/armature.rs"]
-mod armature;
+#[path = "urdf_files/actuators.rs"]
+mod actuators;
 #[path = "urdf_files/bounds.rs"]
 mod bounds;
 #[path = "urdf_files/coulomb.rs"]

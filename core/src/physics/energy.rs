@@ -131,7 +131,11 @@ impl<'a, P> Structure<'a, P> {
         let (t, a) = (self.template(), self.arena);
         let p = self.physical(&x.q()[0]);
         let idle: AVec<S> = x.u().iter().map(|u| u.lift(0.0)).collect_in(a);
-        let unforced = t.forces_in(a, &p, x.q(), x.qd(), &idle);
+        // A robot's actuators' offsets are theirs, not the joints' friction.
+        let unforced = match t {
+            Template::Urdf(r) => r.passive_forces_in(a, &p, x.qd()),
+            _ => t.forces_in(a, &p, x.q(), x.qd(), &idle),
+        };
         let all = t.forces_in(a, &p, x.q(), x.qd(), x.u());
         let input = all.into_iter().zip(&unforced).map(|(f, r)| f - r.clone());
         let (name, dissipation) = match t {

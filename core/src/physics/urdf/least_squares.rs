@@ -51,9 +51,12 @@ impl UrdfTemplate {
         let (n, nb) = (self.n(), self.nb());
         let width = 3 * n + self.m();
         let model = self.multibody_model(start, gravity);
-        let cols = model.parameter_count() + PER_JOINT * nb;
+        let joints = model.parameter_count() + PER_JOINT * nb;
+        let cols = joints + self.effort_offset(start).len();
         let mut x0 = standard_parameters(&model);
         x0.extend_from_slice(&start[PER_BODY * nb..][..PER_JOINT * nb]);
+        x0.extend_from_slice(self.effort_offset(start));
+        let gains = self.effort_gain(start);
         // WᵀW and Wᵀ(b − W x), one pass over the rows.
         let pass = |x: &[f64]| -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
             let (mut a, mut g) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
@@ -63,8 +66,8 @@ impl UrdfTemplate {
                 }
                 let (q, qd, qdd) = (&row[..n], &row[n..2 * n], &row[2 * n..3 * n]);
                 let mut w = regressor(&model, q, qd, qdd);
-                self.friction_columns(model.parameter_count(), qd, &mut w);
-                let mut r = self.input_torques(&row[3 * n..]);
+                self.joint_columns(model.parameter_count(), qd, &mut w);
+                let mut r = self.input_torques(&row[3 * n..], gains);
                 for (r, w) in r.iter_mut().zip(&w) {
                     *r -= w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>();
                 }
@@ -76,7 +79,7 @@ impl UrdfTemplate {
         // below it is held there and the rest solved again (an active set, as bounded least
         // squares does), until none is.
         let (mut x, mut held) = (x0, vec![false; cols]);
-        let friction = PER_BODY * nb..cols;
+        let friction = PER_BODY * nb..joints;
         loop {
             let (a, g) = pass(&x)?;
             let solve = Minimizer::of(&a, &held);
@@ -95,13 +98,17 @@ impl UrdfTemplate {
         }
     }
 
-    /// Damping's and friction's columns, after the regressor's `base` (their law in
-    /// `forces.rs`).
-    fn friction_columns(&self, base: usize, qd: &[f64], w: &mut [Vec<f64>]) {
+    /// Damping's and friction's columns after the regressor's `base`, then the effort
+    /// offsets' (their law in `forces.rs`: an offset is a force the input side gives).
+    fn joint_columns(&self, base: usize, qd: &[f64], w: &mut [Vec<f64>]) {
         let per_eps = 1.0 / self.doc.coulomb_eps;
         let nb = self.nb();
+        let offsets = if self.doc.effort_offset { self.m() } else { 0 };
         for row in w.iter_mut() {
-            row.resize(base + PER_JOINT * nb, 0.0);
+            row.resize(base + PER_JOINT * nb + offsets, 0.0);
+        }
+        for (k, &c) in self.actuated.iter().enumerate().take(offsets) {
+            w[c][base + PER_JOINT * nb + k] = -1.0;
         }
         for (i, b) in self.tree.bodies.iter().enumerate() {
             let (c, g) = (b.drive.coordinate, b.drive.multiplier);
@@ -111,17 +118,18 @@ impl UrdfTemplate {
         }
     }
 
-    /// S u: each actuated coordinate's input.
-    fn input_torques(&self, u: &[f64]) -> Vec<f64> {
+    /// S (g∘u): each actuated coordinate's input at its gain (1 without gains). The gains
+    /// stay at their start: with them free every parameter scales with them, and zero fits.
+    fn input_torques(&self, u: &[f64], gains: &[f64]) -> Vec<f64> {
         let mut b = vec![0.0; self.n()];
         for (a, &c) in self.actuated.iter().enumerate() {
-            b[c] += u[a];
+            b[c] += gains.get(a).unwrap_or(&1.0) * u[a];
         }
         b
     }
 
-    /// x = [π, armatures, damping and friction] as physical values (bodies, damping and
-    /// friction, armatures), each body made physical.
+    /// x = [π, armatures, damping and friction, offsets] as physical values (bodies, damping
+    /// and friction, armatures, gains as they started, offsets), each body made physical.
     fn physical_of(&self, x: &[f64], rank: usize, start: &[f64]) -> LeastSquares {
         let nb = self.nb();
         let mut physical = Vec::with_capacity(start.len());
@@ -135,9 +143,12 @@ impl UrdfTemplate {
             physical.extend(values);
         }
         let armatures = self.armature(start).len();
-        let (armature, joints) = x[PER_BODY * nb..].split_at(armatures);
+        let (armature, rest) = x[PER_BODY * nb..].split_at(armatures);
+        let (joints, offsets) = rest.split_at(PER_JOINT * nb);
         physical.extend_from_slice(joints);
         physical.extend_from_slice(armature);
+        physical.extend_from_slice(self.effort_gain(start));
+        physical.extend_from_slice(offsets);
         LeastSquares {
             physical,
             rank,

@@ -1,7 +1,8 @@
 //! A URDF template's parameters (docs/robots.md#physically-consistent-inertia): a body's ten
 //! physical values and a joint's two, named after the link and joint (the conversions between
-//! a body's forms are `multibody::spatial`'s), then each coordinate's armature when the robot
-//! has them (docs/robots.md#armature): last, so a robot without keeps its layout.
+//! a body's forms are `multibody::spatial`'s), then the optional groups a robot may ask for,
+//! each coordinate's armature (docs/robots.md#armature) and each input's effort gain and
+//! offset: last, so a robot without keeps its layout.
 
 use std::borrow::Cow;
 
@@ -17,7 +18,16 @@ pub(super) const BODY_FIELDS: [&str; PER_BODY] = [
     "mass", "com_x", "com_y", "com_z", "ixx", "ixy", "ixz", "iyy", "iyz", "izz",
 ];
 
-pub(super) fn params_of(tree: &Tree, armature: bool) -> Vec<ParamInfo> {
+/// Which optional groups a robot's parameters have.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Groups {
+    pub armature: bool,
+    pub effort_gain: bool,
+    pub effort_offset: bool,
+}
+
+/// Every parameter of `tree` with the optional `groups`; `inputs` the actuated joints.
+pub(super) fn params_of(tree: &Tree, groups: Groups, inputs: &[&str]) -> Vec<ParamInfo> {
     use Part::{Forces, Mass, Potential};
     const MV: &[Part] = &[Mass, Potential];
     const M: &[Part] = &[Mass];
@@ -49,7 +59,7 @@ pub(super) fn params_of(tree: &Tree, armature: bool) -> Vec<ParamInfo> {
             });
         }
     }
-    if armature {
+    if groups.armature {
         for &b in &tree.coordinates {
             let b = &tree.bodies[b];
             out.push(ParamInfo {
@@ -60,6 +70,23 @@ pub(super) fn params_of(tree: &Tree, armature: bool) -> Vec<ParamInfo> {
                 min: Some(0.0),
                 fixed: false,
                 used_by: Cow::Borrowed(M),
+            });
+        }
+    }
+    // A gain is a scale, kept ≥ 0 by projection as damping is (a URDF template's values
+    // beyond the bodies are trained as they are); an offset any force.
+    for (on, field, default, min) in [
+        (groups.effort_gain, "effort_gain", 1.0, Some(0.0)),
+        (groups.effort_offset, "effort_offset", 0.0, None),
+    ] {
+        for joint in inputs.iter().filter(|_| on) {
+            out.push(ParamInfo {
+                name: Cow::Owned(format!("{joint}.{field}")),
+                default,
+                positive: false,
+                min,
+                fixed: false,
+                used_by: Cow::Borrowed(F),
             });
         }
     }

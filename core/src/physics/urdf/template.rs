@@ -14,7 +14,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::parameters::{PER_BODY, PER_JOINT, params_of};
+use super::parameters::{Groups, PER_BODY, PER_JOINT, params_of};
 use super::tree::{JointKind, Tree};
 use crate::error::{Error, Result};
 use crate::names::name_problem;
@@ -58,6 +58,13 @@ pub struct UrdfDoc {
     /// (then set in the stored document). Absent: none, as before the option.
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub armature: bool,
+    /// Whether each input has a trainable gain g and offset o: the joint's force is g u + o
+    /// for the logged effort u (a torque sensor's or a current's scale and bias,
+    /// docs/robots.md#effort-gain-and-offset). Absent: u as it is.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub effort_gain: bool,
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub effort_offset: bool,
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -132,6 +139,8 @@ impl UrdfTemplate {
                 periodic: vec![],
                 coulomb_eps: COULOMB_EPS,
                 armature: false,
+                effort_gain: false,
+                effort_offset: false,
             },
             max_dof,
         )
@@ -248,7 +257,13 @@ impl UrdfTemplate {
                 }
             }
         }
-        let params = params_of(&tree, doc.armature);
+        let inputs: Vec<&str> = actuated.iter().map(|&i| body(i).joint.as_str()).collect();
+        let groups = Groups {
+            armature: doc.armature,
+            effort_gain: doc.effort_gain,
+            effort_offset: doc.effort_offset,
+        };
+        let params = params_of(&tree, groups, &inputs);
         let robot = tree.multibody(doc.gravity);
         Ok(Self {
             doc,
@@ -353,17 +368,37 @@ impl UrdfTemplate {
         m
     }
 
-    /// Where the armatures start among the physical values (after the joints' pairs).
-    fn armature_start(&self) -> usize {
-        (PER_BODY + PER_JOINT) * self.nb()
+    /// The optional groups after the joints' pairs, in their order: armatures (one per
+    /// coordinate), effort gains and offsets (one per input); each's start and length.
+    fn group(&self, which: usize) -> (usize, usize) {
+        let d = &self.doc;
+        let sizes = [
+            if d.armature { self.n() } else { 0 },
+            if d.effort_gain { self.m() } else { 0 },
+            if d.effort_offset { self.m() } else { 0 },
+        ];
+        let start = (PER_BODY + PER_JOINT) * self.nb() + sizes[..which].iter().sum::<usize>();
+        (start, sizes[which])
+    }
+
+    fn slice<'p, S>(&self, p: &'p [S], which: usize) -> &'p [S] {
+        let (start, len) = self.group(which);
+        &p[start.min(p.len())..][..len]
     }
 
     /// The armatures of physical values, one per coordinate (none when the robot has none).
     pub fn armature<'p, S>(&self, p: &'p [S]) -> &'p [S] {
-        match self.doc.armature {
-            true => &p[self.armature_start()..][..self.n()],
-            false => &[],
-        }
+        self.slice(p, 0)
+    }
+
+    /// The inputs' effort gains (none when the robot has none).
+    pub fn effort_gain<'p, S>(&self, p: &'p [S]) -> &'p [S] {
+        self.slice(p, 1)
+    }
+
+    /// The inputs' effort offsets (none when the robot has none).
+    pub fn effort_offset<'p, S>(&self, p: &'p [S]) -> &'p [S] {
+        self.slice(p, 2)
     }
 
     /// V(q) at physical values over any scalar: the multibody model's potential energy with

@@ -1,7 +1,9 @@
-//! Armature (docs/robots.md#armature): a URDF robot's rotor inertias are parameters only when
-//! its document or its file asks for them (every other robot keeps its parameters' layout),
-//! start at the file's values, are refused below 0 or on a mimic joint naming the joint, add
-//! to M's diagonal and to the kinetic energy, and the export writes them back.
+//! A robot's actuators beyond its URDF: armature (docs/robots.md#armature), a URDF robot's
+//! rotor inertias, are parameters only when its document or its file asks for them (every
+//! other robot keeps its parameters' layout), start at the file's values, are refused below 0
+//! or on a mimic joint naming the joint, add to M's diagonal, and the export writes them back;
+//! effort gains and offsets (docs/robots.md#effort-gain-and-offset) come after them when the
+//! document asks, and enter F as g u + o.
 
 use graybox::error::Error;
 use graybox::physics::templates::Template;
@@ -120,4 +122,51 @@ fn the_export_writes_the_armatures_back() {
     assert_eq!(&got[k - 2..], [0.125, 0.5]);
     let doc: Value = serde_json::to_value(&again).unwrap();
     assert_eq!(doc["armature"], json!(true));
+}
+
+/// Gains and offsets follow the armatures, one each per input, 1 and 0 to start; F is
+/// S (g∘u + o) − the joints' own forces, and the energy report's friction part leaves the
+/// offsets to the input's.
+#[test]
+fn effort_gains_and_offsets_scale_and_shift_the_inputs() {
+    let doc = json!({"kind": "urdf", "urdf": pendulum_with_rotor(0.25), "actuated": ["q1"],
+                     "effort_gain": true, "effort_offset": true});
+    let t = Template::from_document(&doc).unwrap();
+    let n = names(&t);
+    assert_eq!(
+        &n[n.len() - 4..],
+        [
+            "q1.armature",
+            "q2.armature",
+            "q1.effort_gain",
+            "q1.effort_offset"
+        ]
+    );
+    let mut p = t.defaults();
+    assert_eq!(&p[p.len() - 2..], [1.0, 0.0]);
+    let k = p.len();
+    (p[k - 2], p[k - 1]) = (2.0, 0.5);
+    let u = urdf_of(&t);
+    let (q, qd) = ([0.1, 0.2], [0.3, -0.4]);
+    let with = u.forces(&p, &q, &qd, &[3.0]);
+    let without = u.forces(&p, &q, &qd, &[0.0]);
+    assert!(
+        (with[0] - without[0] - 6.0).abs() < 1e-12,
+        "{with:?} vs {without:?}"
+    );
+    assert_eq!(with[1], without[1]);
+    let arena = graybox::arena::Arena::new();
+    let passive = u.passive_forces_in(&arena, &p, &qd);
+    assert!(
+        (without[0] - passive[0] - 0.5).abs() < 1e-12,
+        "{without:?} vs {passive:?}"
+    );
+    let written = serde_json::to_value(&t).unwrap();
+    assert_eq!(
+        (
+            written["effort_gain"].clone(),
+            written["effort_offset"].clone()
+        ),
+        (json!(true), json!(true))
+    );
 }
