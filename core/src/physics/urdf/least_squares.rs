@@ -27,6 +27,9 @@ const RANK_TOLERANCE: f64 = 1e-14;
 /// starting body's (a massless link keeps its zero).
 const FLOOR: f64 = 1e-6;
 
+/// The normal equations WᵀW (upper triangle) and Wᵀ(b − W x) at some x.
+type Normal = (Vec<Vec<f64>>, Vec<f64>);
+
 /// What the solve found.
 #[derive(Debug, Clone)]
 pub struct LeastSquares {
@@ -53,12 +56,16 @@ impl UrdfTemplate {
         let model = self.multibody_model(start, gravity);
         let joints = model.parameter_count() + PER_JOINT * nb;
         let cols = joints + self.effort_offset(start).len();
-        let mut x0 = standard_parameters(&model);
-        x0.extend_from_slice(&start[PER_BODY * nb..][..PER_JOINT * nb]);
-        x0.extend_from_slice(self.effort_offset(start));
+        // x of physical values: π (and the armatures), damping and friction, offsets.
+        let x_of = |physical: &[f64]| {
+            let mut x = standard_parameters(&self.multibody_model(physical, gravity));
+            x.extend_from_slice(&physical[PER_BODY * nb..][..PER_JOINT * nb]);
+            x.extend_from_slice(self.effort_offset(physical));
+            x
+        };
         let gains = self.effort_gain(start);
         // WᵀW and Wᵀ(b − W x), one pass over the rows.
-        let pass = |x: &[f64]| -> Result<(Vec<Vec<f64>>, Vec<f64>)> {
+        let pass = |x: &[f64]| -> Result<Normal> {
             let (mut a, mut g) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
             for row in rows.chunks_exact(width) {
                 if stop() {
@@ -75,27 +82,22 @@ impl UrdfTemplate {
             }
             Ok((a, g))
         };
-        // Armature, damping and friction are bounded below by 0: a value the solve takes
-        // below it is held there and the rest solved again (an active set, as bounded least
-        // squares does), until none is.
-        let (mut x, mut held) = (x0, vec![false; cols]);
-        let friction = PER_BODY * nb..joints;
-        loop {
-            let (a, g) = pass(&x)?;
-            let solve = Minimizer::of(&a, &held);
-            x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
-            // One refinement with the residual recomputed from the rows: the normal equations
-            // square W's conditioning, and a second pass takes back what that lost.
-            let (_, g) = pass(&x)?;
-            x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
-            let below: Vec<usize> = friction.clone().filter(|&k| x[k] < 0.0).collect();
-            if below.is_empty() {
-                return Ok(self.physical_of(&x, solve.rank, start));
-            }
-            for k in below {
-                (x[k], held[k]) = (0.0, true);
-            }
+        let bounded = PER_BODY * nb..joints;
+        let (x, rank) = bounded_solve(&pass, x_of(start), vec![false; cols], bounded.clone())?;
+        let first = self.physical_of(&x, rank, start);
+        if first.projected.is_empty() {
+            return Ok(first);
         }
+        // Making bodies physical moved them off the solution; what the data still ask of
+        // them goes to the joints' values, solved again with the bodies held (an armature
+        // shares its column with its link's inertia about a world-fixed axis, and takes what
+        // the link could not).
+        let held = (0..cols).map(|k| k < PER_BODY * nb).collect();
+        let (x, _) = bounded_solve(&pass, x_of(&first.physical), held, bounded)?;
+        Ok(LeastSquares {
+            physical: self.physical_of(&x, rank, start).physical,
+            ..first
+        })
     }
 
     /// Damping's and friction's columns after the regressor's `base`, then the effort
@@ -153,6 +155,33 @@ impl UrdfTemplate {
             physical,
             rank,
             projected,
+        }
+    }
+}
+
+/// The least-squares x from `x` moving no `held` entry, with the entries in `bounded` kept
+/// ≥ 0: a value the solve takes below 0 is held there and the rest solved again (an active
+/// set, as bounded least squares does), until none is. `pass` gives WᵀW and Wᵀ(b − W x).
+fn bounded_solve(
+    pass: &dyn Fn(&[f64]) -> Result<Normal>,
+    mut x: Vec<f64>,
+    mut held: Vec<bool>,
+    bounded: std::ops::Range<usize>,
+) -> Result<(Vec<f64>, usize)> {
+    loop {
+        let (a, g) = pass(&x)?;
+        let solve = Minimizer::of(&a, &held);
+        x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
+        // One refinement with the residual recomputed from the rows: the normal equations
+        // square W's conditioning, and a second pass takes back what that lost.
+        let (_, g) = pass(&x)?;
+        x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
+        let below: Vec<usize> = bounded.clone().filter(|&k| x[k] < 0.0).collect();
+        if below.is_empty() {
+            return Ok((x, solve.rank));
+        }
+        for k in below {
+            (x[k], held[k]) = (0.0, true);
         }
     }
 }
