@@ -15,6 +15,20 @@ phase() {
   last=$SECONDS
 }
 
+# The pinned virtualenv of the Python tests (it also serves the S3 endpoint below), made
+# beside the build: installing wheels waits on the disk and the registry, the build on the
+# cores. Only the Python module on the inference core needs the build (below).
+venv=${GRAYBOX_VENV:-.venv}
+venv_log=$(mktemp)
+(
+  if [ ! -x "$venv/bin/python" ]; then
+    python3 -m venv "$venv"
+  fi
+  "$venv/bin/pip" install --quiet --disable-pip-version-check -r tests/python/requirements.txt
+  "$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/python
+) > "$venv_log" 2>&1 &
+venv_pid=$!
+
 # Every member's artifacts first: `cargo test` builds only what a test links, and the Python
 # module (clients/native) has no Rust tests of its own (tests/python/test_native.py tests it).
 cargo build --workspace --release --locked
@@ -44,13 +58,14 @@ for line in sys.stdin:
   fi
 done
 
-# The pinned virtualenv of the Python tests; it also serves the S3 endpoint below.
-venv=${GRAYBOX_VENV:-.venv}
-if [ ! -x "$venv/bin/python" ]; then
-  python3 -m venv "$venv"
+# The virtualenv started beside the build.
+if ! wait "$venv_pid"; then
+  echo "error: the Python virtualenv could not be made:" >&2
+  cat "$venv_log" >&2
+  exit 1
 fi
-"$venv/bin/pip" install --quiet --disable-pip-version-check -r tests/python/requirements.txt
-"$venv/bin/pip" install --quiet --disable-pip-version-check ./clients/python
+cat "$venv_log" >&2
+rm -f "$venv_log"
 # The Python module on the inference core (tests/python/test_native.py), installed as the
 # README installs it: its wheel packs the workspace's build above, so the inference core must
 # not compile again (a build of the module alone would, with other features).
