@@ -66,9 +66,12 @@ impl Summary {
                 .iter()
                 .map(|p| {
                     let mut v = json!({"name": p.name, "value": p.default, "positive": p.positive});
-                    // A bounded parameter (a URDF joint's damping and friction) says its bound.
+                    // A bounded parameter (a joint's damping and friction, a delay) says its bounds.
                     if let Some(min) = p.min {
                         v["min"] = json!(min);
+                    }
+                    if let Some(max) = p.max {
+                        v["max"] = json!(max);
                     }
                     if p.fixed {
                         v["fixed"] = json!(true);

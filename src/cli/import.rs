@@ -49,6 +49,11 @@ pub struct ImportArgs {
     /// A step longer than this many median steps is a pause: the trajectory ends there.
     #[arg(long, default_value_t = 5.0)]
     pub gap: f64,
+    /// Pass the inputs through the positions' fit as the accelerations pass (parallel
+    /// filtering): for noisy positions and a wide `--window`, which would otherwise bias the
+    /// identified inertias and damping.
+    #[arg(long)]
+    pub smooth_inputs: bool,
     /// Samples in the local polynomial fit of each time (Savitzky–Golay on the samples' own
     /// times).
     #[arg(long, default_value_t = DEFAULT_FIT.window)]
@@ -81,6 +86,7 @@ pub(super) fn import(a: ImportArgs) -> Result<()> {
         },
         wrapped: column_list(&a.wrapped),
         inputs: Inputs::parse(&a.inputs)?,
+        smooth_inputs: a.smooth_inputs,
         // The caller's own file: no service shares its memory.
         memory: None,
     };

@@ -10,6 +10,7 @@ use crate::error::{Error, Result};
 use crate::model::ModelConfig;
 use crate::model::spec::ModelSpec;
 use crate::physics::space::Space;
+use crate::physics::urdf::delay::input_width;
 
 /// The loss's weights: `"step"` is {step: 1, torque: 0}, `"torque"` {step: 0, torque: 1};
 /// an object gives both (a weight left out is 0).
@@ -116,6 +117,13 @@ impl Objective {
         if weights == [0.0, 0.0] {
             return bad("at least one of step and torque must have a weight above 0");
         }
+        if self.step > 0.0 && spec.effort_delay().is_some() {
+            return bad(
+                "the robot's effort_delay is learnt from the torque loss, whose rows carry the \
+                 efforts before each step: train it on \"torque\" (the model predicts under the \
+                 effort as it acts, without the log's delay)",
+            );
+        }
         if self.torque > 0.0 && matches!(spec, ModelSpec::Naive { .. }) {
             return bad(
                 "a naive model has no mass matrix to form the torque M q̈ + c + ∂V/∂q − F with; \
@@ -126,14 +134,23 @@ impl Objective {
     }
 }
 
-/// Each transition's row of the torque loss, [q̄, q̇̄, q̈̄, u]: the midpoint of its step
+/// Each transition's row of the torque loss, [q̄, q̇̄, q̈̄, inputs]: the midpoint of its step
 /// (q ⊕ ½(q' ⊖ q), (q̇ + q̇')/2) and its mean acceleration (q̇' − q̇)/Δt_i, under the input
-/// held over the step as the one-step loss reads it. The midpoint's residual differs from
-/// the equation's mean over the step by O(Δt²): 2e-4 relative at 100 Hz for a 1 Hz motion.
-pub fn torque_rows(ds: &Dataset, space: &Space) -> Vec<f64> {
+/// held over the step as the one-step loss reads it, or with `lags` > 0 the step's and that
+/// many earlier samples of its trajectory with their times (`urdf::delay`'s block; a
+/// trajectory's first sample stands for those before it). The midpoint's residual differs
+/// from the equation's mean over the step by O(Δt²): 2e-4 relative at 100 Hz for a 1 Hz
+/// motion.
+pub fn torque_rows(ds: &Dataset, space: &Space, lags: usize) -> Vec<f64> {
     let (nq, nv, m) = (ds.nq, ds.nv, ds.m);
-    let mut rows = Vec::with_capacity(ds.count() * (nq + 2 * nv + m));
+    let mut rows = Vec::with_capacity(ds.count() * (nq + 2 * nv + input_width(m, lags)));
+    let mut first = 0;
+    let starts = ds.segments();
+    let mut segment = starts.iter().peekable();
     for i in 0..ds.count() {
+        while let Some(s) = segment.next_if(|s| s.start <= i) {
+            first = s.start;
+        }
         let (q0, q1) = (&ds.q[i * nq..][..nq], &ds.q_next[i * nq..][..nq]);
         let (v0, v1) = (&ds.qdot[i * nv..][..nv], &ds.qdot_next[i * nv..][..nv]);
         let half: Vec<f64> = space.difference(q0, q1).iter().map(|d| 0.5 * d).collect();
@@ -141,6 +158,18 @@ pub fn torque_rows(ds: &Dataset, space: &Space) -> Vec<f64> {
         rows.extend(v0.iter().zip(v1).map(|(a, b)| 0.5 * (a + b)));
         let dt = ds.step(i);
         rows.extend(v0.iter().zip(v1).map(|(a, b)| (b - a) / dt));
+        if lags > 0 {
+            // Sample k's age: the steps between it and this one's start.
+            let sample = |k: usize| i.saturating_sub(k).max(first);
+            rows.push(dt);
+            let mut age = 0.0;
+            for k in 1..=lags {
+                age += ds.step(sample(k));
+                rows.push(age);
+            }
+            (0..=lags).for_each(|k| rows.extend_from_slice(&ds.u[sample(k) * m..][..m]));
+            continue;
+        }
         rows.extend_from_slice(&ds.u[i * m..][..m]);
     }
     rows
@@ -160,8 +189,9 @@ pub fn least_squares_start(
         )
     })?;
     let start = physical.unwrap_or_else(|| urdf.params().iter().map(|p| p.default).collect());
-    let rows = torque_rows(ds, &config.space);
-    let ls = urdf.least_squares(&start, gravity, &rows, &|| false)?;
+    let lags = config.effort_lags();
+    let rows = torque_rows(ds, &config.space, lags);
+    let ls = urdf.least_squares(&start, gravity, (&rows, lags), &|| false)?;
     tracing::info!(
         rank = ls.rank,
         projected = ?ls.projected,

@@ -202,11 +202,12 @@ impl TrainConfig {
     }
 }
 
-/// The (train, validation) sets: `val` when given, else a seeded split of `data`.
+/// The (train, validation) sets for a model of `spec`: `val` when given, else a seeded split
+/// of `data`.
 pub(super) fn split_data(
     data: &Dataset,
     val: Option<&Dataset>,
-    cfg: &TrainConfig,
+    (cfg, spec): (&TrainConfig, &ModelSpec),
 ) -> Result<(Dataset, Option<Dataset>)> {
     if let Some(v) = val {
         if (v.nq, v.nv, v.m) != (data.nq, data.nv, data.m) {
@@ -227,8 +228,9 @@ pub(super) fn split_data(
         return Ok((data.clone(), Some(v.clone())));
     }
     if cfg.val_fraction > 0.0 && data.count() > 1 {
-        // Windows need whole trajectories: a row split would break every chain.
-        let (t, v) = if cfg.horizon > 1 {
+        // Windows need whole trajectories, and so do the efforts before each step that a
+        // delay reads: a row split would break every chain.
+        let (t, v) = if cfg.horizon > 1 || spec.effort_delay().is_some() {
             data.split_by_trajectories(cfg.val_fraction, cfg.seed)
         } else {
             data.split(cfg.val_fraction, cfg.seed)
@@ -305,7 +307,7 @@ pub fn prepare(
     let space = run_space(spec, cfg, (data.nq, data.nv))?;
     spec.check_dims(&space, data.m)?;
     let physical = physical_init(spec, init)?;
-    let (train_ds, val_ds) = split_data(data, val, cfg)?;
+    let (train_ds, val_ds) = split_data(data, val, (cfg, spec))?;
     crate::train::windows::check(&train_ds, cfg.horizon)?;
     let scaling = scaling(spec, physical.as_deref(), &train_ds)?;
     let config = ModelConfig {

@@ -216,21 +216,44 @@ def _advance(model: mujoco.MjModel, data: mujoco.MjData, u: np.ndarray, t_next: 
     data.time = t_next  # drop the rounding of n additions
 
 
-def simulate(model: mujoco.MjModel, times: np.ndarray, ref: Reference) -> Trajectory:
+def simulate(model: mujoco.MjModel, times: np.ndarray, ref: Reference,
+             delay: float = 0.0) -> Trajectory:
     """The arm under the controller, sampled at `times`; it starts on the reference (q and
-    qdot), so there is no start-up transient."""
+    qdot), so there is no start-up transient. With `delay`, each sample's torque acts from
+    its time plus the delay until the next one's does (a drive that applies its command
+    late; the first acts from the start): u[k] is what the controller logged at t[k]."""
     ctrl = Controller(model, ref)
     data = mujoco.MjData(model)
     data.time = float(times[0])
     data.qpos[:], data.qvel[:] = ref.at(float(times[0]))
     n, nv = len(times), model.nv
     q, qd, u = np.zeros((n, nv)), np.zeros((n, nv)), np.zeros((n, nv))
+    acting = 0  # the sample whose torque acts now
     for k, t in enumerate(times):
         q[k], qd[k] = data.qpos, data.qvel
         u[k] = ctrl(float(t), q[k], qd[k])
-        if k + 1 < n:
-            _advance(model, data, u[k], float(times[k + 1]))
+        if k + 1 == n:
+            break
+        end = float(times[k + 1])
+        # Samples up to k whose torque starts acting before the step's end take over in turn.
+        for j in range(acting + 1, k + 1):
+            switch = float(times[j] + delay)
+            if switch < end:
+                if switch > data.time:
+                    _advance(model, data, u[acting], switch)
+                acting = j
+        _advance(model, data, u[acting], end)
     return Trajectory(np.asarray(times, dtype=float).copy(), q, qd, u)
+
+
+def with_noise(log: Trajectory, rng: np.random.Generator, q_sigma: float,
+               u_relative: float) -> Trajectory:
+    """What the sensors report of `log`: positions with N(0, q_sigma²) added, efforts with
+    N(0, (u_relative · each joint's RMS effort)²); the true velocities stay (a check only)."""
+    q = log.q + rng.normal(0.0, q_sigma, log.q.shape)
+    scale = u_relative * np.sqrt(np.mean(log.u ** 2, axis=0))
+    u = log.u + rng.normal(0.0, 1.0, log.u.shape) * scale
+    return Trajectory(log.t, q, log.qdot, u)
 
 
 # ----------------------------------------------------------------------------------------
@@ -252,12 +275,13 @@ def as_log(traj: Trajectory, rng: np.random.Generator, drop: float = 0.02,
 
 def generate_log(model: mujoco.MjModel, seed: int, duration: float = 4.0,
                  rate: float = 1000.0, jitter: float = 0.05, drop: float = 0.02,
-                 pause: float = 0.3) -> Trajectory:
-    """A jittered, gappy log of `duration` seconds at about `rate` Hz from `seed`."""
+                 pause: float = 0.3, delay: float = 0.0) -> Trajectory:
+    """A jittered, gappy log of `duration` seconds at about `rate` Hz from `seed`, its
+    torques acting `delay` after they were logged."""
     rng = np.random.default_rng(seed)
     ref = random_reference(rng, model.nv)
     times = sample_times(rng, duration, rate, jitter)
-    return as_log(simulate(model, times, ref), rng, drop, pause)
+    return as_log(simulate(model, times, ref, delay), rng, drop, pause)
 
 
 def held_out(model: mujoco.MjModel, seed: int, duration: float = 1.0,

@@ -2,6 +2,8 @@
 //! evaluates, backends agree, resume equals an uninterrupted run, failures are reported.
 
 use crate::common;
+#[path = "training/delay.rs"]
+mod delay;
 #[path = "training/ensemble.rs"]
 mod ensemble;
 #[path = "training/fused.rs"]

@@ -279,7 +279,7 @@ impl ModelFile {
         // which the URDF reader refuses (and Pinocchio's, for friction): no file rather than
         // a silently different robot.
         for (info, v) in u.params().iter().zip(&physical) {
-            if let Some(why) = info.below_min(*v) {
+            if let Some(why) = info.out_of_bounds(*v) {
                 return Err(Error::FailedPrecondition(format!(
                     "{} {why}: this model was trained by a graybox that did not keep it \
                      there; train it again to export it",

@@ -16,6 +16,7 @@ use crate::physics::integrator::Integrator;
 use crate::physics::scaling::Scaling;
 use crate::physics::space::Space;
 use crate::physics::templates::Template;
+use crate::physics::urdf::delay::lags;
 use spec::ModelSpec;
 
 /// The names of a model's parameter groups in its file.
@@ -85,6 +86,12 @@ impl ModelConfig {
     /// A tangent state's width, 2·nv: the rows and columns of a linearization.
     pub fn ndx(&self) -> usize {
         2 * self.nv()
+    }
+
+    /// The earlier effort samples a torque row carries: those a URDF robot's effort delay may
+    /// reach back to at this step (`urdf::delay`); 0 without a delay.
+    pub fn effort_lags(&self) -> usize {
+        (self.spec.effort_delay()).map_or(0, |bound| lags(bound, self.dt))
     }
 
     /// Whether velocity k is an angle's.

@@ -247,6 +247,14 @@ impl ModelSpec {
         Some((t, matches!(potential, PotentialSpec::Template { .. })))
     }
 
+    /// The bound of a URDF robot's effort delay, when it has one (`urdf::delay`).
+    pub fn effort_delay(&self) -> Option<f64> {
+        match self.template()? {
+            Template::Urdf(u) => u.doc.effort_delay,
+            _ => None,
+        }
+    }
+
     pub fn template(&self) -> Option<&Template> {
         match self {
             ModelSpec::Structured { template, .. } => template.as_ref(),

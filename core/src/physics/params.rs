@@ -23,33 +23,41 @@ pub struct ParamInfo {
     /// `lower_bounds`): unlike a logarithm it can start at, and rest on, the bound. Only for
     /// a parameter whose raw value is its physical value (not `positive`, not a URDF body's).
     pub min: Option<f64>,
+    /// The largest (None: no bound), kept as `min` is (a URDF robot's effort delay).
+    pub max: Option<f64>,
     /// Known, not trained: kept at its starting value (a formula template's `fixed`).
     pub fixed: bool,
     pub used_by: Cow<'static, [Part]>,
 }
 
 impl ParamInfo {
-    /// What is wrong with `v` given this parameter's bound, if anything.
-    pub fn below_min(&self, v: f64) -> Option<String> {
-        let min = self.min?;
-        (v < min).then(|| format!("must be ≥ {min}, got {v}"))
+    /// What is wrong with `v` given this parameter's bounds, if anything.
+    pub fn out_of_bounds(&self, v: f64) -> Option<String> {
+        match (self.min, self.max) {
+            (Some(min), _) if v < min => Some(format!("must be ≥ {min}, got {v}")),
+            (_, Some(max)) if v > max => Some(format!("must be ≤ {max}, got {v}")),
+            _ => None,
+        }
     }
 }
 
 /// Each raw parameter's bounds (lower, upper), in parameter order: a parameter's `min` below
-/// (−∞ where there is none), and for a fixed one its raw value `start` on both sides; None
-/// when no parameter has either. Training projects onto them after every step: the physical
+/// and `max` above (±∞ where there is none), and for a fixed one its raw value `start` on
+/// both sides; None when no parameter has any. Training projects onto them after every step: the physical
 /// optimum under a bound is reached by clamping the raw value (equal to the physical one),
 /// and a fixed value clamped onto itself never moves.
 pub fn bounds(params: &[ParamInfo], start: &[f64]) -> Option<(Vec<f64>, Vec<f64>)> {
-    params.iter().any(|p| p.min.is_some() || p.fixed).then(|| {
+    let bounded = |p: &ParamInfo| p.min.is_some() || p.max.is_some() || p.fixed;
+    params.iter().any(bounded).then(|| {
         params
             .iter()
             .zip(start)
-            .map(|(p, &v)| match (p.fixed, p.min) {
-                (true, _) => (v, v),
-                (false, Some(min)) => (min, f64::INFINITY),
-                (false, None) => (f64::NEG_INFINITY, f64::INFINITY),
+            .map(|(p, &v)| match p.fixed {
+                true => (v, v),
+                false => (
+                    p.min.unwrap_or(f64::NEG_INFINITY),
+                    p.max.unwrap_or(f64::INFINITY),
+                ),
             })
             .unzip()
     })

@@ -113,7 +113,7 @@ impl Template {
             if !v.is_finite() {
                 return Err(Error::invalid(field(), "must be finite"));
             }
-            if let Some(message) = info.below_min(v) {
+            if let Some(message) = info.out_of_bounds(v) {
                 return Err(Error::Unprocessable {
                     field: field(),
                     message,

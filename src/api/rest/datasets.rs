@@ -95,6 +95,7 @@ fn log_upload(params: &Params, bytes: Vec<u8>) -> ApiResult<Upload> {
         inputs: params
             .get("inputs")
             .map_or(Ok(Inputs::Linear), |v| Inputs::parse(v))?,
+        smooth_inputs: bool_param(params, "smooth_inputs")?,
         memory: Some(BodyKind::Dataset.cost(bytes.len())),
     };
     let columns = LogColumns {

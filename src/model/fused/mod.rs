@@ -21,6 +21,7 @@ use crate::backend::{Kept, RowFn, RowFunction, row_map};
 use crate::error::{Error, Result};
 use crate::physics::multibody;
 use crate::physics::tape::{Buffers, Gradients, Layer, Params, Precision, Ref, Tape, Var};
+use crate::physics::urdf::delay::input_width;
 
 /// Rows per tape: enough that a node's loop dwarfs its bookkeeping, few enough that a
 /// block's tape stays in cache-sized pieces.
@@ -107,8 +108,9 @@ pub(super) enum Kind {
     Step,
     /// x' of [x, u, Δt_i / Δt] (transitions of their own steps: `record::step`).
     Timed,
-    /// The torque loss's errors of [q, q̇, q̈, u], joint j's divided by the scale's j-th
-    /// value (`record::torque`).
+    /// The torque loss's errors of [q, q̇, q̈, inputs] (the inputs' block `urdf::delay`'s
+    /// when the robot has an effort delay), joint j's divided by the scale's j-th value
+    /// (`record::torque`).
     Torque(Vec<f64>),
 }
 
@@ -144,7 +146,8 @@ impl FusedStep {
             }
             Kind::Torque(scale) => {
                 let measured = (at(0..nq), at(nq..nx), at(nx..nx + nv));
-                record::torque(&recipe, &tape, measured, at(nx + nv..nx + nv + m), scale)
+                let efforts = at(nx + nv..width);
+                record::torque(&recipe, &tape, measured, efforts, scale)
             }
         };
         let block_inputs = inputs.iter().map(Var::id).collect();
@@ -233,7 +236,7 @@ impl RowFunction for FusedStep {
         match self.kind {
             Kind::Step => nx + m,
             Kind::Timed => nx + m + 1,
-            Kind::Torque(_) => nx + self.config.nv() + m,
+            Kind::Torque(_) => nx + self.config.nv() + input_width(m, self.config.effort_lags()),
         }
     }
 

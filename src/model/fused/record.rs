@@ -18,6 +18,8 @@ use crate::physics::integrator::States;
 use crate::physics::multibody;
 use crate::physics::scalar::Scalar;
 use crate::physics::tape::{Layer, Tape, Var, forward_dynamics, inverse_dynamics, mlp};
+use crate::physics::templates::Template;
+use crate::physics::urdf::delay::delayed;
 
 /// The tape's view of the parameters.
 struct Recorded {
@@ -94,18 +96,53 @@ pub(super) fn step(
 
 /// The torque loss's errors of the block's rows (docs/training.md#torque-loss): the
 /// manipulator equation's residual M q̈ + c + ∂V/∂q − F(q, q̇, u) at measured (q, q̇, q̈) and
-/// inputs `u`, joint j's divided by `scale[j]`.
+/// the inputs' block `efforts`, joint j's divided by `scale[j]`.
 pub(super) fn torque(
     recipe: &Recipe<'_>,
     tape: &Rc<RefCell<Tape>>,
     (q, qd, qdd): (&[Var], &[Var], &[Var]),
-    u: &[Var],
+    efforts: &[Var],
     scale: &[f64],
 ) -> Vec<Var> {
     let values = record_values(recipe.config, recipe.layout, tape);
-    let r = dynamics(recipe, &values, (q, qd, u), Some(qdd));
+    let u = acting_efforts(recipe.config, &values, tape, efforts);
+    let r = dynamics(recipe, &values, (q, qd, &u), Some(qdd));
     (r.into_iter().zip(scale))
         .map(|(r, s)| r.scale(1.0 / s))
+        .collect()
+}
+
+/// The efforts acting over each row's step: the block as it is, or under the robot's
+/// effort delay δ the mean of the log's held samples shifted by δ (`urdf::delay`), recorded
+/// as u₀ + δ u₁ with δ's tangent u₁ = ∂u/∂δ at its value: the weights are linear in δ about
+/// it. The samples are data, whose gradient nothing asks for.
+fn acting_efforts(
+    config: &ModelConfig,
+    r: &Recorded,
+    tape: &Rc<RefCell<Tape>>,
+    efforts: &[Var],
+) -> Vec<Var> {
+    let delay = match (config.template(), r.physical.as_deref()) {
+        (Some(Template::Urdf(t)), Some(p)) => t.effort_delay(p),
+        _ => None,
+    };
+    let Some(delay) = delay.filter(|_| config.effort_lags() > 0) else {
+        return efforts.to_vec();
+    };
+    let (m, at) = (config.m, delay.values()[0]);
+    let columns: Vec<Vec<f64>> = efforts.iter().map(Var::values).collect();
+    let rows = columns[0].len();
+    let (mut u0, mut u1) = (vec![vec![0.0; rows]; m], vec![vec![0.0; rows]; m]);
+    let mut block = vec![0.0; efforts.len()];
+    for i in 0..rows {
+        block.iter_mut().zip(&columns).for_each(|(b, c)| *b = c[i]);
+        let (u, du) = delayed(&block, m, at);
+        for j in 0..m {
+            (u0[j][i], u1[j][i]) = (u[j] - at * du[j], du[j]);
+        }
+    }
+    (u0.into_iter().zip(u1))
+        .map(|(u0, u1)| Var::input(tape, u0) + delay.clone() * Var::input(tape, u1))
         .collect()
 }
 

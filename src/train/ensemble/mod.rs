@@ -152,7 +152,7 @@ impl Ensemble {
                 "its members do not match its ensemble size",
             ));
         }
-        let (train_ds, val_ds) = split_data(data, val, &first.train)?;
+        let (train_ds, val_ds) = split_data(data, val, (&first.train, &first.config.spec))?;
         let run = Arc::new(RunData::new(
             &train_ds,
             val_ds.as_ref(),

@@ -10,7 +10,8 @@ use super::Trainer;
 use crate::data::Dataset;
 use crate::error::Result;
 use crate::model::Model;
-use crate::physics::space::Space;
+use crate::model::ModelConfig;
+use crate::physics::urdf::delay::input_width;
 use crate::train::objective::{Objective, torque_rows};
 use crate::train::shards::{self, ParamGrads};
 use crate::train::windows::Windows;
@@ -58,10 +59,17 @@ impl HostData {
         }
     }
 
-    /// The same data for a loss of `objective`'s weights, on `space`.
-    pub(super) fn with_objective(mut self, ds: &Dataset, space: &Space, o: Objective) -> Self {
+    /// The same data for a loss of `objective`'s weights, for a model of `config`.
+    pub(super) fn with_objective(
+        mut self,
+        ds: &Dataset,
+        config: &ModelConfig,
+        o: Objective,
+    ) -> Self {
         self.objective = o;
-        self.torque = (o.torque > 0.0).then(|| (torque_rows(ds, space), ds.nq + 2 * ds.nv + ds.m));
+        let lags = config.effort_lags();
+        let width = ds.nq + 2 * ds.nv + input_width(ds.m, lags);
+        self.torque = (o.torque > 0.0).then(|| (torque_rows(ds, &config.space, lags), width));
         self
     }
 

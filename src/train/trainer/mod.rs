@@ -107,7 +107,7 @@ impl RunData {
         let step = cfg.loss.step;
         let baseline = (cfg.loss.torque == 0.0).then_some((step * baseline.0, baseline.1));
         Self {
-            train: HostData::new(train, model.dt).with_objective(train, &model.space, cfg.loss),
+            train: HostData::new(train, model.dt).with_objective(train, model, cfg.loss),
             windows,
             rows: train.count(),
             val: validation,
@@ -376,7 +376,7 @@ impl Validation {
         objective: Objective,
     ) -> Self {
         let windows = (horizon > 1).then(|| Windows::of(ds, horizon, discount));
-        let data = HostData::new(ds, model.dt).with_objective(ds, &model.space, objective);
+        let data = HostData::new(ds, model.dt).with_objective(ds, model, objective);
         Self {
             ds: ds.clone(),
             data,

@@ -96,7 +96,7 @@ impl Trainer {
         val: Option<&Dataset>,
         device: &Device,
     ) -> Result<Self> {
-        let (train_ds, val_ds) = split_data(data, val, &state.train)?;
+        let (train_ds, val_ds) = split_data(data, val, (&state.train, &state.config.spec))?;
         let run = RunData::new(&train_ds, val_ds.as_ref(), &state.train, &state.config);
         Self::resume_on(state, Arc::new(run), device)
     }

@@ -82,7 +82,7 @@ fn the_torque_loss_identifies_a_urdf_robots_base_parameters() {
 }
 
 /// ‖β(p) − β(truth)‖ / ‖β(truth)‖ over the robot's base parameters.
-fn base_error(u: &UrdfTemplate, p: &[f64], truth: &[f64]) -> f64 {
+pub(super) fn base_error(u: &UrdfTemplate, p: &[f64], truth: &[f64]) -> f64 {
     let beta = |p: &[f64]| -> Vec<f64> {
         u.base_parameters(p, true)
             .into_iter()
@@ -173,8 +173,10 @@ fn least_squares_alone(t: Template) {
     let truth = t.defaults();
     let start: Vec<f64> = truth.iter().map(|v| 1.3 * v).collect();
     let ds = data(&t, 512, 3);
-    let rows = graybox::train::objective::torque_rows(&ds, &t.space());
-    let ls = u.least_squares(&start, true, &rows, &|| false).unwrap();
+    let rows = graybox::train::objective::torque_rows(&ds, &t.space(), 0);
+    let ls = u
+        .least_squares(&start, true, (&rows, 0), &|| false)
+        .unwrap();
     let e = base_error(u, &ls.physical, &truth);
     eprintln!(
         "rank {}, projected {:?}, ‖Δβ‖/‖β‖ = {e:.2e}",
@@ -215,10 +217,12 @@ fn least_squares_finds_the_effort_offsets() {
         ..SimConfig::default()
     };
     let ds = simulate(&t, truth.clone(), &config).unwrap();
-    let rows = graybox::train::objective::torque_rows(&ds, &t.space());
+    let rows = graybox::train::objective::torque_rows(&ds, &t.space(), 0);
     let mut start: Vec<f64> = truth.iter().map(|v| 1.3 * v).collect();
     (start[k - 4], start[k - 3], start[k - 2], start[k - 1]) = (1.0, 1.0, 0.0, 0.0);
-    let ls = u.least_squares(&start, true, &rows, &|| false).unwrap();
+    let ls = u
+        .least_squares(&start, true, (&rows, 0), &|| false)
+        .unwrap();
     let got = &ls.physical[k - 4..];
     assert_eq!(&got[..2], [1.0, 1.0], "the gains stay");
     assert!(

@@ -68,28 +68,64 @@ impl Piece<'_> {
     }
 
     /// The transitions between consecutive states (at `times`), each under its inputs' mean
-    /// over the step, appended to the dataset's arrays.
+    /// over the step (through `fit` first when it is given), appended to the dataset's
+    /// arrays.
     pub(super) fn transitions(
         &self,
         states: &[State],
         (nq, m): (usize, usize),
         times: &[f64],
-        inputs_go: Inputs,
+        (inputs_go, smooth): (Inputs, Option<Fit>),
         arrays: &mut [Vec<f64>; 5],
     ) {
         let inputs = &self.columns[self.columns.len() - m..];
-        for (pair, t) in states.windows(2).zip(times.windows(2)) {
+        let smoothed = smooth.map(|fit| self.through_the_fit(inputs, times, (fit, inputs_go)));
+        for (k, (pair, t)) in states.windows(2).zip(times.windows(2)).enumerate() {
             let (a, b) = (t[0], t[1]);
             arrays[0].extend_from_slice(&pair[0][..nq]);
             arrays[1].extend_from_slice(&pair[0][nq..]);
-            arrays[2].extend(
-                inputs
-                    .iter()
-                    .map(|u| mean_over(self.time, u, (a, b), inputs_go)),
-            );
+            match &smoothed {
+                Some(s) => arrays[2].extend(s.iter().map(|u| u[k])),
+                None => arrays[2]
+                    .extend((inputs.iter()).map(|u| mean_over(self.time, u, (a, b), inputs_go))),
+            }
             arrays[3].extend_from_slice(&pair[1][..nq]);
             arrays[4].extend_from_slice(&pair[1][nq..]);
         }
+    }
+}
+
+impl Piece<'_> {
+    /// Each input's mean over each step between `times` as the torque loss's accelerations
+    /// see it: those are the fit's velocities differenced, v̂ = S[q] for the fit's rate S, so
+    /// under M q̈ = u the efforts that balance them are S[W] differenced over the step, W = ∬u
+    /// (the signal held or joined by straight lines as it `go`es, integrated exactly from the
+    /// first sample). The same filter on both sides of the equation (parallel filtering)
+    /// leaves M and the damping unbiased however much the fit smooths.
+    fn through_the_fit(
+        &self,
+        inputs: &[&[f64]],
+        times: &[f64],
+        (fit, go): (Fit, Inputs),
+    ) -> Vec<Vec<f64>> {
+        let stencils: Vec<Stencil> = times.iter().map(|&t| fit.stencil(self.time, t)).collect();
+        (inputs.iter())
+            .map(|u| {
+                let (mut once, mut twice) = (0.0, vec![0.0]);
+                for (k, h) in self.time.windows(2).map(|w| w[1] - w[0]).enumerate() {
+                    let (start, end) = match go {
+                        Inputs::Linear => (u[k], u[k + 1]),
+                        Inputs::Held => (u[k], u[k]),
+                    };
+                    twice.push(twice[k] + once * h + (2.0 * start + end) * h * h / 6.0);
+                    once += 0.5 * (start + end) * h;
+                }
+                let rate: Vec<f64> = stencils.iter().map(|s| s.apply(&twice).1).collect();
+                (rate.windows(2).zip(times.windows(2)))
+                    .map(|(p, t)| (p[1] - p[0]) / (t[1] - t[0]))
+                    .collect()
+            })
+            .collect()
     }
 }
 

@@ -55,6 +55,8 @@ pub struct ImportSummary {
     pub times: String,
     /// How the inputs go between samples: "linear" or "held".
     pub inputs: String,
+    /// Whether the inputs passed through the fit (`ImportOptions::smooth_inputs`).
+    pub smooth_inputs: bool,
     /// "estimated" (by `fit`) or "given".
     pub velocities: String,
     pub fit: Fit,
@@ -224,7 +226,8 @@ impl Samples {
             match piece.states_at(cols, opts.fit, &times, &mut check) {
                 Some(states) if states.len() >= 2 => {
                     lengths.push(states.len() - 1);
-                    piece.transitions(&states, (nq, m), &times, opts.inputs, &mut arrays);
+                    let smooth = opts.smooth_inputs.then_some(opts.fit);
+                    piece.transitions(&states, (nq, m), &times, (opts.inputs, smooth), &mut arrays);
                     steps.extend(times.windows(2).map(|w| w[1] - w[0]));
                 }
                 _ => short += 1,
@@ -266,6 +269,7 @@ impl Samples {
             .into(),
             fit: opts.fit,
             inputs: opts.inputs.name().into(),
+            smooth_inputs: opts.smooth_inputs,
             velocity_check_rms: check.rms(),
             acceleration_check_rms: check.acceleration_rms(),
             lag: check.lag,
@@ -307,7 +311,9 @@ impl Samples {
             )));
         }
         let Fit { window, order } = opts.fit;
-        let work = states * (window * (order + 1).pow(2)) as f64;
+        // Smoothed inputs take the fit at every state again.
+        let fits = if opts.smooth_inputs { 2.0 } else { 1.0 };
+        let work = fits * states * (window * (order + 1).pow(2)) as f64;
         if work > MAX_FIT_WORK {
             return Err(Error::ResourceExhausted(format!(
                 "log: fitting {states} grid times with a window of {window} samples (order \

@@ -31,6 +31,11 @@ pub struct ImportOptions {
     /// samples is a wrap, undone).
     pub wrapped: Vec<String>,
     pub inputs: Inputs,
+    /// Pass the inputs through the positions' fit as the accelerations pass
+    /// (`Piece::through_the_fit`): for noisy positions, whose wide fit would otherwise leave
+    /// in the efforts what it takes out of q̈ and bias the inertias and damping (parallel
+    /// filtering).
+    pub smooth_inputs: bool,
     /// The most memory the import may hold, in bytes (the service's share for the upload);
     /// `None`: no bound (the command line, on the caller's own file).
     pub memory: Option<usize>,
@@ -45,6 +50,7 @@ impl Default for ImportOptions {
             fit: DEFAULT_FIT,
             wrapped: vec![],
             inputs: Inputs::Linear,
+            smooth_inputs: false,
             memory: None,
         }
     }

@@ -297,6 +297,7 @@ fn param_infos(
                 default: p.value,
                 positive: p.positive,
                 min: None,
+                max: None,
                 fixed: p.fixed,
                 used_by: Cow::Owned(used_by),
             }

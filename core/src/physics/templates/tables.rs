@@ -18,6 +18,7 @@ pub(super) const fn p(
         default,
         positive,
         min: None,
+        max: None,
         fixed: false,
         used_by: Cow::Borrowed(used_by),
     }

@@ -11,6 +11,7 @@
 //! made physical (mass > 0, inertia about the centre of mass positive definite and meeting
 //! the triangle inequality) and its friction not negative, so that it can start training.
 
+use super::delay;
 use super::parameters::{PER_BODY, PER_JOINT};
 use super::template::UrdfTemplate;
 use crate::error::{Error, Result};
@@ -27,8 +28,8 @@ const RANK_TOLERANCE: f64 = 1e-14;
 /// starting body's (a massless link keeps its zero).
 const FLOOR: f64 = 1e-6;
 
-/// The normal equations WᵀW (upper triangle) and Wᵀ(b − W x) at some x.
-type Normal = (Vec<Vec<f64>>, Vec<f64>);
+/// The normal equations WᵀW (upper triangle) and Wᵀ(b − W x) at some x, and |b − W x|².
+type Normal = (Vec<Vec<f64>>, Vec<f64>, f64);
 
 /// What the solve found.
 #[derive(Debug, Clone)]
@@ -42,17 +43,19 @@ pub struct LeastSquares {
 }
 
 impl UrdfTemplate {
-    /// The least-squares physical values for rows [q, q̇, q̈, u] (3n + m wide), starting from
-    /// and nearest to `start`; `stop` is polled every row.
+    /// The least-squares physical values for torque rows [q, q̇, q̈, inputs] (the inputs'
+    /// block as `delay` lays it out for `lags` earlier samples), starting from and nearest to
+    /// `start`; `stop` is polled every row. A robot with an effort delay takes the delay
+    /// whose solution leaves the least residual (`best_delay`).
     pub fn least_squares(
         &self,
         start: &[f64],
         gravity: bool,
-        rows: &[f64],
+        (rows, lags): (&[f64], usize),
         stop: &dyn Fn() -> bool,
     ) -> Result<LeastSquares> {
         let (n, nb) = (self.n(), self.nb());
-        let width = 3 * n + self.m();
+        let width = 3 * n + delay::input_width(self.m(), lags);
         let model = self.multibody_model(start, gravity);
         let joints = model.parameter_count() + PER_JOINT * nb;
         let cols = joints + self.effort_offset(start).len();
@@ -64,27 +67,46 @@ impl UrdfTemplate {
             x
         };
         let gains = self.effort_gain(start);
-        // WᵀW and Wᵀ(b − W x), one pass over the rows.
-        let pass = |x: &[f64]| -> Result<Normal> {
-            let (mut a, mut g) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
-            for row in rows.chunks_exact(width) {
-                if stop() {
-                    return Err(Error::Cancelled);
+        // WᵀW, Wᵀ(b − W x) and |b − W x|², one pass over the rows, the efforts delayed by δ.
+        let pass_at = |delta: f64| {
+            let model = &model;
+            move |x: &[f64]| -> Result<Normal> {
+                let (mut a, mut g) = (vec![vec![0.0; cols]; cols], vec![0.0; cols]);
+                let mut rss = 0.0;
+                for row in rows.chunks_exact(width) {
+                    if stop() {
+                        return Err(Error::Cancelled);
+                    }
+                    let (q, qd, qdd) = (&row[..n], &row[n..2 * n], &row[2 * n..3 * n]);
+                    let mut w = regressor(model, q, qd, qdd);
+                    self.joint_columns(model.parameter_count(), qd, &mut w);
+                    let u = match lags {
+                        0 => row[3 * n..].to_vec(),
+                        _ => delay::delayed(&row[3 * n..], self.m(), delta).0,
+                    };
+                    let mut r = self.input_torques(&u, gains);
+                    for (r, w) in r.iter_mut().zip(&w) {
+                        *r -= w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>();
+                    }
+                    rss += r.iter().map(|r| r * r).sum::<f64>();
+                    accumulate(&w, &r, &mut a, &mut g);
                 }
-                let (q, qd, qdd) = (&row[..n], &row[n..2 * n], &row[2 * n..3 * n]);
-                let mut w = regressor(&model, q, qd, qdd);
-                self.joint_columns(model.parameter_count(), qd, &mut w);
-                let mut r = self.input_torques(&row[3 * n..], gains);
-                for (r, w) in r.iter_mut().zip(&w) {
-                    *r -= w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>();
-                }
-                accumulate(&w, &r, &mut a, &mut g);
+                Ok((a, g, rss))
             }
-            Ok((a, g))
         };
         let bounded = PER_BODY * nb..joints;
-        let (x, rank) = bounded_solve(&pass, x_of(start), vec![false; cols], bounded.clone())?;
-        let first = self.physical_of(&x, rank, start);
+        let fit = |delta: f64, x: Vec<f64>, held: Vec<bool>| {
+            bounded_solve(&pass_at(delta), x, held, bounded.clone())
+        };
+        let delta = match self.doc.effort_delay {
+            Some(bound) if lags > 0 => {
+                let residual = |d: f64| Ok(fit(d, x_of(start), vec![false; cols])?.2);
+                delay::best_delay(bound, median_step(rows, width, n)?, &residual)?
+            }
+            _ => 0.0,
+        };
+        let (x, rank, _) = fit(delta, x_of(start), vec![false; cols])?;
+        let first = self.physical_of(&x, rank, start, delta);
         if first.projected.is_empty() {
             return Ok(first);
         }
@@ -93,9 +115,9 @@ impl UrdfTemplate {
         // shares its column with its link's inertia about a world-fixed axis, and takes what
         // the link could not).
         let held = (0..cols).map(|k| k < PER_BODY * nb).collect();
-        let (x, _) = bounded_solve(&pass, x_of(&first.physical), held, bounded)?;
+        let (x, _, _) = fit(delta, x_of(&first.physical), held)?;
         Ok(LeastSquares {
-            physical: self.physical_of(&x, rank, start).physical,
+            physical: self.physical_of(&x, rank, start, delta).physical,
             ..first
         })
     }
@@ -130,9 +152,10 @@ impl UrdfTemplate {
         b
     }
 
-    /// x = [π, armatures, damping and friction, offsets] as physical values (bodies, damping
-    /// and friction, armatures, gains as they started, offsets), each body made physical.
-    fn physical_of(&self, x: &[f64], rank: usize, start: &[f64]) -> LeastSquares {
+    /// x = [π, armatures, damping and friction, offsets] and the delay as physical values
+    /// (bodies, damping and friction, armatures, gains as they started, offsets, delay), each
+    /// body made physical.
+    fn physical_of(&self, x: &[f64], rank: usize, start: &[f64], delay: f64) -> LeastSquares {
         let nb = self.nb();
         let mut physical = Vec::with_capacity(start.len());
         let mut projected = vec![];
@@ -151,6 +174,9 @@ impl UrdfTemplate {
         physical.extend_from_slice(armature);
         physical.extend_from_slice(self.effort_gain(start));
         physical.extend_from_slice(offsets);
+        if self.doc.effort_delay.is_some() {
+            physical.push(delay);
+        }
         LeastSquares {
             physical,
             rank,
@@ -161,29 +187,41 @@ impl UrdfTemplate {
 
 /// The least-squares x from `x` moving no `held` entry, with the entries in `bounded` kept
 /// ≥ 0: a value the solve takes below 0 is held there and the rest solved again (an active
-/// set, as bounded least squares does), until none is. `pass` gives WᵀW and Wᵀ(b − W x).
+/// set, as bounded least squares does), until none is. `pass` gives the normal equations;
+/// the residual's |b − W x|² is the refinement's (within rounding of the solution's).
 fn bounded_solve(
     pass: &dyn Fn(&[f64]) -> Result<Normal>,
     mut x: Vec<f64>,
     mut held: Vec<bool>,
     bounded: std::ops::Range<usize>,
-) -> Result<(Vec<f64>, usize)> {
+) -> Result<(Vec<f64>, usize, f64)> {
     loop {
-        let (a, g) = pass(&x)?;
+        let (a, g, _) = pass(&x)?;
         let solve = Minimizer::of(&a, &held);
         x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
         // One refinement with the residual recomputed from the rows: the normal equations
         // square W's conditioning, and a second pass takes back what that lost.
-        let (_, g) = pass(&x)?;
+        let (_, g, rss) = pass(&x)?;
         x.iter_mut().zip(solve.step(&g)).for_each(|(x, d)| *x += d);
         let below: Vec<usize> = bounded.clone().filter(|&k| x[k] < 0.0).collect();
         if below.is_empty() {
-            return Ok((x, solve.rank));
+            return Ok((x, solve.rank, rss));
         }
         for k in below {
             (x[k], held[k]) = (0.0, true);
         }
     }
+}
+
+/// The median of the rows' steps (each input block's first value; the upper middle of an
+/// even count).
+fn median_step(rows: &[f64], width: usize, n: usize) -> Result<f64> {
+    let mut steps: Vec<f64> = rows.chunks_exact(width).map(|r| r[3 * n]).collect();
+    if steps.is_empty() {
+        return Err(Error::invalid("data", "no transitions to identify from"));
+    }
+    let middle = steps.len() / 2;
+    Ok(*steps.select_nth_unstable_by(middle, f64::total_cmp).1)
 }
 
 /// A += wᵀw (its upper triangle), g += wᵀr for one row block.

@@ -2,9 +2,11 @@
 //! physically consistent inertial parameters.
 
 mod base;
+pub mod delay;
 pub mod export;
 mod forces;
 pub mod frame;
+mod groups;
 pub mod least_squares;
 mod mimic;
 mod multibody;

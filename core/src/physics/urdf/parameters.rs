@@ -24,6 +24,8 @@ pub(super) struct Groups {
     pub armature: bool,
     pub effort_gain: bool,
     pub effort_offset: bool,
+    /// The bound of the efforts' delay, seconds, when the robot has one.
+    pub effort_delay: Option<f64>,
 }
 
 /// Every parameter of `tree` with the optional `groups`; `inputs` the actuated joints.
@@ -40,6 +42,7 @@ pub(super) fn params_of(tree: &Tree, groups: Groups, inputs: &[&str]) -> Vec<Par
                 default: v,
                 positive: k == 0,
                 min: None,
+                max: None,
                 fixed: false,
                 used_by: Cow::Borrowed(if k < 4 { MV } else { M }),
             });
@@ -54,6 +57,7 @@ pub(super) fn params_of(tree: &Tree, groups: Groups, inputs: &[&str]) -> Vec<Par
                 // Trained as themselves and kept ≥ 0 by projection: both often start at
                 // exactly 0, where a logarithm cannot start and a square has no gradient.
                 min: Some(0.0),
+                max: None,
                 fixed: false,
                 used_by: Cow::Borrowed(F),
             });
@@ -68,6 +72,7 @@ pub(super) fn params_of(tree: &Tree, groups: Groups, inputs: &[&str]) -> Vec<Par
                 positive: false,
                 // As damping: a rotor that is not there starts at exactly 0.
                 min: Some(0.0),
+                max: None,
                 fixed: false,
                 used_by: Cow::Borrowed(M),
             });
@@ -85,10 +90,26 @@ pub(super) fn params_of(tree: &Tree, groups: Groups, inputs: &[&str]) -> Vec<Par
                 default,
                 positive: false,
                 min,
+                max: None,
                 fixed: false,
                 used_by: Cow::Borrowed(F),
             });
         }
     }
+    if let Some(bound) = groups.effort_delay {
+        out.push(ParamInfo {
+            name: Cow::Borrowed(DELAY),
+            default: 0.0,
+            positive: false,
+            // Trained as itself within its bounds: no delay is where a log without one rests.
+            min: Some(0.0),
+            max: Some(bound),
+            fixed: false,
+            used_by: Cow::Borrowed(F),
+        });
+    }
     out
 }
+
+/// The name of a robot's effort delay (one for the robot: its log's clocks, not a joint's).
+pub const DELAY: &str = "effort_delay";

@@ -2,7 +2,7 @@
 //! term tanh(q̇/ε), given in the template document (`"coulomb_eps": 0.2`) or in the URDF
 //! file itself (`<graybox coulomb_eps="0.2"/>` under `<robot>`), so that a robot file
 //! carries what makes its friction steppable wherever it goes (a template upload, `--template
-//! arm.urdf`).
+//! arm.urdf`); and the bound of its efforts' delay (`effort_delay`, docs/robots.md#effort-delay).
 
 use super::tree::Tree;
 use crate::error::{Error, Result};
@@ -45,4 +45,24 @@ pub fn coulomb_eps(from_doc: f64, tree: &Tree) -> Result<f64> {
     }
     check_coulomb_eps(in_file)?;
     Ok(in_file)
+}
+
+/// The longest effort delay a robot may be given a bound of, seconds: a log's clocks are
+/// off by milliseconds; a second is a different signal, not a delay.
+pub const EFFORT_DELAY_MAX: f64 = 1.0;
+
+/// A delay's bound is a positive time up to `EFFORT_DELAY_MAX`.
+pub fn check_effort_delay(bound: Option<f64>) -> Result<()> {
+    match bound {
+        Some(b) if !(b.is_finite() && b > 0.0 && b <= EFFORT_DELAY_MAX) => {
+            Err(Error::Unprocessable {
+                field: "effort_delay".into(),
+                message: format!(
+                    "must be the largest delay of the efforts behind the motion, seconds in \
+                     (0, {EFFORT_DELAY_MAX}], got {b}"
+                ),
+            })
+        }
+        _ => Ok(()),
+    }
 }

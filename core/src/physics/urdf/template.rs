@@ -65,6 +65,10 @@ pub struct UrdfDoc {
     pub effort_gain: bool,
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub effort_offset: bool,
+    /// The largest delay of the efforts behind the log's motion, seconds: with it the robot
+    /// has a trainable `effort_delay` in [0, this] (docs/robots.md#effort-delay). Absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub effort_delay: Option<f64>,
 }
 
 fn default_gravity() -> [f64; 3] {
@@ -141,6 +145,7 @@ impl UrdfTemplate {
                 armature: false,
                 effort_gain: false,
                 effort_offset: false,
+                effort_delay: None,
             },
             max_dof,
         )
@@ -159,6 +164,7 @@ impl UrdfTemplate {
             return Err(bad("gravity", format!("each component {m}")));
         }
         super::settings::check_coulomb_eps(doc.coulomb_eps)?;
+        super::settings::check_effort_delay(doc.effort_delay)?;
         if let Some(m) = name_problem(&doc.name) {
             return Err(bad("name", m));
         }
@@ -262,6 +268,7 @@ impl UrdfTemplate {
             armature: doc.armature,
             effort_gain: doc.effort_gain,
             effort_offset: doc.effort_offset,
+            effort_delay: doc.effort_delay,
         };
         let params = params_of(&tree, groups, &inputs);
         let robot = tree.multibody(doc.gravity);
@@ -366,39 +373,6 @@ impl UrdfTemplate {
             m[c][c] = m[c][c].clone() + a.clone();
         }
         m
-    }
-
-    /// The optional groups after the joints' pairs, in their order: armatures (one per
-    /// coordinate), effort gains and offsets (one per input); each's start and length.
-    fn group(&self, which: usize) -> (usize, usize) {
-        let d = &self.doc;
-        let sizes = [
-            if d.armature { self.n() } else { 0 },
-            if d.effort_gain { self.m() } else { 0 },
-            if d.effort_offset { self.m() } else { 0 },
-        ];
-        let start = (PER_BODY + PER_JOINT) * self.nb() + sizes[..which].iter().sum::<usize>();
-        (start, sizes[which])
-    }
-
-    fn slice<'p, S>(&self, p: &'p [S], which: usize) -> &'p [S] {
-        let (start, len) = self.group(which);
-        &p[start.min(p.len())..][..len]
-    }
-
-    /// The armatures of physical values, one per coordinate (none when the robot has none).
-    pub fn armature<'p, S>(&self, p: &'p [S]) -> &'p [S] {
-        self.slice(p, 0)
-    }
-
-    /// The inputs' effort gains (none when the robot has none).
-    pub fn effort_gain<'p, S>(&self, p: &'p [S]) -> &'p [S] {
-        self.slice(p, 1)
-    }
-
-    /// The inputs' effort offsets (none when the robot has none).
-    pub fn effort_offset<'p, S>(&self, p: &'p [S]) -> &'p [S] {
-        self.slice(p, 2)
     }
 
     /// V(q) at physical values over any scalar: the multibody model's potential energy with
