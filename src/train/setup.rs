@@ -306,6 +306,7 @@ pub fn prepare(
     spec.check_trainable()?;
     let space = run_space(spec, cfg, (data.nq, data.nv))?;
     spec.check_dims(&space, data.m)?;
+    check_effort_lags(spec, data.dt)?;
     let physical = physical_init(spec, init)?;
     let (train_ds, val_ds) = split_data(data, val, (cfg, spec))?;
     crate::train::windows::check(&train_ds, cfg.horizon)?;
@@ -320,6 +321,27 @@ pub fn prepare(
         scaling,
     };
     Ok((config, physical, train_ds, val_ds))
+}
+
+/// A robot's effort delay spans at most `MAX_LAGS` of the data's steps: its torque rows carry
+/// that many earlier samples each (checked before any row is built).
+fn check_effort_lags(spec: &ModelSpec, dt: f64) -> Result<()> {
+    use crate::physics::urdf::delay::{MAX_LAGS, lags};
+    let Some(bound) = spec.effort_delay() else {
+        return Ok(());
+    };
+    if lags(bound, dt) <= MAX_LAGS {
+        return Ok(());
+    }
+    Err(Error::invalid(
+        "template.effort_delay",
+        format!(
+            "a bound of {bound} s spans {} of the data's {dt} s steps; it may span at most \
+             {MAX_LAGS} (a bound of {:.3e} s here): give the delay's real bound",
+            lags(bound, dt),
+            (MAX_LAGS - 1) as f64 * dt / 1.25
+        ),
+    ))
 }
 
 /// The run's configuration space for data of (nq, nv) widths: its template's when that has a

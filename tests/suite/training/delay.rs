@@ -213,3 +213,25 @@ fn the_delay_s_gradient_is_the_loss_s_slope() {
         "{predicted} vs {change}"
     );
 }
+
+/// A bound that spans more earlier samples than a row may carry is refused before any row
+/// is built, naming the document's field (a second at 100 Hz: 126 lags, over 64).
+#[test]
+fn a_delay_bound_beyond_the_rows_history_is_refused() {
+    let text = std::fs::read_to_string(common::urdf::fixture_path("double_pendulum", "urdf"));
+    let doc = serde_json::json!({"kind": "urdf", "urdf": text.unwrap(), "effort_delay": 1.0});
+    let t = Template::from_document(&doc).unwrap();
+    let train = delayed_log(&t, 1, 16, 4);
+    let spec = ModelSpec::named("W-B", Some(t)).unwrap();
+    let cfg = TrainConfig {
+        loss: Objective::TORQUE,
+        ..quick(1)
+    };
+    let e = Trainer::new("x", spec, &[], &train, None, cfg, &flex())
+        .err()
+        .unwrap();
+    assert!(
+        matches!(&e, Error::Invalid { field, .. } if field == "template.effort_delay"),
+        "{e}"
+    );
+}

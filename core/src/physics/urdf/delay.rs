@@ -18,6 +18,10 @@ pub fn lags(bound: f64, dt: f64) -> usize {
     (1.25 * bound / dt).ceil() as usize + 1
 }
 
+/// The most earlier samples a row may carry: each torque row holds (L + 1)(m + 1) values, so
+/// a bound of a second on a 10 kHz log (12 501 lags) would hold ~10⁵ values per transition.
+pub const MAX_LAGS: usize = 64;
+
 /// A row's input block's width for `m` inputs and `lags` earlier samples.
 pub fn input_width(m: usize, lags: usize) -> usize {
     match lags {
